@@ -1,0 +1,122 @@
+// The data model shared by every Horizon subsystem (I/O, clustering,
+// rendering): tractograms, triangle meshes and volumes, in RAS+ millimetres.
+#pragma once
+
+#include <hz/hz.h>
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace hz::core {
+
+// A runtime error whose message is one line, ready to print ("tck: a.tck: ...").
+struct Error : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+// A heap array that is not zero-filled on creation (decoders overwrite it),
+// so that reading 1 GB of positions does not first write 1 GB of zeros.
+template <class T>
+class Buffer {
+public:
+    Buffer() = default;
+    explicit Buffer(std::size_t n) : data_(n ? std::make_unique_for_overwrite<T[]>(n) : nullptr), size_(n) {}
+    Buffer(std::initializer_list<T> init) : Buffer(init.size()) { std::copy(init.begin(), init.end(), data_.get()); }
+    T *data() { return data_.get(); }
+    const T *data() const { return data_.get(); }
+    std::size_t size() const { return size_; }
+    bool empty() const { return size_ == 0; }
+    T &operator[](std::size_t i) { return data_[i]; }
+    const T &operator[](std::size_t i) const { return data_[i]; }
+    T *begin() { return data(); }
+    T *end() { return data() + size_; }
+    const T *begin() const { return data(); }
+    const T *end() const { return data() + size_; }
+    std::span<const T> span() const { return {data(), size_}; }
+
+private:
+    std::unique_ptr<T[]> data_;
+    std::size_t size_ = 0;
+};
+
+// Row-major 4x4 affine.
+using Affine = std::array<double, 16>;
+constexpr Affine kIdentity = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+
+std::size_t dtype_size(hz_dtype t);
+const char *dtype_name(hz_dtype t);
+
+// Extra per-vertex / per-streamline / per-face data.
+struct DataArray {
+    std::string name;
+    hz_attach attach = HZ_ATTACH_VERTEX;
+    hz_dtype dtype = HZ_DTYPE_F32;
+    std::uint32_t components = 1;
+    std::uint64_t count = 0;
+    Buffer<std::byte> bytes;  // count x components x dtype_size, C order
+};
+
+// Streamlines: positions (V x 3 float32, RAS+ mm) + offsets (N + 1, sentinel).
+struct Tractogram {
+    Buffer<float> positions;
+    Buffer<std::uint64_t> offsets{0};
+    std::vector<DataArray> arrays;
+    Affine reference = kIdentity;           // reference grid voxel -> RAS+ mm
+    std::array<std::uint64_t, 3> reference_dims{};
+
+    std::uint64_t nb_streamlines() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+    std::uint64_t nb_vertices() const { return positions.size() / 3; }
+    hz_streamlines_view view() const;
+    // Checks the invariants (offsets start at 0, non-decreasing, sentinel,
+    // finite positions); throws Error naming `what`.
+    void validate(const std::string &what) const;
+};
+
+// Triangle mesh, RAS+ mm.
+struct Mesh {
+    Buffer<float> vertices;       // nb x 3
+    Buffer<std::uint32_t> faces;  // nb x 3, 0-based
+    std::vector<DataArray> arrays;
+    std::uint64_t nb_vertices() const { return vertices.size() / 3; }
+    std::uint64_t nb_faces() const { return faces.size() / 3; }
+};
+
+// Volume with a voxel-to-RAS+ affine; x varies fastest.
+struct Volume {
+    hz_dtype dtype = HZ_DTYPE_F32;
+    std::vector<std::uint64_t> dims;
+    Buffer<std::byte> voxels;
+    double scale_slope = 1.0, scale_inter = 0.0;
+    Affine voxel_to_ras = kIdentity;
+};
+
+// One file's content, whatever its kind.
+struct Dataset {
+    hz_data_kind kind = 0;
+    std::string format;       // "tck Float32LE"
+    std::string loader_id;    // plugin that read it
+    hz_space source_space = HZ_SPACE_UNKNOWN;
+    std::vector<std::pair<std::string, std::string>> metadata;
+    Tractogram tractogram;
+    Mesh mesh;
+    Volume volume;
+};
+
+const char *kind_name(hz_data_kind k);
+const char *space_name(hz_space s);
+
+// Axis-aligned bounds in RAS+ mm of a set of xyz triples; empty -> all zero.
+struct Bounds {
+    std::array<double, 3> min{}, max{};
+    bool empty = true;
+};
+Bounds bounds_of(const float *xyz, std::uint64_t nb_points);
+
+}  // namespace hz::core

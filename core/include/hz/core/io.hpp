@@ -1,0 +1,37 @@
+// Reading and writing datasets through loader plugins.
+//
+// Loader selection follows OpenImageIO's ImageInput::create: the loader whose
+// extension matches the file name (longest suffix wins) is used when its
+// probe() confirms the first bytes (score >= 50) or when no other loader
+// claims them; otherwise every loader probes and the highest score wins.
+// Writers are chosen by extension only.
+#pragma once
+
+#include <hz/core/data.hpp>
+#include <hz/core/plugin_host.hpp>
+
+#include <string>
+#include <vector>
+
+namespace hz::core {
+
+// Lower-case extension of `path` that `loader` claims ("nii.gz"), or "".
+std::string matching_extension(const hz_loader &loader, const fs::path &path);
+
+// Picks the loader for reading `path`; throws Error naming the file.
+const LoadedPlugin &loader_for_read(const Registry &reg, const fs::path &path);
+// Picks the writer for `path` by extension; throws Error naming the file.
+const LoadedPlugin &loader_for_write(const Registry &reg, const fs::path &path);
+
+// Reads a whole file into the data model. Throws Error with a one-line message.
+Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *task = nullptr);
+
+// Writes `ds` to `path` atomically: into a temporary file in the same
+// directory, renamed over `path` on success, deleted on failure. Refuses to
+// overwrite an existing file unless `force`, and never overwrites `protect`
+// (the input). Parts the format cannot hold are appended to `dropped`.
+void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path, bool force,
+                   std::vector<std::string> *dropped, const fs::path &protect = {},
+                   const hz_task *task = nullptr);
+
+}  // namespace hz::core

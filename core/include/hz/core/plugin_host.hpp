@@ -1,0 +1,144 @@
+// Plugin discovery, isolation, loading and the registry.
+//
+// Every candidate file in a plugin directory goes through three gates:
+//   1. a static ELF check (empty, text, wrong class or CPU architecture),
+//   2. a trial load in a forked child (dlopen RTLD_NOW|RTLD_LOCAL, entry
+//      symbol, ABI major, init(), descriptors) so that a plugin that crashes,
+//      throws or hangs while loading cannot take the host down,
+//   3. the real load in this process.
+// A file failing any gate is recorded as rejected with a one-line reason.
+#pragma once
+
+#include <hz/hz.h>
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace hz::core {
+
+namespace fs = std::filesystem;
+
+// The hz_host every plugin receives: logs into spdlog ("plugin:<id>").
+const hz_host *host_services();
+
+// A task with a cancel flag and an optional progress callback.
+class Task {
+public:
+    Task();
+    const hz_task *get() const { return &task_; }
+    void cancel() { cancelled_ = true; }
+    std::function<void(double, const char *)> on_progress;
+
+private:
+    static bool HZ_ABI is_cancelled(const hz_task *t);
+    static void HZ_ABI report(const hz_task *t, double f, const char *msg);
+    hz_task task_{};
+    volatile bool cancelled_ = false;
+};
+
+// Static checks on a file before dlopen; returns the reason it cannot be a
+// plugin for this host, or nullopt.
+std::optional<std::string> elf_precheck(const fs::path &file);
+
+// Result of running a function in a forked child.
+struct ChildResult {
+    bool exited = false;     // exited normally
+    int exit_code = -1;
+    int signal = 0;          // terminating signal, 0 if none
+    bool timed_out = false;
+    std::string output;      // what the child function returned
+    std::string describe() const;  // "crashed (SIGSEGV)", "hung (> 10 s)", "exited with 3"
+};
+
+// Runs `fn` in a forked child (its stdout is redirected to stderr), returns
+// what it returned. Kills it after `timeout_s`.
+ChildResult run_in_child(const std::function<std::string()> &fn, double timeout_s);
+
+// Descriptor data copied out of a plugin.
+struct PluginInfo {
+    std::string id, name, version, vendor, description, license;
+    hz_plugin_kind kind = 0;
+    std::vector<std::string> interfaces;
+    std::string file;
+};
+const char *plugin_kind_name(hz_plugin_kind k);
+
+// One loaded library (kept resident until exit).
+class Module {
+public:
+    // Loads `file`, checks the entry and calls init(). Throws Error with a
+    // one-line reason (not naming the file; the caller does).
+    explicit Module(const fs::path &file);
+    ~Module();
+    Module(const Module &) = delete;
+    Module &operator=(const Module &) = delete;
+    const hz_plugin_entry &entry() const { return *entry_; }
+    // Descriptors, checked for mandatory fields and a resolvable core interface.
+    std::vector<PluginInfo> plugins() const;
+    const void *interface(const std::string &plugin_id, const char *iface) const;
+    void deinit();
+    const fs::path &file() const { return file_; }
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+    const hz_plugin_entry *entry_ = nullptr;
+    fs::path file_;
+    bool initialised_ = false;
+};
+
+struct LoadedPlugin {
+    PluginInfo info;
+    const void *iface = nullptr;  // the core interface table (hz_loader*, ...)
+    std::shared_ptr<Module> module;
+    const hz_loader *loader() const { return info.kind == HZ_KIND_LOADER ? static_cast<const hz_loader *>(iface) : nullptr; }
+    const hz_shader *shader() const { return info.kind == HZ_KIND_SHADER ? static_cast<const hz_shader *>(iface) : nullptr; }
+    const hz_clustering *clustering() const {
+        return info.kind == HZ_KIND_CLUSTERING ? static_cast<const hz_clustering *>(iface) : nullptr;
+    }
+};
+
+struct Rejection {
+    std::string file;
+    std::string reason;
+};
+
+// The search path, in priority order: --plugin-dir options, then
+// HORIZON_PLUGIN_PATH (':'-separated), then the per-user dir
+// ($XDG_DATA_HOME or ~/.local/share)/horizon/plugins, then the bundled dir
+// <exe>/../lib/horizon/plugins. Missing directories are kept (reported).
+std::vector<fs::path> plugin_search_path(const std::vector<fs::path> &cli_dirs);
+fs::path executable_path();
+
+class Registry {
+public:
+    struct Options {
+        bool isolate = true;       // trial-load every file in a child first
+        double timeout_s = 10.0;   // per trial load
+    };
+    Registry() = default;
+    explicit Registry(Options o) : options_(o) {}
+
+    // Scans `dirs` in order; the first plugin with a given id wins.
+    void scan(const std::vector<fs::path> &dirs);
+    // Loads one file (used by scan and by tests).
+    void add_file(const fs::path &file);
+
+    const std::vector<LoadedPlugin> &plugins() const { return plugins_; }
+    const std::vector<Rejection> &rejected() const { return rejected_; }
+    const std::vector<fs::path> &searched() const { return searched_; }
+    const LoadedPlugin *find(const std::string &id) const;
+    std::vector<const LoadedPlugin *> of_kind(hz_plugin_kind k) const;
+
+private:
+    Options options_;
+    std::vector<LoadedPlugin> plugins_;
+    std::vector<Rejection> rejected_;
+    std::vector<fs::path> searched_;
+};
+
+}  // namespace hz::core

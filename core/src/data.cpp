@@ -1,0 +1,96 @@
+#include <hz/core/data.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace hz::core {
+
+std::size_t dtype_size(hz_dtype t) {
+    switch (t) {
+    case HZ_DTYPE_U8: case HZ_DTYPE_I8: return 1;
+    case HZ_DTYPE_U16: case HZ_DTYPE_I16: case HZ_DTYPE_F16: return 2;
+    case HZ_DTYPE_U32: case HZ_DTYPE_I32: case HZ_DTYPE_F32: return 4;
+    case HZ_DTYPE_U64: case HZ_DTYPE_I64: case HZ_DTYPE_F64: return 8;
+    case HZ_DTYPE_RGB8: return 3;
+    case HZ_DTYPE_RGBA8: return 4;
+    default: return 0;
+    }
+}
+
+const char *dtype_name(hz_dtype t) {
+    switch (t) {
+    case HZ_DTYPE_U8: return "uint8";
+    case HZ_DTYPE_I8: return "int8";
+    case HZ_DTYPE_U16: return "uint16";
+    case HZ_DTYPE_I16: return "int16";
+    case HZ_DTYPE_U32: return "uint32";
+    case HZ_DTYPE_I32: return "int32";
+    case HZ_DTYPE_U64: return "uint64";
+    case HZ_DTYPE_I64: return "int64";
+    case HZ_DTYPE_F16: return "float16";
+    case HZ_DTYPE_F32: return "float32";
+    case HZ_DTYPE_F64: return "float64";
+    case HZ_DTYPE_RGB8: return "rgb8";
+    case HZ_DTYPE_RGBA8: return "rgba8";
+    default: return "unknown";
+    }
+}
+
+const char *kind_name(hz_data_kind k) {
+    switch (k) {
+    case HZ_DATA_STREAMLINES: return "streamlines";
+    case HZ_DATA_VOLUME: return "volume";
+    case HZ_DATA_MESH: return "mesh";
+    default: return "unknown";
+    }
+}
+
+const char *space_name(hz_space s) {
+    switch (s) {
+    case HZ_SPACE_RASMM: return "rasmm";
+    case HZ_SPACE_VOXMM: return "voxmm";
+    case HZ_SPACE_VOXEL: return "voxel";
+    case HZ_SPACE_SURFACE_RAS: return "surface-ras";
+    default: return "unknown";
+    }
+}
+
+hz_streamlines_view Tractogram::view() const {
+    hz_streamlines_view v{};
+    v.struct_size = sizeof v;
+    v.positions = positions.data();
+    v.nb_vertices = nb_vertices();
+    v.offsets = offsets.data();
+    v.nb_streamlines = nb_streamlines();
+    return v;
+}
+
+void Tractogram::validate(const std::string &what) const {
+    if (positions.size() % 3 != 0) throw Error(what + ": positions are not xyz triples");
+    if (offsets.empty() || offsets[0] != 0) throw Error(what + ": offsets must start at 0");
+    for (std::size_t i = 1; i < offsets.size(); ++i)
+        if (offsets[i] < offsets[i - 1])
+            throw Error(what + ": offsets decrease at streamline " + std::to_string(i - 1));
+    if (offsets[offsets.size() - 1] != nb_vertices())
+        throw Error(what + ": final offset " + std::to_string(offsets[offsets.size() - 1]) + " != " +
+                    std::to_string(nb_vertices()) + " vertices");
+    for (std::size_t i = 0; i < positions.size(); ++i)
+        if (!std::isfinite(positions[i]))
+            throw Error(what + ": non-finite coordinate at vertex " + std::to_string(i / 3));
+}
+
+Bounds bounds_of(const float *xyz, std::uint64_t n) {
+    Bounds b;
+    if (n == 0) return b;
+    b.empty = false;
+    for (int d = 0; d < 3; ++d) b.min[d] = b.max[d] = xyz[d];
+    for (std::uint64_t i = 0; i < n; ++i)
+        for (int d = 0; d < 3; ++d) {
+            const double v = xyz[3 * i + d];
+            b.min[d] = std::min(b.min[d], v);
+            b.max[d] = std::max(b.max[d], v);
+        }
+    return b;
+}
+
+}  // namespace hz::core

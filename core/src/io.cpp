@@ -1,0 +1,281 @@
+#include <hz/core/io.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <unistd.h>
+
+namespace hz::core {
+
+namespace {
+
+std::string lower(std::string s) {
+    std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return s;
+}
+
+// RAII for a reader.
+struct ReaderGuard {
+    const hz_loader *l;
+    hz_reader *r = nullptr;
+    ~ReaderGuard() {
+        if (r != nullptr) l->close(r);
+    }
+};
+
+hz_error make_error() {
+    hz_error e{};
+    e.struct_size = sizeof e;
+    return e;
+}
+
+// Formats a plugin failure; plugins name the file themselves, but make sure.
+std::string failure(const hz_error &e, hz_status st, const fs::path &path, const char *what) {
+    std::string msg = e.message[0] ? e.message : (std::string(what) + " failed with status " + std::to_string(st));
+    if (msg.find(path.string()) == std::string::npos) msg = path.string() + ": " + msg;
+    return msg;
+}
+
+std::vector<unsigned char> read_head(const fs::path &path, std::size_t n) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error(path.string() + ": cannot open: " + std::strerror(errno));
+    std::vector<unsigned char> buf(n);
+    in.read(reinterpret_cast<char *>(buf.data()), static_cast<std::streamsize>(n));
+    buf.resize(static_cast<std::size_t>(in.gcount()));
+    return buf;
+}
+
+}  // namespace
+
+std::string matching_extension(const hz_loader &loader, const fs::path &path) {
+    const std::string name = lower(path.filename().string());
+    std::string best;
+    for (const char *const *e = loader.extensions; e != nullptr && *e != nullptr; ++e) {
+        const std::string ext = std::string(".") + *e;
+        if (name.size() > ext.size() && name.compare(name.size() - ext.size(), ext.size(), ext) == 0 && ext.size() - 1 > best.size())
+            best = *e;
+    }
+    return best;
+}
+
+const LoadedPlugin &loader_for_read(const Registry &reg, const fs::path &path) {
+    std::error_code ec;
+    if (!fs::exists(path, ec)) throw Error(path.string() + ": no such file");
+    if (fs::is_directory(path, ec)) {
+        // Directory formats (TRX) are claimed by extension only.
+    } else if (!fs::is_regular_file(path, ec)) {
+        throw Error(path.string() + ": not a regular file");
+    }
+    const auto loaders = reg.of_kind(HZ_KIND_LOADER);
+    const LoadedPlugin *by_ext = nullptr;
+    std::size_t best_len = 0;
+    std::uint32_t probe_bytes = 0;
+    for (const auto *p : loaders) {
+        const hz_loader *l = p->loader();
+        if (!(l->caps & HZ_LOADER_CAN_READ)) continue;
+        probe_bytes = std::max(probe_bytes, std::min<std::uint32_t>(l->probe_bytes, 65536));
+        const std::string ext = matching_extension(*l, path);
+        if (!ext.empty() && ext.size() > best_len) {
+            by_ext = p;
+            best_len = ext.size();
+        }
+    }
+    std::vector<unsigned char> head;
+    if (!fs::is_directory(path, ec)) head = read_head(path, std::max<std::uint32_t>(probe_bytes, 16));
+    const std::string hint = path.filename().string();
+    auto score = [&](const LoadedPlugin *p) {
+        const hz_loader *l = p->loader();
+        if (l->probe == nullptr) return 0;
+        return l->probe(head.data(), head.size(), hint.c_str());
+    };
+    if (by_ext != nullptr && score(by_ext) >= 50) return *by_ext;
+    const LoadedPlugin *best = nullptr;
+    int best_score = 49;
+    for (const auto *p : loaders) {
+        if (p == by_ext || !(p->loader()->caps & HZ_LOADER_CAN_READ)) continue;
+        const int s = score(p);
+        if (s > best_score) {
+            best = p;
+            best_score = s;
+        }
+    }
+    if (best != nullptr) return *best;
+    // Let the extension's loader explain what is wrong with the file.
+    if (by_ext != nullptr) return *by_ext;
+    throw Error(path.string() + ": no loader recognises this file (" + std::to_string(loaders.size()) +
+                " loaders tried; see `horizon plugins`)");
+}
+
+const LoadedPlugin &loader_for_write(const Registry &reg, const fs::path &path) {
+    const LoadedPlugin *best = nullptr;
+    std::size_t best_len = 0;
+    for (const auto *p : reg.of_kind(HZ_KIND_LOADER)) {
+        const hz_loader *l = p->loader();
+        if (!(l->caps & HZ_LOADER_CAN_WRITE) || l->write == nullptr) continue;
+        const std::string ext = matching_extension(*l, path);
+        if (!ext.empty() && ext.size() > best_len) {
+            best = p;
+            best_len = ext.size();
+        }
+    }
+    if (best == nullptr)
+        throw Error(path.string() + ": no writer for extension '" + path.extension().string() + "' (see `horizon plugins`)");
+    return *best;
+}
+
+Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *task) {
+    const LoadedPlugin &p = loader_for_read(reg, path);
+    const hz_loader *l = p.loader();
+    if (l->open == nullptr || l->get_info == nullptr) throw Error(path.string() + ": loader " + p.info.id + " cannot read");
+    hz_error err = make_error();
+    ReaderGuard g{l};
+    hz_open_request req{};
+    req.struct_size = sizeof req;
+    const std::string spath = path.string();
+    req.path = spath.c_str();
+    hz_status st = l->open(&req, &g.r, &err);
+    if (st != HZ_OK || g.r == nullptr) throw Error(failure(err, st, path, "open"));
+    hz_dataset_info info{};
+    info.struct_size = sizeof info;
+    st = l->get_info(g.r, &info, &err);
+    if (st != HZ_OK) throw Error(failure(err, st, path, "get_info"));
+
+    Dataset ds;
+    ds.kind = info.kind;
+    ds.format.assign(info.format, strnlen(info.format, sizeof info.format));
+    ds.loader_id = p.info.id;
+    ds.source_space = info.source_space;
+    if (l->visit_metadata != nullptr) {
+        l->visit_metadata(
+            g.r,
+            [](void *ctx, const char *k, const char *v) {
+                static_cast<Dataset *>(ctx)->metadata.emplace_back(k ? k : "", v ? v : "");
+            },
+            &ds, &err);
+    }
+
+    if (info.kind == HZ_DATA_STREAMLINES) {
+        if (l->read_streamlines == nullptr) throw Error(path.string() + ": loader " + p.info.id + " has no read_streamlines");
+        Tractogram &t = ds.tractogram;
+        std::copy(std::begin(info.voxel_to_ras), std::end(info.voxel_to_ras), t.reference.begin());
+        std::copy(std::begin(info.ref_dims), std::end(info.ref_dims), t.reference_dims.begin());
+        // Loaders validate declared sizes against the file before reporting them.
+        t.positions = Buffer<float>(3 * info.nb_vertices);
+        t.offsets = Buffer<std::uint64_t>(info.nb_streamlines + 1);
+        hz_streamlines_dst dst{};
+        dst.struct_size = sizeof dst;
+        dst.positions = t.positions.data();
+        dst.positions_capacity = t.positions.size();
+        dst.offsets = t.offsets.data();
+        dst.offsets_capacity = t.offsets.size();
+        st = l->read_streamlines(g.r, &dst, task, &err);
+        if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines"));
+        t.validate(path.string());
+        for (uint32_t i = 0; i < info.nb_arrays; ++i) {
+            hz_array_info ai{};
+            ai.struct_size = sizeof ai;
+            st = l->get_array_info(g.r, i, &ai, &err);
+            if (st != HZ_OK) throw Error(failure(err, st, path, "get_array_info"));
+            DataArray a;
+            a.name = ai.name ? ai.name : "";
+            a.attach = ai.attach;
+            a.dtype = ai.dtype;
+            a.components = ai.components;
+            a.count = ai.count;
+            const std::size_t es = dtype_size(ai.dtype);
+            a.bytes = Buffer<std::byte>(ai.count * ai.components * es);
+            hz_array_view v{};
+            v.struct_size = sizeof v;
+            v.dtype = ai.dtype;
+            v.data = a.bytes.data();
+            v.capacity_bytes = a.bytes.size();
+            v.ndim = 2;
+            v.shape[0] = ai.count;
+            v.shape[1] = ai.components;
+            v.stride_bytes[0] = static_cast<int64_t>(ai.components * es);
+            v.stride_bytes[1] = static_cast<int64_t>(es);
+            st = l->read_array ? l->read_array(g.r, i, &v, task, &err) : HZ_E_UNSUPPORTED;
+            if (st != HZ_OK) throw Error(failure(err, st, path, "read_array"));
+            t.arrays.push_back(std::move(a));
+        }
+    } else {
+        throw Error(path.string() + ": " + kind_name(info.kind) + " data is not supported by this build of the host yet");
+    }
+    return ds;
+}
+
+void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path, bool force,
+                   std::vector<std::string> *dropped, const fs::path &protect, const hz_task *task) {
+    std::error_code ec;
+    if (!protect.empty() && fs::exists(path, ec) && fs::equivalent(path, protect, ec))
+        throw Error(path.string() + ": refusing to overwrite the input file");
+    if (fs::exists(path, ec) && !force) throw Error(path.string() + ": already exists (use --force to replace it)");
+    if (fs::is_directory(path, ec)) throw Error(path.string() + ": is a directory");
+    const LoadedPlugin &p = loader_for_write(reg, path);
+    const hz_loader *l = p.loader();
+    if (!(l->data_kinds & ds.kind))
+        throw Error(path.string() + ": " + p.info.name + " cannot hold " + kind_name(ds.kind) + " data");
+
+    const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+    if (!fs::is_directory(dir, ec)) throw Error(path.string() + ": directory " + dir.string() + " does not exist");
+    std::random_device rd;
+    const fs::path tmp = dir / ("." + path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rd() % 1000000));
+
+    std::vector<hz_metadata_entry> meta;
+    for (const auto &[k, v] : ds.metadata) meta.push_back({k.c_str(), v.c_str()});
+    std::vector<hz_named_array> arrays;
+    const std::vector<DataArray> &src_arrays = ds.kind == HZ_DATA_MESH ? ds.mesh.arrays : ds.tractogram.arrays;
+    for (const auto &a : src_arrays) {
+        hz_named_array na{};
+        na.struct_size = sizeof na;
+        na.attach = a.attach;
+        na.name = a.name.c_str();
+        na.dtype = a.dtype;
+        na.components = a.components;
+        na.count = a.count;
+        na.data = a.bytes.data();
+        arrays.push_back(na);
+    }
+    hz_dataset_view view{};
+    view.struct_size = sizeof view;
+    view.kind = ds.kind;
+    if (ds.kind == HZ_DATA_STREAMLINES) {
+        view.streamlines = ds.tractogram.view();
+        std::copy(ds.tractogram.reference.begin(), ds.tractogram.reference.end(), view.voxel_to_ras);
+        std::copy(ds.tractogram.reference_dims.begin(), ds.tractogram.reference_dims.end(), view.ref_dims);
+    }
+    view.nb_arrays = static_cast<uint32_t>(arrays.size());
+    view.arrays = arrays.data();
+    view.nb_metadata = static_cast<uint32_t>(meta.size());
+    view.metadata = meta.data();
+
+    const std::string stmp = tmp.string();
+    const std::string ext = matching_extension(*l, path);
+    hz_write_request req{};
+    req.struct_size = sizeof req;
+    req.path = stmp.c_str();
+    req.extension = ext.c_str();
+    req.on_dropped = [](void *ctx, const char *what) {
+        if (ctx != nullptr && what != nullptr) static_cast<std::vector<std::string> *>(ctx)->emplace_back(what);
+    };
+    std::vector<std::string> local_dropped;
+    req.ctx = dropped != nullptr ? dropped : &local_dropped;
+    hz_error err = make_error();
+    const hz_status st = l->write(&req, &view, task, &err);
+    if (st != HZ_OK) {
+        fs::remove_all(tmp, ec);
+        std::string msg = err.message[0] ? err.message : ("write failed with status " + std::to_string(st));
+        // Report the user's target, not our temporary name.
+        for (auto pos = msg.find(stmp); pos != std::string::npos; pos = msg.find(stmp)) msg.replace(pos, stmp.size(), path.string());
+        if (msg.find(path.string()) == std::string::npos) msg = path.string() + ": " + msg;
+        throw Error(msg);
+    }
+    fs::rename(tmp, path, ec);
+    if (ec) {
+        fs::remove_all(tmp, ec);
+        throw Error(path.string() + ": cannot rename the temporary file into place: " + ec.message());
+    }
+}
+
+}  // namespace hz::core

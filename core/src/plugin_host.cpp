@@ -1,0 +1,453 @@
+#include <hz/core/data.hpp>
+#include <hz/core/plugin_host.hpp>
+
+#include <boost/dll/shared_library.hpp>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <elf.h>
+#include <fcntl.h>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <poll.h>
+#include <regex>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace hz::core {
+
+// ------------------------------------------------------------ host services
+
+namespace {
+
+void HZ_ABI host_log(const hz_host *, const char *plugin_id, hz_log_level lvl, const char *msg) {
+    static std::mutex m;
+    static std::map<std::string, std::shared_ptr<spdlog::logger>> loggers;
+    std::shared_ptr<spdlog::logger> logger;
+    {
+        std::lock_guard lock(m);
+        const std::string name = std::string("plugin:") + (plugin_id ? plugin_id : "?");
+        auto &slot = loggers[name];
+        if (!slot) slot = spdlog::default_logger()->clone(name);
+        logger = slot;
+    }
+    const spdlog::level::level_enum levels[] = {spdlog::level::trace, spdlog::level::debug, spdlog::level::info,
+                                                spdlog::level::warn,  spdlog::level::err,   spdlog::level::critical};
+    logger->log(levels[std::clamp(lvl, 0, 5)], "{}", msg ? msg : "");
+}
+
+const void *HZ_ABI host_get_extension(const hz_host *, const char *) { return nullptr; }
+
+const hz_host kHost = {
+    sizeof(hz_host), HZ_ABI_VERSION_INIT, nullptr, "horizon", "0.1.0", host_log, host_get_extension,
+};
+
+}  // namespace
+
+const hz_host *host_services() { return &kHost; }
+
+Task::Task() {
+    task_.struct_size = sizeof task_;
+    task_.task_data = this;
+    task_.is_cancelled = &Task::is_cancelled;
+    task_.report = &Task::report;
+}
+bool HZ_ABI Task::is_cancelled(const hz_task *t) { return static_cast<Task *>(t->task_data)->cancelled_; }
+void HZ_ABI Task::report(const hz_task *t, double f, const char *msg) {
+    auto *self = static_cast<Task *>(t->task_data);
+    if (self->on_progress) self->on_progress(f, msg);
+}
+
+// ---------------------------------------------------------------- ELF check
+
+namespace {
+const char *machine_name(unsigned m) {
+    switch (m) {
+    case EM_X86_64: return "x86-64";
+    case EM_386: return "i386";
+    case EM_AARCH64: return "AArch64";
+    case EM_ARM: return "ARM";
+    case EM_RISCV: return "RISC-V";
+    case EM_PPC64: return "PowerPC64";
+    case EM_S390: return "s390";
+    default: return nullptr;
+    }
+}
+#if defined(__x86_64__)
+constexpr unsigned kHostMachine = EM_X86_64;
+#elif defined(__aarch64__)
+constexpr unsigned kHostMachine = EM_AARCH64;
+#else
+constexpr unsigned kHostMachine = 0;
+#endif
+}  // namespace
+
+std::optional<std::string> elf_precheck(const fs::path &file) {
+    std::error_code ec;
+    if (!fs::is_regular_file(file, ec)) return "not a regular file";
+    const auto size = fs::file_size(file, ec);
+    if (ec) return "cannot stat: " + ec.message();
+    if (size == 0) return "empty file (0 bytes), not a shared object";
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return std::string("cannot open: ") + std::strerror(errno);
+    unsigned char h[sizeof(Elf64_Ehdr)] = {};
+    in.read(reinterpret_cast<char *>(h), sizeof h);
+    const auto got = static_cast<std::size_t>(in.gcount());
+    if (got < 4 || std::memcmp(h, ELFMAG, SELFMAG) != 0) {
+        const bool text = std::all_of(h, h + got, [](unsigned char c) { return c == '\n' || c == '\r' || c == '\t' || (c >= 32 && c < 127); });
+        return text ? "a text file, not a shared object (no ELF header)"
+                    : "not a shared object (no ELF magic: random or foreign bytes)";
+    }
+    if (got < sizeof(Elf64_Ehdr)) return "truncated ELF header";
+    if (h[EI_CLASS] != ELFCLASS64) return "32-bit ELF object; this host needs 64-bit plugins";
+    if (h[EI_DATA] != ELFDATA2LSB) return "big-endian ELF object; this host is little-endian";
+    Elf64_Ehdr eh;
+    std::memcpy(&eh, h, sizeof eh);
+    if (kHostMachine != 0 && eh.e_machine != kHostMachine) {
+        const char *m = machine_name(eh.e_machine);
+        return std::string("built for another CPU architecture (") + (m ? m : ("e_machine " + std::to_string(eh.e_machine)).c_str()) +
+               "); this host is " + machine_name(kHostMachine);
+    }
+    if (eh.e_type != ET_DYN) return "an ELF file but not a shared object (e_type " + std::to_string(eh.e_type) + ")";
+    return std::nullopt;
+}
+
+// --------------------------------------------------------------- children
+
+std::string ChildResult::describe() const {
+    if (timed_out) return "hung (killed after the time limit)";
+    if (signal != 0) {
+        const char *name = sigabbrev_np(signal);
+        return std::string("crashed (signal SIG") + (name ? name : std::to_string(signal).c_str()) + ")";
+    }
+    if (exited && exit_code != 0) return "exited with status " + std::to_string(exit_code);
+    return "ok";
+}
+
+ChildResult run_in_child(const std::function<std::string()> &fn, double timeout_s) {
+    ChildResult r;
+    int fds[2];
+    if (::pipe2(fds, O_CLOEXEC) != 0) throw Error(std::string("pipe: ") + std::strerror(errno));
+    std::fflush(stdout);
+    std::fflush(stderr);
+    const pid_t pid = ::fork();
+    if (pid < 0) throw Error(std::string("fork: ") + std::strerror(errno));
+    if (pid == 0) {
+        ::close(fds[0]);
+        ::dup2(2, 1);  // keep the parent's stdout clean (JSON output)
+        std::string out;
+        try {
+            out = fn();
+        } catch (...) {
+            out = "";
+            std::fflush(nullptr);
+            ::_exit(3);
+        }
+        const char *p = out.data();
+        std::size_t left = out.size();
+        while (left > 0) {
+            const ssize_t w = ::write(fds[1], p, left);
+            if (w <= 0) break;
+            p += w;
+            left -= static_cast<std::size_t>(w);
+        }
+        std::fflush(nullptr);
+        ::_exit(0);
+    }
+    ::close(fds[1]);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    char buf[65536];
+    for (;;) {
+        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
+        if (left <= 0) {
+            r.timed_out = true;
+            ::kill(pid, SIGKILL);
+            break;
+        }
+        pollfd pfd{fds[0], POLLIN, 0};
+        const int pr = ::poll(&pfd, 1, static_cast<int>(std::min<long long>(left, 1000)));
+        if (pr < 0 && errno == EINTR) continue;
+        if (pr == 0) continue;
+        const ssize_t n = ::read(fds[0], buf, sizeof buf);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) break;  // EOF: child done or died
+        r.output.append(buf, static_cast<std::size_t>(n));
+    }
+    ::close(fds[0]);
+    int status = 0;
+    if (!r.timed_out) {
+        // The pipe closed; give the child the rest of the deadline to exit.
+        for (;;) {
+            const pid_t w = ::waitpid(pid, &status, WNOHANG);
+            if (w == pid) break;
+            if (std::chrono::steady_clock::now() > deadline) {
+                r.timed_out = true;
+                ::kill(pid, SIGKILL);
+                ::waitpid(pid, &status, 0);
+                break;
+            }
+            ::usleep(1000);
+        }
+    } else {
+        ::waitpid(pid, &status, 0);
+    }
+    if (!r.timed_out) {
+        if (WIFEXITED(status)) {
+            r.exited = true;
+            r.exit_code = WEXITSTATUS(status);
+        } else if (WIFSIGNALED(status)) {
+            r.signal = WTERMSIG(status);
+        }
+    }
+    return r;
+}
+
+// ------------------------------------------------------------------ module
+
+const char *plugin_kind_name(hz_plugin_kind k) {
+    switch (k) {
+    case HZ_KIND_LOADER: return "loader";
+    case HZ_KIND_SHADER: return "shader";
+    case HZ_KIND_CLUSTERING: return "clustering";
+    default: return "unknown";
+    }
+}
+
+struct Module::Impl {
+    boost::dll::shared_library lib;
+};
+
+namespace {
+const char *core_interface(hz_plugin_kind k) {
+    switch (k) {
+    case HZ_KIND_LOADER: return HZ_INTERFACE_LOADER;
+    case HZ_KIND_SHADER: return HZ_INTERFACE_SHADER;
+    case HZ_KIND_CLUSTERING: return HZ_INTERFACE_CLUSTERING;
+    default: return nullptr;
+    }
+}
+std::size_t core_interface_min_size(hz_plugin_kind k) {
+    switch (k) {
+    case HZ_KIND_LOADER: return sizeof(hz_loader);
+    case HZ_KIND_SHADER: return sizeof(hz_shader);
+    case HZ_KIND_CLUSTERING: return sizeof(hz_clustering);
+    default: return 0;
+    }
+}
+std::string first_line(std::string s) {
+    const auto nl = s.find('\n');
+    if (nl != std::string::npos) s.resize(nl);
+    return s;
+}
+}  // namespace
+
+Module::Module(const fs::path &file) : impl_(std::make_unique<Impl>()), file_(fs::absolute(file)) {
+    namespace dll = boost::dll;
+    try {
+        impl_->lib.load(file_, dll::load_mode::rtld_now | dll::load_mode::rtld_local);
+    } catch (const std::exception &e) {
+        // Boost appends a stale strerror; the dlerror part comes first.
+        std::string m = first_line(e.what());
+        const auto cut = m.find(": Bad file descriptor");
+        if (cut != std::string::npos) m.resize(cut);
+        throw Error("dlopen failed: " + m);
+    }
+    if (!impl_->lib.has(HZ_PLUGIN_ENTRY_SYMBOL)) {
+        for (int major = 0; major < 16; ++major) {
+            const std::string sym = "hz_plugin_entry_v" + std::to_string(major);
+            if (major != HZ_ABI_VERSION_MAJOR && impl_->lib.has(sym))
+                throw Error("built for Horizon plugin ABI " + std::to_string(major) + " (exports " + sym +
+                            "); this host supports ABI " + std::to_string(HZ_ABI_VERSION_MAJOR));
+        }
+        throw Error("not a Horizon plugin: no '" HZ_PLUGIN_ENTRY_SYMBOL "' symbol exported");
+    }
+    entry_ = &impl_->lib.get<const hz_plugin_entry>(HZ_PLUGIN_ENTRY_SYMBOL);
+    const hz_plugin_entry &e = *entry_;
+    if (e.struct_size < HZ_PLUGIN_ENTRY_MIN_SIZE)
+        throw Error("entry struct_size " + std::to_string(e.struct_size) + " < " + std::to_string(HZ_PLUGIN_ENTRY_MIN_SIZE) +
+                    " (corrupt entry or pre-1.0 SDK)");
+    if (e.abi.major != HZ_ABI_VERSION_MAJOR)
+        throw Error("built for Horizon plugin ABI " + std::to_string(e.abi.major) + "." + std::to_string(e.abi.minor) +
+                    "; this host supports ABI " + std::to_string(HZ_ABI_VERSION_MAJOR) + ".x");
+    if (!e.init || !e.deinit || !e.get_plugin_count || !e.get_plugin_descriptor || !e.get_interface)
+        throw Error("entry has a NULL function pointer");
+    bool ok = false;
+    try {
+        ok = e.init(host_services(), file_.c_str());
+    } catch (...) {
+        throw Error("init() threw a C++ exception (exceptions must not cross the ABI)");
+    }
+    if (!ok) throw Error("init() returned false (the plugin refused to load; see its log)");
+    initialised_ = true;
+}
+
+Module::~Module() {
+    // Libraries stay resident (boost unloads on destruction only if we let it):
+    // plugins may have registered atexit handlers or thread-locals.
+    if (impl_) {
+        deinit();
+        (void)new boost::dll::shared_library(std::move(impl_->lib));  // intentionally leaked: keep resident
+    }
+}
+
+void Module::deinit() {
+    if (initialised_) {
+        initialised_ = false;
+        entry_->deinit();
+    }
+}
+
+std::vector<PluginInfo> Module::plugins() const {
+    static const std::regex id_re("^[a-z0-9][a-z0-9._-]*$");
+    std::vector<PluginInfo> out;
+    const uint32_t n = entry_->get_plugin_count();
+    if (n == 0) throw Error("get_plugin_count() returned 0");
+    if (n > 1024) throw Error("get_plugin_count() returned " + std::to_string(n) + " (absurd)");
+    for (uint32_t i = 0; i < n; ++i) {
+        const hz_plugin_descriptor *d = entry_->get_plugin_descriptor(i);
+        const std::string at = "descriptor " + std::to_string(i);
+        if (d == nullptr) throw Error(at + " is NULL");
+        if (d->struct_size < sizeof(hz_plugin_descriptor)) throw Error(at + ": struct_size too small");
+        if (d->abi.major != HZ_ABI_VERSION_MAJOR) throw Error(at + ": built for ABI " + std::to_string(d->abi.major));
+        if (!d->id || !*d->id) throw Error(at + ": missing id");
+        if (!std::regex_match(d->id, id_re)) throw Error(at + ": id '" + std::string(d->id) + "' is not [a-z0-9._-]+");
+        if (!d->name || !*d->name) throw Error(at + " (" + d->id + "): missing name");
+        if (!d->version || !*d->version) throw Error(at + " (" + d->id + "): missing version");
+        const char *ci = core_interface(d->kind);
+        if (ci == nullptr) throw Error(std::string(d->id) + ": unknown kind " + std::to_string(d->kind));
+        if (d->interfaces == nullptr) throw Error(std::string(d->id) + ": interfaces list is NULL");
+        PluginInfo p;
+        p.id = d->id;
+        p.name = d->name;
+        p.version = d->version;
+        p.vendor = d->vendor ? d->vendor : "";
+        p.description = d->description ? d->description : "";
+        p.license = d->license ? d->license : "";
+        p.kind = d->kind;
+        p.file = file_.string();
+        for (const char *const *it = d->interfaces; *it != nullptr && p.interfaces.size() < 64; ++it) p.interfaces.emplace_back(*it);
+        if (std::find(p.interfaces.begin(), p.interfaces.end(), ci) == p.interfaces.end())
+            throw Error(p.id + ": kind " + plugin_kind_name(d->kind) + " but '" + ci + "' not in its interfaces");
+        const void *t = entry_->get_interface(d->id, ci);
+        if (t == nullptr) throw Error(p.id + ": get_interface(\"" + ci + "\") returned NULL");
+        const auto size = *static_cast<const uint32_t *>(t);
+        if (size < core_interface_min_size(d->kind))
+            throw Error(p.id + ": '" + ci + "' table struct_size " + std::to_string(size) + " < " +
+                        std::to_string(core_interface_min_size(d->kind)));
+        out.push_back(std::move(p));
+    }
+    return out;
+}
+
+const void *Module::interface(const std::string &plugin_id, const char *iface) const {
+    return entry_->get_interface(plugin_id.c_str(), iface);
+}
+
+// ---------------------------------------------------------------- registry
+
+fs::path executable_path() {
+    std::error_code ec;
+    auto p = fs::read_symlink("/proc/self/exe", ec);
+    return ec ? fs::path() : p;
+}
+
+std::vector<fs::path> plugin_search_path(const std::vector<fs::path> &cli_dirs) {
+    std::vector<fs::path> dirs(cli_dirs.begin(), cli_dirs.end());
+    if (const char *env = std::getenv("HORIZON_PLUGIN_PATH"); env && *env) {
+        std::string s(env);
+        std::size_t start = 0;
+        while (start <= s.size()) {
+            const auto colon = s.find(':', start);
+            const std::string part = s.substr(start, colon == std::string::npos ? std::string::npos : colon - start);
+            if (!part.empty()) dirs.emplace_back(part);
+            if (colon == std::string::npos) break;
+            start = colon + 1;
+        }
+    }
+    if (const char *xdg = std::getenv("XDG_DATA_HOME"); xdg && *xdg)
+        dirs.push_back(fs::path(xdg) / "horizon" / "plugins");
+    else if (const char *home = std::getenv("HOME"); home && *home)
+        dirs.push_back(fs::path(home) / ".local" / "share" / "horizon" / "plugins");
+    const auto exe = executable_path();
+    if (!exe.empty()) dirs.push_back(exe.parent_path().parent_path() / "lib" / "horizon" / "plugins");
+    return dirs;
+}
+
+void Registry::scan(const std::vector<fs::path> &dirs) {
+    for (const auto &dir : dirs) {
+        searched_.push_back(dir);
+        std::error_code ec;
+        if (!fs::is_directory(dir, ec)) continue;
+        std::vector<fs::path> files;
+        for (const auto &de : fs::directory_iterator(dir, fs::directory_options::skip_permission_denied, ec))
+            if (de.is_regular_file(ec) || de.is_symlink(ec)) files.push_back(de.path());
+        std::sort(files.begin(), files.end());
+        for (const auto &f : files) add_file(f);
+    }
+}
+
+void Registry::add_file(const fs::path &file) {
+    const std::string name = file.string();
+    auto reject = [&](const std::string &why) {
+        rejected_.push_back({name, why});
+        spdlog::debug("plugin {} rejected: {}", name, why);
+    };
+    if (auto why = elf_precheck(file)) return reject(*why);
+
+    if (options_.isolate) {
+        const ChildResult r = run_in_child(
+            [&]() -> std::string {
+                try {
+                    Module m(file);
+                    auto ps = m.plugins();
+                    m.deinit();
+                    return nlohmann::json{{"ok", true}, {"count", ps.size()}}.dump();
+                } catch (const std::exception &e) {
+                    return nlohmann::json{{"ok", false}, {"reason", e.what()}}.dump();
+                }
+            },
+            options_.timeout_s);
+        if (r.timed_out) return reject("hung while loading or in init() (killed after " + std::to_string(int(options_.timeout_s)) + " s)");
+        if (r.signal != 0) return reject(r.describe() + " while loading or in init()");
+        nlohmann::json j = nlohmann::json::parse(r.output, nullptr, false);
+        if (j.is_discarded() || !j.contains("ok")) return reject("trial load " + r.describe() + " without a report");
+        if (!j["ok"].get<bool>()) return reject(j["reason"].get<std::string>());
+    }
+    try {
+        auto module = std::make_shared<Module>(file);
+        for (auto &p : module->plugins()) {
+            if (const LoadedPlugin *prev = find(p.id)) {
+                reject("duplicate plugin id '" + p.id + "' (already provided by " + prev->info.file + ")");
+                continue;
+            }
+            LoadedPlugin lp;
+            lp.iface = module->interface(p.id, core_interface(p.kind));
+            lp.info = std::move(p);
+            lp.module = module;
+            plugins_.push_back(std::move(lp));
+        }
+    } catch (const std::exception &e) {
+        reject(e.what());
+    }
+}
+
+const LoadedPlugin *Registry::find(const std::string &id) const {
+    for (const auto &p : plugins_)
+        if (p.info.id == id) return &p;
+    return nullptr;
+}
+
+std::vector<const LoadedPlugin *> Registry::of_kind(hz_plugin_kind k) const {
+    std::vector<const LoadedPlugin *> out;
+    for (const auto &p : plugins_)
+        if (p.info.kind == k) out.push_back(&p);
+    return out;
+}
+
+}  // namespace hz::core

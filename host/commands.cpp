@@ -1,0 +1,172 @@
+#include "commands.hpp"
+
+#include <hz/core/io.hpp>
+#include <hz/core/phantom.hpp>
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <iostream>
+
+namespace hz::host {
+
+using nlohmann::json;
+
+int cmd_plugins(const GlobalOptions &g, bool as_json) {
+    const core::Registry reg = load_registry(g);
+    if (as_json) {
+        json j;
+        j["search_path"] = json::array();
+        for (const auto &d : reg.searched()) j["search_path"].push_back(d.string());
+        j["plugins"] = json::array();
+        for (const auto &p : reg.plugins()) {
+            j["plugins"].push_back({{"id", p.info.id},
+                                    {"kind", core::plugin_kind_name(p.info.kind)},
+                                    {"name", p.info.name},
+                                    {"version", p.info.version},
+                                    {"vendor", p.info.vendor},
+                                    {"license", p.info.license},
+                                    {"description", p.info.description},
+                                    {"interfaces", p.info.interfaces},
+                                    {"file", p.info.file},
+                                    {"status", "loaded"}});
+        }
+        j["rejected"] = json::array();
+        for (const auto &r : reg.rejected()) j["rejected"].push_back({{"file", r.file}, {"status", "rejected"}, {"reason", r.reason}});
+        std::cout << j.dump(2) << "\n";
+        return 0;
+    }
+    std::printf("Search path:\n");
+    for (const auto &d : reg.searched()) {
+        std::error_code ec;
+        std::printf("  %s%s\n", d.c_str(), std::filesystem::is_directory(d, ec) ? "" : "  (missing)");
+    }
+    std::printf("\n%-34s %-11s %-8s %s\n", "ID", "KIND", "VERSION", "FILE");
+    for (const auto &p : reg.plugins())
+        std::printf("%-34s %-11s %-8s %s\n", p.info.id.c_str(), core::plugin_kind_name(p.info.kind), p.info.version.c_str(),
+                    p.info.file.c_str());
+    if (!reg.rejected().empty()) {
+        std::printf("\nRejected:\n");
+        for (const auto &r : reg.rejected()) std::printf("  %s: %s\n", r.file.c_str(), r.reason.c_str());
+    }
+    std::printf("\n%zu plugins loaded, %zu files rejected\n", reg.plugins().size(), reg.rejected().size());
+    return 0;
+}
+
+namespace {
+
+json affine_json(const core::Affine &a) {
+    json rows = json::array();
+    for (int r = 0; r < 4; ++r) rows.push_back({a[4 * r], a[4 * r + 1], a[4 * r + 2], a[4 * r + 3]});
+    return rows;
+}
+
+json describe(const core::Dataset &ds) {
+    json j;
+    j["format"] = ds.format;
+    j["loader"] = ds.loader_id;
+    j["kind"] = core::kind_name(ds.kind);
+    j["source_space"] = core::space_name(ds.source_space);
+    if (ds.kind == HZ_DATA_STREAMLINES) {
+        const auto &t = ds.tractogram;
+        j["nb_streamlines"] = t.nb_streamlines();
+        j["nb_vertices"] = t.nb_vertices();
+        std::uint64_t empty = 0, min_pts = UINT64_MAX, max_pts = 0;
+        for (std::uint64_t s = 0; s < t.nb_streamlines(); ++s) {
+            const std::uint64_t n = t.offsets[s + 1] - t.offsets[s];
+            empty += n == 0;
+            min_pts = std::min(min_pts, n);
+            max_pts = std::max(max_pts, n);
+        }
+        j["nb_empty_streamlines"] = empty;
+        j["points_per_streamline"] = {{"min", t.nb_streamlines() ? min_pts : 0}, {"max", max_pts}};
+        const auto b = core::bounds_of(t.positions.data(), t.nb_vertices());
+        j["bbox_ras_mm"] = b.empty ? json(nullptr) : json{{"min", b.min}, {"max", b.max}};
+        j["affine"] = affine_json(t.reference);
+        j["reference_dims"] = t.reference_dims;
+        j["arrays"] = json::array();
+        for (const auto &a : t.arrays)
+            j["arrays"].push_back({{"name", a.name},
+                                   {"attach", a.attach == HZ_ATTACH_STREAMLINE ? "streamline" : "vertex"},
+                                   {"dtype", core::dtype_name(a.dtype)},
+                                   {"components", a.components}});
+    }
+    j["header"] = json::array();
+    for (const auto &[k, v] : ds.metadata) j["header"].push_back({k, v});
+    return j;
+}
+
+}  // namespace
+
+int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json) {
+    const core::Registry reg = load_registry(g);
+    const core::Dataset ds = core::read_dataset(reg, file);
+    const json j = describe(ds);
+    if (as_json) {
+        json out = j;
+        out["file"] = file;
+        std::cout << out.dump(2) << "\n";
+        return 0;
+    }
+    std::printf("file:          %s\n", file.c_str());
+    std::printf("format:        %s (plugin %s)\n", ds.format.c_str(), ds.loader_id.c_str());
+    std::printf("kind:          %s\n", core::kind_name(ds.kind));
+    std::printf("source space:  %s\n", core::space_name(ds.source_space));
+    if (ds.kind == HZ_DATA_STREAMLINES) {
+        std::printf("streamlines:   %llu (%llu empty)\n", (unsigned long long)j["nb_streamlines"].get<std::uint64_t>(),
+                    (unsigned long long)j["nb_empty_streamlines"].get<std::uint64_t>());
+        std::printf("vertices:      %llu (per streamline %llu..%llu)\n", (unsigned long long)j["nb_vertices"].get<std::uint64_t>(),
+                    (unsigned long long)j["points_per_streamline"]["min"].get<std::uint64_t>(),
+                    (unsigned long long)j["points_per_streamline"]["max"].get<std::uint64_t>());
+        if (!j["bbox_ras_mm"].is_null()) {
+            const auto &mn = j["bbox_ras_mm"]["min"];
+            const auto &mx = j["bbox_ras_mm"]["max"];
+            std::printf("bbox RAS mm:   [%.2f %.2f %.2f] .. [%.2f %.2f %.2f]\n", mn[0].get<double>(), mn[1].get<double>(),
+                        mn[2].get<double>(), mx[0].get<double>(), mx[1].get<double>(), mx[2].get<double>());
+        }
+        std::printf("affine:\n");
+        for (const auto &row : j["affine"])
+            std::printf("  %10.4f %10.4f %10.4f %10.4f\n", row[0].get<double>(), row[1].get<double>(), row[2].get<double>(),
+                        row[3].get<double>());
+        for (const auto &a : ds.tractogram.arrays)
+            std::printf("array:         %s (%s, %s x %u)\n", a.name.c_str(), a.attach == HZ_ATTACH_STREAMLINE ? "per streamline" : "per vertex",
+                        core::dtype_name(a.dtype), a.components);
+    }
+    if (!ds.metadata.empty()) {
+        std::printf("header:\n");
+        for (const auto &[k, v] : ds.metadata) std::printf("  %s: %s\n", k.c_str(), v.c_str());
+    }
+    return 0;
+}
+
+int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string &out, bool force) {
+    const core::Registry reg = load_registry(g);
+    // Pick the writer first: an unsupported target fails before any reading.
+    core::loader_for_write(reg, out);
+    const core::Dataset ds = core::read_dataset(reg, in);
+    std::vector<std::string> dropped;
+    core::write_dataset(reg, ds, out, force, &dropped, in);
+    for (const auto &d : dropped) std::fprintf(stderr, "horizon: warning: %s: dropped %s\n", out.c_str(), d.c_str());
+    std::printf("%s -> %s (%s, %llu streamlines)\n", in.c_str(), out.c_str(), core::kind_name(ds.kind),
+                (unsigned long long)ds.tractogram.nb_streamlines());
+    return 0;
+}
+
+int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
+    const core::Registry reg = load_registry(g);
+    std::filesystem::create_directories(o.out_dir);
+    core::PhantomOptions po;
+    po.nb_streamlines = o.nb_streamlines;
+    core::Dataset ds;
+    ds.kind = HZ_DATA_STREAMLINES;
+    ds.tractogram = core::make_phantom(po);
+    ds.metadata = {{"generator", "horizon demo phantom"}, {"seed", std::to_string(po.seed)}};
+    const auto path = std::filesystem::path(o.out_dir) / "phantom.tck";
+    core::write_dataset(reg, ds, path, /*force=*/true, nullptr);
+    std::printf("Wrote the demo phantom (%llu streamlines, %u bundles) to %s\n\n", (unsigned long long)po.nb_streamlines,
+                po.nb_bundles, path.c_str());
+    return cmd_info(g, path.string(), false);
+}
+
+}  // namespace hz::host

@@ -1,0 +1,37 @@
+// The `horizon` subcommands.
+#pragma once
+
+#include <hz/core/plugin_host.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace hz::host {
+
+struct GlobalOptions {
+    std::vector<std::filesystem::path> plugin_dirs;
+};
+
+struct ValidateOptions {
+    std::string file;
+    bool json = false;
+    double timeout_s = 60.0;
+    std::vector<std::string> data_files;
+    std::uint64_t seed = 1;
+};
+
+struct DemoOptions {
+    std::string out_dir = "horizon-demo";
+    std::uint64_t nb_streamlines = 5000;
+};
+
+core::Registry load_registry(const GlobalOptions &g);
+
+int cmd_plugins(const GlobalOptions &g, bool json);
+int cmd_validate(const GlobalOptions &g, const ValidateOptions &o);
+int cmd_info(const GlobalOptions &g, const std::string &file, bool json);
+int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string &out, bool force);
+int cmd_demo(const GlobalOptions &g, const DemoOptions &o);
+
+}  // namespace hz::host

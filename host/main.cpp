@@ -1,0 +1,90 @@
+// horizon: the command-line host.
+//   horizon plugins [--json]
+//   horizon validate PLUGIN_FILE [--json] [--timeout S] [--data FILE]...
+//   horizon info FILE [--json]
+//   horizon convert IN OUT [--force]
+//   horizon demo [--out DIR]
+#include "commands.hpp"
+
+#include <hz/core/io.hpp>
+
+#include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <iostream>
+
+namespace hz::host {
+
+core::Registry load_registry(const GlobalOptions &g) {
+    core::Registry reg;
+    reg.scan(core::plugin_search_path(g.plugin_dirs));
+    for (const auto &r : reg.rejected()) spdlog::debug("rejected {}: {}", r.file, r.reason);
+    return reg;
+}
+
+}  // namespace hz::host
+
+int main(int argc, char **argv) {
+    using namespace hz::host;
+    auto logger = spdlog::stderr_color_st("horizon");
+    logger->set_pattern("%^%l%$: %v");
+    spdlog::set_default_logger(logger);
+    spdlog::set_level(spdlog::level::warn);
+
+    CLI::App app{"Horizon: cinematic visualization of tractograms, surfaces and volumes"};
+    app.require_subcommand(1);
+    GlobalOptions g;
+    app.add_option("--plugin-dir", g.plugin_dirs, "extra plugin directory (searched first; repeatable)");
+    bool verbose = false;
+    app.add_flag("-v,--verbose", verbose, "log plugin loading and decisions");
+
+    bool json = false;
+    auto *plugins = app.add_subcommand("plugins", "list every plugin found, or why it was rejected");
+    plugins->add_flag("--json", json, "machine-readable output");
+
+    ValidateOptions vo;
+    auto *validate = app.add_subcommand("validate", "check a plugin file against the ABI contract");
+    validate->add_option("plugin", vo.file, "plugin shared object")->required();
+    validate->add_flag("--json", vo.json, "machine-readable report");
+    validate->add_option("--timeout", vo.timeout_s, "seconds per check before it counts as hung")->capture_default_str();
+    validate->add_option("--data", vo.data_files, "sample files for a loader's read checks (repeatable)");
+    validate->add_option("--seed", vo.seed, "seed of the randomised checks")->capture_default_str();
+
+    std::string info_file;
+    auto *info = app.add_subcommand("info", "describe a data file");
+    info->add_option("file", info_file, "input file")->required();
+    info->add_flag("--json", json, "machine-readable output");
+
+    std::string conv_in, conv_out;
+    bool force = false;
+    auto *convert = app.add_subcommand("convert", "convert between formats (chosen by extension)");
+    convert->add_option("input", conv_in, "input file")->required();
+    convert->add_option("output", conv_out, "output file")->required();
+    convert->add_flag("-f,--force", force, "replace an existing output file");
+
+    DemoOptions demo_opts;
+    auto *demo = app.add_subcommand("demo", "build the synthetic demo scene and describe it");
+    demo->add_option("-o,--out", demo_opts.out_dir, "directory for demo files")->capture_default_str();
+    demo->add_option("--streamlines", demo_opts.nb_streamlines, "phantom size")->capture_default_str();
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError &e) {
+        return app.exit(e);
+    }
+    if (verbose) spdlog::set_level(spdlog::level::debug);
+
+    try {
+        if (*plugins) return cmd_plugins(g, json);
+        if (*validate) return cmd_validate(g, vo);
+        if (*info) return cmd_info(g, info_file, json);
+        if (*convert) return cmd_convert(g, conv_in, conv_out, force);
+        if (*demo) return cmd_demo(g, demo_opts);
+    } catch (const std::exception &e) {
+        std::fprintf(stderr, "horizon: error: %s\n", e.what());
+        return 1;
+    }
+    return 2;
+}

@@ -1,0 +1,323 @@
+// MRtrix TCK format. Spec facts: MRtrix3 documentation "Tracks file format"
+// and ../shared/formats/FORMATS.md section 1.4 (quirks observed in nibabel's
+// and mrtrix3's files).
+#include "tck_format.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fcntl.h>
+#include <limits>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+namespace tck {
+
+const char *to_string(DataType t) {
+    switch (t) {
+    case DataType::Float32LE: return "Float32LE";
+    case DataType::Float32BE: return "Float32BE";
+    case DataType::Float64LE: return "Float64LE";
+    case DataType::Float64BE: return "Float64BE";
+    }
+    return "?";
+}
+
+MappedFile::MappedFile(const std::string &path) {
+    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) throw FormatError(std::string("cannot open: ") + std::strerror(errno), true);
+    struct stat st{};
+    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        ::close(fd);
+        throw FormatError("not a regular file", true);
+    }
+    size_ = static_cast<std::uint64_t>(st.st_size);
+    if (size_ > 0) {
+        void *p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
+        if (p == MAP_FAILED) {
+            ::close(fd);
+            throw FormatError(std::string("cannot map: ") + std::strerror(errno), true);
+        }
+        ::madvise(p, size_, MADV_SEQUENTIAL);
+        data_ = static_cast<const unsigned char *>(p);
+    }
+    ::close(fd);
+}
+
+MappedFile::~MappedFile() {
+    if (data_ != nullptr) ::munmap(const_cast<unsigned char *>(data_), size_);
+}
+
+namespace {
+
+constexpr std::string_view kMagic = "mrtrix tracks";
+
+std::string_view trim(std::string_view s) {
+    while (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '\r')) s.remove_prefix(1);
+    while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+    return s;
+}
+
+bool parse_u64(std::string_view s, std::uint64_t &out) {
+    if (s.empty() || s.size() > 19) return false;
+    std::uint64_t v = 0;
+    for (char c : s) {
+        if (c < '0' || c > '9') return false;
+        v = v * 10 + static_cast<std::uint64_t>(c - '0');
+    }
+    out = v;
+    return true;
+}
+
+inline std::uint32_t bswap(std::uint32_t v) { return __builtin_bswap32(v); }
+inline std::uint64_t bswap(std::uint64_t v) { return __builtin_bswap64(v); }
+
+// Reads one element of type T stored with the file's byte order.
+template <class T, bool Swap>
+inline T load(const unsigned char *p) {
+    using U = std::conditional_t<sizeof(T) == 4, std::uint32_t, std::uint64_t>;
+    U u;
+    std::memcpy(&u, p, sizeof u);
+    if constexpr (Swap) u = bswap(u);
+    return std::bit_cast<T>(u);
+}
+
+constexpr bool kLittle = std::endian::native == std::endian::little;
+
+// Calls f(x, y, z) for every triple of the data section, stopping when f
+// returns false. Dispatches once on the data type.
+template <class F>
+void for_each_triple(const unsigned char *p, std::uint64_t n_triples, DataType t, F &&f) {
+    auto run = [&](auto tag, auto swap) {
+        using T = decltype(tag);
+        constexpr bool S = decltype(swap)::value;
+        constexpr std::uint64_t stride = 3 * sizeof(T);
+        for (std::uint64_t i = 0; i < n_triples; ++i, p += stride) {
+            const T x = load<T, S>(p), y = load<T, S>(p + sizeof(T)), z = load<T, S>(p + 2 * sizeof(T));
+            if (!f(i, static_cast<double>(x), static_cast<double>(y), static_cast<double>(z))) return;
+        }
+    };
+    switch (t) {
+    case DataType::Float32LE: run(float{}, std::bool_constant<!kLittle>{}); break;
+    case DataType::Float32BE: run(float{}, std::bool_constant<kLittle>{}); break;
+    case DataType::Float64LE: run(double{}, std::bool_constant<!kLittle>{}); break;
+    case DataType::Float64BE: run(double{}, std::bool_constant<kLittle>{}); break;
+    }
+}
+
+std::uint64_t element_size(DataType t) {
+    return (t == DataType::Float32LE || t == DataType::Float32BE) ? 4 : 8;
+}
+
+}  // namespace
+
+int probe(const unsigned char *head, std::uint64_t size) {
+    if (size < kMagic.size()) return 0;
+    if (std::memcmp(head, kMagic.data(), kMagic.size()) != 0) return 0;
+    // The rest of the first line may only hold blanks.
+    for (std::uint64_t i = kMagic.size(); i < size; ++i) {
+        const unsigned char c = head[i];
+        if (c == '\n') return 100;
+        if (c != ' ' && c != '\t' && c != '\r') return 0;
+    }
+    return 80;  // magic seen, line not finished within the probe window
+}
+
+Header parse_header(const unsigned char *bytes, std::uint64_t size) {
+    Header h;
+    std::uint64_t pos = 0;
+    std::uint64_t line_no = 0;
+    bool have_datatype = false, have_file = false, have_end = false;
+    while (pos < size) {
+        const void *nl = std::memchr(bytes + pos, '\n', size - pos);
+        if (nl == nullptr) break;  // an unfinished last line cannot be END
+        const std::uint64_t end = static_cast<std::uint64_t>(static_cast<const unsigned char *>(nl) - bytes);
+        std::string_view line(reinterpret_cast<const char *>(bytes + pos), end - pos);
+        pos = end + 1;
+        ++line_no;
+        if (line_no == 1) {
+            if (trim(line) != kMagic)
+                throw FormatError("first line is not 'mrtrix tracks' (not a TCK file)");
+            continue;
+        }
+        if (line.find('\0') != std::string_view::npos)
+            throw FormatError("NUL byte in header line " + std::to_string(line_no) + " before END");
+        std::string_view t = trim(line);
+        if (t == "END") {
+            have_end = true;
+            break;
+        }
+        const auto colon = t.find(':');
+        if (colon == std::string_view::npos)
+            throw FormatError("header line " + std::to_string(line_no) + " has no 'key: value' form");
+        std::string key(trim(t.substr(0, colon)));
+        std::string value(trim(t.substr(colon + 1)));
+        if (key == "datatype") {
+            if (value == "Float32LE") h.datatype = DataType::Float32LE;
+            else if (value == "Float32BE") h.datatype = DataType::Float32BE;
+            else if (value == "Float64LE") h.datatype = DataType::Float64LE;
+            else if (value == "Float64BE") h.datatype = DataType::Float64BE;
+            else throw FormatError("datatype '" + value + "' unsupported (Float32/Float64 LE/BE only)");
+            have_datatype = true;
+        } else if (key == "file") {
+            // "file: . OFFSET": data in this file at OFFSET.
+            const auto sp = value.find_first_of(" \t");
+            std::string_view fname = trim(std::string_view(value).substr(0, sp));
+            std::string_view off = sp == std::string::npos ? std::string_view{} : trim(std::string_view(value).substr(sp));
+            if (fname != ".")
+                throw FormatError("data in another file ('file: " + value + "') is unsupported");
+            if (!parse_u64(off, h.data_offset))
+                throw FormatError("'file: " + value + "' has no valid byte offset");
+            have_file = true;
+        }
+        h.entries.emplace_back(std::move(key), std::move(value));
+    }
+    if (line_no == 0) {
+        if (size == 0) throw FormatError("empty file");
+        if (probe(bytes, size) == 0) throw FormatError("first line is not 'mrtrix tracks' (not a TCK file)");
+    }
+    if (!have_end) throw FormatError("header has no END line (file truncated?)");
+    if (!have_datatype) h.warnings.emplace_back("no datatype field: assuming Float32LE");
+    if (!have_file) {
+        h.warnings.emplace_back("no file field: data assumed right after END");
+        h.data_offset = pos;
+    }
+    if (h.data_offset < pos)
+        throw FormatError("data offset " + std::to_string(h.data_offset) + " points inside the header (ends at byte " +
+                          std::to_string(pos) + ")");
+    if (h.data_offset > size)
+        throw FormatError("data offset " + std::to_string(h.data_offset) + " is past the end of the file (" +
+                          std::to_string(size) + " bytes)");
+    return h;
+}
+
+Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const std::function<bool()> &cancelled) {
+    const std::uint64_t es = element_size(h.datatype);
+    const std::uint64_t avail = size - h.data_offset;
+    const std::uint64_t n_triples = avail / (3 * es);
+    Layout L;
+    std::uint64_t in_track = 0;  // points in the open streamline
+    bool terminated = false;
+    std::string error;
+    for_each_triple(bytes + h.data_offset, n_triples, h.datatype, [&](std::uint64_t i, double x, double y, double z) {
+        if ((i & 0xFFFFF) == 0 && cancelled && cancelled()) throw Cancelled{};
+        const int nans = std::isnan(x) + std::isnan(y) + std::isnan(z);
+        const int infs = std::isinf(x) + std::isinf(y) + std::isinf(z);
+        const std::uint64_t at = h.data_offset + i * 3 * es;
+        if (nans == 0 && infs == 0) {
+            ++in_track;
+            return true;
+        }
+        if (nans == 3) {  // end of a streamline (possibly empty)
+            ++L.nb_streamlines;
+            L.nb_vertices += in_track;
+            in_track = 0;
+            return true;
+        }
+        if (infs == 3) {
+            if (in_track != 0) {
+                error = "last streamline is not closed by a NaN triple before the Inf terminator (byte " +
+                        std::to_string(at) + ")";
+                return false;
+            }
+            terminated = true;
+            L.end_offset = at + 3 * es;
+            return false;
+        }
+        error = "partial NaN/Inf triple at byte " + std::to_string(at) +
+                " (only all-NaN ends a streamline and all-Inf ends the file)";
+        return false;
+    });
+    if (!error.empty()) throw FormatError(error);
+    if (!terminated) {
+        if (avail % (3 * es) != 0)
+            throw FormatError("data ends inside a point (file truncated at byte " + std::to_string(size) + ")");
+        throw FormatError("no 'Inf Inf Inf' terminator (file truncated?)");
+    }
+    L.trailing_bytes = size - L.end_offset;
+    return L;
+}
+
+void decode(const unsigned char *bytes, const Header &h, const Layout &L, float *positions, std::uint64_t *offsets,
+            const std::function<bool()> &cancelled) {
+    const std::uint64_t es = element_size(h.datatype);
+    const std::uint64_t n_triples = (L.end_offset - h.data_offset) / (3 * es);
+    std::uint64_t v = 0, s = 0;
+    offsets[0] = 0;
+    for_each_triple(bytes + h.data_offset, n_triples, h.datatype, [&](std::uint64_t i, double x, double y, double z) {
+        if ((i & 0xFFFFF) == 0 && cancelled && cancelled()) throw Cancelled{};
+        if (std::isnan(x)) {
+            offsets[++s] = v;
+            return true;
+        }
+        if (std::isinf(x)) return false;
+        float *p = positions + 3 * v++;
+        p[0] = static_cast<float>(x);
+        p[1] = static_cast<float>(y);
+        p[2] = static_cast<float>(z);
+        return true;
+    });
+    if (s != L.nb_streamlines || v != L.nb_vertices) throw FormatError("file changed while reading");
+}
+
+void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
+           std::uint64_t nb_streamlines, const std::vector<std::pair<std::string, std::string>> &metadata) {
+    std::string head = "mrtrix tracks\n";
+    for (const auto &[k, v] : metadata) {
+        if (k == "datatype" || k == "file" || k == "count") continue;
+        if (k.empty() || k.find_first_of(":\n\r") != std::string::npos || v.find_first_of("\n\r") != std::string::npos)
+            continue;  // not representable as a header line
+        head += k + ": " + v + "\n";
+    }
+    head += "datatype: Float32LE\ncount: " + std::to_string(nb_streamlines) + "\n";
+    // The offset is part of the header it points past: grow it until stable.
+    std::uint64_t offset = head.size() + 20;
+    for (;;) {
+        const std::string tail = "file: . " + std::to_string(offset) + "\nEND\n";
+        if (head.size() + tail.size() <= offset) {
+            head += tail;
+            break;
+        }
+        offset = head.size() + tail.size();
+    }
+    head.resize(offset, '\0');
+
+    std::FILE *f = std::fopen(path.c_str(), "wb");
+    if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno), true);
+    std::vector<float> buf;
+    buf.reserve(3 * 65536);
+    bool ok = std::fwrite(head.data(), 1, head.size(), f) == head.size();
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float inf = std::numeric_limits<float>::infinity();
+    auto flush = [&] {
+        if (ok && !buf.empty()) {
+            if constexpr (!kLittle)
+                for (auto &x : buf) x = std::bit_cast<float>(bswap(std::bit_cast<std::uint32_t>(x)));
+            ok = std::fwrite(buf.data(), sizeof(float), buf.size(), f) == buf.size();
+        }
+        buf.clear();
+    };
+    for (std::uint64_t s = 0; s < nb_streamlines && ok; ++s) {
+        for (std::uint64_t v = offsets[s]; v < offsets[s + 1]; ++v) {
+            const float *p = positions + 3 * v;
+            if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+                std::fclose(f);
+                throw FormatError("streamline " + std::to_string(s) + " has a non-finite coordinate (TCK uses NaN/Inf as delimiters)");
+            }
+            buf.insert(buf.end(), positions + 3 * v, positions + 3 * v + 3);
+            if (buf.size() >= 3 * 65536) flush();
+        }
+        buf.insert(buf.end(), {nan, nan, nan});
+    }
+    buf.insert(buf.end(), {inf, inf, inf});
+    flush();
+    (void)nb_vertices;
+    if (std::fclose(f) != 0) ok = false;
+    if (!ok) throw FormatError(std::string("write failed: ") + std::strerror(errno), true);
+}
+
+}  // namespace tck

@@ -1,0 +1,84 @@
+// MRtrix TCK streamlines: parsing, validation, decoding and writing.
+// Pure C++ with no SDK types, so the format logic is testable on its own;
+// tck_plugin.cpp adapts it to the hz.loader/1 ABI.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace tck {
+
+// Every format problem is reported as this exception with a one-line message
+// (the plugin prefixes the file name). `io` marks operating-system failures.
+struct FormatError : std::runtime_error {
+    explicit FormatError(const std::string &m, bool io_error = false)
+        : std::runtime_error(m), io(io_error) {}
+    bool io;
+};
+
+enum class DataType { Float32LE, Float32BE, Float64LE, Float64BE };
+const char *to_string(DataType t);
+
+// A read-only memory mapping of a whole file.
+class MappedFile {
+public:
+    explicit MappedFile(const std::string &path);
+    ~MappedFile();
+    MappedFile(const MappedFile &) = delete;
+    MappedFile &operator=(const MappedFile &) = delete;
+    const unsigned char *data() const { return data_; }
+    std::uint64_t size() const { return size_; }
+
+private:
+    const unsigned char *data_ = nullptr;
+    std::uint64_t size_ = 0;
+};
+
+struct Header {
+    std::vector<std::pair<std::string, std::string>> entries;  // file order, incl. repeats
+    DataType datatype = DataType::Float32LE;
+    std::uint64_t data_offset = 0;
+    std::vector<std::string> warnings;  // quirks tolerated (missing datatype, file, ...)
+};
+
+// Parses the text header of `bytes[0..size)`. Throws FormatError.
+Header parse_header(const unsigned char *bytes, std::uint64_t size);
+
+// Result of the validating scan of the data section.
+struct Layout {
+    std::uint64_t nb_streamlines = 0;
+    std::uint64_t nb_vertices = 0;
+    std::uint64_t end_offset = 0;        // byte just after the Inf terminator
+    std::uint64_t trailing_bytes = 0;    // bytes after the terminator (ignored, as mrtrix does)
+};
+
+// Walks the data once, checking every triple; throws FormatError on a partial
+// NaN/Inf triple, a missing terminator, a streamline not closed by NaN, or a
+// truncated triple. `cancelled` is polled periodically (may be empty).
+Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h,
+            const std::function<bool()> &cancelled = {});
+
+// Decodes positions (float32, RAS+ mm) and offsets (nb_streamlines + 1).
+// The buffers must hold layout.nb_vertices * 3 floats and
+// layout.nb_streamlines + 1 offsets.
+void decode(const unsigned char *bytes, const Header &h, const Layout &layout, float *positions,
+            std::uint64_t *offsets, const std::function<bool()> &cancelled = {});
+
+// True when cancelled() stopped scan/decode.
+struct Cancelled {};
+
+// Writes a Float32LE TCK file. `metadata` entries are carried over except the
+// keys the writer owns (datatype, file, count); `count` is recomputed.
+void write(const std::string &path, const float *positions, std::uint64_t nb_vertices,
+           const std::uint64_t *offsets, std::uint64_t nb_streamlines,
+           const std::vector<std::pair<std::string, std::string>> &metadata);
+
+// Confidence that `head` starts a TCK file (0..100). Pure.
+int probe(const unsigned char *head, std::uint64_t size);
+
+}  // namespace tck

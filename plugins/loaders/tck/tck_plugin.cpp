@@ -1,0 +1,186 @@
+// hz.loader/1 adapter for the MRtrix TCK format (tck_format.hpp).
+#include "tck_format.hpp"
+
+#include <hz/cpp/plugin.hpp>
+
+#include <cstring>
+#include <memory>
+
+namespace {
+
+constexpr const char *kId = "org.horizon.loader.tck";
+const hz_host *g_host = nullptr;
+
+void log(hz_log_level lvl, const std::string &msg) {
+    if (g_host != nullptr && g_host->log != nullptr) g_host->log(g_host, kId, lvl, msg.c_str());
+}
+
+struct Reader {
+    std::string path;
+    std::unique_ptr<tck::MappedFile> file;
+    tck::Header header;
+    tck::Layout layout;
+};
+
+// Runs a TCK operation, turning format errors into "tck: <path>: <what>".
+template <class F>
+hz_status run(hz_error *err, const std::string &path, F &&body) {
+    return hz::guard(err, [&]() -> hz_status {
+        try {
+            return body();
+        } catch (const tck::Cancelled &) {
+            return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+        } catch (const tck::FormatError &e) {
+            return hz::set_errorf(err, e.io ? HZ_E_IO : HZ_E_FORMAT, "tck: %s: %s", path.c_str(), e.what());
+        }
+    });
+}
+
+std::function<bool()> poll(const hz_task *task) {
+    if (task == nullptr) return {};
+    return [task] { return hz::cancelled(task); };
+}
+
+int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return tck::probe(head, size); }
+
+hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
+    if (out != nullptr) *out = nullptr;
+    if (req == nullptr || req->path == nullptr || out == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: open: NULL request, path or output");
+    return run(err, req->path, [&]() -> hz_status {
+        auto r = std::make_unique<Reader>();
+        r->path = req->path;
+        r->file = std::make_unique<tck::MappedFile>(r->path);
+        r->header = tck::parse_header(r->file->data(), r->file->size());
+        r->layout = tck::scan(r->file->data(), r->file->size(), r->header);
+        for (const auto &w : r->header.warnings) log(HZ_LOG_WARN, r->path + ": " + w);
+        if (r->layout.trailing_bytes != 0)
+            log(HZ_LOG_WARN, r->path + ": " + std::to_string(r->layout.trailing_bytes) +
+                                 " bytes after the Inf terminator ignored");
+        *out = reinterpret_cast<hz_reader *>(r.release());
+        return HZ_OK;
+    });
+}
+
+Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
+
+hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
+    if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: get_info: NULL");
+    const Reader &r = *as_reader(reader);
+    if (out->struct_size < sizeof(hz_dataset_info))
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: get_info: output struct too small");
+    out->kind = HZ_DATA_STREAMLINES;
+    std::snprintf(out->format, sizeof out->format, "tck %s", tck::to_string(r.header.datatype));
+    out->nb_streamlines = r.layout.nb_streamlines;
+    out->nb_vertices = r.layout.nb_vertices;
+    static const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    std::memcpy(out->voxel_to_ras, identity, sizeof identity);
+    out->source_space = HZ_SPACE_RASMM;  // TCK stores scanner RAS+ mm
+    out->nb_arrays = 0;
+    return HZ_OK;
+}
+
+hz_status HZ_ABI get_array_info(hz_reader *, uint32_t index, hz_array_info *, hz_error *err) {
+    return hz::set_errorf(err, HZ_E_NOT_FOUND, "tck: no extra array %u (TCK holds none)", index);
+}
+
+hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
+    if (reader == nullptr || visitor == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: visit_metadata: NULL");
+    for (const auto &[k, v] : as_reader(reader)->header.entries) visitor(ctx, k.c_str(), v.c_str());
+    return HZ_OK;
+}
+
+hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *dst, const hz_task *task,
+                                  hz_error *err) {
+    if (reader == nullptr || dst == nullptr || dst->positions == nullptr || dst->offsets == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: read_streamlines: NULL");
+    Reader &r = *as_reader(reader);
+    if (dst->positions_capacity < 3 * r.layout.nb_vertices || dst->offsets_capacity < r.layout.nb_streamlines + 1)
+        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL,
+                              "tck: %s: destination holds %llu floats / %llu offsets, need %llu / %llu",
+                              r.path.c_str(), (unsigned long long)dst->positions_capacity,
+                              (unsigned long long)dst->offsets_capacity,
+                              (unsigned long long)(3 * r.layout.nb_vertices),
+                              (unsigned long long)(r.layout.nb_streamlines + 1));
+    return run(err, r.path, [&]() -> hz_status {
+        hz::report(task, 0.0, "decoding TCK");
+        tck::decode(r.file->data(), r.header, r.layout, dst->positions, dst->offsets, poll(task));
+        hz::report(task, 1.0, nullptr);
+        return HZ_OK;
+    });
+}
+
+void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
+
+hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
+    if (req == nullptr || req->path == nullptr || data == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: write: NULL request or data");
+    if (data->kind != HZ_DATA_STREAMLINES)
+        return hz::set_errorf(err, HZ_E_UNSUPPORTED, "tck: %s: TCK holds streamlines only", req->path);
+    const hz_streamlines_view &s = data->streamlines;
+    if (s.offsets == nullptr || (s.nb_vertices > 0 && s.positions == nullptr))
+        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: streamline view without data", req->path);
+    for (uint32_t i = 0; i < data->nb_arrays; ++i) {
+        const hz_named_array &a = data->arrays[i];
+        if (req->on_dropped == nullptr) break;
+        const std::string what = std::string(a.attach == HZ_ATTACH_STREAMLINE ? "per-streamline" : "per-vertex") +
+                                 " array '" + (a.name ? a.name : "") + "' (TCK stores positions only)";
+        req->on_dropped(req->ctx, what.c_str());
+    }
+    return run(err, req->path, [&]() -> hz_status {
+        std::vector<std::pair<std::string, std::string>> meta;
+        for (uint32_t i = 0; i < data->nb_metadata; ++i)
+            if (data->metadata[i].key != nullptr && data->metadata[i].value != nullptr)
+                meta.emplace_back(data->metadata[i].key, data->metadata[i].value);
+        tck::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, meta);
+        return HZ_OK;
+    });
+}
+
+const char *const kExtensions[] = {"tck", nullptr};
+
+const hz_loader kLoader = {
+    sizeof(hz_loader),
+    HZ_DATA_STREAMLINES,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
+    64,
+    kExtensions,
+    probe,
+    open,
+    get_info,
+    get_array_info,
+    visit_metadata,
+    read_streamlines,
+    nullptr,  // read_array: TCK has no extra arrays
+    nullptr,  // read_volume
+    nullptr,  // read_mesh
+    close,
+    write,
+};
+
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
+
+const hz_plugin_descriptor kDescriptor = {
+    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "MRtrix TCK", "1.0.0", "Horizon",
+    "MRtrix3 .tck streamlines: Float32/Float64, both byte orders, read and write", "MIT", kInterfaces,
+};
+
+bool HZ_ABI init(const hz_host *host, const char *) {
+    g_host = host;
+    return true;
+}
+void HZ_ABI deinit() { g_host = nullptr; }
+uint32_t HZ_ABI count() { return 1; }
+const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i == 0 ? &kDescriptor : nullptr; }
+const void *HZ_ABI get_interface(const char *plugin_id, const char *iface) {
+    if (plugin_id == nullptr || iface == nullptr) return nullptr;
+    if (std::strcmp(plugin_id, kId) == 0 && std::strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &kLoader;
+    return nullptr;
+}
+
+}  // namespace
+
+HZ_DECLARE_PLUGIN_ENTRY = {
+    sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface,
+};

@@ -1,0 +1,85 @@
+// Horizon plugin SDK: header-only C++ helpers for plugin authors.
+//
+// Nothing here crosses the ABI: these helpers live entirely inside the
+// plugin and turn C++ idioms (exceptions, std::string) into the C ABI's
+// status codes and caller-owned messages.
+#ifndef HZ_CPP_PLUGIN_HPP
+#define HZ_CPP_PLUGIN_HPP
+
+#include <hz/hz.h>
+
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <new>
+#include <stdexcept>
+#include <string>
+
+namespace hz {
+
+// An error with a status code. Throw it inside hz::guard; it becomes the
+// call's status and message.
+class Error : public std::runtime_error {
+public:
+    Error(hz_status code, const std::string &message) : std::runtime_error(message), code_(code) {}
+    hz_status code() const noexcept { return code_; }
+
+private:
+    hz_status code_;
+};
+
+// Writes `code` and `message` into a caller-owned hz_error (which may be
+// NULL), truncating the message to fit. Returns `code`.
+inline hz_status set_error(hz_error *err, hz_status code, const char *message) noexcept {
+    if (err != nullptr && err->struct_size >= sizeof(hz_error)) {
+        err->code = code;
+        std::snprintf(err->message, sizeof err->message, "%s", message != nullptr ? message : "");
+    }
+    return code;
+}
+
+// printf-style variant of set_error.
+#if defined(__GNUC__)
+__attribute__((format(printf, 3, 4)))
+#endif
+inline hz_status
+set_errorf(hz_error *err, hz_status code, const char *fmt, ...) noexcept {
+    char buf[HZ_ERROR_MESSAGE_SIZE];
+    va_list ap;
+    va_start(ap, fmt);
+    std::vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    return set_error(err, code, buf);
+}
+
+// Runs `body` (returning hz_status) and converts any exception into a status
+// and message, so that no exception ever crosses the C ABI:
+//   hz::Error -> its code, std::bad_alloc -> HZ_E_OUT_OF_MEMORY,
+//   std::exception -> HZ_E_INTERNAL, anything else -> HZ_E_INTERNAL.
+template <class F>
+hz_status guard(hz_error *err, F &&body) noexcept {
+    try {
+        return body();
+    } catch (const Error &e) {
+        return set_error(err, e.code(), e.what());
+    } catch (const std::bad_alloc &) {
+        return set_error(err, HZ_E_OUT_OF_MEMORY, "out of memory");
+    } catch (const std::exception &e) {
+        return set_errorf(err, HZ_E_INTERNAL, "internal error: %s", e.what());
+    } catch (...) {
+        return set_error(err, HZ_E_INTERNAL, "internal error: unknown exception");
+    }
+}
+
+// Convenience for polling a possibly-NULL task.
+inline bool cancelled(const hz_task *task) noexcept {
+    return task != nullptr && task->is_cancelled != nullptr && task->is_cancelled(task);
+}
+inline void report(const hz_task *task, double fraction, const char *msg = nullptr) noexcept {
+    if (task != nullptr && task->report != nullptr) task->report(task, fraction, msg);
+}
+
+}  // namespace hz
+
+#endif  // HZ_CPP_PLUGIN_HPP
