@@ -17,7 +17,8 @@ function(horizon_add_plugin target)
     message(FATAL_ERROR "horizon_add_plugin(${target}): SOURCES is required")
   endif()
   add_library(${target} MODULE ${HZP_SOURCES})
-  target_link_libraries(${target} PRIVATE HorizonSDK::sdk ${HZP_LINK})
+  # libm is linked for C plugins: -z defs would otherwise reject sqrt() &co.
+  target_link_libraries(${target} PRIVATE HorizonSDK::sdk ${HZP_LINK} $<$<PLATFORM_ID:Linux>:m>)
   set_target_properties(${target} PROPERTIES
     PREFIX ""
     C_STANDARD 11 C_STANDARD_REQUIRED ON

@@ -1,0 +1,38 @@
+/*
+ * Layout locks for the 1.0 ABI on LP64 (x86-64, AArch64): a field that moves
+ * or changes size breaks every plugin built before, so each is pinned here.
+ * Included from a C and a C++ translation unit.
+ */
+#include <hz/hz.h>
+#include <stddef.h>
+
+#ifdef __cplusplus
+#  define HZ_SA static_assert
+#else
+#  define HZ_SA _Static_assert
+#endif
+
+HZ_SA(sizeof(hz_abi_version) == 12, "hz_abi_version");
+HZ_SA(sizeof(hz_error) == 8 + HZ_ERROR_MESSAGE_SIZE, "hz_error");
+HZ_SA(offsetof(hz_error, message) == 8, "hz_error.message");
+HZ_SA(sizeof(hz_plugin_entry) == HZ_PLUGIN_ENTRY_MIN_SIZE, "hz_plugin_entry 1.0 size");
+HZ_SA(offsetof(hz_plugin_entry, init) == 16, "entry.init");
+HZ_SA(offsetof(hz_plugin_entry, get_interface) == 48, "entry.get_interface");
+HZ_SA(offsetof(hz_plugin_descriptor, id) == 24, "descriptor.id");
+HZ_SA(sizeof(hz_plugin_descriptor) == 80, "hz_plugin_descriptor");
+HZ_SA(sizeof(hz_host) == 56, "hz_host");
+HZ_SA(sizeof(hz_task) == 32, "hz_task");
+HZ_SA(sizeof(hz_array_view) == 96, "hz_array_view");
+HZ_SA(sizeof(hz_streamlines_view) == 40, "hz_streamlines_view");
+HZ_SA(sizeof(hz_param_info) == 176, "hz_param_info");
+HZ_SA(offsetof(hz_param_info, min_value) == 56, "param.min_value");
+HZ_SA(sizeof(hz_dataset_info) == 312, "hz_dataset_info");
+HZ_SA(offsetof(hz_dataset_info, voxel_to_ras) == 152, "info.voxel_to_ras");
+HZ_SA(sizeof(hz_loader) == 112, "hz_loader");
+HZ_SA(offsetof(hz_loader, write) == 104, "loader.write");
+HZ_SA(sizeof(hz_shade_point) == 136, "hz_shade_point");
+HZ_SA(sizeof(hz_shader) == 56, "hz_shader");
+HZ_SA(sizeof(hz_cluster_tree_view) == 72, "hz_cluster_tree_view");
+HZ_SA(sizeof(hz_clustering) == 56, "hz_clustering");
+HZ_SA(sizeof(hz_dataset_view) == 360, "hz_dataset_view");
+HZ_SA(sizeof(hz_write_request) == 40, "hz_write_request");
