@@ -1,0 +1,159 @@
+// The core: data model invariants, child isolation, ELF checks, the
+// registry and plugin-driven I/O with the bundled TCK plugin.
+#include <hz/core/io.hpp>
+#include <hz/core/phantom.hpp>
+#include <hz/core/plugin_host.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <fstream>
+#include <thread>
+
+namespace fs = std::filesystem;
+using namespace hz::core;
+
+namespace {
+
+fs::path scratch(const std::string &name) {
+    const fs::path d = fs::temp_directory_path() / ("hz_unit_" + name);
+    fs::remove_all(d);
+    fs::create_directories(d);
+    return d;
+}
+
+Registry bundled() {
+    Registry r;
+    r.scan({HZ_TEST_PLUGIN_DIR});
+    return r;
+}
+
+std::string slurp(const fs::path &p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), {});
+}
+
+}  // namespace
+
+TEST_CASE("Tractogram::validate catches broken invariants") {
+    Tractogram t = make_phantom({.nb_streamlines = 10});
+    CHECK_NOTHROW(t.validate("phantom"));
+    t.offsets[3] = t.offsets[2] - 1;
+    CHECK_THROWS_WITH(t.validate("x"), Catch::Contains("offsets decrease"));
+    Tractogram u = make_phantom({.nb_streamlines = 10});
+    u.positions[5] = NAN;
+    CHECK_THROWS_WITH(u.validate("x"), Catch::Contains("non-finite"));
+}
+
+TEST_CASE("the phantom is deterministic and brain-sized") {
+    const Tractogram a = make_phantom({.nb_streamlines = 500, .seed = 3});
+    const Tractogram b = make_phantom({.nb_streamlines = 500, .seed = 3});
+    REQUIRE(a.nb_vertices() == b.nb_vertices());
+    CHECK(std::equal(a.positions.begin(), a.positions.end(), b.positions.begin()));
+    const Bounds box = bounds_of(a.positions.data(), a.nb_vertices());
+    CHECK(box.max[0] - box.min[0] < 200);
+    CHECK(box.max[1] - box.min[1] < 220);
+    CHECK(a.nb_streamlines() == 500);
+}
+
+TEST_CASE("run_in_child reports output, crashes and hangs") {
+    const auto ok = run_in_child([] { return std::string("hello"); }, 5);
+    CHECK(ok.exited);
+    CHECK(ok.output == "hello");
+    const auto crash = run_in_child([]() -> std::string { std::raise(SIGSEGV); return ""; }, 5);
+    CHECK(crash.signal == SIGSEGV);
+    CHECK_THAT(crash.describe(), Catch::Contains("SIGSEGV"));
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto hang = run_in_child([]() -> std::string { for (;;) std::this_thread::sleep_for(std::chrono::seconds(1)); }, 0.5);
+    CHECK(hang.timed_out);
+    CHECK(std::chrono::steady_clock::now() - t0 < std::chrono::seconds(5));
+}
+
+TEST_CASE("elf_precheck explains why a file is not a plugin") {
+    const fs::path d = scratch("elf");
+    std::ofstream(d / "empty.so").close();
+    std::ofstream(d / "text.so") << "hello\n";
+    CHECK_THAT(*elf_precheck(d / "empty.so"), Catch::Contains("empty"));
+    CHECK_THAT(*elf_precheck(d / "text.so"), Catch::Contains("text file"));
+    CHECK_FALSE(elf_precheck(fs::path(HZ_TEST_PLUGIN_DIR) / "hz_loader_tck.so").has_value());
+    // The same object claiming another CPU architecture.
+    std::string so = slurp(fs::path(HZ_TEST_PLUGIN_DIR) / "hz_loader_tck.so");
+    so[18] = static_cast<char>(183);  // EM_AARCH64
+    so[19] = 0;
+    std::ofstream(d / "arm.so", std::ios::binary) << so;
+    CHECK_THAT(*elf_precheck(d / "arm.so"), Catch::Contains("AArch64"));
+    fs::remove_all(d);
+}
+
+TEST_CASE("the registry isolates a crashing init and keeps the good plugins") {
+    Registry r;
+    r.add_file(fs::path(HZ_TEST_FIXTURE_DIR) / "fx_init_crash.so");
+    r.add_file(fs::path(HZ_TEST_FIXTURE_DIR) / "fx_valid.so");
+    REQUIRE(r.rejected().size() == 1);
+    CHECK_THAT(r.rejected()[0].reason, Catch::Contains("SIGSEGV"));
+    REQUIRE(r.plugins().size() == 1);
+    CHECK(r.plugins()[0].info.kind == HZ_KIND_SHADER);
+}
+
+TEST_CASE("search path order: --plugin-dir, HORIZON_PLUGIN_PATH, user dir, bundled") {
+    ::setenv("HORIZON_PLUGIN_PATH", "/a:/b", 1);
+    ::setenv("XDG_DATA_HOME", "/xdg", 1);
+    const auto p = plugin_search_path({"/cli"});
+    ::unsetenv("HORIZON_PLUGIN_PATH");
+    ::unsetenv("XDG_DATA_HOME");
+    REQUIRE(p.size() == 5);
+    CHECK(p[0] == "/cli");
+    CHECK(p[1] == "/a");
+    CHECK(p[2] == "/b");
+    CHECK(p[3] == "/xdg/horizon/plugins");
+    CHECK(p[4].filename() == "plugins");
+}
+
+TEST_CASE("read and write through the TCK plugin, selection by extension and by content") {
+    const Registry reg = bundled();
+    REQUIRE(reg.find("org.horizon.loader.tck") != nullptr);
+    const fs::path d = scratch("io");
+    Dataset ds;
+    ds.kind = HZ_DATA_STREAMLINES;
+    ds.tractogram = make_phantom({.nb_streamlines = 200});
+    ds.metadata = {{"comment", "unit test"}};
+    std::vector<std::string> dropped;
+    write_dataset(reg, ds, d / "a.tck", false, &dropped);
+    CHECK(dropped.empty());
+    const Dataset back = read_dataset(reg, d / "a.tck");
+    REQUIRE(back.tractogram.nb_vertices() == ds.tractogram.nb_vertices());
+    CHECK(std::equal(back.tractogram.positions.begin(), back.tractogram.positions.end(), ds.tractogram.positions.begin()));
+    CHECK(back.format == "tck Float32LE");
+
+    // A TCK file with a misleading name is still found by its content.
+    fs::copy_file(d / "a.tck", d / "misnamed.dat");
+    CHECK(read_dataset(reg, d / "misnamed.dat").loader_id == "org.horizon.loader.tck");
+
+    // Atomic writes: no overwrite without force, never the input, nothing left on failure.
+    CHECK_THROWS_WITH(write_dataset(reg, ds, d / "a.tck", false, nullptr), Catch::Contains("already exists"));
+    CHECK_THROWS_WITH(write_dataset(reg, ds, d / "a.tck", true, nullptr, d / "a.tck"), Catch::Contains("refusing"));
+    Dataset bad = read_dataset(reg, d / "a.tck");
+    bad.tractogram.positions[4] = INFINITY;
+    CHECK_THROWS_WITH(write_dataset(reg, bad, d / "b.tck", false, nullptr), Catch::Contains("non-finite"));
+    CHECK_FALSE(fs::exists(d / "b.tck"));
+    std::size_t files = 0;
+    for ([[maybe_unused]] const auto &e : fs::directory_iterator(d)) ++files;
+    CHECK(files == 2);  // a.tck and misnamed.dat: no temporary left behind
+    CHECK_THROWS_WITH(write_dataset(reg, ds, d / "x.unknownext", false, nullptr), Catch::Contains("no writer"));
+    fs::remove_all(d);
+}
+
+TEST_CASE("a pre-cancelled task stops a read") {
+    const Registry reg = bundled();
+    const fs::path d = scratch("cancel");
+    Dataset ds;
+    ds.kind = HZ_DATA_STREAMLINES;
+    ds.tractogram = make_phantom({.nb_streamlines = 50});
+    write_dataset(reg, ds, d / "a.tck", false, nullptr);
+    Task task;
+    task.cancel();
+    CHECK_THROWS_WITH(read_dataset(reg, d / "a.tck", task.get()), Catch::Contains("cancelled"));
+    fs::remove_all(d);
+}

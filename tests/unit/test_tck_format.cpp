@@ -1,0 +1,167 @@
+// The TCK format code on its own (no plugin, no host).
+#include "tck_format.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace {
+
+std::string f32le(std::initializer_list<float> v) {
+    std::string s;
+    for (float f : v) {
+        uint32_t u = std::bit_cast<uint32_t>(f);
+        for (int i = 0; i < 4; ++i) s.push_back(static_cast<char>((u >> (8 * i)) & 0xff));
+    }
+    return s;
+}
+std::string f64be(std::initializer_list<double> v) {
+    std::string s;
+    for (double f : v) {
+        uint64_t u = std::bit_cast<uint64_t>(f);
+        for (int i = 7; i >= 0; --i) s.push_back(static_cast<char>((u >> (8 * i)) & 0xff));
+    }
+    return s;
+}
+const float NaN = std::numeric_limits<float>::quiet_NaN();
+const float Inf = std::numeric_limits<float>::infinity();
+
+struct Parsed {
+    tck::Header h;
+    tck::Layout l;
+    std::vector<float> pos;
+    std::vector<uint64_t> off;
+};
+Parsed parse(const std::string &file) {
+    const auto *b = reinterpret_cast<const unsigned char *>(file.data());
+    Parsed p;
+    p.h = tck::parse_header(b, file.size());
+    p.l = tck::scan(b, file.size(), p.h);
+    p.pos.resize(3 * p.l.nb_vertices);
+    p.off.resize(p.l.nb_streamlines + 1);
+    tck::decode(b, p.h, p.l, p.pos.data(), p.off.data());
+    return p;
+}
+std::string header(const std::string &datatype, std::size_t offset_pad = 0) {
+    std::string h = "mrtrix tracks    \ncount: 2\ndatatype: " + datatype + "\n";
+    const std::size_t off = h.size() + std::string("file: . 000\nEND\n").size() + offset_pad;
+    h += "file: . " + std::to_string(off) + "\nEND\n";
+    h.resize(off, '\0');
+    return h;
+}
+
+}  // namespace
+
+TEST_CASE("tck: Float32LE with an empty streamline and trailing spaces in the magic line") {
+    const std::string file = header("Float32LE") + f32le({1, 2, 3, 4, 5, 6, NaN, NaN, NaN, NaN, NaN, NaN, 7, 8, 9, NaN, NaN, NaN, Inf, Inf, Inf});
+    const Parsed p = parse(file);
+    REQUIRE(p.l.nb_streamlines == 3);
+    REQUIRE(p.l.nb_vertices == 3);
+    CHECK(p.off == std::vector<uint64_t>{0, 2, 2, 3});
+    CHECK(p.pos == std::vector<float>{1, 2, 3, 4, 5, 6, 7, 8, 9});
+}
+
+TEST_CASE("tck: Float64BE is decoded to float32") {
+    const double dnan = std::nan(""), dinf = INFINITY;
+    const std::string file = header("Float64BE", 5) + f64be({0.5, -1.25, 100.125, dnan, dnan, dnan, dinf, dinf, dinf});
+    const Parsed p = parse(file);
+    CHECK(p.h.datatype == tck::DataType::Float64BE);
+    CHECK(p.pos == std::vector<float>{0.5f, -1.25f, 100.125f});
+}
+
+TEST_CASE("tck: negative NaN delimiters and -Inf terminator are accepted") {
+    const float nnan = -NaN, ninf = -Inf;
+    const Parsed p = parse(header("Float32LE") + f32le({1, 1, 1, nnan, nnan, nnan, ninf, ninf, ninf}));
+    CHECK(p.l.nb_streamlines == 1);
+}
+
+TEST_CASE("tck: header quirks") {
+    SECTION("repeated keys, ':' in values, empty values are kept in order") {
+        std::string h = "mrtrix tracks\ncommand_history: a: b\ncommand_history: c\nroi: \ndatatype: Float32LE\nfile: . 200\nEND\n";
+        h.resize(200, '\0');
+        const Parsed p = parse(h + f32le({Inf, Inf, Inf}));
+        REQUIRE(p.h.entries.size() == 5);
+        CHECK(p.h.entries[0].second == "a: b");
+        CHECK(p.h.entries[2].first == "roi");
+        CHECK(p.h.entries[2].second.empty());
+        CHECK(p.l.nb_streamlines == 0);
+    }
+    SECTION("missing datatype and file fields are tolerated with warnings") {
+        const Parsed p = parse("mrtrix tracks\nEND\n" + f32le({1, 2, 3, NaN, NaN, NaN, Inf, Inf, Inf}));
+        CHECK(p.h.warnings.size() == 2);
+        CHECK(p.l.nb_vertices == 1);
+    }
+    SECTION("count is informative only") {
+        std::string h = "mrtrix tracks\ncount: 615000\ndatatype: Float32LE\nfile: . 80\nEND\n";
+        h.resize(80, '\0');
+        CHECK(parse(h + f32le({1, 2, 3, NaN, NaN, NaN, Inf, Inf, Inf})).l.nb_streamlines == 1);
+    }
+}
+
+TEST_CASE("tck: malformed files are rejected with a reason") {
+    auto rejects = [](const std::string &file, const std::string &needle) {
+        try {
+            parse(file);
+            FAIL("accepted: " << needle);
+        } catch (const tck::FormatError &e) {
+            CHECK_THAT(e.what(), Catch::Contains(needle));
+        }
+    };
+    rejects("mrtrix trucks\nEND\n", "not a TCK file");
+    rejects("mrtrix tracks\ndatatype: Float32LE\n", "no END line");
+    rejects("mrtrix tracks\ndatatype: Int32LE\nEND\n", "Int32LE");
+    rejects("mrtrix tracks\nfile: other.dat 100\nEND\n", "another file");
+    rejects("mrtrix tracks\nfile: . 999999\nEND\n", "past the end");
+    rejects("mrtrix tracks\nfile: . 1\nEND\n", "inside the header");
+    rejects("mrtrix tracks\nno colon here\nEND\n", "key: value");
+    rejects(header("Float32LE") + f32le({1, 2, 3, NaN, 2, 3, NaN, NaN, NaN, Inf, Inf, Inf}), "partial NaN");
+    rejects(header("Float32LE") + f32le({1, 2, Inf, NaN, NaN, NaN, Inf, Inf, Inf}), "partial NaN/Inf");
+    rejects(header("Float32LE") + f32le({1, 2, 3, NaN, NaN, NaN}), "no 'Inf Inf Inf' terminator");
+    rejects(header("Float32LE") + f32le({1, 2, 3, Inf, Inf, Inf}), "not closed by a NaN");
+    rejects((header("Float32LE") + f32le({1, 2, 3, NaN, NaN, NaN})).substr(0, header("Float32LE").size() + 17), "truncated");
+    rejects("", "empty file");
+}
+
+TEST_CASE("tck: every truncation of a valid file is rejected, never accepted as shorter data") {
+    const std::string file = header("Float32LE") + f32le({1, 2, 3, 4, 5, 6, NaN, NaN, NaN, 7, 8, 9, NaN, NaN, NaN, Inf, Inf, Inf});
+    for (std::size_t cut = 0; cut < file.size(); ++cut) {
+        INFO("cut at " << cut);
+        CHECK_THROWS_AS(parse(file.substr(0, cut)), tck::FormatError);
+    }
+    CHECK(parse(file).l.nb_streamlines == 2);
+}
+
+TEST_CASE("tck: write then read round-trips, offset stable when the header grows") {
+    const auto dir = std::filesystem::temp_directory_path() / "hz_unit_tck";
+    std::filesystem::create_directories(dir);
+    const std::vector<float> pos = {1.5f, -2.25f, 3e5f, 4, 5, 6, 7, 8, 9};
+    const std::vector<uint64_t> off = {0, 2, 2, 3};
+    for (std::size_t meta_len : {0, 10, 75, 76, 77, 900}) {
+        const auto path = (dir / "rt.tck").string();
+        tck::write(path, pos.data(), 3, off.data(), 3, {{"comment", std::string(meta_len, 'x')}});
+        std::ifstream in(path, std::ios::binary);
+        const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+        const Parsed p = parse(bytes);
+        CHECK(p.pos == pos);
+        CHECK(p.off == off);
+        CHECK(p.h.entries.front().second.size() == meta_len);
+    }
+    std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("tck: probe") {
+    auto score = [](const std::string &s) { return tck::probe(reinterpret_cast<const unsigned char *>(s.data()), s.size()); };
+    CHECK(score("mrtrix tracks\n") == 100);
+    CHECK(score("mrtrix tracks    \r\n") == 100);
+    CHECK(score("mrtrix tracks") == 80);
+    CHECK(score("mrtrix tracksX\n") == 0);
+    CHECK(score("mrtrix image\n") == 0);
+    CHECK(score("") == 0);
+}
