@@ -11,6 +11,7 @@ namespace hz::host {
 
 struct GlobalOptions {
     std::vector<std::filesystem::path> plugin_dirs;
+    double plugin_timeout_s = 10.0;  // per trial load of a plugin file
 };
 
 struct ValidateOptions {

@@ -18,7 +18,7 @@
 namespace hz::host {
 
 core::Registry load_registry(const GlobalOptions &g) {
-    core::Registry reg;
+    core::Registry reg(core::Registry::Options{true, g.plugin_timeout_s});
     reg.scan(core::plugin_search_path(g.plugin_dirs));
     for (const auto &r : reg.rejected()) spdlog::debug("rejected {}: {}", r.file, r.reason);
     return reg;
@@ -37,6 +37,8 @@ int main(int argc, char **argv) {
     app.require_subcommand(1);
     GlobalOptions g;
     app.add_option("--plugin-dir", g.plugin_dirs, "extra plugin directory (searched first; repeatable)");
+    app.add_option("--plugin-timeout", g.plugin_timeout_s, "seconds a plugin may take to load before it is rejected")
+        ->capture_default_str();
     bool verbose = false;
     app.add_flag("-v,--verbose", verbose, "log plugin loading and decisions");
 

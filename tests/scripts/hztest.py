@@ -1,0 +1,95 @@
+"""Shared helpers for the scripted tests: they drive the real `horizon`
+binary (paths come from CTest's environment) and write test files."""
+import json
+import os
+import shutil
+import struct
+import subprocess
+import tempfile
+import unittest
+
+import numpy as np
+
+HORIZON = os.environ.get("HORIZON_BIN", "horizon")
+BUILD = os.environ.get("HORIZON_BUILD_DIR", "")
+SOURCE = os.environ.get("HORIZON_SOURCE_DIR", "")
+FIXTURES = os.environ.get("HORIZON_FIXTURE_DIR", "")
+TEMPLATES = os.environ.get("HORIZON_TEMPLATE_DIR", "")
+BUNDLED = os.path.join(BUILD, "lib", "horizon", "plugins")
+
+
+def run(*args, timeout=60, env=None):
+    """Runs horizon with `args`; returns the CompletedProcess (text mode)."""
+    e = dict(os.environ)
+    e.pop("HORIZON_PLUGIN_PATH", None)
+    if env:
+        e.update(env)
+    e["XDG_DATA_HOME"] = e.get("HZ_TEST_XDG", "/nonexistent-xdg")
+    return subprocess.run([HORIZON, *map(str, args)], capture_output=True, text=True, timeout=timeout, env=e)
+
+
+def run_json(*args, **kw):
+    p = run(*args, **kw)
+    if p.returncode != 0:
+        raise AssertionError(f"horizon {' '.join(map(str, args))} failed ({p.returncode}): {p.stderr}")
+    return json.loads(p.stdout)
+
+
+class TempDirTest(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp(prefix="hz_test_")
+
+    def tearDown(self):
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def path(self, name):
+        return os.path.join(self.tmp, name)
+
+    def assert_clean_error(self, proc, filename, elapsed_limit=None):
+        """A failure: non-zero exit, exactly one stderr line naming the file."""
+        self.assertNotEqual(proc.returncode, 0, proc.stdout)
+        self.assertGreater(proc.returncode, 0, f"killed by a signal: {proc.returncode}")
+        lines = [l for l in proc.stderr.splitlines() if l.strip()]
+        self.assertEqual(len(lines), 1, f"expected one error line, got: {proc.stderr!r}")
+        self.assertIn(os.path.basename(filename), lines[0])
+
+
+def tck_bytes(streamlines, datatype="Float32LE", header_extra=(), nan_bits=None, inf_sign=1.0,
+              magic="mrtrix tracks", pad=0, terminator=True, count=None):
+    """Builds a TCK file the way MRtrix/nibabel/MATLAB writers do."""
+    fmt = {"Float32LE": "<f4", "Float32BE": ">f4", "Float64LE": "<f8", "Float64BE": ">f8"}[datatype]
+    parts = []
+    for s in streamlines:
+        parts.append(np.asarray(s, dtype=np.float64).reshape(-1, 3))
+        parts.append(np.full((1, 3), np.nan))
+    if terminator:
+        parts.append(np.full((1, 3), np.inf * inf_sign))
+    data = np.concatenate(parts).astype(fmt) if parts else np.zeros((0, 3), fmt)
+    raw = bytearray(data.tobytes())
+    if nan_bits is not None:  # e.g. MATLAB's -NaN 0xffc00000
+        size = np.dtype(fmt).itemsize
+        rows = np.isnan(data).all(axis=1)
+        bits = struct.pack("<I" if fmt[0] == "<" else ">I", nan_bits) if size == 4 else None
+        for i in np.nonzero(rows)[0]:
+            for k in range(3):
+                off = (3 * i + k) * size
+                raw[off:off + size] = bits
+    lines = [magic]
+    lines += [f"{k}: {v}" for k, v in header_extra]
+    lines.append(f"count: {len(streamlines) if count is None else count}")
+    lines.append(f"datatype: {datatype}")
+    head = "\n".join(lines) + "\n"
+    offset = len(head) + len("file: . \nEND\n") + pad
+    offset += len(str(offset + 3))
+    head += f"file: . {offset}\nEND\n"
+    head = head.encode() + b"\0" * (offset - len(head))
+    return head + bytes(raw)
+
+
+def random_streamlines(n, rng, min_pts=1, max_pts=60, scale=80.0):
+    out = []
+    for _ in range(n):
+        k = int(rng.integers(min_pts, max_pts + 1))
+        steps = rng.normal(size=(k, 3))
+        out.append((np.cumsum(steps, axis=0) + rng.uniform(-scale, scale, 3)).astype(np.float32))
+    return out

@@ -1,0 +1,105 @@
+"""`horizon plugins`: discovery, and rejection of everything that is not a
+good plugin, each with a one-line reason naming the file."""
+import os
+import shutil
+import unittest
+
+from hztest import BUNDLED, FIXTURES, TEMPLATES, TempDirTest, run, run_json
+
+BUNDLED_IDS = {"org.horizon.loader.tck"}
+
+
+class PluginsTest(TempDirTest):
+    def test_bundled_plugins_are_listed(self):
+        j = run_json("plugins", "--json")
+        ids = {p["id"] for p in j["plugins"]}
+        self.assertTrue(BUNDLED_IDS <= ids, ids)
+        for p in j["plugins"]:
+            self.assertEqual(p["status"], "loaded")
+            self.assertTrue(os.path.isfile(p["file"]))
+            self.assertIn(p["kind"], ("loader", "shader", "clustering"))
+            self.assertRegex(p["version"], r"^\d+\.\d+\.\d+")
+        self.assertEqual(j["rejected"], [])
+        text = run("plugins")
+        self.assertEqual(text.returncode, 0)
+        self.assertIn("org.horizon.loader.tck", text.stdout)
+
+    def test_bad_plugin_dir(self):
+        d = self.path("plugins")
+        os.mkdir(d)
+        open(os.path.join(d, "empty.so"), "wb").close()
+        with open(os.path.join(d, "readme.txt"), "w") as f:
+            f.write("This directory holds plugins.\n")
+        with open(os.path.join(d, "random.so"), "wb") as f:
+            f.write(os.urandom(4096) .replace(b"\x7fELF", b"xxxx"))
+        for name in ["fx_no_entry", "fx_wrong_abi_symbol", "fx_wrong_abi_field", "fx_init_crash", "fx_init_throws"]:
+            shutil.copy(os.path.join(FIXTURES, name + ".so"), d)
+        # A good object patched to claim another CPU architecture (e_machine = AArch64).
+        arm = os.path.join(d, "arm64.so")
+        shutil.copy(os.path.join(TEMPLATES, "tpl_lambert_shader.so"), arm)
+        with open(arm, "r+b") as f:
+            f.seek(18)
+            f.write(bytes([183, 0]))
+        shutil.copy(os.path.join(TEMPLATES, "tpl_length_clustering.so"), d)
+
+        p = run("--plugin-dir", d, "plugins", "--json")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        import json
+        j = json.loads(p.stdout)
+        reasons = {os.path.basename(r["file"]): r["reason"] for r in j["rejected"]}
+        expect = {
+            "empty.so": "empty",
+            "readme.txt": "text file",
+            "random.so": "not a shared object",
+            "fx_no_entry.so": "no 'hz_plugin_entry_v1'",
+            "fx_wrong_abi_symbol.so": "ABI 2",
+            "fx_wrong_abi_field.so": "ABI 2",
+            "fx_init_crash.so": "crashed (signal SIGSEGV)",
+            "fx_init_throws.so": "threw a C++ exception",
+            "arm64.so": "AArch64",
+        }
+        for name, needle in expect.items():
+            self.assertIn(name, reasons, f"{name} not rejected: {j}")
+            self.assertIn(needle, reasons[name])
+            self.assertNotIn("\n", reasons[name])
+        ids = {p["id"] for p in j["plugins"]}
+        self.assertIn("org.example.clustering.length", ids)
+        self.assertTrue(BUNDLED_IDS <= ids)
+        # Text output: one line per rejected file, naming it.
+        t = run("--plugin-dir", d, "plugins")
+        self.assertEqual(t.returncode, 0)
+        for name in expect:
+            self.assertEqual(sum(1 for l in t.stdout.splitlines() if name in l and ":" in l), 1, name)
+
+    def test_plugin_path_variable_and_user_dir(self):
+        d = self.path("env")
+        os.mkdir(d)
+        shutil.copy(os.path.join(TEMPLATES, "tpl_hzt_loader.so"), d)
+        j = run_json("plugins", "--json", env={"HORIZON_PLUGIN_PATH": "/does/not/exist:" + d})
+        self.assertIn("org.example.loader.hzt", {p["id"] for p in j["plugins"]})
+        user = self.path("xdg")
+        os.makedirs(os.path.join(user, "horizon", "plugins"))
+        shutil.copy(os.path.join(TEMPLATES, "tpl_lambert_shader.so"), os.path.join(user, "horizon", "plugins"))
+        j = run_json("plugins", "--json", env={"HZ_TEST_XDG": user})
+        self.assertIn("org.example.shader.lambert", {p["id"] for p in j["plugins"]})
+
+    def test_first_dir_wins_for_duplicate_ids(self):
+        d = self.path("dup")
+        os.mkdir(d)
+        shutil.copy(os.path.join(BUNDLED, "hz_loader_tck.so"), os.path.join(d, "my_tck.so"))
+        j = run_json("--plugin-dir", d, "plugins", "--json")
+        tck = [p for p in j["plugins"] if p["id"] == "org.horizon.loader.tck"]
+        self.assertEqual(len(tck), 1)
+        self.assertTrue(tck[0]["file"].endswith("my_tck.so"))
+        self.assertTrue(any("duplicate plugin id" in r["reason"] for r in j["rejected"]))
+
+    def test_hanging_init_is_rejected_after_the_timeout(self):
+        d = self.path("hang")
+        os.mkdir(d)
+        shutil.copy(os.path.join(FIXTURES, "fx_init_hang.so"), d)
+        j = run_json("--plugin-dir", d, "--plugin-timeout", "1", "plugins", "--json", timeout=30)
+        self.assertIn("hung", j["rejected"][0]["reason"])
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,84 @@
+"""`horizon validate`: passes every bundled plugin and the SDK templates,
+fails broken fixtures naming the failing check, survives crashes and hangs."""
+import glob
+import json
+import os
+import unittest
+
+from hztest import BUNDLED, FIXTURES, TEMPLATES, TempDirTest, run
+
+
+def checks(report):
+    return {c["check"]: c for c in report["checks"]}
+
+
+class ValidateTest(TempDirTest):
+    def validate(self, path, *extra, timeout=300):
+        p = run("validate", path, "--json", *extra, timeout=timeout)
+        return p.returncode, json.loads(p.stdout)
+
+    def test_bundled_plugins_pass(self):
+        files = sorted(glob.glob(os.path.join(BUNDLED, "*.so")))
+        self.assertGreaterEqual(len(files), 1)
+        for f in files:
+            with self.subTest(plugin=os.path.basename(f)):
+                rc, rep = self.validate(f)
+                failed = [c for c in rep["checks"] if c["status"] not in ("passed", "skipped")]
+                self.assertEqual(failed, [])
+                self.assertEqual(rc, 0)
+                self.assertTrue(rep["ok"])
+
+    def test_bundled_loader_runs_the_loader_checks(self):
+        rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_tck.so"))
+        c = checks(rep)
+        for name in ["loader-probe-purity", "loader-roundtrip", "loader-malformed-survival",
+                     "loader-buffer-too-small", "loader-cancel", "exports-only-entry"]:
+            self.assertEqual(c[name]["status"], "passed", name)
+
+    def test_templates_pass(self):
+        for f in sorted(glob.glob(os.path.join(TEMPLATES, "*.so"))):
+            with self.subTest(plugin=os.path.basename(f)):
+                rc, rep = self.validate(f)
+                self.assertEqual(rc, 0, [c for c in rep["checks"] if c["status"] == "failed"])
+                self.assertEqual(sum(c["status"] == "skipped" for c in rep["checks"]) <= 1, True, rep)
+
+    def test_broken_shader_fails_naming_the_checks(self):
+        rc, rep = self.validate(os.path.join(FIXTURES, "fx_broken_shader.so"))
+        self.assertEqual(rc, 1)
+        c = checks(rep)
+        self.assertEqual(c["shader-schema-wellformed"]["status"], "failed")
+        self.assertIn("default", c["shader-schema-wellformed"]["reason"])
+        self.assertEqual(c["shader-reference-finite-nonnegative"]["status"], "failed")
+        self.assertIn("negative", c["shader-reference-finite-nonnegative"]["reason"])
+        text = run("validate", os.path.join(FIXTURES, "fx_broken_shader.so"))
+        self.assertEqual(text.returncode, 1)
+        self.assertIn("failed   shader-schema-wellformed", text.stdout)
+
+    def test_extra_exports_are_reported(self):
+        rc, rep = self.validate(os.path.join(FIXTURES, "fx_extra_export.so"))
+        self.assertEqual(rc, 1)
+        self.assertIn("fixture_leaked_symbol", checks(rep)["exports-only-entry"]["reason"])
+
+    def test_crash_and_hang_do_not_take_the_validator_down(self):
+        rc, rep = self.validate(os.path.join(FIXTURES, "fx_init_crash.so"))
+        self.assertEqual(rc, 1)
+        self.assertEqual(checks(rep)["load"]["status"], "crashed")
+        self.assertIn("SIGSEGV", checks(rep)["load"]["reason"])
+        rc, rep = self.validate(os.path.join(FIXTURES, "fx_init_hang.so"), "--timeout", "1", timeout=30)
+        self.assertEqual(rc, 1)
+        self.assertIn("hung", checks(rep)["load"]["reason"])
+
+    def test_non_plugins_fail_cleanly(self):
+        junk = self.path("junk.so")
+        with open(junk, "wb") as f:
+            f.write(b"not an elf file at all\n")
+        rc, rep = self.validate(junk)
+        self.assertEqual(rc, 1)
+        self.assertEqual(checks(rep)["elf"]["status"], "failed")
+        rc, rep = self.validate(os.path.join(FIXTURES, "fx_wrong_abi_symbol.so"))
+        self.assertEqual(rc, 1)
+        self.assertIn("ABI 2", checks(rep)["load"]["reason"])
+
+
+if __name__ == "__main__":
+    unittest.main()
