@@ -152,8 +152,15 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size) {
             break;
         }
         const auto colon = t.find(':');
-        if (colon == std::string_view::npos)
-            throw FormatError("header line " + std::to_string(line_no) + " has no 'key: value' form");
+        if (colon == std::string_view::npos) {
+            // A continuation of the previous value (MRtrix writes multi-line
+            // command_history this way); before any key it is an error.
+            if (h.entries.empty())
+                throw FormatError("header line " + std::to_string(line_no) + " has no 'key: value' form");
+            h.entries.back().second += "\n";
+            h.entries.back().second += t;
+            continue;
+        }
         std::string key(trim(t.substr(0, colon)));
         std::string value(trim(t.substr(colon + 1)));
         if (key == "datatype") {
@@ -269,9 +276,16 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
     std::string head = "mrtrix tracks\n";
     for (const auto &[k, v] : metadata) {
         if (k == "datatype" || k == "file" || k == "count") continue;
-        if (k.empty() || k.find_first_of(":\n\r") != std::string::npos || v.find_first_of("\n\r") != std::string::npos)
-            continue;  // not representable as a header line
-        head += k + ": " + v + "\n";
+        if (k.empty() || k.find_first_of(":\n\r") != std::string::npos || k == "END") continue;  // not a key
+        // Multi-line values become repeated keys, the MRtrix convention.
+        std::size_t start = 0;
+        do {
+            const std::size_t nl = v.find('\n', start);
+            std::string line = v.substr(start, nl == std::string::npos ? std::string::npos : nl - start);
+            std::erase(line, '\r');
+            head += k + ": " + line + "\n";
+            start = nl == std::string::npos ? v.size() + 1 : nl + 1;
+        } while (start <= v.size());
     }
     head += "datatype: Float32LE\ncount: " + std::to_string(nb_streamlines) + "\n";
     // The offset is part of the header it points past: grow it until stable.

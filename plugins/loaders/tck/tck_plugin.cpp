@@ -93,9 +93,10 @@ hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, 
 
 hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *dst, const hz_task *task,
                                   hz_error *err) {
-    if (reader == nullptr || dst == nullptr || dst->positions == nullptr || dst->offsets == nullptr)
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: read_streamlines: NULL");
+    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: read_streamlines: NULL");
     Reader &r = *as_reader(reader);
+    if ((dst->positions == nullptr && r.layout.nb_vertices > 0) || dst->offsets == nullptr)
+        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: read_streamlines: NULL destination", r.path.c_str());
     if (dst->positions_capacity < 3 * r.layout.nb_vertices || dst->offsets_capacity < r.layout.nb_streamlines + 1)
         return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL,
                               "tck: %s: destination holds %llu floats / %llu offsets, need %llu / %llu",

@@ -1,0 +1,172 @@
+"""MRtrix TCK through `horizon info` / `horizon convert`, checked against
+nibabel (the independent reference) and against the generating arrays."""
+import glob
+import json
+import os
+import time
+import unittest
+
+import nibabel as nib
+import numpy as np
+
+from hztest import TempDirTest, random_streamlines, run, run_json, tck_bytes
+
+NIB_DATA = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
+
+
+def read_back(test, path):
+    """Streamlines as horizon reads `path`: converted by horizon to a plain
+    Float32LE TCK, then parsed here with numpy (keeps empty streamlines)."""
+    out = test.path("readback_%d.tck" % time.monotonic_ns())
+    p = run("convert", path, out)
+    test.assertEqual(p.returncode, 0, p.stderr)
+    with open(out, "rb") as f:
+        raw = f.read()
+    head_end = raw.index(b"\nEND\n")
+    offset = [int(l.split()[-1]) for l in raw[:head_end].decode().splitlines() if l.startswith("file:")][0]
+    data = np.frombuffer(raw[offset:], dtype="<f4").reshape(-1, 3)
+    streamlines, cur = [], []
+    for row in data:
+        if np.isinf(row).all():
+            break
+        if np.isnan(row).all():
+            streamlines.append(np.array(cur, dtype=np.float32).reshape(-1, 3))
+            cur = []
+        else:
+            cur.append(row)
+    return streamlines
+
+
+class TckVariantsTest(TempDirTest):
+    def check_same(self, got, want, tol=1e-3):
+        self.assertEqual(len(got), len(want))
+        for a, b in zip(got, want):
+            self.assertEqual(a.shape, np.asarray(b).reshape(-1, 3).shape)
+            if len(a):
+                self.assertLessEqual(np.abs(a - np.asarray(b, dtype=np.float64)).max(), tol)
+
+    def test_datatypes_and_byte_orders(self):
+        rng = np.random.default_rng(7)
+        sl = random_streamlines(30, rng) + [np.zeros((0, 3), np.float32)] + random_streamlines(5, rng, 1, 1)
+        for dt in ["Float32LE", "Float32BE", "Float64LE", "Float64BE"]:
+            with self.subTest(datatype=dt):
+                f = self.path(f"v_{dt}.tck")
+                with open(f, "wb") as fh:
+                    fh.write(tck_bytes(sl, dt))
+                info = run_json("info", f, "--json")
+                self.assertEqual(info["format"], "tck " + dt)
+                self.assertEqual(info["nb_streamlines"], len(sl))
+                self.assertEqual(info["nb_vertices"], sum(len(s) for s in sl))
+                self.assertEqual(info["nb_empty_streamlines"], 1)
+                self.check_same(read_back(self, f), sl, tol=0)  # float32 data survives bit for bit
+                if dt.startswith("Float32"):  # nibabel 5.0 reads Float32 only; it drops empty streamlines
+                    ref = nib.streamlines.load(f).streamlines
+                    self.check_same([s for s in read_back(self, f) if len(s)], list(ref))
+
+    def test_files_written_by_nibabel(self):
+        rng = np.random.default_rng(11)
+        sl = random_streamlines(200, rng, 2, 80)
+        f = self.path("nib.tck")
+        nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), f)
+        info = run_json("info", f, "--json")
+        self.assertEqual(info["nb_streamlines"], 200)
+        allp = np.concatenate(sl)
+        np.testing.assert_allclose(info["bbox_ras_mm"]["min"], allp.min(0), atol=1e-4)
+        np.testing.assert_allclose(info["bbox_ras_mm"]["max"], allp.max(0), atol=1e-4)
+        self.check_same(read_back(self, f), sl, tol=0)
+        # And nibabel reads what horizon writes.
+        out = self.path("from_horizon.tck")
+        self.assertEqual(run("convert", f, out).returncode, 0)
+        self.check_same(list(nib.streamlines.load(out).streamlines), sl, tol=0)
+
+    def test_nibabel_test_data(self):
+        good = ["empty.tck", "simple.tck", "simple_big_endian.tck", "standard.tck", "matlab_nan.tck",
+                "multiline_header_field.tck"]
+        for name in good:
+            with self.subTest(file=name):
+                f = os.path.join(NIB_DATA, name)
+                ref = list(nib.streamlines.load(f).streamlines)
+                got = [s for s in read_back(self, f) if len(s)]
+                self.check_same(got, ref, tol=0)
+        for name in ["no_magic_number.tck", "no_header_end.tck", "no_header_end_eof.tck"]:
+            with self.subTest(file=name):
+                self.assert_clean_error(run("info", os.path.join(NIB_DATA, name)), name)
+
+    def test_header_quirks(self):
+        sl = [np.arange(9, dtype=np.float32).reshape(3, 3), np.ones((2, 3), np.float32)]
+        cases = {
+            "matlab_negnan": dict(nan_bits=0xFFC00000, inf_sign=-1.0, pad=7),
+            "count_mismatch": dict(count=615000),
+            "empty_value": dict(header_extra=[("roi", ""), ("command_history", "a: b:c")]),
+            "magic_trailing_blanks": dict(magic="mrtrix tracks    "),
+        }
+        for name, kw in cases.items():
+            with self.subTest(case=name):
+                f = self.path(name + ".tck")
+                with open(f, "wb") as fh:
+                    fh.write(tck_bytes(sl, **kw))
+                self.check_same(read_back(self, f), sl, tol=0)
+        # Bytes after the Inf terminator are ignored, as mrtrix does.
+        f = self.path("trailing.tck")
+        with open(f, "wb") as fh:
+            fh.write(tck_bytes(sl) + b"junk")
+        self.check_same(read_back(self, f), sl, tol=0)
+        # A missing count field is fine.
+        f = self.path("nocount.tck")
+        with open(f, "wb") as fh:
+            fh.write(tck_bytes(sl).replace(b"count: 2\n", b"xount: 2\n"))
+        self.check_same(read_back(self, f), sl, tol=0)
+
+
+class TckMalformedTest(TempDirTest):
+    def write(self, name, data):
+        f = self.path(name)
+        with open(f, "wb") as fh:
+            fh.write(data)
+        return f
+
+    def test_every_truncation_fails_cleanly(self):
+        good = tck_bytes([np.arange(12, dtype=np.float32).reshape(4, 3), np.ones((2, 3), np.float32)])
+        for cut in range(len(good)):
+            f = self.write("cut.tck", good[:cut])
+            t0 = time.monotonic()
+            p = run("info", f, timeout=10)
+            with self.subTest(cut=cut):
+                self.assert_clean_error(p, "cut.tck")
+                self.assertLess(time.monotonic() - t0, 10)
+
+    def test_malformed_cases(self):
+        sl = [np.arange(9, dtype=np.float32).reshape(3, 3)]
+        good = tck_bytes(sl)
+        off = good.index(b"END\n") + 4
+        data_at = int(good.split(b"file: . ")[1].split(b"\n")[0])
+        cases = {
+            "bad_magic.tck": good.replace(b"mrtrix tracks", b"mrtrix trucks"),
+            "int32.tck": good.replace(b"Float32LE", b"Int32LE  "),
+            "external.tck": good.replace(b"file: . ", b"file: x "),
+            "offset_beyond_eof.tck": good.replace(b"file: . %d" % data_at, b"file: . 99999999999"),
+            "offset_in_header.tck": good.replace(b"file: . %d" % data_at, b"file: . 1" + b" " * (len(str(data_at)) - 1)),
+            "offset_negative.tck": good.replace(b"file: . %d" % data_at, b"file: . -5"),
+            "no_terminator.tck": good[:-12],
+            "no_last_delimiter.tck": good[:-24] + good[-12:],
+            "partial_nan.tck": good[:data_at] + np.array([[np.nan, 1, 2]], "<f4").tobytes() + good[data_at + 12:],
+            "partial_inf.tck": good[:data_at] + np.array([[0, 1, np.inf]], "<f4").tobytes() + good[data_at + 12:],
+            "no_end.tck": good[:off - 4],
+            "binary_junk.tck": b"mrtrix tracks\n" + os.urandom(3000).replace(b"END", b"xxx"),
+        }
+        for name, data in cases.items():
+            with self.subTest(case=name):
+                f = self.write(name, data)
+                p = run("info", f, timeout=10)
+                self.assert_clean_error(p, name)
+
+    def test_absurd_sizes_do_not_allocate(self):
+        # A header claiming an enormous count with almost no data.
+        f = self.write("huge_count.tck", tck_bytes([np.zeros((1, 3))], count=10**15))
+        p = run("info", f, "--json")
+        self.assertEqual(p.returncode, 0)
+        self.assertEqual(json.loads(p.stdout)["nb_streamlines"], 1)
+
+
+if __name__ == "__main__":
+    unittest.main()
