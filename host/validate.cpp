@@ -23,7 +23,6 @@
 #include <optional>
 #include <iostream>
 #include <random>
-#include <regex>
 #include <set>
 #include <sys/mman.h>
 #include <unistd.h>
@@ -226,16 +225,40 @@ std::vector<fs::path> loader_samples(const Ctx &c, std::string &msg) {
     return files;
 }
 
+bool is_identifier(std::string_view s) {
+    auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+    return !s.empty() && !std::isdigit(static_cast<unsigned char>(s[0])) && std::all_of(s.begin(), s.end(), word);
+}
+
+// Position of `name` followed by optional blanks and '(' as a whole word, or npos.
+std::size_t find_call(const std::string &src, const std::string &name) {
+    for (std::size_t at = src.find(name); at != std::string::npos; at = src.find(name, at + 1)) {
+        const bool left_ok = at == 0 || !(std::isalnum(static_cast<unsigned char>(src[at - 1])) || src[at - 1] == '_');
+        std::size_t k = at + name.size();
+        while (k < src.size() && (src[k] == ' ' || src[k] == '\t' || src[k] == '\n')) ++k;
+        if (left_ok && k < src.size() && src[k] == '(') return at;
+    }
+    return std::string::npos;
+}
+bool has_word(const std::string &src, const std::string &w) {
+    for (std::size_t at = src.find(w); at != std::string::npos; at = src.find(w, at + 1)) {
+        const bool l = at == 0 || !(std::isalnum(static_cast<unsigned char>(src[at - 1])) || src[at - 1] == '_');
+        const std::size_t e = at + w.size();
+        const bool r = e >= src.size() || !(std::isalnum(static_cast<unsigned char>(src[e])) || src[e] == '_');
+        if (l && r) return true;
+    }
+    return false;
+}
+
 // Parameter schema rules shared by shaders and clustering.
 Outcome check_schema(uint32_t count, const hz_param_info *(HZ_ABI *get)(uint32_t)) {
-    static const std::regex ident("^[A-Za-z_][A-Za-z0-9_]*$");
     std::set<std::string> names;
     for (uint32_t i = 0; i < count; ++i) {
         const hz_param_info *p = get(i);
         const std::string at = "parameter " + std::to_string(i);
         if (p == nullptr) return fail(at + ": get_param returned NULL");
         if (p->struct_size < sizeof(hz_param_info)) return fail(at + ": struct_size too small");
-        if (p->name == nullptr || !std::regex_match(p->name, ident)) return fail(at + ": name is not an identifier");
+        if (p->name == nullptr || !is_identifier(p->name)) return fail(at + ": name is not an identifier");
         const std::string n = p->name;
         if (!names.insert(n).second) return fail("duplicate parameter name '" + n + "'");
         if (p->type < HZ_PARAM_FLOAT || p->type > HZ_PARAM_FLOAT_ARRAY) return fail(n + ": unknown type " + std::to_string(p->type));
@@ -613,10 +636,11 @@ std::vector<Check> catalogue() {
                          const char *src = s.glsl_source(d, 410);
                          if (!src) return fail("glsl_source returns NULL for a declared domain");
                          const std::string g = src;
-                         if (!std::regex_search(g, std::regex("vec3\\s+hz_shade\\s*\\("))) return fail("snippet does not define vec3 hz_shade(");
+                         const std::size_t def = find_call(g, "hz_shade");
+                         if (def == std::string::npos || g.rfind("vec3", def) == std::string::npos) return fail("snippet does not define vec3 hz_shade(");
                          if (g.find("#version") != std::string::npos) return fail("snippet has #version");
-                         if (std::regex_search(g, std::regex("\\bmain\\s*\\("))) return fail("snippet defines main(");
-                         if (std::regex_search(g, std::regex("\\buniform\\b"))) return fail("snippet declares uniforms");
+                         if (find_call(g, "main") != std::string::npos) return fail("snippet defines main(");
+                         if (has_word(g, "uniform")) return fail("snippet declares uniforms");
                      }
                      return pass();
                  }});

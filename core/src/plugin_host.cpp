@@ -16,7 +16,6 @@
 #include <map>
 #include <mutex>
 #include <poll.h>
-#include <regex>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -140,6 +139,9 @@ ChildResult run_in_child(const std::function<std::string()> &fn, double timeout_
     if (pid < 0) throw Error(std::string("fork: ") + std::strerror(errno));
     if (pid == 0) {
         ::close(fds[0]);
+        // Die of the real signal on a crash (sanitizer runtimes would turn it
+        // into an exit status), so the parent can name it.
+        for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL}) std::signal(sig, SIG_DFL);
         ::dup2(2, 1);  // keep the parent's stdout clean (JSON output)
         std::string out;
         try {
@@ -240,6 +242,13 @@ std::size_t core_interface_min_size(hz_plugin_kind k) {
     default: return 0;
     }
 }
+// Reverse-DNS style ids: [a-z0-9][a-z0-9._-]*
+bool valid_plugin_id(std::string_view id) {
+    if (id.empty() || !(std::islower(static_cast<unsigned char>(id[0])) || std::isdigit(static_cast<unsigned char>(id[0])))) return false;
+    return std::all_of(id.begin(), id.end(), [](char c) {
+        return std::islower(static_cast<unsigned char>(c)) || std::isdigit(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-';
+    });
+}
 std::string first_line(std::string s) {
     const auto nl = s.find('\n');
     if (nl != std::string::npos) s.resize(nl);
@@ -292,7 +301,11 @@ Module::~Module() {
     // plugins may have registered atexit handlers or thread-locals.
     if (impl_) {
         deinit();
-        (void)new boost::dll::shared_library(std::move(impl_->lib));  // intentionally leaked: keep resident
+        // Kept resident until exit, reachable from a global (no leak report).
+        static auto *resident = new std::vector<boost::dll::shared_library>();
+        static std::mutex m;
+        std::lock_guard lock(m);
+        resident->push_back(std::move(impl_->lib));
     }
 }
 
@@ -304,7 +317,6 @@ void Module::deinit() {
 }
 
 std::vector<PluginInfo> Module::plugins() const {
-    static const std::regex id_re("^[a-z0-9][a-z0-9._-]*$");
     std::vector<PluginInfo> out;
     const uint32_t n = entry_->get_plugin_count();
     if (n == 0) throw Error("get_plugin_count() returned 0");
@@ -316,7 +328,7 @@ std::vector<PluginInfo> Module::plugins() const {
         if (d->struct_size < sizeof(hz_plugin_descriptor)) throw Error(at + ": struct_size too small");
         if (d->abi.major != HZ_ABI_VERSION_MAJOR) throw Error(at + ": built for ABI " + std::to_string(d->abi.major));
         if (!d->id || !*d->id) throw Error(at + ": missing id");
-        if (!std::regex_match(d->id, id_re)) throw Error(at + ": id '" + std::string(d->id) + "' is not [a-z0-9._-]+");
+        if (!valid_plugin_id(d->id)) throw Error(at + ": id '" + std::string(d->id) + "' is not [a-z0-9._-]+");
         if (!d->name || !*d->name) throw Error(at + " (" + d->id + "): missing name");
         if (!d->version || !*d->version) throw Error(at + " (" + d->id + "): missing version");
         const char *ci = core_interface(d->kind);
