@@ -27,12 +27,26 @@ struct DemoOptions {
     std::uint64_t nb_streamlines = 5000;
 };
 
+struct ClusterOptions {
+    std::string input;
+    std::string algorithm = "qbx";         // qb | qbx | qbx_merge
+    std::vector<double> thresholds;        // empty: the plugin's defaults
+    std::uint32_t nb_points = 0;           // 0: the plugin's default
+    std::string order = "file";            // file | shuffle
+    std::uint64_t seed = 0;
+    unsigned threads = 0;
+    std::string labels, centroids, out;
+    int level = -1;                        // centroid level; -1: the deepest
+    bool force = false, json = false;
+};
+
 core::Registry load_registry(const GlobalOptions &g);
 
 int cmd_plugins(const GlobalOptions &g, bool json);
 int cmd_validate(const GlobalOptions &g, const ValidateOptions &o);
 int cmd_info(const GlobalOptions &g, const std::string &file, bool json);
 int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string &out, bool force);
+int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o);
 int cmd_demo(const GlobalOptions &g, const DemoOptions &o);
 
 }  // namespace hz::host

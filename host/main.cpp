@@ -66,6 +66,24 @@ int main(int argc, char **argv) {
     convert->add_option("output", conv_out, "output file")->required();
     convert->add_flag("-f,--force", force, "replace an existing output file");
 
+    ClusterOptions co;
+    auto *cluster = app.add_subcommand("cluster", "cluster streamlines (QuickBundles / QuickBundlesX), DIPY's exact answers");
+    cluster->add_option("input", co.input, "tractogram")->required();
+    cluster->add_option("--algorithm", co.algorithm, "qb, qbx or qbx_merge")
+        ->check(CLI::IsMember({"qb", "qbx", "qbx_merge"}))->capture_default_str();
+    cluster->add_option("--thresholds", co.thresholds, "MDF thresholds in mm, comma-separated (qb: one)")->delimiter(',');
+    cluster->add_option("--nb-points", co.nb_points, "resampling points (default: qb/qbx 12, qbx_merge 20)");
+    cluster->add_option("--order", co.order, "processing order: file, shuffle (with --seed), or a text file of indices")
+        ->capture_default_str();
+    cluster->add_option("--seed", co.seed, "seed of --order shuffle")->capture_default_str();
+    cluster->add_option("--threads", co.threads, "resampling threads (0: all cores)");
+    cluster->add_option("--labels", co.labels, "CSV: one row per streamline, one column per level");
+    cluster->add_option("--centroids", co.centroids, "write one level's centroids as streamlines");
+    cluster->add_option("--level", co.level, "level for --centroids (1 = coarsest; default the finest)");
+    cluster->add_option("--out", co.out, "write the tractogram with per-streamline labels");
+    cluster->add_flag("-f,--force", co.force, "replace existing outputs");
+    cluster->add_flag("--json", co.json, "machine-readable summary");
+
     DemoOptions demo_opts;
     auto *demo = app.add_subcommand("demo", "build the synthetic demo scene and describe it");
     demo->add_option("-o,--out", demo_opts.out_dir, "directory for demo files")->capture_default_str();
@@ -84,6 +102,7 @@ int main(int argc, char **argv) {
         if (*info) return cmd_info(g, info_file, json);
         if (*convert) return cmd_convert(g, conv_in, conv_out, force);
         if (*demo) return cmd_demo(g, demo_opts);
+        if (*cluster) return cmd_cluster(g, co);
     } catch (const std::exception &e) {
         std::fprintf(stderr, "horizon: error: %s\n", e.what());
         return 1;

@@ -1,0 +1,242 @@
+// `horizon cluster`: runs a clustering plugin over a tractogram and writes
+// per-level labels (CSV), optionally one level's centroids and the labelled
+// tractogram.
+#include "commands.hpp"
+
+#include <hz/core/io.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <numeric>
+#include <random>
+#include <unistd.h>
+
+namespace hz::host {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string fmt_threshold(double t) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%g", t);
+    return buf;
+}
+
+// Writes `text` to `path` through a temporary file in the same directory.
+void write_text_atomic(const fs::path &path, const std::string &text, bool force) {
+    std::error_code ec;
+    if (fs::exists(path, ec) && !force) throw core::Error(path.string() + ": already exists (use --force to replace it)");
+    const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+    if (!fs::is_directory(dir, ec)) throw core::Error(path.string() + ": directory " + dir.string() + " does not exist");
+    const fs::path tmp = dir / ("." + path.filename().string() + ".tmp-" + std::to_string(::getpid()));
+    {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        out << text;
+        out.flush();
+        if (!out) {
+            fs::remove(tmp, ec);
+            throw core::Error(path.string() + ": write failed");
+        }
+    }
+    fs::rename(tmp, path, ec);
+    if (ec) {
+        fs::remove(tmp, ec);
+        throw core::Error(path.string() + ": cannot rename into place: " + ec.message());
+    }
+}
+
+// A reproducible permutation: Fisher-Yates over std::mt19937_64 (whose
+// output sequence the C++ standard fixes), so the same seed gives the same
+// order on every platform.
+std::vector<std::uint64_t> shuffled(std::uint64_t n, std::uint64_t seed) {
+    std::vector<std::uint64_t> o(n);
+    std::iota(o.begin(), o.end(), 0);
+    std::mt19937_64 rng(seed);
+    for (std::uint64_t i = n; i > 1; --i) std::swap(o[i - 1], o[rng() % i]);
+    return o;
+}
+
+struct ClusterRun {
+    hz_cluster_tree_view view{};
+    const hz_clustering *table = nullptr;
+    hz_clusterer *obj = nullptr;
+    ~ClusterRun() {
+        if (obj) table->destroy(obj);
+    }
+};
+
+}  // namespace
+
+int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
+    const core::Registry reg = load_registry(g);
+    const std::string id = "org.horizon.clustering." + o.algorithm;
+    const core::LoadedPlugin *plugin = reg.find(id);
+    if (plugin == nullptr) throw core::Error("clustering plugin '" + id + "' not found (see `horizon plugins`)");
+    if (o.labels.empty() && o.centroids.empty() && o.out.empty())
+        throw core::Error("nothing to write: give --labels, --centroids or --out");
+    // Fail on unwritable targets before the work.
+    if (!o.centroids.empty()) core::loader_for_write(reg, o.centroids);
+    if (!o.out.empty()) core::loader_for_write(reg, o.out);
+
+    const auto t0 = std::chrono::steady_clock::now();
+    const core::Dataset ds = core::read_dataset(reg, o.input);
+    if (ds.kind != HZ_DATA_STREAMLINES) throw core::Error(o.input + ": not a tractogram");
+    const core::Tractogram &t = ds.tractogram;
+    const auto t1 = std::chrono::steady_clock::now();
+
+    ClusterRun run;
+    run.table = plugin->clustering();
+    hz_error err{};
+    err.struct_size = sizeof err;
+    if (run.table->create(core::host_services(), &run.obj, &err) != HZ_OK) throw core::Error(id + ": " + err.message);
+    auto set = [&](const char *name, const std::vector<double> &v) {
+        if (run.table->set_param(run.obj, name, v.data(), static_cast<uint32_t>(v.size()), &err) != HZ_OK)
+            throw core::Error(std::string("--") + name + ": " + err.message);
+    };
+    if (!o.thresholds.empty()) set(o.algorithm == "qb" ? "threshold" : "thresholds", o.thresholds);
+    if (o.nb_points) set("nb_points", {double(o.nb_points)});
+    if (o.threads) set("threads", {double(o.threads)});
+    std::vector<std::uint64_t> order;
+    if (o.order == "shuffle") {
+        order = shuffled(t.nb_streamlines(), o.seed);
+    } else if (o.order != "file") {  // a text file of streamline indices
+        std::ifstream in(o.order);
+        if (!in) throw core::Error(o.order + ": cannot open the ordering file");
+        std::uint64_t i;
+        while (order.size() <= t.nb_streamlines() && in >> i) order.push_back(i);
+        if (!in.eof() && order.size() <= t.nb_streamlines()) throw core::Error(o.order + ": not a list of integers");
+        if (order.size() != t.nb_streamlines())
+            throw core::Error(o.order + ": holds " + std::to_string(order.size()) + " indices for " + std::to_string(t.nb_streamlines()) + " streamlines");
+    }
+    const hz_streamlines_view view = t.view();
+    core::Task task;
+    const hz_status st = run.table->run(run.obj, &view, order.empty() ? nullptr : order.data(), task.get(), &err);
+    if (st != HZ_OK) throw core::Error(o.input + ": " + id + ": " + err.message);
+    run.view.struct_size = sizeof run.view;
+    if (run.table->get_result(run.obj, &run.view, &err) != HZ_OK) throw core::Error(id + ": " + err.message);
+    const auto t2 = std::chrono::steady_clock::now();
+    const hz_cluster_tree_view &v = run.view;
+
+    // Labels: per level, the index of the cluster among that level's nodes.
+    const std::uint64_t n = t.nb_streamlines();
+    std::vector<std::vector<std::int64_t>> labels(v.nb_levels, std::vector<std::int64_t>(n, -1));
+    std::vector<std::uint64_t> first_of_level(v.nb_levels + 2, v.nb_nodes), count_of_level(v.nb_levels + 1, 0);
+    for (std::uint64_t k = 0; k < v.nb_nodes; ++k) {
+        const uint32_t l = v.level[k];
+        if (first_of_level[l] == v.nb_nodes) first_of_level[l] = k;
+        ++count_of_level[l];
+        if (l == 0) continue;
+        for (std::uint64_t m = v.member_offsets[k]; m < v.member_offsets[k + 1]; ++m)
+            labels[l - 1][v.members[m]] = static_cast<std::int64_t>(k - first_of_level[l]);
+    }
+    if (!o.labels.empty()) {
+        std::string csv = "streamline";
+        for (uint32_t l = 0; l < v.nb_levels; ++l) {
+            csv += ',';
+            csv += fmt_threshold(v.level_thresholds[l]);
+        }
+        csv += "\n";
+        csv.reserve(csv.size() + n * (8 + 6 * v.nb_levels));
+        for (std::uint64_t s = 0; s < n; ++s) {
+            csv += std::to_string(s);
+            for (uint32_t l = 0; l < v.nb_levels; ++l) {
+                csv += ',';
+                csv += std::to_string(labels[l][s]);
+            }
+            csv += "\n";
+        }
+        write_text_atomic(o.labels, csv, o.force);
+    }
+    if (!o.centroids.empty()) {
+        const uint32_t level = o.level < 0 ? v.nb_levels : static_cast<uint32_t>(o.level);
+        if (level > v.nb_levels) throw core::Error("--level " + std::to_string(level) + ": the tree has levels 0.." + std::to_string(v.nb_levels));
+        core::Dataset c;
+        c.kind = HZ_DATA_STREAMLINES;
+        const std::uint64_t K = count_of_level[level], P = v.nb_points, k0 = first_of_level[level];
+        c.tractogram.positions = core::Buffer<float>(K * P * 3);
+        c.tractogram.offsets = core::Buffer<std::uint64_t>(K + 1);
+        core::DataArray sizes;
+        sizes.name = "cluster_size";
+        sizes.attach = HZ_ATTACH_STREAMLINE;
+        sizes.dtype = HZ_DTYPE_U32;
+        sizes.count = K;
+        sizes.bytes = core::Buffer<std::byte>(K * 4);
+        std::string size_list;
+        for (std::uint64_t k = 0; k < K; ++k) {
+            std::copy_n(v.centroids + (k0 + k) * P * 3, P * 3, c.tractogram.positions.data() + k * P * 3);
+            c.tractogram.offsets[k] = k * P;
+            const auto sz = static_cast<std::uint32_t>(v.member_offsets[k0 + k + 1] - v.member_offsets[k0 + k]);
+            std::memcpy(sizes.bytes.data() + 4 * k, &sz, 4);
+            if (k) size_list += ' ';
+            size_list += std::to_string(sz);
+        }
+        c.tractogram.offsets[K] = K * P;
+        c.tractogram.arrays.push_back(std::move(sizes));
+        c.tractogram.reference = t.reference;
+        c.tractogram.reference_dims = t.reference_dims;
+        c.metadata = {{"horizon_clustering", id},
+                      {"horizon_level", std::to_string(level)},
+                      {"horizon_threshold", level ? fmt_threshold(v.level_thresholds[level - 1]) : "root"},
+                      {"horizon_cluster_sizes", size_list}};
+        std::vector<std::string> dropped;
+        core::write_dataset(reg, c, o.centroids, o.force, &dropped, o.input);
+        for (const auto &d : dropped)
+            if (d.find("cluster_size") == std::string::npos)  // the sizes are in the header instead
+                std::fprintf(stderr, "horizon: warning: %s: dropped %s\n", o.centroids.c_str(), d.c_str());
+    }
+    if (!o.out.empty()) {
+        core::Dataset out;
+        out.kind = HZ_DATA_STREAMLINES;
+        out.metadata = ds.metadata;
+        out.tractogram.positions = core::Buffer<float>(t.positions.size());
+        std::copy(t.positions.begin(), t.positions.end(), out.tractogram.positions.begin());
+        out.tractogram.offsets = core::Buffer<std::uint64_t>(t.offsets.size());
+        std::copy(t.offsets.begin(), t.offsets.end(), out.tractogram.offsets.begin());
+        out.tractogram.reference = t.reference;
+        out.tractogram.reference_dims = t.reference_dims;
+        for (uint32_t l = 0; l < v.nb_levels; ++l) {
+            core::DataArray a;
+            a.name = "cluster_" + fmt_threshold(v.level_thresholds[l]) + "mm";
+            a.attach = HZ_ATTACH_STREAMLINE;
+            a.dtype = HZ_DTYPE_I64;
+            a.count = n;
+            a.bytes = core::Buffer<std::byte>(n * 8);
+            std::memcpy(a.bytes.data(), labels[l].data(), n * 8);
+            out.tractogram.arrays.push_back(std::move(a));
+        }
+        std::vector<std::string> dropped;
+        core::write_dataset(reg, out, o.out, o.force, &dropped, o.input);
+        for (const auto &d : dropped) std::fprintf(stderr, "horizon: warning: %s: dropped %s\n", o.out.c_str(), d.c_str());
+    }
+
+    const double read_s = std::chrono::duration<double>(t1 - t0).count();
+    const double cluster_s = std::chrono::duration<double>(t2 - t1).count();
+    if (o.json) {
+        nlohmann::json j;
+        j["input"] = o.input;
+        j["algorithm"] = id;
+        j["nb_streamlines"] = n;
+        j["read_s"] = read_s;
+        j["cluster_s"] = cluster_s;
+        j["levels"] = nlohmann::json::array();
+        for (uint32_t l = 0; l < v.nb_levels; ++l)
+            j["levels"].push_back({{"threshold", v.level_thresholds[l]}, {"clusters", count_of_level[l + 1]}});
+        std::cout << j.dump(2) << "\n";
+    } else {
+        std::printf("%s: %llu streamlines, %s (read %.3f s, clustered %.3f s)\n", o.input.c_str(), (unsigned long long)n,
+                    plugin->info.name.c_str(), read_s, cluster_s);
+        for (uint32_t l = 0; l < v.nb_levels; ++l)
+            std::printf("  level %u  threshold %6s mm  %8llu clusters\n", l + 1, fmt_threshold(v.level_thresholds[l]).c_str(),
+                        (unsigned long long)count_of_level[l + 1]);
+    }
+    return 0;
+}
+
+}  // namespace hz::host

@@ -1,0 +1,85 @@
+// QuickBundles (Garyfallidis et al. 2012) and QuickBundlesX (Garyfallidis et
+// al. 2016), reproducing DIPY 1.6's arithmetic exactly (see
+// ../shared/clustering/DIPY-QBX.md): the same labels at every level and the
+// same float32 centroids, bit for bit, for the same processing order.
+// Pure C++, no SDK types; compiled with -ffp-contract=off.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace qb {
+
+struct Input {
+    const float *positions = nullptr;    // V x 3
+    const std::uint64_t *offsets = nullptr;  // N + 1
+    std::uint64_t nb_streamlines = 0;
+};
+
+// Thrown for invalid input (non-finite coordinates, empty streamlines).
+struct InputError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+struct Cancelled {};
+
+// Polled between streamlines; return true to stop (throws Cancelled).
+using CancelFn = std::function<bool()>;
+using ProgressFn = std::function<void(double)>;
+
+// DIPY's c_set_number_of_points on streamline p[0..n) (or its reversal),
+// writing `nb_points` xyz triples. Zero-length streamlines (all points
+// equal, or a single point) give nb_points copies of the point, where DIPY
+// reads uninitialised memory. n must be >= 1.
+void resample(const float *p, std::uint64_t n, std::uint32_t nb_points, bool reversed, float *out);
+
+// DIPY's AveragePointwiseEuclideanMetric.c_dist: float32 differences,
+// double sums in order, divided by nb_points.
+double mdf_direct(const float *a, const float *b, std::uint32_t nb_points);
+
+// Direct and flipped features of every streamline: nb_streamlines x P x 3
+// each. `threads` workers (the result does not depend on it).
+struct Features {
+    std::uint32_t nb_points = 0;
+    std::vector<float> direct, flipped;
+};
+// `identity` = features are the points themselves (qbx_and_merge after its
+// own resampling): flipped is then the exact reversal.
+Features extract_features(const Input &in, std::uint32_t nb_points, unsigned threads, const CancelFn &cancel);
+Features identity_features(const float *points, std::uint64_t n, std::uint32_t nb_points);
+
+// A clustering tree in the ABI's layout: node 0 = root; nodes ordered by
+// level, then as DIPY lists them (QB: creation order; QBX: DFS pre-order).
+struct Tree {
+    std::vector<double> thresholds;  // per level below the root
+    std::uint32_t nb_points = 0;
+    std::vector<std::int64_t> parent;
+    std::vector<std::uint32_t> level;
+    std::vector<float> centroids;  // nodes x P x 3
+    std::vector<std::uint64_t> member_offsets, members;
+    std::uint64_t nb_nodes() const { return parent.size(); }
+};
+
+enum class Mode { Exact, Fast };
+
+// QuickBundles with threshold T: one level below the root.
+Tree quickbundles(const Features &f, double threshold, const std::vector<std::uint64_t> &order, const CancelFn &cancel,
+                  const ProgressFn &progress);
+
+// QuickBundlesX with thresholds t[0..L-1]: L levels below the root.
+Tree quickbundlesx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order,
+                   const CancelFn &cancel, const ProgressFn &progress);
+
+// Horizon's qbx_and_merge: resample to nb_points, QBX, then a one-threshold
+// QBX over the last level's centroids in `merge_order` (empty = identity);
+// one level of merged clusters below the root.
+Tree qbx_and_merge(const Input &in, const std::vector<double> &thresholds, std::uint32_t nb_points,
+                   const std::vector<std::uint64_t> &order, const std::vector<std::uint64_t> &merge_order,
+                   unsigned threads, const CancelFn &cancel, const ProgressFn &progress);
+
+// Checks coordinates are finite and streamlines non-empty (InputError).
+void check_input(const Input &in);
+
+}  // namespace qb
