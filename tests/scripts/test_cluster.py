@@ -1,0 +1,188 @@
+"""`horizon cluster` against DIPY 1.6 (python3-dipy): the same labels at
+every level and the same float32 centroids, bit for bit, for the same
+processing order; plus the cases where clustering methods break."""
+import os
+import unittest
+
+import nibabel as nib
+import numpy as np
+from dipy.segment.bundles import qbx_and_merge
+from dipy.segment.clustering import QuickBundles, QuickBundlesX
+
+from hztest import TempDirTest, random_streamlines, run, run_json, tck_bytes
+
+
+def dipy_labels(clusters, n):
+    ref = np.full(n, -1, np.int64)
+    for i, c in enumerate(clusters):
+        ref[np.asarray(c.indices)] = i
+    return ref
+
+
+class ClusterVsDipyTest(TempDirTest):
+    @classmethod
+    def setUpClass(cls):
+        import tempfile
+        cls.data = tempfile.mkdtemp(prefix="hz_cluster_")
+        p = run("demo", "--out", cls.data, "--streamlines", "3000")
+        assert p.returncode == 0, p.stderr
+        cls.tck = os.path.join(cls.data, "phantom.tck")
+        cls.sl = [s.astype(np.float32) for s in nib.streamlines.load(cls.tck).streamlines]
+        cls.n = len(cls.sl)
+        cls.order = np.random.default_rng(5).permutation(cls.n)
+        cls.order_file = os.path.join(cls.data, "order.txt")
+        np.savetxt(cls.order_file, cls.order, fmt="%d")
+
+    @classmethod
+    def tearDownClass(cls):
+        import shutil
+        shutil.rmtree(cls.data, ignore_errors=True)
+
+    def ours(self, *args, level=None):
+        labels, cents = self.path("l.csv"), self.path("c.tck")
+        extra = ["--level", str(level)] if level is not None else []
+        p = run("cluster", self.tck, "--labels", labels, "--centroids", cents, "--force", *args, *extra)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        with open(labels) as f:
+            header = f.readline().strip().split(",")
+        lab = np.loadtxt(labels, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
+        self.assertTrue(np.array_equal(lab[:, 0], np.arange(self.n)))
+        return header, lab, list(nib.streamlines.load(cents).streamlines)
+
+    def assert_same_centroids(self, dipy_clusters, ours):
+        self.assertEqual(len(dipy_clusters), len(ours))
+        for a, b in zip(dipy_clusters, ours):
+            self.assertTrue(np.array_equal(a.centroid, b), "centroids differ bitwise")
+
+    def test_qbx_every_level_file_and_given_order(self):
+        for order in (None, self.order):
+            with self.subTest(order="file" if order is None else "permutation"):
+                ref = QuickBundlesX([30, 25, 20, 15]).cluster(self.sl, ordering=order)
+                args = ["--algorithm", "qbx"] + ([] if order is None else ["--order", self.order_file])
+                for level in (1, 2, 3, 4):
+                    header, lab, cents = self.ours(*args, level=level)
+                    self.assertEqual(header, ["streamline", "30", "25", "20", "15"])
+                    np.testing.assert_array_equal(lab[:, level], dipy_labels(ref.get_clusters(level), self.n))
+                    self.assert_same_centroids(ref.get_clusters(level), cents)
+
+    def test_qb(self):
+        for thr in (10.0, 15.0, 30.0):
+            with self.subTest(threshold=thr):
+                ref = QuickBundles(thr).cluster(self.sl, ordering=self.order)
+                header, lab, cents = self.ours("--algorithm", "qb", "--thresholds", str(thr), "--order", self.order_file)
+                np.testing.assert_array_equal(lab[:, 1], dipy_labels(ref, self.n))
+                self.assert_same_centroids(ref, cents)
+
+    def test_nb_points_and_thresholds(self):
+        ref = QuickBundlesX([20, 10], metric="MDF_12points").cluster(self.sl)
+        _, lab, _ = self.ours("--algorithm", "qbx", "--thresholds", "20,10")
+        np.testing.assert_array_equal(lab[:, 2], dipy_labels(ref.get_clusters(2), self.n))
+        from dipy.segment.featurespeed import ResampleFeature
+        from dipy.segment.metric import AveragePointwiseEuclideanMetric
+        metric = AveragePointwiseEuclideanMetric(ResampleFeature(nb_points=20))
+        ref = QuickBundles(12.0, metric=metric).cluster(self.sl)
+        _, lab, cents = self.ours("--algorithm", "qb", "--thresholds", "12", "--nb-points", "20")
+        np.testing.assert_array_equal(lab[:, 1], dipy_labels(ref, self.n))
+        self.assert_same_centroids(ref, cents)
+
+    def test_qbx_and_merge(self):
+        order = self.order
+
+        class GivenOrder:  # DIPY draws both orders from rng.choice: give ours
+            calls = 0
+
+            def choice(self, n, k, replace=False):
+                GivenOrder.calls += 1
+                return order if GivenOrder.calls == 1 else np.arange(n)
+
+        ref = qbx_and_merge(self.sl, [40, 30, 25, 20, 15], nb_pts=20, rng=GivenOrder())
+        header, lab, cents = self.ours("--algorithm", "qbx_merge", "--order", self.order_file)
+        self.assertEqual(header, ["streamline", "15"])
+        np.testing.assert_array_equal(lab[:, 1], dipy_labels(ref, self.n))
+        self.assert_same_centroids(ref, cents)
+
+    def test_shuffle_is_reproducible(self):
+        _, a, _ = self.ours("--algorithm", "qbx", "--order", "shuffle", "--seed", "3")
+        _, b, _ = self.ours("--algorithm", "qbx", "--order", "shuffle", "--seed", "3")
+        _, c, _ = self.ours("--algorithm", "qbx", "--order", "shuffle", "--seed", "4")
+        np.testing.assert_array_equal(a, b)
+        self.assertFalse(np.array_equal(a, c))  # processing order matters, and is documented
+
+
+class ClusterEdgeCasesTest(TempDirTest):
+    def write(self, name, sl):
+        f = self.path(name)
+        with open(f, "wb") as fh:
+            fh.write(tck_bytes(sl))
+        return f
+
+    def labels(self, f, *args):
+        out = self.path("l.csv")
+        p = run("cluster", f, "--labels", out, "--force", *args)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return np.loadtxt(out, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
+
+    def test_empty_and_single(self):
+        lab = self.labels(self.write("empty.tck", []), "--algorithm", "qbx")
+        self.assertEqual(lab.size, 0)
+        lab = self.labels(self.write("one.tck", [np.arange(12, dtype=np.float32).reshape(4, 3)]), "--algorithm", "qbx")
+        np.testing.assert_array_equal(lab, [[0, 0, 0, 0, 0]])
+
+    def test_degenerate_streamlines(self):
+        sl = [np.array([[1, 2, 3]], np.float32), np.tile(np.float32([5, 5, 5]), (4, 1)),
+              np.arange(30, dtype=np.float32).reshape(10, 3)]
+        f = self.write("degenerate.tck", sl)
+        for algo in ("qb", "qbx", "qbx_merge"):
+            lab = self.labels(f, "--algorithm", algo)
+            self.assertEqual(lab.shape[0], 3)
+
+    def test_identical_and_flipped(self):
+        rng = np.random.default_rng(1)
+        base = random_streamlines(20, rng, 10, 40, scale=60)
+        sl = base + [s[::-1] for s in base] + [s.copy() for s in base]
+        lab = self.labels(self.write("flip.tck", sl), "--algorithm", "qbx")
+        for level in range(1, 5):
+            np.testing.assert_array_equal(lab[:20, level], lab[20:40, level])
+            np.testing.assert_array_equal(lab[:20, level], lab[40:, level])
+        lab = self.labels(self.write("flip.tck", sl), "--algorithm", "qb", "--thresholds", "5")
+        np.testing.assert_array_equal(lab[:20, 1], lab[20:40, 1])
+
+    def test_threshold_extremes(self):
+        rng = np.random.default_rng(2)
+        f = self.write("r.tck", random_streamlines(50, rng, 5, 30))
+        lab = self.labels(f, "--algorithm", "qb", "--thresholds", "0")
+        self.assertEqual(len(set(lab[:, 1])), 50)  # every streamline its own cluster
+        lab = self.labels(f, "--algorithm", "qbx", "--thresholds", "0")
+        self.assertEqual(len(set(lab[:, 1])), 50)
+        lab = self.labels(f, "--algorithm", "qbx", "--thresholds", "1e6,1e5")
+        self.assertEqual(set(lab[:, 1]), {0})
+        self.assertEqual(set(lab[:, 2]), {0})
+
+    def test_far_coordinates_and_a_huge_streamline(self):
+        rng = np.random.default_rng(3)
+        far = [s + np.float32(1e6) for s in random_streamlines(30, rng, 5, 20)]
+        lab = self.labels(self.write("far.tck", far), "--algorithm", "qbx")
+        self.assertEqual(lab.shape, (30, 5))
+        t = np.linspace(0, 1, 10_000_000, dtype=np.float32)
+        huge = np.stack([t * 100, np.sin(t * 20) * 10, t * 0], axis=1)
+        lab = self.labels(self.write("huge.tck", [huge, huge[::-1].copy()]), "--algorithm", "qbx")
+        np.testing.assert_array_equal(lab[0], lab[1] * [0, 1, 1, 1, 1])
+
+    def test_bad_input_fails_cleanly(self):
+        f = self.write("nan.tck", [np.array([[0, 0, 0], [1, 1, 1]], np.float32)])
+        with open(f, "r+b") as fh:  # turn one coordinate into +Inf (not a delimiter: TCK rejects it)
+            data = fh.read()
+        p = run("cluster", self.path("nope.tck"), "--labels", self.path("l.csv"))
+        self.assert_clean_error(p, "nope.tck")
+        self.assertFalse(os.path.exists(self.path("l.csv")))
+        p = run("cluster", f, "--labels", self.path("l.csv"), "--thresholds", "-3")
+        self.assert_clean_error(p, "thresholds")
+        bad_order = self.path("order.txt")
+        with open(bad_order, "w") as fh:
+            fh.write("0 0\n")
+        p = run("cluster", f, "--labels", self.path("l.csv"), "--order", bad_order)
+        self.assert_clean_error(p, "order.txt")
+
+
+if __name__ == "__main__":
+    unittest.main()
