@@ -140,6 +140,35 @@ Features identity_features(const float *points, std::uint64_t n, std::uint32_t P
 
 namespace {
 
+// mdf_direct(a, b) when it can beat `bound`, +inf when it cannot. The partial
+// sums only grow, and rounding is monotonic, so stopping once
+// partial / P >= bound never changes which candidate wins: the result is the
+// same as DIPY's full computation followed by the comparison.
+inline double mdf_below(const float *a, const float *b, std::uint32_t P, double bound) {
+    // sum >= stop_sum implies sum / P >= bound: the (1 + 2^-50) factor
+    // outweighs the two roundings of the products.
+    const double stop_sum = bound * static_cast<double>(P) * (1.0 + 0x1p-50);
+    double sum = 0.0;
+    std::uint32_t n = 0;
+    while (n < P) {
+        // Four points at a time: the per-point terms are independent (the
+        // compiler vectorises them); only the sum is sequential, as in DIPY.
+        const std::uint32_t m = std::min<std::uint32_t>(P - n, 4);
+        double r[4];
+        for (std::uint32_t j = 0; j < m; ++j) {
+            const float *pa = a + 3 * (n + j), *pb = b + 3 * (n + j);
+            const double dx = static_cast<float>(pa[0] - pb[0]);
+            const double dy = static_cast<float>(pa[1] - pb[1]);
+            const double dz = static_cast<float>(pa[2] - pb[2]);
+            r[j] = std::sqrt(((0.0 + dx * dx) + dy * dy) + dz * dz);
+        }
+        for (std::uint32_t j = 0; j < m; ++j) sum += r[j];
+        n += m;
+        if (n < P && sum >= stop_sum) return std::numeric_limits<double>::infinity();
+    }
+    return sum / static_cast<double>(P);
+}
+
 // C = ((C * (float)size) + e) / (float)(size + 1), in float32, as DIPY.
 inline void update_centroid(float *c, std::uint64_t size, const float *e, std::uint32_t P) {
     const float fs = static_cast<float>(size), fs1 = static_cast<float>(size + 1);
@@ -164,6 +193,35 @@ struct Node {
     std::vector<std::uint64_t> indices;
     std::vector<std::uint32_t> children;
     float box_c[3] = {0, 0, 0}, box_r[3] = {0, 0, 0};
+    double mean[3] = {0, 0, 0};  // mean point of the centroid, for the lower bound
+};
+
+// A rigorous lower bound on the distance DIPY computes, from mean points.
+// By the triangle inequality, the real-valued MDF is at least the distance
+// between the two mean points. DIPY's value differs from the real one only
+// by the float32 rounding of each coordinate difference (relative 2^-24)
+// and double roundings; the mean points carry an absolute error below
+// `slack`. So mdf >= (|ma - mb| - slack) * (1 - 1e-7): when that is already
+// >= the best distance so far, computing the MDF cannot change the result,
+// and exact mode skips it.
+struct LowerBound {
+    double slack = 0;
+    void prepare(const Features &f) {
+        float m = 0;
+        for (float v : f.direct) m = std::max(m, std::fabs(v));
+        slack = 4e-12 * double(m) * double(std::max<std::uint32_t>(f.nb_points, 1)) + 1e-300;
+    }
+    static void mean(const float *x, std::uint32_t P, double out[3]) {
+        double s[3] = {0, 0, 0};
+        for (std::uint32_t i = 0; i < P; ++i)
+            for (int d = 0; d < 3; ++d) s[d] += x[3 * i + d];
+        for (int d = 0; d < 3; ++d) out[d] = s[d] / P;
+    }
+    bool hopeless(const double a[3], const double b[3], double best) const {
+        const double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+        const double lb = (std::sqrt(dx * dx + dy * dy + dz * dz) - slack) * (1.0 - 1e-7);
+        return lb >= best;
+    }
 };
 
 // AABB(X): per axis min/max (float32), r = (mx - mn) / 2, c = mn + r.
@@ -218,6 +276,9 @@ Tree quickbundles(const Features &f, double T, const std::vector<std::uint64_t> 
     const std::uint64_t N = f.direct.size() / (3 * std::max<std::uint32_t>(P, 1));
     check_order(order, N);
     std::vector<float> C;  // K x P x 3
+    std::vector<double> means;  // K x 3, for the lower bound
+    LowerBound lbound;
+    lbound.prepare(f);
     std::vector<std::uint64_t> sizes;
     std::vector<std::vector<std::uint64_t>> indices;
     for (std::uint64_t it = 0; it < N; ++it) {
@@ -227,15 +288,20 @@ Tree quickbundles(const Features &f, double T, const std::vector<std::uint64_t> 
         }
         const std::uint64_t idx = order[it];
         const float *fd = &f.direct[idx * P * 3], *fg = &f.flipped[idx * P * 3];
+        double mf[3], mg[3];
+        LowerBound::mean(fd, P, mf);
+        LowerBound::mean(fg, P, mg);
         const std::uint64_t K = sizes.size();
         std::uint64_t k1 = 0, k2 = 0;
         double d1 = std::numeric_limits<double>::infinity(), d2 = d1;
         for (std::uint64_t k = 0; k < K; ++k) {  // first strict minimum
-            const double d = mdf_direct(&C[k * P * 3], fd, P);
+            if (lbound.hopeless(&means[3 * k], mf, d1)) continue;
+            const double d = mdf_below(&C[k * P * 3], fd, P, d1);
             if (d < d1) d1 = d, k1 = k;
         }
         for (std::uint64_t k = 0; k < K; ++k) {
-            const double d = mdf_direct(&C[k * P * 3], fg, P);
+            if (lbound.hopeless(&means[3 * k], mg, d2)) continue;
+            const double d = mdf_below(&C[k * P * 3], fg, P, d2);
             if (d < d2) d2 = d, k2 = k;
         }
         const bool use_g = d2 < d1;  // tie -> direct
@@ -245,10 +311,12 @@ Tree quickbundles(const Features &f, double T, const std::vector<std::uint64_t> 
         if (!(d < T)) {  // join iff d < T (strict)
             k = K;
             C.resize(C.size() + P * 3, 0.0f);
+            means.resize(means.size() + 3, 0.0);
             sizes.push_back(0);
             indices.emplace_back();
         }
         update_centroid(&C[k * P * 3], sizes[k], e, P);
+        LowerBound::mean(&C[k * P * 3], P, &means[3 * k]);
         ++sizes[k];
         indices[k].push_back(idx);
     }
@@ -288,6 +356,8 @@ Tree quickbundlesx(const Features &f, const std::vector<double> &t, const std::v
     std::vector<Node> nodes(1);
     nodes[0].threshold = t[0];
     nodes[0].c.assign(P * 3, 0.0f);
+    LowerBound lbound;
+    lbound.prepare(f);
     bool use_flip = false;  // persists across streamlines, as in DIPY
     for (std::uint64_t it = 0; it < N; ++it) {
         if ((it & 1023) == 0) {
@@ -298,6 +368,9 @@ Tree quickbundlesx(const Features &f, const std::vector<double> &t, const std::v
         const float *fd = &f.direct[idx * P * 3], *fg = &f.flipped[idx * P * 3];
         float bc[3], br[3];
         aabb(fd, P, bc, br);
+        double mf[3], mg[3];
+        LowerBound::mean(fd, P, mf);
+        LowerBound::mean(fg, P, mg);
         std::uint32_t node = 0;
         for (;;) {
             Node &n = nodes[node];
@@ -305,6 +378,7 @@ Tree quickbundlesx(const Features &f, const std::vector<double> &t, const std::v
             ++n.size;
             n.indices.push_back(idx);
             aabb(n.c.data(), P, n.box_c, n.box_r);
+            LowerBound::mean(n.c.data(), P, n.mean);
             if (n.level == L) break;
             double best = DBL_MAX;
             std::int64_t kid = -1;
@@ -316,10 +390,15 @@ Tree quickbundlesx(const Features &f, const std::vector<double> &t, const std::v
                 for (int d = 0; d < 3 && overlap; ++d)
                     overlap = std::fabs(ch.box_c[d] - bc[d]) <= ch.box_r[d] + br[d] + pad;
                 if (!overlap) continue;
-                const double dd = static_cast<float>(mdf_direct(ch.c.data(), fd, P));
-                if (dd < best) best = dd, kid = static_cast<std::int64_t>(k), flip = false;
-                const double dg = static_cast<float>(mdf_direct(ch.c.data(), fg, P));
-                if (dg < best) best = dg, kid = static_cast<std::int64_t>(k), flip = true;
+                // DIPY rounds each distance to float32 before comparing.
+                if (!lbound.hopeless(ch.mean, mf, best)) {
+                    const double dd = static_cast<float>(mdf_below(ch.c.data(), fd, P, best));
+                    if (dd < best) best = dd, kid = static_cast<std::int64_t>(k), flip = false;
+                }
+                if (!lbound.hopeless(ch.mean, mg, best)) {
+                    const double dg = static_cast<float>(mdf_below(ch.c.data(), fg, P, best));
+                    if (dg < best) best = dg, kid = static_cast<std::int64_t>(k), flip = true;
+                }
             }
             if (best > n.threshold) {  // join iff dist <= threshold (non-strict)
                 Node c;
