@@ -103,6 +103,7 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     if (!o.thresholds.empty()) set(o.algorithm == "qb" ? "threshold" : "thresholds", o.thresholds);
     if (o.nb_points) set("nb_points", {double(o.nb_points)});
     if (o.threads) set("threads", {double(o.threads)});
+    set("mode", {o.mode == "fast" ? 1.0 : 0.0});
     std::vector<std::uint64_t> order;
     if (o.order == "shuffle") {
         order = shuffled(t.nb_streamlines(), o.seed);

@@ -35,6 +35,7 @@ struct ClusterOptions {
     std::string order = "file";            // file | shuffle
     std::uint64_t seed = 0;
     unsigned threads = 0;
+    std::string mode = "exact";            // exact | fast
     std::string labels, centroids, out;
     int level = -1;                        // centroid level; -1: the deepest
     bool force = false, json = false;

@@ -76,6 +76,8 @@ int main(int argc, char **argv) {
     cluster->add_option("--order", co.order, "processing order: file, shuffle (with --seed), or a text file of indices")
         ->capture_default_str();
     cluster->add_option("--seed", co.seed, "seed of --order shuffle")->capture_default_str();
+    cluster->add_option("--mode", co.mode, "exact: DIPY's answers bit for bit; fast: float32 distances")
+        ->check(CLI::IsMember({"exact", "fast"}))->capture_default_str();
     cluster->add_option("--threads", co.threads, "resampling threads (0: all cores)");
     cluster->add_option("--labels", co.labels, "CSV: one row per streamline, one column per level");
     cluster->add_option("--centroids", co.centroids, "write one level's centroids as streamlines");

@@ -45,10 +45,16 @@ struct Features {
     std::uint32_t nb_points = 0;
     std::vector<float> direct, flipped;
 };
-// `identity` = features are the points themselves (qbx_and_merge after its
-// own resampling): flipped is then the exact reversal.
-Features extract_features(const Input &in, std::uint32_t nb_points, unsigned threads, const CancelFn &cancel);
+// Also validates the input (InputError for an empty streamline or a
+// non-finite coordinate). `exact_flip`: flipped features resample the
+// reversed polyline, as DIPY (bitwise different from reversing the direct
+// features for ~10% of streamlines); otherwise they are that reversal.
+Features extract_features(const Input &in, std::uint32_t nb_points, unsigned threads, const CancelFn &cancel, bool exact_flip);
+// Features are the points themselves (qbx_and_merge after its own
+// resampling): flipped is then the exact reversal.
 Features identity_features(const float *points, std::uint64_t n, std::uint32_t nb_points);
+
+enum class Mode { Exact, Fast };
 
 // A clustering tree in the ABI's layout: node 0 = root; nodes ordered by
 // level, then as DIPY lists them (QB: creation order; QBX: DFS pre-order).
@@ -62,24 +68,21 @@ struct Tree {
     std::uint64_t nb_nodes() const { return parent.size(); }
 };
 
-enum class Mode { Exact, Fast };
-
 // QuickBundles with threshold T: one level below the root.
-Tree quickbundles(const Features &f, double threshold, const std::vector<std::uint64_t> &order, const CancelFn &cancel,
+// Exact: DIPY's arithmetic, bit for bit. Fast: float32 distances (labels
+// agree with exact mode except where rounding decides a near-tie).
+Tree quickbundles(const Features &f, double threshold, const std::vector<std::uint64_t> &order, Mode mode, const CancelFn &cancel,
                   const ProgressFn &progress);
 
 // QuickBundlesX with thresholds t[0..L-1]: L levels below the root.
-Tree quickbundlesx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order,
+Tree quickbundlesx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order, Mode mode,
                    const CancelFn &cancel, const ProgressFn &progress);
 
 // Horizon's qbx_and_merge: resample to nb_points, QBX, then a one-threshold
 // QBX over the last level's centroids in `merge_order` (empty = identity);
 // one level of merged clusters below the root.
 Tree qbx_and_merge(const Input &in, const std::vector<double> &thresholds, std::uint32_t nb_points,
-                   const std::vector<std::uint64_t> &order, const std::vector<std::uint64_t> &merge_order,
+                   const std::vector<std::uint64_t> &order, const std::vector<std::uint64_t> &merge_order, Mode mode,
                    unsigned threads, const CancelFn &cancel, const ProgressFn &progress);
-
-// Checks coordinates are finite and streamlines non-empty (InputError).
-void check_input(const Input &in);
 
 }  // namespace qb

@@ -31,6 +31,10 @@ constexpr hz_param_info param_thresholds(uint32_t n, const double *defs) {
             nullptr, n, defs};
 }
 
+const char *const kModeLabels[] = {"exact", "fast", nullptr};
+const hz_param_info kModeParam = {sizeof(hz_param_info), HZ_PARAM_ENUM, "mode", "Mode", "", "",
+                                  "exact: DIPY's answers bit for bit; fast: float32 distances", 0, 1, {0, 0, 0, 0}, {1, 0, 0, 0},
+                                  {0, 0, 0, 0}, kModeLabels, 0, nullptr};
 const hz_param_info kThreadsParam =
     param_int("threads", "Threads", "", "worker threads for resampling (0 = all cores); results do not depend on it", 0, 256, 0);
 
@@ -38,16 +42,19 @@ const hz_param_info kQbParams[] = {
     param_float("threshold", "Threshold", "MDF distance below which a streamline joins a cluster", 0, 1e6, 15),
     param_int("nb_points", "Points", "", "points each streamline is resampled to", 2, 1000, 12),
     kThreadsParam,
+    kModeParam,
 };
 const hz_param_info kQbxParams[] = {
     param_thresholds(4, kQbxDefaults),
     param_int("nb_points", "Points", "", "points each streamline is resampled to", 2, 1000, 12),
     kThreadsParam,
+    kModeParam,
 };
 const hz_param_info kMergeParams[] = {
     param_thresholds(5, kMergeDefaults),
     param_int("nb_points", "Points", "", "points each streamline is resampled to", 2, 1000, 20),
     kThreadsParam,
+    kModeParam,
 };
 
 struct Clusterer {
@@ -55,6 +62,7 @@ struct Clusterer {
     std::vector<double> thresholds;
     std::uint32_t nb_points;
     unsigned threads = 0;
+    qb::Mode mode = qb::Mode::Exact;
     bool has_result = false;
     qb::Tree tree;
 };
@@ -64,17 +72,17 @@ struct Kind;
 template <>
 struct Kind<Algo::QB> {
     static constexpr const hz_param_info *params = kQbParams;
-    static constexpr uint32_t count = 3;
+    static constexpr uint32_t count = 4;
 };
 template <>
 struct Kind<Algo::QBX> {
     static constexpr const hz_param_info *params = kQbxParams;
-    static constexpr uint32_t count = 3;
+    static constexpr uint32_t count = 4;
 };
 template <>
 struct Kind<Algo::Merge> {
     static constexpr const hz_param_info *params = kMergeParams;
-    static constexpr uint32_t count = 3;
+    static constexpr uint32_t count = 4;
 };
 
 template <Algo A>
@@ -128,6 +136,11 @@ hz_status HZ_ABI set_param(hz_clusterer *cl, const char *name, const double *v, 
         c.threads = static_cast<unsigned>(v[0]);
         return HZ_OK;
     }
+    if (key == "mode") {
+        if (n != 1 || !(v[0] == 0 || v[0] == 1)) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "mode must be 0 (exact) or 1 (fast)");
+        c.mode = v[0] == 0 ? qb::Mode::Exact : qb::Mode::Fast;
+        return HZ_OK;
+    }
     return hz::set_errorf(err, HZ_E_NOT_FOUND, "unknown parameter '%s'", name);
 }
 
@@ -139,7 +152,6 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
     return hz::guard(err, [&]() -> hz_status {
         try {
             const qb::Input input{in->positions, in->offsets, in->nb_streamlines};
-            qb::check_input(input);
             std::vector<std::uint64_t> order(in->nb_streamlines);
             for (std::uint64_t i = 0; i < order.size(); ++i) order[i] = ordering ? ordering[i] : i;
             const unsigned threads = c.threads ? c.threads : std::max(1u, std::thread::hardware_concurrency());
@@ -147,11 +159,11 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
             const qb::ProgressFn progress = [task](double f) { hz::report(task, f); };
             if (hz::cancelled(task)) throw qb::Cancelled{};
             if (c.algo == Algo::Merge) {
-                c.tree = qb::qbx_and_merge(input, c.thresholds, c.nb_points, order, {}, threads, cancel, progress);
+                c.tree = qb::qbx_and_merge(input, c.thresholds, c.nb_points, order, {}, c.mode, threads, cancel, progress);
             } else {
-                const qb::Features f = qb::extract_features(input, c.nb_points, threads, cancel);
-                c.tree = c.algo == Algo::QB ? qb::quickbundles(f, c.thresholds[0], order, cancel, progress)
-                                            : qb::quickbundlesx(f, c.thresholds, order, cancel, progress);
+                const qb::Features f = qb::extract_features(input, c.nb_points, threads, cancel, c.mode == qb::Mode::Exact);
+                c.tree = c.algo == Algo::QB ? qb::quickbundles(f, c.thresholds[0], order, c.mode, cancel, progress)
+                                            : qb::quickbundlesx(f, c.thresholds, order, c.mode, cancel, progress);
             }
             c.has_result = true;
             return HZ_OK;
