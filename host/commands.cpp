@@ -158,6 +158,8 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     std::filesystem::create_directories(o.out_dir);
     core::PhantomOptions po;
     po.nb_streamlines = o.nb_streamlines;
+    po.nb_bundles = o.nb_bundles;
+    po.seed = o.seed;
     core::Dataset ds;
     ds.kind = HZ_DATA_STREAMLINES;
     ds.tractogram = core::make_phantom(po);

@@ -25,6 +25,8 @@ struct ValidateOptions {
 struct DemoOptions {
     std::string out_dir = "horizon-demo";
     std::uint64_t nb_streamlines = 5000;
+    std::uint32_t nb_bundles = 24;
+    std::uint64_t seed = 1;
 };
 
 struct ClusterOptions {

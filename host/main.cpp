@@ -90,6 +90,8 @@ int main(int argc, char **argv) {
     auto *demo = app.add_subcommand("demo", "build the synthetic demo scene and describe it");
     demo->add_option("-o,--out", demo_opts.out_dir, "directory for demo files")->capture_default_str();
     demo->add_option("--streamlines", demo_opts.nb_streamlines, "phantom size")->capture_default_str();
+    demo->add_option("--bundles", demo_opts.nb_bundles, "phantom bundles")->capture_default_str();
+    demo->add_option("--seed", demo_opts.seed, "phantom seed")->capture_default_str();
 
     try {
         app.parse(argc, argv);

@@ -233,8 +233,14 @@ struct Node {
     std::uint64_t size = 0;
     std::vector<std::uint64_t> indices;
     std::vector<std::uint32_t> children;
-    float box_c[3] = {0, 0, 0}, box_r[3] = {0, 0, 0};
-    double mean[3] = {0, 0, 0};  // mean point of the centroid, for the lower bound
+    // What the search needs of each child, contiguous (the hot loop of QBX):
+    // its centroid's AABB and mean point, refreshed when the child changes.
+    struct Kid {
+        float box_c[3], box_r[3];
+        double mean[3];
+    };
+    std::vector<Kid> kids;  // parallel to `children`
+    std::uint32_t slot = 0;  // this node's index in its parent's kids
 };
 
 // A rigorous lower bound on the distance DIPY computes, from mean points.
@@ -259,10 +265,15 @@ struct LowerBound {
             for (int d = 0; d < 3; ++d) s[d] += x[3 * i + d];
         for (int d = 0; d < 3; ++d) out[d] = s[d] / P;
     }
-    bool hopeless(const double a[3], const double b[3], double best) const {
+    // Squared form, without a square root per candidate: hopeless when
+    // |ma - mb|^2 >= limit2(best) = ((best / factor) + slack)^2, rounded up.
+    double limit2(double best) const {
+        const double lim = best / factor + slack;
+        return lim * lim * (1.0 + 1e-15);
+    }
+    static bool hopeless(const double a[3], const double b[3], double lim2) {
         const double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
-        const double lb = (std::sqrt(dx * dx + dy * dy + dz * dz) - slack) * factor;
-        return lb >= best;
+        return dx * dx + dy * dy + dz * dz >= lim2;
     }
 };
 
@@ -337,15 +348,17 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
         const std::uint64_t K = sizes.size();
         std::uint64_t k1 = 0, k2 = 0;
         double d1 = std::numeric_limits<double>::infinity(), d2 = d1;
+        double lim = lbound.limit2(d1);
         for (std::uint64_t k = 0; k < K; ++k) {  // first strict minimum
-            if (lbound.hopeless(&means[3 * k], mf, d1)) continue;
+            if (LowerBound::hopeless(&means[3 * k], mf, lim)) continue;
             const double d = Metric::dist(&C[k * P * 3], fd, P, d1);
-            if (d < d1) d1 = d, k1 = k;
+            if (d < d1) d1 = d, k1 = k, lim = lbound.limit2(d1);
         }
+        lim = lbound.limit2(d2);
         for (std::uint64_t k = 0; k < K; ++k) {
-            if (lbound.hopeless(&means[3 * k], mg, d2)) continue;
+            if (LowerBound::hopeless(&means[3 * k], mg, lim)) continue;
             const double d = Metric::dist(&C[k * P * 3], fg, P, d2);
-            if (d < d2) d2 = d, k2 = k;
+            if (d < d2) d2 = d, k2 = k, lim = lbound.limit2(d2);
         }
         const bool use_g = d2 < d1;  // tie -> direct
         std::uint64_t k = use_g ? k2 : k1;
@@ -422,27 +435,32 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
             update_centroid(n.c.data(), n.size, use_flip ? fg : fd, P);
             ++n.size;
             n.indices.push_back(idx);
-            aabb(n.c.data(), P, n.box_c, n.box_r);
-            LowerBound::mean(n.c.data(), P, n.mean);
+            if (n.parent >= 0) {
+                Node::Kid &me = nodes[static_cast<std::size_t>(n.parent)].kids[n.slot];
+                aabb(n.c.data(), P, me.box_c, me.box_r);
+                LowerBound::mean(n.c.data(), P, me.mean);
+            }
             if (n.level == L) break;
             double best = DBL_MAX;
             std::int64_t kid = -1;
             bool flip = false;
             const float pad = static_cast<float>(n.threshold);
-            for (std::size_t k = 0; k < n.children.size(); ++k) {
-                const Node &ch = nodes[n.children[k]];
-                bool overlap = true;
-                for (int d = 0; d < 3 && overlap; ++d)
-                    overlap = std::fabs(ch.box_c[d] - bc[d]) <= ch.box_r[d] + br[d] + pad;
+            double lim = lbound.limit2(best);
+            for (std::size_t k = 0; k < n.kids.size(); ++k) {
+                const Node::Kid &ch = n.kids[k];
+                const bool overlap = std::fabs(ch.box_c[0] - bc[0]) <= ch.box_r[0] + br[0] + pad &&
+                                     std::fabs(ch.box_c[1] - bc[1]) <= ch.box_r[1] + br[1] + pad &&
+                                     std::fabs(ch.box_c[2] - bc[2]) <= ch.box_r[2] + br[2] + pad;
                 if (!overlap) continue;
+                const float *cc = nodes[n.children[k]].c.data();
                 // DIPY rounds each distance to float32 before comparing.
-                if (!lbound.hopeless(ch.mean, mf, best)) {
-                    const double dd = static_cast<float>(Metric::dist(ch.c.data(), fd, P, best));
-                    if (dd < best) best = dd, kid = static_cast<std::int64_t>(k), flip = false;
+                if (!LowerBound::hopeless(ch.mean, mf, lim)) {
+                    const double dd = static_cast<float>(Metric::dist(cc, fd, P, best));
+                    if (dd < best) best = dd, kid = static_cast<std::int64_t>(k), flip = false, lim = lbound.limit2(best);
                 }
-                if (!lbound.hopeless(ch.mean, mg, best)) {
-                    const double dg = static_cast<float>(Metric::dist(ch.c.data(), fg, P, best));
-                    if (dg < best) best = dg, kid = static_cast<std::int64_t>(k), flip = true;
+                if (!LowerBound::hopeless(ch.mean, mg, lim)) {
+                    const double dg = static_cast<float>(Metric::dist(cc, fg, P, best));
+                    if (dg < best) best = dg, kid = static_cast<std::int64_t>(k), flip = true, lim = lbound.limit2(best);
                 }
             }
             if (best > n.threshold) {  // join iff dist <= threshold (non-strict)
@@ -452,7 +470,9 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
                 c.threshold = c.level < L ? t[c.level] : 0.0;
                 c.c.assign(P * 3, 0.0f);
                 kid = static_cast<std::int64_t>(n.children.size());
+                c.slot = static_cast<std::uint32_t>(kid);
                 n.children.push_back(static_cast<std::uint32_t>(nodes.size()));
+                n.kids.push_back({});
                 nodes.push_back(std::move(c));  // invalidates `n`
             }
             use_flip = flip;
