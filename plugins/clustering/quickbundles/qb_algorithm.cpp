@@ -12,6 +12,8 @@
 #include <cmath>
 #include <limits>
 #include <thread>
+#include <deque>
+#include <unordered_map>
 
 namespace qb {
 
@@ -226,13 +228,13 @@ void check_order(const std::vector<std::uint64_t> &order, std::uint64_t N) {
 }
 
 struct Node {
-    std::int64_t parent = -1;
+    Node *parent = nullptr;
     std::uint32_t level = 0;
     double threshold = 0;  // used to split its children
     std::vector<float> c;
     std::uint64_t size = 0;
     std::vector<std::uint64_t> indices;
-    std::vector<std::uint32_t> children;
+    std::vector<Node *> children;  // creation order
     // What the search needs of each child, contiguous (the hot loop of QBX):
     // its centroid's AABB and mean point, refreshed when the child changes.
     struct Kid {
@@ -291,31 +293,31 @@ inline void aabb(const float *x, std::uint32_t P, float c[3], float r[3]) {
 }
 
 // Flattens nodes into the ABI layout: by level, DFS pre-order within a level.
-Tree flatten(const std::vector<Node> &nodes, std::uint32_t levels, const std::vector<double> &thresholds, std::uint32_t P) {
-    std::vector<std::uint32_t> dfs;
-    std::vector<std::uint32_t> stack = {0};
+Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &thresholds, std::uint32_t P) {
+    std::vector<const Node *> dfs;
+    std::vector<const Node *> stack = {&root};
     while (!stack.empty()) {
-        const std::uint32_t k = stack.back();
+        const Node *k = stack.back();
         stack.pop_back();
         dfs.push_back(k);
-        for (auto it = nodes[k].children.rbegin(); it != nodes[k].children.rend(); ++it) stack.push_back(*it);
+        for (auto it = k->children.rbegin(); it != k->children.rend(); ++it) stack.push_back(*it);
     }
-    std::vector<std::uint32_t> order;  // old ids in output order
+    std::vector<const Node *> order;  // output order: by level, DFS within a level
     for (std::uint32_t l = 0; l <= levels; ++l)
         for (auto k : dfs)
-            if (nodes[k].level == l) order.push_back(k);
-    std::vector<std::int64_t> new_id(nodes.size(), -1);
-    for (std::size_t i = 0; i < order.size(); ++i) new_id[order[i]] = static_cast<std::int64_t>(i);
+            if (k->level == l) order.push_back(k);
+    std::unordered_map<const Node *, std::int64_t> id;
+    id.reserve(order.size());
+    for (std::size_t i = 0; i < order.size(); ++i) id[order[i]] = static_cast<std::int64_t>(i);
     Tree t;
     t.thresholds = thresholds;
     t.nb_points = P;
     t.member_offsets.push_back(0);
     for (auto k : order) {
-        const Node &n = nodes[k];
-        t.parent.push_back(n.parent < 0 ? -1 : new_id[n.parent]);
-        t.level.push_back(n.level);
-        t.centroids.insert(t.centroids.end(), n.c.begin(), n.c.end());
-        t.members.insert(t.members.end(), n.indices.begin(), n.indices.end());
+        t.parent.push_back(k->parent ? id[k->parent] : -1);
+        t.level.push_back(k->level);
+        t.centroids.insert(t.centroids.end(), k->c.begin(), k->c.end());
+        t.members.insert(t.members.end(), k->indices.begin(), k->indices.end());
         t.member_offsets.push_back(t.members.size());
     }
     return t;
@@ -377,18 +379,17 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
         indices[k].push_back(idx);
     }
     // Root: every streamline in processing order, mean of the oriented features.
-    std::vector<Node> nodes(1);
+    std::deque<Node> nodes(1);
     nodes[0].threshold = T;
     nodes[0].c.assign(P * 3, 0.0f);
     for (std::uint64_t k = 0; k < sizes.size(); ++k) {
-        Node n;
-        n.parent = 0;
+        Node &n = nodes.emplace_back();
+        n.parent = &nodes[0];
         n.level = 1;
         n.c.assign(C.begin() + k * P * 3, C.begin() + (k + 1) * P * 3);
         n.size = sizes[k];
         n.indices = std::move(indices[k]);
-        nodes[0].children.push_back(static_cast<std::uint32_t>(nodes.size()));
-        nodes.push_back(std::move(n));
+        nodes[0].children.push_back(&n);
     }
     nodes[0].indices = order;
     nodes[0].size = N;
@@ -399,9 +400,79 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
         nodes[0].c[i] = N ? static_cast<float>(acc / double(N)) : 0.0f;
     }
     if (progress) progress(1.0);
-    return flatten(nodes, 1, {T}, P);
+    return flatten(nodes[0], 1, {T}, P);
 }
 
+// The two halves of one QBX step at node `n` (DIPY-QBX.md section 3.5).
+template <class Metric>
+struct QbxOps {
+    std::uint32_t P, L;
+    const std::vector<double> &t;
+    const LowerBound &lbound;
+
+    // n.C = ((n.C * size) + e) / (size + 1); refresh n's record in its parent.
+    void update(Node &n, std::uint64_t idx, const float *e) const {
+        update_centroid(n.c.data(), n.size, e, P);
+        ++n.size;
+        n.indices.push_back(idx);
+        if (n.parent != nullptr) {
+            Node::Kid &me = n.parent->kids[n.slot];
+            aabb(n.c.data(), P, me.box_c, me.box_r);
+            LowerBound::mean(n.c.data(), P, me.mean);
+        }
+    }
+
+    // Searches n's children for the streamline; returns the chosen child
+    // (created when none is within n's threshold) and the orientation it is
+    // to be updated with.
+    Node *search(Node &n, const float *fd, const float *fg, const float bc[3], const float br[3], const double mf[3],
+                 const double mg[3], bool &flip_out, std::deque<Node> &store) const {
+        double best = DBL_MAX;
+        std::int64_t kid = -1;
+        bool flip = false;
+        const float pad = static_cast<float>(n.threshold);
+        double lim = lbound.limit2(best);
+        for (std::size_t k = 0; k < n.kids.size(); ++k) {
+            const Node::Kid &ch = n.kids[k];
+            const bool overlap = std::fabs(ch.box_c[0] - bc[0]) <= ch.box_r[0] + br[0] + pad &&
+                                 std::fabs(ch.box_c[1] - bc[1]) <= ch.box_r[1] + br[1] + pad &&
+                                 std::fabs(ch.box_c[2] - bc[2]) <= ch.box_r[2] + br[2] + pad;
+            if (!overlap) continue;
+            const float *cc = n.children[k]->c.data();
+            // DIPY rounds each distance to float32 before comparing.
+            if (!LowerBound::hopeless(ch.mean, mf, lim)) {
+                const double dd = static_cast<float>(Metric::dist(cc, fd, P, best));
+                if (dd < best) best = dd, kid = static_cast<std::int64_t>(k), flip = false, lim = lbound.limit2(best);
+            }
+            if (!LowerBound::hopeless(ch.mean, mg, lim)) {
+                const double dg = static_cast<float>(Metric::dist(cc, fg, P, best));
+                if (dg < best) best = dg, kid = static_cast<std::int64_t>(k), flip = true, lim = lbound.limit2(best);
+            }
+        }
+        if (best > n.threshold) {  // join iff dist <= threshold (non-strict)
+            Node &c = store.emplace_back();
+            c.parent = &n;
+            c.level = n.level + 1;
+            c.threshold = c.level < L ? t[c.level] : 0.0;
+            c.c.assign(P * 3, 0.0f);
+            kid = static_cast<std::int64_t>(n.children.size());
+            c.slot = static_cast<std::uint32_t>(kid);
+            n.children.push_back(&c);
+            n.kids.push_back({});
+        }
+        flip_out = flip;
+        return n.children[static_cast<std::size_t>(kid)];
+    }
+};
+
+// QuickBundlesX as a two-stage pipeline computing exactly what the
+// sequential algorithm computes. Stage A (calling thread) searches the
+// root's children and updates the chosen level-1 node; stage B (a worker)
+// continues below it. Level-1 decisions depend only on level-1 centroids
+// (stage A's), deeper ones only on the nodes below (stage B's). The one
+// coupling across streamlines, DIPY's orientation of the root update by the
+// previous streamline's leaf flip, touches only the root centroid, which no
+// search reads: it is replayed once both stages are done.
 template <class Metric>
 Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector<std::uint64_t> &order, const CancelFn &cancel,
               const ProgressFn &progress) {
@@ -410,77 +481,107 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
     const std::uint32_t L = static_cast<std::uint32_t>(t.size());
     if (L == 0) throw InputError("QuickBundlesX needs at least one threshold");
     check_order(order, N);
-    std::vector<Node> nodes(1);
-    nodes[0].threshold = t[0];
-    nodes[0].c.assign(P * 3, 0.0f);
+    std::deque<Node> store_a, store_b;  // each stage's nodes (stable addresses)
+    Node &root = store_a.emplace_back();
+    root.threshold = t[0];
+    root.c.assign(P * 3, 0.0f);
     LowerBound lbound;
     lbound.prepare(f);
     lbound.factor = Metric::kBoundFactor;
-    bool use_flip = false;  // persists across streamlines, as in DIPY
+    const QbxOps<Metric> ops{P, L, t, lbound};
+
+    struct Handoff {
+        Node *node;
+        bool flip;
+    };
+    std::vector<Handoff> handoff(N);
+    std::vector<std::uint8_t> leaf_flip(N, 0);
+    std::atomic<std::uint64_t> published{0};
+    std::atomic<bool> stop{false};
+
+    struct Geometry {
+        const float *fd, *fg;
+        float bc[3], br[3];
+        double mf[3], mg[3];
+    };
+    auto geometry = [&](std::uint64_t idx) {
+        Geometry g;
+        g.fd = &f.direct[idx * P * 3];
+        g.fg = &f.flipped[idx * P * 3];
+        aabb(g.fd, P, g.bc, g.br);
+        LowerBound::mean(g.fd, P, g.mf);
+        LowerBound::mean(g.fg, P, g.mg);
+        return g;
+    };
+    auto stage_a = [&](std::uint64_t it) {
+        const Geometry g = geometry(order[it]);
+        bool flip = false;
+        Node *n1 = ops.search(root, g.fd, g.fg, g.bc, g.br, g.mf, g.mg, flip, store_a);
+        ops.update(*n1, order[it], flip ? g.fg : g.fd);
+        handoff[it] = {n1, flip};
+    };
+    auto stage_b = [&](std::uint64_t it) {
+        Node *node = handoff[it].node;
+        bool flip = handoff[it].flip;
+        if (node->level < L) {
+            const Geometry g = geometry(order[it]);
+            while (node->level < L) {
+                bool next_flip = false;
+                Node *child = ops.search(*node, g.fd, g.fg, g.bc, g.br, g.mf, g.mg, next_flip, store_b);
+                ops.update(*child, order[it], next_flip ? g.fg : g.fd);
+                node = child;
+                flip = next_flip;
+            }
+        }
+        leaf_flip[it] = flip;
+    };
+
+    const bool threaded = L >= 2 && N >= 20000;
+    std::thread worker;
+    if (threaded) {
+        worker = std::thread([&] {
+            std::uint64_t it = 0;
+            while (it < N) {
+                const std::uint64_t avail = published.load(std::memory_order_acquire);
+                if (avail == it) {
+                    if (stop.load(std::memory_order_acquire) && published.load(std::memory_order_acquire) == it) return;
+                    std::this_thread::yield();
+                    continue;
+                }
+                for (; it < avail; ++it) stage_b(it);
+            }
+        });
+    }
+    bool cancelled = false;
     for (std::uint64_t it = 0; it < N; ++it) {
         if ((it & 1023) == 0) {
-            if (cancel && cancel()) throw Cancelled{};
+            if (cancel && cancel()) {
+                cancelled = true;
+                break;
+            }
             if (progress) progress(double(it) / double(N));
         }
-        const std::uint64_t idx = order[it];
-        const float *fd = &f.direct[idx * P * 3], *fg = &f.flipped[idx * P * 3];
-        float bc[3], br[3];
-        aabb(fd, P, bc, br);
-        double mf[3], mg[3];
-        LowerBound::mean(fd, P, mf);
-        LowerBound::mean(fg, P, mg);
-        std::uint32_t node = 0;
-        for (;;) {
-            Node &n = nodes[node];
-            update_centroid(n.c.data(), n.size, use_flip ? fg : fd, P);
-            ++n.size;
-            n.indices.push_back(idx);
-            if (n.parent >= 0) {
-                Node::Kid &me = nodes[static_cast<std::size_t>(n.parent)].kids[n.slot];
-                aabb(n.c.data(), P, me.box_c, me.box_r);
-                LowerBound::mean(n.c.data(), P, me.mean);
-            }
-            if (n.level == L) break;
-            double best = DBL_MAX;
-            std::int64_t kid = -1;
-            bool flip = false;
-            const float pad = static_cast<float>(n.threshold);
-            double lim = lbound.limit2(best);
-            for (std::size_t k = 0; k < n.kids.size(); ++k) {
-                const Node::Kid &ch = n.kids[k];
-                const bool overlap = std::fabs(ch.box_c[0] - bc[0]) <= ch.box_r[0] + br[0] + pad &&
-                                     std::fabs(ch.box_c[1] - bc[1]) <= ch.box_r[1] + br[1] + pad &&
-                                     std::fabs(ch.box_c[2] - bc[2]) <= ch.box_r[2] + br[2] + pad;
-                if (!overlap) continue;
-                const float *cc = nodes[n.children[k]].c.data();
-                // DIPY rounds each distance to float32 before comparing.
-                if (!LowerBound::hopeless(ch.mean, mf, lim)) {
-                    const double dd = static_cast<float>(Metric::dist(cc, fd, P, best));
-                    if (dd < best) best = dd, kid = static_cast<std::int64_t>(k), flip = false, lim = lbound.limit2(best);
-                }
-                if (!LowerBound::hopeless(ch.mean, mg, lim)) {
-                    const double dg = static_cast<float>(Metric::dist(cc, fg, P, best));
-                    if (dg < best) best = dg, kid = static_cast<std::int64_t>(k), flip = true, lim = lbound.limit2(best);
-                }
-            }
-            if (best > n.threshold) {  // join iff dist <= threshold (non-strict)
-                Node c;
-                c.parent = node;
-                c.level = n.level + 1;
-                c.threshold = c.level < L ? t[c.level] : 0.0;
-                c.c.assign(P * 3, 0.0f);
-                kid = static_cast<std::int64_t>(n.children.size());
-                c.slot = static_cast<std::uint32_t>(kid);
-                n.children.push_back(static_cast<std::uint32_t>(nodes.size()));
-                n.kids.push_back({});
-                nodes.push_back(std::move(c));  // invalidates `n`
-            }
-            use_flip = flip;
-            node = nodes[node].children[static_cast<std::size_t>(kid)];
-        }
+        stage_a(it);
+        if (!threaded) stage_b(it);
+        else if ((it & 63) == 63) published.store(it + 1, std::memory_order_release);
     }
+    if (threaded) {
+        if (!cancelled) published.store(N, std::memory_order_release);
+        stop.store(true, std::memory_order_release);
+        worker.join();
+    }
+    if (cancelled) throw Cancelled{};
+    // Replay the root: every streamline, oriented by the previous one's leaf flip.
+    bool use_flip = false;
+    for (std::uint64_t it = 0; it < N; ++it) {
+        const std::uint64_t idx = order[it];
+        update_centroid(root.c.data(), root.size, use_flip ? &f.flipped[idx * P * 3] : &f.direct[idx * P * 3], P);
+        ++root.size;
+        use_flip = leaf_flip[it];
+    }
+    root.indices = order;
     if (progress) progress(1.0);
-    return flatten(nodes, L, t, P);
+    return flatten(root, L, t, P);
 }
 
 Tree quickbundles(const Features &f, double T, const std::vector<std::uint64_t> &order, Mode mode, const CancelFn &cancel,
