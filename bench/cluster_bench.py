@@ -180,10 +180,9 @@ def main():
         row("synthetic 5000k", n, "QBX", None, exact_s, fast_s, "Horizon only")
 
     # 4. The chart: time against agreement with a 64-point exact clustering.
-    chart_name = [k for k in files if k.startswith("synthetic")][1 if not args.quick else 0]
+    chart_name = next(iter(files))  # the smallest synthetic set: QB is O(N K)
     tck, n = files[chart_name]
-    qb_name = next(iter(files))
-    qb_tck, qb_n = files[qb_name]
+    qb_name, qb_tck = chart_name, tck
     series = {}
     _, ref64 = ours(args.build, tck, "qbx", "exact", lab, nb_points=64)
     _, qb64 = ours(args.build, qb_tck, "qb", "exact", lab, thresholds=[15], nb_points=64)
@@ -197,6 +196,12 @@ def main():
                 pts.append((p, t, ari(col, ref[:, -1]), matched_fraction(col, ref[:, -1])))
                 print(f"chart {algo} {mode:5s} {p:2d} points: {t:6.2f} s  ARI {pts[-1][2]:.4f}  matched {pts[-1][3]:.4f}", flush=True)
             series[(algo, mode)] = pts
+
+    # QB against QBX: the same threshold (15 mm), 12 points, exact mode.
+    _, qbx12 = ours(args.build, tck, "qbx", "exact", lab)
+    _, qb12 = ours(args.build, tck, "qb", "exact", lab, thresholds=[15])
+    cross = (ari(qbx12[:, -1], qb12[:, -1]), matched_fraction(qbx12[:, -1], qb12[:, -1]))
+    print(f"QBX (finest level, 15 mm) against QB 15 mm: ARI {cross[0]:.4f}, matched {cross[1]:.4f}")
 
     # Outputs.
     os.makedirs(os.path.join(ROOT, "bench", "results"), exist_ok=True)
@@ -213,6 +218,8 @@ def main():
         for (algo, mode), pts in series.items():
             for p, t, a, m in pts:
                 f.write(f"| {algo} | {mode} | {p} | {t:.2f} | {a:.4f} | {m:.4f} |\n")
+        f.write(f"\nQBX (finest level, 15 mm) against QB 15 mm, 12 points, {chart_name}: "
+                f"ARI {cross[0]:.4f}, matched fraction {cross[1]:.4f}.\n")
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -230,7 +237,8 @@ def main():
         ax.set_ylabel(f"{label} vs 64-point clustering")
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize=8)
-    fig.suptitle(f"Speed against accuracy: points per streamline (labels); QBX on {chart_name}, QB 15 mm on {qb_name}", fontsize=9)
+    fig.suptitle(f"Speed against accuracy on {chart_name}: points per streamline (labels); QBX 30/25/20/15 mm "
+                 f"(finest level), QB 15 mm; QBX vs QB: ARI {cross[0]:.3f}", fontsize=9)
     fig.tight_layout()
     os.makedirs(os.path.join(ROOT, "docs"), exist_ok=True)
     out = os.path.join(ROOT, "docs", "cluster_chart.png")

@@ -39,11 +39,13 @@ inline double seg_len(const Poly &s, std::uint64_t i) {  // |p[i] - p[i-1]|, DIP
 
 }  // namespace
 
-void resample(const float *p, std::uint64_t n, std::uint32_t P, bool reversed, float *out) {
-    const Poly s{p, n, reversed};
-    // Total length: the same additions, in the same order, as DIPY's arc array.
-    double L = 0.0;
-    for (std::uint64_t i = 1; i < n; ++i) L += seg_len(s, i);
+namespace {
+
+// DIPY's walk along the polyline `s` whose segment lengths are seg(i) =
+// |s[i] - s[i-1]| (i >= 1), with L their sum in index order.
+template <class Seg>
+void resample_walk(const Poly &s, std::uint32_t P, double L, Seg seg, float *out) {
+    const std::uint64_t n = s.n;
     if (!(L > 0.0)) {  // zero length: DIPY leaves uninitialised memory here
         for (std::uint32_t i = 0; i < P; ++i)
             for (int d = 0; d < 3; ++d) out[3 * i + d] = s.at(n - 1)[d];
@@ -61,7 +63,7 @@ void resample(const float *p, std::uint64_t n, std::uint32_t P, bool reversed, f
             ++i;
             ++k;
             arc_km1 = arc_k;
-            arc_k = k < n ? arc_k + seg_len(s, k) : arc_k;
+            arc_k = k < n ? arc_k + seg(k) : arc_k;
         } else if (t < arc_k) {
             const double ratio = 1.0 - ((arc_k - t) / (arc_k - arc_km1));
             const float *a = s.at(k - 1), *b = s.at(k);
@@ -73,10 +75,35 @@ void resample(const float *p, std::uint64_t n, std::uint32_t P, bool reversed, f
         } else {
             ++k;
             arc_km1 = arc_k;
-            arc_k = k < n ? arc_k + seg_len(s, k) : arc_k;
+            arc_k = k < n ? arc_k + seg(k) : arc_k;
         }
     }
     for (int d = 0; d < 3; ++d) out[3 * (P - 1) + d] = s.at(n - 1)[d];
+}
+
+}  // namespace
+
+void resample(const float *p, std::uint64_t n, std::uint32_t P, bool reversed, float *out) {
+    const Poly s{p, n, reversed};
+    // Total length: the same additions, in the same order, as DIPY's arc array.
+    double L = 0.0;
+    for (std::uint64_t i = 1; i < n; ++i) L += seg_len(s, i);
+    resample_walk(s, P, L, [&](std::uint64_t k) { return seg_len(s, k); }, out);
+}
+
+void resample_both(const float *p, std::uint64_t n, std::uint32_t P, float *fwd, float *rev, std::vector<double> &seg) {
+    // Each segment's length once: the reversed polyline's float differences
+    // are the exact negations of the forward ones, so its segment i is the
+    // forward segment n - i, bit for bit. Only the summation order differs.
+    seg.resize(n);
+    const Poly s{p, n, false};
+    double L = 0.0;
+    for (std::uint64_t i = 1; i < n; ++i) L += (seg[i] = seg_len(s, i));
+    resample_walk(s, P, L, [&](std::uint64_t k) { return seg[k]; }, fwd);
+    if (rev == nullptr) return;
+    double Lr = 0.0;
+    for (std::uint64_t i = 1; i < n; ++i) Lr += seg[n - i];
+    resample_walk(Poly{p, n, true}, P, Lr, [&](std::uint64_t k) { return seg[n - k]; }, rev);
 }
 
 double mdf_direct(const float *a, const float *b, std::uint32_t P) {
@@ -105,6 +132,7 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
     // Each worker validates its streamlines (non-empty, finite) while it
     // resamples them: one pass over the input.
     auto work = [&](unsigned w, std::uint64_t begin, std::uint64_t end) {
+        std::vector<double> seg;  // segment lengths, reused across streamlines
         for (std::uint64_t s = begin; s < end && !stop; ++s) {
             if (w == 0 && (s & 4095) == 0 && cancel && cancel()) stop = true;
             const float *p = in.positions + 3 * in.offsets[s];
@@ -123,10 +151,9 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
                 }
             if (stop) break;
             float *fd = &f.direct[s * P * 3], *fg = &f.flipped[s * P * 3];
-            resample(p, n, P, false, fd);
-            if (exact_flip) {
-                resample(p, n, P, true, fg);  // DIPY resamples the reversed polyline
-            } else {
+            // DIPY resamples the reversed polyline for the flipped features.
+            resample_both(p, n, P, fd, exact_flip ? fg : nullptr, seg);
+            if (!exact_flip) {
                 for (std::uint32_t i = 0; i < P; ++i) std::copy_n(fd + 3 * (P - 1 - i), 3, fg + 3 * i);
             }
         }
