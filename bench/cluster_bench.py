@@ -120,6 +120,7 @@ def main():
     ap.add_argument("--work", default="/tmp/horizon-bench")
     ap.add_argument("--quick", action="store_true", help="small sizes only (a smoke run)")
     ap.add_argument("--skip-5m", action="store_true")
+    ap.add_argument("--dipy-qb-1m", action="store_true", help="also run DIPY's QB on 1M streamlines (about 15 min)")
     args = ap.parse_args()
     os.makedirs(args.work, exist_ok=True)
     import nibabel as nib
@@ -171,6 +172,18 @@ def main():
     row(name, n, "QB 15 mm", dipy_s, exact_s, fast_s,
         f"exact==DIPY: {np.array_equal(le[:, 1], dipy_labels(ref, n))}; fast agrees on {100 * (le[:, 1] == lf[:, 1]).mean():.3f}%")
     del sl, ref
+
+    if args.dipy_qb_1m and "synthetic 1000k" in files:
+        tck, n = files["synthetic 1000k"]
+        sl = nib.streamlines.load(tck).streamlines
+        exact_s, le = ours(args.build, tck, "qb", "exact", lab, thresholds=[15])
+        fast_s, lf = ours(args.build, tck, "qb", "fast", lab, thresholds=[15])
+        t0 = time.perf_counter()
+        ref = QuickBundles(15.0).cluster(sl)
+        dipy_s = time.perf_counter() - t0
+        row("synthetic 1000k", n, "QB 15 mm", dipy_s, exact_s, fast_s,
+            f"exact==DIPY: {np.array_equal(le[:, 1], dipy_labels(ref, n))}; fast agrees on {100 * (le[:, 1] == lf[:, 1]).mean():.3f}%")
+        del sl, ref
 
     # 3. 5M streamlines, Horizon only.
     if "synthetic 5000k" in files:

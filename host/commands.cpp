@@ -168,7 +168,18 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     core::write_dataset(reg, ds, path, /*force=*/true, nullptr);
     std::printf("Wrote the demo phantom (%llu streamlines, %u bundles) to %s\n\n", (unsigned long long)po.nb_streamlines,
                 po.nb_bundles, path.c_str());
-    return cmd_info(g, path.string(), false);
+    const int rc = cmd_info(g, path.string(), false);
+    if (rc != 0 || reg.find("org.horizon.clustering.qbx") == nullptr) return rc;
+    // The paper's level of detail: QuickBundlesX centroids before streamlines.
+    std::printf("\n");
+    ClusterOptions co;
+    co.input = path.string();
+    co.algorithm = "qbx";
+    co.labels = (std::filesystem::path(o.out_dir) / "qbx_labels.csv").string();
+    co.centroids = (std::filesystem::path(o.out_dir) / "qbx_centroids_level1.tck").string();
+    co.level = 1;
+    co.force = true;
+    return cmd_cluster(g, co);
 }
 
 }  // namespace hz::host
