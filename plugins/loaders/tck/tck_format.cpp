@@ -27,31 +27,6 @@ const char *to_string(DataType t) {
     return "?";
 }
 
-MappedFile::MappedFile(const std::string &path) {
-    int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) throw FormatError(std::string("cannot open: ") + std::strerror(errno), true);
-    struct stat st{};
-    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-        ::close(fd);
-        throw FormatError("not a regular file", true);
-    }
-    size_ = static_cast<std::uint64_t>(st.st_size);
-    if (size_ > 0) {
-        void *p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
-        if (p == MAP_FAILED) {
-            ::close(fd);
-            throw FormatError(std::string("cannot map: ") + std::strerror(errno), true);
-        }
-        ::madvise(p, size_, MADV_SEQUENTIAL);
-        data_ = static_cast<const unsigned char *>(p);
-    }
-    ::close(fd);
-}
-
-MappedFile::~MappedFile() {
-    if (data_ != nullptr) ::munmap(const_cast<unsigned char *>(data_), size_);
-}
-
 namespace {
 
 constexpr std::string_view kMagic = "mrtrix tracks";

@@ -24,20 +24,6 @@ struct FormatError : std::runtime_error {
 enum class DataType { Float32LE, Float32BE, Float64LE, Float64BE };
 const char *to_string(DataType t);
 
-// A read-only memory mapping of a whole file.
-class MappedFile {
-public:
-    explicit MappedFile(const std::string &path);
-    ~MappedFile();
-    MappedFile(const MappedFile &) = delete;
-    MappedFile &operator=(const MappedFile &) = delete;
-    const unsigned char *data() const { return data_; }
-    std::uint64_t size() const { return size_; }
-
-private:
-    const unsigned char *data_ = nullptr;
-    std::uint64_t size_ = 0;
-};
 
 struct Header {
     std::vector<std::pair<std::string, std::string>> entries;  // file order, incl. repeats

@@ -1,5 +1,6 @@
 // hz.loader/1 adapter for the MRtrix TCK format (tck_format.hpp).
 #include "tck_format.hpp"
+#include "mapped_file.hpp"
 
 #include <hz/cpp/plugin.hpp>
 
@@ -17,7 +18,7 @@ void log(hz_log_level lvl, const std::string &msg) {
 
 struct Reader {
     std::string path;
-    std::unique_ptr<tck::MappedFile> file;
+    std::unique_ptr<hzio::MappedFile> file;
     tck::Header header;
     tck::Layout layout;
 };
@@ -32,6 +33,8 @@ hz_status run(hz_error *err, const std::string &path, F &&body) {
             return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
         } catch (const tck::FormatError &e) {
             return hz::set_errorf(err, e.io ? HZ_E_IO : HZ_E_FORMAT, "tck: %s: %s", path.c_str(), e.what());
+        } catch (const hzio::IoError &e) {
+            return hz::set_errorf(err, HZ_E_IO, "tck: %s: %s", path.c_str(), e.what());
         }
     });
 }
@@ -50,7 +53,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
     return run(err, req->path, [&]() -> hz_status {
         auto r = std::make_unique<Reader>();
         r->path = req->path;
-        r->file = std::make_unique<tck::MappedFile>(r->path);
+        r->file = std::make_unique<hzio::MappedFile>(r->path);
         r->header = tck::parse_header(r->file->data(), r->file->size());
         r->layout = tck::scan(r->file->data(), r->file->size(), r->header);
         for (const auto &w : r->header.warnings) log(HZ_LOG_WARN, r->path + ": " + w);

@@ -1,0 +1,379 @@
+// TrackVis TRK v1/v2 (TrackVis file format documentation; nibabel trk.py for
+// the voxmm -> RAS+ mm convention and the name encoding of scalar columns).
+#include "trk_format.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+
+namespace trk {
+
+namespace {
+
+constexpr std::uint64_t kHeaderSize = 1000;
+
+inline std::uint32_t bswap(std::uint32_t v) { return __builtin_bswap32(v); }
+inline std::uint16_t bswap(std::uint16_t v) { return __builtin_bswap16(v); }
+
+template <class T>
+T load(const unsigned char *p, bool swap) {
+    using U = std::conditional_t<sizeof(T) == 4, std::uint32_t, std::uint16_t>;
+    U u;
+    std::memcpy(&u, p, sizeof u);
+    if (swap) u = bswap(u);
+    return std::bit_cast<T>(u);
+}
+template <class T>
+void store(unsigned char *p, T v) {  // little-endian file output
+    using U = std::conditional_t<sizeof(T) == 4, std::uint32_t, std::uint16_t>;
+    U u = std::bit_cast<U>(v);
+    if constexpr (std::endian::native == std::endian::big) u = bswap(u);
+    std::memcpy(p, &u, sizeof u);
+}
+constexpr bool kBigHost = std::endian::native == std::endian::big;
+
+Mat4 identity() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }
+
+Mat4 mul(const Mat4 &a, const Mat4 &b) {
+    Mat4 c{};
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+            double s = 0;
+            for (int k = 0; k < 4; ++k) s += a[4 * i + k] * b[4 * k + j];
+            c[4 * i + j] = s;
+        }
+    return c;
+}
+
+// Orientation of each voxel axis: (RAS axis, +1/-1), nibabel's "ornt".
+struct Ornt {
+    int axis[3];
+    int flip[3];
+};
+
+Ornt ornt_from_codes(const std::string &codes) {
+    static const char *labels[3] = {"LR", "PA", "IS"};
+    Ornt o{};
+    bool used[3] = {false, false, false};
+    for (int i = 0; i < 3; ++i) {
+        const char c = codes[static_cast<std::size_t>(i)];
+        int found = -1;
+        for (int j = 0; j < 3; ++j)
+            if (c == labels[j][0] || c == labels[j][1]) found = j;
+        if (found < 0 || used[found]) throw FormatError("voxel_order '" + codes + "' is not a permutation of L/R, P/A, I/S");
+        used[found] = true;
+        o.axis[i] = found;
+        o.flip[i] = c == labels[found][0] ? -1 : 1;
+    }
+    return o;
+}
+
+// nibabel's inv_ornt_aff(ornt_transform(from, to), dims).
+Mat4 reorient(const Ornt &from, const Ornt &to, const std::int16_t dims[3]) {
+    int axis[3], flip[3];
+    for (int e = 0; e < 3; ++e)
+        for (int s = 0; s < 3; ++s)
+            if (to.axis[e] == from.axis[s]) {
+                axis[s] = e;
+                flip[s] = from.flip[s] == to.flip[e] ? 1 : -1;
+            }
+    Mat4 undo_reorder{};
+    for (int i = 0; i < 3; ++i) undo_reorder[4 * i + axis[i]] = 1;
+    undo_reorder[15] = 1;
+    Mat4 undo_flip = identity();
+    for (int i = 0; i < 3; ++i) {
+        const double c = -(double(dims[i]) - 1) / 2.0;
+        undo_flip[4 * i + i] = flip[i];
+        undo_flip[4 * i + 3] = flip[i] * c - c;
+    }
+    return mul(undo_flip, undo_reorder);
+}
+
+std::vector<Column> decode_names(const unsigned char *p, std::uint32_t total, const char *what, const char *rest) {
+    std::vector<Column> cols;
+    std::uint32_t used = 0;
+    for (int k = 0; k < 10; ++k) {
+        const char *s = reinterpret_cast<const char *>(p + 20 * k);
+        std::string field(s, 20);
+        while (!field.empty() && field.back() == '\0') field.pop_back();
+        if (field.empty()) continue;
+        const auto nul = field.find('\0');
+        Column c;
+        c.name = field.substr(0, nul);
+        if (nul != std::string::npos) {
+            const std::string num = field.substr(nul + 1);
+            if (num.empty() || num.size() > 3 || !std::all_of(num.begin(), num.end(), ::isdigit))
+                throw FormatError(std::string(what) + " name " + std::to_string(k) + " has bytes after its NUL that are not a column count");
+            c.count = static_cast<std::uint32_t>(std::stoi(num));
+        }
+        if (c.count == 0) continue;
+        used += c.count;
+        cols.push_back(c);
+    }
+    if (used > total)
+        throw FormatError(std::string(what) + " names describe " + std::to_string(used) + " columns but the header declares " +
+                          std::to_string(total));
+    if (used < total) cols.push_back({rest, total - used});
+    return cols;
+}
+
+}  // namespace
+
+std::string axcodes(const Mat4 &a) {
+    // Columns of the 3x3 part, normalised; greedily assign the largest
+    // remaining component (nibabel's io_orientation for non-degenerate affines).
+    double m[3][3];
+    for (int j = 0; j < 3; ++j) {
+        double n = 0;
+        for (int i = 0; i < 3; ++i) n += a[4 * i + j] * a[4 * i + j];
+        n = std::sqrt(n);
+        for (int i = 0; i < 3; ++i) m[i][j] = n > 0 ? a[4 * i + j] / n : 0;
+    }
+    static const char *labels[3] = {"LR", "PA", "IS"};
+    std::string codes = "???";
+    bool row_used[3] = {false, false, false}, col_used[3] = {false, false, false};
+    for (int step = 0; step < 3; ++step) {
+        int bi = -1, bj = -1;
+        double best = -1;
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                if (!row_used[i] && !col_used[j] && std::fabs(m[i][j]) > best) best = std::fabs(m[i][j]), bi = i, bj = j;
+        row_used[bi] = col_used[bj] = true;
+        codes[static_cast<std::size_t>(bj)] = labels[bi][m[bi][bj] >= 0 ? 1 : 0];
+    }
+    return codes;
+}
+
+int probe(const unsigned char *head, std::uint64_t size) {
+    if (size < 6 || std::memcmp(head, "TRACK", 5) != 0) return 0;
+    if (size >= kHeaderSize) {
+        const auto hs = load<std::int32_t>(head + 996, false);
+        const auto hs_swapped = load<std::int32_t>(head + 996, true);
+        return hs == 1000 || hs_swapped == 1000 ? 100 : 10;
+    }
+    return 60;  // magic only: the probe window ends before hdr_size
+}
+
+Header parse_header(const unsigned char *b, std::uint64_t size) {
+    if (size < kHeaderSize)
+        throw FormatError("file is " + std::to_string(size) + " bytes, shorter than the 1000-byte TrackVis header");
+    if (std::memcmp(b, "TRACK", 5) != 0) throw FormatError("no 'TRACK' magic at offset 0 (not a TrackVis file)");
+    Header h;
+    const auto hs = load<std::int32_t>(b + 996, false);
+    if (hs == 1000) h.swap = false;
+    else if (load<std::int32_t>(b + 996, true) == 1000) h.swap = true;
+    else throw FormatError("hdr_size at offset 996 is " + std::to_string(hs) + ", expected 1000 (truncated or not TrackVis)");
+    const bool sw = h.swap;
+    for (int i = 0; i < 3; ++i) {
+        h.dim[i] = load<std::int16_t>(b + 6 + 2 * i, sw);
+        h.voxel_size[i] = load<float>(b + 12 + 4 * i, sw);
+        if (!(std::isfinite(h.voxel_size[i]) && h.voxel_size[i] > 0))
+            throw FormatError("voxel_size[" + std::to_string(i) + "] = " + std::to_string(h.voxel_size[i]) + " is not a positive number");
+        if (h.dim[i] < 0) throw FormatError("dim[" + std::to_string(i) + "] = " + std::to_string(h.dim[i]) + " is negative");
+    }
+    const auto ns = load<std::int16_t>(b + 36, sw), np = load<std::int16_t>(b + 238, sw);
+    if (ns < 0 || np < 0) throw FormatError("negative n_scalars or n_properties");
+    h.n_scalars = static_cast<std::uint32_t>(ns);
+    h.n_properties = static_cast<std::uint32_t>(np);
+    h.scalars = decode_names(b + 38, h.n_scalars, "scalar", "scalars");
+    h.properties = decode_names(b + 240, h.n_properties, "property", "properties");
+    h.version = load<std::int32_t>(b + 992, sw);
+    h.vox_to_ras = identity();
+    if (h.version == 2 || h.version == 3) {
+        if (h.version == 3) h.warnings.emplace_back("version 3 read as version 2");
+        Mat4 m;
+        for (int i = 0; i < 16; ++i) m[static_cast<std::size_t>(i)] = load<float>(b + 440 + 4 * i, sw);
+        for (double v : m)
+            if (!std::isfinite(v)) throw FormatError("vox_to_ras holds a non-finite value");
+        if (m[15] != 0) h.vox_to_ras = m;  // [3][3] == 0: not recorded
+    } else if (h.version != 1) {
+        throw FormatError("version " + std::to_string(h.version) + " is not 1 or 2");
+    }
+    std::string order(reinterpret_cast<const char *>(b + 948), 4);
+    order.erase(std::find(order.begin(), order.end(), '\0'), order.end());
+    std::transform(order.begin(), order.end(), order.begin(), [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+    while (!order.empty() && order.back() == ' ') order.pop_back();
+    if (order.empty()) order = "LPS";  // TrackVis's default
+    if (order.size() != 3) throw FormatError("voxel_order '" + order + "' is not three letters");
+    h.voxel_order = order;
+    h.n_count = load<std::int32_t>(b + 988, sw);
+    if (h.n_count < 0) throw FormatError("n_count = " + std::to_string(h.n_count) + " is negative");
+
+    // voxmm -> RAS+ mm: scale to voxels, shift the corner origin to voxel
+    // centres, reorient voxel_order onto the affine's orientation, apply it.
+    Mat4 a = identity();
+    for (int i = 0; i < 3; ++i) a[4 * i + i] = 1.0 / h.voxel_size[i];
+    Mat4 offset = identity();
+    for (int i = 0; i < 3; ++i) offset[4 * i + 3] = -0.5;
+    a = mul(offset, a);
+    const Ornt header_ornt = ornt_from_codes(order);
+    const Ornt affine_ornt = ornt_from_codes(axcodes(h.vox_to_ras));
+    a = mul(reorient(header_ornt, affine_ornt, h.dim), a);
+    h.to_rasmm = mul(h.vox_to_ras, a);
+    return h;
+}
+
+Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const std::function<bool()> &cancelled) {
+    Layout l;
+    const std::uint64_t point_bytes = 4ull * (3 + h.n_scalars), prop_bytes = 4ull * h.n_properties;
+    std::uint64_t pos = kHeaderSize;
+    const std::uint64_t want = h.n_count > 0 ? static_cast<std::uint64_t>(h.n_count) : UINT64_MAX;
+    while (l.nb_streamlines < want) {
+        if ((l.nb_streamlines & 0xFFFF) == 0 && cancelled && cancelled()) throw Cancelled{};
+        if (pos == size) break;
+        if (size - pos < 4)
+            throw FormatError("streamline " + std::to_string(l.nb_streamlines) + ": point count cut off at byte " + std::to_string(pos));
+        const auto n = load<std::int32_t>(b + pos, h.swap);
+        pos += 4;
+        if (n < 0) throw FormatError("streamline " + std::to_string(l.nb_streamlines) + " declares " + std::to_string(n) + " points");
+        const std::uint64_t left = size - pos;
+        if (static_cast<std::uint64_t>(n) > left / point_bytes || std::uint64_t(n) * point_bytes + prop_bytes > left)
+            throw FormatError("streamline " + std::to_string(l.nb_streamlines) + " declares " + std::to_string(n) + " points but only " +
+                              std::to_string(left) + " bytes remain (file truncated?)");
+        pos += std::uint64_t(n) * point_bytes + prop_bytes;
+        l.nb_vertices += static_cast<std::uint64_t>(n);
+        ++l.nb_streamlines;
+    }
+    if (h.n_count > 0 && l.nb_streamlines < want)
+        throw FormatError("header n_count is " + std::to_string(h.n_count) + " but the file holds " + std::to_string(l.nb_streamlines) +
+                          " streamlines (truncated?)");
+    return l;
+}
+
+void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout &l, float *positions, std::uint64_t *offsets,
+            float *scalars, float *properties, const std::function<bool()> &cancelled) {
+    const Mat4 &A = h.to_rasmm;
+    const std::uint32_t ns = h.n_scalars, np = h.n_properties;
+    std::uint64_t pos = kHeaderSize, v = 0;
+    if (offsets) offsets[0] = 0;
+    for (std::uint64_t s = 0; s < l.nb_streamlines; ++s) {
+        if ((s & 0xFFFF) == 0 && cancelled && cancelled()) throw Cancelled{};
+        const auto n = static_cast<std::uint64_t>(load<std::int32_t>(b + pos, h.swap));
+        pos += 4;
+        for (std::uint64_t i = 0; i < n; ++i, ++v) {
+            const float x = load<float>(b + pos, h.swap), y = load<float>(b + pos + 4, h.swap), z = load<float>(b + pos + 8, h.swap);
+            pos += 12;
+            if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
+                throw FormatError("streamline " + std::to_string(s) + " point " + std::to_string(i) + " has a non-finite coordinate");
+            if (positions) {
+                for (int r = 0; r < 3; ++r)
+                    positions[3 * v + r] = static_cast<float>(A[4 * r] * x + A[4 * r + 1] * y + A[4 * r + 2] * z + A[4 * r + 3]);
+            }
+            for (std::uint32_t k = 0; k < ns; ++k, pos += 4)
+                if (scalars) scalars[v * ns + k] = load<float>(b + pos, h.swap);
+        }
+        for (std::uint32_t k = 0; k < np; ++k, pos += 4)
+            if (properties) properties[s * np + k] = load<float>(b + pos, h.swap);
+        if (offsets) offsets[s + 1] = v;
+    }
+}
+
+void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
+           std::uint64_t nb_streamlines, const WriteSpec &spec) {
+    if (nb_streamlines > static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max()))
+        throw FormatError("TRK holds at most 2^31-1 streamlines");
+    unsigned char hdr[kHeaderSize] = {};
+    std::memcpy(hdr, "TRACK", 6);
+    const Mat4 &A = spec.vox_to_ras;
+    float vs[3];
+    for (int j = 0; j < 3; ++j) {
+        double n = 0;
+        for (int i = 0; i < 3; ++i) n += A[4 * i + j] * A[4 * i + j];
+        vs[j] = static_cast<float>(std::sqrt(n));
+        if (!(vs[j] > 0)) throw FormatError("the reference affine is singular: no voxel size");
+        const std::uint64_t d = std::max<std::uint64_t>(spec.dims[static_cast<std::size_t>(j)], 1);
+        if (d > 32767) throw FormatError("reference dimension " + std::to_string(d) + " does not fit TRK's int16");
+        store<std::int16_t>(hdr + 6 + 2 * j, static_cast<std::int16_t>(d));
+        store<float>(hdr + 12 + 4 * j, vs[j]);
+    }
+    auto names = [&](const std::vector<Column> &cols, unsigned char *at, const char *what) {
+        std::uint32_t total = 0;
+        if (cols.size() > 10) throw FormatError(std::string("TRK holds at most 10 ") + what + " names");
+        for (std::size_t k = 0; k < cols.size(); ++k) {
+            std::string enc = cols[k].name;
+            if (cols[k].count > 1) {
+                enc.push_back('\0');
+                enc.append(std::to_string(cols[k].count));
+            }
+            if (enc.size() > 20) throw FormatError(std::string(what) + " name '" + cols[k].name + "' is too long for TRK (20 bytes)");
+            std::memcpy(at + 20 * k, enc.data(), enc.size());
+            total += cols[k].count;
+        }
+        return total;
+    };
+    const std::uint32_t ns = names(spec.scalars, hdr + 38, "scalar"), np = names(spec.properties, hdr + 240, "property");
+    if (ns > 32767 || np > 32767) throw FormatError("too many scalar or property columns");
+    store<std::int16_t>(hdr + 36, static_cast<std::int16_t>(ns));
+    store<std::int16_t>(hdr + 238, static_cast<std::int16_t>(np));
+    for (int i = 0; i < 16; ++i) store<float>(hdr + 440 + 4 * i, static_cast<float>(A[static_cast<std::size_t>(i)]));
+    const std::string order = axcodes(A);
+    std::memcpy(hdr + 948, order.data(), 3);
+    store<std::int32_t>(hdr + 988, static_cast<std::int32_t>(nb_streamlines));
+    store<std::int32_t>(hdr + 992, 2);
+    store<std::int32_t>(hdr + 996, 1000);
+
+    // RAS+ mm -> voxmm: inverse of the reader's transform with F = I
+    // (voxel_order is the affine's own orientation).
+    Mat4 inv{};
+    {
+        // Inverse of the affine by its 3x3 block.
+        const double *m = A.data();
+        const double a = m[0], bb = m[1], c = m[2], d = m[4], e = m[5], f = m[6], g = m[8], hh = m[9], k = m[10];
+        const double det = a * (e * k - f * hh) - bb * (d * k - f * g) + c * (d * hh - e * g);
+        if (!(std::fabs(det) > 0) || !std::isfinite(det)) throw FormatError("the reference affine is singular");
+        const double R[9] = {(e * k - f * hh) / det, (c * hh - bb * k) / det, (bb * f - c * e) / det,
+                             (f * g - d * k) / det,  (a * k - c * g) / det,   (c * d - a * f) / det,
+                             (d * hh - e * g) / det, (bb * g - a * hh) / det, (a * e - bb * d) / det};
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) inv[4 * i + j] = R[3 * i + j];
+            inv[4 * i + 3] = -(R[3 * i] * m[3] + R[3 * i + 1] * m[7] + R[3 * i + 2] * m[11]);
+        }
+        inv[15] = 1;
+    }
+    std::FILE *fp = std::fopen(path.c_str(), "wb");
+    if (fp == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
+    bool ok = std::fwrite(hdr, 1, sizeof hdr, fp) == sizeof hdr;
+    std::vector<unsigned char> buf;
+    buf.reserve(1 << 20);
+    auto put = [&](auto v) {
+        unsigned char tmp[4];
+        store(tmp, v);
+        buf.insert(buf.end(), tmp, tmp + 4);
+    };
+    for (std::uint64_t s = 0; s < nb_streamlines && ok; ++s) {
+        const std::uint64_t n = offsets[s + 1] - offsets[s];
+        if (n > static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max())) {
+            std::fclose(fp);
+            throw FormatError("streamline " + std::to_string(s) + " has too many points for TRK");
+        }
+        put(static_cast<std::int32_t>(n));
+        for (std::uint64_t v = offsets[s]; v < offsets[s + 1]; ++v) {
+            const float *p = positions + 3 * v;
+            if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+                std::fclose(fp);
+                throw FormatError("streamline " + std::to_string(s) + " has a non-finite coordinate");
+            }
+            for (int r = 0; r < 3; ++r) {
+                const double vox = inv[4 * r] * p[0] + inv[4 * r + 1] * p[1] + inv[4 * r + 2] * p[2] + inv[4 * r + 3];
+                put(static_cast<float>((vox + 0.5) * vs[r]));
+            }
+            for (std::uint32_t k = 0; k < ns; ++k) put(spec.scalar_data[v * ns + k]);
+        }
+        for (std::uint32_t k = 0; k < np; ++k) put(spec.property_data[s * np + k]);
+        if (buf.size() > (1 << 20) - 4096) {
+            ok = std::fwrite(buf.data(), 1, buf.size(), fp) == buf.size();
+            buf.clear();
+        }
+    }
+    if (ok && !buf.empty()) ok = std::fwrite(buf.data(), 1, buf.size(), fp) == buf.size();
+    (void)nb_vertices;
+    (void)kBigHost;
+    if (std::fclose(fp) != 0) ok = false;
+    if (!ok) throw FormatError(std::string("write failed: ") + std::strerror(errno));
+}
+
+}  // namespace trk

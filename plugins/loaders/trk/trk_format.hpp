@@ -1,0 +1,76 @@
+// TrackVis TRK: header parsing, validation, decoding to RAS+ mm, writing.
+// Pure C++ without SDK types; trk_plugin.cpp adapts it to hz.loader/1.
+// Spec facts: ../shared/formats/FORMATS.md section 1.3 (TrackVis doc,
+// nibabel's trk.py).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace trk {
+
+struct FormatError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+struct Cancelled {};
+
+using Mat4 = std::array<double, 16>;  // row-major
+
+// A named group of columns of scalars (per point) or properties (per
+// streamline): "fa" = 1 column; "rgb\0" + "3" = 3 columns named rgb.
+struct Column {
+    std::string name;
+    std::uint32_t count = 1;
+};
+
+struct Header {
+    bool swap = false;          // file byte order differs from the host's
+    std::int16_t dim[3] = {0, 0, 0};
+    float voxel_size[3] = {0, 0, 0};
+    std::int32_t version = 2;
+    std::string voxel_order;    // upper-cased; "LPS" when empty
+    Mat4 vox_to_ras{};          // identity for v1 or when not recorded
+    std::uint32_t n_scalars = 0, n_properties = 0;
+    std::vector<Column> scalars, properties;
+    std::int32_t n_count = 0;   // 0 = unknown
+    std::vector<std::string> warnings;
+    // voxmm -> RAS+ mm, nibabel's get_affine_trackvis_to_rasmm.
+    Mat4 to_rasmm{};
+};
+
+// Parses and validates the 1000-byte header of a file of `size` bytes.
+Header parse_header(const unsigned char *bytes, std::uint64_t size);
+
+struct Layout {
+    std::uint64_t nb_streamlines = 0, nb_vertices = 0;
+};
+// Walks the records once, checking every count against the file size.
+Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const std::function<bool()> &cancelled = {});
+
+// Decodes into host buffers: positions (V x 3, RAS+ mm), offsets (N + 1),
+// scalars (V x n_scalars, may be null), properties (N x n_properties, may
+// be null). Non-finite coordinates are rejected (FormatError).
+void decode(const unsigned char *bytes, std::uint64_t size, const Header &h, const Layout &l, float *positions,
+            std::uint64_t *offsets, float *scalars, float *properties, const std::function<bool()> &cancelled = {});
+
+// What write() needs beyond the streamlines.
+struct WriteSpec {
+    Mat4 vox_to_ras{};                 // reference grid voxel -> RAS+ mm
+    std::array<std::uint64_t, 3> dims{};
+    std::vector<Column> scalars, properties;  // names and widths, <= 10 each, names <= 20 bytes incl. count
+    const float *scalar_data = nullptr;       // V x sum(scalars.count)
+    const float *property_data = nullptr;     // N x sum(properties.count)
+};
+void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
+           std::uint64_t nb_streamlines, const WriteSpec &spec);
+
+int probe(const unsigned char *head, std::uint64_t size);
+
+// Orientation codes of an affine's columns ("RAS", "LPS", ...), as nibabel's aff2axcodes.
+std::string axcodes(const Mat4 &a);
+
+}  // namespace trk

@@ -1,0 +1,133 @@
+"""TrackVis TRK through `horizon`, compared with nibabel's reading (RAS+ mm,
+1e-3 mm) on nibabel's own test files and on files nibabel writes with
+random oblique and LPS affines; malformed files fail cleanly."""
+import os
+import struct
+
+import nibabel as nib
+import numpy as np
+from nibabel.affines import from_matvec
+from nibabel.streamlines import Field
+from nibabel.streamlines.trk import TrkFile
+
+from hztest import TempDirTest, random_streamlines, run, run_json
+
+NIB_DATA = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
+
+
+def rotation(rng):
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    a, b, c, d = q
+    return np.array([[a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)],
+                     [2 * (b * c + a * d), a * a - b * b + c * c - d * d, 2 * (c * d - a * b)],
+                     [2 * (b * d - a * c), 2 * (c * d + a * b), a * a - b * b - c * c + d * d]])
+
+
+class TrkTest(TempDirTest):
+    def horizon_streamlines(self, f):
+        out = self.path("out_%d.tck" % len(os.listdir(self.tmp)))
+        p = run("convert", f, out)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return list(nib.streamlines.load(out).streamlines)
+
+    def assert_close(self, got, want, tol=1e-3):
+        self.assertEqual(len(got), len(want))
+        for a, b in zip(got, want):
+            self.assertEqual(len(a), len(b))
+            if len(a):
+                self.assertLessEqual(np.abs(np.asarray(a, float) - np.asarray(b, float)).max(), tol)
+
+    def test_nibabel_test_data(self):
+        for name in ["empty.trk", "simple.trk", "complex.trk", "complex_big_endian.trk", "standard.trk", "standard.LPS.trk"]:
+            with self.subTest(file=name):
+                f = os.path.join(NIB_DATA, name)
+                ref = nib.streamlines.load(f)
+                self.assert_close(self.horizon_streamlines(f), list(ref.streamlines))
+                info = run_json("info", f, "--json")
+                self.assertEqual(info["nb_streamlines"], len(ref.streamlines))
+
+    def test_scalars_and_properties_survive_trk_to_trk(self):
+        for name in ["complex.trk", "complex_big_endian.trk"]:
+            with self.subTest(file=name):
+                f = os.path.join(NIB_DATA, name)
+                ref = nib.streamlines.load(f)
+                out = self.path("copy.trk")
+                p = run("convert", f, out, "--force")
+                self.assertEqual(p.returncode, 0, p.stderr)
+                back = nib.streamlines.load(out)
+                self.assert_close(list(back.streamlines), list(ref.streamlines))
+                self.assertEqual(set(back.tractogram.data_per_point), set(ref.tractogram.data_per_point))
+                for k in ref.tractogram.data_per_point:
+                    np.testing.assert_allclose(back.tractogram.data_per_point[k]._data, ref.tractogram.data_per_point[k]._data)
+                for k in ref.tractogram.data_per_streamline:
+                    np.testing.assert_allclose(back.tractogram.data_per_streamline[k], ref.tractogram.data_per_streamline[k])
+                # TCK cannot hold them: reported, not silently dropped.
+                p = run("convert", f, self.path("x.tck"), "--force")
+                self.assertIn("dropped", p.stderr)
+
+    def test_random_affines(self):
+        rng = np.random.default_rng(42)
+        for trial in range(8):
+            with self.subTest(trial=trial):
+                vs = rng.uniform(0.5, 3.0, 3)
+                flips = np.where(rng.random(3) < 0.5, -1.0, 1.0)
+                R = rotation(rng) if trial % 2 else np.eye(3)
+                aff = from_matvec(R @ np.diag(vs * flips), rng.uniform(-50, 50, 3))
+                order = "".join(nib.aff2axcodes(aff))
+                dims = rng.integers(20, 200, 3)
+                sl = random_streamlines(40, rng, 1, 50)
+                hdr = {Field.VOXEL_TO_RASMM: aff, Field.VOXEL_SIZES: vs, Field.DIMENSIONS: dims, Field.VOXEL_ORDER: order.encode()}
+                f = self.path("r%d.trk" % trial)
+                TrkFile(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), header=hdr).save(f)
+                ref = list(nib.streamlines.load(f).streamlines)
+                self.assert_close(self.horizon_streamlines(f), ref)
+                # horizon's TRK writer, read back by nibabel.
+                out = self.path("w%d.trk" % trial)
+                self.assertEqual(run("convert", f, out).returncode, 0)
+                back = nib.streamlines.load(out)
+                self.assert_close(list(back.streamlines), ref)
+                np.testing.assert_allclose(back.header[Field.VOXEL_TO_RASMM], aff, atol=1e-5)
+
+    def test_tck_to_trk_to_tck(self):
+        rng = np.random.default_rng(1)
+        sl = random_streamlines(30, rng, 2, 40)
+        f = self.path("a.tck")
+        nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), f)
+        self.assertEqual(run("convert", f, self.path("a.trk")).returncode, 0)
+        self.assert_close(list(nib.streamlines.load(self.path("a.trk")).streamlines), sl)
+        self.assert_close(self.horizon_streamlines(self.path("a.trk")), sl)
+
+    def test_malformed(self):
+        with open(os.path.join(NIB_DATA, "complex.trk"), "rb") as fh:
+            good = fh.read()
+        def patched(off, fmt, value):
+            b = bytearray(good)
+            b[off:off + struct.calcsize(fmt)] = struct.pack(fmt, value)
+            return bytes(b)
+        first_n = 1000  # the first record's point count
+        cases = {
+            "bad_magic.trk": b"TRICK" + good[5:],
+            "bad_hdr_size.trk": patched(996, "<i", 999),
+            "count_too_large.trk": patched(988, "<i", 1000),
+            "negative_count.trk": patched(988, "<i", -4),
+            "negative_points.trk": patched(first_n, "<i", -1),
+            "absurd_points.trk": patched(first_n, "<i", 2 ** 30),
+            "bad_version.trk": patched(992, "<i", 7),
+            "zero_voxel.trk": patched(12, "<f", 0.0),
+            "nan_point.trk": patched(first_n + 4, "<f", float("nan")),
+            "bad_order.trk": good[:948] + b"XYZ\0" + good[952:],
+            "short.trk": good[:500],
+        }
+        for name, data in cases.items():
+            with self.subTest(case=name):
+                f = self.path(name)
+                with open(f, "wb") as fh:
+                    fh.write(data)
+                self.assert_clean_error(run("info", f, timeout=10), name)
+        for cut in list(range(995, 1010)) + list(range(1010, len(good), 7)):
+            with self.subTest(cut=cut):
+                f = self.path("cut.trk")
+                with open(f, "wb") as fh:
+                    fh.write(good[:cut])
+                self.assert_clean_error(run("info", f, timeout=10), "cut.trk")
