@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -202,15 +203,34 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
         std::copy(t.offsets.begin(), t.offsets.end(), out.tractogram.offsets.begin());
         out.tractogram.reference = t.reference;
         out.tractogram.reference_dims = t.reference_dims;
+        // Per level: the labels as per-streamline data, and every cluster as
+        // a named group of streamline indices (TRX groups).
         for (uint32_t l = 0; l < v.nb_levels; ++l) {
+            std::string thr = fmt_threshold(v.level_thresholds[l]);
+            std::replace(thr.begin(), thr.end(), '.', 'p');  // TRX names cannot hold dots
+            const std::string prefix = "level" + std::to_string(l + 1) + "_" + thr + "mm";
             core::DataArray a;
-            a.name = "cluster_" + fmt_threshold(v.level_thresholds[l]) + "mm";
+            a.name = "cluster_" + prefix;
             a.attach = HZ_ATTACH_STREAMLINE;
             a.dtype = HZ_DTYPE_I64;
             a.count = n;
             a.bytes = core::Buffer<std::byte>(n * 8);
             std::memcpy(a.bytes.data(), labels[l].data(), n * 8);
             out.tractogram.arrays.push_back(std::move(a));
+        }
+        for (std::uint64_t k = 0; k < v.nb_nodes; ++k) {
+            const uint32_t l = v.level[k];
+            if (l == 0) continue;
+            std::string thr = fmt_threshold(v.level_thresholds[l - 1]);
+            std::replace(thr.begin(), thr.end(), '.', 'p');
+            core::DataArray g;
+            g.name = "level" + std::to_string(l) + "_" + thr + "mm_cluster" + std::to_string(k - first_of_level[l]);
+            g.attach = HZ_ATTACH_GROUP;
+            g.dtype = HZ_DTYPE_U64;
+            g.count = v.member_offsets[k + 1] - v.member_offsets[k];
+            g.bytes = core::Buffer<std::byte>(g.count * 8);
+            std::memcpy(g.bytes.data(), v.members + v.member_offsets[k], g.count * 8);
+            out.tractogram.arrays.push_back(std::move(g));
         }
         std::vector<std::string> dropped;
         core::write_dataset(reg, out, o.out, o.force, &dropped, o.input);

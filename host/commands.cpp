@@ -56,6 +56,17 @@ int cmd_plugins(const GlobalOptions &g, bool as_json) {
 
 namespace {
 
+const char *attach_name(hz_attach a) {
+    switch (a) {
+    case HZ_ATTACH_VERTEX: return "vertex";
+    case HZ_ATTACH_STREAMLINE: return "streamline";
+    case HZ_ATTACH_FACE: return "face";
+    case HZ_ATTACH_GROUP: return "group";
+    case HZ_ATTACH_GROUP_DATA: return "group data";
+    default: return "unknown";
+    }
+}
+
 json affine_json(const core::Affine &a) {
     json rows = json::array();
     for (int r = 0; r < 4; ++r) rows.push_back({a[4 * r], a[4 * r + 1], a[4 * r + 2], a[4 * r + 3]});
@@ -88,7 +99,8 @@ json describe(const core::Dataset &ds) {
         j["arrays"] = json::array();
         for (const auto &a : t.arrays)
             j["arrays"].push_back({{"name", a.name},
-                                   {"attach", a.attach == HZ_ATTACH_STREAMLINE ? "streamline" : "vertex"},
+                                   {"attach", attach_name(a.attach)},
+                                   {"count", a.count},
                                    {"dtype", core::dtype_name(a.dtype)},
                                    {"components", a.components}});
     }
@@ -129,9 +141,15 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json) {
         for (const auto &row : j["affine"])
             std::printf("  %10.4f %10.4f %10.4f %10.4f\n", row[0].get<double>(), row[1].get<double>(), row[2].get<double>(),
                         row[3].get<double>());
-        for (const auto &a : ds.tractogram.arrays)
-            std::printf("array:         %s (%s, %s x %u)\n", a.name.c_str(), a.attach == HZ_ATTACH_STREAMLINE ? "per streamline" : "per vertex",
-                        core::dtype_name(a.dtype), a.components);
+        std::size_t groups = 0;
+        for (const auto &a : ds.tractogram.arrays) {
+            if (a.attach == HZ_ATTACH_GROUP) {
+                if (groups++ < 5) std::printf("group:         %s (%llu streamlines)\n", a.name.c_str(), (unsigned long long)a.count);
+                continue;
+            }
+            std::printf("array:         %s (per %s, %s x %u)\n", a.name.c_str(), attach_name(a.attach), core::dtype_name(a.dtype), a.components);
+        }
+        if (groups > 5) std::printf("group:         ... %zu groups in all\n", groups);
     }
     if (!ds.metadata.empty()) {
         std::printf("header:\n");

@@ -52,7 +52,13 @@ typedef uint32_t hz_attach;
 enum {
     HZ_ATTACH_VERTEX = 1,     /* one row per streamline vertex or mesh vertex (dpv) */
     HZ_ATTACH_STREAMLINE = 2, /* one row per streamline (dps)                       */
-    HZ_ATTACH_FACE = 3        /* one row per mesh triangle                          */
+    HZ_ATTACH_FACE = 3,       /* one row per mesh triangle                          */
+    /* Since 1.1. A named group of streamlines: rows are streamline indices
+       (HZ_DTYPE_U32 or U64, 1 component, any count; groups may overlap). */
+    HZ_ATTACH_GROUP = 4,
+    /* Since 1.1. Data of one group (TRX dpg): 1 row; the array is named
+       "<group>/<name>". Readers that do not know a value skip the array. */
+    HZ_ATTACH_GROUP_DATA = 5
 };
 
 /* Opaque reader, PLUGIN-owned from open() until close(). */

@@ -11,7 +11,9 @@
  *
  * Changelog
  *   1.0.0  First published ABI: loader, shader and clustering interfaces,
- *          host services (log, mem, extensions), tasks (progress, cancel).
+ *          host services (log, extensions), tasks (progress, cancel).
+ *   1.1.0  hz_attach gains HZ_ATTACH_GROUP and HZ_ATTACH_GROUP_DATA (TRX
+ *          groups and data per group). No struct changed.
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -22,7 +24,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 0
+#define HZ_ABI_VERSION_MINOR 1
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */

@@ -1,0 +1,464 @@
+// TRX: the container (libzip for zips, plain files for the directory form)
+// and the validation rules of ../shared/formats/FORMATS.md section 1.5.
+#include "trx_format.hpp"
+
+#include "mapped_file.hpp"
+
+#include <nlohmann/json.hpp>
+#include <zip.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+
+namespace trx {
+
+namespace fs = std::filesystem;
+
+std::size_t dtype_size(DType t) {
+    switch (t) {
+    case DType::I8: case DType::U8: case DType::Bit: return 1;
+    case DType::I16: case DType::U16: case DType::F16: return 2;
+    case DType::I32: case DType::U32: case DType::F32: return 4;
+    case DType::I64: case DType::U64: case DType::F64: return 8;
+    }
+    return 0;
+}
+const char *dtype_name(DType t) {
+    static const char *n[] = {"int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64", "float16", "float32", "float64", "bit"};
+    return n[static_cast<int>(t)];
+}
+
+float half_to_float(std::uint16_t h) {  // IEEE binary16, subnormals and Inf/NaN included
+    const std::uint32_t sign = (h & 0x8000u) << 16;
+    std::uint32_t exp = (h >> 10) & 0x1F, man = h & 0x3FF;
+    std::uint32_t bits;
+    if (exp == 0) {
+        if (man == 0) {
+            bits = sign;
+        } else {  // subnormal: normalise
+            int e = -1;
+            do {
+                ++e;
+                man <<= 1;
+            } while ((man & 0x400) == 0);
+            bits = sign | ((127 - 15 - e) << 23) | ((man & 0x3FF) << 13);
+        }
+    } else if (exp == 31) {
+        bits = sign | 0x7F800000u | (man << 13);
+    } else {
+        bits = sign | ((exp + 127 - 15) << 23) | (man << 13);
+    }
+    return std::bit_cast<float>(bits);
+}
+
+// ---------------------------------------------------------------- container
+
+class Container {
+public:
+    virtual ~Container() = default;
+    virtual std::vector<Entry> entries() const = 0;
+    // Reads exactly entry.bytes bytes into out; throws on short/corrupt data.
+    virtual void read(const Entry &e, void *out) const = 0;
+};
+
+File::File() = default;
+File::File(File &&) noexcept = default;
+File &File::operator=(File &&) noexcept = default;
+File::~File() = default;
+
+namespace {
+
+class ZipContainer : public Container {
+public:
+    explicit ZipContainer(const std::string &path) {
+        int code = 0;
+        za_ = zip_open(path.c_str(), ZIP_RDONLY | ZIP_CHECKCONS, &code);
+        if (za_ == nullptr) {
+            zip_error_t e;
+            zip_error_init_with_code(&e, code);
+            std::string msg = std::string("not a readable zip archive: ") + zip_error_strerror(&e);
+            zip_error_fini(&e);
+            throw FormatError(msg);
+        }
+        const zip_int64_t n = zip_get_num_entries(za_, 0);
+        for (zip_int64_t i = 0; i < n; ++i) {
+            zip_stat_t st;
+            zip_stat_init(&st);
+            if (zip_stat_index(za_, static_cast<zip_uint64_t>(i), 0, &st) != 0 || !(st.valid & ZIP_STAT_NAME) || !(st.valid & ZIP_STAT_SIZE))
+                throw FormatError("zip entry " + std::to_string(i) + " cannot be read");
+            index_[st.name] = static_cast<zip_uint64_t>(i);
+            list_.push_back({st.name, st.size});
+        }
+    }
+    ~ZipContainer() override {
+        if (za_) zip_discard(za_);
+    }
+    std::vector<Entry> entries() const override { return list_; }
+    void read(const Entry &e, void *out) const override {
+        zip_file_t *zf = zip_fopen_index(za_, index_.at(e.path), 0);
+        if (zf == nullptr) throw FormatError("cannot open zip entry '" + e.path + "': " + zip_strerror(za_));
+        auto *dst = static_cast<unsigned char *>(out);
+        std::uint64_t done = 0;
+        while (done < e.bytes) {
+            const zip_int64_t got = zip_fread(zf, dst + done, std::min<std::uint64_t>(e.bytes - done, 1u << 30));
+            if (got < 0) {
+                const std::string m = zip_file_strerror(zf);
+                zip_fclose(zf);
+                throw FormatError("zip entry '" + e.path + "' is corrupt: " + m);
+            }
+            if (got == 0) break;
+            done += static_cast<std::uint64_t>(got);
+        }
+        // One more read reaches the end of the stream, where libzip checks the CRC.
+        unsigned char probe_byte;
+        const zip_int64_t tail = zip_fread(zf, &probe_byte, 1);
+        const std::string m = tail < 0 ? zip_file_strerror(zf) : "";
+        zip_fclose(zf);
+        if (tail < 0) throw FormatError("zip entry '" + e.path + "' is corrupt: " + m);
+        if (done != e.bytes || tail > 0) throw FormatError("zip entry '" + e.path + "' does not hold its declared size");
+    }
+
+private:
+    zip_t *za_ = nullptr;
+    std::map<std::string, zip_uint64_t> index_;
+    std::vector<Entry> list_;
+};
+
+class DirContainer : public Container {
+public:
+    explicit DirContainer(const fs::path &root) : root_(root) {
+        std::error_code ec;
+        for (auto it = fs::recursive_directory_iterator(root, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+            if (!it->is_regular_file(ec)) continue;
+            list_.push_back({fs::relative(it->path(), root).generic_string(), static_cast<std::uint64_t>(it->file_size(ec))});
+        }
+        if (ec) throw FormatError("cannot list the directory: " + ec.message());
+    }
+    std::vector<Entry> entries() const override { return list_; }
+    void read(const Entry &e, void *out) const override {
+        hzio::MappedFile m((root_ / e.path).string());
+        if (m.size() != e.bytes) throw FormatError("'" + e.path + "' changed size while reading");
+        if (e.bytes) std::memcpy(out, m.data(), e.bytes);
+    }
+
+private:
+    fs::path root_;
+    std::vector<Entry> list_;
+};
+
+bool parse_dtype(const std::string &s, DType &t) {
+    static const std::pair<const char *, DType> map[] = {
+        {"int8", DType::I8},    {"int16", DType::I16},  {"int32", DType::I32},    {"int64", DType::I64},
+        {"uint8", DType::U8},   {"uint16", DType::U16}, {"uint32", DType::U32},   {"uint64", DType::U64},
+        {"float16", DType::F16}, {"float32", DType::F32}, {"float64", DType::F64}, {"bit", DType::Bit}};
+    for (const auto &[n, d] : map)
+        if (s == n) {
+            t = d;
+            return true;
+        }
+    return false;
+}
+
+// "name[.N].dtype" -> base, columns, dtype.
+void split_name(const std::string &file, std::string &base, std::uint32_t &cols, DType &t) {
+    std::vector<std::string> parts;
+    std::size_t start = 0;
+    for (;;) {
+        const auto dot = file.find('.', start);
+        parts.push_back(file.substr(start, dot == std::string::npos ? std::string::npos : dot - start));
+        if (dot == std::string::npos) break;
+        start = dot + 1;
+    }
+    if (parts.size() < 2 || parts.size() > 3 || parts[0].empty())
+        throw FormatError("entry name '" + file + "' is not name[.columns].dtype");
+    if (!parse_dtype(parts.back(), t)) throw FormatError("entry '" + file + "' has unknown dtype '" + parts.back() + "'");
+    base = parts[0];
+    cols = 1;
+    if (parts.size() == 3) {
+        const std::string &c = parts[1];
+        if (c.empty() || c.size() > 6 || !std::all_of(c.begin(), c.end(), ::isdigit) || std::stoul(c) == 0)
+            throw FormatError("entry '" + file + "' has an invalid column count '" + c + "'");
+        cols = static_cast<std::uint32_t>(std::stoul(c));
+    }
+}
+
+std::uint64_t json_count(const nlohmann::json &h, const char *key) {
+    if (!h.contains(key)) throw FormatError(std::string("header.json lacks ") + key);
+    const auto &v = h[key];
+    if (v.is_number_unsigned()) return v.get<std::uint64_t>();
+    if (v.is_number_integer()) {
+        const auto i = v.get<std::int64_t>();
+        if (i < 0) throw FormatError(std::string("header.json ") + key + " = " + std::to_string(i) + " is negative");
+        return static_cast<std::uint64_t>(i);
+    }
+    throw FormatError(std::string("header.json ") + key + " is not an integer");
+}
+
+}  // namespace
+
+int probe(const unsigned char *head, std::uint64_t size) {
+    if (size < 30 || std::memcmp(head, "PK\x03\x04", 4) != 0) return 0;
+    const std::uint16_t name_len = static_cast<std::uint16_t>(head[26] | (head[27] << 8));
+    if (30 + std::uint64_t(name_len) > size) return 30;
+    const std::string name(reinterpret_cast<const char *>(head + 30), name_len);
+    for (const char *p : {"header.json", "positions.", "offsets.", "dpv/", "dps/", "groups/", "dpg/"})
+        if (name.rfind(p, 0) == 0) return 95;
+    return 20;  // a zip, not obviously a TRX
+}
+
+File open(const std::string &path) {
+    File f;
+    std::error_code ec;
+    if (fs::is_directory(path, ec)) {
+        f.container = std::make_unique<DirContainer>(path);
+        f.container_kind = "directory";
+    } else {
+        f.container = std::make_unique<ZipContainer>(path);
+        f.container_kind = "zip";
+    }
+    const auto entries = f.container->entries();
+    const Entry *header = nullptr;
+    struct Named {
+        Entry e;
+        std::string dir, file;
+    };
+    std::vector<Named> named;
+    for (const auto &e : entries) {
+        const std::string &p = e.path;
+        if (p.empty() || p[0] == '/' || p.find('\\') != std::string::npos || p.find("..") != std::string::npos)
+            throw FormatError("entry name '" + p + "' is absolute or escapes the archive");
+        if (p.back() == '/') continue;  // directory entry
+        if (p == "header.json") {
+            header = &e;
+            continue;
+        }
+        if (p.size() > 5 && p.compare(p.size() - 5, 5, ".json") == 0) continue;  // side-cars (e.g. dps/algo.json)
+        const auto slash = p.rfind('/');
+        named.push_back({e, slash == std::string::npos ? "" : p.substr(0, slash), slash == std::string::npos ? p : p.substr(slash + 1)});
+    }
+    if (header == nullptr) throw FormatError("no header.json");
+    if (header->bytes > (16u << 20)) throw FormatError("header.json is larger than 16 MiB");
+    std::string text(header->bytes, '\0');
+    f.container->read(*header, text.data());
+    const nlohmann::json h = nlohmann::json::parse(text, nullptr, false);
+    if (h.is_discarded() || !h.is_object()) throw FormatError("header.json is not a JSON object");
+    f.nb_streamlines = json_count(h, "NB_STREAMLINES");
+    f.nb_vertices = json_count(h, "NB_VERTICES");
+    f.voxel_to_rasmm = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    if (h.contains("VOXEL_TO_RASMM")) {
+        const auto &m = h["VOXEL_TO_RASMM"];
+        if (!m.is_array() || m.size() != 4) throw FormatError("VOXEL_TO_RASMM is not a 4x4 list");
+        for (int i = 0; i < 4; ++i) {
+            if (!m[i].is_array() || m[i].size() != 4) throw FormatError("VOXEL_TO_RASMM is not a 4x4 list");
+            for (int j = 0; j < 4; ++j) {
+                if (!m[i][j].is_number()) throw FormatError("VOXEL_TO_RASMM holds a non-number");
+                f.voxel_to_rasmm[4 * i + j] = m[i][j].get<double>();
+            }
+        }
+    }
+    if (h.contains("DIMENSIONS")) {
+        const auto &d = h["DIMENSIONS"];
+        if (!d.is_array() || d.size() != 3) throw FormatError("DIMENSIONS is not a list of 3");
+        for (int i = 0; i < 3; ++i) {
+            if (!d[i].is_number_integer() || d[i].get<std::int64_t>() < 0) throw FormatError("DIMENSIONS holds a non-integer");
+            f.dims[i] = d[i].get<std::uint64_t>();
+        }
+    }
+    for (auto it = h.begin(); it != h.end(); ++it)
+        if (it.key() != "NB_STREAMLINES" && it.key() != "NB_VERTICES" && it.key() != "VOXEL_TO_RASMM" && it.key() != "DIMENSIONS")
+            f.header_extra.emplace_back(it.key(), it.value().is_string() ? it.value().get<std::string>() : it.value().dump());
+
+    const std::uint64_t N = f.nb_streamlines, V = f.nb_vertices;
+    bool have_offsets = false;
+    std::map<std::string, bool> groups;
+    for (const auto &n : named) {
+        std::string base;
+        std::uint32_t cols;
+        DType t;
+        split_name(n.file, base, cols, t);
+        const std::uint64_t es = dtype_size(t);
+        auto need_rows = [&](std::uint64_t rows, const char *what) {
+            if (rows != 0 && cols > std::numeric_limits<std::uint64_t>::max() / es / rows)
+                throw FormatError("'" + n.e.path + "' declares an absurd size");
+            if (n.e.bytes != rows * cols * es)
+                throw FormatError("'" + n.e.path + "' holds " + std::to_string(n.e.bytes) + " bytes, " + what + " needs " +
+                                  std::to_string(rows * cols * es));
+        };
+        if (n.dir.empty()) {
+            if (base == "positions") {
+                if (f.has_positions) throw FormatError("more than one positions entry");
+                if (cols != 3) throw FormatError("positions must have 3 columns ('" + n.e.path + "')");
+                if (t != DType::F16 && t != DType::F32 && t != DType::F64)
+                    throw FormatError("positions must be float16/32/64, not " + std::string(dtype_name(t)));
+                if (n.e.bytes % (3 * es) != 0) throw FormatError("'" + n.e.path + "' size is not a whole number of points");
+                need_rows(V, "NB_VERTICES");
+                f.positions = n.e;
+                f.positions_dtype = t;
+                f.has_positions = true;
+            } else if (base == "offsets") {
+                if (have_offsets) throw FormatError("more than one offsets entry");
+                if (cols != 1) throw FormatError("offsets must have 1 column ('" + n.e.path + "')");
+                if (t != DType::U32 && t != DType::U64) throw FormatError("offsets must be uint32 or uint64, not " + std::string(dtype_name(t)));
+                if (n.e.bytes == (N + 1) * es) f.has_sentinel = true;
+                else if (n.e.bytes == N * es) f.has_sentinel = false;
+                else throw FormatError("'" + n.e.path + "' holds " + std::to_string(n.e.bytes / es) + " offsets for NB_STREAMLINES " + std::to_string(N));
+                f.offsets = n.e;
+                f.offsets_dtype = t;
+                have_offsets = true;
+            } else {
+                throw FormatError("unknown top-level entry '" + n.e.path + "'");
+            }
+            continue;
+        }
+        Array a{Kind::Dpv, base, t, cols, 0, n.e};
+        if (n.dir == "dpv") {
+            a.rows = V;
+            need_rows(V, "NB_VERTICES");
+        } else if (n.dir == "dps") {
+            a.kind = Kind::Dps;
+            a.rows = N;
+            need_rows(N, "NB_STREAMLINES");
+        } else if (n.dir == "groups") {
+            a.kind = Kind::Group;
+            if (t != DType::U32) throw FormatError("group '" + base + "' must be uint32, not " + std::string(dtype_name(t)));
+            if (cols != 1) throw FormatError("group '" + base + "' must have 1 column");
+            a.rows = n.e.bytes / 4;
+            if (n.e.bytes % 4) throw FormatError("group '" + base + "' size is not a multiple of 4");
+            groups[base] = true;
+        } else if (n.dir.rfind("dpg/", 0) == 0 && n.dir.find('/', 4) == std::string::npos && n.dir.size() > 4) {
+            a.kind = Kind::Dpg;
+            a.name = n.dir.substr(4) + "/" + base;
+            a.rows = 1;
+            need_rows(1, "a group's data");
+        } else {
+            throw FormatError("unknown entry '" + n.e.path + "'");
+        }
+        f.arrays.push_back(a);
+    }
+    for (const auto &a : f.arrays)
+        if (a.kind == Kind::Dpg && !groups.count(a.name.substr(0, a.name.find('/'))))
+            throw FormatError("dpg '" + a.name + "' has no matching group");
+    if (!f.has_positions || !have_offsets) {
+        if (N == 0 && V == 0 && !f.has_positions && !have_offsets) return f;  // header-only empty TRX
+        throw FormatError(!f.has_positions ? "no positions entry" : "no offsets entry");
+    }
+    return f;
+}
+
+void read_streamlines(const File &f, float *positions, std::uint64_t *offsets, const std::function<bool()> &cancelled) {
+    const std::uint64_t N = f.nb_streamlines, V = f.nb_vertices;
+    offsets[0] = 0;
+    if (!f.has_positions) return;
+    if (cancelled && cancelled()) throw Cancelled{};
+    // Offsets first (small): validate before touching the positions.
+    {
+        const std::uint64_t n = f.has_sentinel ? N + 1 : N;
+        if (f.offsets_dtype == DType::U64) {
+            f.container->read(f.offsets, offsets);
+        } else {
+            std::vector<std::uint32_t> tmp(n);
+            f.container->read(f.offsets, tmp.data());
+            std::copy(tmp.begin(), tmp.end(), offsets);
+        }
+        if constexpr (std::endian::native == std::endian::big) throw FormatError("big-endian hosts are not supported");
+        if (!f.has_sentinel) offsets[N] = V;
+        if (N > 0 && offsets[0] != 0) throw FormatError("offsets[0] = " + std::to_string(offsets[0]) + ", expected 0");
+        for (std::uint64_t i = 1; i <= N; ++i)
+            if (offsets[i] < offsets[i - 1]) throw FormatError("offsets decrease at streamline " + std::to_string(i - 1));
+        if (offsets[N] != V)
+            throw FormatError("final offset " + std::to_string(offsets[N]) + " != NB_VERTICES " + std::to_string(V));
+    }
+    if (cancelled && cancelled()) throw Cancelled{};
+    if (f.positions_dtype == DType::F32) {
+        f.container->read(f.positions, positions);  // straight into the host's buffer
+    } else if (f.positions_dtype == DType::F16) {
+        std::vector<std::uint16_t> tmp(3 * V);
+        f.container->read(f.positions, tmp.data());
+        for (std::uint64_t i = 0; i < 3 * V; ++i) positions[i] = half_to_float(tmp[i]);
+    } else {
+        std::vector<double> tmp(3 * V);
+        f.container->read(f.positions, tmp.data());
+        for (std::uint64_t i = 0; i < 3 * V; ++i) positions[i] = static_cast<float>(tmp[i]);
+    }
+    for (std::uint64_t i = 0; i < 3 * V; ++i)
+        if (!std::isfinite(positions[i])) throw FormatError("positions hold a non-finite value at vertex " + std::to_string(i / 3));
+}
+
+void read_array(const File &f, const Array &a, void *out) {
+    f.container->read(a.entry, out);
+    if (a.kind == Kind::Group) {
+        const auto *g = static_cast<const std::uint32_t *>(out);
+        for (std::uint64_t i = 0; i < a.rows; ++i)
+            if (g[i] >= f.nb_streamlines)
+                throw FormatError("group '" + a.name + "' holds streamline " + std::to_string(g[i]) + " >= NB_STREAMLINES " +
+                                  std::to_string(f.nb_streamlines));
+    }
+}
+
+void write(const std::string &path, const float *positions, std::uint64_t V, const std::uint64_t *offsets, std::uint64_t N,
+           const std::array<double, 16> &aff, const std::array<std::uint64_t, 3> &dims, const std::vector<WriteArray> &arrays,
+           const std::vector<std::pair<std::string, std::string>> &header_extra) {
+    for (std::uint64_t i = 0; i < 3 * V; ++i)
+        if (!std::isfinite(positions[i])) throw FormatError("non-finite coordinate at vertex " + std::to_string(i / 3));
+    nlohmann::json h = nlohmann::json::object();
+    for (const auto &[k, v] : header_extra) {  // other formats' header entries, as extra keys (allowed by the spec)
+        const nlohmann::json parsed = nlohmann::json::parse(v, nullptr, false);
+        h[k] = !parsed.is_discarded() && (parsed.is_object() || parsed.is_array()) ? parsed : nlohmann::json(v);
+    }
+    h["NB_STREAMLINES"] = N;
+    h["NB_VERTICES"] = V;
+    h["DIMENSIONS"] = {dims[0], dims[1], dims[2]};
+    h["VOXEL_TO_RASMM"] = nlohmann::json::array();
+    for (int i = 0; i < 4; ++i) h["VOXEL_TO_RASMM"].push_back({aff[4 * i], aff[4 * i + 1], aff[4 * i + 2], aff[4 * i + 3]});
+    const std::string header = h.dump();
+    int code = 0;
+    zip_t *za = zip_open(path.c_str(), ZIP_CREATE | ZIP_TRUNCATE, &code);
+    if (za == nullptr) throw FormatError("cannot create the zip archive");
+    auto add = [&](const std::string &name, const void *data, std::uint64_t bytes) {
+        zip_source_t *src = zip_source_buffer(za, data, bytes, 0);
+        if (src == nullptr) throw FormatError(std::string("zip: ") + zip_strerror(za));
+        const zip_int64_t idx = zip_file_add(za, name.c_str(), src, ZIP_FL_ENC_UTF_8 | ZIP_FL_OVERWRITE);
+        if (idx < 0) {
+            zip_source_free(src);
+            throw FormatError(std::string("zip: ") + zip_strerror(za));
+        }
+        zip_set_file_compression(za, static_cast<zip_uint64_t>(idx), ZIP_CM_STORE, 0);  // stored: readers can map it
+    };
+    try {
+        add("header.json", header.data(), header.size());
+        add("positions.3.float32", positions, 3 * V * sizeof(float));
+        add("offsets.uint64", offsets, (N + 1) * sizeof(std::uint64_t));
+        std::map<std::string, bool> seen;
+        for (const auto &a : arrays) {
+            const std::string cols = a.cols > 1 ? "." + std::to_string(a.cols) : "";
+            std::string name;
+            switch (a.kind) {
+            case Kind::Dpv: name = "dpv/" + a.name + cols + "." + dtype_name(a.dtype); break;
+            case Kind::Dps: name = "dps/" + a.name + cols + "." + dtype_name(a.dtype); break;
+            case Kind::Group: name = "groups/" + a.name + ".uint32"; break;
+            case Kind::Dpg: {
+                const auto slash = a.name.find('/');
+                name = "dpg/" + a.name.substr(0, slash) + "/" + a.name.substr(slash + 1) + cols + "." + dtype_name(a.dtype);
+                break;
+            }
+            }
+            if (seen[name]) throw FormatError("two arrays map to the entry '" + name + "'");
+            seen[name] = true;
+            add(name, a.data, a.rows * a.cols * dtype_size(a.dtype));
+        }
+    } catch (...) {
+        zip_discard(za);
+        throw;
+    }
+    if (zip_close(za) != 0) {
+        const std::string m = zip_strerror(za);
+        zip_discard(za);
+        throw FormatError("writing the zip archive failed: " + m);
+    }
+}
+
+}  // namespace trx

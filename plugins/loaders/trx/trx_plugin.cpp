@@ -1,0 +1,249 @@
+// hz.loader/1 adapter for TRX (trx_format.hpp).
+#include "trx_format.hpp"
+
+#include <hz/cpp/plugin.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <memory>
+
+namespace {
+
+constexpr const char *kId = "org.horizon.loader.trx";
+
+struct Reader {
+    std::string path;
+    trx::File file;
+};
+Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
+
+template <class F>
+hz_status run(hz_error *err, const std::string &path, F &&body) {
+    return hz::guard(err, [&]() -> hz_status {
+        try {
+            return body();
+        } catch (const trx::Cancelled &) {
+            return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+        } catch (const trx::FormatError &e) {
+            return hz::set_errorf(err, HZ_E_FORMAT, "trx: %s: %s", path.c_str(), e.what());
+        } catch (const std::exception &e) {  // I/O of the directory form
+            return hz::set_errorf(err, HZ_E_IO, "trx: %s: %s", path.c_str(), e.what());
+        }
+    });
+}
+
+hz_dtype to_hz(trx::DType t) {
+    switch (t) {
+    case trx::DType::I8: return HZ_DTYPE_I8;
+    case trx::DType::I16: return HZ_DTYPE_I16;
+    case trx::DType::I32: return HZ_DTYPE_I32;
+    case trx::DType::I64: return HZ_DTYPE_I64;
+    case trx::DType::U8: case trx::DType::Bit: return HZ_DTYPE_U8;
+    case trx::DType::U16: return HZ_DTYPE_U16;
+    case trx::DType::U32: return HZ_DTYPE_U32;
+    case trx::DType::U64: return HZ_DTYPE_U64;
+    case trx::DType::F16: case trx::DType::F32: return HZ_DTYPE_F32;  // float16 is widened
+    case trx::DType::F64: return HZ_DTYPE_F64;
+    }
+    return HZ_DTYPE_UNKNOWN;
+}
+bool from_hz(hz_dtype t, trx::DType &out) {
+    switch (t) {
+    case HZ_DTYPE_I8: out = trx::DType::I8; return true;
+    case HZ_DTYPE_I16: out = trx::DType::I16; return true;
+    case HZ_DTYPE_I32: out = trx::DType::I32; return true;
+    case HZ_DTYPE_I64: out = trx::DType::I64; return true;
+    case HZ_DTYPE_U8: out = trx::DType::U8; return true;
+    case HZ_DTYPE_U16: out = trx::DType::U16; return true;
+    case HZ_DTYPE_U32: out = trx::DType::U32; return true;
+    case HZ_DTYPE_U64: out = trx::DType::U64; return true;
+    case HZ_DTYPE_F32: out = trx::DType::F32; return true;
+    case HZ_DTYPE_F64: out = trx::DType::F64; return true;
+    default: return false;
+    }
+}
+
+int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return trx::probe(head, size); }
+
+hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
+    if (out != nullptr) *out = nullptr;
+    if (req == nullptr || req->path == nullptr || out == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: open: NULL request, path or output");
+    return run(err, req->path, [&]() -> hz_status {
+        auto r = std::make_unique<Reader>();
+        r->path = req->path;
+        r->file = trx::open(r->path);
+        *out = reinterpret_cast<hz_reader *>(r.release());
+        return HZ_OK;
+    });
+}
+
+hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
+    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_dataset_info))
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: get_info: bad arguments");
+    const trx::File &f = as_reader(reader)->file;
+    out->kind = HZ_DATA_STREAMLINES;
+    std::snprintf(out->format, sizeof out->format, "trx %s %s", f.container_kind.c_str(), trx::dtype_name(f.positions_dtype));
+    out->nb_streamlines = f.nb_streamlines;
+    out->nb_vertices = f.nb_vertices;
+    std::copy(f.voxel_to_rasmm.begin(), f.voxel_to_rasmm.end(), out->voxel_to_ras);
+    std::copy(f.dims.begin(), f.dims.end(), out->ref_dims);
+    out->source_space = HZ_SPACE_RASMM;
+    out->nb_arrays = static_cast<uint32_t>(f.arrays.size());
+    return HZ_OK;
+}
+
+hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
+    if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: get_array_info: NULL");
+    const Reader &r = *as_reader(reader);
+    if (index >= r.file.arrays.size()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "trx: %s: no extra array %u", r.path.c_str(), index);
+    const trx::Array &a = r.file.arrays[index];
+    static const hz_attach attach[] = {HZ_ATTACH_VERTEX, HZ_ATTACH_STREAMLINE, HZ_ATTACH_GROUP, HZ_ATTACH_GROUP_DATA};
+    out->attach = attach[static_cast<int>(a.kind)];
+    out->name = a.name.c_str();
+    out->dtype = to_hz(a.dtype);
+    out->components = a.cols;
+    out->count = a.rows;
+    return HZ_OK;
+}
+
+hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
+    if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: visit_metadata: NULL");
+    for (const auto &[k, v] : as_reader(reader)->file.header_extra) visitor(ctx, k.c_str(), v.c_str());
+    return HZ_OK;
+}
+
+hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *dst, const hz_task *task, hz_error *err) {
+    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: read_streamlines: NULL");
+    Reader &r = *as_reader(reader);
+    const trx::File &f = r.file;
+    if (dst->positions_capacity < 3 * f.nb_vertices || dst->offsets_capacity < f.nb_streamlines + 1)
+        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trx: %s: destination too small", r.path.c_str());
+    if ((dst->positions == nullptr && f.nb_vertices > 0) || dst->offsets == nullptr)
+        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "trx: %s: NULL destination", r.path.c_str());
+    return run(err, r.path, [&]() -> hz_status {
+        trx::read_streamlines(f, dst->positions, dst->offsets, [task] { return hz::cancelled(task); });
+        hz::report(task, 1.0);
+        return HZ_OK;
+    });
+}
+
+hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
+    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: read_array: NULL");
+    Reader &r = *as_reader(reader);
+    if (index >= r.file.arrays.size()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "trx: %s: no extra array %u", r.path.c_str(), index);
+    const trx::Array &a = r.file.arrays[index];
+    return run(err, r.path, [&]() -> hz_status {
+        const std::size_t es_in = trx::dtype_size(a.dtype), es_out = a.dtype == trx::DType::F16 ? 4 : es_in;
+        if (dst->dtype != to_hz(a.dtype) || dst->ndim != 2 || dst->shape[0] != a.rows || dst->shape[1] != a.cols)
+            throw trx::FormatError("read_array: destination shape or dtype does not match '" + a.name + "'");
+        std::vector<unsigned char> raw(a.rows * a.cols * es_in);
+        trx::read_array(r.file, a, raw.data());
+        auto *base = static_cast<unsigned char *>(dst->data);
+        for (std::uint64_t i = 0; i < a.rows; ++i)
+            for (std::uint32_t c = 0; c < a.cols; ++c) {
+                const std::int64_t off = static_cast<std::int64_t>(i) * dst->stride_bytes[0] + static_cast<std::int64_t>(c) * dst->stride_bytes[1];
+                if (off < 0 || static_cast<std::uint64_t>(off) + es_out > dst->capacity_bytes)
+                    return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trx: %s: read_array: destination too small", r.path.c_str());
+                const unsigned char *src = raw.data() + (i * a.cols + c) * es_in;
+                if (a.dtype == trx::DType::F16) {
+                    std::uint16_t hbits;
+                    std::memcpy(&hbits, src, 2);
+                    const float v = trx::half_to_float(hbits);
+                    std::memcpy(base + off, &v, 4);
+                } else {
+                    std::memcpy(base + off, src, es_in);
+                }
+            }
+        return HZ_OK;
+    });
+}
+
+void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
+
+hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
+    if (req == nullptr || req->path == nullptr || data == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: write: NULL request or data");
+    if (data->kind != HZ_DATA_STREAMLINES) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "trx: %s: TRX holds streamlines only", req->path);
+    return run(err, req->path, [&]() -> hz_status {
+        const hz_streamlines_view &s = data->streamlines;
+        std::vector<trx::WriteArray> arrays;
+        std::vector<std::vector<std::uint32_t>> narrowed;  // uint64 groups stored as uint32
+        narrowed.reserve(data->nb_arrays);
+        for (uint32_t i = 0; i < data->nb_arrays; ++i) {
+            const hz_named_array &a = data->arrays[i];
+            const std::string name = a.name ? a.name : "";
+            trx::WriteArray w{trx::Kind::Dpv, name, trx::DType::F32, a.components, a.count, a.data};
+            bool ok = !name.empty() && name.find('.') == std::string::npos && from_hz(a.dtype, w.dtype);
+            switch (a.attach) {
+            case HZ_ATTACH_VERTEX: ok = ok && a.count == s.nb_vertices && name.find('/') == std::string::npos; break;
+            case HZ_ATTACH_STREAMLINE: w.kind = trx::Kind::Dps; ok = ok && a.count == s.nb_streamlines && name.find('/') == std::string::npos; break;
+            case HZ_ATTACH_GROUP:
+                w.kind = trx::Kind::Group;
+                ok = ok && a.components == 1 && name.find('/') == std::string::npos && (a.dtype == HZ_DTYPE_U32 || a.dtype == HZ_DTYPE_U64);
+                if (ok && a.dtype == HZ_DTYPE_U64) {
+                    const auto *p = static_cast<const std::uint64_t *>(a.data);
+                    auto &v = narrowed.emplace_back(a.count);
+                    for (std::uint64_t k = 0; k < a.count; ++k) v[k] = static_cast<std::uint32_t>(p[k]);
+                    w.data = v.data();
+                    w.dtype = trx::DType::U32;
+                }
+                break;
+            case HZ_ATTACH_GROUP_DATA: w.kind = trx::Kind::Dpg; ok = ok && a.count == 1 && std::count(name.begin(), name.end(), '/') == 1; break;
+            default: ok = false;
+            }
+            if (!ok) {
+                if (req->on_dropped) req->on_dropped(req->ctx, ("array '" + name + "' (not representable in TRX)").c_str());
+                continue;
+            }
+            arrays.push_back(w);
+        }
+        std::array<double, 16> aff;
+        std::copy(data->voxel_to_ras, data->voxel_to_ras + 16, aff.begin());
+        if (aff[15] == 0) aff = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+        std::array<std::uint64_t, 3> dims;
+        std::copy(data->ref_dims, data->ref_dims + 3, dims.begin());
+        std::vector<std::pair<std::string, std::string>> extra;
+        for (uint32_t i = 0; i < data->nb_metadata; ++i)
+            if (data->metadata[i].key && data->metadata[i].value) {
+                const std::string k = data->metadata[i].key;
+                // TRX's own keys, and TCK's structural ones (meaningless once read).
+                if (k == "NB_STREAMLINES" || k == "NB_VERTICES" || k == "VOXEL_TO_RASMM" || k == "DIMENSIONS" || k == "file" ||
+                    k == "datatype" || k == "count")
+                    continue;
+                auto it = std::find_if(extra.begin(), extra.end(), [&](const auto &e) { return e.first == k; });
+                if (it != extra.end()) {  // repeated keys are joined by newlines
+                    it->second.push_back('\n');
+                    it->second.append(data->metadata[i].value);
+                } else {
+                    extra.emplace_back(k, data->metadata[i].value);
+                }
+            }
+        trx::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, aff, dims, arrays, extra);
+        return HZ_OK;
+    });
+}
+
+const char *const kExtensions[] = {"trx", nullptr};
+const hz_loader kLoader = {
+    sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 4096, kExtensions, probe, open, get_info,
+    get_array_info, visit_metadata, read_streamlines, read_array, nullptr, nullptr, close, write,
+};
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
+const hz_plugin_descriptor kDescriptor = {
+    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "TRX", "1.0.0", "Horizon",
+    "TRX tractograms: zip (stored/deflated) and directory forms, dpv/dps/groups/dpg; writes stored zips", "MIT", kInterfaces,
+};
+
+bool HZ_ABI init(const hz_host *, const char *) { return true; }
+void HZ_ABI deinit() {}
+uint32_t HZ_ABI count() { return 1; }
+const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i == 0 ? &kDescriptor : nullptr; }
+const void *HZ_ABI get_interface(const char *id, const char *iface) {
+    if (id && iface && std::strcmp(id, kId) == 0 && std::strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &kLoader;
+    return nullptr;
+}
+
+}  // namespace
+
+HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
