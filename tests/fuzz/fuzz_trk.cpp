@@ -1,0 +1,19 @@
+// libFuzzer target: the TRK header parser, record scanner and decoder.
+#include "trk_format.hpp"
+
+#include <cstdint>
+#include <vector>
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size) {
+    try {
+        const trk::Header h = trk::parse_header(data, size);
+        const trk::Layout l = trk::scan(data, size, h);
+        if (l.nb_vertices > size) __builtin_trap();
+        std::vector<float> pos(3 * l.nb_vertices), sc(l.nb_vertices * h.n_scalars), pr(l.nb_streamlines * h.n_properties);
+        std::vector<std::uint64_t> off(l.nb_streamlines + 1);
+        trk::decode(data, size, h, l, pos.data(), off.data(), sc.data(), pr.data());
+    } catch (const trk::FormatError &) {
+    }
+    trk::probe(data, size);
+    return 0;
+}

@@ -1,0 +1,37 @@
+#!/usr/bin/python3
+"""Seed corpora for the loader fuzzers: small valid files of every variant
+(written with nibabel, numpy and zipfile) plus nibabel's own test files."""
+import json
+import os
+import sys
+import zipfile
+
+import nibabel as nib
+import numpy as np
+
+out = sys.argv[1]
+rng = np.random.default_rng(0)
+sl = [rng.normal(size=(int(rng.integers(1, 8)), 3)).astype(np.float32) * 10 for _ in range(6)]
+nib_data = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
+for kind in ("tck", "trk", "trx"):
+    os.makedirs(os.path.join(out, kind), exist_ok=True)
+t = nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4))
+nib.streamlines.save(t, os.path.join(out, "tck", "small.tck"))
+nib.streamlines.save(t, os.path.join(out, "trk", "small.trk"))
+for f in os.listdir(nib_data):
+    for kind in ("tck", "trk"):
+        if f.endswith("." + kind):
+            with open(os.path.join(nib_data, f), "rb") as src, open(os.path.join(out, kind, f), "wb") as dst:
+                dst.write(src.read())
+pos = np.concatenate(sl)
+off = np.concatenate([[0], np.cumsum([len(s) for s in sl])]).astype(np.uint64)
+for comp, name in ((zipfile.ZIP_STORED, "stored"), (zipfile.ZIP_DEFLATED, "deflated")):
+    with zipfile.ZipFile(os.path.join(out, "trx", name + ".trx"), "w", comp) as z:
+        z.writestr("header.json", json.dumps({"NB_STREAMLINES": len(sl), "NB_VERTICES": len(pos),
+                                              "VOXEL_TO_RASMM": np.eye(4).tolist(), "DIMENSIONS": [5, 5, 5]}))
+        z.writestr("positions.3.float16", pos.astype(np.float16).tobytes())
+        z.writestr("offsets.uint32", off[:-1].astype(np.uint32).tobytes())
+        z.writestr("dpv/fa.float32", np.arange(len(pos), dtype=np.float32).tobytes())
+        z.writestr("dps/w.2.float64", np.arange(2 * len(sl), dtype=np.float64).tobytes())
+        z.writestr("groups/g.uint32", np.array([0, 2], np.uint32).tobytes())
+        z.writestr("dpg/g/m.float32", np.array([1], np.float32).tobytes())

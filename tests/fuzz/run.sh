@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets with clang (ASan + UBSan) and runs each for
+# SECONDS (default 30) from generated seeds; prints the exec counts.
+#   tests/fuzz/run.sh [SECONDS] [BUILD_DIR]
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+secs=${1:-30}
+dir=${2:-build-fuzz}
+cmake -S . -B "$dir" -DHZ_FUZZ=ON -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_C_COMPILER=clang > "$dir.configure.log" 2>&1 || { cat "$dir.configure.log"; exit 1; }
+cmake --build "$dir" -j"$(nproc)" > /dev/null
+seeds="$dir/seeds"
+rm -rf "$seeds" && /usr/bin/python3 tests/fuzz/make_seeds.py "$seeds"
+for t in tck trk trx; do
+  mkdir -p "$dir/corpus/$t"
+  log="$dir/fuzz_$t.log"
+  if ! "$dir/bin/fuzz_$t" -max_total_time="$secs" -rss_limit_mb=2048 -max_len=65536 \
+        -artifact_prefix="$dir/crash_${t}_" "$dir/corpus/$t" "$seeds/$t" > "$log" 2>&1; then
+    tail -40 "$log"; echo "fuzz_$t: FAILED (artifact in $dir)"; exit 1
+  fi
+  echo "fuzz_$t: $(grep -Eo 'Done [0-9]+ runs in [0-9]+ second' "$log" | tail -1)"
+done
