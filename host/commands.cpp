@@ -104,6 +104,26 @@ json describe(const core::Dataset &ds) {
                                    {"dtype", core::dtype_name(a.dtype)},
                                    {"components", a.components}});
     }
+    if (ds.kind == HZ_DATA_VOLUME) {
+        const auto &v = ds.volume;
+        j["dims"] = v.dims;
+        j["dtype"] = core::dtype_name(v.dtype);
+        j["scale"] = {{"slope", v.scale_slope}, {"inter", v.scale_inter}};
+        j["affine"] = affine_json(v.voxel_to_ras);
+        // Bounding box of the voxel centres in RAS+ mm (the 8 corners).
+        std::array<double, 3> mn{1e300, 1e300, 1e300}, mx{-1e300, -1e300, -1e300};
+        for (int c = 0; c < 8; ++c) {
+            double ijk[3];
+            for (int a = 0; a < 3; ++a) ijk[a] = (c >> a & 1) && a < (int)v.dims.size() ? double(v.dims[a] - 1) : 0.0;
+            for (int r = 0; r < 3; ++r) {
+                const double x = v.voxel_to_ras[4 * r] * ijk[0] + v.voxel_to_ras[4 * r + 1] * ijk[1] + v.voxel_to_ras[4 * r + 2] * ijk[2] +
+                                 v.voxel_to_ras[4 * r + 3];
+                mn[r] = std::min(mn[r], x);
+                mx[r] = std::max(mx[r], x);
+            }
+        }
+        j["bbox_ras_mm"] = {{"min", mn}, {"max", mx}};
+    }
     j["header"] = json::array();
     for (const auto &[k, v] : ds.metadata) j["header"].push_back({k, v});
     return j;
@@ -151,6 +171,20 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json) {
         }
         if (groups > 5) std::printf("group:         ... %zu groups in all\n", groups);
     }
+    if (ds.kind == HZ_DATA_VOLUME) {
+        std::string dims;
+        for (auto d : ds.volume.dims) dims += (dims.empty() ? "" : " x ") + std::to_string(d);
+        std::printf("dims:          %s (%s)\n", dims.c_str(), core::dtype_name(ds.volume.dtype));
+        std::printf("scaling:       value = raw * %g + %g\n", ds.volume.scale_slope, ds.volume.scale_inter);
+        const auto &mn = j["bbox_ras_mm"]["min"];
+        const auto &mx = j["bbox_ras_mm"]["max"];
+        std::printf("bbox RAS mm:   [%.2f %.2f %.2f] .. [%.2f %.2f %.2f] (voxel centres)\n", mn[0].get<double>(), mn[1].get<double>(),
+                    mn[2].get<double>(), mx[0].get<double>(), mx[1].get<double>(), mx[2].get<double>());
+        std::printf("affine:\n");
+        for (const auto &row : j["affine"])
+            std::printf("  %10.4f %10.4f %10.4f %10.4f\n", row[0].get<double>(), row[1].get<double>(), row[2].get<double>(),
+                        row[3].get<double>());
+    }
     if (!ds.metadata.empty()) {
         std::printf("header:\n");
         for (const auto &[k, v] : ds.metadata) std::printf("  %s: %s\n", k.c_str(), v.c_str());
@@ -166,8 +200,10 @@ int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string
     std::vector<std::string> dropped;
     core::write_dataset(reg, ds, out, force, &dropped, in);
     for (const auto &d : dropped) std::fprintf(stderr, "horizon: warning: %s: dropped %s\n", out.c_str(), d.c_str());
-    std::printf("%s -> %s (%s, %llu streamlines)\n", in.c_str(), out.c_str(), core::kind_name(ds.kind),
-                (unsigned long long)ds.tractogram.nb_streamlines());
+    if (ds.kind == HZ_DATA_STREAMLINES)
+        std::printf("%s -> %s (%llu streamlines)\n", in.c_str(), out.c_str(), (unsigned long long)ds.tractogram.nb_streamlines());
+    else
+        std::printf("%s -> %s (%s)\n", in.c_str(), out.c_str(), core::kind_name(ds.kind));
     return 0;
 }
 

@@ -48,6 +48,29 @@ std::vector<unsigned char> read_head(const fs::path &path, std::size_t n) {
 
 }  // namespace
 
+hz_array_view volume_view(const Volume &v) {
+    // Contiguous, x fastest; axes beyond the view's 4 merged into the last.
+    hz_array_view a{};
+    a.struct_size = sizeof a;
+    a.dtype = v.dtype;
+    a.data = const_cast<std::byte *>(v.voxels.data());
+    a.capacity_bytes = v.voxels.size();
+    std::vector<std::uint64_t> dims = v.dims;
+    while (dims.size() > 4) {
+        const auto last = dims.back();
+        dims.pop_back();
+        dims.back() *= last;
+    }
+    a.ndim = static_cast<uint32_t>(dims.size());
+    std::int64_t stride = static_cast<std::int64_t>(dtype_size(v.dtype));
+    for (std::size_t i = 0; i < dims.size(); ++i) {
+        a.shape[i] = dims[i];
+        a.stride_bytes[i] = stride;
+        stride *= static_cast<std::int64_t>(dims[i]);
+    }
+    return a;
+}
+
 std::string matching_extension(const hz_loader &loader, const fs::path &path) {
     const std::string name = lower(path.filename().string());
     std::string best;
@@ -199,6 +222,22 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
             if (st != HZ_OK) throw Error(failure(err, st, path, "read_array"));
             t.arrays.push_back(std::move(a));
         }
+    } else if (info.kind == HZ_DATA_VOLUME) {
+        if (l->read_volume == nullptr) throw Error(path.string() + ": loader " + p.info.id + " has no read_volume");
+        Volume &v = ds.volume;
+        v.dtype = info.dtype;
+        const std::size_t es = dtype_size(info.dtype);
+        if (es == 0 || info.ndim < 1 || info.ndim > 7) throw Error(path.string() + ": loader reports an invalid volume layout");
+        v.dims.assign(info.dims, info.dims + info.ndim);
+        std::uint64_t n = 1;
+        for (auto d : v.dims) n *= d;  // loaders check sizes against the file before reporting them
+        v.voxels = Buffer<std::byte>(n * es);
+        v.scale_slope = info.scale_slope;
+        v.scale_inter = info.scale_inter;
+        std::copy(std::begin(info.voxel_to_ras), std::end(info.voxel_to_ras), v.voxel_to_ras.begin());
+        hz_array_view dst = volume_view(v);
+        st = l->read_volume(g.r, &dst, task, &err);
+        if (st != HZ_OK) throw Error(failure(err, st, path, "read_volume"));
     } else {
         throw Error(path.string() + ": " + kind_name(info.kind) + " data is not supported by this build of the host yet");
     }
@@ -240,6 +279,14 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     hz_dataset_view view{};
     view.struct_size = sizeof view;
     view.kind = ds.kind;
+    if (ds.kind == HZ_DATA_VOLUME) {
+        view.voxels = volume_view(ds.volume);
+        std::copy(ds.volume.voxel_to_ras.begin(), ds.volume.voxel_to_ras.end(), view.voxel_to_ras);
+        view.volume_ndim = static_cast<uint32_t>(std::min<std::size_t>(ds.volume.dims.size(), 8));
+        std::copy_n(ds.volume.dims.begin(), view.volume_ndim, view.volume_dims);
+        view.scale_slope = ds.volume.scale_slope;
+        view.scale_inter = ds.volume.scale_inter;
+    }
     if (ds.kind == HZ_DATA_STREAMLINES) {
         view.streamlines = ds.tractogram.view();
         std::copy(ds.tractogram.reference.begin(), ds.tractogram.reference.end(), view.voxel_to_ras);

@@ -34,5 +34,6 @@ HZ_SA(sizeof(hz_shade_point) == 136, "hz_shade_point");
 HZ_SA(sizeof(hz_shader) == 56, "hz_shader");
 HZ_SA(sizeof(hz_cluster_tree_view) == 72, "hz_cluster_tree_view");
 HZ_SA(sizeof(hz_clustering) == 56, "hz_clustering");
-HZ_SA(sizeof(hz_dataset_view) == 360, "hz_dataset_view");
+HZ_SA(offsetof(hz_dataset_view, metadata) == 352, "dataset_view.metadata (1.0 layout)");
+HZ_SA(sizeof(hz_dataset_view) == 448, "hz_dataset_view (1.1)");
 HZ_SA(sizeof(hz_write_request) == 40, "hz_write_request");

@@ -13,7 +13,7 @@ out = sys.argv[1]
 rng = np.random.default_rng(0)
 sl = [rng.normal(size=(int(rng.integers(1, 8)), 3)).astype(np.float32) * 10 for _ in range(6)]
 nib_data = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
-for kind in ("tck", "trk", "trx"):
+for kind in ("tck", "trk", "trx", "nifti"):
     os.makedirs(os.path.join(out, kind), exist_ok=True)
 t = nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4))
 nib.streamlines.save(t, os.path.join(out, "tck", "small.tck"))
@@ -35,3 +35,8 @@ for comp, name in ((zipfile.ZIP_STORED, "stored"), (zipfile.ZIP_DEFLATED, "defla
         z.writestr("dps/w.2.float64", np.arange(2 * len(sl), dtype=np.float64).tobytes())
         z.writestr("groups/g.uint32", np.array([0, 2], np.uint32).tobytes())
         z.writestr("dpg/g/m.float32", np.array([1], np.float32).tobytes())
+
+vol = (rng.random((4, 3, 2)) * 100).astype(np.int16)
+nib.save(nib.Nifti1Image(vol, np.eye(4)), os.path.join(out, "nifti", "small.nii"))
+nib.save(nib.Nifti1Image(vol.astype(np.float32), np.diag([2, 2, 2, 1])), os.path.join(out, "nifti", "small.nii.gz"))
+nib.save(nib.Nifti2Image(vol, np.eye(4)), os.path.join(out, "nifti", "small2.nii"))

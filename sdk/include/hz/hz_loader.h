@@ -180,6 +180,13 @@ typedef struct hz_dataset_view {
     const hz_named_array *arrays;
     uint32_t nb_metadata;                /* header entries to carry over       */
     const hz_metadata_entry *metadata;
+    /* Since 1.1 (test HZ_HAS_FIELD): the volume's full extents (voxels.shape
+       holds at most 4 axes; trailing axes are merged there) and the scaling
+       value = raw * scale_slope + scale_inter (1 and 0 when unscaled). */
+    uint32_t volume_ndim;
+    uint64_t volume_dims[8];
+    double scale_slope;
+    double scale_inter;
 } hz_dataset_view;
 
 /*

@@ -13,7 +13,8 @@
  *   1.0.0  First published ABI: loader, shader and clustering interfaces,
  *          host services (log, extensions), tasks (progress, cancel).
  *   1.1.0  hz_attach gains HZ_ATTACH_GROUP and HZ_ATTACH_GROUP_DATA (TRX
- *          groups and data per group). No struct changed.
+ *          groups and data per group); hz_dataset_view gains volume_ndim,
+ *          volume_dims, scale_slope, scale_inter (appended).
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H

@@ -23,6 +23,10 @@ const LoadedPlugin &loader_for_read(const Registry &reg, const fs::path &path);
 // Picks the writer for `path` by extension; throws Error naming the file.
 const LoadedPlugin &loader_for_write(const Registry &reg, const fs::path &path);
 
+// The hz_array_view of a volume's voxels (contiguous, x fastest; axes beyond
+// 4 merged into the last).
+hz_array_view volume_view(const Volume &v);
+
 // Reads a whole file into the data model. Throws Error with a one-line message.
 Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *task = nullptr);
 

@@ -1,0 +1,271 @@
+// hz.loader/1 adapter for NIfTI-1/-2 volumes (nifti_format.hpp).
+#include "mapped_file.hpp"
+#include "nifti_format.hpp"
+
+#include <hz/cpp/plugin.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <memory>
+
+namespace {
+
+constexpr const char *kId = "org.horizon.loader.nifti";
+const hz_host *g_host = nullptr;
+
+struct Reader {
+    std::string path;
+    std::unique_ptr<nifti::Image> image;
+};
+Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
+
+template <class F>
+hz_status run(hz_error *err, const std::string &path, F &&body) {
+    return hz::guard(err, [&]() -> hz_status {
+        try {
+            return body();
+        } catch (const nifti::FormatError &e) {
+            return hz::set_errorf(err, HZ_E_FORMAT, "nifti: %s: %s", path.c_str(), e.what());
+        } catch (const hzio::IoError &e) {
+            return hz::set_errorf(err, HZ_E_IO, "nifti: %s: %s", path.c_str(), e.what());
+        }
+    });
+}
+
+hz_dtype to_hz(nifti::DType t) {
+    switch (t) {
+    case nifti::DType::U8: return HZ_DTYPE_U8;
+    case nifti::DType::I8: return HZ_DTYPE_I8;
+    case nifti::DType::U16: return HZ_DTYPE_U16;
+    case nifti::DType::I16: return HZ_DTYPE_I16;
+    case nifti::DType::U32: return HZ_DTYPE_U32;
+    case nifti::DType::I32: return HZ_DTYPE_I32;
+    case nifti::DType::U64: return HZ_DTYPE_U64;
+    case nifti::DType::I64: return HZ_DTYPE_I64;
+    case nifti::DType::F32: return HZ_DTYPE_F32;
+    case nifti::DType::F64: return HZ_DTYPE_F64;
+    case nifti::DType::RGB24: return HZ_DTYPE_RGB8;
+    case nifti::DType::RGBA32: return HZ_DTYPE_RGBA8;
+    }
+    return HZ_DTYPE_UNKNOWN;
+}
+bool from_hz(hz_dtype t, nifti::DType &out) {
+    for (auto d : {nifti::DType::U8, nifti::DType::I8, nifti::DType::U16, nifti::DType::I16, nifti::DType::U32, nifti::DType::I32,
+                   nifti::DType::U64, nifti::DType::I64, nifti::DType::F32, nifti::DType::F64, nifti::DType::RGB24, nifti::DType::RGBA32})
+        if (to_hz(d) == t) {
+            out = d;
+            return true;
+        }
+    return false;
+}
+
+int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return nifti::probe(head, size); }
+
+hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
+    if (out != nullptr) *out = nullptr;
+    if (req == nullptr || req->path == nullptr || out == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "nifti: open: NULL request, path or output");
+    return run(err, req->path, [&]() -> hz_status {
+        auto r = std::make_unique<Reader>();
+        r->path = req->path;
+        r->image = std::make_unique<nifti::Image>(nifti::Image::open(r->path));
+        for (const auto &w : r->image->header().warnings)
+            if (g_host && g_host->log) g_host->log(g_host, kId, HZ_LOG_WARN, (r->path + ": " + w).c_str());
+        *out = reinterpret_cast<hz_reader *>(r.release());
+        return HZ_OK;
+    });
+}
+
+hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
+    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_dataset_info))
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "nifti: get_info: bad arguments");
+    const nifti::Header &h = as_reader(reader)->image->header();
+    out->kind = HZ_DATA_VOLUME;
+    std::snprintf(out->format, sizeof out->format, "nifti%d%s%s", h.version, h.data_gz ? " gz" : "", h.swap ? " swapped" : "");
+    out->dtype = to_hz(h.dtype);
+    out->ndim = static_cast<uint32_t>(h.ndim);
+    for (int i = 0; i < h.ndim; ++i) out->dims[i] = static_cast<uint64_t>(h.dims[static_cast<std::size_t>(i)]);
+    out->scale_slope = h.scl_slope;
+    out->scale_inter = h.scl_inter;
+    std::copy(h.affine.begin(), h.affine.end(), out->voxel_to_ras);
+    for (int i = 0; i < 3; ++i) out->ref_dims[i] = i < h.ndim ? static_cast<uint64_t>(h.dims[static_cast<std::size_t>(i)]) : 1;
+    out->source_space = HZ_SPACE_VOXEL;
+    return HZ_OK;
+}
+
+hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *, hz_error *err) {
+    return hz::set_errorf(err, HZ_E_NOT_FOUND, "nifti: %s: no extra array %u", reader ? as_reader(reader)->path.c_str() : "?", index);
+}
+
+hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
+    if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "nifti: visit_metadata: NULL");
+    const nifti::Header &h = as_reader(reader)->image->header();
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "%g %g %g %g", h.pixdim[1], h.pixdim[2], h.pixdim[3], h.pixdim[4]);
+    visitor(ctx, "pixdim", buf);
+    visitor(ctx, "datatype", std::to_string(h.datatype_code).c_str());
+    visitor(ctx, "vox_offset", std::to_string(h.vox_offset).c_str());
+    visitor(ctx, "qform_code", std::to_string(h.qform_code).c_str());
+    visitor(ctx, "sform_code", std::to_string(h.sform_code).c_str());
+    visitor(ctx, "affine_source", h.affine_source.c_str());
+    std::snprintf(buf, sizeof buf, "%.9g %.9g", h.scl_slope, h.scl_inter);
+    visitor(ctx, "scaling", buf);
+    return HZ_OK;
+}
+
+template <class T>
+T load(const unsigned char *p, bool swap) {
+    T v;
+    unsigned char tmp[sizeof(T)];
+    std::memcpy(tmp, p, sizeof(T));
+    if (swap) std::reverse(tmp, tmp + sizeof(T));
+    std::memcpy(&v, tmp, sizeof(T));
+    return v;
+}
+
+// One voxel as double (for scaled output).
+double voxel_value(const unsigned char *p, nifti::DType t, bool swap) {
+    switch (t) {
+    case nifti::DType::U8: return *p;
+    case nifti::DType::I8: return static_cast<std::int8_t>(*p);
+    case nifti::DType::U16: return load<std::uint16_t>(p, swap);
+    case nifti::DType::I16: return load<std::int16_t>(p, swap);
+    case nifti::DType::U32: return load<std::uint32_t>(p, swap);
+    case nifti::DType::I32: return load<std::int32_t>(p, swap);
+    case nifti::DType::U64: return static_cast<double>(load<std::uint64_t>(p, swap));
+    case nifti::DType::I64: return static_cast<double>(load<std::int64_t>(p, swap));
+    case nifti::DType::F32: return load<float>(p, swap);
+    case nifti::DType::F64: return load<double>(p, swap);
+    default: return 0;
+    }
+}
+
+hz_status HZ_ABI read_volume(hz_reader *reader, const hz_array_view *dst, const hz_task *task, hz_error *err) {
+    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "nifti: read_volume: NULL");
+    Reader &r = *as_reader(reader);
+    const nifti::Header &h = r.image->header();
+    return run(err, r.path, [&]() -> hz_status {
+        if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+        const bool raw = dst->dtype == to_hz(h.dtype);
+        const bool scaled = !raw && (dst->dtype == HZ_DTYPE_F32 || dst->dtype == HZ_DTYPE_F64) && h.dtype != nifti::DType::RGB24 &&
+                            h.dtype != nifti::DType::RGBA32;
+        if (!raw && !scaled) throw nifti::FormatError("read_volume: destination dtype must be the stored one or float32/float64");
+        // Destination axes: the image's, trailing ones merged into the last.
+        if (dst->ndim < 1 || dst->ndim > 4) throw nifti::FormatError("read_volume: destination must have 1..4 axes");
+        std::vector<std::uint64_t> dims(static_cast<std::size_t>(h.ndim));
+        for (int i = 0; i < h.ndim; ++i) dims[static_cast<std::size_t>(i)] = static_cast<std::uint64_t>(h.dims[static_cast<std::size_t>(i)]);
+        while (dims.size() > dst->ndim) {
+            const std::uint64_t last = dims.back();
+            dims.pop_back();
+            dims.back() *= last;
+        }
+        while (dims.size() < dst->ndim) dims.push_back(1);
+        for (std::size_t i = 0; i < dims.size(); ++i)
+            if (dst->shape[i] != dims[i]) throw nifti::FormatError("read_volume: destination shape does not match the image");
+        const std::size_t in_size = nifti::dtype_size(h.dtype);
+        const std::size_t out_size = raw ? in_size : (dst->dtype == HZ_DTYPE_F32 ? 4 : 8);
+        // Bounds of the strided destination, checked once.
+        std::int64_t lo = 0, hi = 0;
+        for (std::size_t i = 0; i < dims.size(); ++i) {
+            const std::int64_t span = static_cast<std::int64_t>(dims[i] - 1) * dst->stride_bytes[i];
+            (span < 0 ? lo : hi) += span;
+        }
+        if (lo < 0 || static_cast<std::uint64_t>(hi) + out_size > dst->capacity_bytes)
+            return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "nifti: %s: destination too small", r.path.c_str());
+        const unsigned char *src = r.image->data();
+        auto *base = static_cast<unsigned char *>(dst->data);
+        const bool swap_elems = h.swap && h.dtype != nifti::DType::RGB24 && h.dtype != nifti::DType::RGBA32;
+        std::uint64_t idx[4] = {0, 0, 0, 0};
+        for (std::uint64_t v = 0; v < h.nb_voxels; ++v, src += in_size) {
+            if ((v & 0xFFFFF) == 0 && hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+            std::int64_t off = 0;
+            for (std::size_t i = 0; i < dims.size(); ++i) off += static_cast<std::int64_t>(idx[i]) * dst->stride_bytes[i];
+            unsigned char *o = base + off;
+            if (raw) {
+                std::memcpy(o, src, in_size);
+                if (swap_elems) std::reverse(o, o + in_size);
+            } else {
+                const double val = voxel_value(src, h.dtype, h.swap) * h.scl_slope + h.scl_inter;
+                if (out_size == 4) {
+                    const float f = static_cast<float>(val);
+                    std::memcpy(o, &f, 4);
+                } else {
+                    std::memcpy(o, &val, 8);
+                }
+            }
+            for (std::size_t i = 0; i < dims.size(); ++i) {  // x fastest (Fortran order)
+                if (++idx[i] < dims[i]) break;
+                idx[i] = 0;
+            }
+        }
+        hz::report(task, 1.0);
+        return HZ_OK;
+    });
+}
+
+void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
+
+hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
+    if (req == nullptr || req->path == nullptr || data == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "nifti: write: NULL request or data");
+    if (data->kind != HZ_DATA_VOLUME) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "nifti: %s: NIfTI holds volumes only", req->path);
+    return run(err, req->path, [&]() -> hz_status {
+        const std::string ext = req->extension ? req->extension : "nii";
+        if (ext != "nii" && ext != "nii.gz")
+            throw nifti::FormatError("writing ." + ext + " is not supported (write .nii or .nii.gz)");
+        const hz_array_view &vx = data->voxels;
+        nifti::DType dt;
+        if (!from_hz(vx.dtype, dt)) throw nifti::FormatError("voxel type cannot be stored in NIfTI");
+        std::vector<std::uint64_t> dims;
+        if (HZ_HAS_FIELD(data, hz_dataset_view, scale_inter) && data->volume_ndim > 0) {
+            dims.assign(data->volume_dims, data->volume_dims + std::min<uint32_t>(data->volume_ndim, 7));
+        } else {
+            dims.assign(vx.shape, vx.shape + vx.ndim);
+        }
+        // The host passes contiguous, x-fastest voxels.
+        std::uint64_t expect = nifti::dtype_size(dt);
+        for (uint32_t i = 0; i < vx.ndim; ++i) {
+            if (vx.stride_bytes[i] != static_cast<std::int64_t>(expect)) throw nifti::FormatError("voxels must be contiguous, x fastest");
+            expect *= vx.shape[i];
+        }
+        if (expect > vx.capacity_bytes) throw nifti::FormatError("voxel view smaller than its shape");
+        double slope = 1, inter = 0;
+        if (HZ_HAS_FIELD(data, hz_dataset_view, scale_inter)) slope = data->scale_slope, inter = data->scale_inter;
+        std::array<double, 16> aff;
+        std::copy(data->voxel_to_ras, data->voxel_to_ras + 16, aff.begin());
+        for (uint32_t i = 0; i < data->nb_metadata && req->on_dropped; ++i) {
+            const std::string k = data->metadata[i].key ? data->metadata[i].key : "";
+            static const char *own[] = {"pixdim", "datatype", "vox_offset", "qform_code", "sform_code", "affine_source", "scaling"};
+            if (std::find(std::begin(own), std::end(own), k) == std::end(own)) req->on_dropped(req->ctx, ("header entry '" + k + "'").c_str());
+        }
+        nifti::write(req->path, ext == "nii.gz", dt, dims, vx.data, aff, slope, inter);
+        return HZ_OK;
+    });
+}
+
+const char *const kExtensions[] = {"nii", "nii.gz", "hdr", "img", "hdr.gz", "img.gz", nullptr};
+const hz_loader kLoader = {
+    sizeof(hz_loader), HZ_DATA_VOLUME, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 548, kExtensions, probe, open, get_info,
+    get_array_info, visit_metadata, nullptr, nullptr, read_volume, nullptr, close, write,
+};
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
+const hz_plugin_descriptor kDescriptor = {
+    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "NIfTI-1/2", "1.0.0", "Horizon",
+    "NIfTI-1 and NIfTI-2 volumes (.nii, .nii.gz, .hdr/.img pairs), both byte orders; writes .nii and .nii.gz", "MIT", kInterfaces,
+};
+
+bool HZ_ABI init(const hz_host *host, const char *) {
+    g_host = host;
+    return true;
+}
+void HZ_ABI deinit() { g_host = nullptr; }
+uint32_t HZ_ABI count() { return 1; }
+const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i == 0 ? &kDescriptor : nullptr; }
+const void *HZ_ABI get_interface(const char *id, const char *iface) {
+    if (id && iface && std::strcmp(id, kId) == 0 && std::strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &kLoader;
+    return nullptr;
+}
+
+}  // namespace
+
+HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
