@@ -5,6 +5,7 @@
 #include "commands.hpp"
 
 #include <hz/core/data.hpp>
+#include <hz/core/io.hpp>
 #include <hz/core/phantom.hpp>
 
 #include <boost/dll/library_info.hpp>
@@ -163,6 +164,55 @@ hz_status read_with(const hz_loader &l, const fs::path &file, core::Tractogram &
     return st;
 }
 
+// Reads a volume file through `l` (raw dtype); returns status, fills `v`.
+hz_status read_volume_with(const hz_loader &l, const fs::path &file, core::Volume &v, std::string &msg, const hz_task *task = nullptr,
+                           std::int64_t shrink_capacity = 0) {
+    hz_error err = new_error();
+    hz_open_request req{};
+    req.struct_size = sizeof req;
+    const std::string path = file.string();
+    req.path = path.c_str();
+    hz_reader *r = nullptr;
+    hz_status st = l.open(&req, &r, &err);
+    if (st != HZ_OK) {
+        msg = err.message;
+        return r != nullptr ? HZ_E_INTERNAL : st;
+    }
+    hz_dataset_info info{};
+    info.struct_size = sizeof info;
+    st = l.get_info(r, &info, &err);
+    if (st == HZ_OK && (info.kind != HZ_DATA_VOLUME || info.ndim < 1 || info.ndim > 7 || core::dtype_size(info.dtype) == 0)) {
+        msg = "get_info describes no valid volume";
+        l.close(r);
+        return HZ_E_INTERNAL;
+    }
+    if (st == HZ_OK) {
+        std::uint64_t n = 1;
+        for (uint32_t i = 0; i < info.ndim; ++i) n *= info.dims[i];
+        if (n > (std::uint64_t(1) << 32)) {  // a few validator fixtures are tiny; refuse to follow absurd claims
+            msg = "volume too large for the validator";
+            l.close(r);
+            return HZ_E_FORMAT;
+        }
+        v.dtype = info.dtype;
+        v.dims.assign(info.dims, info.dims + info.ndim);
+        v.voxels = core::Buffer<std::byte>(n * core::dtype_size(info.dtype));
+        std::copy(std::begin(info.voxel_to_ras), std::end(info.voxel_to_ras), v.voxel_to_ras.begin());
+        hz_array_view dst = core::volume_view(v);
+        dst.capacity_bytes -= static_cast<std::uint64_t>(shrink_capacity);
+        if (shrink_capacity) {  // put the end of the view right before an inaccessible page
+            GuardedBuffer g(dst.capacity_bytes);
+            dst.data = g.data();
+            st = l.read_volume(r, &dst, task, &err);
+        } else {
+            st = l.read_volume(r, &dst, task, &err);
+        }
+    }
+    if (st != HZ_OK) msg = err.message;
+    l.close(r);
+    return st;
+}
+
 bool same_tractogram(const core::Tractogram &a, const core::Tractogram &b, std::string &why) {
     if (a.nb_streamlines() != b.nb_streamlines() || a.nb_vertices() != b.nb_vertices()) {
         why = "counts differ: " + std::to_string(a.nb_streamlines()) + "/" + std::to_string(a.nb_vertices()) + " vs " +
@@ -189,6 +239,66 @@ const hz_clustering &clustering_of(const Ctx &c) {
 
 bool writes_streamlines(const hz_loader &l) {
     return (l.caps & HZ_LOADER_CAN_WRITE) && l.write != nullptr && (l.data_kinds & HZ_DATA_STREAMLINES);
+}
+bool writes_volumes(const hz_loader &l) {
+    return (l.caps & HZ_LOADER_CAN_WRITE) && l.write != nullptr && (l.data_kinds & HZ_DATA_VOLUME) && l.read_volume != nullptr;
+}
+
+// A small int16 volume with an oblique affine.
+core::Volume sample_volume() {
+    core::Volume v;
+    v.dtype = HZ_DTYPE_I16;
+    v.dims = {5, 4, 3};
+    v.voxels = core::Buffer<std::byte>(60 * 2);
+    for (int i = 0; i < 60; ++i) {
+        const std::int16_t x = static_cast<std::int16_t>(i * 7 - 50);
+        std::memcpy(v.voxels.data() + 2 * i, &x, 2);
+    }
+    v.voxel_to_ras = {-1.5, 0.2, 0, 30, 0.1, 2, 0.3, -20, 0, -0.2, 2.5, 10, 0, 0, 0, 1};
+    return v;
+}
+
+fs::path write_volume_sample(const Ctx &c, const core::Volume &vol, std::string &msg) {
+    const hz_loader &l = loader_of(c);
+    const std::string ext = l.extensions && l.extensions[0] ? l.extensions[0] : "dat";
+    const fs::path out = c.scratch / ("sample." + ext);
+    hz_dataset_view v{};
+    v.struct_size = sizeof v;
+    v.kind = HZ_DATA_VOLUME;
+    v.voxels = core::volume_view(vol);
+    std::copy(vol.voxel_to_ras.begin(), vol.voxel_to_ras.end(), v.voxel_to_ras);
+    v.volume_ndim = static_cast<uint32_t>(vol.dims.size());
+    std::copy(vol.dims.begin(), vol.dims.end(), v.volume_dims);
+    v.scale_slope = 1;
+    v.scale_inter = 0;
+    hz_write_request req{};
+    req.struct_size = sizeof req;
+    const std::string p = out.string();
+    req.path = p.c_str();
+    req.extension = ext.c_str();
+    hz_error err = new_error();
+    const hz_status st = l.write(&req, &v, nullptr, &err);
+    if (st != HZ_OK) {
+        msg = std::string("write failed (status ") + std::to_string(st) + "): " + err.message;
+        return {};
+    }
+    return out;
+}
+
+// Reads any file the loader accepts; checks the result's invariants.
+hz_status read_any(const hz_loader &l, const fs::path &file, std::string &msg) {
+    if (l.read_streamlines && (l.data_kinds & HZ_DATA_STREAMLINES)) {
+        core::Tractogram t;
+        const hz_status st = read_with(l, file, t, msg);
+        if (st == HZ_OK) t.validate("accepted input");
+        if (st != HZ_E_UNSUPPORTED) return st;
+    }
+    if (l.read_volume && (l.data_kinds & HZ_DATA_VOLUME)) {
+        core::Volume v;
+        return read_volume_with(l, file, v, msg);
+    }
+    msg = "no reader for this kind";
+    return HZ_E_UNSUPPORTED;
 }
 
 // Writes `t` with the plugin's own writer to scratch/sample.<ext>.
@@ -220,6 +330,9 @@ std::vector<fs::path> loader_samples(const Ctx &c, std::string &msg) {
     std::vector<fs::path> files(c.opts.data_files.begin(), c.opts.data_files.end());
     if (files.empty() && writes_streamlines(loader_of(c))) {
         const fs::path p = write_sample(c, sample_tractogram(c.opts.seed), msg);
+        if (!p.empty()) files.push_back(p);
+    } else if (files.empty() && writes_volumes(loader_of(c))) {
+        const fs::path p = write_volume_sample(c, sample_volume(), msg);
         if (!p.empty()) files.push_back(p);
     }
     return files;
@@ -518,7 +631,20 @@ std::vector<Check> catalogue() {
                  }});
     c.push_back({"loader-roundtrip", HZ_KIND_LOADER, "write then read gives the same streamlines (empty and 1-point ones included)", [](const Ctx &x) {
                      const hz_loader &l = loader_of(x);
-                     if (!writes_streamlines(l)) return skip("does not write streamlines");
+                     if (!writes_streamlines(l) && writes_volumes(l)) {
+                         const core::Volume vol = sample_volume();
+                         std::string msg;
+                         const fs::path p = write_volume_sample(x, vol, msg);
+                         if (p.empty()) return fail(msg);
+                         core::Volume back;
+                         if (read_volume_with(l, p, back, msg) != HZ_OK) return fail("reading its own output failed: " + msg);
+                         if (back.dims != vol.dims || back.dtype != vol.dtype) return fail("dims or dtype changed");
+                         if (std::memcmp(back.voxels.data(), vol.voxels.data(), vol.voxels.size()) != 0) return fail("voxels changed");
+                         for (int i = 0; i < 16; ++i)
+                             if (std::fabs(back.voxel_to_ras[i] - vol.voxel_to_ras[i]) > 1e-5) return fail("affine changed");
+                         return pass("5x4x3 int16 volume, oblique affine");
+                     }
+                     if (!writes_streamlines(l)) return skip("does not write streamlines or volumes");
                      const core::Tractogram t = sample_tractogram(x.opts.seed);
                      std::string msg;
                      const fs::path p = write_sample(x, t, msg);
@@ -530,7 +656,7 @@ std::vector<Check> catalogue() {
                  }});
     c.push_back({"loader-malformed-survival", HZ_KIND_LOADER, "truncated and corrupted samples fail cleanly (no crash, message, valid output when accepted)", [](const Ctx &x) {
                      const hz_loader &l = loader_of(x);
-                     if (!(l.data_kinds & HZ_DATA_STREAMLINES) || !l.read_streamlines) return skip("streamline loaders only in 1.0");
+                     if (!l.read_streamlines && !l.read_volume) return skip("reads neither streamlines nor volumes");
                      std::string msg;
                      const auto files = loader_samples(x, msg);
                      if (files.empty()) return skip("no sample file (pass --data FILE)");
@@ -539,9 +665,13 @@ std::vector<Check> catalogue() {
                      const fs::path bad = x.scratch / ("malformed." + std::string(l.extensions[0]));
                      auto try_one = [&](const std::string &bytes) -> std::optional<Outcome> {
                          write_file(bad, bytes);
-                         core::Tractogram t;
                          std::string m;
-                         const hz_status st = read_with(l, bad, t, m);
+                         hz_status st;
+                         try {
+                             st = read_any(l, bad, m);
+                         } catch (const std::exception &e) {
+                             return fail(e.what());
+                         }
                          ++variants;
                          if (st == HZ_E_INTERNAL) return fail("internal error on malformed input: " + m);
                          if (st != HZ_OK) {
@@ -550,11 +680,6 @@ std::vector<Check> catalogue() {
                              if (m.find('\n') != std::string::npos) return fail("error message is not one line: " + m);
                              if (m.find(bad.filename().string()) == std::string::npos) return fail("error message does not name the file: " + m);
                              return std::nullopt;
-                         }
-                         try {
-                             t.validate("accepted malformed input");
-                         } catch (const std::exception &e) {
-                             return fail(e.what());
                          }
                          return std::nullopt;
                      };
@@ -575,8 +700,16 @@ std::vector<Check> catalogue() {
                  }});
     c.push_back({"loader-buffer-too-small", HZ_KIND_LOADER, "a short destination gives HZ_E_BUFFER_TOO_SMALL and no write past it", [](const Ctx &x) {
                      const hz_loader &l = loader_of(x);
-                     if (!l.read_streamlines) return skip("no read_streamlines");
                      std::string msg;
+                     if (!l.read_streamlines && l.read_volume) {
+                         const auto files = loader_samples(x, msg);
+                         if (files.empty()) return skip("no sample file");
+                         core::Volume v;
+                         const hz_status st = read_volume_with(l, files[0], v, msg, nullptr, 1);
+                         if (st != HZ_E_BUFFER_TOO_SMALL) return fail("status " + std::to_string(st) + " instead of HZ_E_BUFFER_TOO_SMALL");
+                         return pass();
+                     }
+                     if (!l.read_streamlines) return skip("no read_streamlines");
                      const auto files = loader_samples(x, msg);
                      if (files.empty()) return skip("no sample file");
                      hz_error err = new_error();
@@ -608,14 +741,16 @@ std::vector<Check> catalogue() {
                  }});
     c.push_back({"loader-cancel", HZ_KIND_LOADER, "a pre-cancelled task gives HZ_E_CANCELLED and close() still works", [](const Ctx &x) {
                      const hz_loader &l = loader_of(x);
-                     if (!l.read_streamlines) return skip("no read_streamlines");
+                     if (!l.read_streamlines && !l.read_volume) return skip("reads neither streamlines nor volumes");
                      std::string msg;
                      const auto files = loader_samples(x, msg);
                      if (files.empty()) return skip("no sample file");
                      core::Task task;
                      task.cancel();
                      core::Tractogram t;
-                     const hz_status st = read_with(l, files[0], t, msg, task.get());
+                     core::Volume v;
+                     const hz_status st = l.read_streamlines ? read_with(l, files[0], t, msg, task.get())
+                                                             : read_volume_with(l, files[0], v, msg, task.get());
                      if (st != HZ_E_CANCELLED) return fail("status " + std::to_string(st) + " instead of HZ_E_CANCELLED");
                      return pass();
                  }});

@@ -1,0 +1,116 @@
+#!/usr/bin/python3
+"""Tractogram loading benchmark: Horizon against nibabel (Debian's
+python3-nibabel) and `cat`, on the same files, in one run.
+
+    /usr/bin/python3 bench/io_bench.py [--build build] [--work /tmp/horizon-io] [--streamlines 1000000] [--points 100]
+
+Writes one TCK of N random-walk streamlines of P points (float32), converts
+it with horizon to TRK and TRX (stored zip), then times, per file, with a
+warm page cache: `cat FILE > /dev/null`, nibabel's `nib.streamlines.load`
+(CPU seconds of the whole process minus the interpreter's start-up, as
+measured on an empty script), and `horizon info FILE` (a full load into the
+data model plus its statistics). Peak memory is the process's maximum RSS
+against the decoded data (positions + offsets). Prints a Markdown table and
+writes bench/results/io.md.
+"""
+import argparse
+import os
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def timed(cmd, env=None):
+    """(wall s, cpu s, max rss MiB) of a child process."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if p.returncode != 0:
+        sys.exit(f"{cmd} failed: {p.stderr.decode()}")
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu, after.ru_maxrss / 1024.0
+
+
+def best_of(n, cmd):
+    runs = [timed(cmd) for _ in range(n)]
+    return min(r[0] for r in runs), min(r[1] for r in runs), max(r[2] for r in runs)
+
+
+def write_tck(path, n, p, seed=0):
+    rng = np.random.default_rng(seed)
+    head = "mrtrix tracks\ncount: %d\ndatatype: Float32LE\nfile: . %%d\nEND\n" % n
+    offset = len(head) + 10
+    head = (head % offset).encode()
+    head += b"\0" * (offset - len(head))
+    with open(path, "wb") as f:
+        f.write(head)
+        chunk = 50_000
+        for start in range(0, n, chunk):
+            k = min(chunk, n - start)
+            steps = rng.normal(scale=0.6, size=(k, p, 3)).astype(np.float32)
+            pts = np.cumsum(steps, axis=1) + rng.uniform(-60, 60, (k, 1, 3)).astype(np.float32)
+            block = np.concatenate([pts, np.full((k, 1, 3), np.nan, np.float32)], axis=1)
+            f.write(block.astype("<f4").tobytes())
+        f.write(np.full(3, np.inf, "<f4").tobytes())
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--work", default="/tmp/horizon-io")
+    ap.add_argument("--streamlines", type=int, default=1_000_000)
+    ap.add_argument("--points", type=int, default=100)
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    os.makedirs(args.work, exist_ok=True)
+    horizon = os.path.join(args.build, "bin", "horizon")
+    n, p = args.streamlines, args.points
+    tck = os.path.join(args.work, f"walks_{n}x{p}.tck")
+    if not os.path.exists(tck):
+        write_tck(tck, n, p)
+    files = {"tck": tck}
+    for ext in ("trk", "trx"):
+        out = tck[:-3] + ext
+        if not os.path.exists(out):
+            subprocess.run([horizon, "convert", tck, out], check=True, stdout=subprocess.DEVNULL)
+        files[ext] = out
+    decoded_mib = (n * p * 12 + (n + 1) * 8) / 2**20
+    nib_script = "import sys, nibabel as nib; s = nib.streamlines.load(sys.argv[1]).streamlines; len(s._data)"
+    _, py_start, _ = best_of(args.repeat, ["/usr/bin/python3", "-c", "import sys, nibabel"])
+    rows = []
+    for ext, path in files.items():
+        size_mib = os.path.getsize(path) / 2**20
+        subprocess.run(["cat", path], stdout=subprocess.DEVNULL)  # warm the page cache
+        cat_s, _, _ = best_of(args.repeat, ["cat", path])
+        hz_s, hz_cpu, hz_rss = best_of(args.repeat, [horizon, "info", path])
+        if ext in ("tck", "trk"):
+            _, nib_cpu, _ = best_of(1, ["/usr/bin/python3", "-c", nib_script, path])
+            nib_cpu -= py_start
+        else:
+            nib_cpu = None  # nibabel 5.0 has no TRX reader
+        rows.append((ext, size_mib, cat_s, nib_cpu, hz_s, hz_cpu, hz_rss, os.getloadavg()[0]))
+        nib_txt = f"{nib_cpu:7.2f}" if nib_cpu else "      -"
+        print(f"{ext}: {size_mib:7.0f} MiB  cat {cat_s:5.2f} s  nibabel {nib_txt} s  horizon {hz_s:5.2f} s "
+              f"(cpu {hz_cpu:5.2f})  rss {hz_rss:6.0f} MiB ({hz_rss / decoded_mib:.2f}x decoded)", flush=True)
+    os.makedirs(os.path.join(ROOT, "bench", "results"), exist_ok=True)
+    with open(os.path.join(ROOT, "bench", "results", "io.md"), "w") as f:
+        f.write(f"{n:,} streamlines x {p} points, decoded {decoded_mib:.0f} MiB; warm page cache; best of {args.repeat}.\n\n")
+        f.write("| format | file (MiB) | cat (s) | nibabel load, CPU (s) | horizon info (s) | vs nibabel | vs cat | peak RSS / decoded | load |\n")
+        f.write("|---|---:|---:|---:|---:|---:|---:|---:|---:|\n")
+        for ext, size, cat_s, nib_cpu, hz_s, hz_cpu, rss, la in rows:
+            vs_nib = f"{nib_cpu / hz_s:.1f}x faster" if nib_cpu else "-"
+            nib_txt = f"{nib_cpu:.2f}" if nib_cpu else "- (no TRX reader)"
+            f.write(f"| {ext} | {size:.0f} | {cat_s:.2f} | {nib_txt} | {hz_s:.2f} | {vs_nib} | {hz_s / cat_s:.1f}x cat | "
+                    f"{rss / decoded_mib:.2f} | {la:.2f} |\n")
+    print("wrote bench/results/io.md")
+
+
+if __name__ == "__main__":
+    main()
