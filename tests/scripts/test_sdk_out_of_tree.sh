@@ -23,9 +23,9 @@ done
 
 listing=$("$HORIZON_BIN" --plugin-dir "$work/plugins" plugins --json)
 for id in org.example.loader.hzt org.example.shader.lambert org.example.clustering.length; do
-  echo "$listing" | grep -q "\"id\": \"$id\"" || { echo "FAIL: $id not listed"; echo "$listing"; exit 1; }
+  grep -q "\"id\": \"$id\"" <<< "$listing" || { echo "FAIL: $id not listed"; echo "$listing"; exit 1; }
 done
-echo "$listing" | python3 -c 'import json,sys; j=json.load(sys.stdin); assert not j["rejected"], j["rejected"]'
+python3 -c 'import json,sys; j=json.load(sys.stdin); assert not j["rejected"], j["rejected"]' <<< "$listing"
 
 for so in "$work"/plugins/*.so; do
   "$HORIZON_BIN" validate "$so" > "$work/report.txt" || { cat "$work/report.txt"; echo "FAIL: validate $so"; exit 1; }
@@ -36,7 +36,8 @@ done
 "$HORIZON_BIN" demo --out "$work/demo" --streamlines 50 > /dev/null
 "$HORIZON_BIN" --plugin-dir "$work/plugins" convert "$work/demo/phantom.tck" "$work/p.hzt"
 "$HORIZON_BIN" --plugin-dir "$work/plugins" convert "$work/p.hzt" "$work/back.tck"
-"$HORIZON_BIN" --plugin-dir "$work/plugins" info "$work/p.hzt" | grep -q "streamlines:   50"
+info_out=$("$HORIZON_BIN" --plugin-dir "$work/plugins" info "$work/p.hzt")
+grep -q "streamlines:   50" <<< "$info_out"
 
 test "$(sha256sum "$HORIZON_BIN" | cut -d' ' -f1)" = "$host_before"
 echo "out-of-tree SDK test: OK"
