@@ -15,7 +15,6 @@ writes bench/results/io.md.
 """
 import argparse
 import os
-import resource
 import subprocess
 import sys
 import time
@@ -26,16 +25,15 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def timed(cmd, env=None):
-    """(wall s, cpu s, max rss MiB) of a child process."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    """(wall s, cpu s, max rss MiB) of one child process, via GNU time."""
     t0 = time.perf_counter()
-    p = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+    p = subprocess.run(["/usr/bin/time", "-f", "TIME %U %S %M", *cmd], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                       env=env, text=True)
     wall = time.perf_counter() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode != 0:
-        sys.exit(f"{cmd} failed: {p.stderr.decode()}")
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return wall, cpu, after.ru_maxrss / 1024.0
+        sys.exit(f"{cmd} failed: {p.stderr}")
+    line = [l for l in p.stderr.splitlines() if l.startswith("TIME ")][-1].split()
+    return wall, float(line[1]) + float(line[2]), float(line[3]) / 1024.0
 
 
 def best_of(n, cmd):
@@ -79,7 +77,7 @@ def main():
     for ext in ("trk", "trx"):
         out = tck[:-3] + ext
         if not os.path.exists(out):
-            subprocess.run([horizon, "convert", tck, out], check=True, stdout=subprocess.DEVNULL)
+            subprocess.run([horizon, "convert", tck, out], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         files[ext] = out
     decoded_mib = (n * p * 12 + (n + 1) * 8) / 2**20
     nib_script = "import sys, nibabel as nib; s = nib.streamlines.load(sys.argv[1]).streamlines; len(s._data)"

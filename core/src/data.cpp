@@ -74,22 +74,47 @@ void Tractogram::validate(const std::string &what) const {
     if (offsets[offsets.size() - 1] != nb_vertices())
         throw Error(what + ": final offset " + std::to_string(offsets[offsets.size() - 1]) + " != " +
                     std::to_string(nb_vertices()) + " vertices");
-    for (std::size_t i = 0; i < positions.size(); ++i)
-        if (!std::isfinite(positions[i]))
-            throw Error(what + ": non-finite coordinate at vertex " + std::to_string(i / 3));
+    // Branch-free in blocks (the compiler vectorises it); locate only on failure.
+    const float *p = positions.data();
+    const std::size_t n = positions.size();
+    for (std::size_t b = 0; b < n; b += 4096) {
+        const std::size_t e = std::min(n, b + 4096);
+        unsigned bad = 0;
+        for (std::size_t i = b; i < e; ++i) bad |= !(std::fabs(p[i]) <= 3.4028235e38f);
+        if (bad)
+            for (std::size_t i = b; i < e; ++i)
+                if (!std::isfinite(p[i])) throw Error(what + ": non-finite coordinate at vertex " + std::to_string(i / 3));
+    }
 }
 
 Bounds bounds_of(const float *xyz, std::uint64_t n) {
     Bounds b;
     if (n == 0) return b;
     b.empty = false;
-    for (int d = 0; d < 3; ++d) b.min[d] = b.max[d] = xyz[d];
-    for (std::uint64_t i = 0; i < n; ++i)
-        for (int d = 0; d < 3; ++d) {
-            const double v = xyz[3 * i + d];
-            b.min[d] = std::min(b.min[d], v);
-            b.max[d] = std::max(b.max[d], v);
+    // 12 running minima/maxima over blocks of 4 points (x y z x y z ...), so
+    // the loop is plain element-wise float min/max the compiler vectorises.
+    float mn[12], mx[12];
+    for (int k = 0; k < 12; ++k) mn[k] = mx[k] = xyz[k % 3];
+    const std::uint64_t blocks = n / 4;
+    for (std::uint64_t i = 0; i < blocks; ++i) {
+        const float *q = xyz + 12 * i;
+        for (int k = 0; k < 12; ++k) {
+            mn[k] = std::min(mn[k], q[k]);
+            mx[k] = std::max(mx[k], q[k]);
         }
+    }
+    for (std::uint64_t i = 4 * blocks; i < n; ++i)
+        for (int d = 0; d < 3; ++d) {
+            mn[d] = std::min(mn[d], xyz[3 * i + d]);
+            mx[d] = std::max(mx[d], xyz[3 * i + d]);
+        }
+    for (int d = 0; d < 3; ++d) {
+        b.min[d] = b.max[d] = xyz[d];
+        for (int k = d; k < 12; k += 3) {
+            b.min[d] = std::min(b.min[d], double(mn[k]));
+            b.max[d] = std::max(b.max[d], double(mx[k]));
+        }
+    }
     return b;
 }
 

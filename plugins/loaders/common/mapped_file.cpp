@@ -1,6 +1,7 @@
 #include "mapped_file.hpp"
 
 #include <cerrno>
+#include <algorithm>
 #include <cstring>
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -29,6 +30,13 @@ MappedFile::MappedFile(const std::string &path) {
         data_ = static_cast<const unsigned char *>(p);
     }
     ::close(fd);
+}
+
+void MappedFile::release_before(std::uint64_t end) const {
+    if (data_ == nullptr) return;
+    const std::uint64_t page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+    const std::uint64_t len = std::min(end, size_) / page * page;
+    if (len > 0) ::madvise(const_cast<unsigned char *>(data_), len, MADV_DONTNEED);
 }
 
 MappedFile::~MappedFile() {

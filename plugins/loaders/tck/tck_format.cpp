@@ -177,7 +177,7 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size) {
     return h;
 }
 
-Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const std::function<bool()> &cancelled) {
+Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled) {
     const std::uint64_t es = element_size(h.datatype);
     const std::uint64_t avail = size - h.data_offset;
     const std::uint64_t n_triples = avail / (3 * es);
@@ -186,7 +186,7 @@ Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, con
     bool terminated = false;
     std::string error;
     for_each_triple(bytes + h.data_offset, n_triples, h.datatype, [&](std::uint64_t i, double x, double y, double z) {
-        if ((i & 0xFFFFF) == 0 && cancelled && cancelled()) throw Cancelled{};
+        if ((i & 0xFFFFF) == 0 && cancelled && cancelled(h.data_offset + i * 3 * es)) throw Cancelled{};
         const int nans = std::isnan(x) + std::isnan(y) + std::isnan(z);
         const int infs = std::isinf(x) + std::isinf(y) + std::isinf(z);
         const std::uint64_t at = h.data_offset + i * 3 * es;
@@ -225,13 +225,13 @@ Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, con
 }
 
 void decode(const unsigned char *bytes, const Header &h, const Layout &L, float *positions, std::uint64_t *offsets,
-            const std::function<bool()> &cancelled) {
+            const Tick &cancelled) {
     const std::uint64_t es = element_size(h.datatype);
     const std::uint64_t n_triples = (L.end_offset - h.data_offset) / (3 * es);
     std::uint64_t v = 0, s = 0;
     offsets[0] = 0;
     for_each_triple(bytes + h.data_offset, n_triples, h.datatype, [&](std::uint64_t i, double x, double y, double z) {
-        if ((i & 0xFFFFF) == 0 && cancelled && cancelled()) throw Cancelled{};
+        if ((i & 0xFFFFF) == 0 && cancelled && cancelled(h.data_offset + i * 3 * es)) throw Cancelled{};
         if (std::isnan(x)) {
             offsets[++s] = v;
             return true;

@@ -35,6 +35,10 @@ struct Header {
 // Parses the text header of `bytes[0..size)`. Throws FormatError.
 Header parse_header(const unsigned char *bytes, std::uint64_t size);
 
+// Called about every million points with the byte offset reached; returns
+// true to cancel. The plugin also uses it to drop the mapped pages behind.
+using Tick = std::function<bool(std::uint64_t)>;
+
 // Result of the validating scan of the data section.
 struct Layout {
     std::uint64_t nb_streamlines = 0;
@@ -46,14 +50,13 @@ struct Layout {
 // Walks the data once, checking every triple; throws FormatError on a partial
 // NaN/Inf triple, a missing terminator, a streamline not closed by NaN, or a
 // truncated triple. `cancelled` is polled periodically (may be empty).
-Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h,
-            const std::function<bool()> &cancelled = {});
+Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled = {});
 
 // Decodes positions (float32, RAS+ mm) and offsets (nb_streamlines + 1).
 // The buffers must hold layout.nb_vertices * 3 floats and
 // layout.nb_streamlines + 1 offsets.
 void decode(const unsigned char *bytes, const Header &h, const Layout &layout, float *positions,
-            std::uint64_t *offsets, const std::function<bool()> &cancelled = {});
+            std::uint64_t *offsets, const Tick &cancelled = {});
 
 // True when cancelled() stopped scan/decode.
 struct Cancelled {};

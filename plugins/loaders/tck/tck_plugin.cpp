@@ -39,9 +39,13 @@ hz_status run(hz_error *err, const std::string &path, F &&body) {
     });
 }
 
-std::function<bool()> poll(const hz_task *task) {
-    if (task == nullptr) return {};
-    return [task] { return hz::cancelled(task); };
+// Polls cancellation and drops the mapped pages already walked (peak
+// memory stays near the decoded data).
+tck::Tick tick(const hz_task *task, const hzio::MappedFile &file) {
+    return [task, &file](std::uint64_t pos) {
+        if (pos > (64u << 20)) file.release_before(pos - (32u << 20));
+        return hz::cancelled(task);
+    };
 }
 
 int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return tck::probe(head, size); }
@@ -55,7 +59,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         r->path = req->path;
         r->file = std::make_unique<hzio::MappedFile>(r->path);
         r->header = tck::parse_header(r->file->data(), r->file->size());
-        r->layout = tck::scan(r->file->data(), r->file->size(), r->header);
+        r->layout = tck::scan(r->file->data(), r->file->size(), r->header, tick(nullptr, *r->file));
         for (const auto &w : r->header.warnings) log(HZ_LOG_WARN, r->path + ": " + w);
         if (r->layout.trailing_bytes != 0)
             log(HZ_LOG_WARN, r->path + ": " + std::to_string(r->layout.trailing_bytes) +
@@ -109,7 +113,7 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
                               (unsigned long long)(r.layout.nb_streamlines + 1));
     return run(err, r.path, [&]() -> hz_status {
         hz::report(task, 0.0, "decoding TCK");
-        tck::decode(r.file->data(), r.header, r.layout, dst->positions, dst->offsets, poll(task));
+        tck::decode(r.file->data(), r.header, r.layout, dst->positions, dst->offsets, tick(task, *r.file));
         hz::report(task, 1.0, nullptr);
         return HZ_OK;
     });

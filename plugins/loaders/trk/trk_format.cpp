@@ -217,13 +217,13 @@ Header parse_header(const unsigned char *b, std::uint64_t size) {
     return h;
 }
 
-Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const std::function<bool()> &cancelled) {
+Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const Tick &cancelled) {
     Layout l;
     const std::uint64_t point_bytes = 4ull * (3 + h.n_scalars), prop_bytes = 4ull * h.n_properties;
     std::uint64_t pos = kHeaderSize;
     const std::uint64_t want = h.n_count > 0 ? static_cast<std::uint64_t>(h.n_count) : UINT64_MAX;
     while (l.nb_streamlines < want) {
-        if ((l.nb_streamlines & 0xFFFF) == 0 && cancelled && cancelled()) throw Cancelled{};
+        if ((l.nb_streamlines & 0xFFFF) == 0 && cancelled && cancelled(pos)) throw Cancelled{};
         if (pos == size) break;
         if (size - pos < 4)
             throw FormatError("streamline " + std::to_string(l.nb_streamlines) + ": point count cut off at byte " + std::to_string(pos));
@@ -245,13 +245,13 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const s
 }
 
 void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout &l, float *positions, std::uint64_t *offsets,
-            float *scalars, float *properties, const std::function<bool()> &cancelled) {
+            float *scalars, float *properties, const Tick &cancelled) {
     const Mat4 &A = h.to_rasmm;
     const std::uint32_t ns = h.n_scalars, np = h.n_properties;
     std::uint64_t pos = kHeaderSize, v = 0;
     if (offsets) offsets[0] = 0;
     for (std::uint64_t s = 0; s < l.nb_streamlines; ++s) {
-        if ((s & 0xFFFF) == 0 && cancelled && cancelled()) throw Cancelled{};
+        if ((s & 0xFFFF) == 0 && cancelled && cancelled(pos)) throw Cancelled{};
         const auto n = static_cast<std::uint64_t>(load<std::int32_t>(b + pos, h.swap));
         pos += 4;
         for (std::uint64_t i = 0; i < n; ++i, ++v) {

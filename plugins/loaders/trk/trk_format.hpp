@@ -45,17 +45,21 @@ struct Header {
 // Parses and validates the 1000-byte header of a file of `size` bytes.
 Header parse_header(const unsigned char *bytes, std::uint64_t size);
 
+// Called every 65536 streamlines with the byte offset reached; returns true
+// to cancel. The plugin also drops the mapped pages behind with it.
+using Tick = std::function<bool(std::uint64_t)>;
+
 struct Layout {
     std::uint64_t nb_streamlines = 0, nb_vertices = 0;
 };
 // Walks the records once, checking every count against the file size.
-Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const std::function<bool()> &cancelled = {});
+Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled = {});
 
 // Decodes into host buffers: positions (V x 3, RAS+ mm), offsets (N + 1),
 // scalars (V x n_scalars, may be null), properties (N x n_properties, may
 // be null). Non-finite coordinates are rejected (FormatError).
 void decode(const unsigned char *bytes, std::uint64_t size, const Header &h, const Layout &l, float *positions,
-            std::uint64_t *offsets, float *scalars, float *properties, const std::function<bool()> &cancelled = {});
+            std::uint64_t *offsets, float *scalars, float *properties, const Tick &cancelled = {});
 
 // What write() needs beyond the streamlines.
 struct WriteSpec {
