@@ -86,6 +86,10 @@ int main(int argc, char **argv) {
     cluster->add_flag("-f,--force", co.force, "replace existing outputs");
     cluster->add_flag("--json", co.json, "machine-readable summary");
 
+    std::string brdf_shader;
+    auto *brdf = app.add_subcommand("brdf", "evaluate shading plugins' CPU references over JSON lines on stdin");
+    brdf->add_option("--shader", brdf_shader, "only this shader plugin id (default: route each case by its model)");
+
     DemoOptions demo_opts;
     auto *demo = app.add_subcommand("demo", "build the synthetic demo scene and describe it");
     demo->add_option("-o,--out", demo_opts.out_dir, "directory for demo files")->capture_default_str();
@@ -107,6 +111,7 @@ int main(int argc, char **argv) {
         if (*convert) return cmd_convert(g, conv_in, conv_out, force);
         if (*demo) return cmd_demo(g, demo_opts);
         if (*cluster) return cmd_cluster(g, co);
+        if (*brdf) return cmd_brdf(g, brdf_shader);
     } catch (const std::exception &e) {
         std::fprintf(stderr, "horizon: error: %s\n", e.what());
         return 1;

@@ -6,7 +6,8 @@ import unittest
 
 from hztest import BUNDLED, FIXTURES, TEMPLATES, TempDirTest, run, run_json
 
-BUNDLED_IDS = {"org.horizon.loader.tck", "org.horizon.loader.trk", "org.horizon.clustering.qb",
+BUNDLED_IDS = {"org.horizon.loader.tck", "org.horizon.loader.trk", "org.horizon.loader.trx", "org.horizon.loader.nifti",
+               "org.horizon.shader.principled", "org.horizon.clustering.qb",
                "org.horizon.clustering.qbx", "org.horizon.clustering.qbx_merge"}
 
 

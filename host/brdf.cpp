@@ -1,0 +1,100 @@
+// `horizon brdf [--shader ID]`: evaluates shading plugins' CPU references
+// over JSON lines on stdin, one answer line per input line, in order (the
+// protocol of ../shared/brdf/check_vectors.py). A case's "model" selects the
+// plugin whose id ends in ".<model>" ("principled" -> org.horizon.shader.
+// principled); "<model>_isotropic" is the same model with "anisotropic" = 0.
+// Parameters are taken from the case's "params" by the plugin's schema names;
+// N, X, Y, L, V become the shade point's n, t, b, l, v. Unknown models are
+// answered {"id": ..., "unsupported": true}.
+#include "commands.hpp"
+
+#include <hz/core/data.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <iostream>
+#include <cmath>
+#include <string>
+
+namespace hz::host {
+
+namespace {
+
+std::string base_name(const std::string &id) {
+    const auto dot = id.rfind('.');
+    return dot == std::string::npos ? id : id.substr(dot + 1);
+}
+
+bool vec3_of(const nlohmann::json &j, const char *key, double out[3]) {
+    out[0] = out[1] = out[2] = 0;
+    if (!j.contains(key)) return false;
+    const auto &a = j[key];
+    if (!a.is_array() || a.size() != 3) throw core::Error(std::string("field ") + key + " is not a 3-vector");
+    for (int i = 0; i < 3; ++i) out[i] = a[i].is_number() ? a[i].get<double>() : std::nan("");
+    return true;
+}
+
+}  // namespace
+
+int cmd_brdf(const GlobalOptions &g, const std::string &shader_id) {
+    const core::Registry reg = load_registry(g);
+    std::vector<const core::LoadedPlugin *> shaders;
+    for (const auto *p : reg.of_kind(HZ_KIND_SHADER))
+        if (shader_id.empty() || p->info.id == shader_id) shaders.push_back(p);
+    if (!shader_id.empty() && shaders.empty()) throw core::Error("shader plugin '" + shader_id + "' not found (see `horizon plugins`)");
+    std::string line;
+    std::uint64_t line_no = 0;
+    while (std::getline(std::cin, line)) {
+        ++line_no;
+        if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+        const nlohmann::json c = nlohmann::json::parse(line, nullptr, false);
+        if (c.is_discarded() || !c.is_object()) {
+            std::fprintf(stderr, "horizon: error: stdin line %llu is not a JSON object\n", (unsigned long long)line_no);
+            return 1;
+        }
+        nlohmann::json answer = {{"id", c.value("id", nlohmann::json())}};
+        const std::string model = c.value("model", "");
+        const bool iso = model.size() > 10 && model.compare(model.size() - 10, 10, "_isotropic") == 0;
+        const std::string want = iso ? model.substr(0, model.size() - 10) : model;
+        const core::LoadedPlugin *plugin = nullptr;
+        for (const auto *p : shaders)
+            if (base_name(p->info.id) == want) plugin = p;
+        if (plugin == nullptr) {
+            answer["unsupported"] = true;
+        } else {
+            const hz_shader *s = plugin->shader();
+            const nlohmann::json params = c.value("params", nlohmann::json::object());
+            std::vector<double> values;
+            for (uint32_t i = 0; i < s->param_count; ++i) {
+                const hz_param_info *pi = s->get_param(i);
+                const nlohmann::json *v = params.contains(pi->name) ? &params[pi->name] : nullptr;
+                for (uint32_t k = 0; k < pi->components; ++k) {
+                    double x = pi->type == HZ_PARAM_FLOAT_ARRAY ? pi->min_value[0] : pi->default_value[k];
+                    if (v != nullptr && v->is_array() && k < v->size() && (*v)[k].is_number()) x = (*v)[k].get<double>();
+                    else if (v != nullptr && v->is_number() && pi->components == 1) x = v->get<double>();
+                    if (iso && std::string(pi->name) == "anisotropic") x = 0;
+                    values.push_back(x);
+                }
+            }
+            hz_shade_point p{};
+            p.struct_size = sizeof p;
+            p.domain = HZ_SHADE_SURFACE;
+            vec3_of(c, "N", p.n);
+            vec3_of(c, "L", p.l);
+            vec3_of(c, "V", p.v);
+            if (!iso) {
+                vec3_of(c, "X", p.t);
+                vec3_of(c, "Y", p.b);
+            }
+            double rgb[3];
+            const hz_status st = s->eval_reference(&p, values.data(), static_cast<uint32_t>(values.size()), rgb);
+            if (st != HZ_OK) answer["unsupported"] = true;
+            else answer["value"] = {rgb[0], rgb[1], rgb[2]};
+        }
+        std::cout << answer.dump() << '\n' << std::flush;
+    }
+    return 0;
+}
+
+}  // namespace hz::host

@@ -1,0 +1,188 @@
+// hz.shader/1: the paper's principled BRDF (principled_brdf.hpp is the CPU
+// reference; the GLSL below is the same function in float precision).
+#include "principled_brdf.hpp"
+
+#include <hz/cpp/plugin.hpp>
+
+#include <cstring>
+
+namespace {
+
+constexpr const char *kId = "org.horizon.shader.principled";
+
+constexpr hz_param_info unit(const char *name, const char *label, const char *group, const char *tip, double def) {
+    return {sizeof(hz_param_info), HZ_PARAM_FLOAT, name, label, group, "", tip, 0, 1, {0, 0, 0, 0}, {1, 0, 0, 0}, {def, 0, 0, 0},
+            nullptr, 0, nullptr};
+}
+
+// Schema order = the order of values in eval_reference's params.
+const hz_param_info kParams[] = {
+    {sizeof(hz_param_info), HZ_PARAM_COLOR3, "base_color", "Base colour", "Base", "", "linear RGB albedo", 0, 3, {0, 0, 0, 0},
+     {1, 1, 1, 0}, {0.8, 0.8, 0.8, 0}, nullptr, 0, nullptr},
+    unit("subsurface", "Subsurface", "Base", "blend of Burley diffuse and its subsurface approximation", 0),
+    unit("metallic", "Metallic", "Base", "0 dielectric, 1 metal", 0),
+    unit("specular", "Specular", "Specular", "dielectric reflectance (0.5 = 4%)", 0.5),
+    unit("specular_tint", "Specular tint", "Specular", "tints the dielectric specular towards the base colour", 0),
+    unit("roughness", "Roughness", "Specular", "perceptual roughness (alpha = roughness^2)", 0.5),
+    unit("anisotropic", "Anisotropic", "Specular", "aspect of the highlight along the tangent", 0),
+    unit("sheen", "Sheen", "Sheen", "grazing retro-reflection for cloth-like materials", 0),
+    unit("sheen_tint", "Sheen tint", "Sheen", "tints the sheen towards the base colour", 0.5),
+    unit("clearcoat", "Clearcoat", "Clearcoat", "second, fixed-index specular lobe", 0),
+    unit("clearcoat_gloss", "Clearcoat gloss", "Clearcoat", "0 satin to 1 gloss", 1),
+};
+constexpr uint32_t kParamCount = sizeof kParams / sizeof kParams[0];
+constexpr uint32_t kValueCount = 13;  // base_color (3) + 10 scalars
+
+const hz_param_info *HZ_ABI get_param(uint32_t i) { return i < kParamCount ? &kParams[i] : nullptr; }
+
+// GLSL 4.10+. The host declares the uniforms (u_<name>) and HzShadePoint.
+const char kGlsl[] = R"glsl(
+const float principled_PI = 3.14159265358979;
+
+// Schlick weight (1 - u)^5, u clamped.
+float principled_schlick(float u) {
+    float m = clamp(1.0 - u, 0.0, 1.0);
+    float m2 = m * m;
+    return m2 * m2 * m;
+}
+
+// Scale-safe normalisation; returns false for a zero or non-finite vector.
+bool principled_normalize(inout vec3 a) {
+    float m = max(max(abs(a.x), abs(a.y)), abs(a.z));
+    if (!(m > 0.0) || isinf(m) || isnan(m)) return false;
+    a = a / m;
+    a = a / sqrt(dot(a, a));
+    return true;
+}
+
+bool principled_perp(vec3 w, vec3 n, out vec3 p) {
+    p = vec3(0.0);
+    float m = max(max(abs(w.x), abs(w.y)), abs(w.z));
+    if (!(m > 0.0) || isinf(m) || isnan(m)) return false;
+    vec3 s = w / m;
+    vec3 q = s - dot(s, n) * n;
+    if (!(length(q) > 1e-6 * length(s))) return false;
+    p = normalize(q);
+    return true;
+}
+
+// Contract frame: X orthogonalised, else Y's, else Duff et al. 2017.
+void principled_frame(vec3 n, vec3 x, vec3 y, out vec3 tx, out vec3 ty) {
+    vec3 p;
+    if (principled_perp(x, n, p)) {
+        tx = p;
+    } else if (principled_perp(y, n, p)) {
+        tx = normalize(cross(p, n));
+    } else {
+        float s = n.z >= 0.0 ? 1.0 : -1.0;
+        float a = -1.0 / (s + n.z);
+        float b = n.x * n.y * a;
+        tx = vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
+    }
+    ty = cross(n, tx);
+}
+
+vec3 hz_shade(HzShadePoint sp) {
+    vec3 n = sp.n, l = sp.l, v = sp.v;
+    if (!principled_normalize(n) || !principled_normalize(l) || !principled_normalize(v)) return vec3(0.0);
+    float NoL = dot(n, l), NoV = dot(n, v);
+    if (!(NoL > 0.0) || !(NoV > 0.0)) return vec3(0.0);
+    vec3 C = clamp(u_base_color, 0.0, 1.0);
+    float subsurface = clamp(u_subsurface, 0.0, 1.0), metallic = clamp(u_metallic, 0.0, 1.0);
+    float specular = clamp(u_specular, 0.0, 1.0), specular_tint = clamp(u_specular_tint, 0.0, 1.0);
+    float roughness = clamp(u_roughness, 0.0, 1.0), anisotropic = clamp(u_anisotropic, 0.0, 1.0);
+    float sheen = clamp(u_sheen, 0.0, 1.0), sheen_tint = clamp(u_sheen_tint, 0.0, 1.0);
+    float clearcoat = clamp(u_clearcoat, 0.0, 1.0), clearcoat_gloss = clamp(u_clearcoat_gloss, 0.0, 1.0);
+
+    vec3 h = l + v;
+    if (!principled_normalize(h)) return vec3(0.0);
+    float NoH = dot(n, h), LoH = dot(l, h);
+    vec3 X, Y;
+    principled_frame(n, sp.t, sp.b, X, Y);
+
+    float FL = principled_schlick(NoL), FV = principled_schlick(NoV), FH = principled_schlick(LoH);
+    float lum = dot(vec3(0.3, 0.6, 0.1), C);
+    vec3 Ctint = lum > 0.0 ? C / lum : vec3(1.0);
+
+    // Burley 2012 diffuse and subsurface.
+    float Fd90 = 0.5 + 2.0 * roughness * LoH * LoH;
+    float Fd = mix(1.0, Fd90, FL) * mix(1.0, Fd90, FV);
+    float Fss90 = roughness * LoH * LoH;
+    float Fss = mix(1.0, Fss90, FL) * mix(1.0, Fss90, FV);
+    float ss = 1.25 * (Fss * (1.0 / max(NoL + NoV, 1e-6) - 0.5) + 0.5);
+
+    // Anisotropic GGX, Walter et al. 2007.
+    float aspect = sqrt(1.0 - 0.9 * anisotropic);
+    float r2 = roughness * roughness;
+    float ax = max(0.001, r2 / aspect), ay = max(0.001, r2 * aspect);
+    float HoX = dot(h, X), HoY = dot(h, Y);
+    float dden = (HoX / ax) * (HoX / ax) + (HoY / ay) * (HoY / ay) + NoH * NoH;
+    float Ds = 1.0 / (principled_PI * ax * ay * dden * dden);
+    float vl = 1.0 / (NoL + sqrt(pow(dot(l, X) * ax, 2.0) + pow(dot(l, Y) * ay, 2.0) + NoL * NoL));
+    float vv = 1.0 / (NoV + sqrt(pow(dot(v, X) * ax, 2.0) + pow(dot(v, Y) * ay, 2.0) + NoV * NoV));
+    float Gs = vl * vv;
+
+    // Clearcoat: GTR1, Burley 2012.
+    float ac = max(0.001, mix(0.1, 0.001, clearcoat_gloss));
+    float a2 = ac * ac;
+    vec3 nxh = cross(n, h);
+    float t = a2 - 1.0;
+    float ratio = t == 0.0 ? 1.0 : t / log(a2);
+    float Dr = ratio / (principled_PI * (dot(nxh, nxh) + a2 * NoH * NoH));
+    float gl = 1.0 / (NoL + sqrt(0.0625 + NoL * NoL - 0.0625 * NoL * NoL));
+    float gv = 1.0 / (NoV + sqrt(0.0625 + NoV * NoV - 0.0625 * NoV * NoV));
+    float Fr = mix(0.04, 1.0, FH);
+
+    vec3 Cspec0 = mix(0.08 * specular * mix(vec3(1.0), Ctint, specular_tint), C, metallic);
+    vec3 Fs = mix(Cspec0, vec3(1.0), FH);
+    vec3 Csheen = mix(vec3(1.0), Ctint, sheen_tint);
+    vec3 diffuse = (1.0 / principled_PI) * mix(Fd, ss, subsurface) * C + FH * sheen * Csheen;
+    return diffuse * (1.0 - metallic) + Ds * Gs * Fs + 0.25 * clearcoat * Dr * Fr * gl * gv;
+}
+)glsl";
+
+const char *HZ_ABI glsl_source(hz_shade_domain domain, uint32_t) { return domain == HZ_SHADE_SURFACE ? kGlsl : nullptr; }
+
+hz_status HZ_ABI eval_reference(const hz_shade_point *sp, const double *params, uint32_t count, double out[3]) {
+    if (sp == nullptr || params == nullptr || out == nullptr || count < kValueCount) return HZ_E_INVALID_ARGUMENT;
+    principled::Params p;
+    p.base_color = {params[0], params[1], params[2]};
+    p.subsurface = params[3];
+    p.metallic = params[4];
+    p.specular = params[5];
+    p.specular_tint = params[6];
+    p.roughness = params[7];
+    p.anisotropic = params[8];
+    p.sheen = params[9];
+    p.sheen_tint = params[10];
+    p.clearcoat = params[11];
+    p.clearcoat_gloss = params[12];
+    auto v3 = [](const double *a) { return principled::V3{a[0], a[1], a[2]}; };
+    const principled::V3 f = principled::eval(p, v3(sp->n), v3(sp->l), v3(sp->v), v3(sp->t), v3(sp->b));
+    std::copy(f.begin(), f.end(), out);
+    return HZ_OK;
+}
+
+const hz_shader kShader = {
+    sizeof(hz_shader), HZ_SHADE_SURFACE, HZ_SHADER_OUTPUT_BRDF, HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL, "principled_", kParamCount,
+    get_param, glsl_source, eval_reference,
+};
+const char *const kInterfaces[] = {HZ_INTERFACE_SHADER, nullptr};
+const hz_plugin_descriptor kDescriptor = {
+    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_SHADER, kId, "Principled BRDF", "1.0.0", "Horizon",
+    "The paper's principled BRDF (Burley 2012): subsurface, metallic, specular, tints, roughness, anisotropy, sheen, clearcoat",
+    "MIT", kInterfaces,
+};
+
+bool HZ_ABI init(const hz_host *, const char *) { return true; }
+void HZ_ABI deinit() {}
+uint32_t HZ_ABI count() { return 1; }
+const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i == 0 ? &kDescriptor : nullptr; }
+const void *HZ_ABI get_interface(const char *id, const char *iface) {
+    if (id && iface && std::strcmp(id, kId) == 0 && std::strcmp(iface, HZ_INTERFACE_SHADER) == 0) return &kShader;
+    return nullptr;
+}
+
+}  // namespace
+
+HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
