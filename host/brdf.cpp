@@ -68,7 +68,8 @@ int cmd_brdf(const GlobalOptions &g, const std::string &shader_id) {
             std::vector<double> values;
             for (uint32_t i = 0; i < s->param_count; ++i) {
                 const hz_param_info *pi = s->get_param(i);
-                const nlohmann::json *v = params.contains(pi->name) ? &params[pi->name] : nullptr;
+                // Parameters live in "params" (principled) or at the top level (other models).
+                const nlohmann::json *v = params.contains(pi->name) ? &params[pi->name] : c.contains(pi->name) ? &c[pi->name] : nullptr;
                 for (uint32_t k = 0; k < pi->components; ++k) {
                     double x = pi->type == HZ_PARAM_FLOAT_ARRAY ? pi->min_value[0] : pi->default_value[k];
                     if (v != nullptr && v->is_array() && k < v->size() && (*v)[k].is_number()) x = (*v)[k].get<double>();
@@ -87,6 +88,7 @@ int cmd_brdf(const GlobalOptions &g, const std::string &shader_id) {
                 vec3_of(c, "X", p.t);
                 vec3_of(c, "Y", p.b);
             }
+            if (c.contains("T") && vec3_of(c, "T", p.t)) p.domain = HZ_SHADE_LINE;  // line models: the tangent
             double rgb[3];
             const hz_status st = s->eval_reference(&p, values.data(), static_cast<uint32_t>(values.size()), rgb);
             if (st != HZ_OK) answer["unsupported"] = true;
