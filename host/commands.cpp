@@ -104,6 +104,18 @@ json describe(const core::Dataset &ds) {
                                    {"dtype", core::dtype_name(a.dtype)},
                                    {"components", a.components}});
     }
+    if (ds.kind == HZ_DATA_MESH) {
+        const auto &m = ds.mesh;
+        j["nb_vertices"] = m.nb_vertices();
+        j["nb_faces"] = m.nb_faces();
+        const auto b = core::bounds_of(m.vertices.data(), m.nb_vertices());
+        j["bbox_ras_mm"] = b.empty ? json(nullptr) : json{{"min", b.min}, {"max", b.max}};
+        j["transform"] = affine_json(m.transform);
+        j["arrays"] = json::array();
+        for (const auto &a : m.arrays)
+            j["arrays"].push_back({{"name", a.name}, {"attach", attach_name(a.attach)}, {"count", a.count}, {"dtype", core::dtype_name(a.dtype)},
+                                   {"components", a.components}});
+    }
     if (ds.kind == HZ_DATA_VOLUME) {
         const auto &v = ds.volume;
         j["dims"] = v.dims;
@@ -171,6 +183,17 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json) {
         }
         if (groups > 5) std::printf("group:         ... %zu groups in all\n", groups);
     }
+    if (ds.kind == HZ_DATA_MESH) {
+        std::printf("vertices:      %llu\ntriangles:     %llu\n", (unsigned long long)ds.mesh.nb_vertices(), (unsigned long long)ds.mesh.nb_faces());
+        if (!j["bbox_ras_mm"].is_null()) {
+            const auto &mn = j["bbox_ras_mm"]["min"];
+            const auto &mx = j["bbox_ras_mm"]["max"];
+            std::printf("bbox RAS mm:   [%.2f %.2f %.2f] .. [%.2f %.2f %.2f]\n", mn[0].get<double>(), mn[1].get<double>(), mn[2].get<double>(),
+                        mx[0].get<double>(), mx[1].get<double>(), mx[2].get<double>());
+        }
+        for (const auto &a : ds.mesh.arrays)
+            std::printf("array:         %s (per vertex, %s x %u)\n", a.name.c_str(), core::dtype_name(a.dtype), a.components);
+    }
     if (ds.kind == HZ_DATA_VOLUME) {
         std::string dims;
         for (auto d : ds.volume.dims) dims += (dims.empty() ? "" : " x ") + std::to_string(d);
@@ -202,6 +225,9 @@ int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string
     for (const auto &d : dropped) std::fprintf(stderr, "horizon: warning: %s: dropped %s\n", out.c_str(), d.c_str());
     if (ds.kind == HZ_DATA_STREAMLINES)
         std::printf("%s -> %s (%llu streamlines)\n", in.c_str(), out.c_str(), (unsigned long long)ds.tractogram.nb_streamlines());
+    else if (ds.kind == HZ_DATA_MESH)
+        std::printf("%s -> %s (mesh, %llu vertices, %llu triangles)\n", in.c_str(), out.c_str(), (unsigned long long)ds.mesh.nb_vertices(),
+                    (unsigned long long)ds.mesh.nb_faces());
     else
         std::printf("%s -> %s (%s)\n", in.c_str(), out.c_str(), core::kind_name(ds.kind));
     return 0;

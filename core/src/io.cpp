@@ -46,6 +46,38 @@ std::vector<unsigned char> read_head(const fs::path &path, std::size_t n) {
     return buf;
 }
 
+
+// Reads extra array `i` of an open reader into the data model.
+DataArray read_extra_array(const hz_loader &l, hz_reader *r, uint32_t i, const fs::path &path, const hz_task *task) {
+    hz_error err = make_error();
+    hz_array_info ai{};
+    ai.struct_size = sizeof ai;
+    hz_status st = l.get_array_info(r, i, &ai, &err);
+    if (st != HZ_OK) throw Error(failure(err, st, path, "get_array_info"));
+    DataArray a;
+    a.name = ai.name ? ai.name : "";
+    a.attach = ai.attach;
+    a.dtype = ai.dtype;
+    a.components = ai.components;
+    a.count = ai.count;
+    const std::size_t es = dtype_size(ai.dtype);
+    if (es == 0 || ai.components == 0) throw Error(path.string() + ": array '" + a.name + "' has an invalid type");
+    a.bytes = Buffer<std::byte>(ai.count * ai.components * es);
+    hz_array_view v{};
+    v.struct_size = sizeof v;
+    v.dtype = ai.dtype;
+    v.data = a.bytes.data();
+    v.capacity_bytes = a.bytes.size();
+    v.ndim = 2;
+    v.shape[0] = ai.count;
+    v.shape[1] = ai.components;
+    v.stride_bytes[0] = static_cast<int64_t>(ai.components * es);
+    v.stride_bytes[1] = static_cast<int64_t>(es);
+    st = l.read_array ? l.read_array(r, i, &v, task, &err) : HZ_E_UNSUPPORTED;
+    if (st != HZ_OK) throw Error(failure(err, st, path, "read_array"));
+    return a;
+}
+
 }  // namespace
 
 hz_array_view volume_view(const Volume &v) {
@@ -195,33 +227,7 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         st = l->read_streamlines(g.r, &dst, task, &err);
         if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines"));
         t.validate(path.string());
-        for (uint32_t i = 0; i < info.nb_arrays; ++i) {
-            hz_array_info ai{};
-            ai.struct_size = sizeof ai;
-            st = l->get_array_info(g.r, i, &ai, &err);
-            if (st != HZ_OK) throw Error(failure(err, st, path, "get_array_info"));
-            DataArray a;
-            a.name = ai.name ? ai.name : "";
-            a.attach = ai.attach;
-            a.dtype = ai.dtype;
-            a.components = ai.components;
-            a.count = ai.count;
-            const std::size_t es = dtype_size(ai.dtype);
-            a.bytes = Buffer<std::byte>(ai.count * ai.components * es);
-            hz_array_view v{};
-            v.struct_size = sizeof v;
-            v.dtype = ai.dtype;
-            v.data = a.bytes.data();
-            v.capacity_bytes = a.bytes.size();
-            v.ndim = 2;
-            v.shape[0] = ai.count;
-            v.shape[1] = ai.components;
-            v.stride_bytes[0] = static_cast<int64_t>(ai.components * es);
-            v.stride_bytes[1] = static_cast<int64_t>(es);
-            st = l->read_array ? l->read_array(g.r, i, &v, task, &err) : HZ_E_UNSUPPORTED;
-            if (st != HZ_OK) throw Error(failure(err, st, path, "read_array"));
-            t.arrays.push_back(std::move(a));
-        }
+        for (uint32_t i = 0; i < info.nb_arrays; ++i) t.arrays.push_back(read_extra_array(*l, g.r, i, path, task));
     } else if (info.kind == HZ_DATA_VOLUME) {
         if (l->read_volume == nullptr) throw Error(path.string() + ": loader " + p.info.id + " has no read_volume");
         Volume &v = ds.volume;
@@ -238,6 +244,23 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         hz_array_view dst = volume_view(v);
         st = l->read_volume(g.r, &dst, task, &err);
         if (st != HZ_OK) throw Error(failure(err, st, path, "read_volume"));
+    } else if (info.kind == HZ_DATA_MESH) {
+        if (l->read_mesh == nullptr) throw Error(path.string() + ": loader " + p.info.id + " has no read_mesh");
+        Mesh &m = ds.mesh;
+        m.vertices = Buffer<float>(3 * info.nb_vertices);
+        m.faces = Buffer<std::uint32_t>(3 * info.nb_faces);
+        hz_mesh_dst dst{};
+        dst.struct_size = sizeof dst;
+        dst.vertices = m.vertices.data();
+        dst.vertices_capacity = m.vertices.size();
+        dst.faces = m.faces.data();
+        dst.faces_capacity = m.faces.size();
+        st = l->read_mesh(g.r, &dst, task, &err);
+        if (st != HZ_OK) throw Error(failure(err, st, path, "read_mesh"));
+        for (std::size_t i = 0; i < m.faces.size(); ++i)
+            if (m.faces[i] >= m.nb_vertices()) throw Error(path.string() + ": triangle " + std::to_string(i / 3) + " uses a vertex out of range");
+        std::copy(std::begin(info.voxel_to_ras), std::end(info.voxel_to_ras), m.transform.begin());
+        for (uint32_t i = 0; i < info.nb_arrays; ++i) m.arrays.push_back(read_extra_array(*l, g.r, i, path, task));
     } else {
         throw Error(path.string() + ": " + kind_name(info.kind) + " data is not supported by this build of the host yet");
     }
@@ -286,6 +309,13 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
         std::copy_n(ds.volume.dims.begin(), view.volume_ndim, view.volume_dims);
         view.scale_slope = ds.volume.scale_slope;
         view.scale_inter = ds.volume.scale_inter;
+    }
+    if (ds.kind == HZ_DATA_MESH) {
+        view.mesh_vertices = ds.mesh.vertices.data();
+        view.mesh_nb_vertices = ds.mesh.nb_vertices();
+        view.mesh_faces = ds.mesh.faces.data();
+        view.mesh_nb_faces = ds.mesh.nb_faces();
+        std::copy(ds.mesh.transform.begin(), ds.mesh.transform.end(), view.voxel_to_ras);
     }
     if (ds.kind == HZ_DATA_STREAMLINES) {
         view.streamlines = ds.tractogram.view();

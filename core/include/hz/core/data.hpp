@@ -84,6 +84,7 @@ struct Mesh {
     Buffer<float> vertices;       // nb x 3
     Buffer<std::uint32_t> faces;  // nb x 3, 0-based
     std::vector<DataArray> arrays;
+    Affine transform = kIdentity;  // the format's own matrix (GIFTI DataSpace -> TransformedSpace), kept for writing
     std::uint64_t nb_vertices() const { return vertices.size() / 3; }
     std::uint64_t nb_faces() const { return faces.size() / 3; }
 };

@@ -1,0 +1,47 @@
+// GIFTI surfaces and overlays (GIFTI 1.0; ../shared/formats/FORMATS.md 1.6):
+// XML through pugixml; ASCII, Base64Binary, GZipBase64Binary (zlib) and
+// ExternalFileBinary encodings; both endians; row- and column-major.
+// Pure C++ without SDK types; gifti_plugin.cpp adapts it to hz.loader/1.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace gifti {
+
+struct FormatError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+// A per-vertex data array other than the geometry (shape, label, func...).
+struct Overlay {
+    std::string name;     // its Name meta value, else its intent
+    std::string intent;
+    bool integer = false; // INT32/UINT8 data (labels) vs FLOAT32
+    std::uint32_t components = 1;
+    std::vector<float> values;        // float data, vertices x components
+    std::vector<std::int32_t> labels; // integer data
+};
+
+struct Surface {
+    std::vector<float> vertices;        // N x 3, as stored (mm in DataSpace)
+    std::vector<std::uint32_t> faces;   // M x 3, 0-based
+    std::array<double, 16> transform{}; // DataSpace -> TransformedSpace, identity if absent
+    std::string data_space, transformed_space;
+    std::vector<Overlay> overlays;
+    std::vector<std::pair<std::string, std::string>> metadata;
+};
+
+// Reads and validates a whole .gii file (faces in range, sizes = Dims).
+Surface read(const std::string &path);
+
+// Writes GZipBase64Binary (gz) or Base64Binary arrays, little-endian,
+// row-major: POINTSET, TRIANGLE, then float overlays as NIFTI_INTENT_SHAPE.
+void write(const std::string &path, const Surface &s, bool gz);
+
+int probe(const unsigned char *head, std::uint64_t size);
+
+}  // namespace gifti

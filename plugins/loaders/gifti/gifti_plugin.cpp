@@ -1,0 +1,195 @@
+// hz.loader/1 adapter for GIFTI surfaces and overlays (gifti_format.hpp).
+#include "gifti_format.hpp"
+#include "mapped_file.hpp"
+
+#include <hz/cpp/plugin.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <memory>
+
+namespace {
+
+constexpr const char *kId = "org.horizon.loader.gifti";
+
+struct Reader {
+    std::string path;
+    gifti::Surface s;
+};
+Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
+
+template <class F>
+hz_status run(hz_error *err, const std::string &path, F &&body) {
+    return hz::guard(err, [&]() -> hz_status {
+        try {
+            return body();
+        } catch (const gifti::FormatError &e) {
+            return hz::set_errorf(err, HZ_E_FORMAT, "gifti: %s: %s", path.c_str(), e.what());
+        } catch (const hzio::IoError &e) {
+            return hz::set_errorf(err, HZ_E_IO, "gifti: %s: %s", path.c_str(), e.what());
+        }
+    });
+}
+
+int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return gifti::probe(head, size); }
+
+hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
+    if (out != nullptr) *out = nullptr;
+    if (req == nullptr || req->path == nullptr || out == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: open: NULL request, path or output");
+    return run(err, req->path, [&]() -> hz_status {
+        auto r = std::make_unique<Reader>();
+        r->path = req->path;
+        r->s = gifti::read(r->path);
+        *out = reinterpret_cast<hz_reader *>(r.release());
+        return HZ_OK;
+    });
+}
+
+hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
+    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_dataset_info))
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: get_info: bad arguments");
+    const gifti::Surface &s = as_reader(reader)->s;
+    out->kind = HZ_DATA_MESH;
+    std::snprintf(out->format, sizeof out->format, "gifti");
+    out->nb_vertices = s.vertices.size() / 3;
+    out->nb_faces = s.faces.size() / 3;
+    // The POINTSET's CoordinateSystemTransformMatrix (DataSpace ->
+    // TransformedSpace), kept so that a writer can restore it; vertices are
+    // used as stored (nibabel, Workbench).
+    std::copy(s.transform.begin(), s.transform.end(), out->voxel_to_ras);
+    out->source_space = HZ_SPACE_RASMM;
+    out->nb_arrays = static_cast<uint32_t>(s.overlays.size());
+    return HZ_OK;
+}
+
+hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
+    if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: get_array_info: NULL");
+    const Reader &r = *as_reader(reader);
+    if (index >= r.s.overlays.size()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "gifti: %s: no extra array %u", r.path.c_str(), index);
+    const gifti::Overlay &o = r.s.overlays[index];
+    out->attach = HZ_ATTACH_VERTEX;
+    out->name = o.name.c_str();
+    out->dtype = o.integer ? HZ_DTYPE_I32 : HZ_DTYPE_F32;
+    out->components = o.components;
+    out->count = r.s.vertices.size() / 3;
+    return HZ_OK;
+}
+
+hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
+    if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: visit_metadata: NULL");
+    const gifti::Surface &s = as_reader(reader)->s;
+    for (const auto &[k, v] : s.metadata) visitor(ctx, k.c_str(), v.c_str());
+    if (!s.data_space.empty()) visitor(ctx, "DataSpace", s.data_space.c_str());
+    if (!s.transformed_space.empty()) visitor(ctx, "TransformedSpace", s.transformed_space.c_str());
+    return HZ_OK;
+}
+
+hz_status HZ_ABI read_mesh(hz_reader *reader, const hz_mesh_dst *dst, const hz_task *task, hz_error *err) {
+    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: read_mesh: NULL");
+    const Reader &r = *as_reader(reader);
+    if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+    if (dst->vertices_capacity < r.s.vertices.size() || dst->faces_capacity < r.s.faces.size())
+        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: destination too small", r.path.c_str());
+    if (!r.s.vertices.empty()) std::memcpy(dst->vertices, r.s.vertices.data(), r.s.vertices.size() * 4);
+    if (!r.s.faces.empty()) std::memcpy(dst->faces, r.s.faces.data(), r.s.faces.size() * 4);
+    return HZ_OK;
+}
+
+hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
+    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: read_array: NULL");
+    const Reader &r = *as_reader(reader);
+    if (index >= r.s.overlays.size()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "gifti: %s: no extra array %u", r.path.c_str(), index);
+    const gifti::Overlay &o = r.s.overlays[index];
+    const std::uint64_t rows = r.s.vertices.size() / 3;
+    if (dst->ndim != 2 || dst->shape[0] != rows || dst->shape[1] != o.components || dst->dtype != (o.integer ? HZ_DTYPE_I32 : HZ_DTYPE_F32))
+        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "gifti: %s: read_array: destination does not match", r.path.c_str());
+    auto *base = static_cast<unsigned char *>(dst->data);
+    for (std::uint64_t i = 0; i < rows; ++i)
+        for (std::uint32_t c = 0; c < o.components; ++c) {
+            const std::int64_t off = static_cast<std::int64_t>(i) * dst->stride_bytes[0] + static_cast<std::int64_t>(c) * dst->stride_bytes[1];
+            if (off < 0 || static_cast<std::uint64_t>(off) + 4 > dst->capacity_bytes)
+                return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
+            const std::size_t k = i * o.components + c;
+            std::memcpy(base + off, o.integer ? static_cast<const void *>(&o.labels[k]) : static_cast<const void *>(&o.values[k]), 4);
+        }
+    return HZ_OK;
+}
+
+void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
+
+hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
+    if (req == nullptr || req->path == nullptr || data == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: write: NULL request or data");
+    if (data->kind != HZ_DATA_MESH) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "gifti: %s: GIFTI holds surfaces only", req->path);
+    return run(err, req->path, [&]() -> hz_status {
+        gifti::Surface s;
+        s.vertices.assign(data->mesh_vertices, data->mesh_vertices + 3 * data->mesh_nb_vertices);
+        s.faces.assign(data->mesh_faces, data->mesh_faces + 3 * data->mesh_nb_faces);
+        for (std::uint32_t f : s.faces)
+            if (f >= data->mesh_nb_vertices) throw gifti::FormatError("a triangle uses a vertex index out of range");
+        std::copy(data->voxel_to_ras, data->voxel_to_ras + 16, s.transform.begin());
+        if (s.transform[15] == 0) s.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+        for (uint32_t i = 0; i < data->nb_metadata; ++i) {
+            const std::string k = data->metadata[i].key ? data->metadata[i].key : "";
+            const std::string v = data->metadata[i].value ? data->metadata[i].value : "";
+            if (k == "DataSpace") s.data_space = v;
+            else if (k == "TransformedSpace") s.transformed_space = v;
+            else s.metadata.emplace_back(k, v);
+        }
+        for (uint32_t i = 0; i < data->nb_arrays; ++i) {
+            const hz_named_array &a = data->arrays[i];
+            const std::string name = a.name ? a.name : "";
+            if (a.attach != HZ_ATTACH_VERTEX || a.count != data->mesh_nb_vertices) {
+                if (req->on_dropped) req->on_dropped(req->ctx, ("array '" + name + "' (GIFTI overlays are per vertex)").c_str());
+                continue;
+            }
+            gifti::Overlay o;
+            o.name = name;
+            o.components = a.components;
+            const std::uint64_t n = a.count * a.components;
+            if (a.dtype == HZ_DTYPE_F32) {
+                const auto *p = static_cast<const float *>(a.data);
+                o.values.assign(p, p + n);
+            } else if (a.dtype == HZ_DTYPE_F64) {
+                const auto *p = static_cast<const double *>(a.data);
+                o.values.assign(p, p + n);
+            } else if (a.dtype == HZ_DTYPE_I32) {
+                o.integer = true;
+                const auto *p = static_cast<const std::int32_t *>(a.data);
+                o.labels.assign(p, p + n);
+            } else {
+                if (req->on_dropped) req->on_dropped(req->ctx, ("array '" + name + "' (type not stored in GIFTI)").c_str());
+                continue;
+            }
+            s.overlays.push_back(std::move(o));
+        }
+        gifti::write(req->path, s, true);
+        return HZ_OK;
+    });
+}
+
+const char *const kExtensions[] = {"gii", nullptr};
+const hz_loader kLoader = {
+    sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 4096, kExtensions, probe, open, get_info,
+    get_array_info, visit_metadata, nullptr, read_array, nullptr, read_mesh, close, write,
+};
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
+const hz_plugin_descriptor kDescriptor = {
+    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "GIFTI", "1.0.0", "Horizon",
+    "GIFTI surfaces and per-vertex overlays (ASCII, Base64, GZipBase64, external; both endians; row/column major)", "MIT",
+    kInterfaces,
+};
+
+bool HZ_ABI init(const hz_host *, const char *) { return true; }
+void HZ_ABI deinit() {}
+uint32_t HZ_ABI count() { return 1; }
+const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i == 0 ? &kDescriptor : nullptr; }
+const void *HZ_ABI get_interface(const char *id, const char *iface) {
+    if (id && iface && std::strcmp(id, kId) == 0 && std::strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &kLoader;
+    return nullptr;
+}
+
+}  // namespace
+
+HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};

@@ -1,0 +1,129 @@
+"""GIFTI surfaces through `horizon`, compared with nibabel: every encoding,
+both index orders, overlays; malformed files fail cleanly."""
+import base64
+import gzip
+import os
+import zlib
+
+import nibabel as nib
+import numpy as np
+from nibabel.gifti import GiftiDataArray, GiftiImage
+
+from hztest import TempDirTest, run, run_json
+
+NIB_DATA = os.path.join(os.path.dirname(nib.__file__), "gifti", "tests", "data")
+
+
+def surface(rng, n=40, m=60):
+    v = rng.normal(size=(n, 3)).astype(np.float32) * 50
+    f = rng.integers(0, n, size=(m, 3)).astype(np.int32)
+    return v, f
+
+
+class GiftiTest(TempDirTest):
+    def write(self, name, v, f, encoding, ordering="C", overlay=None, endian="little"):
+        arrays = [GiftiDataArray(v, intent="NIFTI_INTENT_POINTSET", datatype="NIFTI_TYPE_FLOAT32", encoding=encoding,
+                                 ordering=ordering, endian=endian),
+                  GiftiDataArray(f, intent="NIFTI_INTENT_TRIANGLE", datatype="NIFTI_TYPE_INT32", encoding=encoding,
+                                 ordering=ordering, endian=endian)]
+        if overlay is not None:
+            arrays.append(GiftiDataArray(overlay, intent="NIFTI_INTENT_SHAPE", datatype="NIFTI_TYPE_FLOAT32", encoding=encoding))
+        path = self.path(name)
+        nib.save(GiftiImage(darrays=arrays), path)
+        return path
+
+    def check_roundtrip(self, path, v=None, f=None, overlay=None):
+        """horizon's reading (converted to GIFTI by horizon) equals nibabel's reading of the source."""
+        out = self.path("out.gii")
+        p = run("convert", path, out, "--force")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        ref, g = nib.load(path), nib.load(out)
+        for intent in ("NIFTI_INTENT_POINTSET", "NIFTI_INTENT_TRIANGLE"):
+            np.testing.assert_array_equal(np.asarray(g.agg_data(intent)).reshape(-1, 3), np.asarray(ref.agg_data(intent)).reshape(-1, 3))
+        if v is not None:
+            np.testing.assert_allclose(g.agg_data("NIFTI_INTENT_POINTSET"), v, rtol=1e-6, atol=1e-4)  # ASCII keeps ~6 decimals
+            np.testing.assert_array_equal(g.agg_data("NIFTI_INTENT_TRIANGLE"), f)
+        if overlay is not None:
+            np.testing.assert_array_equal(g.agg_data("NIFTI_INTENT_SHAPE"), ref.agg_data("NIFTI_INTENT_SHAPE"))
+
+    def test_encodings_orders_overlays(self):
+        rng = np.random.default_rng(2)
+        for enc in ("GIFTI_ENCODING_ASCII", "GIFTI_ENCODING_B64BIN", "GIFTI_ENCODING_B64GZ"):
+            for ordering in ("C", "F"):
+                with self.subTest(encoding=enc, ordering=ordering):
+                    v, f = surface(rng)
+                    ov = rng.random(len(v)).astype(np.float32)
+                    path = self.write(f"s_{enc}_{ordering}.gii", v, f, enc, ordering, ov)
+                    info = run_json("info", path, "--json")
+                    self.assertEqual((info["nb_vertices"], info["nb_faces"]), (len(v), len(f)))
+                    self.assertEqual(len(info["arrays"]), 1)
+                    self.check_roundtrip(path, v, f, ov)
+
+    def test_big_endian_and_external(self):
+        rng = np.random.default_rng(3)
+        v, f = surface(rng)
+        path = self.write("le.gii", v, f, "GIFTI_ENCODING_B64BIN")
+        with open(path) as fh:
+            text = fh.read()
+        b64_v = base64.b64encode(v.tobytes()).decode()
+        # nibabel writes little-endian only: swap the POINTSET by hand.
+        be = text.replace('Endian="LittleEndian"', 'Endian="BigEndian"', 1).replace(b64_v, base64.b64encode(v.astype(">f4").tobytes()).decode(), 1)
+        with open(self.path("be.gii"), "w") as fh:
+            fh.write(be)
+        self.check_roundtrip(self.path("be.gii"), v, f)
+        # ExternalFileBinary with an offset (nibabel reads it, cannot write it).
+        with open(self.path("side.dat"), "wb") as fh:
+            fh.write(b"\0" * 16 + v.tobytes())
+        ext = text.replace('Encoding="Base64Binary"', 'Encoding="ExternalFileBinary"', 1).replace(
+            'ExternalFileName=""', 'ExternalFileName="side.dat"', 1).replace('ExternalFileOffset="0"', 'ExternalFileOffset="16"', 1).replace(b64_v, "", 1)
+        with open(self.path("ext.gii"), "w") as fh:
+            fh.write(ext)
+        self.check_roundtrip(self.path("ext.gii"), v, f)
+
+    def test_nibabel_test_data(self):
+        for name in ("ascii.gii", "external.gii"):
+            with self.subTest(file=name):
+                path = os.path.join(NIB_DATA, name)
+                self.check_roundtrip(path)
+        # Face indices past the vertex count (nibabel reads them unchecked), and overlay-only files.
+        for name in ("base64bin.gii", "gzipbase64.gii", "label.gii", "rh.shape.curv.gii", "task.func.gii"):
+            with self.subTest(file=name):
+                self.assert_clean_error(run("info", os.path.join(NIB_DATA, name)), name)
+
+    def test_malformed(self):
+        rng = np.random.default_rng(4)
+        v, f = surface(rng, 10, 8)
+        good = self.write("good.gii", v, f, "GIFTI_ENCODING_B64BIN")
+        with open(good) as fh:
+            text = fh.read()
+        b64_v = base64.b64encode(v.tobytes()).decode()
+        bad_f = f.copy()
+        bad_f[0, 0] = len(v)
+        cases = {
+            "bad_base64.gii": text.replace(b64_v[:20], "!!not*base64!!" + b64_v[14:20], 1),
+            "short_data.gii": text.replace(b64_v, base64.b64encode(v[:-2].tobytes()).decode(), 1),
+            "face_out_of_range.gii": text.replace(base64.b64encode(f.tobytes()).decode(), base64.b64encode(bad_f.tobytes()).decode(), 1),
+            "truncated.gii": text[: len(text) // 2],
+            "bad_datatype.gii": text.replace("NIFTI_TYPE_FLOAT32", "NIFTI_TYPE_FLOAT99", 1),
+            "dim_mismatch.gii": text.replace('Dim1="3"', 'Dim1="4"', 1),
+            "gzip_container.gii": text.replace('Encoding="Base64Binary"', 'Encoding="GZipBase64Binary"', 1).replace(
+                b64_v, base64.b64encode(gzip.compress(v.tobytes())).decode(), 1),
+            "corrupt_zlib.gii": text.replace('Encoding="Base64Binary"', 'Encoding="GZipBase64Binary"', 1).replace(
+                b64_v, base64.b64encode(b"\x78\x9c" + os.urandom(40)).decode(), 1),
+            "missing_external.gii": text.replace('Encoding="Base64Binary"', 'Encoding="ExternalFileBinary"', 1).replace(
+                'ExternalFileName=""', 'ExternalFileName="nowhere.dat"', 1),
+            "no_triangles.gii": self.write_only_points(v),
+        }
+        for name, content in cases.items():
+            with self.subTest(case=name):
+                path = self.path(name)
+                with open(path, "w") as fh:
+                    fh.write(content)
+                self.assert_clean_error(run("info", path, timeout=10), name)
+
+    def write_only_points(self, v):
+        p = self.path("points_only_src.gii")
+        nib.save(GiftiImage(darrays=[GiftiDataArray(v, intent="NIFTI_INTENT_POINTSET", datatype="NIFTI_TYPE_FLOAT32",
+                                                    encoding="GIFTI_ENCODING_B64BIN")]), p)
+        with open(p) as fh:
+            return fh.read()
