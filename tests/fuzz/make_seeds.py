@@ -13,7 +13,7 @@ out = sys.argv[1]
 rng = np.random.default_rng(0)
 sl = [rng.normal(size=(int(rng.integers(1, 8)), 3)).astype(np.float32) * 10 for _ in range(6)]
 nib_data = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
-for kind in ("tck", "trk", "trx", "nifti"):
+for kind in ("tck", "trk", "trx", "nifti", "gifti"):
     os.makedirs(os.path.join(out, kind), exist_ok=True)
 t = nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4))
 nib.streamlines.save(t, os.path.join(out, "tck", "small.tck"))
@@ -40,3 +40,12 @@ vol = (rng.random((4, 3, 2)) * 100).astype(np.int16)
 nib.save(nib.Nifti1Image(vol, np.eye(4)), os.path.join(out, "nifti", "small.nii"))
 nib.save(nib.Nifti1Image(vol.astype(np.float32), np.diag([2, 2, 2, 1])), os.path.join(out, "nifti", "small.nii.gz"))
 nib.save(nib.Nifti2Image(vol, np.eye(4)), os.path.join(out, "nifti", "small2.nii"))
+
+from nibabel.gifti import GiftiDataArray, GiftiImage
+verts = (rng.random((6, 3)) * 10).astype(np.float32)
+tris = np.array([[0, 1, 2], [3, 4, 5]], np.int32)
+for enc in ("GIFTI_ENCODING_ASCII", "GIFTI_ENCODING_B64BIN", "GIFTI_ENCODING_B64GZ"):
+    img = GiftiImage(darrays=[GiftiDataArray(verts, intent="NIFTI_INTENT_POINTSET", datatype="NIFTI_TYPE_FLOAT32", encoding=enc),
+                              GiftiDataArray(tris, intent="NIFTI_INTENT_TRIANGLE", datatype="NIFTI_TYPE_INT32", encoding=enc),
+                              GiftiDataArray(verts[:, 0].copy(), intent="NIFTI_INTENT_SHAPE", datatype="NIFTI_TYPE_FLOAT32", encoding=enc)])
+    nib.save(img, os.path.join(out, "gifti", enc.split("_")[-1].lower() + ".gii"))
