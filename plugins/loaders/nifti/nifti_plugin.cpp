@@ -11,7 +11,7 @@
 namespace {
 
 constexpr const char *kId = "org.horizon.loader.nifti";
-const hz_host *g_host = nullptr;
+const hz_host *host();
 
 struct Reader {
     std::string path;
@@ -70,7 +70,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         r->path = req->path;
         r->image = std::make_unique<nifti::Image>(nifti::Image::open(r->path));
         for (const auto &w : r->image->header().warnings)
-            if (g_host && g_host->log) g_host->log(g_host, kId, HZ_LOG_WARN, (r->path + ": " + w).c_str());
+            hz::log(host(), kId, HZ_LOG_WARN, r->path + ": " + w);
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
     });
@@ -254,18 +254,8 @@ const hz_plugin_descriptor kDescriptor = {
     "NIfTI-1 and NIfTI-2 volumes (.nii, .nii.gz, .hdr/.img pairs), both byte orders; writes .nii and .nii.gz", "MIT", kInterfaces,
 };
 
-bool HZ_ABI init(const hz_host *host, const char *) {
-    g_host = host;
-    return true;
-}
-void HZ_ABI deinit() { g_host = nullptr; }
-uint32_t HZ_ABI count() { return 1; }
-const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i == 0 ? &kDescriptor : nullptr; }
-const void *HZ_ABI get_interface(const char *id, const char *iface) {
-    if (id && iface && std::strcmp(id, kId) == 0 && std::strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &kLoader;
-    return nullptr;
-}
+const hz_host *host() { return hz::single_plugin<kDescriptor, kLoader>::host(); }
 
 }  // namespace
 
-HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
+HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;

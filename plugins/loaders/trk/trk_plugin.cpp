@@ -11,11 +11,9 @@
 namespace {
 
 constexpr const char *kId = "org.horizon.loader.trk";
-const hz_host *g_host = nullptr;
+const hz_host *host();
 
-void log(hz_log_level lvl, const std::string &msg) {
-    if (g_host != nullptr && g_host->log != nullptr) g_host->log(g_host, kId, lvl, msg.c_str());
-}
+void log(hz_log_level lvl, const std::string &msg) { hz::log(host(), kId, lvl, msg); }
 
 struct Reader {
     std::string path;
@@ -266,18 +264,8 @@ const hz_plugin_descriptor kDescriptor = {
     "TrackVis .trk v1/v2, both byte orders, scalars and properties; read and write in RAS+ mm", "MIT", kInterfaces,
 };
 
-bool HZ_ABI init(const hz_host *host, const char *) {
-    g_host = host;
-    return true;
-}
-void HZ_ABI deinit() { g_host = nullptr; }
-uint32_t HZ_ABI count() { return 1; }
-const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i == 0 ? &kDescriptor : nullptr; }
-const void *HZ_ABI get_interface(const char *id, const char *iface) {
-    if (id && iface && std::strcmp(id, kId) == 0 && std::strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &kLoader;
-    return nullptr;
-}
+const hz_host *host() { return hz::single_plugin<kDescriptor, kLoader>::host(); }
 
 }  // namespace
 
-HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
+HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;

@@ -235,15 +235,6 @@ const hz_plugin_descriptor kDescriptor = {
     "TRX tractograms: zip (stored/deflated) and directory forms, dpv/dps/groups/dpg; writes stored zips", "MIT", kInterfaces,
 };
 
-bool HZ_ABI init(const hz_host *, const char *) { return true; }
-void HZ_ABI deinit() {}
-uint32_t HZ_ABI count() { return 1; }
-const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i == 0 ? &kDescriptor : nullptr; }
-const void *HZ_ABI get_interface(const char *id, const char *iface) {
-    if (id && iface && std::strcmp(id, kId) == 0 && std::strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &kLoader;
-    return nullptr;
-}
-
 }  // namespace
 
-HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
+HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;

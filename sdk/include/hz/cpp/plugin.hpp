@@ -72,6 +72,35 @@ hz_status guard(hz_error *err, F &&body) noexcept {
     }
 }
 
+// The entry functions of a library that holds exactly one plugin, whose
+// descriptor `D` lists its core interface first and whose table is `T`:
+//     HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;
+// host() returns the hz_host given to init() (NULL before init / after deinit).
+template <const hz_plugin_descriptor &D, const auto &T>
+struct single_plugin {
+    static const hz_host *host() noexcept { return host_; }
+    static bool HZ_ABI init(const hz_host *h, const char *) noexcept {
+        host_ = h;
+        return true;
+    }
+    static void HZ_ABI deinit() noexcept { host_ = nullptr; }
+    static uint32_t HZ_ABI count() noexcept { return 1; }
+    static const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) noexcept { return i == 0 ? &D : nullptr; }
+    static const void *HZ_ABI get_interface(const char *id, const char *iface) noexcept {
+        if (id == nullptr || iface == nullptr || std::strcmp(id, D.id) != 0) return nullptr;
+        return std::strcmp(iface, D.interfaces[0]) == 0 ? static_cast<const void *>(&T) : nullptr;
+    }
+    static constexpr hz_plugin_entry entry = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
+
+private:
+    static inline const hz_host *host_ = nullptr;
+};
+
+// Logs through the host of a single_plugin (no-op without one). [thread-safe]
+inline void log(const hz_host *host, const char *plugin_id, hz_log_level level, const std::string &msg) noexcept {
+    if (host != nullptr && host->log != nullptr) host->log(host, plugin_id, level, msg.c_str());
+}
+
 // Convenience for polling a possibly-NULL task.
 inline bool cancelled(const hz_task *task) noexcept {
     return task != nullptr && task->is_cancelled != nullptr && task->is_cancelled(task);
