@@ -1,0 +1,234 @@
+// hz.loader/1: FreeSurfer binary triangle surfaces (lh.white, rh.pial, ...).
+// Format (nibabel freesurfer/io.py, FORMATS.md 1.7): big-endian; magic
+// FF FF FE; a "created by ..." line and a blank line; int32 vnum, fnum;
+// vnum x 3 float32; fnum x 3 int32; an optional volume-info footer. The
+// coordinates are surface RAS (tkr-RAS) and are used as stored, as nibabel
+// does; the footer (with c_ras) is kept as header entries and written back.
+#include "mapped_file.hpp"
+
+#include <hz/cpp/plugin.hpp>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <bit>
+#include <cstring>
+#include <ctime>
+#include <memory>
+#include <vector>
+
+namespace {
+
+constexpr const char *kId = "org.horizon.loader.freesurfer";
+
+struct FormatError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+struct Surface {
+    std::string created;
+    std::vector<float> vertices;
+    std::vector<std::uint32_t> faces;
+    std::vector<std::pair<std::string, std::string>> footer;  // volume info, in file order
+};
+
+std::uint32_t be32(const unsigned char *p) { return (std::uint32_t(p[0]) << 24) | (std::uint32_t(p[1]) << 16) | (std::uint32_t(p[2]) << 8) | p[3]; }
+
+Surface parse(const unsigned char *b, std::uint64_t size) {
+    if (size < 3) throw FormatError("file is " + std::to_string(size) + " bytes: no magic number");
+    if (b[0] != 0xFF || b[1] != 0xFF || b[2] != 0xFE) {
+        if (b[0] == 0xFF && b[1] == 0xFF && (b[2] == 0xFF || b[2] == 0xFD))
+            throw FormatError("a FreeSurfer quad surface (magic FF FF " + std::string(b[2] == 0xFF ? "FF" : "FD") + "): not supported yet");
+        throw FormatError("magic is not FF FF FE (not a FreeSurfer triangle surface)");
+    }
+    Surface s;
+    std::uint64_t pos = 3;
+    const void *nl = std::memchr(b + pos, '\n', static_cast<std::size_t>(std::min<std::uint64_t>(size - pos, 4096)));
+    if (nl == nullptr) throw FormatError("no end to the 'created by' line within 4096 bytes");
+    const auto end = static_cast<std::uint64_t>(static_cast<const unsigned char *>(nl) - b);
+    s.created.assign(reinterpret_cast<const char *>(b + pos), end - pos);
+    pos = end + 1;
+    if (pos < size && b[pos] == '\n') ++pos;
+    if (size - pos < 8) throw FormatError("file ends before the vertex and face counts");
+    const auto vnum = static_cast<std::int32_t>(be32(b + pos)), fnum = static_cast<std::int32_t>(be32(b + pos + 4));
+    pos += 8;
+    if (vnum < 0 || fnum < 0) throw FormatError("negative vertex or face count (" + std::to_string(vnum) + ", " + std::to_string(fnum) + ")");
+    const std::uint64_t need = 12ull * static_cast<std::uint64_t>(vnum) + 12ull * static_cast<std::uint64_t>(fnum);
+    if (need > size - pos)
+        throw FormatError(std::to_string(vnum) + " vertices and " + std::to_string(fnum) + " faces need " + std::to_string(need) +
+                          " bytes, the file has " + std::to_string(size - pos) + " left");
+    s.vertices.resize(3 * static_cast<std::size_t>(vnum));
+    for (std::size_t i = 0; i < s.vertices.size(); ++i, pos += 4) {
+        s.vertices[i] = std::bit_cast<float>(be32(b + pos));
+        if (!std::isfinite(s.vertices[i])) throw FormatError("vertex " + std::to_string(i / 3) + " has a non-finite coordinate");
+    }
+    s.faces.resize(3 * static_cast<std::size_t>(fnum));
+    for (std::size_t i = 0; i < s.faces.size(); ++i, pos += 4) {
+        const auto f = static_cast<std::int32_t>(be32(b + pos));
+        if (f < 0 || f >= vnum)
+            throw FormatError("face " + std::to_string(i / 3) + " uses vertex " + std::to_string(f) + ", outside [0, " + std::to_string(vnum) + ")");
+        s.faces[i] = static_cast<std::uint32_t>(f);
+    }
+    // Optional footer: tag 20 (or 2, 0, 20) then "key = value" lines.
+    if (size - pos >= 4) {
+        std::uint64_t q = pos;
+        std::int32_t tag = static_cast<std::int32_t>(be32(b + q));
+        if (tag == 2 && size - q >= 12 && be32(b + q + 4) == 0 && be32(b + q + 8) == 20) q += 12;
+        else if (tag == 20) q += 4;
+        else q = size;
+        std::string text(reinterpret_cast<const char *>(b + q), static_cast<std::size_t>(size - q));
+        std::size_t start = 0;
+        while (start < text.size()) {
+            const auto e = text.find('\n', start);
+            const std::string line = text.substr(start, e == std::string::npos ? std::string::npos : e - start);
+            start = e == std::string::npos ? text.size() : e + 1;
+            const auto eq = line.find('=');
+            if (eq == std::string::npos) continue;
+            auto trim = [](std::string x) {
+                const auto a = x.find_first_not_of(" \t"), z = x.find_last_not_of(" \t\r");
+                return a == std::string::npos ? std::string() : x.substr(a, z - a + 1);
+            };
+            std::string k = trim(line.substr(0, eq)), v = trim(line.substr(eq + 1));
+            if (const auto hash = v.find('#'); hash != std::string::npos) v = trim(v.substr(0, hash));
+            if (!k.empty() && s.footer.size() < 64) s.footer.emplace_back(k, v);
+        }
+    }
+    return s;
+}
+
+struct Reader {
+    std::string path;
+    Surface s;
+};
+Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
+
+template <class F>
+hz_status run(hz_error *err, const std::string &path, F &&body) {
+    return hz::guard(err, [&]() -> hz_status {
+        try {
+            return body();
+        } catch (const FormatError &e) {
+            return hz::set_errorf(err, HZ_E_FORMAT, "freesurfer: %s: %s", path.c_str(), e.what());
+        } catch (const hzio::IoError &e) {
+            return hz::set_errorf(err, HZ_E_IO, "freesurfer: %s: %s", path.c_str(), e.what());
+        }
+    });
+}
+
+int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) {
+    return size >= 3 && head[0] == 0xFF && head[1] == 0xFF && head[2] == 0xFE ? 90 : 0;
+}
+
+hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
+    if (out != nullptr) *out = nullptr;
+    if (req == nullptr || req->path == nullptr || out == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: open: NULL request, path or output");
+    return run(err, req->path, [&]() -> hz_status {
+        auto r = std::make_unique<Reader>();
+        r->path = req->path;
+        const hzio::MappedFile m(r->path);
+        r->s = parse(m.data(), m.size());
+        *out = reinterpret_cast<hz_reader *>(r.release());
+        return HZ_OK;
+    });
+}
+
+hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
+    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_dataset_info))
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: get_info: bad arguments");
+    const Surface &s = as_reader(reader)->s;
+    out->kind = HZ_DATA_MESH;
+    std::snprintf(out->format, sizeof out->format, "freesurfer triangles");
+    out->nb_vertices = s.vertices.size() / 3;
+    out->nb_faces = s.faces.size() / 3;
+    static const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    std::memcpy(out->voxel_to_ras, identity, sizeof identity);
+    out->source_space = HZ_SPACE_SURFACE_RAS;
+    return HZ_OK;
+}
+
+hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *, hz_error *err) {
+    return hz::set_errorf(err, HZ_E_NOT_FOUND, "freesurfer: %s: no extra array %u", reader ? as_reader(reader)->path.c_str() : "?", index);
+}
+
+hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
+    if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: visit_metadata: NULL");
+    const Surface &s = as_reader(reader)->s;
+    visitor(ctx, "created", s.created.c_str());
+    for (const auto &[k, v] : s.footer) visitor(ctx, k.c_str(), v.c_str());
+    return HZ_OK;
+}
+
+hz_status HZ_ABI read_mesh(hz_reader *reader, const hz_mesh_dst *dst, const hz_task *task, hz_error *err) {
+    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: read_mesh: NULL");
+    const Reader &r = *as_reader(reader);
+    if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+    if (dst->vertices_capacity < r.s.vertices.size() || dst->faces_capacity < r.s.faces.size())
+        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: destination too small", r.path.c_str());
+    if (!r.s.vertices.empty()) std::memcpy(dst->vertices, r.s.vertices.data(), r.s.vertices.size() * 4);
+    if (!r.s.faces.empty()) std::memcpy(dst->faces, r.s.faces.data(), r.s.faces.size() * 4);
+    return HZ_OK;
+}
+
+void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
+
+hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
+    if (req == nullptr || req->path == nullptr || data == nullptr)
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: write: NULL request or data");
+    if (data->kind != HZ_DATA_MESH) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "freesurfer: %s: holds surfaces only", req->path);
+    return run(err, req->path, [&]() -> hz_status {
+        if (data->mesh_nb_vertices > 0x7FFFFFFF || data->mesh_nb_faces > 0x7FFFFFFF) throw FormatError("too many vertices or faces");
+        for (uint32_t i = 0; i < data->nb_arrays && req->on_dropped; ++i)
+            req->on_dropped(req->ctx, ("array '" + std::string(data->arrays[i].name ? data->arrays[i].name : "") +
+                                       "' (a FreeSurfer surface holds geometry only; overlays go in curv files)").c_str());
+        static const char *footer_keys[] = {"valid", "filename", "volume", "voxelsize", "xras", "yras", "zras", "cras"};
+        std::string footer;
+        for (uint32_t i = 0; i < data->nb_metadata; ++i) {
+            const std::string k = data->metadata[i].key ? data->metadata[i].key : "";
+            if (std::find(std::begin(footer_keys), std::end(footer_keys), k) != std::end(footer_keys))
+                footer += (k.size() < 6 ? k + std::string(6 - k.size(), ' ') : k) + " = " + data->metadata[i].value + "\n";
+        }
+        std::vector<unsigned char> out = {0xFF, 0xFF, 0xFE};
+        const std::time_t now = std::time(nullptr);
+        char stamp[64];
+        std::strftime(stamp, sizeof stamp, "%a %b %d %H:%M:%S %Y", std::localtime(&now));
+        const std::string created = std::string("created by horizon on ") + stamp + "\n\n";
+        out.insert(out.end(), created.begin(), created.end());
+        auto put = [&](std::uint32_t v) {
+            for (int s = 24; s >= 0; s -= 8) out.push_back(static_cast<unsigned char>(v >> s));
+        };
+        put(static_cast<std::uint32_t>(data->mesh_nb_vertices));
+        put(static_cast<std::uint32_t>(data->mesh_nb_faces));
+        for (std::uint64_t i = 0; i < 3 * data->mesh_nb_vertices; ++i) put(std::bit_cast<std::uint32_t>(data->mesh_vertices[i]));
+        for (std::uint64_t i = 0; i < 3 * data->mesh_nb_faces; ++i) {
+            if (data->mesh_faces[i] >= data->mesh_nb_vertices) throw FormatError("a face uses a vertex index out of range");
+            put(data->mesh_faces[i]);
+        }
+        if (!footer.empty()) {
+            put(2), put(0), put(20);
+            out.insert(out.end(), footer.begin(), footer.end());
+        }
+        std::FILE *f = std::fopen(req->path, "wb");
+        if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
+        const bool ok = std::fwrite(out.data(), 1, out.size(), f) == out.size();
+        if ((std::fclose(f) != 0) || !ok) throw FormatError("write failed");
+        return HZ_OK;
+    });
+}
+
+const char *const kExtensions[] = {"white", "pial", "inflated", "sphere", "orig", "smoothwm", "midthickness", "surf", nullptr};
+const hz_loader kLoader = {
+    sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 3, kExtensions, probe, open, get_info,
+    get_array_info, visit_metadata, nullptr, nullptr, nullptr, read_mesh, close, write,
+};
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
+const hz_plugin_descriptor kDescriptor = {
+    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "FreeSurfer surface", "1.0.0", "Horizon",
+    "FreeSurfer binary triangle surfaces (lh.white, rh.pial, ...), with the volume-info footer", "MIT", kInterfaces,
+};
+
+}  // namespace
+
+HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;
