@@ -258,19 +258,12 @@ core::Volume sample_volume() {
     return v;
 }
 
-fs::path write_volume_sample(const Ctx &c, const core::Volume &vol, std::string &msg) {
+// Writes `v` with the plugin's own writer to scratch/sample.<first extension>;
+// returns the path, or empty with `msg` set.
+fs::path write_view(const Ctx &c, const hz_dataset_view &v, std::string &msg) {
     const hz_loader &l = loader_of(c);
     const std::string ext = l.extensions && l.extensions[0] ? l.extensions[0] : "dat";
     const fs::path out = c.scratch / ("sample." + ext);
-    hz_dataset_view v{};
-    v.struct_size = sizeof v;
-    v.kind = HZ_DATA_VOLUME;
-    v.voxels = core::volume_view(vol);
-    std::copy(vol.voxel_to_ras.begin(), vol.voxel_to_ras.end(), v.voxel_to_ras);
-    v.volume_ndim = static_cast<uint32_t>(vol.dims.size());
-    std::copy(vol.dims.begin(), vol.dims.end(), v.volume_dims);
-    v.scale_slope = 1;
-    v.scale_inter = 0;
     hz_write_request req{};
     req.struct_size = sizeof req;
     const std::string p = out.string();
@@ -283,6 +276,19 @@ fs::path write_volume_sample(const Ctx &c, const core::Volume &vol, std::string 
         return {};
     }
     return out;
+}
+
+fs::path write_volume_sample(const Ctx &c, const core::Volume &vol, std::string &msg) {
+    hz_dataset_view v{};
+    v.struct_size = sizeof v;
+    v.kind = HZ_DATA_VOLUME;
+    v.voxels = core::volume_view(vol);
+    std::copy(vol.voxel_to_ras.begin(), vol.voxel_to_ras.end(), v.voxel_to_ras);
+    v.volume_ndim = static_cast<uint32_t>(vol.dims.size());
+    std::copy(vol.dims.begin(), vol.dims.end(), v.volume_dims);
+    v.scale_slope = 1;
+    v.scale_inter = 0;
+    return write_view(c, v, msg);
 }
 
 // Reads any file the loader accepts; checks the result's invariants.
@@ -303,26 +309,12 @@ hz_status read_any(const hz_loader &l, const fs::path &file, std::string &msg) {
 
 // Writes `t` with the plugin's own writer to scratch/sample.<ext>.
 fs::path write_sample(const Ctx &c, const core::Tractogram &t, std::string &msg) {
-    const hz_loader &l = loader_of(c);
-    const std::string ext = l.extensions && l.extensions[0] ? l.extensions[0] : "dat";
-    const fs::path out = c.scratch / ("sample." + ext);
     hz_dataset_view v{};
     v.struct_size = sizeof v;
     v.kind = HZ_DATA_STREAMLINES;
     v.streamlines = t.view();
     std::copy(t.reference.begin(), t.reference.end(), v.voxel_to_ras);
-    hz_write_request req{};
-    req.struct_size = sizeof req;
-    const std::string p = out.string();
-    req.path = p.c_str();
-    req.extension = ext.c_str();
-    hz_error err = new_error();
-    const hz_status st = l.write(&req, &v, nullptr, &err);
-    if (st != HZ_OK) {
-        msg = std::string("write failed (status ") + std::to_string(st) + "): " + err.message;
-        return {};
-    }
-    return out;
+    return write_view(c, v, msg);
 }
 
 // Files to exercise a loader with: those given by --data, else one it wrote.

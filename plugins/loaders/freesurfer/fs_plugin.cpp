@@ -106,15 +106,7 @@ Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
 template <class F>
 hz_status run(hz_error *err, const std::string &path, F &&body) {
-    return hz::guard(err, [&]() -> hz_status {
-        try {
-            return body();
-        } catch (const FormatError &e) {
-            return hz::set_errorf(err, HZ_E_FORMAT, "freesurfer: %s: %s", path.c_str(), e.what());
-        } catch (const hzio::IoError &e) {
-            return hz::set_errorf(err, HZ_E_IO, "freesurfer: %s: %s", path.c_str(), e.what());
-        }
-    });
+    return hz::format_guard<FormatError, hzio::IoError>(err, "freesurfer", path, body);
 }
 
 int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) {

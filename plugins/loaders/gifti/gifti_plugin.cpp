@@ -20,15 +20,7 @@ Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
 template <class F>
 hz_status run(hz_error *err, const std::string &path, F &&body) {
-    return hz::guard(err, [&]() -> hz_status {
-        try {
-            return body();
-        } catch (const gifti::FormatError &e) {
-            return hz::set_errorf(err, HZ_E_FORMAT, "gifti: %s: %s", path.c_str(), e.what());
-        } catch (const hzio::IoError &e) {
-            return hz::set_errorf(err, HZ_E_IO, "gifti: %s: %s", path.c_str(), e.what());
-        }
-    });
+    return hz::format_guard<gifti::FormatError, hzio::IoError>(err, "gifti", path, body);
 }
 
 int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return gifti::probe(head, size); }
@@ -104,14 +96,12 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
     const std::uint64_t rows = r.s.vertices.size() / 3;
     if (dst->ndim != 2 || dst->shape[0] != rows || dst->shape[1] != o.components || dst->dtype != (o.integer ? HZ_DTYPE_I32 : HZ_DTYPE_F32))
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "gifti: %s: read_array: destination does not match", r.path.c_str());
-    auto *base = static_cast<unsigned char *>(dst->data);
     for (std::uint64_t i = 0; i < rows; ++i)
         for (std::uint32_t c = 0; c < o.components; ++c) {
-            const std::int64_t off = static_cast<std::int64_t>(i) * dst->stride_bytes[0] + static_cast<std::int64_t>(c) * dst->stride_bytes[1];
-            if (off < 0 || static_cast<std::uint64_t>(off) + 4 > dst->capacity_bytes)
-                return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
+            unsigned char *cell = hz::view_cell(*dst, i, c, 4);
+            if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
             const std::size_t k = i * o.components + c;
-            std::memcpy(base + off, o.integer ? static_cast<const void *>(&o.labels[k]) : static_cast<const void *>(&o.values[k]), 4);
+            std::memcpy(cell, o.integer ? static_cast<const void *>(&o.labels[k]) : static_cast<const void *>(&o.values[k]), 4);
         }
     return HZ_OK;
 }

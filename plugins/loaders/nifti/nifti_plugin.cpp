@@ -21,15 +21,7 @@ Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
 template <class F>
 hz_status run(hz_error *err, const std::string &path, F &&body) {
-    return hz::guard(err, [&]() -> hz_status {
-        try {
-            return body();
-        } catch (const nifti::FormatError &e) {
-            return hz::set_errorf(err, HZ_E_FORMAT, "nifti: %s: %s", path.c_str(), e.what());
-        } catch (const hzio::IoError &e) {
-            return hz::set_errorf(err, HZ_E_IO, "nifti: %s: %s", path.c_str(), e.what());
-        }
-    });
+    return hz::format_guard<nifti::FormatError, hzio::IoError>(err, "nifti", path, body);
 }
 
 hz_dtype to_hz(nifti::DType t) {

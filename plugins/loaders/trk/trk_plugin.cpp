@@ -28,17 +28,7 @@ Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
 template <class F>
 hz_status run(hz_error *err, const std::string &path, F &&body) {
-    return hz::guard(err, [&]() -> hz_status {
-        try {
-            return body();
-        } catch (const trk::Cancelled &) {
-            return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
-        } catch (const trk::FormatError &e) {
-            return hz::set_errorf(err, HZ_E_FORMAT, "trk: %s: %s", path.c_str(), e.what());
-        } catch (const hzio::IoError &e) {
-            return hz::set_errorf(err, HZ_E_IO, "trk: %s: %s", path.c_str(), e.what());
-        }
-    });
+    return hz::format_guard<trk::FormatError, hzio::IoError, trk::Cancelled>(err, "trk", path, body);
 }
 
 // Polls cancellation and drops the mapped pages already walked.
@@ -158,13 +148,11 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
         const std::vector<float> &src = scalar ? r.scalars : r.properties;
         if (dst->dtype != HZ_DTYPE_F32 || dst->ndim != 2 || dst->shape[0] != rows || dst->shape[1] != comps)
             throw trk::FormatError("read_array: destination must be float32 [" + std::to_string(rows) + ", " + std::to_string(comps) + "]");
-        auto *base = static_cast<unsigned char *>(dst->data);
         for (std::uint64_t i = 0; i < rows; ++i)
             for (std::uint32_t c = 0; c < comps; ++c) {
-                const std::int64_t off = static_cast<std::int64_t>(i) * dst->stride_bytes[0] + static_cast<std::int64_t>(c) * dst->stride_bytes[1];
-                if (off < 0 || static_cast<std::uint64_t>(off) + 4 > dst->capacity_bytes)
-                    return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trk: %s: read_array: destination too small", r.path.c_str());
-                std::memcpy(base + off, &src[i * width + first + c], 4);
+                unsigned char *cell = hz::view_cell(*dst, i, c, 4);
+                if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trk: %s: read_array: destination too small", r.path.c_str());
+                std::memcpy(cell, &src[i * width + first + c], 4);
             }
         return HZ_OK;
     });

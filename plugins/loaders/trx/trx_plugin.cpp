@@ -17,19 +17,10 @@ struct Reader {
 };
 Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
+// std::exception as I/O: the directory form reports file-system errors that way.
 template <class F>
 hz_status run(hz_error *err, const std::string &path, F &&body) {
-    return hz::guard(err, [&]() -> hz_status {
-        try {
-            return body();
-        } catch (const trx::Cancelled &) {
-            return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
-        } catch (const trx::FormatError &e) {
-            return hz::set_errorf(err, HZ_E_FORMAT, "trx: %s: %s", path.c_str(), e.what());
-        } catch (const std::exception &e) {  // I/O of the directory form
-            return hz::set_errorf(err, HZ_E_IO, "trx: %s: %s", path.c_str(), e.what());
-        }
-    });
+    return hz::format_guard<trx::FormatError, std::exception, trx::Cancelled>(err, "trx", path, body);
 }
 
 hz_dtype to_hz(trx::DType t) {
@@ -139,20 +130,18 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
             throw trx::FormatError("read_array: destination shape or dtype does not match '" + a.name + "'");
         std::vector<unsigned char> raw(a.rows * a.cols * es_in);
         trx::read_array(r.file, a, raw.data());
-        auto *base = static_cast<unsigned char *>(dst->data);
         for (std::uint64_t i = 0; i < a.rows; ++i)
             for (std::uint32_t c = 0; c < a.cols; ++c) {
-                const std::int64_t off = static_cast<std::int64_t>(i) * dst->stride_bytes[0] + static_cast<std::int64_t>(c) * dst->stride_bytes[1];
-                if (off < 0 || static_cast<std::uint64_t>(off) + es_out > dst->capacity_bytes)
-                    return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trx: %s: read_array: destination too small", r.path.c_str());
+                unsigned char *cell = hz::view_cell(*dst, i, c, es_out);
+                if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trx: %s: read_array: destination too small", r.path.c_str());
                 const unsigned char *src = raw.data() + (i * a.cols + c) * es_in;
                 if (a.dtype == trx::DType::F16) {
                     std::uint16_t hbits;
                     std::memcpy(&hbits, src, 2);
                     const float v = trx::half_to_float(hbits);
-                    std::memcpy(base + off, &v, 4);
+                    std::memcpy(cell, &v, 4);
                 } else {
-                    std::memcpy(base + off, src, es_in);
+                    std::memcpy(cell, src, es_in);
                 }
             }
         return HZ_OK;

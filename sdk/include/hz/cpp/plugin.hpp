@@ -101,6 +101,35 @@ inline void log(const hz_host *host, const char *plugin_id, hz_log_level level, 
     if (host != nullptr && host->log != nullptr) host->log(host, plugin_id, level, msg.c_str());
 }
 
+// Never thrown; the default "cancelled" type of format_guard.
+struct no_cancel {};
+
+// Runs a loader operation on `path` inside hz::guard, mapping the plugin's
+// own exception types: FormatErr -> HZ_E_FORMAT, IoErr -> HZ_E_IO (message
+// "<prefix>: <path>: <what>"), CancelT -> HZ_E_CANCELLED.
+template <class FormatErr, class IoErr, class CancelT = no_cancel, class F>
+hz_status format_guard(hz_error *err, const char *prefix, const std::string &path, F &&body) noexcept {
+    return guard(err, [&]() -> hz_status {
+        try {
+            return body();
+        } catch (const CancelT &) {
+            return set_error(err, HZ_E_CANCELLED, "cancelled");
+        } catch (const FormatErr &e) {
+            return set_errorf(err, HZ_E_FORMAT, "%s: %s: %s", prefix, path.c_str(), e.what());
+        } catch (const IoErr &e) {
+            return set_errorf(err, HZ_E_IO, "%s: %s: %s", prefix, path.c_str(), e.what());
+        }
+    });
+}
+
+// Address of element (row, col) of a 2-D view of `elem_size`-byte elements,
+// or NULL when it does not lie wholly inside [data, data + capacity_bytes).
+inline unsigned char *view_cell(const hz_array_view &v, uint64_t row, uint64_t col, std::size_t elem_size) noexcept {
+    const int64_t off = static_cast<int64_t>(row) * v.stride_bytes[0] + static_cast<int64_t>(col) * v.stride_bytes[1];
+    if (off < 0 || static_cast<uint64_t>(off) + elem_size > v.capacity_bytes) return nullptr;
+    return static_cast<unsigned char *>(v.data) + off;
+}
+
 // Convenience for polling a possibly-NULL task.
 inline bool cancelled(const hz_task *task) noexcept {
     return task != nullptr && task->is_cancelled != nullptr && task->is_cancelled(task);
