@@ -259,7 +259,14 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     co.centroids = (std::filesystem::path(o.out_dir) / "qbx_centroids_level1.tck").string();
     co.level = 1;
     co.force = true;
-    return cmd_cluster(g, co);
+    if (const int c = cmd_cluster(g, co); c != 0) return c;
+    // The picture: QBX centroids as width-encoded tubes, a cortex-like
+    // surface and slices of a synthetic volume, principled shading.
+    std::printf("\n");
+    RenderOptions ro;
+    ro.out = (std::filesystem::path(o.out_dir) / "demo.png").string();
+    ro.size = o.size;
+    return render_scene(reg, core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed), ro);
 }
 
 }  // namespace hz::host

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <hz/core/plugin_host.hpp>
+#include <hz/core/render/renderer.hpp>
 
 #include <cstdint>
 #include <string>
@@ -27,6 +28,7 @@ struct DemoOptions {
     std::uint64_t nb_streamlines = 5000;
     std::uint32_t nb_bundles = 24;
     std::uint64_t seed = 1;
+    std::string size = "1280x720";
 };
 
 struct ClusterOptions {
@@ -43,6 +45,15 @@ struct ClusterOptions {
     bool force = false, json = false;
 };
 
+struct RenderOptions {
+    std::string scene;
+    std::string out = "horizon.png";
+    std::string size = "1280x720";
+    int samples = 4;
+    double lod_pixels = 0.5;
+    bool json = false;
+};
+
 core::Registry load_registry(const GlobalOptions &g);
 
 int cmd_plugins(const GlobalOptions &g, bool json);
@@ -52,5 +63,10 @@ int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string
 int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o);
 int cmd_brdf(const GlobalOptions &g, const std::string &shader_id);
 int cmd_demo(const GlobalOptions &g, const DemoOptions &o);
+int cmd_render(const GlobalOptions &g, const RenderOptions &o);
+
+// Renders `scene` headlessly to o.out (PNG through the images plugin).
+int render_scene(const core::Registry &reg, core::render::Scene scene, const RenderOptions &o);
+void write_image(const core::Registry &reg, const core::render::Image &im, const std::filesystem::path &path);
 
 }  // namespace hz::host

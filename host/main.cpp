@@ -90,12 +90,22 @@ int main(int argc, char **argv) {
     auto *brdf = app.add_subcommand("brdf", "evaluate shading plugins' CPU references over JSON lines on stdin");
     brdf->add_option("--shader", brdf_shader, "only this shader plugin id (default: route each case by its model)");
 
+    RenderOptions ro;
+    auto *render = app.add_subcommand("render", "render a scene file to a PNG, headless (no display needed)");
+    render->add_option("scene", ro.scene, "scene file (JSON; see docs/scene-format.md)")->required();
+    render->add_option("-o,--out", ro.out, "output image (.png, .exr, .jpg, .tif)")->capture_default_str();
+    render->add_option("--size", ro.size, "WIDTHxHEIGHT")->capture_default_str();
+    render->add_option("--samples", ro.samples, "MSAA samples (1 = off)")->capture_default_str();
+    render->add_option("--lod-pixels", ro.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")->capture_default_str();
+    render->add_flag("--json", ro.json, "timings and counts as JSON");
+
     DemoOptions demo_opts;
-    auto *demo = app.add_subcommand("demo", "build the synthetic demo scene and describe it");
+    auto *demo = app.add_subcommand("demo", "build the synthetic demo scene, cluster it and render demo.png");
     demo->add_option("-o,--out", demo_opts.out_dir, "directory for demo files")->capture_default_str();
     demo->add_option("--streamlines", demo_opts.nb_streamlines, "phantom size")->capture_default_str();
     demo->add_option("--bundles", demo_opts.nb_bundles, "phantom bundles")->capture_default_str();
     demo->add_option("--seed", demo_opts.seed, "phantom seed")->capture_default_str();
+    demo->add_option("--size", demo_opts.size, "picture size WIDTHxHEIGHT")->capture_default_str();
 
     try {
         app.parse(argc, argv);
@@ -112,6 +122,7 @@ int main(int argc, char **argv) {
         if (*demo) return cmd_demo(g, demo_opts);
         if (*cluster) return cmd_cluster(g, co);
         if (*brdf) return cmd_brdf(g, brdf_shader);
+        if (*render) return cmd_render(g, ro);
     } catch (const std::exception &e) {
         std::fprintf(stderr, "horizon: error: %s\n", e.what());
         return 1;

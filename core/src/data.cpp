@@ -41,6 +41,7 @@ const char *kind_name(hz_data_kind k) {
     case HZ_DATA_STREAMLINES: return "streamlines";
     case HZ_DATA_VOLUME: return "volume";
     case HZ_DATA_MESH: return "mesh";
+    case HZ_DATA_IMAGE: return "image";
     default: return "unknown";
     }
 }

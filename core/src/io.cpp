@@ -228,7 +228,7 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines"));
         t.validate(path.string());
         for (uint32_t i = 0; i < info.nb_arrays; ++i) t.arrays.push_back(read_extra_array(*l, g.r, i, path, task));
-    } else if (info.kind == HZ_DATA_VOLUME) {
+    } else if (info.kind == HZ_DATA_VOLUME || info.kind == HZ_DATA_IMAGE) {
         if (l->read_volume == nullptr) throw Error(path.string() + ": loader " + p.info.id + " has no read_volume");
         Volume &v = ds.volume;
         v.dtype = info.dtype;
@@ -302,7 +302,7 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     hz_dataset_view view{};
     view.struct_size = sizeof view;
     view.kind = ds.kind;
-    if (ds.kind == HZ_DATA_VOLUME) {
+    if (ds.kind == HZ_DATA_VOLUME || ds.kind == HZ_DATA_IMAGE) {
         view.voxels = volume_view(ds.volume);
         std::copy(ds.volume.voxel_to_ras.begin(), ds.volume.voxel_to_ras.end(), view.voxel_to_ras);
         view.volume_ndim = static_cast<uint32_t>(std::min<std::size_t>(ds.volume.dims.size(), 8));

@@ -97,8 +97,6 @@ vec3 hz_shade(HzShadePoint sp) {
     vec3 h = l + v;
     if (!principled_normalize(h)) return vec3(0.0);
     float NoH = dot(n, h), LoH = dot(l, h);
-    vec3 X, Y;
-    principled_frame(n, sp.t, sp.b, X, Y);
 
     float FL = principled_schlick(NoL), FV = principled_schlick(NoV), FH = principled_schlick(LoH);
     float lum = dot(vec3(0.3, 0.6, 0.1), C);
@@ -107,21 +105,47 @@ vec3 hz_shade(HzShadePoint sp) {
     // Burley 2012 diffuse and subsurface.
     float Fd90 = 0.5 + 2.0 * roughness * LoH * LoH;
     float Fd = mix(1.0, Fd90, FL) * mix(1.0, Fd90, FV);
+#ifdef HZ_ZERO_subsurface
+    float diff = Fd;
+#else
     float Fss90 = roughness * LoH * LoH;
     float Fss = mix(1.0, Fss90, FL) * mix(1.0, Fss90, FV);
     float ss = 1.25 * (Fss * (1.0 / max(NoL + NoV, 1e-6) - 0.5) + 0.5);
+    float diff = mix(Fd, ss, subsurface);
+#endif
 
-    // Anisotropic GGX, Walter et al. 2007.
-    float aspect = sqrt(1.0 - 0.9 * anisotropic);
+    // GGX, Walter et al. 2007 (anisotropic; the isotropic path when
+    // anisotropic = 0 needs no tangent frame).
     float r2 = roughness * roughness;
+#ifdef HZ_ZERO_anisotropic
+    float a = max(0.001, r2), aa = a * a;
+    vec3 nxh0 = cross(n, h);
+    float dd = dot(nxh0, nxh0) + aa * NoH * NoH;
+    float Ds = aa / (principled_PI * dd * dd);
+    float vl = 1.0 / (NoL + sqrt(aa * (1.0 - NoL * NoL) + NoL * NoL));
+    float vv = 1.0 / (NoV + sqrt(aa * (1.0 - NoV * NoV) + NoV * NoV));
+#else
+    vec3 X, Y;
+    principled_frame(n, sp.t, sp.b, X, Y);
+    float aspect = sqrt(1.0 - 0.9 * anisotropic);
     float ax = max(0.001, r2 / aspect), ay = max(0.001, r2 * aspect);
     float HoX = dot(h, X), HoY = dot(h, Y);
     float dden = (HoX / ax) * (HoX / ax) + (HoY / ay) * (HoY / ay) + NoH * NoH;
     float Ds = 1.0 / (principled_PI * ax * ay * dden * dden);
     float vl = 1.0 / (NoL + sqrt(pow(dot(l, X) * ax, 2.0) + pow(dot(l, Y) * ay, 2.0) + NoL * NoL));
     float vv = 1.0 / (NoV + sqrt(pow(dot(v, X) * ax, 2.0) + pow(dot(v, Y) * ay, 2.0) + NoV * NoV));
+#endif
     float Gs = vl * vv;
 
+    vec3 Cspec0 = mix(0.08 * specular * mix(vec3(1.0), Ctint, specular_tint), C, metallic);
+    vec3 Fs = mix(Cspec0, vec3(1.0), FH);
+    vec3 diffuse = (1.0 / principled_PI) * diff * C;
+#ifndef HZ_ZERO_sheen
+    diffuse += FH * sheen * mix(vec3(1.0), Ctint, sheen_tint);
+#endif
+    vec3 f = diffuse * (1.0 - metallic) + Ds * Gs * Fs;
+
+#ifndef HZ_ZERO_clearcoat
     // Clearcoat: GTR1, Burley 2012.
     float ac = max(0.001, mix(0.1, 0.001, clearcoat_gloss));
     float a2 = ac * ac;
@@ -132,12 +156,33 @@ vec3 hz_shade(HzShadePoint sp) {
     float gl = 1.0 / (NoL + sqrt(0.0625 + NoL * NoL - 0.0625 * NoL * NoL));
     float gv = 1.0 / (NoV + sqrt(0.0625 + NoV * NoV - 0.0625 * NoV * NoV));
     float Fr = mix(0.04, 1.0, FH);
+    f += 0.25 * clearcoat * Dr * Fr * gl * gv;
+#endif
+    return f;
+}
 
-    vec3 Cspec0 = mix(0.08 * specular * mix(vec3(1.0), Ctint, specular_tint), C, metallic);
-    vec3 Fs = mix(Cspec0, vec3(1.0), FH);
-    vec3 Csheen = mix(vec3(1.0), Ctint, sheen_tint);
-    vec3 diffuse = (1.0 / principled_PI) * mix(Fd, ss, subsurface) * C + FH * sheen * Csheen;
-    return diffuse * (1.0 - metallic) + Ds * Gs * Fs + 0.25 * clearcoat * Dr * Fr * gl * gv;
+// Image-based lighting, split-sum (Karis 2013): diffuse from the irradiance,
+// specular and clearcoat from the prefiltered environment.
+vec3 hz_ambient(HzShadePoint sp) {
+    vec3 n = sp.n, v = sp.v;
+    if (!principled_normalize(n) || !principled_normalize(v)) return vec3(0.0);
+    float NoV = dot(n, v);
+    if (!(NoV > 0.0)) return vec3(0.0);
+    vec3 C = clamp(u_base_color, 0.0, 1.0);
+    float metallic = clamp(u_metallic, 0.0, 1.0), roughness = clamp(u_roughness, 0.0, 1.0);
+    float lum = dot(vec3(0.3, 0.6, 0.1), C);
+    vec3 Ctint = lum > 0.0 ? C / lum : vec3(1.0);
+    vec3 Cspec0 = mix(0.08 * clamp(u_specular, 0.0, 1.0) * mix(vec3(1.0), Ctint, clamp(u_specular_tint, 0.0, 1.0)), C, metallic);
+    vec3 r = 2.0 * NoV * n - v;
+    vec2 ab = hz_env_brdf(NoV, roughness);
+    vec3 c = (1.0 - metallic) * C * (1.0 / principled_PI) * hz_env_irradiance(n)
+           + hz_env_radiance(r, roughness) * (Cspec0 * ab.x + ab.y);
+#ifndef HZ_ZERO_clearcoat
+    float cr = mix(0.3, 0.03, clamp(u_clearcoat_gloss, 0.0, 1.0));
+    vec2 cb = hz_env_brdf(NoV, cr);
+    c += 0.25 * clamp(u_clearcoat, 0.0, 1.0) * hz_env_radiance(r, cr) * (0.04 * cb.x + cb.y);
+#endif
+    return c;
 }
 )glsl";
 

@@ -27,7 +27,13 @@ typedef uint32_t hz_data_kind;
 enum {
     HZ_DATA_STREAMLINES = 1u << 0,
     HZ_DATA_VOLUME = 1u << 1,
-    HZ_DATA_MESH = 1u << 2
+    HZ_DATA_MESH = 1u << 2,
+    /* Since 1.2. A 2D image, described with the volume fields: ndim = 3,
+       dims = {channels (1..4), width, height}, dtype U8, U16, F16 or F32;
+       pixels interleaved, rows top to bottom; read with read_volume() and
+       written from hz_dataset_view.voxels. Colour values are as stored
+       (8/16-bit files are sRGB-encoded; float files linear). */
+    HZ_DATA_IMAGE = 1u << 3
 };
 
 /* Capabilities (bit set in hz_loader.caps). */

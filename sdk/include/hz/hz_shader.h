@@ -18,6 +18,29 @@
  * declares
  *     struct HzShadePoint { vec3 n; vec3 t; vec3 b; vec3 l; vec3 v; float thickness_mm; };
  * with the same meaning as hz_shade_point below.
+ *
+ * Since 1.2 the host also guarantees, before the snippet:
+ *   - The first HZ_PARAM_COLOR3 parameter is the surface colour: the host
+ *     declares it as a plain global (not a uniform) and assigns it from the
+ *     object's colouring (direction, colormap, cluster, solid) before each
+ *     hz_shade call. `#define HZ_ALBEDO u_<name>` names it.
+ *   - `#define HZ_ZERO_<name> 1` for every HZ_PARAM_FLOAT parameter whose
+ *     value is exactly 0 in the material being compiled, so a snippet can
+ *     leave out the terms that vanish (`#ifndef HZ_ZERO_clearcoat`). The
+ *     result must equal the unspecialised function for those values.
+ *   - HZ_DOMAIN_SURFACE or HZ_DOMAIN_LINE, and HZ_OUTPUT_BRDF when `output`
+ *     is HZ_SHADER_OUTPUT_BRDF.
+ *   - Environment lighting (world-space directions pointing away from the
+ *     surface; all return 0 when the scene has no environment):
+ *       vec3 hz_env_radiance(vec3 dir, float roughness);  prefiltered radiance
+ *       vec3 hz_env_irradiance(vec3 n);   E(n) = integral of L max(n.w,0) dw
+ *       vec2 hz_env_brdf(float NoV, float roughness);  split-sum (scale, bias)
+ *       vec3 hz_scene_behind(vec2 offset_px);  the opaque scene behind this
+ *                                          pixel (translucent objects only)
+ *   A snippet may define `vec3 hz_ambient(HzShadePoint p)`: the radiance it
+ *   reflects (or transmits) from the environment towards p.v. Without it the
+ *   host uses hz_shade(p with l = n) * hz_env_irradiance(n) (BRDF output) or
+ *   that divided by pi (radiance-factor output).
  */
 #ifndef HZ_SHADER_H
 #define HZ_SHADER_H

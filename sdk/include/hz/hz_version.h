@@ -15,6 +15,10 @@
  *   1.1.0  hz_attach gains HZ_ATTACH_GROUP and HZ_ATTACH_GROUP_DATA (TRX
  *          groups and data per group); hz_dataset_view gains volume_ndim,
  *          volume_dims, scale_slope, scale_inter (appended).
+ *   1.2.0  hz_data_kind gains HZ_DATA_IMAGE (2D images: environment maps,
+ *          textures, rendered frames); hz_shader snippets may define
+ *          hz_ambient() and use the host's hz_env_* functions and
+ *          HZ_ZERO_<param> specialisation macros (see hz_shader.h).
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -25,7 +29,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 1
+#define HZ_ABI_VERSION_MINOR 2
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */

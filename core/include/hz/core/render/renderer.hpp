@@ -1,0 +1,114 @@
+// The renderer: draws a Scene with OpenGL 4.1 core into offscreen
+// framebuffers (headless, `horizon render`) or the current window.
+//
+// Shading: every surface, tube and line is lit by the shading plugin its
+// material names. The host assembles each GLSL program from its own prelude
+// (HzShadePoint, environment functions, one uniform per schema parameter),
+// the plugin's snippet and a host main() for the geometry (mesh, tube, line);
+// plugins never call OpenGL. Programs are specialised on the material:
+// `#define HZ_ZERO_<param>` for every float parameter that is exactly 0, so a
+// plugin can drop the terms that vanish (no clearcoat code at clearcoat = 0).
+//
+// Threading: one Renderer per GL context; call everything on the thread where
+// that context is current.
+#pragma once
+
+#include <hz/core/render/scene.hpp>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hz::core::render {
+
+// A resolved camera.
+struct View {
+    Vec3 eye{0, 0, 100}, target{0, 0, 0}, up{0, 1, 0};
+    double fov_deg = 30.0;
+    double near_mm = 1.0, far_mm = 1000.0;
+};
+
+// 8-bit sRGB RGBA, rows top to bottom.
+struct Image {
+    int width = 0, height = 0;
+    std::vector<std::uint8_t> rgba;
+};
+
+// Float RGBA, rows top to bottom (debug outputs of the GPU-equals-CPU check).
+struct FloatImage {
+    int width = 0, height = 0;
+    std::vector<float> rgba;
+};
+
+struct RenderSettings {
+    int width = 1280, height = 720;
+    int samples = 4;                 // MSAA samples (1 = off); clamped to GL_MAX_SAMPLES
+    double lod_pixels = 0.5;         // streamline decimation tolerance in pixels (0 = keep every point)
+};
+
+struct FrameStats {
+    double upload_ms = 0, environment_ms = 0, draw_ms = 0, readback_ms = 0;
+    std::uint64_t segments_drawn = 0, triangles_drawn = 0, points_kept = 0, points_total = 0;
+};
+
+class Renderer {
+public:
+    // Needs a current GL 4.1+ core context. `reg` must outlive the renderer.
+    explicit Renderer(const Registry &reg);
+    ~Renderer();
+    Renderer(const Renderer &) = delete;
+    Renderer &operator=(const Renderer &) = delete;
+
+    // Uploads the scene (geometry, colours, volumes), prepares the
+    // environment and compiles the programs. Throws Error naming the object
+    // and the problem (unknown shader or parameter, GLSL compile log, ...).
+    // `view` sets the streamline decimation scale (pass fit_view's result).
+    void set_scene(Scene scene, const View &view, const RenderSettings &settings);
+
+    // Replaces one object's material at run time (the shading-model switch);
+    // compiles the new program if needed. Throws Error.
+    void set_material(std::size_t object, const Material &m);
+    void set_visible(std::size_t object, bool visible);
+    const Scene &scene() const;
+
+    // Camera fitted to the visible objects for the scene's camera spec.
+    View fit_view(const Camera &c, double aspect) const;
+
+    // Draws a frame into the offscreen target of the given size.
+    void render(const View &view, int width, int height);
+    // Draws into the currently bound framebuffer 0 (the window) instead.
+    void render_to_window(const View &view, int width, int height);
+    // Reads the last offscreen frame.
+    Image read_image();
+
+    // GPU-equals-CPU support: renders without tonemapping, MSAA or the
+    // environment, lit by exactly one light, with the shading inputs as extra
+    // outputs. outputs[0] = hz_shade's raw value for that light (alpha 1 where
+    // covered, 0 elsewhere), [1] = n, [2] = l, [3] = v, [4] = t (xyz, world).
+    std::array<FloatImage, 5> render_debug(const View &view, int width, int height);
+
+    const FrameStats &stats() const;
+    std::string gl_description() const;
+
+    // The GLSL of an object's program (for `horizon render --dump-glsl`).
+    std::string program_source(std::size_t object) const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+// The camera for `c` fitted to the visible objects of `scene`.
+View fit_view(const Scene &scene, const Camera &c, double aspect);
+// Axis-aligned RAS+ bounds of the visible objects.
+Bounds scene_bounds(const Scene &scene);
+
+// Looks up a shader plugin by id or by the last component of its id.
+const LoadedPlugin *find_shader(const Registry &reg, const std::string &name);
+
+// 256-entry RGB colormap lookup, t in [0,1]; names: viridis, inferno, gray, coolwarm, hot.
+std::array<float, 3> colormap(const std::string &name, double t);
+
+}  // namespace hz::core::render

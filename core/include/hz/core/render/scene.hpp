@@ -1,0 +1,125 @@
+// A scene for the renderer: data objects with their colouring and material,
+// a camera, lights and an environment. Scenes come from JSON scene files
+// (`horizon render SCENE.json`, docs/scene-format.md) or are built in code
+// (`horizon demo`, `horizon view FILES`).
+#pragma once
+
+#include <hz/core/data.hpp>
+#include <hz/core/plugin_host.hpp>
+
+#include <array>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace hz::core::render {
+
+using Vec3 = std::array<double, 3>;
+
+// A shading model and its parameter values. Values not given keep the
+// plugin's schema defaults; names are checked against the schema when the
+// renderer builds the program.
+struct Material {
+    std::string shader = "principled";  // plugin id, or its last component ("principled")
+    std::map<std::string, std::vector<double>> params;
+};
+
+// How an object gets its base colour (the shading model's first colour
+// parameter): "direction" (streamlines: |local tangent| as RGB), "solid",
+// "data" (a named per-vertex / per-streamline array through a colormap) or
+// "cluster" (one colour per cluster).
+struct Coloring {
+    std::string mode = "solid";
+    std::array<double, 3> color{0.8, 0.8, 0.8};
+    std::string array;
+    std::string colormap = "viridis";
+    std::optional<std::array<double, 2>> range;  // default: the data's min/max
+};
+
+// Replace a tractogram by one level of a clustering tree (paper Fig. 5).
+struct ClusterSpec {
+    std::string algorithm = "qbx";    // qb | qbx | qbx_merge
+    std::vector<double> thresholds;   // empty: the plugin's defaults
+    int level = 1;                    // 1 = coarsest; -1 = finest
+    bool width_by_size = true;        // tube radius grows with sqrt(cluster size)
+};
+
+struct Object {
+    std::string name;
+    hz_data_kind kind = 0;            // STREAMLINES, MESH or VOLUME (drawn as slices)
+    Dataset data;
+    bool visible = true;
+    // streamlines
+    std::string render = "lines";     // lines | tubes
+    double radius_mm = 0.4;           // tubes; with width_by_size: the radius of the median cluster
+    std::optional<ClusterSpec> clustering;
+    // surfaces and streamlines
+    Coloring coloring;
+    Material material;
+    double opacity = 1.0;
+    // volume slices, RAS+ mm; an absent value hides that slice
+    std::optional<double> slice_x, slice_y, slice_z;
+    std::optional<std::array<double, 2>> window;  // value range mapped to the colormap
+    std::string slice_colormap = "gray";
+    std::optional<double> clip_below;             // values below are transparent (e.g. the background)
+};
+
+struct Camera {
+    // Either explicit (position/target/up) or fitted to the scene bounds
+    // from a named view: left, right, anterior, posterior, superior, inferior.
+    std::optional<Vec3> position, target;
+    Vec3 up{0, 0, 1};
+    std::string view = "left";
+    double fov_deg = 30.0;
+    double zoom = 1.0;
+};
+
+struct Light {
+    std::string type = "directional";  // directional | point
+    Vec3 direction{0, 0, 1};           // directional: towards the light
+    Vec3 position{0, 0, 0};            // point
+    std::array<double, 3> color{1, 1, 1};
+    double intensity = 1.0;            // radiance scale (directional: irradiance at normal incidence)
+    bool camera_space = true;          // direction/position given in camera space (x right, y up, z back)
+};
+
+struct Environment {
+    std::string type = "studio";       // studio (procedural) | file | none
+    std::string path;                  // type = file: an equirectangular image (.hdr, .exr, .png)
+    double intensity = 1.0;
+    double rotation_deg = 0.0;         // about the superior (z) axis
+    bool visible = false;              // draw it as the background
+};
+
+struct Scene {
+    std::vector<Object> objects;
+    Camera camera;
+    std::vector<Light> lights;         // empty: a three-point rig (key, fill, rim)
+    Environment environment;
+    std::array<double, 3> background{0.02, 0.02, 0.025};  // linear RGB
+    double exposure = 1.0;
+    std::string tonemap = "aces";      // aces | reinhard | none
+};
+
+// Parses a scene file, reading every data file it names (relative to the
+// scene file) through the registry's loaders and running any clustering.
+// Throws Error naming the file and the offending key.
+Scene load_scene(const Registry &reg, const fs::path &scene_file);
+
+// The same from already-parsed JSON text; `base_dir` resolves relative paths.
+Scene parse_scene(const Registry &reg, const std::string &json_text, const fs::path &base_dir, const std::string &what);
+
+// Built-in data for demos and tests (deterministic).
+Mesh make_cortex_mesh(int subdivisions = 5);   // two hemispheres around the phantom's box
+Volume make_head_volume(double voxel_mm = 2.0); // a T1-like synthetic volume, same frame
+
+// Applies `spec` to a tractogram: returns the chosen level's centroids with a
+// per-streamline "cluster_size" array. Throws Error.
+Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const ClusterSpec &spec);
+
+// The scene of `horizon demo`: phantom bundles as QBX centroid tubes, a
+// cortex-like surface, an axial slice of a synthetic volume, principled shading.
+Scene demo_scene(const Registry &reg, std::uint64_t nb_streamlines, std::uint32_t nb_bundles, std::uint64_t seed);
+
+}  // namespace hz::core::render

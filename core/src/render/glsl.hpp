@@ -1,0 +1,482 @@
+// The host's GLSL: the prelude every shading program starts with, the
+// geometry stages and main() around a plugin's hz_shade(), and the
+// environment, slice, sky and tonemapping programs.
+#pragma once
+
+namespace hz::core::render::glsl {
+
+// After "#version 410 core" and the HZ_* defines; before the uniforms and the
+// plugin snippet.
+inline constexpr const char *kPrelude = R"glsl(
+struct HzShadePoint { vec3 n; vec3 t; vec3 b; vec3 l; vec3 v; float thickness_mm; };
+
+uniform samplerCube hz_env_specular_map;
+uniform samplerCube hz_env_diffuse_map;
+uniform sampler2D hz_env_lut;
+uniform float hz_env_intensity;
+uniform float hz_env_max_lod;
+uniform mat3 hz_env_rotation;
+uniform sampler2D hz_behind;      // the opaque scene behind a translucent object
+uniform vec2 hz_viewport;
+
+// Radiance arriving from direction `dir` (world, pointing away from the
+// surface), prefiltered for a GGX lobe of perceptual roughness `roughness`.
+vec3 hz_env_radiance(vec3 dir, float roughness) {
+    return hz_env_intensity * textureLod(hz_env_specular_map, hz_env_rotation * dir, clamp(roughness, 0.0, 1.0) * hz_env_max_lod).rgb;
+}
+// Irradiance E(n) = integral of L(w) max(n.w, 0) dw over the sphere.
+vec3 hz_env_irradiance(vec3 n) {
+    return hz_env_intensity * texture(hz_env_diffuse_map, hz_env_rotation * n).rgb;
+}
+// Split-sum GGX terms (scale, bias) with F = F0 * scale + bias.
+vec2 hz_env_brdf(float NoV, float roughness) {
+    return texture(hz_env_lut, vec2(clamp(NoV, 0.0, 1.0), clamp(roughness, 0.0, 1.0))).rg;
+}
+// Radiance of the opaque scene seen through this pixel, displaced by `offset_px`.
+vec3 hz_scene_behind(vec2 offset_px) {
+    vec2 uv = (gl_FragCoord.xy + offset_px) / hz_viewport;
+    return texture(hz_behind, clamp(uv, vec2(0.0), vec2(1.0))).rgb;
+}
+)glsl";
+
+// Host main() of every shading program, after the plugin snippet.
+inline constexpr const char *kShadeMain = R"glsl(
+in vec3 v_pos;
+in vec4 v_color;
+#if defined(HZ_GEOM_MESH)
+in vec3 v_normal;
+#else
+in vec3 v_tangent;
+#endif
+#if defined(HZ_GEOM_TUBE)
+in vec3 v_side;
+in vec3 v_front;
+in float v_across;
+#endif
+uniform vec3 hz_eye;
+uniform vec3 hz_tangent_hint;
+uniform int hz_nb_lights;
+uniform vec4 hz_light_vec[8];
+uniform vec3 hz_light_radiance[8];
+uniform float hz_opacity;
+uniform int hz_env_on;
+layout(location = 0) out vec4 o_color;
+#ifdef HZ_DEBUG_OUTPUTS
+layout(location = 1) out vec4 o_n;
+layout(location = 2) out vec4 o_l;
+layout(location = 3) out vec4 o_v;
+layout(location = 4) out vec4 o_t;
+#endif
+
+vec3 hz_safe_normalize(vec3 a, vec3 fallback) {
+    float m = dot(a, a);
+    return m > 1e-30 ? a * inversesqrt(m) : fallback;
+}
+
+void main() {
+    HzShadePoint p;
+    p.v = hz_eye - v_pos;
+    p.thickness_mm = 0.0;
+    vec3 vn = hz_safe_normalize(p.v, vec3(0.0, 0.0, 1.0));
+#if defined(HZ_GEOM_MESH)
+    vec3 n = hz_safe_normalize(v_normal, vn);
+    if (dot(n, vn) < 0.0) n = -n;  // two-sided, whatever the winding
+    p.n = n;
+    p.t = hz_tangent_hint;
+    p.b = cross(n, hz_tangent_hint);
+#elif defined(HZ_GEOM_TUBE)
+    vec3 t = hz_safe_normalize(v_tangent, vec3(0.0, 0.0, 1.0));
+    vec3 front = hz_safe_normalize(v_front, vn);
+    vec3 side = hz_safe_normalize(v_side, hz_safe_normalize(cross(t, front), vec3(1.0, 0.0, 0.0)));
+    float a = clamp(v_across, -1.0, 1.0);
+    p.n = hz_safe_normalize(a * side + sqrt(max(0.0, 1.0 - a * a)) * front, front);
+    p.t = t;
+    p.b = cross(p.n, t);
+#else
+    vec3 t = v_tangent;
+    p.t = t;
+    float tt = dot(t, t);
+    p.n = hz_safe_normalize(tt > 1e-30 ? p.v - dot(p.v, t) / tt * t : p.v, vn);
+    p.b = cross(p.n, t);
+#endif
+#ifdef HZ_ALBEDO
+    HZ_ALBEDO = v_color.rgb;
+#endif
+    vec3 c = vec3(0.0);
+    vec3 first = vec3(0.0);
+    for (int i = 0; i < hz_nb_lights; ++i) {
+        vec4 L = hz_light_vec[i];
+        p.l = L.w == 0.0 ? L.xyz : L.xyz - v_pos;
+        vec3 f = hz_shade(p);
+        if (i == 0) first = f;
+#ifdef HZ_OUTPUT_BRDF
+        float cosl = max(dot(p.n, hz_safe_normalize(p.l, vec3(0.0))), 0.0);
+        c += f * cosl * hz_light_radiance[i];
+#else
+        c += f * hz_light_radiance[i];
+#endif
+    }
+    if (hz_env_on != 0) {
+#ifdef HZ_HAS_AMBIENT
+        c += hz_ambient(p);
+#else
+        HzShadePoint q = p;
+        q.l = p.n;
+#ifdef HZ_OUTPUT_BRDF
+        c += hz_shade(q) * hz_env_irradiance(p.n);
+#else
+        c += hz_shade(q) * hz_env_irradiance(p.n) * 0.318309886;
+#endif
+#endif
+    }
+#ifdef HZ_DEBUG_OUTPUTS
+    o_color = vec4(first, 1.0);
+    o_n = vec4(p.n, 1.0);
+    o_l = vec4(hz_nb_lights > 0 ? (hz_light_vec[0].w == 0.0 ? hz_light_vec[0].xyz : hz_light_vec[0].xyz - v_pos) : vec3(0.0), 1.0);
+    o_v = vec4(p.v, 1.0);
+    o_t = vec4(p.t, 1.0);
+#else
+    o_color = vec4(max(c, vec3(0.0)), hz_opacity);
+#endif
+}
+)glsl";
+
+inline constexpr const char *kMeshVS = R"glsl(#version 410 core
+layout(location = 0) in vec3 a_pos;
+layout(location = 1) in vec3 a_normal;
+layout(location = 2) in vec4 a_color;
+uniform mat4 hz_view_proj;
+out vec3 v_pos;
+out vec3 v_normal;
+out vec4 v_color;
+void main() {
+    v_pos = a_pos;
+    v_normal = a_normal;
+    v_color = a_color;
+    gl_Position = hz_view_proj * vec4(a_pos, 1.0);
+}
+)glsl";
+
+inline constexpr const char *kLineVS = R"glsl(#version 410 core
+layout(location = 0) in vec3 a_pos;
+layout(location = 1) in vec4 a_tangent;
+layout(location = 2) in vec4 a_color;
+uniform mat4 hz_view_proj;
+out vec3 v_pos;
+out vec3 v_tangent;
+out vec4 v_color;
+void main() {
+    v_pos = a_pos;
+    v_tangent = a_tangent.xyz;
+    v_color = a_color;
+    gl_Position = hz_view_proj * vec4(a_pos, 1.0);
+}
+)glsl";
+
+inline constexpr const char *kTubeVS = R"glsl(#version 410 core
+layout(location = 0) in vec3 a_pos;
+layout(location = 1) in vec4 a_tangent;
+layout(location = 2) in vec4 a_color;
+layout(location = 3) in float a_radius;
+out vec3 g_pos;
+out vec3 g_tangent;
+out vec4 g_color;
+out float g_radius;
+void main() {
+    g_pos = a_pos;
+    g_tangent = a_tangent.xyz;
+    g_color = a_color;
+    g_radius = a_radius;
+}
+)glsl";
+
+// Tubes: each segment becomes a view-facing quad whose across-coordinate
+// gives the fragment shader the normal of the round tube (an impostor: the
+// shading of a cylinder at 2 triangles per segment). Quads of adjacent
+// segments share their end edges (both use the vertex tangent), so there are
+// no gaps at the joints.
+inline constexpr const char *kTubeGS = R"glsl(#version 410 core
+layout(lines) in;
+layout(triangle_strip, max_vertices = 4) out;
+in vec3 g_pos[];
+in vec3 g_tangent[];
+in vec4 g_color[];
+in float g_radius[];
+uniform mat4 hz_view_proj;
+uniform vec3 hz_eye;
+out vec3 v_pos;
+out vec3 v_tangent;
+out vec4 v_color;
+out vec3 v_side;
+out vec3 v_front;
+out float v_across;
+void main() {
+    vec3 seg = g_pos[1] - g_pos[0];
+    for (int i = 0; i < 2; ++i) {
+        vec3 t = g_tangent[i];
+        if (dot(t, t) < 1e-12) t = seg;
+        if (dot(t, t) < 1e-24) t = vec3(0.0, 0.0, 1.0);
+        t = normalize(t);
+        vec3 e = hz_eye - g_pos[i];
+        vec3 front = e - dot(e, t) * t;
+        if (dot(front, front) < 1e-12) front = abs(t.z) < 0.9 ? cross(t, vec3(0.0, 0.0, 1.0)) : cross(t, vec3(1.0, 0.0, 0.0));
+        front = normalize(front);
+        vec3 side = normalize(cross(t, front));
+        for (int s = -1; s <= 1; s += 2) {
+            vec3 p = g_pos[i] + float(s) * g_radius[i] * side;
+            v_pos = p;
+            v_tangent = t;
+            v_color = g_color[i];
+            v_side = side;
+            v_front = front;
+            v_across = float(s);
+            gl_Position = hz_view_proj * vec4(p, 1.0);
+            EmitVertex();
+        }
+    }
+    EndPrimitive();
+}
+)glsl";
+
+// A full-screen triangle from gl_VertexID (no vertex buffer).
+inline constexpr const char *kFullscreenVS = R"glsl(#version 410 core
+out vec2 v_uv;
+void main() {
+    vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
+    v_uv = p;
+    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+)glsl";
+
+// Direction of a cube-map texel (OpenGL's face conventions).
+inline constexpr const char *kCubeCommon = R"glsl(
+const float PI = 3.14159265358979;
+uniform int u_face;
+vec3 cube_dir(vec2 st) {
+    vec2 c = st * 2.0 - 1.0;
+    vec3 d;
+    if (u_face == 0) d = vec3(1.0, -c.y, -c.x);
+    else if (u_face == 1) d = vec3(-1.0, -c.y, c.x);
+    else if (u_face == 2) d = vec3(c.x, 1.0, c.y);
+    else if (u_face == 3) d = vec3(c.x, -1.0, -c.y);
+    else if (u_face == 4) d = vec3(c.x, -c.y, 1.0);
+    else d = vec3(-c.x, -c.y, -1.0);
+    return normalize(d);
+}
+float radical_inverse(uint b) {
+    b = (b << 16u) | (b >> 16u);
+    b = ((b & 0x55555555u) << 1u) | ((b & 0xAAAAAAAAu) >> 1u);
+    b = ((b & 0x33333333u) << 2u) | ((b & 0xCCCCCCCCu) >> 2u);
+    b = ((b & 0x0F0F0F0Fu) << 4u) | ((b & 0xF0F0F0F0u) >> 4u);
+    b = ((b & 0x00FF00FFu) << 8u) | ((b & 0xFF00FF00u) >> 8u);
+    return float(b) * 2.3283064365386963e-10;
+}
+vec2 hammersley(uint i, uint n) { return vec2((float(i) + 0.5) / float(n), radical_inverse(i)); }
+void basis(vec3 n, out vec3 x, out vec3 y) {
+    float s = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (s + n.z);
+    float b = n.x * n.y * a;
+    x = vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
+    y = vec3(b, s + n.y * n.y * a, -n.y);
+}
+)glsl";
+
+// The procedural studio: a soft grey gradient dome, a darker floor and
+// three soft boxes (key, fill, rim). World space, RAS+ (z up).
+inline constexpr const char *kEnvSource = R"glsl(
+uniform int u_source;          // 0 studio, 1 equirectangular image
+uniform sampler2D u_equirect;
+float softbox(vec3 d, vec3 axis, float hw, float hh) {
+    float c = dot(d, axis);
+    if (c <= 0.0) return 0.0;
+    vec3 u = normalize(cross(axis, abs(axis.z) < 0.95 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
+    vec3 w = cross(u, axis);
+    vec2 p = vec2(dot(d, u), dot(d, w)) / c;
+    vec2 q = abs(p) - vec2(hw, hh);
+    return 1.0 - smoothstep(-0.02, 0.02, max(q.x, q.y));
+}
+vec3 env_source(vec3 d) {
+    if (u_source == 1) {
+        float u = atan(d.y, d.x) / (2.0 * PI) + 0.5;
+        float v = acos(clamp(d.z, -1.0, 1.0)) / PI;
+        return texture(u_equirect, vec2(u, v)).rgb;
+    }
+    float z = d.z;
+    vec3 dome = mix(vec3(0.16, 0.17, 0.19), vec3(0.50, 0.53, 0.58), smoothstep(-0.05, 0.9, z));
+    vec3 ground = vec3(0.09, 0.085, 0.08) * (0.5 + 0.5 * smoothstep(-1.0, -0.1, z));
+    vec3 c = mix(ground, dome, smoothstep(-0.06, 0.02, z));
+    c += vec3(4.5, 4.35, 4.1) * softbox(d, normalize(vec3(-0.55, 0.45, 0.70)), 0.45, 0.28);
+    c += vec3(1.3, 1.4, 1.6) * softbox(d, normalize(vec3(0.85, 0.25, 0.35)), 0.25, 0.5);
+    c += vec3(3.0, 3.0, 3.0) * softbox(d, normalize(vec3(0.05, -0.92, 0.40)), 0.6, 0.10);
+    return c;
+}
+)glsl";
+
+inline constexpr const char *kEnvFaceFS = R"glsl(
+in vec2 v_uv;
+uniform float u_size;
+out vec4 o;
+void main() { o = vec4(env_source(cube_dir(gl_FragCoord.xy / u_size)), 1.0); }
+)glsl";
+
+// GGX-prefiltered radiance (Karis 2013, filtered importance sampling).
+inline constexpr const char *kPrefilterFS = R"glsl(
+uniform samplerCube u_env;
+uniform float u_size;
+uniform float u_roughness;
+uniform float u_env_size;
+out vec4 o;
+void main() {
+    vec3 n = cube_dir(gl_FragCoord.xy / u_size);
+    if (u_roughness <= 0.0) { o = vec4(textureLod(u_env, n, 0.0).rgb, 1.0); return; }
+    vec3 x, y;
+    basis(n, x, y);
+    float a = max(u_roughness * u_roughness, 1e-3);
+    float a2 = a * a;
+    const uint N = 48u;
+    vec3 sum = vec3(0.0);
+    float wsum = 0.0;
+    for (uint i = 0u; i < N; ++i) {
+        vec2 e = hammersley(i, N);
+        float phi = 2.0 * PI * e.y;
+        float ct = sqrt((1.0 - e.x) / (1.0 + (a2 - 1.0) * e.x));
+        float st = sqrt(max(0.0, 1.0 - ct * ct));
+        vec3 h = st * cos(phi) * x + st * sin(phi) * y + ct * n;
+        vec3 l = 2.0 * dot(n, h) * h - n;
+        float nl = dot(n, l);
+        if (nl <= 0.0) continue;
+        float d = (a2 - 1.0) * ct * ct + 1.0;
+        float D = a2 / (PI * d * d);
+        float pdf = D / 4.0;  // D * ct / (4 v.h) with v = n
+        float omega_s = 1.0 / (float(N) * pdf + 1e-6);
+        float omega_p = 4.0 * PI / (6.0 * u_env_size * u_env_size);
+        float lod = max(0.5 * log2(omega_s / omega_p) + 1.0, 0.0);
+        sum += textureLod(u_env, l, lod).rgb * nl;
+        wsum += nl;
+    }
+    o = vec4(sum / max(wsum, 1e-6), 1.0);
+}
+)glsl";
+
+// Irradiance E(n) by cosine-weighted sampling of a blurred mip.
+inline constexpr const char *kIrradianceFS = R"glsl(
+uniform samplerCube u_env;
+uniform float u_size;
+uniform float u_lod;
+out vec4 o;
+void main() {
+    vec3 n = cube_dir(gl_FragCoord.xy / u_size);
+    vec3 x, y;
+    basis(n, x, y);
+    const uint N = 256u;
+    vec3 sum = vec3(0.0);
+    for (uint i = 0u; i < N; ++i) {
+        vec2 e = hammersley(i, N);
+        float r = sqrt(e.x), phi = 2.0 * PI * e.y;
+        vec3 l = r * cos(phi) * x + r * sin(phi) * y + sqrt(max(0.0, 1.0 - e.x)) * n;
+        sum += textureLod(u_env, l, u_lod).rgb;
+    }
+    o = vec4(PI * sum / float(N), 1.0);
+}
+)glsl";
+
+// Split-sum BRDF table: x = n.v, y = perceptual roughness; GGX with the
+// separable Smith G of the principled model.
+inline constexpr const char *kLutFS = R"glsl(
+uniform float u_size;
+out vec4 o;
+float g1(float c, float a2) { return 2.0 * c / (c + sqrt(a2 + (1.0 - a2) * c * c)); }
+void main() {
+    vec2 st = gl_FragCoord.xy / u_size;
+    float NoV = max(st.x, 1e-3), r = st.y;
+    float a = max(r * r, 1e-3), a2 = a * a;
+    vec3 v = vec3(sqrt(1.0 - NoV * NoV), 0.0, NoV);
+    float A = 0.0, B = 0.0;
+    const uint N = 256u;
+    for (uint i = 0u; i < N; ++i) {
+        vec2 e = hammersley(i, N);
+        float phi = 2.0 * PI * e.y;
+        float ct = sqrt((1.0 - e.x) / (1.0 + (a2 - 1.0) * e.x));
+        float st2 = sqrt(max(0.0, 1.0 - ct * ct));
+        vec3 h = vec3(st2 * cos(phi), st2 * sin(phi), ct);
+        vec3 l = 2.0 * dot(v, h) * h - v;
+        float NoL = l.z, VoH = max(dot(v, h), 0.0);
+        if (NoL <= 0.0) continue;
+        float G = g1(NoL, a2) * g1(NoV, a2);
+        float Gv = G * VoH / (ct * NoV);
+        float Fc = pow(1.0 - VoH, 5.0);
+        A += (1.0 - Fc) * Gv;
+        B += Fc * Gv;
+    }
+    o = vec4(A / float(N), B / float(N), 0.0, 1.0);
+}
+)glsl";
+
+inline constexpr const char *kSkyFS = R"glsl(#version 410 core
+in vec2 v_uv;
+uniform mat4 u_inv_view_proj;
+uniform samplerCube u_env;
+uniform mat3 u_rotation;
+uniform float u_intensity;
+out vec4 o;
+void main() {
+    vec4 a = u_inv_view_proj * vec4(v_uv * 2.0 - 1.0, -1.0, 1.0);
+    vec4 b = u_inv_view_proj * vec4(v_uv * 2.0 - 1.0, 1.0, 1.0);
+    vec3 d = normalize(b.xyz / b.w - a.xyz / a.w);
+    o = vec4(u_intensity * textureLod(u_env, u_rotation * d, 0.0).rgb, 1.0);
+}
+)glsl";
+
+// Exposure, tone curve (ACES fit of Narkowicz 2015, or Reinhard), sRGB.
+inline constexpr const char *kTonemapFS = R"glsl(#version 410 core
+in vec2 v_uv;
+uniform sampler2D u_hdr;
+uniform float u_exposure;
+uniform int u_curve;
+out vec4 o;
+vec3 srgb(vec3 c) {
+    c = clamp(c, 0.0, 1.0);
+    return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+}
+void main() {
+    vec3 c = texture(u_hdr, v_uv).rgb * u_exposure;
+    if (any(isnan(c))) c = vec3(1.0, 0.0, 1.0);
+    if (u_curve == 0) c = clamp((c * (2.51 * c + 0.03)) / (c * (2.43 * c + 0.59) + 0.14), 0.0, 1.0);
+    else if (u_curve == 1) c = c / (1.0 + c);
+    o = vec4(srgb(c), 1.0);
+}
+)glsl";
+
+inline constexpr const char *kSliceVS = R"glsl(#version 410 core
+layout(location = 0) in vec3 a_pos;
+uniform mat4 hz_view_proj;
+out vec3 v_pos;
+void main() {
+    v_pos = a_pos;
+    gl_Position = hz_view_proj * vec4(a_pos, 1.0);
+}
+)glsl";
+
+inline constexpr const char *kSliceFS = R"glsl(#version 410 core
+in vec3 v_pos;
+uniform sampler3D u_volume;
+uniform sampler2D u_colormap;
+uniform mat4 u_ras_to_tex;
+uniform vec2 u_window;
+uniform float u_opacity;
+uniform float u_clip_below;
+out vec4 o;
+void main() {
+    vec3 tc = (u_ras_to_tex * vec4(v_pos, 1.0)).xyz;
+    if (any(lessThan(tc, vec3(0.0))) || any(greaterThan(tc, vec3(1.0)))) discard;
+    float v = texture(u_volume, tc).r;
+    if (v < u_clip_below) discard;
+    float t = clamp((v - u_window.x) / max(u_window.y - u_window.x, 1e-30), 0.0, 1.0);
+    vec3 c = texture(u_colormap, vec2(t, 0.5)).rgb;
+    // Colormaps are sRGB-encoded tables; the HDR buffer is linear.
+    c = mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(vec3(0.04045), c));
+    o = vec4(c, u_opacity);
+}
+)glsl";
+
+}  // namespace hz::core::render::glsl

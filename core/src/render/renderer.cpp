@@ -1,0 +1,1326 @@
+// The OpenGL renderer (see renderer.hpp).
+#include <hz/core/io.hpp>
+#include <hz/core/render/renderer.hpp>
+
+#include "gl.hpp"
+#include "glsl.hpp"
+
+#include <glm/glm.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <functional>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <numeric>
+#include <set>
+#include <sstream>
+#include <unordered_map>
+
+namespace hz::core::render {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+// ------------------------------------------------------------ colour helpers
+
+double srgb_to_linear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
+
+struct Stop {
+    double t, r, g, b;
+};
+const std::map<std::string, std::vector<Stop>> &colormap_stops() {
+    // sRGB values of published colormaps at a few positions (matplotlib's
+    // viridis and inferno, Moreland's cool-warm); linear interpolation between.
+    static const std::map<std::string, std::vector<Stop>> m = {
+        {"viridis",
+         {{0.0, 0.267004, 0.004874, 0.329415}, {0.125, 0.282623, 0.140926, 0.457517}, {0.25, 0.253935, 0.265254, 0.529983},
+          {0.375, 0.206756, 0.371758, 0.553117}, {0.5, 0.163625, 0.471133, 0.558148}, {0.625, 0.127568, 0.566949, 0.550556},
+          {0.75, 0.134692, 0.658636, 0.517649}, {0.875, 0.477504, 0.821444, 0.318195}, {1.0, 0.993248, 0.906157, 0.143936}}},
+        {"inferno",
+         {{0.0, 0.001462, 0.000466, 0.013866}, {0.25, 0.341500, 0.062325, 0.429425}, {0.5, 0.735683, 0.215906, 0.330245},
+          {0.75, 0.978422, 0.557937, 0.034931}, {1.0, 0.988362, 0.998364, 0.644924}}},
+        {"coolwarm", {{0.0, 0.2298, 0.2987, 0.7537}, {0.5, 0.8654, 0.8654, 0.8654}, {1.0, 0.7057, 0.0156, 0.1502}}},
+        {"gray", {{0.0, 0, 0, 0}, {1.0, 1, 1, 1}}},
+        {"hot", {{0.0, 0, 0, 0}, {1.0 / 3, 1, 0, 0}, {2.0 / 3, 1, 1, 0}, {1.0, 1, 1, 1}}},
+    };
+    return m;
+}
+
+glm::dvec3 to_dvec3(const Vec3 &v) { return glm::dvec3(v[0], v[1], v[2]); }
+
+std::uint32_t pack_snorm_2_10_10_10(float x, float y, float z) {
+    auto q = [](float v) {
+        v = std::isfinite(v) ? std::clamp(v, -1.0f, 1.0f) : 0.0f;
+        return static_cast<std::uint32_t>(static_cast<std::int32_t>(std::lround(v * 511.0f))) & 0x3FFu;
+    };
+    return q(x) | (q(y) << 10) | (q(z) << 20);
+}
+
+std::array<std::uint8_t, 4> rgba8(double r, double g, double b, double a = 1.0) {
+    auto q = [](double v) { return static_cast<std::uint8_t>(std::lround(std::clamp(std::isfinite(v) ? v : 0.0, 0.0, 1.0) * 255.0)); };
+    return {q(r), q(g), q(b), q(a)};
+}
+
+// Values of a named array as doubles (any dtype, first component).
+std::vector<double> array_values(const DataArray &a) {
+    std::vector<double> out(a.count);
+    const std::size_t es = dtype_size(a.dtype), stride = es * a.components;
+    for (std::uint64_t i = 0; i < a.count; ++i) {
+        const std::byte *p = a.bytes.data() + i * stride;
+        double v = 0;
+        switch (a.dtype) {
+        case HZ_DTYPE_U8: v = *reinterpret_cast<const std::uint8_t *>(p); break;
+        case HZ_DTYPE_I8: v = *reinterpret_cast<const std::int8_t *>(p); break;
+        case HZ_DTYPE_U16: { std::uint16_t x; std::memcpy(&x, p, 2); v = x; break; }
+        case HZ_DTYPE_I16: { std::int16_t x; std::memcpy(&x, p, 2); v = x; break; }
+        case HZ_DTYPE_U32: { std::uint32_t x; std::memcpy(&x, p, 4); v = x; break; }
+        case HZ_DTYPE_I32: { std::int32_t x; std::memcpy(&x, p, 4); v = x; break; }
+        case HZ_DTYPE_U64: { std::uint64_t x; std::memcpy(&x, p, 8); v = double(x); break; }
+        case HZ_DTYPE_I64: { std::int64_t x; std::memcpy(&x, p, 8); v = double(x); break; }
+        case HZ_DTYPE_F32: { float x; std::memcpy(&x, p, 4); v = x; break; }
+        case HZ_DTYPE_F64: { std::memcpy(&v, p, 8); break; }
+        default: v = std::nan(""); break;
+        }
+        out[i] = v;
+    }
+    return out;
+}
+
+std::array<double, 2> finite_range(const std::vector<double> &v) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (double x : v)
+        if (std::isfinite(x)) lo = std::min(lo, x), hi = std::max(hi, x);
+    if (!(lo <= hi)) return {0, 1};
+    if (lo == hi) hi = lo + 1;
+    return {lo, hi};
+}
+
+// ---------------------------------------------------------------- GL helpers
+
+GLuint compile_shader(GLenum type, const std::string &src, const std::string &what) {
+    GLuint s = glCreateShader(type);
+    const char *p = src.c_str();
+    glShaderSource(s, 1, &p, nullptr);
+    glCompileShader(s);
+    GLint ok = 0;
+    glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        GLint len = 0;
+        glGetShaderiv(s, GL_INFO_LOG_LENGTH, &len);
+        std::string log(std::max(len, 1), '\0');
+        glGetShaderInfoLog(s, len, nullptr, log.data());
+        glDeleteShader(s);
+        std::string first = log.substr(0, log.find('\n'));
+        throw Error(what + ": GLSL compile error: " + first);
+    }
+    return s;
+}
+
+GLuint link_program(const std::vector<GLuint> &shaders, const std::string &what) {
+    GLuint p = glCreateProgram();
+    for (GLuint s : shaders) glAttachShader(p, s);
+    glLinkProgram(p);
+    for (GLuint s : shaders) {
+        glDetachShader(p, s);
+        glDeleteShader(s);
+    }
+    GLint ok = 0;
+    glGetProgramiv(p, GL_LINK_STATUS, &ok);
+    if (!ok) {
+        GLint len = 0;
+        glGetProgramiv(p, GL_INFO_LOG_LENGTH, &len);
+        std::string log(std::max(len, 1), '\0');
+        glGetProgramInfoLog(p, len, nullptr, log.data());
+        glDeleteProgram(p);
+        throw Error(what + ": GLSL link error: " + log.substr(0, log.find('\n')));
+    }
+    return p;
+}
+
+struct Program {
+    GLuint id = 0;
+    std::string fragment_source;
+    std::unordered_map<std::string, GLint> cache;
+    GLint loc(const std::string &name) {
+        auto it = cache.find(name);
+        if (it != cache.end()) return it->second;
+        return cache[name] = glGetUniformLocation(id, name.c_str());
+    }
+};
+
+enum class Geom { Mesh, Tube, Line };
+
+struct Fbo {
+    GLuint fbo = 0, color = 0, depth = 0;
+    int width = 0, height = 0, samples = 0;
+    void destroy() {
+        if (fbo) glDeleteFramebuffers(1, &fbo);
+        if (color) glDeleteRenderbuffers(1, &color);
+        if (depth) glDeleteRenderbuffers(1, &depth);
+        fbo = color = depth = 0;
+    }
+};
+
+struct Tex2dFbo {
+    GLuint fbo = 0, tex = 0;
+    int width = 0, height = 0;
+    GLenum format = 0;
+    void destroy() {
+        if (fbo) glDeleteFramebuffers(1, &fbo);
+        if (tex) glDeleteTextures(1, &tex);
+        fbo = tex = 0;
+    }
+    void ensure(int w, int h, GLenum internal, GLenum fmt, GLenum type) {
+        if (fbo && width == w && height == h && format == internal) return;
+        destroy();
+        width = w, height = h, format = internal;
+        glGenTextures(1, &tex);
+        glBindTexture(GL_TEXTURE_2D, tex);
+        glTexImage2D(GL_TEXTURE_2D, 0, GLint(internal), w, h, 0, fmt, type, nullptr);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        glGenFramebuffers(1, &fbo);
+        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
+    }
+};
+
+struct GpuObject {
+    std::size_t index = 0;
+    Geom geom = Geom::Mesh;
+    bool slices = false;
+    GLuint vao = 0, vbo = 0, ebo = 0;
+    std::vector<GLint> firsts;
+    std::vector<GLsizei> counts;
+    GLsizei index_count = 0;
+    std::uint64_t segments = 0, triangles = 0;
+    // shading
+    const LoadedPlugin *shader = nullptr;
+    std::vector<double> values;       // schema order, every component
+    std::string albedo;               // name of the colour parameter the colouring drives ("" if none)
+    bool use_line_domain = false;
+    Program *program = nullptr, *debug_program = nullptr;
+    // slices
+    GLuint volume_tex = 0, colormap_tex = 0;
+    GLsizei slice_vertices = 0;
+    glm::mat4 ras_to_tex{1.0f};
+    std::array<double, 2> window{0, 1};
+    Bounds bounds;
+};
+
+}  // namespace
+
+const LoadedPlugin *find_shader(const Registry &reg, const std::string &name) {
+    if (const LoadedPlugin *p = reg.find(name); p && p->shader()) return p;
+    for (const LoadedPlugin *p : reg.of_kind(HZ_KIND_SHADER)) {
+        const std::string &id = p->info.id;
+        if (id.size() > name.size() && id.compare(id.size() - name.size(), name.size(), name) == 0 &&
+            id[id.size() - name.size() - 1] == '.')
+            return p;
+    }
+    return nullptr;
+}
+
+std::array<float, 3> colormap(const std::string &name, double t) {
+    const auto &all = colormap_stops();
+    auto it = all.find(name);
+    const auto &stops = it == all.end() ? all.at("viridis") : it->second;
+    t = std::isfinite(t) ? std::clamp(t, 0.0, 1.0) : 0.0;
+    for (std::size_t i = 1; i < stops.size(); ++i)
+        if (t <= stops[i].t) {
+            const Stop &a = stops[i - 1], &b = stops[i];
+            const double u = (t - a.t) / (b.t - a.t);
+            return {float(a.r + u * (b.r - a.r)), float(a.g + u * (b.g - a.g)), float(a.b + u * (b.b - a.b))};
+        }
+    return {float(stops.back().r), float(stops.back().g), float(stops.back().b)};
+}
+
+// ==================================================================== Impl
+
+struct Renderer::Impl {
+    const Registry &reg;
+    Scene scene;
+    RenderSettings settings;
+    std::vector<GpuObject> objects;
+    std::map<std::string, std::unique_ptr<Program>> programs;
+    std::unique_ptr<Program> tonemap, sky, slice, env_face, prefilter, irradiance, lut_prog;
+    GLuint empty_vao = 0;
+    GLuint env_cube = 0, spec_cube = 0, diff_cube = 0, lut_tex = 0, black_cube = 0, black_tex = 0;
+    int spec_levels = 6;
+    bool env_on = false;
+    glm::mat3 env_rotation{1.0f};
+    Fbo msaa;
+    Tex2dFbo resolved, behind, ldr;
+    FrameStats stats;
+    int max_samples = 1;
+
+    explicit Impl(const Registry &r) : reg(r) {
+        glGenVertexArrays(1, &empty_vao);
+        glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
+        tonemap = make_simple(glsl::kFullscreenVS, glsl::kTonemapFS, "tonemap");
+        sky = make_simple(glsl::kFullscreenVS, glsl::kSkyFS, "sky");
+        slice = make_simple(glsl::kSliceVS, glsl::kSliceFS, "slices");
+        const std::string head = "#version 410 core\n";
+        env_face = make_simple(glsl::kFullscreenVS, head + glsl::kCubeCommon + glsl::kEnvSource + glsl::kEnvFaceFS, "environment");
+        prefilter = make_simple(glsl::kFullscreenVS, head + glsl::kCubeCommon + glsl::kPrefilterFS, "environment prefilter");
+        irradiance = make_simple(glsl::kFullscreenVS, head + glsl::kCubeCommon + glsl::kIrradianceFS, "environment irradiance");
+        lut_prog = make_simple(glsl::kFullscreenVS, head + glsl::kCubeCommon + glsl::kLutFS, "BRDF table");
+        // 1x1 black stand-ins so every sampler is always valid.
+        const float zero[4] = {0, 0, 0, 1};
+        glGenTextures(1, &black_cube);
+        glBindTexture(GL_TEXTURE_CUBE_MAP, black_cube);
+        for (int f = 0; f < 6; ++f) glTexImage2D(GL_TEXTURE_CUBE_MAP_POSITIVE_X + f, 0, GL_RGBA16F, 1, 1, 0, GL_RGBA, GL_FLOAT, zero);
+        glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glGenTextures(1, &black_tex);
+        glBindTexture(GL_TEXTURE_2D, black_tex);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, 1, 1, 0, GL_RGBA, GL_FLOAT, zero);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        make_lut();
+    }
+
+    ~Impl() {
+        clear_objects();
+        for (auto &[k, p] : programs) glDeleteProgram(p->id);
+        for (auto *p : {&tonemap, &sky, &slice, &env_face, &prefilter, &irradiance, &lut_prog})
+            if (*p) glDeleteProgram((*p)->id);
+        GLuint texs[] = {env_cube, spec_cube, diff_cube, lut_tex, black_cube, black_tex};
+        glDeleteTextures(6, texs);
+        glDeleteVertexArrays(1, &empty_vao);
+        msaa.destroy();
+        resolved.destroy();
+        behind.destroy();
+        ldr.destroy();
+    }
+
+    std::unique_ptr<Program> make_simple(const std::string &vs, const std::string &fs, const std::string &what) {
+        auto p = std::make_unique<Program>();
+        p->id = link_program({compile_shader(GL_VERTEX_SHADER, vs, what + " (vertex)"), compile_shader(GL_FRAGMENT_SHADER, fs, what)}, what);
+        p->fragment_source = fs;
+        return p;
+    }
+
+    void clear_objects() {
+        for (auto &o : objects) {
+            if (o.vao) glDeleteVertexArrays(1, &o.vao);
+            if (o.vbo) glDeleteBuffers(1, &o.vbo);
+            if (o.ebo) glDeleteBuffers(1, &o.ebo);
+            if (o.volume_tex) glDeleteTextures(1, &o.volume_tex);
+            if (o.colormap_tex) glDeleteTextures(1, &o.colormap_tex);
+        }
+        objects.clear();
+    }
+
+    // ------------------------------------------------------------ environment
+
+    void render_cube(GLuint tex, int size, int level, Program &prog, const std::function<void()> &set) {
+        GLuint fbo = 0;
+        glGenFramebuffers(1, &fbo);
+        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+        glViewport(0, 0, size, size);
+        glUseProgram(prog.id);
+        set();
+        glUniform1f(prog.loc("u_size"), float(size));
+        glBindVertexArray(empty_vao);
+        for (int f = 0; f < 6; ++f) {
+            glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_CUBE_MAP_POSITIVE_X + f, tex, level);
+            glUniform1i(prog.loc("u_face"), f);
+            glDrawArrays(GL_TRIANGLES, 0, 3);
+        }
+        glDeleteFramebuffers(1, &fbo);
+    }
+
+    static GLuint new_cube(int size, int levels) {
+        GLuint t = 0;
+        glGenTextures(1, &t);
+        glBindTexture(GL_TEXTURE_CUBE_MAP, t);
+        for (int l = 0; l < levels; ++l)
+            for (int f = 0; f < 6; ++f)
+                glTexImage2D(GL_TEXTURE_CUBE_MAP_POSITIVE_X + f, l, GL_RGBA16F, std::max(1, size >> l), std::max(1, size >> l), 0, GL_RGBA,
+                             GL_FLOAT, nullptr);
+        glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MIN_FILTER, levels > 1 ? GL_LINEAR_MIPMAP_LINEAR : GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MAX_LEVEL, levels - 1);
+        for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R}) glTexParameteri(GL_TEXTURE_CUBE_MAP, w, GL_CLAMP_TO_EDGE);
+        return t;
+    }
+
+    void make_lut() {
+        const int size = 64;
+        glGenTextures(1, &lut_tex);
+        glBindTexture(GL_TEXTURE_2D, lut_tex);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RG16F, size, size, 0, GL_RG, GL_FLOAT, nullptr);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        GLuint fbo = 0;
+        glGenFramebuffers(1, &fbo);
+        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, lut_tex, 0);
+        glViewport(0, 0, size, size);
+        glUseProgram(lut_prog->id);
+        glUniform1f(lut_prog->loc("u_size"), float(size));
+        glBindVertexArray(empty_vao);
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+        glDeleteFramebuffers(1, &fbo);
+    }
+
+    void make_environment() {
+        const auto t0 = Clock::now();
+        for (GLuint *t : {&env_cube, &spec_cube, &diff_cube})
+            if (*t) glDeleteTextures(1, t), *t = 0;
+        const Environment &e = scene.environment;
+        env_on = e.type != "none";
+        const double rot = -e.rotation_deg * M_PI / 180.0;
+        env_rotation = glm::mat3(glm::vec3(std::cos(rot), std::sin(rot), 0), glm::vec3(-std::sin(rot), std::cos(rot), 0), glm::vec3(0, 0, 1));
+        if (!env_on) return;
+        glDisable(GL_DEPTH_TEST);
+        glDisable(GL_BLEND);
+        GLuint equirect = 0;
+        if (e.type == "file") equirect = load_equirect(e.path);
+        const int env_size = 128, env_levels = 8;
+        env_cube = new_cube(env_size, env_levels);
+        render_cube(env_cube, env_size, 0, *env_face, [&] {
+            glUniform1i(env_face->loc("u_source"), equirect ? 1 : 0);
+            glActiveTexture(GL_TEXTURE0);
+            glBindTexture(GL_TEXTURE_2D, equirect ? equirect : black_tex);
+            glUniform1i(env_face->loc("u_equirect"), 0);
+        });
+        if (equirect) glDeleteTextures(1, &equirect);
+        glBindTexture(GL_TEXTURE_CUBE_MAP, env_cube);
+        glGenerateMipmap(GL_TEXTURE_CUBE_MAP);
+        glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_CUBE_MAP_SEAMLESS, GL_TRUE);
+        glEnable(GL_TEXTURE_CUBE_MAP_SEAMLESS);
+
+        const int spec_size = 128;
+        spec_cube = new_cube(spec_size, spec_levels);
+        for (int l = 0; l < spec_levels; ++l)
+            render_cube(spec_cube, spec_size >> l, l, *prefilter, [&] {
+                glActiveTexture(GL_TEXTURE0);
+                glBindTexture(GL_TEXTURE_CUBE_MAP, env_cube);
+                glUniform1i(prefilter->loc("u_env"), 0);
+                glUniform1f(prefilter->loc("u_roughness"), float(l) / float(spec_levels - 1));
+                glUniform1f(prefilter->loc("u_env_size"), float(env_size));
+            });
+        const int diff_size = 16;
+        diff_cube = new_cube(diff_size, 1);
+        render_cube(diff_cube, diff_size, 0, *irradiance, [&] {
+            glActiveTexture(GL_TEXTURE0);
+            glBindTexture(GL_TEXTURE_CUBE_MAP, env_cube);
+            glUniform1i(irradiance->loc("u_env"), 0);
+            glUniform1f(irradiance->loc("u_lod"), 3.0f);
+        });
+        glFinish();
+        stats.environment_ms = ms_since(t0);
+    }
+
+    GLuint load_equirect(const std::string &path) {
+        Dataset ds = read_dataset(reg, path);
+        if (ds.kind != HZ_DATA_IMAGE) throw Error(path + ": environment: not an image");
+        const Volume &im = ds.volume;  // dims = channels, width, height
+        if (im.dims.size() != 3 || im.dims[0] < 1 || im.dims[0] > 4) throw Error(path + ": environment: unsupported image layout");
+        const std::uint64_t c = im.dims[0], w = im.dims[1], h = im.dims[2];
+        std::vector<float> rgba(w * h * 4, 1.0f);
+        const std::vector<double> vals = [&] {
+            DataArray a;
+            a.dtype = im.dtype;
+            a.components = 1;
+            a.count = c * w * h;
+            a.bytes = Buffer<std::byte>(im.voxels.size());
+            std::memcpy(a.bytes.data(), im.voxels.data(), im.voxels.size());
+            return array_values(a);
+        }();
+        const double scale = im.dtype == HZ_DTYPE_U8 ? 1.0 / 255 : im.dtype == HZ_DTYPE_U16 ? 1.0 / 65535 : 1.0;
+        const bool srgb = im.dtype == HZ_DTYPE_U8 || im.dtype == HZ_DTYPE_U16;
+        for (std::uint64_t i = 0; i < w * h; ++i)
+            for (std::uint64_t k = 0; k < 3; ++k) {
+                double v = vals[i * c + std::min(k, c - 1)] * scale;
+                rgba[i * 4 + k] = float(srgb ? srgb_to_linear(v) : (std::isfinite(v) ? std::max(v, 0.0) : 0.0));
+            }
+        GLuint t = 0;
+        glGenTextures(1, &t);
+        glBindTexture(GL_TEXTURE_2D, t);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, GLsizei(w), GLsizei(h), 0, GL_RGBA, GL_FLOAT, rgba.data());
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        return t;
+    }
+
+    // --------------------------------------------------------------- programs
+
+    // Resolves the material of `o` into shader + values; throws Error.
+    void resolve_material(GpuObject &g, const Object &o, const Material &m) {
+        const LoadedPlugin *p = find_shader(reg, m.shader);
+        if (!p) throw Error(o.name + ": material: no shading plugin '" + m.shader + "' (see `horizon plugins`)");
+        const hz_shader *sh = p->shader();
+        const hz_shade_domain need = g.geom == Geom::Line ? (HZ_SHADE_LINE | HZ_SHADE_SURFACE) : HZ_SHADE_SURFACE;
+        if (!(sh->domains & need))
+            throw Error(o.name + ": material: shader '" + p->info.id + "' cannot shade " + (g.geom == Geom::Line ? "lines" : "surfaces"));
+        g.use_line_domain = g.geom == Geom::Line && (sh->domains & HZ_SHADE_LINE);
+        std::vector<double> values;
+        std::set<std::string> known;
+        std::string albedo;
+        for (uint32_t i = 0; i < sh->param_count; ++i) {
+            const hz_param_info *pi = sh->get_param(i);
+            known.insert(pi->name);
+            if (albedo.empty() && pi->type == HZ_PARAM_COLOR3) albedo = pi->name;
+            auto it = m.params.find(pi->name);
+            const uint32_t comps = pi->components;
+            for (uint32_t c = 0; c < comps; ++c) {
+                double v = pi->type == HZ_PARAM_FLOAT_ARRAY ? (c < pi->default_array_count ? pi->default_array[c] : pi->default_value[0])
+                                                            : pi->default_value[c];
+                if (it != m.params.end()) {
+                    if (it->second.size() != comps && !(pi->type == HZ_PARAM_FLOAT_ARRAY && it->second.size() <= comps))
+                        throw Error(o.name + ": material: '" + pi->name + "' takes " + std::to_string(comps) + " value(s)");
+                    if (c < it->second.size()) v = it->second[c];
+                }
+                const double lo = pi->min_value[pi->type == HZ_PARAM_FLOAT_ARRAY ? 0 : c];
+                const double hi = pi->max_value[pi->type == HZ_PARAM_FLOAT_ARRAY ? 0 : c];
+                if (v < lo || v > hi) {
+                    spdlog::warn("{}: material: {} = {} clamped to [{}, {}]", o.name, pi->name, v, lo, hi);
+                    v = std::clamp(v, lo, hi);
+                }
+                values.push_back(v);
+            }
+        }
+        for (const auto &[k, v] : m.params)
+            if (!known.count(k)) {
+                std::string list;
+                for (const auto &n : known) list += (list.empty() ? "" : ", ") + n;
+                throw Error(o.name + ": material: shader '" + p->info.id + "' has no parameter '" + k + "' (it has: " + list + ")");
+            }
+        g.shader = p;
+        g.values = std::move(values);
+        g.albedo = albedo;
+        g.program = get_program(g, false);
+        g.debug_program = nullptr;
+    }
+
+    std::string fragment_source(const GpuObject &g, bool debug) const {
+        const hz_shader *sh = g.shader->shader();
+        const hz_shade_domain dom = g.use_line_domain ? HZ_SHADE_LINE : HZ_SHADE_SURFACE;
+        const char *snippet = sh->glsl_source(dom, 410);
+        if (!snippet) throw Error("shader '" + g.shader->info.id + "' gave no GLSL for this geometry");
+        std::ostringstream s;
+        s << "#version 410 core\n";
+        s << (g.geom == Geom::Mesh ? "#define HZ_GEOM_MESH 1\n" : g.geom == Geom::Tube ? "#define HZ_GEOM_TUBE 1\n" : "#define HZ_GEOM_LINE 1\n");
+        s << (dom == HZ_SHADE_LINE ? "#define HZ_DOMAIN_LINE 1\n" : "#define HZ_DOMAIN_SURFACE 1\n");
+        if (sh->output == HZ_SHADER_OUTPUT_BRDF) s << "#define HZ_OUTPUT_BRDF 1\n";
+        if (debug) s << "#define HZ_DEBUG_OUTPUTS 1\n";
+        if (std::strstr(snippet, "hz_ambient(")) s << "#define HZ_HAS_AMBIENT 1\n";
+        // Specialisation: parameters that are exactly zero.
+        std::size_t k = 0;
+        std::ostringstream decl;
+        for (uint32_t i = 0; i < sh->param_count; ++i) {
+            const hz_param_info *pi = sh->get_param(i);
+            const std::string u = std::string("u_") + pi->name;
+            if (pi->type == HZ_PARAM_FLOAT && g.values[k] == 0.0) s << "#define HZ_ZERO_" << pi->name << " 1\n";
+            switch (pi->type) {
+            case HZ_PARAM_FLOAT: decl << "uniform float " << u << ";\n"; break;
+            case HZ_PARAM_INT:
+            case HZ_PARAM_ENUM: decl << "uniform int " << u << ";\n"; break;
+            case HZ_PARAM_BOOL: decl << "uniform bool " << u << ";\n"; break;
+            case HZ_PARAM_VEC2: decl << "uniform vec2 " << u << ";\n"; break;
+            case HZ_PARAM_VEC3: decl << "uniform vec3 " << u << ";\n"; break;
+            case HZ_PARAM_COLOR3:
+                if (pi->name == g.albedo) decl << "vec3 " << u << ";  // set from the object's colouring\n#define HZ_ALBEDO " << u << "\n";
+                else decl << "uniform vec3 " << u << ";\n";
+                break;
+            case HZ_PARAM_FLOAT_ARRAY: decl << "uniform float " << u << "[" << pi->components << "];\n"; break;
+            default: break;
+            }
+            k += pi->components;
+        }
+        s << glsl::kPrelude << decl.str() << "\n// ---- plugin " << g.shader->info.id << "\n" << snippet << "\n// ---- host\n" << glsl::kShadeMain;
+        return s.str();
+    }
+
+    Program *get_program(const GpuObject &g, bool debug) {
+        const std::string fs = fragment_source(g, debug);
+        const std::string key = std::to_string(int(g.geom)) + "\n" + fs;
+        auto it = programs.find(key);
+        if (it != programs.end()) return it->second.get();
+        const std::string what = "shader '" + g.shader->info.id + "'";
+        std::vector<GLuint> stages;
+        if (g.geom == Geom::Mesh) stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kMeshVS, what + " (mesh vertex stage)"));
+        else if (g.geom == Geom::Line) stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kLineVS, what + " (line vertex stage)"));
+        else {
+            stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kTubeVS, what + " (tube vertex stage)"));
+            stages.push_back(compile_shader(GL_GEOMETRY_SHADER, glsl::kTubeGS, what + " (tube geometry stage)"));
+        }
+        stages.push_back(compile_shader(GL_FRAGMENT_SHADER, fs, what));
+        auto p = std::make_unique<Program>();
+        p->id = link_program(stages, what);
+        p->fragment_source = fs;
+        Program *raw = p.get();
+        programs[key] = std::move(p);
+        return raw;
+    }
+
+    void set_material_uniforms(Program &p, const GpuObject &g) {
+        const hz_shader *sh = g.shader->shader();
+        std::size_t k = 0;
+        for (uint32_t i = 0; i < sh->param_count; ++i) {
+            const hz_param_info *pi = sh->get_param(i);
+            const GLint loc = p.loc(std::string("u_") + pi->name);
+            const double *v = g.values.data() + k;
+            if (loc >= 0) switch (pi->type) {
+                case HZ_PARAM_FLOAT: glUniform1f(loc, float(v[0])); break;
+                case HZ_PARAM_INT:
+                case HZ_PARAM_ENUM:
+                case HZ_PARAM_BOOL: glUniform1i(loc, int(std::lround(v[0]))); break;
+                case HZ_PARAM_VEC2: glUniform2f(loc, float(v[0]), float(v[1])); break;
+                case HZ_PARAM_VEC3:
+                case HZ_PARAM_COLOR3: glUniform3f(loc, float(v[0]), float(v[1]), float(v[2])); break;
+                case HZ_PARAM_FLOAT_ARRAY: {
+                    std::vector<float> f(v, v + pi->components);
+                    glUniform1fv(loc, GLsizei(f.size()), f.data());
+                    break;
+                }
+                default: break;
+                }
+            k += pi->components;
+        }
+    }
+
+    // ----------------------------------------------------------------- upload
+
+    // Keeps the points a polyline needs within `tol` mm (greedy chord test,
+    // windows of at most 64 points), always the first and last.
+    static void decimate(const float *p, std::uint64_t n, double tol, std::vector<std::uint32_t> &keep) {
+        keep.clear();
+        if (n == 0) return;
+        keep.push_back(0);
+        if (n == 1) return;
+        if (tol <= 0) {
+            for (std::uint64_t i = 1; i < n; ++i) keep.push_back(std::uint32_t(i));
+            return;
+        }
+        const double tol2 = tol * tol;
+        std::uint64_t a = 0;
+        std::uint64_t j = 2;
+        while (j < n) {
+            // Can a..j be one chord?
+            const double ax = p[a * 3], ay = p[a * 3 + 1], az = p[a * 3 + 2];
+            const double dx = p[j * 3] - ax, dy = p[j * 3 + 1] - ay, dz = p[j * 3 + 2] - az;
+            const double dd = dx * dx + dy * dy + dz * dz;
+            bool ok = j - a <= 64;
+            for (std::uint64_t m = a + 1; ok && m < j; ++m) {
+                const double px = p[m * 3] - ax, py = p[m * 3 + 1] - ay, pz = p[m * 3 + 2] - az;
+                const double t = dd > 0 ? std::clamp((px * dx + py * dy + pz * dz) / dd, 0.0, 1.0) : 0.0;
+                const double ex = px - t * dx, ey = py - t * dy, ez = pz - t * dz;
+                ok = ex * ex + ey * ey + ez * ez <= tol2;
+            }
+            if (!ok) {
+                a = j - 1;
+                keep.push_back(std::uint32_t(a));
+            }
+            ++j;
+        }
+        keep.push_back(std::uint32_t(n - 1));
+    }
+
+    void upload_streamlines(GpuObject &g, const Object &o, double tol_mm) {
+        const Tractogram &t = o.data.tractogram;
+        const std::uint64_t N = t.nb_streamlines();
+        // Colours and radii.
+        std::vector<double> per_vertex, per_streamline;
+        std::array<double, 2> range{0, 1};
+        const Coloring &c = o.coloring;
+        if (c.mode == "data") {
+            const DataArray *a = nullptr;
+            for (const auto &x : t.arrays)
+                if (x.name == c.array && (x.attach == HZ_ATTACH_VERTEX || x.attach == HZ_ATTACH_STREAMLINE)) a = &x;
+            if (!a) {
+                std::string list;
+                for (const auto &x : t.arrays) list += (list.empty() ? "" : ", ") + x.name;
+                throw Error(o.name + ": color: no per-point or per-streamline array '" + c.array + "' (arrays: " + (list.empty() ? "none" : list) + ")");
+            }
+            (a->attach == HZ_ATTACH_VERTEX ? per_vertex : per_streamline) = array_values(*a);
+            range = c.range ? *c.range : finite_range(a->attach == HZ_ATTACH_VERTEX ? per_vertex : per_streamline);
+        }
+        std::vector<float> radius(N, float(o.radius_mm));
+        if (o.clustering && o.clustering->width_by_size) {
+            for (const auto &x : t.arrays)
+                if (x.name == "cluster_size" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) {
+                    std::vector<double> sz = array_values(x);
+                    std::vector<double> sorted = sz;
+                    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+                    const double med = sorted.empty() ? 1.0 : std::max(1.0, sorted[sorted.size() / 2]);
+                    for (std::uint64_t i = 0; i < N; ++i)
+                        radius[i] = float(o.radius_mm * std::clamp(std::sqrt(std::max(sz[i], 1.0) / med), 0.35, 3.0));
+                }
+        }
+        struct V {
+            float pos[3];
+            std::uint32_t tangent;
+            std::uint8_t rgba[4];
+            float radius;
+        };
+        static_assert(sizeof(V) == 24);
+        std::vector<V> verts;
+        verts.reserve(t.nb_vertices());
+        g.firsts.clear();
+        g.counts.clear();
+        std::vector<std::uint32_t> keep;
+        const float *P = t.positions.data();
+        for (std::uint64_t s = 0; s < N; ++s) {
+            const std::uint64_t b = t.offsets[s], e = t.offsets[s + 1], n = e - b;
+            stats.points_total += n;
+            if (n < 2) continue;
+            decimate(P + b * 3, n, tol_mm, keep);
+            g.firsts.push_back(GLint(verts.size()));
+            g.counts.push_back(GLsizei(keep.size()));
+            g.segments += keep.size() - 1;
+            stats.points_kept += keep.size();
+            std::array<std::uint8_t, 4> cluster_col{};
+            if (c.mode == "cluster") {
+                const double hue = std::fmod(s * 0.618033988749895, 1.0);
+                const double h6 = hue * 6, x = 1 - std::abs(std::fmod(h6, 2.0) - 1);
+                double r = 0, gg = 0, bb = 0;
+                switch (int(h6)) {
+                case 0: r = 1, gg = x; break;
+                case 1: r = x, gg = 1; break;
+                case 2: gg = 1, bb = x; break;
+                case 3: gg = x, bb = 1; break;
+                case 4: r = x, bb = 1; break;
+                default: r = 1, bb = x; break;
+                }
+                cluster_col = rgba8(srgb_to_linear(0.25 + 0.7 * r), srgb_to_linear(0.25 + 0.7 * gg), srgb_to_linear(0.25 + 0.7 * bb));
+            }
+            for (std::uint32_t ki = 0; ki < keep.size(); ++ki) {
+                const std::uint64_t i = b + keep[ki];
+                const std::uint64_t i0 = i > b ? i - 1 : i, i1 = i + 1 < e ? i + 1 : i;
+                float tx = P[i1 * 3] - P[i0 * 3], ty = P[i1 * 3 + 1] - P[i0 * 3 + 1], tz = P[i1 * 3 + 2] - P[i0 * 3 + 2];
+                const float len = std::sqrt(tx * tx + ty * ty + tz * tz);
+                if (len > 0 && std::isfinite(len)) tx /= len, ty /= len, tz /= len;
+                else tx = ty = tz = 0;
+                V v;
+                v.pos[0] = P[i * 3], v.pos[1] = P[i * 3 + 1], v.pos[2] = P[i * 3 + 2];
+                v.tangent = pack_snorm_2_10_10_10(tx, ty, tz);
+                std::array<std::uint8_t, 4> col;
+                if (c.mode == "direction") col = rgba8(srgb_to_linear(std::abs(tx)), srgb_to_linear(std::abs(ty)), srgb_to_linear(std::abs(tz)));
+                else if (c.mode == "cluster") col = cluster_col;
+                else if (c.mode == "data") {
+                    const double val = per_vertex.empty() ? per_streamline[s] : per_vertex[i];
+                    const auto m = colormap(c.colormap, (val - range[0]) / (range[1] - range[0]));
+                    col = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
+                } else col = rgba8(c.color[0], c.color[1], c.color[2]);
+                std::memcpy(v.rgba, col.data(), 4);
+                v.radius = radius[s];
+                verts.push_back(v);
+            }
+        }
+        glGenVertexArrays(1, &g.vao);
+        glBindVertexArray(g.vao);
+        glGenBuffers(1, &g.vbo);
+        glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
+        glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(verts.size() * sizeof(V)), verts.data(), GL_STATIC_DRAW);
+        glEnableVertexAttribArray(0);
+        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(V), reinterpret_cast<void *>(0));
+        glEnableVertexAttribArray(1);
+        glVertexAttribPointer(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, sizeof(V), reinterpret_cast<void *>(12));
+        glEnableVertexAttribArray(2);
+        glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, sizeof(V), reinterpret_cast<void *>(16));
+        glEnableVertexAttribArray(3);
+        glVertexAttribPointer(3, 1, GL_FLOAT, GL_FALSE, sizeof(V), reinterpret_cast<void *>(20));
+        g.bounds = bounds_of(t.positions.data(), t.nb_vertices());
+    }
+
+    void upload_mesh(GpuObject &g, const Object &o) {
+        const Mesh &m = o.data.mesh;
+        const std::uint64_t nv = m.nb_vertices(), nf = m.nb_faces();
+        for (std::uint64_t i = 0; i < nf * 3; ++i)
+            if (m.faces[i] >= nv) throw Error(o.name + ": face index " + std::to_string(m.faces[i]) + " out of range");
+        // Area-weighted vertex normals.
+        std::vector<glm::vec3> nrm(nv, glm::vec3(0));
+        const float *V = m.vertices.data();
+        auto vp = [&](std::uint32_t i) { return glm::vec3(V[i * 3], V[i * 3 + 1], V[i * 3 + 2]); };
+        for (std::uint64_t f = 0; f < nf; ++f) {
+            const std::uint32_t a = m.faces[f * 3], b = m.faces[f * 3 + 1], c = m.faces[f * 3 + 2];
+            const glm::vec3 n = glm::cross(vp(b) - vp(a), vp(c) - vp(a));
+            if (!std::isfinite(n.x + n.y + n.z)) continue;
+            nrm[a] += n, nrm[b] += n, nrm[c] += n;
+        }
+        std::vector<double> data;
+        std::array<double, 2> range{0, 1};
+        const Coloring &c = o.coloring;
+        if (c.mode == "data") {
+            const DataArray *a = nullptr;
+            for (const auto &x : m.arrays)
+                if (x.name == c.array && x.attach == HZ_ATTACH_VERTEX && x.count == nv) a = &x;
+            if (!a) {
+                std::string list;
+                for (const auto &x : m.arrays) list += (list.empty() ? "" : ", ") + x.name;
+                throw Error(o.name + ": color: no per-vertex array '" + c.array + "' (arrays: " + (list.empty() ? "none" : list) + ")");
+            }
+            data = array_values(*a);
+            range = c.range ? *c.range : finite_range(data);
+        }
+        struct MV {
+            float pos[3];
+            float normal[3];
+            std::uint8_t rgba[4];
+        };
+        std::vector<MV> verts(nv);
+        for (std::uint64_t i = 0; i < nv; ++i) {
+            MV &v = verts[i];
+            for (int k = 0; k < 3; ++k) v.pos[k] = V[i * 3 + k];
+            const float l = glm::length(nrm[i]);
+            const glm::vec3 n = l > 0 ? nrm[i] / l : glm::vec3(0, 0, 1);
+            v.normal[0] = n.x, v.normal[1] = n.y, v.normal[2] = n.z;
+            std::array<std::uint8_t, 4> col;
+            if (c.mode == "data") {
+                const auto cm = colormap(c.colormap, (data[i] - range[0]) / (range[1] - range[0]));
+                col = rgba8(srgb_to_linear(cm[0]), srgb_to_linear(cm[1]), srgb_to_linear(cm[2]));
+            } else col = rgba8(c.color[0], c.color[1], c.color[2]);
+            std::memcpy(v.rgba, col.data(), 4);
+        }
+        glGenVertexArrays(1, &g.vao);
+        glBindVertexArray(g.vao);
+        glGenBuffers(1, &g.vbo);
+        glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
+        glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(verts.size() * sizeof(MV)), verts.data(), GL_STATIC_DRAW);
+        glEnableVertexAttribArray(0);
+        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(MV), reinterpret_cast<void *>(0));
+        glEnableVertexAttribArray(1);
+        glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(MV), reinterpret_cast<void *>(12));
+        glEnableVertexAttribArray(2);
+        glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, sizeof(MV), reinterpret_cast<void *>(24));
+        glGenBuffers(1, &g.ebo);
+        glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g.ebo);
+        glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(nf * 3 * 4), m.faces.data(), GL_STATIC_DRAW);
+        g.index_count = GLsizei(nf * 3);
+        g.triangles = nf;
+        g.bounds = bounds_of(V, nv);
+    }
+
+    void upload_slices(GpuObject &g, const Object &o) {
+        const Volume &v = o.data.volume;
+        if (v.dims.size() < 3) throw Error(o.name + ": slices need a 3D volume");
+        GLint max3d = 0;
+        glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
+        const std::uint64_t X = v.dims[0], Y = v.dims[1], Z = v.dims[2];
+        if (X > std::uint64_t(max3d) || Y > std::uint64_t(max3d) || Z > std::uint64_t(max3d))
+            throw Error(o.name + ": volume larger than the GL 3D texture limit " + std::to_string(max3d));
+        // First 3D volume, scaled to float.
+        DataArray a;
+        a.dtype = v.dtype;
+        a.components = 1;
+        a.count = X * Y * Z;
+        a.bytes = Buffer<std::byte>(a.count * dtype_size(v.dtype));
+        std::memcpy(a.bytes.data(), v.voxels.data(), a.bytes.size());
+        std::vector<double> vals = array_values(a);
+        std::vector<float> f(vals.size());
+        for (std::size_t i = 0; i < vals.size(); ++i) f[i] = float(vals[i] * v.scale_slope + v.scale_inter);
+        glGenTextures(1, &g.volume_tex);
+        glBindTexture(GL_TEXTURE_3D, g.volume_tex);
+        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+        glTexImage3D(GL_TEXTURE_3D, 0, GL_R32F, GLsizei(X), GLsizei(Y), GLsizei(Z), 0, GL_RED, GL_FLOAT, f.data());
+        glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R}) glTexParameteri(GL_TEXTURE_3D, w, GL_CLAMP_TO_EDGE);
+        // Window: given, else the 1st..99th percentile of the finite values.
+        if (o.window) g.window = *o.window;
+        else {
+            std::vector<float> s;
+            for (float x : f)
+                if (std::isfinite(x)) s.push_back(x);
+            if (!s.empty()) {
+                std::nth_element(s.begin(), s.begin() + s.size() / 100, s.end());
+                const float lo = s[s.size() / 100];
+                std::nth_element(s.begin(), s.begin() + s.size() * 99 / 100, s.end());
+                g.window = {lo, std::max(s[s.size() * 99 / 100], lo + 1e-6f)};
+            }
+        }
+        // Colormap texture (sRGB table).
+        std::vector<std::uint8_t> lut(256 * 4);
+        for (int i = 0; i < 256; ++i) {
+            const auto cm = colormap(o.slice_colormap, i / 255.0);
+            const auto q = rgba8(cm[0], cm[1], cm[2]);
+            std::memcpy(&lut[i * 4], q.data(), 4);
+        }
+        glGenTextures(1, &g.colormap_tex);
+        glBindTexture(GL_TEXTURE_2D, g.colormap_tex);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, 256, 1, 0, GL_RGBA, GL_UNSIGNED_BYTE, lut.data());
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        // RAS -> texture coordinates, and the RAS bounding box of the grid.
+        glm::dmat4 A(1.0);
+        for (int r = 0; r < 4; ++r)
+            for (int cc = 0; cc < 4; ++cc) A[cc][r] = v.voxel_to_ras[r * 4 + cc];
+        const glm::dmat4 to_tex = glm::scale(glm::dmat4(1.0), glm::dvec3(1.0 / X, 1.0 / Y, 1.0 / Z)) *
+                                  glm::translate(glm::dmat4(1.0), glm::dvec3(0.5)) * glm::inverse(A);
+        g.ras_to_tex = glm::mat4(to_tex);
+        glm::dvec3 lo(INFINITY), hi(-INFINITY);
+        for (int corner = 0; corner < 8; ++corner) {
+            const glm::dvec4 ijk((corner & 1) ? X - 0.5 : -0.5, (corner & 2) ? Y - 0.5 : -0.5, (corner & 4) ? Z - 0.5 : -0.5, 1.0);
+            const glm::dvec3 p = glm::dvec3(A * ijk);
+            lo = glm::min(lo, p), hi = glm::max(hi, p);
+        }
+        g.bounds.empty = false;
+        for (int k = 0; k < 3; ++k) g.bounds.min[k] = lo[k], g.bounds.max[k] = hi[k];
+        const glm::dvec3 mid = (lo + hi) * 0.5;
+        std::vector<float> quads;
+        auto quad = [&](int axis, double at) {
+            if (std::isnan(at)) at = mid[axis];
+            const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+            const double cu[4] = {lo[u], hi[u], hi[u], lo[u]}, cw[4] = {lo[w], lo[w], hi[w], hi[w]};
+            const int order[6] = {0, 1, 2, 0, 2, 3};
+            for (int k : order) {
+                glm::dvec3 p;
+                p[axis] = at, p[u] = cu[k], p[w] = cw[k];
+                quads.push_back(float(p.x)), quads.push_back(float(p.y)), quads.push_back(float(p.z));
+            }
+        };
+        if (o.slice_x) quad(0, *o.slice_x);
+        if (o.slice_y) quad(1, *o.slice_y);
+        if (o.slice_z) quad(2, *o.slice_z);
+        g.slice_vertices = GLsizei(quads.size() / 3);
+        g.triangles = g.slice_vertices / 3;
+        glGenVertexArrays(1, &g.vao);
+        glBindVertexArray(g.vao);
+        glGenBuffers(1, &g.vbo);
+        glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
+        glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(quads.size() * 4), quads.data(), GL_STATIC_DRAW);
+        glEnableVertexAttribArray(0);
+        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, nullptr);
+    }
+
+    // ------------------------------------------------------------------ frame
+
+    struct Matrices {
+        glm::mat4 view_proj;
+        glm::dmat4 inv_view_proj;
+        glm::dvec3 right, up, back;
+    };
+
+    static Matrices matrices(const View &v, int w, int h) {
+        Matrices m;
+        const glm::dvec3 eye = to_dvec3(v.eye), target = to_dvec3(v.target);
+        glm::dvec3 up = to_dvec3(v.up);
+        const glm::dmat4 view = glm::lookAt(eye, target, up);
+        const glm::dmat4 proj = glm::perspective(glm::radians(v.fov_deg), double(w) / std::max(h, 1), v.near_mm, v.far_mm);
+        m.view_proj = glm::mat4(proj * view);
+        m.inv_view_proj = glm::inverse(proj * view);
+        m.right = glm::dvec3(view[0][0], view[1][0], view[2][0]);
+        m.up = glm::dvec3(view[0][1], view[1][1], view[2][1]);
+        m.back = glm::dvec3(view[0][2], view[1][2], view[2][2]);
+        return m;
+    }
+
+    std::vector<Light> lights() const {
+        if (!scene.lights.empty()) return scene.lights;
+        // Three-point rig, camera space.
+        Light key, fill, rim;
+        key.direction = {-0.5, 0.55, 0.65}, key.intensity = 1.6, key.color = {1.0, 0.96, 0.9};
+        fill.direction = {0.7, 0.1, 0.5}, fill.intensity = 0.35, fill.color = {0.85, 0.9, 1.0};
+        rim.direction = {0.1, 0.6, -0.8}, rim.intensity = 1.0;
+        return {key, fill, rim};
+    }
+
+    void bind_lights(Program &p, const Matrices &m, const View &v, std::size_t max_lights) {
+        std::vector<Light> ls = lights();
+        if (ls.size() > max_lights) ls.resize(max_lights);
+        std::vector<float> vec, rad;
+        for (const Light &l : ls) {
+            glm::dvec3 d = l.type == "point" ? to_dvec3(l.position) : to_dvec3(l.direction);
+            if (l.camera_space) {
+                d = d.x * m.right + d.y * m.up + d.z * m.back;
+                if (l.type == "point") d += to_dvec3(v.eye);
+            }
+            vec.insert(vec.end(), {float(d.x), float(d.y), float(d.z), l.type == "point" ? 1.0f : 0.0f});
+            rad.insert(rad.end(), {float(l.color[0] * l.intensity), float(l.color[1] * l.intensity), float(l.color[2] * l.intensity)});
+        }
+        glUniform1i(p.loc("hz_nb_lights"), GLint(ls.size()));
+        if (!ls.empty()) {
+            glUniform4fv(p.loc("hz_light_vec[0]"), GLsizei(ls.size()), vec.data());
+            glUniform3fv(p.loc("hz_light_radiance[0]"), GLsizei(ls.size()), rad.data());
+        }
+    }
+
+    void bind_environment(Program &p, bool on) {
+        glActiveTexture(GL_TEXTURE0);
+        glBindTexture(GL_TEXTURE_CUBE_MAP, on && spec_cube ? spec_cube : black_cube);
+        glActiveTexture(GL_TEXTURE1);
+        glBindTexture(GL_TEXTURE_CUBE_MAP, on && diff_cube ? diff_cube : black_cube);
+        glActiveTexture(GL_TEXTURE2);
+        glBindTexture(GL_TEXTURE_2D, lut_tex);
+        glActiveTexture(GL_TEXTURE3);
+        glBindTexture(GL_TEXTURE_2D, behind.tex ? behind.tex : black_tex);
+        glUniform1i(p.loc("hz_env_specular_map"), 0);
+        glUniform1i(p.loc("hz_env_diffuse_map"), 1);
+        glUniform1i(p.loc("hz_env_lut"), 2);
+        glUniform1i(p.loc("hz_behind"), 3);
+        glUniform1f(p.loc("hz_env_intensity"), float(scene.environment.intensity));
+        glUniform1f(p.loc("hz_env_max_lod"), float(spec_levels - 1));
+        glUniformMatrix3fv(p.loc("hz_env_rotation"), 1, GL_FALSE, glm::value_ptr(env_rotation));
+        glUniform1i(p.loc("hz_env_on"), on && env_on ? 1 : 0);
+    }
+
+    void draw_object(const GpuObject &g, const Object &o, const Matrices &m, const View &v, bool debug, int w, int h) {
+        if (g.slices) {
+            if (debug) return;
+            glUseProgram(slice->id);
+            glUniformMatrix4fv(slice->loc("hz_view_proj"), 1, GL_FALSE, glm::value_ptr(m.view_proj));
+            glUniformMatrix4fv(slice->loc("u_ras_to_tex"), 1, GL_FALSE, glm::value_ptr(g.ras_to_tex));
+            glUniform2f(slice->loc("u_window"), float(g.window[0]), float(g.window[1]));
+            glUniform1f(slice->loc("u_opacity"), float(o.opacity));
+            glUniform1f(slice->loc("u_clip_below"), o.clip_below ? float(*o.clip_below) : -INFINITY);
+            glActiveTexture(GL_TEXTURE4);
+            glBindTexture(GL_TEXTURE_3D, g.volume_tex);
+            glUniform1i(slice->loc("u_volume"), 4);
+            glActiveTexture(GL_TEXTURE5);
+            glBindTexture(GL_TEXTURE_2D, g.colormap_tex);
+            glUniform1i(slice->loc("u_colormap"), 5);
+            glBindVertexArray(g.vao);
+            glDrawArrays(GL_TRIANGLES, 0, g.slice_vertices);
+            stats.triangles_drawn += g.triangles;
+            return;
+        }
+        Program &p = *(debug ? g.debug_program : g.program);
+        glUseProgram(p.id);
+        glUniformMatrix4fv(p.loc("hz_view_proj"), 1, GL_FALSE, glm::value_ptr(m.view_proj));
+        glUniform3f(p.loc("hz_eye"), float(v.eye[0]), float(v.eye[1]), float(v.eye[2]));
+        glUniform3f(p.loc("hz_tangent_hint"), 0.0f, 0.0f, 1.0f);
+        glUniform1f(p.loc("hz_opacity"), float(o.opacity));
+        glUniform2f(p.loc("hz_viewport"), float(w), float(h));
+        bind_lights(p, m, v, debug ? 1 : 8);
+        bind_environment(p, !debug);
+        set_material_uniforms(p, g);
+        glBindVertexArray(g.vao);
+        if (g.geom == Geom::Mesh) {
+            glDrawElements(GL_TRIANGLES, g.index_count, GL_UNSIGNED_INT, nullptr);
+            stats.triangles_drawn += g.triangles;
+        } else {
+            glMultiDrawArrays(GL_LINE_STRIP, g.firsts.data(), g.counts.data(), GLsizei(g.firsts.size()));
+            stats.segments_drawn += g.segments;
+        }
+    }
+
+    void ensure_targets(int w, int h, int samples) {
+        samples = std::clamp(samples, 1, std::max(1, max_samples));
+        if (msaa.fbo && (msaa.width != w || msaa.height != h || msaa.samples != samples)) msaa.destroy();
+        if (!msaa.fbo) {
+            msaa.width = w, msaa.height = h, msaa.samples = samples;
+            glGenFramebuffers(1, &msaa.fbo);
+            glBindFramebuffer(GL_FRAMEBUFFER, msaa.fbo);
+            glGenRenderbuffers(1, &msaa.color);
+            glBindRenderbuffer(GL_RENDERBUFFER, msaa.color);
+            glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples > 1 ? samples : 0, GL_RGBA16F, w, h);
+            glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, msaa.color);
+            glGenRenderbuffers(1, &msaa.depth);
+            glBindRenderbuffer(GL_RENDERBUFFER, msaa.depth);
+            glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples > 1 ? samples : 0, GL_DEPTH_COMPONENT24, w, h);
+            glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, msaa.depth);
+            if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete multisample framebuffer");
+        }
+        resolved.ensure(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT);
+    }
+
+    void draw_scene(const View &v, int w, int h) {
+        const Matrices m = matrices(v, w, h);
+        glBindFramebuffer(GL_FRAMEBUFFER, msaa.fbo);
+        glViewport(0, 0, w, h);
+        glClearColor(float(scene.background[0]), float(scene.background[1]), float(scene.background[2]), 1.0f);
+        glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+        if (env_on && scene.environment.visible) {
+            glDisable(GL_DEPTH_TEST);
+            glUseProgram(sky->id);
+            const glm::mat4 inv(m.inv_view_proj);
+            glUniformMatrix4fv(sky->loc("u_inv_view_proj"), 1, GL_FALSE, glm::value_ptr(inv));
+            glUniformMatrix3fv(sky->loc("u_rotation"), 1, GL_FALSE, glm::value_ptr(env_rotation));
+            glUniform1f(sky->loc("u_intensity"), float(scene.environment.intensity));
+            glActiveTexture(GL_TEXTURE0);
+            glBindTexture(GL_TEXTURE_CUBE_MAP, env_cube);
+            glUniform1i(sky->loc("u_env"), 0);
+            glBindVertexArray(empty_vao);
+            glDrawArrays(GL_TRIANGLES, 0, 3);
+        }
+        glEnable(GL_DEPTH_TEST);
+        glDepthFunc(GL_LESS);
+        glDepthMask(GL_TRUE);
+        glDisable(GL_BLEND);
+        glDisable(GL_CULL_FACE);
+        bool translucent = false;
+        for (const auto &g : objects) {
+            const Object &o = scene.objects[g.index];
+            if (!o.visible) continue;
+            if (o.opacity < 1.0) {
+                translucent = true;
+                continue;
+            }
+            draw_object(g, o, m, v, false, w, h);
+        }
+        if (translucent) {
+            // The opaque image, for shaders that refract it (hz_scene_behind).
+            behind.ensure(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT);
+            glBindFramebuffer(GL_READ_FRAMEBUFFER, msaa.fbo);
+            glBindFramebuffer(GL_DRAW_FRAMEBUFFER, behind.fbo);
+            glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+            glBindFramebuffer(GL_FRAMEBUFFER, msaa.fbo);
+            glEnable(GL_BLEND);
+            glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+            glDepthMask(GL_FALSE);
+            for (const auto &g : objects) {
+                const Object &o = scene.objects[g.index];
+                if (o.visible && o.opacity < 1.0) draw_object(g, o, m, v, false, w, h);
+            }
+            glDepthMask(GL_TRUE);
+            glDisable(GL_BLEND);
+        }
+        // Resolve and tonemap.
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, msaa.fbo);
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, resolved.fbo);
+        glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    }
+
+    void tonemap_to(GLuint fbo, int w, int h) {
+        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+        glViewport(0, 0, w, h);
+        glDisable(GL_DEPTH_TEST);
+        glDisable(GL_BLEND);
+        glUseProgram(tonemap->id);
+        glActiveTexture(GL_TEXTURE0);
+        glBindTexture(GL_TEXTURE_2D, resolved.tex);
+        glUniform1i(tonemap->loc("u_hdr"), 0);
+        glUniform1f(tonemap->loc("u_exposure"), float(scene.exposure));
+        glUniform1i(tonemap->loc("u_curve"), scene.tonemap == "aces" ? 0 : scene.tonemap == "reinhard" ? 1 : 2);
+        glBindVertexArray(empty_vao);
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+    }
+};
+
+// ================================================================ Renderer
+
+Renderer::Renderer(const Registry &reg) : impl_(std::make_unique<Impl>(reg)) {}
+Renderer::~Renderer() = default;
+
+const Scene &Renderer::scene() const { return impl_->scene; }
+const FrameStats &Renderer::stats() const { return impl_->stats; }
+
+std::string Renderer::gl_description() const {
+    const auto *ver = reinterpret_cast<const char *>(glGetString(GL_VERSION));
+    const auto *ren = reinterpret_cast<const char *>(glGetString(GL_RENDERER));
+    return std::string("OpenGL ") + (ver ? ver : "?") + ", " + (ren ? ren : "?");
+}
+
+void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &settings) {
+    Impl &I = *impl_;
+    const auto t0 = Clock::now();
+    I.clear_objects();
+    I.scene = std::move(scene);
+    I.settings = settings;
+    I.stats = FrameStats{};
+    // Decimation tolerance: `lod_pixels` at the distance of the target.
+    const double dist = glm::length(to_dvec3(view.eye) - to_dvec3(view.target));
+    const double px_mm = 2.0 * dist * std::tan(glm::radians(view.fov_deg) / 2) / std::max(settings.height, 1);
+    const double tol = settings.lod_pixels > 0 ? settings.lod_pixels * px_mm : 0.0;
+    for (std::size_t i = 0; i < I.scene.objects.size(); ++i) {
+        const Object &o = I.scene.objects[i];
+        GpuObject g;
+        g.index = i;
+        if (o.kind == HZ_DATA_STREAMLINES) {
+            g.geom = o.render == "tubes" ? Geom::Tube : Geom::Line;
+            I.upload_streamlines(g, o, tol);
+            I.resolve_material(g, o, o.material);
+        } else if (o.kind == HZ_DATA_MESH) {
+            g.geom = Geom::Mesh;
+            I.upload_mesh(g, o);
+            I.resolve_material(g, o, o.material);
+        } else if (o.kind == HZ_DATA_VOLUME) {
+            g.slices = true;
+            I.upload_slices(g, o);
+        } else {
+            throw Error(o.name + ": nothing to draw for this kind of data");
+        }
+        I.objects.push_back(std::move(g));
+    }
+    glFinish();
+    I.stats.upload_ms = ms_since(t0);
+    I.make_environment();
+}
+
+void Renderer::set_material(std::size_t object, const Material &m) {
+    Impl &I = *impl_;
+    for (auto &g : I.objects)
+        if (g.index == object && !g.slices) {
+            I.resolve_material(g, I.scene.objects[object], m);
+            I.scene.objects[object].material = m;
+            return;
+        }
+    throw Error("object " + std::to_string(object) + " has no material");
+}
+
+void Renderer::set_visible(std::size_t object, bool visible) {
+    if (object < impl_->scene.objects.size()) impl_->scene.objects[object].visible = visible;
+}
+
+View Renderer::fit_view(const Camera &c, double aspect) const { return render::fit_view(impl_->scene, c, aspect); }
+
+Bounds scene_bounds(const Scene &s) {
+    Bounds b;
+    auto add = [&](const Bounds &o) {
+        if (o.empty) return;
+        for (int k = 0; k < 3; ++k) {
+            b.min[k] = b.empty ? o.min[k] : std::min(b.min[k], o.min[k]);
+            b.max[k] = b.empty ? o.max[k] : std::max(b.max[k], o.max[k]);
+        }
+        b.empty = false;
+    };
+    for (const Object &o : s.objects) {
+        if (!o.visible) continue;
+        if (o.kind == HZ_DATA_STREAMLINES) add(bounds_of(o.data.tractogram.positions.data(), o.data.tractogram.nb_vertices()));
+        else if (o.kind == HZ_DATA_MESH) add(bounds_of(o.data.mesh.vertices.data(), o.data.mesh.nb_vertices()));
+        else if (o.kind == HZ_DATA_VOLUME && o.data.volume.dims.size() >= 3) {
+            const Volume &v = o.data.volume;
+            float corners[24];
+            for (int c = 0; c < 8; ++c) {
+                const double ijk[3] = {(c & 1) ? v.dims[0] - 0.5 : -0.5, (c & 2) ? v.dims[1] - 0.5 : -0.5, (c & 4) ? v.dims[2] - 0.5 : -0.5};
+                for (int r = 0; r < 3; ++r)
+                    corners[c * 3 + r] = float(v.voxel_to_ras[r * 4] * ijk[0] + v.voxel_to_ras[r * 4 + 1] * ijk[1] +
+                                               v.voxel_to_ras[r * 4 + 2] * ijk[2] + v.voxel_to_ras[r * 4 + 3]);
+            }
+            add(bounds_of(corners, 8));
+        }
+    }
+    return b;
+}
+
+View fit_view(const Scene &scene, const Camera &c, double aspect) {
+    const Bounds b = scene_bounds(scene);
+    glm::dvec3 lo(-50), hi(50);
+    if (!b.empty) lo = glm::dvec3(b.min[0], b.min[1], b.min[2]), hi = glm::dvec3(b.max[0], b.max[1], b.max[2]);
+    const glm::dvec3 center = (lo + hi) * 0.5, half = glm::max((hi - lo) * 0.5, glm::dvec3(1e-3));
+    View v;
+    v.fov_deg = c.fov_deg;
+    glm::dvec3 dir(-1, 0, 0), up(0, 0, 1);
+    if (c.view == "right") dir = {1, 0, 0};
+    else if (c.view == "anterior") dir = {0, 1, 0};
+    else if (c.view == "posterior") dir = {0, -1, 0};
+    else if (c.view == "superior") dir = {0, 0, 1}, up = {0, 1, 0};
+    else if (c.view == "inferior") dir = {0, 0, -1}, up = {0, 1, 0};
+    glm::dvec3 target = c.target ? to_dvec3(*c.target) : center;
+    if (c.position) dir = glm::normalize(to_dvec3(*c.position) - target);
+    if (c.position || c.target) up = to_dvec3(c.up);
+    if (glm::length(glm::cross(dir, up)) < 1e-9) up = std::abs(up.z) > 0.5 ? glm::dvec3(0, 1, 0) : glm::dvec3(0, 0, 1);
+    // Distance at which the box's extent across the view fits the frustum.
+    const glm::dvec3 right = glm::normalize(glm::cross(-dir, up)), upv = glm::cross(right, -dir);
+    const glm::dvec3 ah = glm::abs(half);
+    const double hw = glm::dot(glm::abs(right), ah), hh = glm::dot(glm::abs(upv), ah), hd = glm::dot(glm::abs(dir), ah);
+    const double ty = std::tan(glm::radians(c.fov_deg) / 2), tx = ty * aspect;
+    const double dist = (std::max(hw / tx, hh / ty) * 1.08 + hd) / c.zoom;
+    glm::dvec3 eye = c.position ? to_dvec3(*c.position) : target + dir * dist;
+    v.eye = {eye.x, eye.y, eye.z};
+    v.target = {target.x, target.y, target.z};
+    v.up = {up.x, up.y, up.z};
+    const double radius = glm::length(half);
+    const double d = glm::length(eye - center);
+    v.far_mm = d + radius * 2.0;
+    v.near_mm = std::max(v.far_mm * 1e-4, d - radius * 2.0);
+    return v;
+}
+
+void Renderer::render(const View &view, int width, int height) {
+    Impl &I = *impl_;
+    const auto t0 = Clock::now();
+    I.stats.segments_drawn = I.stats.triangles_drawn = 0;
+    I.ensure_targets(width, height, I.settings.samples);
+    I.draw_scene(view, width, height);
+    I.ldr.ensure(width, height, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
+    I.tonemap_to(I.ldr.fbo, width, height);
+    glFinish();
+    I.stats.draw_ms = ms_since(t0);
+}
+
+void Renderer::render_to_window(const View &view, int width, int height) {
+    Impl &I = *impl_;
+    const auto t0 = Clock::now();
+    I.stats.segments_drawn = I.stats.triangles_drawn = 0;
+    I.ensure_targets(width, height, I.settings.samples);
+    I.draw_scene(view, width, height);
+    I.tonemap_to(0, width, height);
+    I.stats.draw_ms = ms_since(t0);
+}
+
+Image Renderer::read_image() {
+    Impl &I = *impl_;
+    const auto t0 = Clock::now();
+    Image im;
+    im.width = I.ldr.width, im.height = I.ldr.height;
+    im.rgba.resize(std::size_t(im.width) * im.height * 4);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, I.ldr.fbo);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    std::vector<std::uint8_t> tmp(im.rgba.size());
+    glReadPixels(0, 0, im.width, im.height, GL_RGBA, GL_UNSIGNED_BYTE, tmp.data());
+    const std::size_t row = std::size_t(im.width) * 4;
+    for (int y = 0; y < im.height; ++y) std::memcpy(&im.rgba[y * row], &tmp[(im.height - 1 - y) * row], row);
+    I.stats.readback_ms = ms_since(t0);
+    return im;
+}
+
+std::array<FloatImage, 5> Renderer::render_debug(const View &view, int w, int h) {
+    Impl &I = *impl_;
+    for (auto &g : I.objects)
+        if (!g.slices && !g.debug_program) g.debug_program = I.get_program(g, true);
+    GLuint fbo = 0, depth = 0, tex[5] = {};
+    glGenFramebuffers(1, &fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    glGenTextures(5, tex);
+    for (int i = 0; i < 5; ++i) {
+        glBindTexture(GL_TEXTURE_2D, tex[i]);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, w, h, 0, GL_RGBA, GL_FLOAT, nullptr);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + i, GL_TEXTURE_2D, tex[i], 0);
+    }
+    glGenRenderbuffers(1, &depth);
+    glBindRenderbuffer(GL_RENDERBUFFER, depth);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, w, h);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth);
+    const GLenum bufs[5] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2, GL_COLOR_ATTACHMENT3, GL_COLOR_ATTACHMENT4};
+    glDrawBuffers(5, bufs);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete debug framebuffer");
+    glViewport(0, 0, w, h);
+    glClearColor(0, 0, 0, 0);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    glEnable(GL_DEPTH_TEST);
+    glDisable(GL_BLEND);
+    const Impl::Matrices m = Impl::matrices(view, w, h);
+    for (const auto &g : I.objects)
+        if (!g.slices && I.scene.objects[g.index].visible) I.draw_object(g, I.scene.objects[g.index], m, view, true, w, h);
+    std::array<FloatImage, 5> out;
+    std::vector<float> tmp(std::size_t(w) * h * 4);
+    for (int i = 0; i < 5; ++i) {
+        glReadBuffer(GL_COLOR_ATTACHMENT0 + i);
+        glReadPixels(0, 0, w, h, GL_RGBA, GL_FLOAT, tmp.data());
+        out[i].width = w, out[i].height = h;
+        out[i].rgba.resize(tmp.size());
+        const std::size_t row = std::size_t(w) * 4;
+        for (int y = 0; y < h; ++y) std::memcpy(&out[i].rgba[y * row], &tmp[(h - 1 - y) * row], row * 4);
+    }
+    glDeleteTextures(5, tex);
+    glDeleteRenderbuffers(1, &depth);
+    glDeleteFramebuffers(1, &fbo);
+    return out;
+}
+
+std::string Renderer::program_source(std::size_t object) const {
+    for (const auto &g : impl_->objects)
+        if (g.index == object && g.program) return g.program->fragment_source;
+    return {};
+}
+
+}  // namespace hz::core::render

@@ -1,0 +1,524 @@
+// Scene files, built-in demo data and clustering for display.
+#include <hz/core/io.hpp>
+#include <hz/core/phantom.hpp>
+#include <hz/core/render/scene.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+namespace hz::core::render {
+
+using nlohmann::json;
+
+namespace {
+
+[[noreturn]] void fail(const std::string &what, const std::string &where, const std::string &why) {
+    throw Error(what + ": " + where + ": " + why);
+}
+
+void check_keys(const json &j, const std::set<std::string> &allowed, const std::string &what, const std::string &where) {
+    if (!j.is_object()) fail(what, where, "expected an object");
+    for (auto it = j.begin(); it != j.end(); ++it)
+        if (!allowed.count(it.key())) {
+            std::string list;
+            for (const auto &a : allowed) list += (list.empty() ? "" : ", ") + a;
+            fail(what, where, "unknown key '" + it.key() + "' (expected one of: " + list + ")");
+        }
+}
+
+double num(const json &j, const std::string &what, const std::string &where) {
+    if (!j.is_number()) fail(what, where, "expected a number");
+    const double v = j.get<double>();
+    if (!std::isfinite(v)) fail(what, where, "not a finite number");
+    return v;
+}
+
+template <std::size_t N>
+std::array<double, N> vec(const json &j, const std::string &what, const std::string &where) {
+    if (!j.is_array() || j.size() != N) fail(what, where, "expected an array of " + std::to_string(N) + " numbers");
+    std::array<double, N> v{};
+    for (std::size_t i = 0; i < N; ++i) v[i] = num(j[i], what, where);
+    return v;
+}
+
+std::string str(const json &j, const std::string &what, const std::string &where, const std::set<std::string> &choices = {}) {
+    if (!j.is_string()) fail(what, where, "expected a string");
+    std::string s = j.get<std::string>();
+    if (!choices.empty() && !choices.count(s)) {
+        std::string list;
+        for (const auto &a : choices) list += (list.empty() ? "" : ", ") + a;
+        fail(what, where, "'" + s + "' is not one of: " + list);
+    }
+    return s;
+}
+
+Material parse_material(const json &j, const std::string &what, const std::string &where) {
+    Material m;
+    if (j.is_string()) {
+        m.shader = j.get<std::string>();
+        return m;
+    }
+    check_keys(j, {"shader", "params"}, what, where);
+    if (j.contains("shader")) m.shader = str(j["shader"], what, where + ".shader");
+    if (j.contains("params")) {
+        const json &p = j["params"];
+        if (!p.is_object()) fail(what, where + ".params", "expected an object");
+        for (auto it = p.begin(); it != p.end(); ++it) {
+            std::vector<double> v;
+            if (it.value().is_array())
+                for (std::size_t i = 0; i < it.value().size(); ++i)
+                    v.push_back(num(it.value()[i], what, where + ".params." + it.key()));
+            else if (it.value().is_boolean())
+                v.push_back(it.value().get<bool>() ? 1.0 : 0.0);
+            else
+                v.push_back(num(it.value(), what, where + ".params." + it.key()));
+            m.params[it.key()] = std::move(v);
+        }
+    }
+    return m;
+}
+
+Coloring parse_coloring(const json &j, const std::string &what, const std::string &where) {
+    Coloring c;
+    const std::set<std::string> modes = {"direction", "solid", "data", "cluster"};
+    if (j.is_string()) {
+        c.mode = str(j, what, where, modes);
+        return c;
+    }
+    if (j.is_array()) {
+        c.mode = "solid";
+        c.color = vec<3>(j, what, where);
+        return c;
+    }
+    check_keys(j, {"mode", "value", "array", "colormap", "range"}, what, where);
+    if (j.contains("mode")) c.mode = str(j["mode"], what, where + ".mode", modes);
+    if (j.contains("value")) c.color = vec<3>(j["value"], what, where + ".value");
+    if (j.contains("array")) c.array = str(j["array"], what, where + ".array");
+    if (j.contains("colormap")) c.colormap = str(j["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
+    if (j.contains("range")) c.range = vec<2>(j["range"], what, where + ".range");
+    if (c.mode == "data" && c.array.empty()) fail(what, where, "mode 'data' needs 'array' (the name of a per-point or per-streamline array)");
+    return c;
+}
+
+// Reads `file` (relative to base) or builds a built-in dataset.
+Dataset object_data(const Registry &reg, const json &o, const std::string &type, const fs::path &base, const std::string &what,
+                    const std::string &where) {
+    Dataset ds;
+    if (o.contains("file") == o.contains("builtin")) fail(what, where, "give exactly one of 'file' and 'builtin'");
+    if (o.contains("file")) {
+        fs::path p = str(o["file"], what, where + ".file");
+        if (p.is_relative()) p = base / p;
+        ds = read_dataset(reg, p);
+        return ds;
+    }
+    const std::string b = str(o["builtin"], what, where + ".builtin", {"phantom", "cortex", "head"});
+    if (b == "phantom") {
+        if (type != "streamlines") fail(what, where, "builtin 'phantom' is a tractogram (type 'streamlines')");
+        PhantomOptions po;
+        if (o.contains("phantom")) {
+            const json &p = o["phantom"];
+            check_keys(p, {"streamlines", "bundles", "seed"}, what, where + ".phantom");
+            if (p.contains("streamlines")) po.nb_streamlines = static_cast<std::uint64_t>(std::clamp(num(p["streamlines"], what, where), 0.0, 1e8));
+            if (p.contains("bundles")) po.nb_bundles = static_cast<std::uint32_t>(std::clamp(num(p["bundles"], what, where), 1.0, 1e4));
+            if (p.contains("seed")) po.seed = static_cast<std::uint64_t>(num(p["seed"], what, where));
+        }
+        ds.kind = HZ_DATA_STREAMLINES;
+        ds.format = "builtin phantom";
+        ds.tractogram = make_phantom(po);
+    } else if (b == "cortex") {
+        if (type != "surface") fail(what, where, "builtin 'cortex' is a surface (type 'surface')");
+        ds.kind = HZ_DATA_MESH;
+        ds.format = "builtin cortex";
+        ds.mesh = make_cortex_mesh();
+    } else {
+        if (type != "slices") fail(what, where, "builtin 'head' is a volume (type 'slices')");
+        ds.kind = HZ_DATA_VOLUME;
+        ds.format = "builtin head";
+        ds.volume = make_head_volume();
+    }
+    return ds;
+}
+
+}  // namespace
+
+Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what) {
+    const json root = json::parse(text, nullptr, false);
+    if (root.is_discarded()) throw Error(what + ": not valid JSON");
+    check_keys(root, {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap"}, what, "scene");
+    Scene s;
+    if (root.contains("camera")) {
+        const json &c = root["camera"];
+        check_keys(c, {"view", "position", "target", "up", "fov", "zoom"}, what, "camera");
+        if (c.contains("view"))
+            s.camera.view = str(c["view"], what, "camera.view", {"left", "right", "anterior", "posterior", "superior", "inferior"});
+        if (c.contains("position")) s.camera.position = vec<3>(c["position"], what, "camera.position");
+        if (c.contains("target")) s.camera.target = vec<3>(c["target"], what, "camera.target");
+        if (c.contains("up")) s.camera.up = vec<3>(c["up"], what, "camera.up");
+        if (c.contains("fov")) s.camera.fov_deg = std::clamp(num(c["fov"], what, "camera.fov"), 1.0, 150.0);
+        if (c.contains("zoom")) s.camera.zoom = std::clamp(num(c["zoom"], what, "camera.zoom"), 0.01, 100.0);
+    }
+    if (root.contains("lights")) {
+        if (!root["lights"].is_array()) fail(what, "lights", "expected an array");
+        for (std::size_t i = 0; i < root["lights"].size(); ++i) {
+            const json &l = root["lights"][i];
+            const std::string where = "lights[" + std::to_string(i) + "]";
+            check_keys(l, {"type", "direction", "position", "color", "intensity", "space"}, what, where);
+            Light L;
+            if (l.contains("type")) L.type = str(l["type"], what, where + ".type", {"directional", "point"});
+            if (l.contains("direction")) L.direction = vec<3>(l["direction"], what, where + ".direction");
+            if (l.contains("position")) L.position = vec<3>(l["position"], what, where + ".position");
+            if (l.contains("color")) L.color = vec<3>(l["color"], what, where + ".color");
+            if (l.contains("intensity")) L.intensity = std::max(0.0, num(l["intensity"], what, where + ".intensity"));
+            if (l.contains("space")) L.camera_space = str(l["space"], what, where + ".space", {"camera", "world"}) == "camera";
+            if (L.type == "directional" && L.direction == Vec3{0, 0, 0}) fail(what, where + ".direction", "must not be zero");
+            s.lights.push_back(L);
+        }
+        if (s.lights.size() > 8) fail(what, "lights", "at most 8 lights");
+    }
+    if (root.contains("environment")) {
+        const json &e = root["environment"];
+        check_keys(e, {"type", "path", "intensity", "rotation", "visible"}, what, "environment");
+        if (e.contains("type")) s.environment.type = str(e["type"], what, "environment.type", {"studio", "file", "none"});
+        if (e.contains("path")) {
+            fs::path p = str(e["path"], what, "environment.path");
+            if (p.is_relative()) p = base / p;
+            s.environment.path = p.string();
+            if (!e.contains("type")) s.environment.type = "file";
+        }
+        if (s.environment.type == "file" && s.environment.path.empty()) fail(what, "environment", "type 'file' needs 'path'");
+        if (e.contains("intensity")) s.environment.intensity = std::max(0.0, num(e["intensity"], what, "environment.intensity"));
+        if (e.contains("rotation")) s.environment.rotation_deg = num(e["rotation"], what, "environment.rotation");
+        if (e.contains("visible")) {
+            if (!e["visible"].is_boolean()) fail(what, "environment.visible", "expected true or false");
+            s.environment.visible = e["visible"].get<bool>();
+        }
+    }
+    if (root.contains("background")) s.background = vec<3>(root["background"], what, "background");
+    if (root.contains("exposure")) s.exposure = std::clamp(num(root["exposure"], what, "exposure"), 1e-4, 1e4);
+    if (root.contains("tonemap")) s.tonemap = str(root["tonemap"], what, "tonemap", {"aces", "reinhard", "none"});
+
+    if (!root.contains("objects") || !root["objects"].is_array()) fail(what, "objects", "expected an array of objects");
+    for (std::size_t i = 0; i < root["objects"].size(); ++i) {
+        const json &o = root["objects"][i];
+        const std::string where = "objects[" + std::to_string(i) + "]";
+        if (!o.is_object() || !o.contains("type")) fail(what, where, "expected an object with a 'type'");
+        const std::string type = str(o["type"], what, where + ".type", {"streamlines", "surface", "slices"});
+        Object ob;
+        ob.name = type + " " + std::to_string(i);
+        if (type == "streamlines") {
+            check_keys(o, {"type", "name", "file", "builtin", "phantom", "render", "radius", "color", "material", "clustering", "visible", "opacity"}, what, where);
+            ob.coloring.mode = "direction";
+        } else if (type == "surface") {
+            check_keys(o, {"type", "name", "file", "builtin", "color", "material", "visible", "opacity"}, what, where);
+            ob.coloring.color = {0.85, 0.72, 0.68};
+        } else {
+            check_keys(o, {"type", "name", "file", "builtin", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity"}, what, where);
+        }
+        if (o.contains("name")) ob.name = str(o["name"], what, where + ".name");
+        if (o.contains("visible")) {
+            if (!o["visible"].is_boolean()) fail(what, where + ".visible", "expected true or false");
+            ob.visible = o["visible"].get<bool>();
+        }
+        if (o.contains("opacity")) ob.opacity = std::clamp(num(o["opacity"], what, where + ".opacity"), 0.0, 1.0);
+        if (o.contains("render")) ob.render = str(o["render"], what, where + ".render", {"lines", "tubes"});
+        if (o.contains("radius")) ob.radius_mm = std::clamp(num(o["radius"], what, where + ".radius"), 1e-3, 100.0);
+        if (o.contains("color")) ob.coloring = parse_coloring(o["color"], what, where + ".color");
+        if (o.contains("material")) ob.material = parse_material(o["material"], what, where + ".material");
+        for (const char *ax : {"x", "y", "z"})
+            if (o.contains(ax) && !o[ax].is_null()) {
+                const double v = num(o[ax], what, where + "." + ax);
+                (ax[0] == 'x' ? ob.slice_x : ax[0] == 'y' ? ob.slice_y : ob.slice_z) = v;
+            }
+        if (o.contains("clip_below") && !o["clip_below"].is_null()) ob.clip_below = num(o["clip_below"], what, where + ".clip_below");
+        if (o.contains("window")) ob.window = vec<2>(o["window"], what, where + ".window");
+        if (o.contains("colormap")) ob.slice_colormap = str(o["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
+        if (o.contains("clustering")) {
+            const json &c = o["clustering"];
+            check_keys(c, {"algorithm", "thresholds", "level", "width_by_size"}, what, where + ".clustering");
+            ClusterSpec cs;
+            if (c.contains("algorithm")) cs.algorithm = str(c["algorithm"], what, where + ".clustering.algorithm", {"qb", "qbx", "qbx_merge"});
+            if (c.contains("thresholds")) {
+                if (!c["thresholds"].is_array()) fail(what, where + ".clustering.thresholds", "expected an array of numbers");
+                for (const auto &t : c["thresholds"]) cs.thresholds.push_back(num(t, what, where + ".clustering.thresholds"));
+            }
+            if (c.contains("level")) cs.level = static_cast<int>(num(c["level"], what, where + ".clustering.level"));
+            if (c.contains("width_by_size")) cs.width_by_size = c["width_by_size"].get<bool>();
+            ob.clustering = cs;
+        }
+        ob.data = object_data(reg, o, type, base, what, where);
+        const hz_data_kind want = type == "streamlines" ? HZ_DATA_STREAMLINES : type == "surface" ? HZ_DATA_MESH : HZ_DATA_VOLUME;
+        if (ob.data.kind != want)
+            fail(what, where, std::string("the file holds ") + kind_name(ob.data.kind) + ", not what type '" + type + "' shows");
+        ob.kind = want;
+        if (type == "slices" && !ob.slice_x && !ob.slice_y && !ob.slice_z) {
+            // Default: the three slices through the volume's centre.
+            ob.slice_x = ob.slice_y = ob.slice_z = std::nan("");
+        }
+        if (ob.clustering) {
+            ob.data.tractogram = cluster_centroids(reg, ob.data.tractogram, *ob.clustering);
+            if (!o.contains("render")) ob.render = "tubes";
+        }
+        if (ob.coloring.mode == "cluster" && ob.kind != HZ_DATA_STREAMLINES) fail(what, where + ".color", "mode 'cluster' is for streamlines");
+        s.objects.push_back(std::move(ob));
+    }
+    return s;
+}
+
+Scene load_scene(const Registry &reg, const fs::path &file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw Error(file.string() + ": cannot open the scene file");
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    if (ss.str().size() > (64u << 20)) throw Error(file.string() + ": scene file larger than 64 MiB");
+    return parse_scene(reg, ss.str(), file.parent_path().empty() ? fs::path(".") : file.parent_path(), file.string());
+}
+
+// ------------------------------------------------------------------ builtins
+
+namespace {
+
+// Smooth pseudo-random field (sum of oriented sines), deterministic.
+double gyri(double x, double y, double z) {
+    static const double dirs[][4] = {{0.8, 0.5, 0.3, 0.21}, {-0.3, 0.9, 0.3, 0.17}, {0.2, -0.4, 0.9, 0.19},
+                                     {0.7, -0.7, 0.1, 0.23}, {-0.6, -0.2, 0.8, 0.15}, {0.1, 0.6, -0.8, 0.25}};
+    double s = 0;
+    for (const auto &d : dirs) s += std::sin(d[3] * (d[0] * x + d[1] * y + d[2] * z) + d[3] * 7.0);
+    return s / 6.0;
+}
+
+}  // namespace
+
+Mesh make_cortex_mesh(int subdivisions) {
+    subdivisions = std::clamp(subdivisions, 0, 7);
+    // Icosphere.
+    const double t = (1.0 + std::sqrt(5.0)) / 2.0;
+    std::vector<Vec3> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+    std::vector<std::array<std::uint32_t, 3>> f = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                                   {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+                                                   {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+    for (auto &p : v) {
+        const double n = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+        for (auto &c : p) c /= n;
+    }
+    for (int s = 0; s < subdivisions; ++s) {
+        std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t> mid;
+        auto midpoint = [&](std::uint32_t a, std::uint32_t b) {
+            auto key = std::minmax(a, b);
+            auto it = mid.find(key);
+            if (it != mid.end()) return it->second;
+            Vec3 m{(v[a][0] + v[b][0]) / 2, (v[a][1] + v[b][1]) / 2, (v[a][2] + v[b][2]) / 2};
+            const double n = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+            for (auto &c : m) c /= n;
+            v.push_back(m);
+            return mid[key] = static_cast<std::uint32_t>(v.size() - 1);
+        };
+        std::vector<std::array<std::uint32_t, 3>> g;
+        g.reserve(f.size() * 4);
+        for (const auto &tri : f) {
+            const auto a = midpoint(tri[0], tri[1]), b = midpoint(tri[1], tri[2]), c = midpoint(tri[2], tri[0]);
+            g.push_back({tri[0], a, c});
+            g.push_back({tri[1], b, a});
+            g.push_back({tri[2], c, b});
+            g.push_back({a, b, c});
+        }
+        f.swap(g);
+    }
+    // Two hemispheres: half-ellipsoids flattened at the midline, folded.
+    Mesh m;
+    const std::size_t nv = v.size(), nf = f.size();
+    m.vertices = Buffer<float>(nv * 3 * 2);
+    m.faces = Buffer<std::uint32_t>(nf * 3 * 2);
+    for (int h = 0; h < 2; ++h) {
+        const double side = h == 0 ? -1.0 : 1.0;
+        for (std::size_t i = 0; i < nv; ++i) {
+            const auto &p = v[i];
+            double x = p[0], y = p[1], z = p[2];
+            // Flatten the medial side, round the lateral one.
+            const double lateral = x * side;
+            const double xs = lateral < 0 ? 0.25 * lateral : lateral;
+            double X = side * (4.0 + 36.0 * (xs + 0.25)), Y = 88.0 * y;
+            double Z = (z < 0 ? 52.0 : 64.0) * z + 4.0;          // flatter base
+            const double r = 1.0 + 0.045 * gyri(X, Y, Z) + 0.03 * gyri(2.1 * Y, 2.1 * Z, 2.1 * X);  // gyri and sulci
+            const double cx = side * 22.0;
+            X = cx + (X - cx) * r;
+            Y *= r;
+            Z = 4.0 + (Z - 4.0) * r;
+            m.vertices[(h * nv + i) * 3 + 0] = static_cast<float>(X);
+            m.vertices[(h * nv + i) * 3 + 1] = static_cast<float>(Y);
+            m.vertices[(h * nv + i) * 3 + 2] = static_cast<float>(Z);
+        }
+        for (std::size_t k = 0; k < nf; ++k)
+            for (int c = 0; c < 3; ++c) m.faces[(h * nf + k) * 3 + c] = static_cast<std::uint32_t>(h * nv + f[k][c]);
+    }
+    // Per-vertex "curvature-like" overlay for colormap demos.
+    DataArray a;
+    a.name = "sulc";
+    a.attach = HZ_ATTACH_VERTEX;
+    a.dtype = HZ_DTYPE_F32;
+    a.count = nv * 2;
+    a.bytes = Buffer<std::byte>(nv * 2 * 4);
+    for (std::size_t i = 0; i < nv * 2; ++i) {
+        const float g = static_cast<float>(gyri(m.vertices[i * 3], m.vertices[i * 3 + 1], m.vertices[i * 3 + 2]));
+        std::memcpy(a.bytes.data() + 4 * i, &g, 4);
+    }
+    m.arrays.push_back(std::move(a));
+    return m;
+}
+
+Volume make_head_volume(double voxel_mm) {
+    voxel_mm = std::clamp(voxel_mm, 0.5, 10.0);
+    Volume vol;
+    const double half[3] = {80, 100, 80};
+    std::uint64_t d[3];
+    for (int i = 0; i < 3; ++i) d[i] = static_cast<std::uint64_t>(std::ceil(2 * half[i] / voxel_mm)) + 1;
+    vol.dims = {d[0], d[1], d[2]};
+    vol.dtype = HZ_DTYPE_F32;
+    vol.voxels = Buffer<std::byte>(d[0] * d[1] * d[2] * 4);
+    vol.voxel_to_ras = {voxel_mm, 0, 0, -half[0], 0, voxel_mm, 0, -half[1], 0, 0, voxel_mm, -half[2], 0, 0, 0, 1};
+    float *out = reinterpret_cast<float *>(vol.voxels.data());
+    for (std::uint64_t k = 0; k < d[2]; ++k)
+        for (std::uint64_t j = 0; j < d[1]; ++j)
+            for (std::uint64_t i = 0; i < d[0]; ++i) {
+                const double x = -half[0] + voxel_mm * i, y = -half[1] + voxel_mm * j, z = -half[2] + voxel_mm * k;
+                // Distance-like coordinate inside an ellipsoidal head.
+                const double r = std::sqrt((x / 72) * (x / 72) + (y / 92) * (y / 92) + ((z - 4) / 68) * ((z - 4) / 68));
+                double val = 0;
+                if (r < 1.08) val = 0.15;                                   // scalp/skull
+                if (r < 1.0) val = 0.35;                                    // CSF
+                if (r < 0.96) val = 0.55 + 0.1 * gyri(x, y, z);              // grey matter
+                if (r < 0.80 + 0.06 * gyri(1.3 * x, 1.3 * y, 1.3 * z)) val = 0.85; // white matter
+                const double vx = std::abs(x) - 6, vy = y / 2.2, vz = z - 8;  // lateral ventricles
+                if (vx > 0 && vx * vx + vy * vy + vz * vz < 70) val = 0.2;
+                out[(k * d[1] + j) * d[0] + i] = static_cast<float>(1000.0 * val);
+            }
+    return vol;
+}
+
+Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const ClusterSpec &spec) {
+    const std::string id = "org.horizon.clustering." + spec.algorithm;
+    const LoadedPlugin *plugin = reg.find(id);
+    if (plugin == nullptr) throw Error("clustering plugin '" + id + "' not found (see `horizon plugins`)");
+    const hz_clustering *c = plugin->clustering();
+    hz_error err{};
+    err.struct_size = sizeof err;
+    hz_clusterer *obj = nullptr;
+    if (c->create(host_services(), &obj, &err) != HZ_OK) throw Error(id + ": " + err.message);
+    struct Guard {
+        const hz_clustering *c;
+        hz_clusterer *o;
+        ~Guard() { c->destroy(o); }
+    } guard{c, obj};
+    if (!spec.thresholds.empty()) {
+        const char *name = spec.algorithm == "qb" ? "threshold" : "thresholds";
+        if (c->set_param(obj, name, spec.thresholds.data(), static_cast<uint32_t>(spec.thresholds.size()), &err) != HZ_OK)
+            throw Error(std::string("clustering.thresholds: ") + err.message);
+    }
+    const double fast = 1.0;
+    c->set_param(obj, "mode", &fast, 1, &err);  // display only needs the fast mode
+    const hz_streamlines_view view = t.view();
+    Task task;
+    if (c->run(obj, &view, nullptr, task.get(), &err) != HZ_OK) throw Error(id + ": " + err.message);
+    hz_cluster_tree_view v{};
+    v.struct_size = sizeof v;
+    if (c->get_result(obj, &v, &err) != HZ_OK) throw Error(id + ": " + err.message);
+    const std::uint32_t level = spec.level < 0 ? v.nb_levels : static_cast<std::uint32_t>(spec.level);
+    if (level < 1 || level > v.nb_levels)
+        throw Error("clustering.level " + std::to_string(spec.level) + ": the tree has levels 1.." + std::to_string(v.nb_levels));
+    std::vector<std::uint64_t> nodes;
+    for (std::uint64_t k = 0; k < v.nb_nodes; ++k)
+        if (v.level[k] == level) nodes.push_back(k);
+    Tractogram out;
+    const std::uint64_t K = nodes.size(), P = v.nb_points;
+    out.positions = Buffer<float>(K * P * 3);
+    out.offsets = Buffer<std::uint64_t>(K + 1);
+    DataArray sizes;
+    sizes.name = "cluster_size";
+    sizes.attach = HZ_ATTACH_STREAMLINE;
+    sizes.dtype = HZ_DTYPE_F32;
+    sizes.count = K;
+    sizes.bytes = Buffer<std::byte>(K * 4);
+    for (std::uint64_t i = 0; i < K; ++i) {
+        std::copy_n(v.centroids + nodes[i] * P * 3, P * 3, out.positions.data() + i * P * 3);
+        out.offsets[i] = i * P;
+        const float sz = static_cast<float>(v.member_offsets[nodes[i] + 1] - v.member_offsets[nodes[i]]);
+        std::memcpy(sizes.bytes.data() + 4 * i, &sz, 4);
+    }
+    out.offsets[K] = K * P;
+    out.arrays.push_back(std::move(sizes));
+    out.reference = t.reference;
+    out.reference_dims = t.reference_dims;
+    return out;
+}
+
+Scene demo_scene(const Registry &reg, std::uint64_t nb_streamlines, std::uint32_t nb_bundles, std::uint64_t seed) {
+    Scene s;
+    PhantomOptions po;
+    po.nb_streamlines = nb_streamlines;
+    po.nb_bundles = nb_bundles;
+    po.seed = seed;
+    Object tracts;
+    tracts.name = "phantom bundles (QBX centroids)";
+    tracts.kind = HZ_DATA_STREAMLINES;
+    tracts.data.kind = HZ_DATA_STREAMLINES;
+    tracts.data.tractogram = make_phantom(po);
+    ClusterSpec cs;
+    cs.algorithm = "qbx";
+    cs.level = 2;  // 25 mm
+    tracts.clustering = cs;
+    tracts.data.tractogram = cluster_centroids(reg, tracts.data.tractogram, cs);
+    tracts.render = "tubes";
+    tracts.radius_mm = 1.1;
+    tracts.coloring.mode = "direction";
+    tracts.material.shader = "principled";
+    tracts.material.params = {{"roughness", {0.35}}, {"specular", {0.5}}, {"clearcoat", {0.6}}, {"clearcoat_gloss", {0.8}}};
+    s.objects.push_back(std::move(tracts));
+
+    Object cortex;
+    cortex.name = "cortex-like surface (right hemisphere)";
+    cortex.kind = HZ_DATA_MESH;
+    cortex.data.kind = HZ_DATA_MESH;
+    Mesh full = make_cortex_mesh(5);
+    // Keep the right hemisphere only, so the bundles stay visible.
+    const std::uint64_t half_faces = full.nb_faces() / 2;
+    Mesh right;
+    right.vertices = std::move(full.vertices);
+    right.faces = Buffer<std::uint32_t>(half_faces * 3);
+    std::copy_n(full.faces.data() + half_faces * 3, half_faces * 3, right.faces.data());
+    right.arrays = std::move(full.arrays);
+    cortex.data.mesh = std::move(right);
+    cortex.coloring.color = {0.80, 0.55, 0.50};
+    cortex.material.shader = "principled";
+    cortex.material.params = {{"subsurface", {0.5}}, {"roughness", {0.6}}, {"sheen", {0.2}}, {"specular", {0.3}}};
+    s.objects.push_back(std::move(cortex));
+
+    Object head;
+    head.name = "synthetic T1 (axial and coronal slices)";
+    head.kind = HZ_DATA_VOLUME;
+    head.data.kind = HZ_DATA_VOLUME;
+    head.data.volume = make_head_volume(1.5);
+    head.slice_z = -38.0;
+    head.slice_y = -70.0;
+    head.window = std::array<double, 2>{0.0, 1000.0};
+    head.clip_below = 1.0;
+    s.objects.push_back(std::move(head));
+
+    s.camera.view = "left";
+    s.camera.position = Vec3{-330, 190, 150};
+    s.camera.target = Vec3{0, -5, -5};
+    s.camera.fov_deg = 30;
+    s.environment.type = "studio";
+    s.environment.intensity = 0.5;
+    s.exposure = 0.9;
+    s.background = {0.015, 0.017, 0.022};
+    return s;
+}
+
+}  // namespace hz::core::render

@@ -1,0 +1,100 @@
+// `horizon render`: draws a scene file headlessly (EGL, no X server) into a
+// PNG; also the picture of `horizon demo`.
+#include "commands.hpp"
+
+#include <hz/core/io.hpp>
+#include <hz/core/render/context.hpp>
+#include <hz/core/render/renderer.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+
+namespace hz::host {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+}  // namespace
+
+void write_image(const core::Registry &reg, const core::render::Image &im, const fs::path &path) {
+    core::Dataset ds;
+    ds.kind = HZ_DATA_IMAGE;
+    ds.volume.dtype = HZ_DTYPE_U8;
+    ds.volume.dims = {3, std::uint64_t(im.width), std::uint64_t(im.height)};
+    ds.volume.voxels = core::Buffer<std::byte>(std::size_t(im.width) * im.height * 3);
+    for (std::size_t i = 0; i < std::size_t(im.width) * im.height; ++i)
+        std::memcpy(ds.volume.voxels.data() + i * 3, &im.rgba[i * 4], 3);
+    std::vector<std::string> dropped;
+    core::write_dataset(reg, ds, path, /*force=*/true, &dropped);
+}
+
+std::pair<int, int> parse_size(const std::string &s) {
+    int w = 0, h = 0;
+    char x = 0, extra = 0;
+    if (std::sscanf(s.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') || w < 16 || h < 16 || w > 16384 ||
+        h > 16384)
+        throw core::Error("--size " + s + ": expected WIDTHxHEIGHT between 16x16 and 16384x16384");
+    return {w, h};
+}
+
+int render_scene(const core::Registry &reg, core::render::Scene scene, const RenderOptions &o) {
+    const auto [w, h] = parse_size(o.size);
+    const auto t0 = Clock::now();
+    auto ctx = core::render::make_headless_context();
+    const double ctx_ms = ms_since(t0);
+    core::render::Renderer r(reg);
+    core::render::RenderSettings rs;
+    rs.width = w, rs.height = h;
+    rs.samples = o.samples;
+    rs.lod_pixels = o.lod_pixels;
+    const core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
+    r.set_scene(std::move(scene), view, rs);
+    r.render(view, w, h);
+    const core::render::Image im = r.read_image();
+    const auto tw = Clock::now();
+    write_image(reg, im, o.out);
+    const double write_ms = ms_since(tw);
+    const auto &s = r.stats();
+    if (o.json) {
+        nlohmann::json j = {{"output", o.out},
+                            {"width", w},
+                            {"height", h},
+                            {"gl", r.gl_description()},
+                            {"context_ms", ctx_ms},
+                            {"upload_ms", s.upload_ms},
+                            {"environment_ms", s.environment_ms},
+                            {"draw_ms", s.draw_ms},
+                            {"readback_ms", s.readback_ms},
+                            {"write_ms", write_ms},
+                            {"total_ms", ms_since(t0)},
+                            {"segments", s.segments_drawn},
+                            {"triangles", s.triangles_drawn},
+                            {"points_total", s.points_total},
+                            {"points_kept", s.points_kept}};
+        std::cout << j.dump(2) << "\n";
+    } else {
+        std::printf("Wrote %s (%dx%d) in %.0f ms: context %.0f, upload %.0f, environment %.0f, draw %.0f, read %.0f, write %.0f\n",
+                    o.out.c_str(), w, h, ms_since(t0), ctx_ms, s.upload_ms, s.environment_ms, s.draw_ms, s.readback_ms, write_ms);
+        if (s.points_total)
+            std::printf("  streamline points drawn: %llu of %llu (decimated at %.2f px)\n", (unsigned long long)s.points_kept,
+                        (unsigned long long)s.points_total, o.lod_pixels);
+    }
+    return 0;
+}
+
+int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
+    const core::Registry reg = load_registry(g);
+    core::loader_for_write(reg, o.out);  // fail on an unwritable target before the work
+    core::render::Scene scene = core::render::load_scene(reg, o.scene);
+    return render_scene(reg, std::move(scene), o);
+}
+
+}  // namespace hz::host
