@@ -14,7 +14,9 @@
 
 #include <cstdio>
 #include <iostream>
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <string>
 
 namespace hz::host {
@@ -33,6 +35,42 @@ bool vec3_of(const nlohmann::json &j, const char *key, double out[3]) {
     if (!a.is_array() || a.size() != 3) throw core::Error(std::string("field ") + key + " is not a 3-vector");
     for (int i = 0; i < 3; ++i) out[i] = a[i].is_number() ? a[i].get<double>() : std::nan("");
     return true;
+}
+
+// A shader function matching `model`: "name(arg, arg[3], ...)" in a
+// plugin's `functions`. Returns the plugin and fills the argument list.
+struct Arg {
+    std::string name;
+    int count = 1;
+};
+const hz_shader *find_function(const std::vector<const core::LoadedPlugin *> &shaders, const std::string &model, std::vector<Arg> &args) {
+    for (const auto *p : shaders) {
+        const hz_shader *s = p->shader();
+        if (!HZ_HAS_FIELD(s, hz_shader, eval_function) || s->functions == nullptr || s->eval_function == nullptr) continue;
+        for (const char *const *f = s->functions; *f; ++f) {
+            const std::string sig = *f;
+            const auto open = sig.find('('), close = sig.rfind(')');
+            if (open == std::string::npos || close == std::string::npos || sig.substr(0, open) != model) continue;
+            args.clear();
+            std::string list = sig.substr(open + 1, close - open - 1);
+            std::size_t pos = 0;
+            while (pos < list.size()) {
+                std::size_t comma = list.find(',', pos);
+                std::string a = list.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos);
+                a.erase(0, a.find_first_not_of(' '));
+                a.erase(a.find_last_not_of(' ') + 1);
+                Arg arg;
+                const auto br = a.find('[');
+                arg.name = a.substr(0, br);
+                if (br != std::string::npos) arg.count = std::max(1, std::atoi(a.c_str() + br + 1));
+                if (!arg.name.empty()) args.push_back(arg);
+                if (comma == std::string::npos) break;
+                pos = comma + 1;
+            }
+            return s;
+        }
+    }
+    return nullptr;
 }
 
 }  // namespace
@@ -60,7 +98,24 @@ int cmd_brdf(const GlobalOptions &g, const std::string &shader_id) {
         const core::LoadedPlugin *plugin = nullptr;
         for (const auto *p : shaders)
             if (base_name(p->info.id) == want) plugin = p;
-        if (plugin == nullptr) {
+        std::vector<Arg> fargs;
+        const hz_shader *fn = plugin == nullptr ? find_function(shaders, model, fargs) : nullptr;
+        if (fn != nullptr) {
+            // A named building block (Fresnel, Beer-Lambert, ...).
+            std::vector<double> a;
+            for (const Arg &arg : fargs) {
+                // Top-level fields first, then the case's "params".
+                nlohmann::json v = c.value(arg.name, nlohmann::json());
+                if (v.is_null() && c.contains("params") && c["params"].is_object()) v = c["params"].value(arg.name, nlohmann::json());
+                for (int k = 0; k < arg.count; ++k) {
+                    const nlohmann::json &x = v.is_array() ? (k < int(v.size()) ? v[k] : nlohmann::json()) : v;
+                    a.push_back(x.is_number() ? x.get<double>() : std::nan(""));
+                }
+            }
+            double rgb[3];
+            if (fn->eval_function(model.c_str(), a.data(), static_cast<uint32_t>(a.size()), rgb) != HZ_OK) answer["unsupported"] = true;
+            else answer["value"] = {rgb[0], rgb[1], rgb[2]};
+        } else if (plugin == nullptr) {
             answer["unsupported"] = true;
         } else {
             const hz_shader *s = plugin->shader();

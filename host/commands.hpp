@@ -54,6 +54,15 @@ struct RenderOptions {
     bool json = false;
 };
 
+struct ShaderCheckOptions {
+    std::string shader;       // empty: every shading plugin
+    int sets = 8;             // parameter sets per shader (the first: the defaults)
+    int size = 160;           // pixels per side
+    std::uint64_t seed = 1;
+    double rel = 2e-3, abs = 1e-4;
+    bool json = false, verbose = false;
+};
+
 core::Registry load_registry(const GlobalOptions &g);
 
 int cmd_plugins(const GlobalOptions &g, bool json);
@@ -64,6 +73,7 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o);
 int cmd_brdf(const GlobalOptions &g, const std::string &shader_id);
 int cmd_demo(const GlobalOptions &g, const DemoOptions &o);
 int cmd_render(const GlobalOptions &g, const RenderOptions &o);
+int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o);
 
 // Renders `scene` headlessly to o.out (PNG through the images plugin).
 int render_scene(const core::Registry &reg, core::render::Scene scene, const RenderOptions &o);

@@ -99,6 +99,17 @@ int main(int argc, char **argv) {
     render->add_option("--lod-pixels", ro.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")->capture_default_str();
     render->add_flag("--json", ro.json, "timings and counts as JSON");
 
+    ShaderCheckOptions sco;
+    auto *scheck = app.add_subcommand("shader-check", "GPU equals CPU: render analytic scenes with shading plugins and compare every pixel");
+    scheck->add_option("--shader", sco.shader, "only this shading plugin (id or short name)");
+    scheck->add_option("--sets", sco.sets, "parameter sets per shader")->capture_default_str();
+    scheck->add_option("--size", sco.size, "image side in pixels")->capture_default_str();
+    scheck->add_option("--seed", sco.seed, "seed of the parameter and light sweeps")->capture_default_str();
+    scheck->add_option("--rel", sco.rel, "relative tolerance")->capture_default_str();
+    scheck->add_option("--abs", sco.abs, "absolute tolerance")->capture_default_str();
+    scheck->add_flag("--json", sco.json, "machine-readable report");
+    scheck->add_flag("--verbose", sco.verbose, "print the first failing pixels");
+
     DemoOptions demo_opts;
     auto *demo = app.add_subcommand("demo", "build the synthetic demo scene, cluster it and render demo.png");
     demo->add_option("-o,--out", demo_opts.out_dir, "directory for demo files")->capture_default_str();
@@ -123,6 +134,7 @@ int main(int argc, char **argv) {
         if (*cluster) return cmd_cluster(g, co);
         if (*brdf) return cmd_brdf(g, brdf_shader);
         if (*render) return cmd_render(g, ro);
+        if (*scheck) return cmd_shader_check(g, sco);
     } catch (const std::exception &e) {
         std::fprintf(stderr, "horizon: error: %s\n", e.what());
         return 1;

@@ -18,6 +18,7 @@ uniform float hz_env_max_lod;
 uniform mat3 hz_env_rotation;
 uniform sampler2D hz_behind;      // the opaque scene behind a translucent object
 uniform vec2 hz_viewport;
+uniform mat3 hz_view_rotation;    // world -> camera (x right, y up, z back)
 
 // Radiance arriving from direction `dir` (world, pointing away from the
 // surface), prefiltered for a GGX lobe of perceptual roughness `roughness`.
@@ -104,6 +105,11 @@ void main() {
 #endif
     vec3 c = vec3(0.0);
     vec3 first = vec3(0.0);
+#ifdef HZ_OUTPUT_EMISSION
+    p.l = p.n;
+    c = hz_shade(p);
+    first = c;
+#else
     for (int i = 0; i < hz_nb_lights; ++i) {
         vec4 L = hz_light_vec[i];
         p.l = L.w == 0.0 ? L.xyz : L.xyz - v_pos;
@@ -116,10 +122,10 @@ void main() {
         c += f * hz_light_radiance[i];
 #endif
     }
-    if (hz_env_on != 0) {
 #ifdef HZ_HAS_AMBIENT
-        c += hz_ambient(p);
+    c += hz_ambient(p);  // the hz_env_* functions give 0 without an environment
 #else
+    if (hz_env_on != 0) {
         HzShadePoint q = p;
         q.l = p.n;
 #ifdef HZ_OUTPUT_BRDF
@@ -127,8 +133,9 @@ void main() {
 #else
         c += hz_shade(q) * hz_env_irradiance(p.n) * 0.318309886;
 #endif
-#endif
     }
+#endif
+#endif
 #ifdef HZ_DEBUG_OUTPUTS
     o_color = vec4(first, 1.0);
     o_n = vec4(p.n, 1.0);

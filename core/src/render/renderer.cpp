@@ -117,7 +117,16 @@ GLuint compile_shader(GLenum type, const std::string &src, const std::string &wh
         std::string log(std::max(len, 1), '\0');
         glGetShaderInfoLog(s, len, nullptr, log.data());
         glDeleteShader(s);
-        std::string first = log.substr(0, log.find('\n'));
+        // The first line that is an error (Mesa lists warnings first).
+        std::string first, line;
+        std::istringstream in(log);
+        while (std::getline(in, line))
+            if (line.find("error") != std::string::npos) {
+                first = line;
+                break;
+            }
+        if (first.empty()) first = log.substr(0, log.find('\n'));
+        spdlog::debug("{}: GLSL log:\n{}", what, log);
         throw Error(what + ": GLSL compile error: " + first);
     }
     return s;
@@ -209,6 +218,7 @@ struct GpuObject {
     std::vector<double> values;       // schema order, every component
     std::string albedo;               // name of the colour parameter the colouring drives ("" if none)
     bool use_line_domain = false;
+    bool refractive = false;          // the snippet reads hz_scene_behind: drawn after the opaque objects
     Program *program = nullptr, *debug_program = nullptr;
     // slices
     GLuint volume_tex = 0, colormap_tex = 0;
@@ -469,6 +479,10 @@ struct Renderer::Impl {
         if (!(sh->domains & need))
             throw Error(o.name + ": material: shader '" + p->info.id + "' cannot shade " + (g.geom == Geom::Line ? "lines" : "surfaces"));
         g.use_line_domain = g.geom == Geom::Line && (sh->domains & HZ_SHADE_LINE);
+        {
+            const char *src = sh->glsl_source(g.use_line_domain ? HZ_SHADE_LINE : HZ_SHADE_SURFACE, 410);
+            g.refractive = src && std::strstr(src, "hz_scene_behind(");
+        }
         std::vector<double> values;
         std::set<std::string> known;
         std::string albedo;
@@ -518,6 +532,7 @@ struct Renderer::Impl {
         s << (g.geom == Geom::Mesh ? "#define HZ_GEOM_MESH 1\n" : g.geom == Geom::Tube ? "#define HZ_GEOM_TUBE 1\n" : "#define HZ_GEOM_LINE 1\n");
         s << (dom == HZ_SHADE_LINE ? "#define HZ_DOMAIN_LINE 1\n" : "#define HZ_DOMAIN_SURFACE 1\n");
         if (sh->output == HZ_SHADER_OUTPUT_BRDF) s << "#define HZ_OUTPUT_BRDF 1\n";
+        if (sh->output == HZ_SHADER_OUTPUT_EMISSION) s << "#define HZ_OUTPUT_EMISSION 1\n";
         if (debug) s << "#define HZ_DEBUG_OUTPUTS 1\n";
         if (std::strstr(snippet, "hz_ambient(")) s << "#define HZ_HAS_AMBIENT 1\n";
         // Specialisation: parameters that are exactly zero.
@@ -965,7 +980,7 @@ struct Renderer::Impl {
         glUniform1i(p.loc("hz_env_diffuse_map"), 1);
         glUniform1i(p.loc("hz_env_lut"), 2);
         glUniform1i(p.loc("hz_behind"), 3);
-        glUniform1f(p.loc("hz_env_intensity"), float(scene.environment.intensity));
+        glUniform1f(p.loc("hz_env_intensity"), on && env_on ? float(scene.environment.intensity) : 0.0f);
         glUniform1f(p.loc("hz_env_max_lod"), float(spec_levels - 1));
         glUniformMatrix3fv(p.loc("hz_env_rotation"), 1, GL_FALSE, glm::value_ptr(env_rotation));
         glUniform1i(p.loc("hz_env_on"), on && env_on ? 1 : 0);
@@ -998,6 +1013,11 @@ struct Renderer::Impl {
         glUniform3f(p.loc("hz_tangent_hint"), 0.0f, 0.0f, 1.0f);
         glUniform1f(p.loc("hz_opacity"), float(o.opacity));
         glUniform2f(p.loc("hz_viewport"), float(w), float(h));
+        {
+            const glm::mat3 rot(glm::vec3(m.right.x, m.up.x, m.back.x), glm::vec3(m.right.y, m.up.y, m.back.y),
+                                glm::vec3(m.right.z, m.up.z, m.back.z));
+            glUniformMatrix3fv(p.loc("hz_view_rotation"), 1, GL_FALSE, glm::value_ptr(rot));
+        }
         bind_lights(p, m, v, debug ? 1 : 8);
         bind_environment(p, !debug);
         set_material_uniforms(p, g);
@@ -1055,23 +1075,28 @@ struct Renderer::Impl {
         glDepthMask(GL_TRUE);
         glDisable(GL_BLEND);
         glDisable(GL_CULL_FACE);
-        bool translucent = false;
+        // Pass 1: opaque. Pass 2: refractive objects, which composite the
+        // opaque image behind them themselves. Pass 3: blended translucency.
+        bool later = false;
         for (const auto &g : objects) {
             const Object &o = scene.objects[g.index];
             if (!o.visible) continue;
-            if (o.opacity < 1.0) {
-                translucent = true;
+            if (o.opacity < 1.0 || g.refractive) {
+                later = true;
                 continue;
             }
             draw_object(g, o, m, v, false, w, h);
         }
-        if (translucent) {
-            // The opaque image, for shaders that refract it (hz_scene_behind).
+        if (later) {
             behind.ensure(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT);
             glBindFramebuffer(GL_READ_FRAMEBUFFER, msaa.fbo);
             glBindFramebuffer(GL_DRAW_FRAMEBUFFER, behind.fbo);
             glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
             glBindFramebuffer(GL_FRAMEBUFFER, msaa.fbo);
+            for (const auto &g : objects) {
+                const Object &o = scene.objects[g.index];
+                if (o.visible && g.refractive && o.opacity >= 1.0) draw_object(g, o, m, v, false, w, h);
+            }
             glEnable(GL_BLEND);
             glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
             glDepthMask(GL_FALSE);

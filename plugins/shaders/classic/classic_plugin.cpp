@@ -5,6 +5,8 @@
 
 #include <hz/cpp/plugin.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 
 namespace {
@@ -32,6 +34,7 @@ const hz_param_info kStallingParams[] = {
     scalar("shininess", "Shininess", "specular exponent", 1, 10000, 32),
     scalar("p_diffuse", "Diffuse exponent", "Zoeckler et al.'s exponent on L.N", 1, 100, 1)};
 const hz_param_info kMalloParams[] = {color("kd", "Diffuse", "diffuse albedo", 0.7, 0.4, 0.2)};
+const hz_param_info kFlatParams[] = {color("color", "Colour", "the radiance shown, unlit", 0.8, 0.8, 0.8)};
 
 const char kLambertGlsl[] = R"glsl(
 vec3 hz_shade(HzShadePoint p) {
@@ -39,6 +42,9 @@ vec3 hz_shade(HzShadePoint p) {
     if (!(dot(n, normalize(p.l)) > 0.0) || !(dot(n, normalize(p.v)) > 0.0)) return vec3(0.0);
     return max(u_albedo, vec3(0.0)) * 0.3183098861837907;
 }
+)glsl";
+const char kFlatGlsl[] = R"glsl(
+vec3 hz_shade(HzShadePoint p) { return max(u_color, vec3(0.0)); }
 )glsl";
 const char kBlinnGlsl[] = R"glsl(
 vec3 hz_shade(HzShadePoint p) {
@@ -95,6 +101,11 @@ hz_status HZ_ABI eval_lambert(const hz_shade_point *p, const double *q, uint32_t
     std::copy(f.begin(), f.end(), out);
     return HZ_OK;
 }
+hz_status HZ_ABI eval_flat(const hz_shade_point *p, const double *q, uint32_t n, double out[3]) {
+    if (!p || !q || !out || n < 3) return HZ_E_INVALID_ARGUMENT;
+    for (int i = 0; i < 3; ++i) out[i] = std::isfinite(q[i]) ? std::max(q[i], 0.0) : 0.0;
+    return HZ_OK;
+}
 hz_status HZ_ABI eval_blinn(const hz_shade_point *p, const double *q, uint32_t n, double out[3]) {
     if (!p || !q || !out || n < 10) return HZ_E_INVALID_ARGUMENT;
     const V3 f = classic::blinn_phong(v3(q), v3(q + 3), v3(q + 6), q[9], v3(p->n), v3(p->l), v3(p->v));
@@ -126,21 +137,23 @@ const hz_param_info *HZ_ABI params(uint32_t i) {
 }
 template <const char *G, hz_shade_domain D>
 const char *HZ_ABI glsl(hz_shade_domain d, uint32_t) {
-    return d == D ? G : nullptr;
+    return (d & D) ? G : nullptr;
 }
 
 constexpr uint32_t kReciprocal = HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL;
 const hz_shader kShaders[] = {
     {sizeof(hz_shader), HZ_SHADE_SURFACE, HZ_SHADER_OUTPUT_BRDF, kReciprocal, "lambert_", 1, params<kLambertParams, 1>,
-     glsl<kLambertGlsl, HZ_SHADE_SURFACE>, eval_lambert},
+     glsl<kLambertGlsl, HZ_SHADE_SURFACE>, eval_lambert, nullptr, nullptr},
     {sizeof(hz_shader), HZ_SHADE_SURFACE, HZ_SHADER_OUTPUT_RADIANCE_FACTOR, HZ_CLAIM_NONNEGATIVE, "blinn_", 4, params<kBlinnParams, 4>,
-     glsl<kBlinnGlsl, HZ_SHADE_SURFACE>, eval_blinn},
+     glsl<kBlinnGlsl, HZ_SHADE_SURFACE>, eval_blinn, nullptr, nullptr},
     {sizeof(hz_shader), HZ_SHADE_SURFACE, HZ_SHADER_OUTPUT_BRDF, kReciprocal, "blinnbrdf_", 3, params<kBlinnBrdfParams, 3>,
-     glsl<kBlinnBrdfGlsl, HZ_SHADE_SURFACE>, eval_blinn_brdf},
+     glsl<kBlinnBrdfGlsl, HZ_SHADE_SURFACE>, eval_blinn_brdf, nullptr, nullptr},
     {sizeof(hz_shader), HZ_SHADE_LINE, HZ_SHADER_OUTPUT_RADIANCE_FACTOR, HZ_CLAIM_NONNEGATIVE, "stalling_", 5, params<kStallingParams, 5>,
-     glsl<kStallingGlsl, HZ_SHADE_LINE>, eval_stalling},
+     glsl<kStallingGlsl, HZ_SHADE_LINE>, eval_stalling, nullptr, nullptr},
     {sizeof(hz_shader), HZ_SHADE_LINE, HZ_SHADER_OUTPUT_RADIANCE_FACTOR, HZ_CLAIM_NONNEGATIVE, "mallo_", 1, params<kMalloParams, 1>,
-     glsl<kMalloGlsl, HZ_SHADE_LINE>, eval_mallo},
+     glsl<kMalloGlsl, HZ_SHADE_LINE>, eval_mallo, nullptr, nullptr},
+    {sizeof(hz_shader), HZ_SHADE_SURFACE | HZ_SHADE_LINE, HZ_SHADER_OUTPUT_EMISSION, HZ_CLAIM_NONNEGATIVE, "flat_", 1,
+     params<kFlatParams, 1>, glsl<kFlatGlsl, HZ_SHADE_SURFACE | HZ_SHADE_LINE>, eval_flat, nullptr, nullptr},
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_SHADER, nullptr};
 #define HZ_DESC(id, name, text) \
@@ -151,9 +164,10 @@ const hz_plugin_descriptor kDescriptors[] = {
     HZ_DESC("org.horizon.shader.blinn_phong_brdf", "Blinn-Phong BRDF", "normalised Blinn-Phong BRDF"),
     HZ_DESC("org.horizon.shader.line_stalling", "Illuminated lines", "Stalling et al. 1997 illuminated streamlines (tangent only)"),
     HZ_DESC("org.horizon.shader.line_mallo_diffuse", "Cylinder-averaged lines", "Mallo et al. 2005 diffuse term averaged over a thin tube"),
+    HZ_DESC("org.horizon.shader.flat", "Flat", "unlit: the colour as is, for labels and quick looks"),
 };
 #undef HZ_DESC
-constexpr uint32_t kCount = 5;
+constexpr uint32_t kCount = 6;
 
 bool HZ_ABI init(const hz_host *, const char *) { return true; }
 void HZ_ABI deinit() {}

@@ -1,5 +1,6 @@
 // hz.shader/1: the paper's principled BRDF (principled_brdf.hpp is the CPU
 // reference; the GLSL below is the same function in float precision).
+#include "principled_albedo.hpp"
 #include "principled_brdf.hpp"
 
 #include <hz/cpp/plugin.hpp>
@@ -208,9 +209,29 @@ hz_status HZ_ABI eval_reference(const hz_shade_point *sp, const double *params, 
     return HZ_OK;
 }
 
+const char *const kFunctions[] = {
+    "principled_albedo(base_color[3], subsurface, metallic, specular, specular_tint, roughness, anisotropic, sheen, sheen_tint, "
+    "clearcoat, clearcoat_gloss, N[3], X[3], Y[3], V[3])",
+    nullptr};
+
+// Directional albedo E(v) by deterministic quadrature (principled_albedo.hpp).
+hz_status HZ_ABI eval_function(const char *name, const double *a, uint32_t n, double out[3]) {
+    if (name == nullptr || out == nullptr) return HZ_E_INVALID_ARGUMENT;
+    if (std::strcmp(name, "principled_albedo") != 0) return HZ_E_NOT_FOUND;
+    if (n != 25 || a == nullptr) return HZ_E_INVALID_ARGUMENT;
+    principled::Params p;
+    p.base_color = {a[0], a[1], a[2]};
+    p.subsurface = a[3], p.metallic = a[4], p.specular = a[5], p.specular_tint = a[6], p.roughness = a[7];
+    p.anisotropic = a[8], p.sheen = a[9], p.sheen_tint = a[10], p.clearcoat = a[11], p.clearcoat_gloss = a[12];
+    auto v3 = [](const double *x) { return principled::V3{x[0], x[1], x[2]}; };
+    const principled::V3 e = principled::albedo(p, v3(a + 13), v3(a + 22), v3(a + 16), v3(a + 19));
+    std::copy(e.begin(), e.end(), out);
+    return HZ_OK;
+}
+
 const hz_shader kShader = {
     sizeof(hz_shader), HZ_SHADE_SURFACE, HZ_SHADER_OUTPUT_BRDF, HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL, "principled_", kParamCount,
-    get_param, glsl_source, eval_reference,
+    get_param, glsl_source, eval_reference, kFunctions, eval_function,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_SHADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {

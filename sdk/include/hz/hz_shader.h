@@ -36,7 +36,10 @@
  *       vec3 hz_env_irradiance(vec3 n);   E(n) = integral of L max(n.w,0) dw
  *       vec2 hz_env_brdf(float NoV, float roughness);  split-sum (scale, bias)
  *       vec3 hz_scene_behind(vec2 offset_px);  the opaque scene behind this
- *                                          pixel (translucent objects only)
+ *                                          pixel, displaced by offset_px
+ *       mat3 hz_view_rotation;             world -> camera (x right, y up)
+ *   A snippet that calls hz_scene_behind is drawn after the opaque objects
+ *   and composites what it transmits itself (no blending).
  *   A snippet may define `vec3 hz_ambient(HzShadePoint p)`: the radiance it
  *   reflects (or transmits) from the environment towards p.v. Without it the
  *   host uses hz_shade(p with l = n) * hz_env_irradiance(n) (BRDF output) or
@@ -65,7 +68,11 @@ enum {
     /* a reflected-radiance factor that already includes the geometry term
        (classic Blinn-Phong, illuminated lines): the host multiplies by the
        light's radiance only. */
-    HZ_SHADER_OUTPUT_RADIANCE_FACTOR = 2
+    HZ_SHADER_OUTPUT_RADIANCE_FACTOR = 2,
+    /* Since 1.2. The final radiance, independent of lights and environment
+       (flat / unlit shading): the host calls hz_shade once per fragment with
+       l = n and uses its value as is. */
+    HZ_SHADER_OUTPUT_EMISSION = 3
 };
 
 /* Properties the plugin claims; `horizon validate` tests exactly these. */
@@ -119,6 +126,26 @@ typedef struct hz_shader {
      */
     hz_status(HZ_ABI *eval_reference)(const hz_shade_point *point, const double *params,
                                       uint32_t params_count, double out_rgb[3]);
+
+    /*
+     * Since 1.2 (test HZ_HAS_FIELD). Named building blocks of the model that
+     * tests can evaluate on their own (e.g. a Fresnel term), as a
+     * NULL-terminated list of signatures "name(arg, arg[3], ...)": every
+     * argument is a double or a fixed-size array of doubles. `horizon brdf`
+     * answers a test case whose model is `name` by reading the arguments
+     * from the case's fields of the same names. NULL when there are none.
+     * PLUGIN-owned static text.
+     */
+    const char *const *functions;
+
+    /*
+     * Evaluates function `name` (one of `functions`) at `args`: its arguments
+     * flattened in signature order, `nargs` doubles. Writes out_rgb (a scalar
+     * result repeated 3 times). HZ_E_NOT_FOUND for an unknown name,
+     * HZ_E_INVALID_ARGUMENT for a wrong count. Pure, reentrant, no
+     * allocation, no exceptions. May be NULL. [thread-safe]
+     */
+    hz_status(HZ_ABI *eval_function)(const char *name, const double *args, uint32_t nargs, double out_rgb[3]);
 } hz_shader;
 
 HZ_EXTERN_C_END

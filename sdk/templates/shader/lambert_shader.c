@@ -58,7 +58,7 @@ static hz_status HZ_ABI eval_reference(const hz_shade_point *p, const double *pa
 
 static const hz_shader k_shader = {
     sizeof(hz_shader), HZ_SHADE_SURFACE, HZ_SHADER_OUTPUT_BRDF, HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL,
-    "lambert_", 1, get_param, glsl_source, eval_reference,
+    "lambert_", 1, get_param, glsl_source, eval_reference, NULL, NULL,
 };
 
 static const char *const k_interfaces[] = {HZ_INTERFACE_SHADER, NULL};
