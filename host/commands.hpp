@@ -63,6 +63,15 @@ struct ShaderCheckOptions {
     bool json = false, verbose = false;
 };
 
+struct ViewOptions {
+    std::vector<std::string> inputs;  // data files, or one scene file
+    std::string size = "1280x800";
+    int samples = 4;
+    std::string script;               // scripted input (tests)
+    bool exit_after_script = true;
+    std::string screenshot_dir = ".";
+};
+
 core::Registry load_registry(const GlobalOptions &g);
 
 int cmd_plugins(const GlobalOptions &g, bool json);
@@ -73,6 +82,9 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o);
 int cmd_brdf(const GlobalOptions &g, const std::string &shader_id);
 int cmd_demo(const GlobalOptions &g, const DemoOptions &o);
 int cmd_render(const GlobalOptions &g, const RenderOptions &o);
+int cmd_view(const GlobalOptions &g, const ViewOptions &o);
+int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o);
+std::pair<int, int> parse_size(const std::string &s);
 int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o);
 
 // Renders `scene` headlessly to o.out (PNG through the images plugin).

@@ -99,6 +99,14 @@ int main(int argc, char **argv) {
     render->add_option("--lod-pixels", ro.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")->capture_default_str();
     render->add_flag("--json", ro.json, "timings and counts as JSON");
 
+    ViewOptions vwo;
+    auto *view = app.add_subcommand("view", "open the interactive window on data files or a scene file");
+    view->add_option("inputs", vwo.inputs, "data files (tractograms, surfaces, volumes) or one scene .json")->required();
+    view->add_option("--size", vwo.size, "window size WIDTHxHEIGHT")->capture_default_str();
+    view->add_option("--samples", vwo.samples, "MSAA samples")->capture_default_str();
+    view->add_option("--script", vwo.script, "drive the window from a script (wait N, drag, pan, scroll, key, set, shader, screenshot, quit)");
+    view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")->capture_default_str();
+
     ShaderCheckOptions sco;
     auto *scheck = app.add_subcommand("shader-check", "GPU equals CPU: render analytic scenes with shading plugins and compare every pixel");
     scheck->add_option("--shader", sco.shader, "only this shading plugin (id or short name)");
@@ -135,6 +143,7 @@ int main(int argc, char **argv) {
         if (*brdf) return cmd_brdf(g, brdf_shader);
         if (*render) return cmd_render(g, ro);
         if (*scheck) return cmd_shader_check(g, sco);
+        if (*view) return cmd_view(g, vwo);
     } catch (const std::exception &e) {
         std::fprintf(stderr, "horizon: error: %s\n", e.what());
         return 1;

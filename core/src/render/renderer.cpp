@@ -1190,6 +1190,8 @@ void Renderer::set_material(std::size_t object, const Material &m) {
     throw Error("object " + std::to_string(object) + " has no material");
 }
 
+void Renderer::set_exposure(double e) { impl_->scene.exposure = std::clamp(e, 1e-4, 1e4); }
+
 void Renderer::set_visible(std::size_t object, bool visible) {
     if (object < impl_->scene.objects.size()) impl_->scene.objects[object].visible = visible;
 }

@@ -71,6 +71,7 @@ public:
     // compiles the new program if needed. Throws Error.
     void set_material(std::size_t object, const Material &m);
     void set_visible(std::size_t object, bool visible);
+    void set_exposure(double exposure);
     const Scene &scene() const;
 
     // Camera fitted to the visible objects for the scene's camera spec.

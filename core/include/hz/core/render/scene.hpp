@@ -87,7 +87,7 @@ struct Light {
 struct Environment {
     std::string type = "studio";       // studio (procedural) | file | none
     std::string path;                  // type = file: an equirectangular image (.hdr, .exr, .png)
-    double intensity = 1.0;
+    double intensity = 0.5;
     double rotation_deg = 0.0;         // about the superior (z) axis
     bool visible = false;              // draw it as the background
 };

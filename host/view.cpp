@@ -1,0 +1,403 @@
+// `horizon view`: the interactive window (GLFW + Dear ImGui). Orbit (left
+// drag), pan (right or shift drag), zoom (wheel); a material panel generated
+// from each shading plugin's parameter schema with live controls and a
+// shading-model switcher; S saves a screenshot, R resets the camera, Q or
+// Esc quits. `--script FILE` drives the same handlers from a text file
+// (tests run it under Xvfb). Without a display it says so and points to
+// `horizon render`.
+#include "commands.hpp"
+
+#include <hz/core/io.hpp>
+#include <hz/core/render/renderer.hpp>
+
+#define GL_GLEXT_PROTOTYPES 1
+#include <GL/glcorearb.h>
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+#include <imgui_impl_glfw.h>
+#include <imgui_impl_opengl3.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+namespace hz::host {
+
+namespace fs = std::filesystem;
+using core::render::Vec3;
+
+namespace {
+
+std::string glfw_error;
+void on_glfw_error(int, const char *msg) { glfw_error = msg ? msg : "unknown GLFW error"; }
+
+// Orbit camera around a target.
+struct Orbit {
+    Vec3 target{0, 0, 0};
+    double yaw = 0, pitch = 0, distance = 100, fov = 30;
+    Vec3 up{0, 0, 1};
+    void from_view(const core::render::View &v) {
+        target = v.target;
+        const double dx = v.eye[0] - v.target[0], dy = v.eye[1] - v.target[1], dz = v.eye[2] - v.target[2];
+        distance = std::sqrt(dx * dx + dy * dy + dz * dz);
+        yaw = std::atan2(dy, dx);
+        pitch = std::asin(std::clamp(dz / std::max(distance, 1e-9), -1.0, 1.0));
+        fov = v.fov_deg;
+    }
+    core::render::View view(double radius) const {
+        core::render::View v;
+        v.target = target;
+        v.eye = {target[0] + distance * std::cos(pitch) * std::cos(yaw), target[1] + distance * std::cos(pitch) * std::sin(yaw),
+                 target[2] + distance * std::sin(pitch)};
+        v.up = up;
+        v.fov_deg = fov;
+        v.far_mm = distance + 2.5 * radius;
+        v.near_mm = std::max(v.far_mm * 1e-4, distance - 2.5 * radius);
+        return v;
+    }
+};
+
+struct App {
+    const core::Registry *reg = nullptr;
+    GLFWwindow *win = nullptr;
+    core::render::Renderer *r = nullptr;
+    Orbit orbit, home;
+    double radius = 100;
+    bool dragging = false, panning = false;
+    double last_x = 0, last_y = 0;
+    int shots = 0;
+    fs::path shot_dir = ".";
+    std::string pending_shot;
+    bool quit = false;
+
+    void drag_to(double x, double y) {
+        const double dx = x - last_x, dy = y - last_y;
+        last_x = x, last_y = y;
+        if (panning) {
+            // Move the target in the view plane, in proportion to the distance.
+            const double s = orbit.distance * 0.0015;
+            const double cy = std::cos(orbit.yaw), sy = std::sin(orbit.yaw);
+            const Vec3 right = {-sy, cy, 0};
+            const Vec3 upv = {-std::sin(orbit.pitch) * cy, -std::sin(orbit.pitch) * sy, std::cos(orbit.pitch)};
+            for (int k = 0; k < 3; ++k) orbit.target[k] += s * (-dx * right[k] + dy * upv[k]);
+        } else if (dragging) {
+            orbit.yaw -= dx * 0.008;
+            orbit.pitch = std::clamp(orbit.pitch + dy * 0.008, -1.55, 1.55);
+        }
+    }
+    void scroll(double dy) { orbit.distance = std::clamp(orbit.distance * std::pow(0.9, dy), radius * 0.05, radius * 50); }
+    void key(int k) {
+        if (k == GLFW_KEY_S) pending_shot = (shot_dir / ("horizon-screenshot-" + std::to_string(++shots) + ".png")).string();
+        else if (k == GLFW_KEY_R) orbit = home;
+        else if (k == GLFW_KEY_Q || k == GLFW_KEY_ESCAPE) quit = true;
+    }
+};
+
+App *app_of(GLFWwindow *w) { return static_cast<App *>(glfwGetWindowUserPointer(w)); }
+
+void cb_button(GLFWwindow *w, int button, int action, int mods) {
+    if (ImGui::GetIO().WantCaptureMouse) return;
+    App &a = *app_of(w);
+    glfwGetCursorPos(w, &a.last_x, &a.last_y);
+    const bool down = action == GLFW_PRESS;
+    if (button == GLFW_MOUSE_BUTTON_LEFT && !(mods & GLFW_MOD_SHIFT)) a.dragging = down;
+    else a.panning = down;
+    if (!down) a.dragging = a.panning = false;
+}
+void cb_cursor(GLFWwindow *w, double x, double y) { app_of(w)->drag_to(x, y); }
+void cb_scroll(GLFWwindow *w, double, double dy) {
+    if (!ImGui::GetIO().WantCaptureMouse) app_of(w)->scroll(dy);
+}
+void cb_key(GLFWwindow *w, int key, int, int action, int) {
+    if (action == GLFW_PRESS && !ImGui::GetIO().WantCaptureKeyboard) app_of(w)->key(key);
+}
+
+// A scene from data files: tractograms as direction-coloured tubes or lines,
+// meshes as principled surfaces, volumes as three slices.
+core::render::Scene scene_from_files(const core::Registry &reg, const std::vector<std::string> &files) {
+    core::render::Scene s;
+    for (const auto &f : files) {
+        core::render::Object o;
+        o.name = fs::path(f).filename().string();
+        o.data = core::read_dataset(reg, f);
+        o.kind = o.data.kind;
+        if (o.kind == HZ_DATA_STREAMLINES) {
+            o.coloring.mode = "direction";
+            o.render = o.data.tractogram.nb_streamlines() <= 20000 ? "tubes" : "lines";
+            o.radius_mm = 0.3;
+        } else if (o.kind == HZ_DATA_MESH) {
+            o.coloring.color = {0.85, 0.72, 0.68};
+        } else if (o.kind == HZ_DATA_VOLUME) {
+            o.slice_x = o.slice_y = o.slice_z = std::nan("");
+        } else {
+            throw core::Error(f + ": " + core::kind_name(o.kind) + " data cannot be shown in the 3D view");
+        }
+        s.objects.push_back(std::move(o));
+    }
+    return s;
+}
+
+// The material panel: one control per schema parameter.
+bool material_controls(const core::Registry &reg, const core::render::Object &o, core::render::Material &m) {
+    bool changed = false;
+    const auto shaders = reg.of_kind(HZ_KIND_SHADER);
+    const core::LoadedPlugin *cur = core::render::find_shader(reg, m.shader);
+    if (ImGui::BeginCombo("shading model", cur ? cur->info.name.c_str() : m.shader.c_str())) {
+        for (const auto *p : shaders) {
+            const hz_shader *sh = p->shader();
+            const bool ok = o.kind == HZ_DATA_MESH || o.render == "tubes" ? (sh->domains & HZ_SHADE_SURFACE) : true;
+            if (!ok) continue;
+            if (ImGui::Selectable(p->info.name.c_str(), p == cur) && p != cur) {
+                m.shader = p->info.id;
+                m.params.clear();
+                changed = true;
+            }
+        }
+        ImGui::EndCombo();
+    }
+    if (!cur || changed) return changed;
+    const hz_shader *sh = cur->shader();
+    for (uint32_t i = 0; i < sh->param_count; ++i) {
+        const hz_param_info *pi = sh->get_param(i);
+        if (pi->flags & HZ_PARAM_FLAG_HIDDEN) continue;
+        if (pi->type == HZ_PARAM_COLOR3 && i == 0) continue;  // the object's colouring drives the first colour
+        auto it = m.params.find(pi->name);
+        std::vector<double> v(pi->components);
+        for (uint32_t c = 0; c < pi->components; ++c) v[c] = it != m.params.end() && c < it->second.size() ? it->second[c] : pi->default_value[c];
+        const char *label = pi->label && *pi->label ? pi->label : pi->name;
+        bool ch = false;
+        if (pi->type == HZ_PARAM_FLOAT) {
+            float f = float(v[0]);
+            ch = ImGui::SliderFloat(label, &f, float(pi->min_value[0]), float(pi->max_value[0]), "%.3f",
+                                    (pi->flags & HZ_PARAM_FLAG_LOG_SCALE) ? ImGuiSliderFlags_Logarithmic : 0);
+            v[0] = f;
+        } else if (pi->type == HZ_PARAM_COLOR3) {
+            float c[3] = {float(v[0]), float(v[1]), float(v[2])};
+            ch = ImGui::ColorEdit3(label, c);
+            v = {c[0], c[1], c[2]};
+        } else if (pi->type == HZ_PARAM_ENUM && pi->enum_labels) {
+            int k = int(v[0]);
+            int n = 0;
+            while (pi->enum_labels[n]) ++n;
+            ch = ImGui::Combo(label, &k, pi->enum_labels, n);
+            v[0] = k;
+        } else if (pi->type == HZ_PARAM_BOOL) {
+            bool b = v[0] != 0;
+            ch = ImGui::Checkbox(label, &b);
+            v[0] = b;
+        } else if (pi->type == HZ_PARAM_INT) {
+            int k = int(v[0]);
+            ch = ImGui::SliderInt(label, &k, int(pi->min_value[0]), int(pi->max_value[0]));
+            v[0] = k;
+        }
+        if (ch) {
+            m.params[pi->name] = v;
+            changed = true;
+        }
+        if (pi->tooltip && *pi->tooltip && ImGui::IsItemHovered()) ImGui::SetTooltip("%s", pi->tooltip);
+    }
+    return changed;
+}
+
+void save_screenshot(const core::Registry &reg, const std::string &path, int w, int h) {
+    core::render::Image im;
+    im.width = w, im.height = h;
+    std::vector<std::uint8_t> tmp(std::size_t(w) * h * 4);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+    glReadBuffer(GL_BACK);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, tmp.data());
+    im.rgba.resize(tmp.size());
+    const std::size_t row = std::size_t(w) * 4;
+    for (int y = 0; y < h; ++y) std::memcpy(&im.rgba[y * row], &tmp[(h - 1 - y) * row], row);
+    write_image(reg, im, path);
+    std::printf("screenshot: %s\n", path.c_str());
+    std::fflush(stdout);
+}
+
+}  // namespace
+
+int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o) {
+    const char *display = std::getenv("DISPLAY");
+    if (display == nullptr || *display == '\0')
+        throw core::Error("no display (DISPLAY is not set): the window needs an X server; render headless instead with "
+                          "`horizon render SCENE.json -o out.png`");
+    glfwSetErrorCallback(on_glfw_error);
+    if (!glfwInit())
+        throw core::Error("cannot open the display " + std::string(display) + " (" + glfw_error +
+                          "); render headless instead with `horizon render SCENE.json -o out.png`");
+    struct GlfwGuard {
+        ~GlfwGuard() { glfwTerminate(); }
+    } glfw_guard;
+    const auto [w0, h0] = parse_size(o.size);
+    glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 4);
+    glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 1);
+    glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+    glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+    GLFWwindow *win = glfwCreateWindow(w0, h0, "Horizon", nullptr, nullptr);
+    if (!win) throw core::Error("cannot create an OpenGL 4.1 core window: " + glfw_error);
+    glfwMakeContextCurrent(win);
+    glfwSwapInterval(1);
+
+    App app;
+    app.reg = &reg;
+    app.win = win;
+    app.shot_dir = o.screenshot_dir;
+    glfwSetWindowUserPointer(win, &app);
+    // Our handlers first: ImGui's GLFW backend (install_callbacks = true)
+    // chains to the callbacks already installed.
+    glfwSetMouseButtonCallback(win, cb_button);
+    glfwSetCursorPosCallback(win, cb_cursor);
+    glfwSetScrollCallback(win, cb_scroll);
+    glfwSetKeyCallback(win, cb_key);
+    IMGUI_CHECKVERSION();
+    ImGui::CreateContext();
+    ImGui::GetIO().IniFilename = nullptr;
+    ImGui::StyleColorsDark();
+    ImGui_ImplGlfw_InitForOpenGL(win, true);
+    ImGui_ImplOpenGL3_Init("#version 410");
+
+    int result = 0;
+    {
+        core::render::Renderer r(reg);
+        app.r = &r;
+        core::render::RenderSettings rs;
+        rs.width = w0, rs.height = h0, rs.samples = o.samples, rs.lod_pixels = 0.5;
+        const core::render::View v0 = core::render::fit_view(scene, scene.camera, double(w0) / h0);
+        const core::Bounds b = core::render::scene_bounds(scene);
+        if (!b.empty)
+            app.radius = 0.5 * std::sqrt(std::pow(b.max[0] - b.min[0], 2) + std::pow(b.max[1] - b.min[1], 2) + std::pow(b.max[2] - b.min[2], 2));
+        r.set_scene(std::move(scene), v0, rs);
+        app.orbit.from_view(v0);
+        app.home = app.orbit;
+
+        std::vector<std::string> script;
+        if (!o.script.empty()) {
+            std::ifstream in(o.script);
+            if (!in) throw core::Error(o.script + ": cannot open the script");
+            for (std::string line; std::getline(in, line);)
+                if (!line.empty() && line[0] != '#') script.push_back(line);
+        }
+        std::size_t pc = 0;
+        int wait = 0;
+        float exposure = float(r.scene().exposure);
+        std::vector<core::render::Material> materials;
+        for (const auto &ob : r.scene().objects) materials.push_back(ob.material);
+
+        while (!glfwWindowShouldClose(win) && !app.quit) {
+            glfwPollEvents();
+            // One script command per frame (wait N: N frames).
+            if (wait > 0) --wait;
+            else if (pc < script.size()) {
+                std::istringstream cmd(script[pc++]);
+                std::string op;
+                cmd >> op;
+                try {
+                    if (op == "wait") cmd >> wait;
+                    else if (op == "drag" || op == "pan") {
+                        double x0, y0, x1, y1;
+                        cmd >> x0 >> y0 >> x1 >> y1;
+                        app.last_x = x0, app.last_y = y0;
+                        (op == "drag" ? app.dragging : app.panning) = true;
+                        for (int s = 1; s <= 8; ++s) app.drag_to(x0 + (x1 - x0) * s / 8, y0 + (y1 - y0) * s / 8);
+                        app.dragging = app.panning = false;
+                    } else if (op == "scroll") {
+                        double d;
+                        cmd >> d;
+                        app.scroll(d);
+                    } else if (op == "key") {
+                        std::string k;
+                        cmd >> k;
+                        app.key(k == "esc" ? GLFW_KEY_ESCAPE : GLFW_KEY_A + (std::toupper(k[0]) - 'A'));
+                    } else if (op == "screenshot") {
+                        cmd >> app.pending_shot;
+                    } else if (op == "shader" || op == "set") {
+                        std::size_t obj;
+                        cmd >> obj;
+                        if (obj >= materials.size()) throw core::Error("no object " + std::to_string(obj));
+                        if (op == "shader") {
+                            cmd >> materials[obj].shader;
+                            materials[obj].params.clear();
+                        } else {
+                            std::string name;
+                            cmd >> name;
+                            std::vector<double> v;
+                            for (double x; cmd >> x;) v.push_back(x);
+                            materials[obj].params[name] = v;
+                        }
+                        r.set_material(obj, materials[obj]);
+                    } else if (op == "quit") {
+                        app.quit = true;
+                    } else {
+                        throw core::Error("unknown command '" + op + "'");
+                    }
+                } catch (const core::Error &e) {
+                    throw core::Error(o.script + ": line " + std::to_string(pc) + ": " + e.what());
+                }
+            } else if (!o.script.empty() && o.exit_after_script) {
+                app.quit = true;
+            }
+
+            int fw, fh;
+            glfwGetFramebufferSize(win, &fw, &fh);
+            if (fw <= 0 || fh <= 0) continue;
+            r.render_to_window(app.orbit.view(app.radius), fw, fh);
+            if (!app.pending_shot.empty()) {
+                save_screenshot(reg, app.pending_shot, fw, fh);
+                app.pending_shot.clear();
+            }
+
+            ImGui_ImplOpenGL3_NewFrame();
+            ImGui_ImplGlfw_NewFrame();
+            ImGui::NewFrame();
+            ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
+            ImGui::SetNextWindowSize(ImVec2(340, 0), ImGuiCond_FirstUseEver);
+            ImGui::Begin("Horizon");
+            ImGui::Text("%.0f ms/frame   %llu segments   %llu triangles", r.stats().draw_ms, (unsigned long long)r.stats().segments_drawn,
+                        (unsigned long long)r.stats().triangles_drawn);
+            ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset");
+            if (ImGui::SliderFloat("exposure", &exposure, 0.05f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic)) r.set_exposure(exposure);
+            for (std::size_t i = 0; i < r.scene().objects.size(); ++i) {
+                const auto &ob = r.scene().objects[i];
+                ImGui::PushID(int(i));
+                if (ImGui::CollapsingHeader(ob.name.c_str(), i == 0 ? ImGuiTreeNodeFlags_DefaultOpen : 0)) {
+                    bool vis = ob.visible;
+                    if (ImGui::Checkbox("visible", &vis)) r.set_visible(i, vis);
+                    if (ob.kind != HZ_DATA_VOLUME && material_controls(reg, ob, materials[i])) {
+                        try {
+                            r.set_material(i, materials[i]);
+                        } catch (const core::Error &e) {
+                            std::fprintf(stderr, "horizon: %s\n", e.what());
+                            materials[i] = ob.material;
+                        }
+                    }
+                }
+                ImGui::PopID();
+            }
+            ImGui::End();
+            ImGui::Render();
+            ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+            glfwSwapBuffers(win);
+        }
+    }
+    ImGui_ImplOpenGL3_Shutdown();
+    ImGui_ImplGlfw_Shutdown();
+    ImGui::DestroyContext();
+    glfwDestroyWindow(win);
+    return result;
+}
+
+int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
+    const core::Registry reg = load_registry(g);
+    if (o.inputs.empty()) throw core::Error("view: give data files or a scene file (.json)");
+    core::render::Scene scene;
+    if (o.inputs.size() == 1 && fs::path(o.inputs[0]).extension() == ".json") scene = core::render::load_scene(reg, o.inputs[0]);
+    else scene = scene_from_files(reg, o.inputs);
+    return view_scene(reg, std::move(scene), o);
+}
+
+}  // namespace hz::host
