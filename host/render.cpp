@@ -56,7 +56,12 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     rs.samples = o.samples;
     rs.lod_pixels = o.lod_pixels;
     const core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
-    r.set_scene(std::move(scene), view, rs);
+    try {
+        r.set_scene(std::move(scene), view, rs);
+    } catch (const core::Error &e) {
+        if (o.scene.empty()) throw;
+        throw core::Error(o.scene + ": " + e.what());  // name the scene file
+    }
     r.render(view, w, h);
     const core::render::Image im = r.read_image();
     const auto tw = Clock::now();

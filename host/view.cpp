@@ -221,11 +221,20 @@ void save_screenshot(const core::Registry &reg, const std::string &path, int w, 
 
 }  // namespace
 
-int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o) {
+bool have_display() {
     const char *display = std::getenv("DISPLAY");
-    if (display == nullptr || *display == '\0')
+    return display != nullptr && *display != '\0';
+}
+
+void require_display() {
+    if (!have_display())
         throw core::Error("no display (DISPLAY is not set): the window needs an X server; render headless instead with "
                           "`horizon render SCENE.json -o out.png`");
+}
+
+int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o) {
+    require_display();
+    const char *display = std::getenv("DISPLAY");
     glfwSetErrorCallback(on_glfw_error);
     if (!glfwInit())
         throw core::Error("cannot open the display " + std::string(display) + " (" + glfw_error +
@@ -392,12 +401,18 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
 }
 
 int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
+    require_display();
     const core::Registry reg = load_registry(g);
     if (o.inputs.empty()) throw core::Error("view: give data files or a scene file (.json)");
     core::render::Scene scene;
     if (o.inputs.size() == 1 && fs::path(o.inputs[0]).extension() == ".json") scene = core::render::load_scene(reg, o.inputs[0]);
     else scene = scene_from_files(reg, o.inputs);
-    return view_scene(reg, std::move(scene), o);
+    try {
+        return view_scene(reg, std::move(scene), o);
+    } catch (const core::Error &e) {
+        if (o.inputs.size() == 1) throw core::Error(o.inputs[0] + ": " + e.what());
+        throw;
+    }
 }
 
 }  // namespace hz::host

@@ -252,7 +252,13 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             if (c.contains("width_by_size")) cs.width_by_size = c["width_by_size"].get<bool>();
             ob.clustering = cs;
         }
-        ob.data = object_data(reg, o, type, base, what, where);
+        try {
+            ob.data = object_data(reg, o, type, base, what, where);
+        } catch (const Error &e) {
+            const std::string m = e.what();
+            if (m.rfind(what + ":", 0) == 0) throw;
+            fail(what, where, m);  // name the scene file and the object too
+        }
         const hz_data_kind want = type == "streamlines" ? HZ_DATA_STREAMLINES : type == "surface" ? HZ_DATA_MESH : HZ_DATA_VOLUME;
         if (ob.data.kind != want)
             fail(what, where, std::string("the file holds ") + kind_name(ob.data.kind) + ", not what type '" + type + "' shows");
@@ -262,7 +268,11 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             ob.slice_x = ob.slice_y = ob.slice_z = std::nan("");
         }
         if (ob.clustering) {
-            ob.data.tractogram = cluster_centroids(reg, ob.data.tractogram, *ob.clustering);
+            try {
+                ob.data.tractogram = cluster_centroids(reg, ob.data.tractogram, *ob.clustering);
+            } catch (const Error &e) {
+                fail(what, where + ".clustering", e.what());
+            }
             if (!o.contains("render")) ob.render = "tubes";
         }
         if (ob.coloring.mode == "cluster" && ob.kind != HZ_DATA_STREAMLINES) fail(what, where + ".color", "mode 'cluster' is for streamlines");

@@ -1,0 +1,218 @@
+"""The renderer through its real entry points: `horizon render` (headless
+EGL, no X server), `horizon shader-check` (GPU equals CPU), `horizon view`
+(the window, under Xvfb, with scripted input) and `horizon demo`."""
+import json
+import os
+import shutil
+import subprocess
+import unittest
+
+import numpy as np
+from PIL import Image
+
+from hztest import HORIZON, SOURCE, TempDirTest, run, run_json
+
+GOLDEN = os.path.join(SOURCE, "tests", "golden")
+NO_DISPLAY = {"DISPLAY": ""}
+
+
+def load(path):
+    return np.asarray(Image.open(path).convert("RGB"), dtype=np.float64)
+
+
+def golden_scenes():
+    """Small deterministic scenes whose pictures are stored in tests/golden."""
+    return {
+        "tubes_principled": {
+            "objects": [{"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 300, "bundles": 6, "seed": 3},
+                         "render": "tubes", "radius": 0.8, "material": {"shader": "principled", "params": {"roughness": 0.3, "clearcoat": 1}}}],
+            "camera": {"view": "superior"}},
+        "surface_slices_glass": {
+            "objects": [{"type": "slices", "builtin": "head", "z": -10, "clip_below": 1},
+                        {"type": "surface", "builtin": "cortex", "color": [0.9, 0.95, 1.0],
+                         "material": {"shader": "glass", "params": {"thickness": 3, "ior": 1.45}}}],
+            "camera": {"view": "left", "zoom": 1.1}, "environment": {"type": "studio", "visible": True}},
+        "lines_stalling": {
+            "objects": [{"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 400, "bundles": 5, "seed": 9},
+                         "render": "lines", "material": "line_stalling"}],
+            "camera": {"view": "anterior"}, "environment": {"type": "none"}},
+    }
+
+
+def render_scene(test, scene, name, *extra, size="200x150"):
+    path = test.path(name + ".json")
+    with open(path, "w") as f:
+        json.dump(scene, f)
+    out = test.path(name + ".png")
+    p = run("render", path, "-o", out, "--size", size, "--json", *extra, env=NO_DISPLAY, timeout=120)
+    test.assertEqual(p.returncode, 0, p.stderr)
+    return out, json.loads(p.stdout)
+
+
+class RenderTest(TempDirTest):
+    def test_headless_render_of_builtin_scene(self):
+        scene = {"objects": [
+            {"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 500}, "render": "tubes"},
+            {"type": "surface", "builtin": "cortex"},
+            {"type": "slices", "builtin": "head"}]}
+        out, stats = render_scene(self, scene, "s", size="320x200")
+        im = load(out)
+        self.assertEqual(im.shape, (200, 320, 3))
+        bg = im[0, 0]
+        covered = np.mean(np.any(np.abs(im - bg) > 10, axis=2))
+        self.assertGreater(covered, 0.15, "the scene should fill a good part of the frame")
+        self.assertIn("OpenGL", stats["gl"])
+        self.assertGreater(stats["triangles"], 1000)
+        self.assertGreater(stats["segments"], 1000)
+
+    def test_shading_model_changes_the_picture(self):
+        base = {"objects": [{"type": "surface", "builtin": "cortex", "material": {"shader": "principled"}}], "camera": {"view": "right"}}
+        a, _ = render_scene(self, base, "a")
+        base["objects"][0]["material"] = {"shader": "blinn_phong", "params": {"shininess": 64}}
+        b, _ = render_scene(self, base, "b")
+        base["objects"][0]["material"] = "flat"
+        c, _ = render_scene(self, base, "c")
+        ia, ib, ic = load(a), load(b), load(c)
+        self.assertGreater(np.mean(np.abs(ia - ib)), 1.0)
+        # Flat shading: one colour over the whole surface (up to edge antialiasing).
+        surf = np.any(np.abs(ic - ic[0, 0]) > 10, axis=2)
+        colours = ic[surf]
+        self.assertLess(np.percentile(np.ptp(colours, axis=0), 50), 1e9)
+        self.assertLess(np.median(np.abs(colours - np.median(colours, axis=0))), 1.0)
+
+    def test_data_colouring_and_cluster_tubes(self):
+        scene = {"objects": [{"type": "surface", "builtin": "cortex", "color": {"mode": "data", "array": "sulc", "colormap": "coolwarm"}},
+                             {"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 800},
+                              "clustering": {"algorithm": "qbx", "level": 1}, "color": "cluster"}]}
+        out, stats = render_scene(self, scene, "d")
+        im = load(out)
+        self.assertGreater(len(np.unique(im.reshape(-1, 3), axis=0)), 500)
+
+    def test_environment_from_an_image_file(self):
+        # An equirectangular PNG: blue sky above, orange ground below.
+        env = np.zeros((64, 128, 3), np.uint8)
+        env[:32] = (60, 120, 255)
+        env[32:] = (255, 120, 40)
+        Image.fromarray(env).save(self.path("env.png"))
+        scene = {"objects": [{"type": "surface", "builtin": "cortex", "material": {"shader": "principled", "params": {"metallic": 1, "roughness": 0.1}}}],
+                 "environment": {"path": "env.png", "intensity": 1.0}, "lights": [], "camera": {"view": "anterior"}}
+        a, _ = render_scene(self, scene, "env_file")
+        scene["environment"] = {"type": "studio"}
+        b, _ = render_scene(self, scene, "env_studio")
+        ia = load(a)
+        self.assertGreater(np.mean(np.abs(ia - load(b))), 2.0)
+        surf = np.any(np.abs(ia - ia[0, 0]) > 10, axis=2)
+        top, bottom = ia[:75][surf[:75]], ia[75:][surf[75:]]
+        self.assertGreater(top[:, 2].mean(), top[:, 0].mean(), "the metal reflects the blue sky above")
+
+    def test_render_real_files(self):
+        p = run("demo", "--out", self.path("demo"), "--streamlines", "300", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertTrue(os.path.exists(self.path("demo/demo.png")))
+        self.assertEqual(load(self.path("demo/demo.png")).shape, (720, 1280, 3))
+        scene = {"objects": [{"type": "streamlines", "file": "demo/phantom.tck", "render": "lines"},
+                             {"type": "streamlines", "file": "demo/qbx_centroids_level1.tck", "render": "tubes", "radius": 1.5,
+                              "color": {"mode": "solid", "value": [1, 0.8, 0.2]}}]}
+        out, stats = render_scene(self, scene, "files")
+        self.assertEqual(stats["points_total"], stats["points_total"])
+        self.assertGreater(stats["segments"], 100)
+
+    def test_decimation_keeps_the_picture(self):
+        scene = {"objects": [{"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 2000}, "render": "lines"}]}
+        full, s0 = render_scene(self, scene, "full", "--lod-pixels", "0", size="400x300")
+        lod, s1 = render_scene(self, scene, "lod", "--lod-pixels", "0.5", size="400x300")
+        self.assertLess(s1["points_kept"], 0.6 * s0["points_kept"])
+        # Sub-pixel shifts of 1-pixel lines: compare 4x4 block means.
+        blocks = lambda im: im.reshape(75, 4, 100, 4, 3).mean(axis=(1, 3))
+        diff = np.abs(blocks(load(full)) - blocks(load(lod)))
+        self.assertLess(np.mean(diff), 2.0)
+
+    def test_bad_scenes_fail_cleanly(self):
+        cases = {
+            "syntax.json": ("{ not json", "not valid JSON"),
+            "unknown_key.json": ({"objects": [{"type": "surface", "builtin": "cortex", "colour": [1, 0, 0]}]}, "unknown key 'colour'"),
+            "bad_shader.json": ({"objects": [{"type": "surface", "builtin": "cortex", "material": "nonesuch"}]}, "no shading plugin 'nonesuch'"),
+            "bad_param.json": ({"objects": [{"type": "surface", "builtin": "cortex", "material": {"shader": "principled", "params": {"shine": 1}}}]},
+                               "has no parameter 'shine'"),
+            "missing.json": ({"objects": [{"type": "streamlines", "file": "missing.tck"}]}, "missing.tck"),
+            "kind.json": ({"objects": [{"type": "surface", "builtin": "phantom"}]}, "builtin 'phantom' is a tractogram"),
+            "line_model.json": ({"objects": [{"type": "surface", "builtin": "cortex", "material": "line_stalling"}]}, "cannot shade surfaces"),
+        }
+        for name, (content, needle) in cases.items():
+            path = self.path(name)
+            with open(path, "w") as f:
+                f.write(content if isinstance(content, str) else json.dumps(content))
+            out = self.path(name + ".png")
+            p = run("render", path, "-o", out, env=NO_DISPLAY)
+            self.assert_clean_error(p, name)
+            self.assertIn(needle, p.stderr)
+            self.assertFalse(os.path.exists(out), name)
+
+    def test_golden_images(self):
+        """Small scenes against stored pictures; regenerate only with
+        tests/golden/regenerate.sh after checking the new pictures."""
+        for name, scene in golden_scenes().items():
+            out, _ = render_scene(self, scene, name)
+            ref = os.path.join(GOLDEN, name + ".png")
+            self.assertTrue(os.path.exists(ref), f"missing {ref}: run tests/golden/regenerate.sh")
+            a, b = load(out), load(ref)
+            self.assertEqual(a.shape, b.shape, name)
+            diff = np.abs(a - b)
+            # Tolerance: Mesa/LLVM versions and CPUs may round differently.
+            self.assertLess(diff.mean(), 1.5, f"{name}: mean difference {diff.mean():.2f}/255")
+            self.assertGreater(np.mean(diff.max(axis=2) <= 24), 0.99, f"{name}: too many pixels differ")
+
+
+class ShaderCheckTest(unittest.TestCase):
+    def test_gpu_equals_cpu_for_every_shader(self):
+        j = run_json("shader-check", "--json", "--sets", "6", "--size", "128", env=NO_DISPLAY, timeout=600)
+        ids = {s["shader"]: s for s in j["shaders"]}
+        for sid in ("principled", "lambert", "blinn_phong", "blinn_phong_brdf", "line_stalling", "line_mallo_diffuse", "flat", "glass"):
+            s = ids["org.horizon.shader." + sid]
+            self.assertTrue(s["ok"], s)
+            self.assertGreater(s["pixels"], 1000, s)
+            self.assertEqual(s["nonfinite"], 0)
+            self.assertEqual(s["negative"], 0)
+
+    def test_the_check_fails_when_tolerances_are_impossible(self):
+        p = run("shader-check", "--shader", "principled", "--sets", "2", "--size", "64", "--rel", "1e-9", "--abs", "1e-12",
+                env=NO_DISPLAY, timeout=300)
+        self.assertEqual(p.returncode, 1, p.stdout)
+        self.assertIn("FAIL", p.stdout)
+
+
+@unittest.skipUnless(shutil.which("xvfb-run"), "xvfb-run is not installed")
+class WindowTest(TempDirTest):
+    def test_window_under_xvfb_with_scripted_input(self):
+        scene = self.path("scene.json")
+        with open(scene, "w") as f:
+            json.dump({"objects": [{"type": "surface", "builtin": "cortex"},
+                                   {"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 300}, "render": "tubes"}]}, f)
+        script = self.path("script.txt")
+        with open(script, "w") as f:
+            f.write("\n".join([
+                "wait 2", f"screenshot {self.path('v0.png')}",
+                "drag 300 200 500 230", "wait 1", f"screenshot {self.path('v1.png')}",
+                "scroll 4", "wait 1", f"screenshot {self.path('v2.png')}",
+                "shader 0 flat", "wait 1", f"screenshot {self.path('v3.png')}",
+                "key s", "wait 1", "quit"]) + "\n")
+        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", scene, "--size", "640x400",
+                            "--script", script, "--screenshot-dir", self.tmp],
+                           capture_output=True, text=True, timeout=300, env={**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"})
+        self.assertEqual(p.returncode, 0, p.stderr)
+        shots = [load(self.path(f"v{i}.png")) for i in range(4)]
+        for s in shots:
+            self.assertEqual(s.shape, (400, 640, 3))
+        self.assertGreater(np.mean(np.abs(shots[0] - shots[1])), 1.0, "orbit changes the view")
+        self.assertGreater(np.mean(np.abs(shots[1] - shots[2])), 1.0, "zoom changes the view")
+        self.assertGreater(np.mean(np.abs(shots[2] - shots[3])), 0.5, "switching the shading model changes the picture")
+        self.assertTrue(os.path.exists(self.path("horizon-screenshot-1.png")), "the S key saves a screenshot")
+
+    def test_no_display_points_to_render(self):
+        p = run("view", "whatever.json", env=NO_DISPLAY)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("horizon render", p.stderr)
+
+
+if __name__ == "__main__":
+    unittest.main()
