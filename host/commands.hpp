@@ -51,6 +51,7 @@ struct RenderOptions {
     std::string size = "1280x720";
     int samples = 4;
     double lod_pixels = 0.5;
+    int frames = 1;           // frames to draw (timing: the median of frames 2..N)
     bool json = false;
 };
 

@@ -97,6 +97,8 @@ int main(int argc, char **argv) {
     render->add_option("--size", ro.size, "WIDTHxHEIGHT")->capture_default_str();
     render->add_option("--samples", ro.samples, "MSAA samples (1 = off)")->capture_default_str();
     render->add_option("--lod-pixels", ro.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")->capture_default_str();
+    render->add_option("--frames", ro.frames, "draw N frames and report the median time of frames 2..N (benchmarks)")
+        ->check(CLI::Range(1, 1000))->capture_default_str();
     render->add_flag("--json", ro.json, "timings and counts as JSON");
 
     ViewOptions vwo;

@@ -542,6 +542,9 @@ struct Renderer::Impl {
             const hz_param_info *pi = sh->get_param(i);
             const std::string u = std::string("u_") + pi->name;
             if (pi->type == HZ_PARAM_FLOAT && g.values[k] == 0.0) s << "#define HZ_ZERO_" << pi->name << " 1\n";
+            if ((pi->flags & HZ_PARAM_FLAG_REQUIRES_RECOMPILE) &&
+                (pi->type == HZ_PARAM_INT || pi->type == HZ_PARAM_ENUM || pi->type == HZ_PARAM_BOOL))
+                s << "#define HZ_PARAM_" << pi->name << " " << std::llround(g.values[k]) << "\n";
             switch (pi->type) {
             case HZ_PARAM_FLOAT: decl << "uniform float " << u << ";\n"; break;
             case HZ_PARAM_INT:

@@ -17,6 +17,11 @@ struct Params {
     V3 base_color{0.8, 0.8, 0.8};  // linear RGB
     double subsurface = 0, metallic = 0, specular = 0.5, specular_tint = 0, roughness = 0.5, anisotropic = 0, sheen = 0,
            sheen_tint = 0.5, clearcoat = 0, clearcoat_gloss = 1;
+    // Cheaper or costlier variants of single terms (0 = the paper's model),
+    // for the speed-accuracy chart: diffuse 1 = Lambert instead of Burley;
+    // fresnel 1 = exact dielectric Fresnel (eta from F0) instead of Schlick;
+    // visibility 1 = height-correlated Smith instead of separable.
+    int diffuse = 0, fresnel = 0, visibility = 0;
 };
 
 namespace detail {
@@ -103,7 +108,7 @@ inline V3 eval(const Params &in, V3 n, V3 l, V3 v, const V3 &x_hint, const V3 &y
 
     // Burley 2012 diffuse, with its Hanrahan-Krueger-inspired subsurface lobe.
     const double Fd90 = 0.5 + 2.0 * p.roughness * LoH * LoH;
-    const double Fd = mix(1.0, Fd90, FL) * mix(1.0, Fd90, FV);
+    const double Fd = in.diffuse == 1 ? 1.0 : mix(1.0, Fd90, FL) * mix(1.0, Fd90, FV);
     const double Fss90 = p.roughness * LoH * LoH;
     const double Fss = mix(1.0, Fss90, FL) * mix(1.0, Fss90, FV);
     const double ss = 1.25 * (Fss * (1.0 / std::max(NoL + NoV, 1e-30) - 0.5) + 0.5);
@@ -120,7 +125,14 @@ inline V3 eval(const Params &in, V3 n, V3 l, V3 v, const V3 &x_hint, const V3 &y
         const double wx = dot(w, X) * ax, wy = dot(w, Y) * ay;
         return 1.0 / (NoW + std::sqrt(wx * wx + wy * wy + NoW * NoW));
     };
-    const double Gs = vis(l, NoL) * vis(v, NoV);
+    double Gs = vis(l, NoL) * vis(v, NoV);
+    if (in.visibility == 1) {  // height-correlated Smith (Heitz 2014): G2 / (4 n.l n.v)
+        auto root = [&](const V3 &w, double NoW) {
+            const double wx = dot(w, X) * ax, wy = dot(w, Y) * ay;
+            return std::sqrt(wx * wx + wy * wy + NoW * NoW);
+        };
+        Gs = 0.5 / (NoL * root(v, NoV) + NoV * root(l, NoL));
+    }
 
     // Clearcoat: GTR1 (Burley 2012), Smith G with alpha 0.25, F0 = 0.04.
     const double ac = std::max(0.001, mix(0.1, 0.001, p.clearcoat_gloss));
@@ -137,7 +149,14 @@ inline V3 eval(const Params &in, V3 n, V3 l, V3 v, const V3 &x_hint, const V3 &y
     V3 f;
     for (int i = 0; i < 3; ++i) {
         const double Cspec0 = mix(0.08 * p.specular * mix(1.0, Ctint[i], p.specular_tint), C[i], p.metallic);
-        const double Fs = mix(Cspec0, 1.0, FH);
+        double Fs = mix(Cspec0, 1.0, FH);
+        if (in.fresnel == 1) {  // exact unpolarised dielectric Fresnel with the index F0 implies
+            const double r0 = std::sqrt(std::clamp(Cspec0, 0.0, 0.999));
+            const double eta = (1 + r0) / (1 - r0), c = std::clamp(LoH, 0.0, 1.0);
+            const double s2 = (1 - c * c) / (eta * eta), ct = std::sqrt(std::max(0.0, 1 - s2));
+            const double rs = (c - eta * ct) / (c + eta * ct), rp = (eta * c - ct) / (eta * c + ct);
+            Fs = s2 >= 1 ? 1.0 : 0.5 * (rs * rs + rp * rp);
+        }
         const double Csheen = mix(1.0, Ctint[i], p.sheen_tint);
         const double diffuse = (1.0 / kPi) * mix(Fd, ss, p.subsurface) * C[i] + FH * p.sheen * Csheen;
         f[i] = diffuse * (1.0 - p.metallic) + Ds * Gs * Fs + 0.25 * p.clearcoat * Dr * Fr * Gr;

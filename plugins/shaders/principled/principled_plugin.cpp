@@ -16,6 +16,14 @@ constexpr hz_param_info unit(const char *name, const char *label, const char *gr
             nullptr, 0, nullptr};
 }
 
+const char *const kDiffuseModes[] = {"burley", "lambert", nullptr};
+const char *const kFresnelModes[] = {"schlick", "exact", nullptr};
+const char *const kVisibilityModes[] = {"separable", "height_correlated", nullptr};
+constexpr hz_param_info variant(const char *name, const char *label, const char *const *modes, const char *tip) {
+    return {sizeof(hz_param_info), HZ_PARAM_ENUM, name, label, "Approximations", "", tip, HZ_PARAM_FLAG_REQUIRES_RECOMPILE, 1,
+            {0, 0, 0, 0}, {1, 0, 0, 0}, {0, 0, 0, 0}, modes, 0, nullptr};
+}
+
 // Schema order = the order of values in eval_reference's params.
 const hz_param_info kParams[] = {
     {sizeof(hz_param_info), HZ_PARAM_COLOR3, "base_color", "Base colour", "Base", "", "linear RGB albedo", 0, 3, {0, 0, 0, 0},
@@ -30,9 +38,12 @@ const hz_param_info kParams[] = {
     unit("sheen_tint", "Sheen tint", "Sheen", "tints the sheen towards the base colour", 0.5),
     unit("clearcoat", "Clearcoat", "Clearcoat", "second, fixed-index specular lobe", 0),
     unit("clearcoat_gloss", "Clearcoat gloss", "Clearcoat", "0 satin to 1 gloss", 1),
+    variant("diffuse", "Diffuse term", kDiffuseModes, "Burley 2012 (the paper) or Lambert (cheaper)"),
+    variant("fresnel", "Fresnel term", kFresnelModes, "Schlick (the paper) or exact dielectric Fresnel"),
+    variant("visibility", "Shadowing term", kVisibilityModes, "separable Smith GGX (the paper) or height-correlated Smith"),
 };
 constexpr uint32_t kParamCount = sizeof kParams / sizeof kParams[0];
-constexpr uint32_t kValueCount = 13;  // base_color (3) + 10 scalars
+constexpr uint32_t kValueCount = 16;  // base_color (3) + 10 scalars + 3 variant switches
 
 const hz_param_info *HZ_ABI get_param(uint32_t i) { return i < kParamCount ? &kParams[i] : nullptr; }
 
@@ -105,7 +116,11 @@ vec3 hz_shade(HzShadePoint sp) {
 
     // Burley 2012 diffuse and subsurface.
     float Fd90 = 0.5 + 2.0 * roughness * LoH * LoH;
+#if HZ_PARAM_diffuse == 1
+    float Fd = 1.0;
+#else
     float Fd = mix(1.0, Fd90, FL) * mix(1.0, Fd90, FV);
+#endif
 #ifdef HZ_ZERO_subsurface
     float diff = Fd;
 #else
@@ -136,10 +151,30 @@ vec3 hz_shade(HzShadePoint sp) {
     float vl = 1.0 / (NoL + sqrt(pow(dot(l, X) * ax, 2.0) + pow(dot(l, Y) * ay, 2.0) + NoL * NoL));
     float vv = 1.0 / (NoV + sqrt(pow(dot(v, X) * ax, 2.0) + pow(dot(v, Y) * ay, 2.0) + NoV * NoV));
 #endif
+#if HZ_PARAM_visibility == 1
+#ifdef HZ_ZERO_anisotropic
+    float Gs = 0.5 / (NoL * sqrt(aa * (1.0 - NoV * NoV) + NoV * NoV) + NoV * sqrt(aa * (1.0 - NoL * NoL) + NoL * NoL));
+#else
+    float Gs = 0.5 / (NoL * sqrt(pow(dot(v, X) * ax, 2.0) + pow(dot(v, Y) * ay, 2.0) + NoV * NoV) +
+                      NoV * sqrt(pow(dot(l, X) * ax, 2.0) + pow(dot(l, Y) * ay, 2.0) + NoL * NoL));
+#endif
+#else
     float Gs = vl * vv;
+#endif
 
     vec3 Cspec0 = mix(0.08 * specular * mix(vec3(1.0), Ctint, specular_tint), C, metallic);
+#if HZ_PARAM_fresnel == 1
+    vec3 Fs;
+    for (int i = 0; i < 3; ++i) {
+        float r0 = sqrt(clamp(Cspec0[i], 0.0, 0.999));
+        float eta = (1.0 + r0) / (1.0 - r0), c = clamp(LoH, 0.0, 1.0);
+        float s2 = (1.0 - c * c) / (eta * eta), ct = sqrt(max(0.0, 1.0 - s2));
+        float rs = (c - eta * ct) / (c + eta * ct), rp = (eta * c - ct) / (eta * c + ct);
+        Fs[i] = s2 >= 1.0 ? 1.0 : 0.5 * (rs * rs + rp * rp);
+    }
+#else
     vec3 Fs = mix(Cspec0, vec3(1.0), FH);
+#endif
     vec3 diffuse = (1.0 / principled_PI) * diff * C;
 #ifndef HZ_ZERO_sheen
     diffuse += FH * sheen * mix(vec3(1.0), Ctint, sheen_tint);
@@ -203,6 +238,7 @@ hz_status HZ_ABI eval_reference(const hz_shade_point *sp, const double *params, 
     p.sheen_tint = params[10];
     p.clearcoat = params[11];
     p.clearcoat_gloss = params[12];
+    p.diffuse = int(params[13] >= 0.5), p.fresnel = int(params[14] >= 0.5), p.visibility = int(params[15] >= 0.5);
     auto v3 = [](const double *a) { return principled::V3{a[0], a[1], a[2]}; };
     const principled::V3 f = principled::eval(p, v3(sp->n), v3(sp->l), v3(sp->v), v3(sp->t), v3(sp->b));
     std::copy(f.begin(), f.end(), out);

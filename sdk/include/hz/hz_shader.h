@@ -28,6 +28,9 @@
  *     value is exactly 0 in the material being compiled, so a snippet can
  *     leave out the terms that vanish (`#ifndef HZ_ZERO_clearcoat`). The
  *     result must equal the unspecialised function for those values.
+ *   - `#define HZ_PARAM_<name> <value>` for every INT, ENUM or BOOL parameter
+ *     flagged HZ_PARAM_FLAG_REQUIRES_RECOMPILE (a value that selects code:
+ *     `#if HZ_PARAM_fresnel == 1`); the host recompiles when it changes.
  *   - HZ_DOMAIN_SURFACE or HZ_DOMAIN_LINE, and HZ_OUTPUT_BRDF when `output`
  *     is HZ_SHADER_OUTPUT_BRDF.
  *   - Environment lighting (world-space directions pointing away from the
