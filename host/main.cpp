@@ -13,6 +13,7 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 
 namespace hz::host {
@@ -134,6 +135,7 @@ int main(int argc, char **argv) {
         return app.exit(e);
     }
     if (verbose) spdlog::set_level(spdlog::level::debug);
+    if (const char *t = std::getenv("HORIZON_TRACE"); t && *t == '1') spdlog::set_level(spdlog::level::trace);
 
     try {
         if (*plugins) return cmd_plugins(g, json);

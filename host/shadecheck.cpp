@@ -196,6 +196,11 @@ int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o) {
                     values.push_back(v);
                 }
             }
+            if (o.verbose) {
+                std::fprintf(stderr, "  %s set %d values:", sp->info.id.c_str(), set);
+                for (double x : values) std::fprintf(stderr, " %.9g", x);
+                std::fprintf(stderr, "\n");
+            }
             SetResult res;
             for (int y = 0; y < H; ++y)
                 for (int x = 0; x < W; ++x) {

@@ -579,6 +579,7 @@ struct Renderer::Impl {
             stages.push_back(compile_shader(GL_GEOMETRY_SHADER, glsl::kTubeGS, what + " (tube geometry stage)"));
         }
         stages.push_back(compile_shader(GL_FRAGMENT_SHADER, fs, what));
+        spdlog::trace("{}: fragment program:\n{}", what, fs);
         auto p = std::make_unique<Program>();
         p->id = link_program(stages, what);
         p->fragment_source = fs;
