@@ -49,7 +49,7 @@ struct RenderOptions {
     std::string scene;
     std::string out = "horizon.png";
     std::string size = "1280x720";
-    int samples = 4;
+    int samples = 0;          // 0: automatic (RenderSettings)
     double lod_pixels = 0.5;
     int frames = 1;           // frames to draw (timing: the median of frames 2..N)
     bool json = false;
@@ -67,7 +67,7 @@ struct ShaderCheckOptions {
 struct ViewOptions {
     std::vector<std::string> inputs;  // data files, or one scene file
     std::string size = "1280x800";
-    int samples = 4;
+    int samples = 0;
     std::string script;               // scripted input (tests)
     bool exit_after_script = true;
     std::string screenshot_dir = ".";

@@ -96,7 +96,7 @@ int main(int argc, char **argv) {
     render->add_option("scene", ro.scene, "scene file (JSON; see docs/scene-format.md)")->required();
     render->add_option("-o,--out", ro.out, "output image (.png, .exr, .jpg, .tif)")->capture_default_str();
     render->add_option("--size", ro.size, "WIDTHxHEIGHT")->capture_default_str();
-    render->add_option("--samples", ro.samples, "MSAA samples (1 = off)")->capture_default_str();
+    render->add_option("--samples", ro.samples, "MSAA samples (1 = off; 0 = 4, or 1 above 200k streamline segments)")->capture_default_str();
     render->add_option("--lod-pixels", ro.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")->capture_default_str();
     render->add_option("--frames", ro.frames, "draw N frames and report the median time of frames 2..N (benchmarks)")
         ->check(CLI::Range(1, 1000))->capture_default_str();

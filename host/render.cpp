@@ -94,6 +94,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"total_ms", ms_since(t0)},
                             {"segments", s.segments_drawn},
                             {"triangles", s.triangles_drawn},
+                            {"samples", s.samples},
                             {"points_total", s.points_total},
                             {"points_kept", s.points_kept}};
         std::cout << j.dump(2) << "\n";

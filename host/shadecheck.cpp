@@ -28,27 +28,6 @@ namespace {
 
 using core::render::Vec3;
 
-core::Mesh uv_sphere(double r, int nu, int nv) {
-    core::Mesh m;
-    m.vertices = core::Buffer<float>(std::size_t(nu + 1) * (nv + 1) * 3);
-    m.faces = core::Buffer<std::uint32_t>(std::size_t(nu) * nv * 6);
-    std::size_t k = 0;
-    for (int j = 0; j <= nv; ++j)
-        for (int i = 0; i <= nu; ++i) {
-            const double th = M_PI * j / nv, ph = 2 * M_PI * i / nu;
-            m.vertices[k++] = float(r * std::sin(th) * std::cos(ph));
-            m.vertices[k++] = float(r * std::sin(th) * std::sin(ph));
-            m.vertices[k++] = float(r * std::cos(th));
-        }
-    k = 0;
-    for (int j = 0; j < nv; ++j)
-        for (int i = 0; i < nu; ++i) {
-            const std::uint32_t a = j * (nu + 1) + i, b = a + 1, c = a + (nu + 1), d = c + 1;
-            for (std::uint32_t x : {a, c, b, b, c, d}) m.faces[k++] = x;
-        }
-    return m;
-}
-
 core::Tractogram curves() {
     // A helix (tube), a straight line along the view axis (degenerate
     // silhouette), and a streamline with repeated points (zero tangents).
@@ -141,7 +120,7 @@ int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o) {
                 core::render::Object s;
                 s.name = "sphere";
                 s.kind = s.data.kind = HZ_DATA_MESH;
-                s.data.mesh = uv_sphere(20, 96, 48);
+                s.data.mesh = core::render::make_sphere_mesh(20, 96, 48);
                 add(std::move(s));
                 core::render::Object pl;  // a plane seen almost edge-on
                 pl.name = "plane";

@@ -56,11 +56,11 @@ in float v_across;
 #endif
 uniform vec3 hz_eye;
 uniform vec3 hz_tangent_hint;
-uniform int hz_nb_lights;
-uniform vec4 hz_light_vec[8];
-uniform vec3 hz_light_radiance[8];
+// HZ_NB_LIGHTS (1..8) and HZ_ENV (0/1) are compile-time constants: llvmpipe
+// executes both sides of every branch, so dead code must not be compiled.
+uniform vec4 hz_light_vec[HZ_NB_LIGHTS];
+uniform vec3 hz_light_radiance[HZ_NB_LIGHTS];
 uniform float hz_opacity;
-uniform int hz_env_on;
 layout(location = 0) out vec4 o_color;
 #ifdef HZ_DEBUG_OUTPUTS
 layout(location = 1) out vec4 o_n;
@@ -110,7 +110,7 @@ void main() {
     c = hz_shade(p);
     first = c;
 #else
-    for (int i = 0; i < hz_nb_lights; ++i) {
+    for (int i = 0; i < HZ_NB_LIGHTS; ++i) {
         vec4 L = hz_light_vec[i];
         p.l = L.w == 0.0 ? L.xyz : L.xyz - v_pos;
         vec3 f = hz_shade(p);
@@ -122,10 +122,10 @@ void main() {
         c += f * hz_light_radiance[i];
 #endif
     }
-#ifdef HZ_HAS_AMBIENT
+#if defined(HZ_HAS_AMBIENT) && (HZ_ENV || defined(HZ_REFRACTIVE))
     c += hz_ambient(p);  // the hz_env_* functions give 0 without an environment
-#else
-    if (hz_env_on != 0) {
+#elif HZ_ENV && !defined(HZ_HAS_AMBIENT)
+    {
         HzShadePoint q = p;
         q.l = p.n;
 #ifdef HZ_OUTPUT_BRDF
@@ -139,7 +139,7 @@ void main() {
 #ifdef HZ_DEBUG_OUTPUTS
     o_color = vec4(first, 1.0);
     o_n = vec4(p.n, 1.0);
-    o_l = vec4(hz_nb_lights > 0 ? (hz_light_vec[0].w == 0.0 ? hz_light_vec[0].xyz : hz_light_vec[0].xyz - v_pos) : vec3(0.0), 1.0);
+    o_l = vec4(hz_light_vec[0].w == 0.0 ? hz_light_vec[0].xyz : hz_light_vec[0].xyz - v_pos, 1.0);
     o_v = vec4(p.v, 1.0);
     o_t = vec4(p.t, 1.0);
 #else

@@ -534,6 +534,11 @@ struct Renderer::Impl {
         if (sh->output == HZ_SHADER_OUTPUT_BRDF) s << "#define HZ_OUTPUT_BRDF 1\n";
         if (sh->output == HZ_SHADER_OUTPUT_EMISSION) s << "#define HZ_OUTPUT_EMISSION 1\n";
         if (debug) s << "#define HZ_DEBUG_OUTPUTS 1\n";
+        // Lights and environment as constants (see kShadeMain); with no
+        // light at all, one black light keeps the arrays non-empty.
+        s << "#define HZ_NB_LIGHTS " << (debug ? 1 : std::clamp<std::size_t>(lights().size(), 1, 8)) << "\n";
+        s << "#define HZ_ENV " << (!debug && env_on ? 1 : 0) << "\n";
+        if (g.refractive) s << "#define HZ_REFRACTIVE 1\n";
         if (std::strstr(snippet, "hz_ambient(")) s << "#define HZ_HAS_AMBIENT 1\n";
         // Specialisation: parameters that are exactly zero.
         std::size_t k = 0;
@@ -964,10 +969,13 @@ struct Renderer::Impl {
             vec.insert(vec.end(), {float(d.x), float(d.y), float(d.z), l.type == "point" ? 1.0f : 0.0f});
             rad.insert(rad.end(), {float(l.color[0] * l.intensity), float(l.color[1] * l.intensity), float(l.color[2] * l.intensity)});
         }
-        glUniform1i(p.loc("hz_nb_lights"), GLint(ls.size()));
-        if (!ls.empty()) {
-            glUniform4fv(p.loc("hz_light_vec[0]"), GLsizei(ls.size()), vec.data());
-            glUniform3fv(p.loc("hz_light_radiance[0]"), GLsizei(ls.size()), rad.data());
+        if (ls.empty()) {
+            vec = {0, 0, 1, 0};
+            rad = {0, 0, 0};
+        }
+        {
+            glUniform4fv(p.loc("hz_light_vec[0]"), GLsizei(vec.size() / 4), vec.data());
+            glUniform3fv(p.loc("hz_light_radiance[0]"), GLsizei(rad.size() / 3), rad.data());
         }
     }
 
@@ -987,7 +995,6 @@ struct Renderer::Impl {
         glUniform1f(p.loc("hz_env_intensity"), on && env_on ? float(scene.environment.intensity) : 0.0f);
         glUniform1f(p.loc("hz_env_max_lod"), float(spec_levels - 1));
         glUniformMatrix3fv(p.loc("hz_env_rotation"), 1, GL_FALSE, glm::value_ptr(env_rotation));
-        glUniform1i(p.loc("hz_env_on"), on && env_on ? 1 : 0);
     }
 
     void draw_object(const GpuObject &g, const Object &o, const Matrices &m, const View &v, bool debug, int w, int h) {
@@ -1153,6 +1160,7 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
     I.clear_objects();
     I.scene = std::move(scene);
     I.settings = settings;
+    I.env_on = I.scene.environment.type != "none";  // programs are specialised on it
     I.stats = FrameStats{};
     // Decimation tolerance: `lod_pixels` at the distance of the target.
     const double dist = glm::length(to_dvec3(view.eye) - to_dvec3(view.target));
@@ -1178,6 +1186,12 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
         }
         I.objects.push_back(std::move(g));
     }
+    if (I.settings.samples <= 0) {
+        std::uint64_t segments = 0;
+        for (const auto &g : I.objects) segments += g.segments;
+        I.settings.samples = segments > 200000 ? 1 : 4;
+    }
+    I.stats.samples = std::clamp(I.settings.samples, 1, std::max(1, I.max_samples));
     glFinish();
     I.stats.upload_ms = ms_since(t0);
     I.make_environment();

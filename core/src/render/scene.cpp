@@ -118,7 +118,7 @@ Dataset object_data(const Registry &reg, const json &o, const std::string &type,
         ds = read_dataset(reg, p);
         return ds;
     }
-    const std::string b = str(o["builtin"], what, where + ".builtin", {"phantom", "cortex", "head"});
+    const std::string b = str(o["builtin"], what, where + ".builtin", {"phantom", "cortex", "head", "sphere"});
     if (b == "phantom") {
         if (type != "streamlines") fail(what, where, "builtin 'phantom' is a tractogram (type 'streamlines')");
         PhantomOptions po;
@@ -132,6 +132,11 @@ Dataset object_data(const Registry &reg, const json &o, const std::string &type,
         ds.kind = HZ_DATA_STREAMLINES;
         ds.format = "builtin phantom";
         ds.tractogram = make_phantom(po);
+    } else if (b == "sphere") {
+        if (type != "surface") fail(what, where, "builtin 'sphere' is a surface (type 'surface')");
+        ds.kind = HZ_DATA_MESH;
+        ds.format = "builtin sphere";
+        ds.mesh = make_sphere_mesh(50.0, 128, 64);
     } else if (b == "cortex") {
         if (type != "surface") fail(what, where, "builtin 'cortex' is a surface (type 'surface')");
         ds.kind = HZ_DATA_MESH;
@@ -304,6 +309,28 @@ double gyri(double x, double y, double z) {
 }
 
 }  // namespace
+
+Mesh make_sphere_mesh(double r, int nu, int nv) {
+    nu = std::clamp(nu, 3, 4096), nv = std::clamp(nv, 2, 4096);
+    Mesh m;
+    m.vertices = Buffer<float>(std::size_t(nu + 1) * (nv + 1) * 3);
+    m.faces = Buffer<std::uint32_t>(std::size_t(nu) * nv * 6);
+    std::size_t k = 0;
+    for (int j = 0; j <= nv; ++j)
+        for (int i = 0; i <= nu; ++i) {
+            const double th = M_PI * j / nv, ph = 2 * M_PI * i / nu;
+            m.vertices[k++] = float(r * std::sin(th) * std::cos(ph));
+            m.vertices[k++] = float(r * std::sin(th) * std::sin(ph));
+            m.vertices[k++] = float(r * std::cos(th));
+        }
+    k = 0;
+    for (int j = 0; j < nv; ++j)
+        for (int i = 0; i < nu; ++i) {
+            const std::uint32_t a = j * (nu + 1) + i, b = a + 1, c = a + (nu + 1), d = c + 1;
+            for (std::uint32_t x : {a, c, b, b, c, d}) m.faces[k++] = x;
+        }
+    return m;
+}
 
 Mesh make_cortex_mesh(int subdivisions) {
     subdivisions = std::clamp(subdivisions, 0, 7);

@@ -62,8 +62,8 @@ float principled_schlick(float u) {
 bool principled_normalize(inout vec3 a) {
     float m = max(max(abs(a.x), abs(a.y)), abs(a.z));
     if (!(m > 0.0) || isinf(m) || isnan(m)) return false;
-    a = a / m;
-    a = a / sqrt(dot(a, a));
+    a *= 1.0 / m;
+    a *= inversesqrt(dot(a, a));
     return true;
 }
 
@@ -148,15 +148,15 @@ vec3 hz_shade(HzShadePoint sp) {
     float HoX = dot(h, X), HoY = dot(h, Y);
     float dden = (HoX / ax) * (HoX / ax) + (HoY / ay) * (HoY / ay) + NoH * NoH;
     float Ds = 1.0 / (principled_PI * ax * ay * dden * dden);
-    float vl = 1.0 / (NoL + sqrt(pow(dot(l, X) * ax, 2.0) + pow(dot(l, Y) * ay, 2.0) + NoL * NoL));
-    float vv = 1.0 / (NoV + sqrt(pow(dot(v, X) * ax, 2.0) + pow(dot(v, Y) * ay, 2.0) + NoV * NoV));
+    vec2 lxy = vec2(dot(l, X) * ax, dot(l, Y) * ay), vxy = vec2(dot(v, X) * ax, dot(v, Y) * ay);
+    float vl = 1.0 / (NoL + sqrt(dot(lxy, lxy) + NoL * NoL));
+    float vv = 1.0 / (NoV + sqrt(dot(vxy, vxy) + NoV * NoV));
 #endif
 #if HZ_PARAM_visibility == 1
 #ifdef HZ_ZERO_anisotropic
     float Gs = 0.5 / (NoL * sqrt(aa * (1.0 - NoV * NoV) + NoV * NoV) + NoV * sqrt(aa * (1.0 - NoL * NoL) + NoL * NoL));
 #else
-    float Gs = 0.5 / (NoL * sqrt(pow(dot(v, X) * ax, 2.0) + pow(dot(v, Y) * ay, 2.0) + NoV * NoV) +
-                      NoV * sqrt(pow(dot(l, X) * ax, 2.0) + pow(dot(l, Y) * ay, 2.0) + NoL * NoL));
+    float Gs = 0.5 / (NoL * sqrt(dot(vxy, vxy) + NoV * NoV) + NoV * sqrt(dot(lxy, lxy) + NoL * NoL));
 #endif
 #else
     float Gs = vl * vv;

@@ -44,13 +44,17 @@ struct FloatImage {
 
 struct RenderSettings {
     int width = 1280, height = 720;
-    int samples = 4;                 // MSAA samples (1 = off); clamped to GL_MAX_SAMPLES
+    // MSAA samples (1 = off), clamped to GL_MAX_SAMPLES; 0 = automatic: 4,
+    // or 1 when the scene has more than 200k streamline segments (llvmpipe
+    // rasterises multisampled lines about 5-8x slower).
+    int samples = 0;
     double lod_pixels = 0.5;         // streamline decimation tolerance in pixels (0 = keep every point)
 };
 
 struct FrameStats {
     double upload_ms = 0, environment_ms = 0, draw_ms = 0, readback_ms = 0;
     std::uint64_t segments_drawn = 0, triangles_drawn = 0, points_kept = 0, points_total = 0;
+    int samples = 1;  // MSAA samples in use
 };
 
 class Renderer {

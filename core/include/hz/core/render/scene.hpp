@@ -111,7 +111,8 @@ Scene load_scene(const Registry &reg, const fs::path &scene_file);
 Scene parse_scene(const Registry &reg, const std::string &json_text, const fs::path &base_dir, const std::string &what);
 
 // Built-in data for demos and tests (deterministic).
-Mesh make_cortex_mesh(int subdivisions = 5);   // two hemispheres around the phantom's box
+Mesh make_cortex_mesh(int subdivisions = 5);
+Mesh make_sphere_mesh(double radius_mm, int nu, int nv);  // UV sphere at the origin   // two hemispheres around the phantom's box
 Volume make_head_volume(double voxel_mm = 2.0); // a T1-like synthetic volume, same frame
 
 // Applies `spec` to a tractogram: returns the chosen level's centroids with a
