@@ -7,6 +7,7 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
+#include <unistd.h>
 #include <iostream>
 
 namespace hz::host {
@@ -266,7 +267,14 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     RenderOptions ro;
     ro.out = (std::filesystem::path(o.out_dir) / "demo.png").string();
     ro.size = o.size;
-    return render_scene(reg, core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed), ro);
+    if (const int c = render_scene(reg, core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed), ro); c != 0) return c;
+    // On a desktop, the same scene in the window.
+    if (o.window && have_display() && ::isatty(STDOUT_FILENO)) {
+        std::printf("\nOpening the window (Q or Esc closes it; --no-window skips it).\n");
+        std::fflush(stdout);
+        return view_scene(reg, core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed), ViewOptions{});
+    }
+    return 0;
 }
 
 }  // namespace hz::host

@@ -29,6 +29,7 @@ struct DemoOptions {
     std::uint32_t nb_bundles = 24;
     std::uint64_t seed = 1;
     std::string size = "1280x720";
+    bool window = true;   // open the window afterwards when a display exists
 };
 
 struct ClusterOptions {
@@ -84,6 +85,7 @@ int cmd_brdf(const GlobalOptions &g, const std::string &shader_id);
 int cmd_demo(const GlobalOptions &g, const DemoOptions &o);
 int cmd_render(const GlobalOptions &g, const RenderOptions &o);
 int cmd_view(const GlobalOptions &g, const ViewOptions &o);
+bool have_display();
 int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o);
 std::pair<int, int> parse_size(const std::string &s);
 int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o);

@@ -128,6 +128,8 @@ int main(int argc, char **argv) {
     demo->add_option("--bundles", demo_opts.nb_bundles, "phantom bundles")->capture_default_str();
     demo->add_option("--seed", demo_opts.seed, "phantom seed")->capture_default_str();
     demo->add_option("--size", demo_opts.size, "picture size WIDTHxHEIGHT")->capture_default_str();
+    bool no_window = false;
+    demo->add_flag("--no-window", no_window, "do not open the window even when a display exists");
 
     try {
         app.parse(argc, argv);
@@ -142,7 +144,10 @@ int main(int argc, char **argv) {
         if (*validate) return cmd_validate(g, vo);
         if (*info) return cmd_info(g, info_file, json);
         if (*convert) return cmd_convert(g, conv_in, conv_out, force);
-        if (*demo) return cmd_demo(g, demo_opts);
+        if (*demo) {
+            demo_opts.window = !no_window;
+            return cmd_demo(g, demo_opts);
+        }
         if (*cluster) return cmd_cluster(g, co);
         if (*brdf) return cmd_brdf(g, brdf_shader);
         if (*render) return cmd_render(g, ro);

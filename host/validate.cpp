@@ -757,7 +757,8 @@ std::vector<Check> catalogue() {
                      const hz_shader &s = shader_of(x);
                      if (!s.glsl_source || !s.eval_reference) return fail("glsl_source or eval_reference is NULL");
                      if (!(s.domains & (HZ_SHADE_SURFACE | HZ_SHADE_LINE))) return fail("no domain");
-                     if (s.output != HZ_SHADER_OUTPUT_BRDF && s.output != HZ_SHADER_OUTPUT_RADIANCE_FACTOR) return fail("unknown output kind");
+                     if (s.output != HZ_SHADER_OUTPUT_BRDF && s.output != HZ_SHADER_OUTPUT_RADIANCE_FACTOR && s.output != HZ_SHADER_OUTPUT_EMISSION)
+                         return fail("unknown output kind");
                      for (hz_shade_domain d : {HZ_SHADE_SURFACE, HZ_SHADE_LINE}) {
                          if (!(s.domains & d)) continue;
                          const char *src = s.glsl_source(d, 410);
