@@ -131,6 +131,7 @@ core::render::Scene scene_from_files(const core::Registry &reg, const std::vecto
             o.radius_mm = 0.3;
         } else if (o.kind == HZ_DATA_MESH) {
             o.coloring.color = {0.85, 0.72, 0.68};
+            core::render::apply_file_material(o, false, false);
         } else if (o.kind == HZ_DATA_VOLUME) {
             o.slice_x = o.slice_y = o.slice_z = std::nan("");
         } else {

@@ -12,6 +12,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <cstdlib>
 
 namespace hz::core::render {
 
@@ -153,6 +154,23 @@ Dataset object_data(const Registry &reg, const json &o, const std::string &type,
 
 }  // namespace
 
+// A mesh read from glTF carries its PBR factors as header entries: use them
+// for the principled model unless the scene gives a material or a colour.
+void apply_file_material(Object &ob, bool has_material, bool has_color) {
+    std::map<std::string, std::string> meta(ob.data.metadata.begin(), ob.data.metadata.end());
+    if (!meta.count("material.baseColorFactor")) return;
+    if (!has_color) {
+        std::istringstream in(meta["material.baseColorFactor"]);
+        std::array<double, 3> c{};
+        if (in >> c[0] >> c[1] >> c[2]) ob.coloring.mode = "solid", ob.coloring.color = c;
+    }
+    if (!has_material) {
+        ob.material.shader = "principled";
+        if (meta.count("material.metallicFactor")) ob.material.params["metallic"] = {std::clamp(std::atof(meta["material.metallicFactor"].c_str()), 0.0, 1.0)};
+        if (meta.count("material.roughnessFactor")) ob.material.params["roughness"] = {std::clamp(std::atof(meta["material.roughnessFactor"].c_str()), 0.0, 1.0)};
+    }
+}
+
 Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what) {
     const json root = json::parse(text, nullptr, false);
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
@@ -268,6 +286,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (ob.data.kind != want)
             fail(what, where, std::string("the file holds ") + kind_name(ob.data.kind) + ", not what type '" + type + "' shows");
         ob.kind = want;
+        if (want == HZ_DATA_MESH && !ob.data.metadata.empty()) apply_file_material(ob, o.contains("material"), o.contains("color"));
         if (type == "slices" && !ob.slice_x && !ob.slice_y && !ob.slice_z) {
             // Default: the three slices through the volume's centre.
             ob.slice_x = ob.slice_y = ob.slice_z = std::nan("");

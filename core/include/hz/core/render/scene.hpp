@@ -110,6 +110,10 @@ Scene load_scene(const Registry &reg, const fs::path &scene_file);
 // The same from already-parsed JSON text; `base_dir` resolves relative paths.
 Scene parse_scene(const Registry &reg, const std::string &json_text, const fs::path &base_dir, const std::string &what);
 
+// Uses a mesh file's own material (glTF PBR factors in its header) unless
+// the scene sets the material (`has_material`) or the colour (`has_color`).
+void apply_file_material(Object &ob, bool has_material, bool has_color);
+
 // Built-in data for demos and tests (deterministic).
 Mesh make_cortex_mesh(int subdivisions = 5);
 Mesh make_sphere_mesh(double radius_mm, int nu, int nv);  // UV sphere at the origin   // two hemispheres around the phantom's box

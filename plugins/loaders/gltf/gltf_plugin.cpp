@@ -1,0 +1,453 @@
+// hz.loader/1: glTF 2.0 meshes (.gltf with embedded or external buffers,
+// binary .glb) through tinygltf, with their PBR metallic-roughness factors.
+//
+// Coordinates. glTF is metres, +Y up, +Z the asset's front, +X its left
+// (right-handed). Horizon is RAS+ millimetres. The reader maps a glTF point
+// (x, y, z) to RAS (-1000 x, 1000 z, 1000 y) after applying the node
+// transforms of the default scene; the writer applies the inverse, so files
+// open upright and life-size in other glTF viewers and round-trip exactly
+// up to float32 rounding.
+//
+// What is read: every triangle primitive (mode 4) of every mesh instanced by
+// the scene's nodes, merged into one mesh; COLOR_0 as the per-vertex array
+// "color" (RGB, float); the first primitive's material factors as header
+// entries (material.baseColorFactor, material.metallicFactor, ...), which
+// `horizon render` uses for the principled model. Textures are not decoded.
+// Points, lines and strips, skins and morph targets are reported, not drawn.
+#include <hz/cpp/plugin.hpp>
+
+#include <tiny_gltf.h>
+
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <sys/stat.h>
+#include <vector>
+
+namespace {
+
+constexpr const char *kId = "org.horizon.loader.gltf";
+
+struct FormatError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+struct IoError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+using M4 = std::array<double, 16>;  // column-major, as glTF
+constexpr M4 kI = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+
+M4 mul(const M4 &a, const M4 &b) {
+    M4 r{};
+    for (int c = 0; c < 4; ++c)
+        for (int rr = 0; rr < 4; ++rr) {
+            double s = 0;
+            for (int k = 0; k < 4; ++k) s += a[k * 4 + rr] * b[c * 4 + k];
+            r[c * 4 + rr] = s;
+        }
+    return r;
+}
+
+M4 node_matrix(const tinygltf::Node &n) {
+    if (n.matrix.size() == 16) {
+        M4 m;
+        std::copy(n.matrix.begin(), n.matrix.end(), m.begin());
+        return m;
+    }
+    M4 t = kI, r = kI, s = kI;
+    if (n.translation.size() == 3) t[12] = n.translation[0], t[13] = n.translation[1], t[14] = n.translation[2];
+    if (n.rotation.size() == 4) {
+        const double x = n.rotation[0], y = n.rotation[1], z = n.rotation[2], w = n.rotation[3];
+        r = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),     0,
+             2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),     0,
+             2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y), 0,
+             0,                       0,                       0,                       1};
+    }
+    if (n.scale.size() == 3) s[0] = n.scale[0], s[5] = n.scale[1], s[10] = n.scale[2];
+    return mul(t, mul(r, s));
+}
+
+// Reads element `i`, component `c` of an accessor as double, bounds-checked.
+struct AccessorReader {
+    const unsigned char *base = nullptr;
+    std::size_t stride = 0, comp_size = 0, count = 0;
+    int ncomp = 0, ctype = 0;
+    bool normalized = false;
+    AccessorReader(const tinygltf::Model &m, int index, const char *what) {
+        if (index < 0 || index >= int(m.accessors.size())) throw FormatError(std::string(what) + ": accessor index out of range");
+        const tinygltf::Accessor &a = m.accessors[index];
+        if (a.sparse.isSparse) throw FormatError(std::string(what) + ": sparse accessors are not supported");
+        if (a.bufferView < 0 || a.bufferView >= int(m.bufferViews.size())) throw FormatError(std::string(what) + ": accessor without a valid buffer view");
+        const tinygltf::BufferView &bv = m.bufferViews[a.bufferView];
+        if (bv.buffer < 0 || bv.buffer >= int(m.buffers.size())) throw FormatError(std::string(what) + ": buffer view without a valid buffer");
+        const auto &buf = m.buffers[bv.buffer].data;
+        ncomp = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(a.type));
+        comp_size = std::size_t(tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(a.componentType)));
+        if (ncomp <= 0 || comp_size == 0 || comp_size > 8) throw FormatError(std::string(what) + ": bad accessor type");
+        ctype = a.componentType;
+        normalized = a.normalized;
+        count = a.count;
+        const int s = a.ByteStride(bv);
+        if (s <= 0) throw FormatError(std::string(what) + ": bad byte stride");
+        stride = std::size_t(s);
+        const std::size_t elem = comp_size * std::size_t(ncomp);
+        if (bv.byteOffset > buf.size() || bv.byteLength > buf.size() - bv.byteOffset)
+            throw FormatError(std::string(what) + ": buffer view outside its buffer");
+        if (count > 0) {
+            if (a.byteOffset > bv.byteLength) throw FormatError(std::string(what) + ": accessor offset outside its buffer view");
+            const std::size_t avail = bv.byteLength - a.byteOffset;
+            if (elem > avail || (count - 1) > (avail - elem) / stride)
+                throw FormatError(std::string(what) + ": " + std::to_string(count) + " elements do not fit in the buffer view");
+        }
+        base = buf.data() + bv.byteOffset + a.byteOffset;
+    }
+    double get(std::size_t i, int c) const {
+        const unsigned char *p = base + i * stride + std::size_t(c) * comp_size;
+        switch (ctype) {
+        case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); return f; }
+        case TINYGLTF_COMPONENT_TYPE_DOUBLE: { double d; std::memcpy(&d, p, 8); return d; }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? p[0] / 255.0 : p[0];
+        case TINYGLTF_COMPONENT_TYPE_BYTE: return normalized ? std::max(-1.0, int8_t(p[0]) / 127.0) : int8_t(p[0]);
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t v; std::memcpy(&v, p, 2); return normalized ? v / 65535.0 : v; }
+        case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t v; std::memcpy(&v, p, 2); return normalized ? std::max(-1.0, v / 32767.0) : v; }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t v; std::memcpy(&v, p, 4); return v; }
+        case TINYGLTF_COMPONENT_TYPE_INT: { int32_t v; std::memcpy(&v, p, 4); return v; }
+        default: return 0;
+        }
+    }
+};
+
+struct Surface {
+    std::vector<float> vertices;       // RAS mm
+    std::vector<std::uint32_t> faces;
+    std::vector<float> colors;         // RGB per vertex, or empty
+    std::vector<std::pair<std::string, std::string>> meta;
+};
+
+bool skip_images(tinygltf::Image *, const int, std::string *, std::string *, int, int, const unsigned char *, int, void *) { return true; }
+
+Surface parse(const std::string &path) {
+    struct stat st{};
+    if (::stat(path.c_str(), &st) != 0) throw IoError("cannot open: " + std::string(std::strerror(errno)));
+    if (st.st_size < 12) throw FormatError("file is " + std::to_string(st.st_size) + " bytes: too short for glTF");
+    tinygltf::TinyGLTF loader;
+    loader.SetImageLoader(skip_images, nullptr);
+    tinygltf::Model m;
+    std::string err, warn;
+    std::FILE *f = std::fopen(path.c_str(), "rb");
+    if (!f) throw IoError("cannot open: " + std::string(std::strerror(errno)));
+    char magic[4] = {};
+    const bool binary = std::fread(magic, 1, 4, f) == 4 && std::memcmp(magic, "glTF", 4) == 0;
+    std::fclose(f);
+    bool ok = false;
+    try {
+        ok = binary ? loader.LoadBinaryFromFile(&m, &err, &warn, path) : loader.LoadASCIIFromFile(&m, &err, &warn, path);
+    } catch (const std::exception &e) {
+        throw FormatError(std::string("not valid glTF: ") + e.what());
+    }
+    if (!ok) {
+        std::string one = err.substr(0, err.find('\n'));
+        throw FormatError(one.empty() ? "not valid glTF" : one);
+    }
+    Surface s;
+    bool has_color = false;
+    std::size_t skipped = 0;
+    int first_material = -1;
+    std::function<void(int, const M4 &, int)> visit = [&](int ni, const M4 &parent, int depth) {
+        if (ni < 0 || ni >= int(m.nodes.size())) throw FormatError("node index out of range");
+        if (depth > 64) throw FormatError("node hierarchy deeper than 64 (a cycle?)");
+        const tinygltf::Node &n = m.nodes[ni];
+        const M4 world = mul(parent, node_matrix(n));
+        if (n.mesh >= 0) {
+            if (n.mesh >= int(m.meshes.size())) throw FormatError("mesh index out of range");
+            for (const auto &prim : m.meshes[n.mesh].primitives) {
+                if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) {
+                    ++skipped;
+                    continue;
+                }
+                auto pos_it = prim.attributes.find("POSITION");
+                if (pos_it == prim.attributes.end()) throw FormatError("a primitive without POSITION");
+                AccessorReader pos(m, pos_it->second, "POSITION");
+                if (pos.ncomp != 3) throw FormatError("POSITION is not VEC3");
+                const std::size_t v0 = s.vertices.size() / 3;
+                if (v0 + pos.count > 0xFFFFFFFFu) throw FormatError("more than 2^32 vertices");
+                for (std::size_t i = 0; i < pos.count; ++i) {
+                    const double x = pos.get(i, 0), y = pos.get(i, 1), z = pos.get(i, 2);
+                    const double wx = world[0] * x + world[4] * y + world[8] * z + world[12];
+                    const double wy = world[1] * x + world[5] * y + world[9] * z + world[13];
+                    const double wz = world[2] * x + world[6] * y + world[10] * z + world[14];
+                    if (!std::isfinite(wx) || !std::isfinite(wy) || !std::isfinite(wz)) throw FormatError("non-finite vertex coordinate");
+                    s.vertices.push_back(float(-1000.0 * wx));
+                    s.vertices.push_back(float(1000.0 * wz));
+                    s.vertices.push_back(float(1000.0 * wy));
+                }
+                auto col_it = prim.attributes.find("COLOR_0");
+                if (col_it != prim.attributes.end()) {
+                    AccessorReader col(m, col_it->second, "COLOR_0");
+                    if (col.count != pos.count || col.ncomp < 3) throw FormatError("COLOR_0 does not match POSITION");
+                    if (!has_color) s.colors.assign(v0 * 3, 1.0f);
+                    has_color = true;
+                    for (std::size_t i = 0; i < col.count; ++i)
+                        for (int c = 0; c < 3; ++c) s.colors.push_back(float(col.get(i, c)));
+                } else if (has_color) {
+                    s.colors.insert(s.colors.end(), pos.count * 3, 1.0f);
+                }
+                if (prim.indices >= 0) {
+                    AccessorReader idx(m, prim.indices, "indices");
+                    if (idx.ncomp != 1 || idx.count % 3 != 0) throw FormatError("triangle indices are not a multiple of 3 scalars");
+                    for (std::size_t i = 0; i < idx.count; ++i) {
+                        const double k = idx.get(i, 0);
+                        if (!(k >= 0) || k >= double(pos.count)) throw FormatError("a face index is out of range (" + std::to_string(k) + ")");
+                        s.faces.push_back(std::uint32_t(v0 + std::size_t(k)));
+                    }
+                } else {
+                    if (pos.count % 3 != 0) throw FormatError("non-indexed triangles: vertex count not a multiple of 3");
+                    for (std::size_t i = 0; i < pos.count; ++i) s.faces.push_back(std::uint32_t(v0 + i));
+                }
+                if (first_material < 0) first_material = prim.material;
+            }
+        }
+        for (int c : n.children) visit(c, world, depth + 1);
+    };
+    std::vector<int> roots;
+    if (m.defaultScene >= 0 && m.defaultScene < int(m.scenes.size())) roots = m.scenes[m.defaultScene].nodes;
+    else if (!m.scenes.empty()) roots = m.scenes[0].nodes;
+    else
+        for (int i = 0; i < int(m.nodes.size()); ++i) roots.push_back(i);
+    for (int r : roots) visit(r, kI, 0);
+    if (s.faces.empty() && skipped == 0 && roots.empty() && !m.meshes.empty()) throw FormatError("meshes but no scene nodes instancing them");
+    if (skipped) s.meta.emplace_back("skipped_primitives", std::to_string(skipped) + " non-triangle primitives");
+    if (first_material >= 0 && first_material < int(m.materials.size())) {
+        const auto &mat = m.materials[first_material];
+        const auto &pbr = mat.pbrMetallicRoughness;
+        std::string bc;
+        for (double x : pbr.baseColorFactor) bc += (bc.empty() ? "" : " ") + std::to_string(x);
+        if (!mat.name.empty()) s.meta.emplace_back("material.name", mat.name);
+        s.meta.emplace_back("material.baseColorFactor", bc.empty() ? "1 1 1 1" : bc);
+        s.meta.emplace_back("material.metallicFactor", std::to_string(pbr.metallicFactor));
+        s.meta.emplace_back("material.roughnessFactor", std::to_string(pbr.roughnessFactor));
+    }
+    if (!m.asset.generator.empty()) s.meta.emplace_back("generator", m.asset.generator);
+    return s;
+}
+
+struct Reader {
+    std::string path;
+    Surface s;
+};
+Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
+
+template <class F>
+hz_status run(hz_error *err, const std::string &path, F &&body) noexcept {
+    return hz::format_guard<FormatError, IoError>(err, "gltf", path, body);
+}
+
+int32_t HZ_ABI probe(const uint8_t *h, uint64_t n, const char *name) {
+    if (n >= 4 && std::memcmp(h, "glTF", 4) == 0) return 100;
+    // JSON glTF: an object with "asset" near the start.
+    std::string head(reinterpret_cast<const char *>(h), std::size_t(std::min<uint64_t>(n, 4096)));
+    const auto p = head.find_first_not_of(" \t\r\n\xEF\xBB\xBF");
+    if (p != std::string::npos && head[p] == '{' && head.find("\"asset\"") != std::string::npos) return 80;
+    (void)name;
+    return 0;
+}
+
+hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
+    if (out) *out = nullptr;
+    if (!req || !req->path || !out) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: open: NULL");
+    return run(err, req->path, [&]() -> hz_status {
+        auto r = std::make_unique<Reader>();
+        r->path = req->path;
+        r->s = parse(req->path);
+        *out = reinterpret_cast<hz_reader *>(r.release());
+        return HZ_OK;
+    });
+}
+
+hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
+    if (!reader || !out) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: get_info: NULL");
+    const Reader &r = *as_reader(reader);
+    out->kind = HZ_DATA_MESH;
+    std::snprintf(out->format, sizeof out->format, "gltf 2.0");
+    out->nb_vertices = r.s.vertices.size() / 3;
+    out->nb_faces = r.s.faces.size() / 3;
+    const double id[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+    std::memcpy(out->voxel_to_ras, id, sizeof id);
+    out->source_space = HZ_SPACE_RASMM;
+    out->nb_arrays = r.s.colors.empty() ? 0 : 1;
+    return HZ_OK;
+}
+
+hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
+    if (!reader || !out) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: get_array_info: NULL");
+    const Reader &r = *as_reader(reader);
+    if (index != 0 || r.s.colors.empty()) return hz::set_error(err, HZ_E_NOT_FOUND, "gltf: no such array");
+    out->attach = HZ_ATTACH_VERTEX;
+    out->name = "color";
+    out->dtype = HZ_DTYPE_F32;
+    out->components = 3;
+    out->count = r.s.colors.size() / 3;
+    return HZ_OK;
+}
+
+hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
+    if (!reader || !dst) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: read_array: NULL");
+    const Reader &r = *as_reader(reader);
+    if (index != 0 || r.s.colors.empty()) return hz::set_error(err, HZ_E_NOT_FOUND, "gltf: no such array");
+    if (dst->dtype != HZ_DTYPE_F32) return hz::set_error(err, HZ_E_DTYPE, "gltf: colours are float32");
+    const std::size_t n = r.s.colors.size() / 3;
+    for (std::size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) {
+            unsigned char *cell = hz::view_cell(*dst, i, std::uint64_t(c), 4);
+            if (!cell) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gltf: %s: destination too small", r.path.c_str());
+            std::memcpy(cell, &r.s.colors[i * 3 + c], 4);
+        }
+    return HZ_OK;
+}
+
+hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
+    if (!reader || !visitor) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: visit_metadata: NULL");
+    for (const auto &[k, v] : as_reader(reader)->s.meta) visitor(ctx, k.c_str(), v.c_str());
+    return HZ_OK;
+}
+
+hz_status HZ_ABI read_mesh(hz_reader *reader, const hz_mesh_dst *dst, const hz_task *task, hz_error *err) {
+    if (!reader || !dst) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: read_mesh: NULL");
+    if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+    const Reader &r = *as_reader(reader);
+    if (dst->vertices_capacity < r.s.vertices.size() || dst->faces_capacity < r.s.faces.size())
+        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gltf: %s: destination too small", r.path.c_str());
+    if (!r.s.vertices.empty()) std::memcpy(dst->vertices, r.s.vertices.data(), r.s.vertices.size() * 4);
+    if (!r.s.faces.empty()) std::memcpy(dst->faces, r.s.faces.data(), r.s.faces.size() * 4);
+    return HZ_OK;
+}
+
+void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
+
+hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
+    if (!req || !req->path || !data) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: write: NULL");
+    if (data->kind != HZ_DATA_MESH) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "gltf: %s: holds meshes only", req->path);
+    return run(err, req->path, [&]() -> hz_status {
+        const std::uint64_t nv = data->mesh_nb_vertices, nf = data->mesh_nb_faces;
+        if (nv > 0xFFFFFFFFu || nf * 3 > 0xFFFFFFFFu) throw FormatError("too many vertices or faces");
+        const float *colors = nullptr;
+        for (uint32_t i = 0; i < data->nb_arrays; ++i) {
+            const hz_named_array &a = data->arrays[i];
+            const std::string name = a.name ? a.name : "";
+            if (name == "color" && a.attach == HZ_ATTACH_VERTEX && a.dtype == HZ_DTYPE_F32 && a.components == 3 && a.count == nv)
+                colors = static_cast<const float *>(a.data);
+            else if (req->on_dropped)
+                req->on_dropped(req->ctx, ("array '" + name + "' (glTF keeps geometry and COLOR_0 only)").c_str());
+        }
+        tinygltf::Model m;
+        m.asset.version = "2.0";
+        m.asset.generator = "Horizon";
+        tinygltf::Buffer buf;
+        auto append = [&](const void *p, std::size_t n) {
+            const std::size_t off = buf.data.size();
+            buf.data.resize(off + n);
+            if (n) std::memcpy(buf.data.data() + off, p, n);
+            while (buf.data.size() % 4) buf.data.push_back(0);
+            return off;
+        };
+        std::vector<float> pos(nv * 3);
+        float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (std::uint64_t i = 0; i < nv; ++i) {
+            const float R = data->mesh_vertices[i * 3], A = data->mesh_vertices[i * 3 + 1], S = data->mesh_vertices[i * 3 + 2];
+            const float g[3] = {float(-double(R) / 1000.0), float(double(S) / 1000.0), float(double(A) / 1000.0)};
+            for (int c = 0; c < 3; ++c) {
+                pos[i * 3 + c] = g[c];
+                lo[c] = std::min(lo[c], g[c]), hi[c] = std::max(hi[c], g[c]);
+            }
+        }
+        for (std::uint64_t i = 0; i < nf * 3; ++i)
+            if (data->mesh_faces[i] >= nv) throw FormatError("a face uses a vertex index out of range");
+        auto add_view = [&](std::size_t off, std::size_t len, int target) {
+            tinygltf::BufferView v;
+            v.buffer = 0, v.byteOffset = off, v.byteLength = len, v.target = target;
+            m.bufferViews.push_back(v);
+            return int(m.bufferViews.size() - 1);
+        };
+        auto add_accessor = [&](int view, int ctype, int type, std::size_t count) {
+            tinygltf::Accessor a;
+            a.bufferView = view, a.componentType = ctype, a.type = type, a.count = count;
+            m.accessors.push_back(a);
+            return int(m.accessors.size() - 1);
+        };
+        tinygltf::Primitive prim;
+        prim.mode = TINYGLTF_MODE_TRIANGLES;
+        const int pa = add_accessor(add_view(append(pos.data(), pos.size() * 4), pos.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                    TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+        if (nv) {
+            m.accessors[pa].minValues = {lo[0], lo[1], lo[2]};
+            m.accessors[pa].maxValues = {hi[0], hi[1], hi[2]};
+        }
+        prim.attributes["POSITION"] = pa;
+        if (colors)
+            prim.attributes["COLOR_0"] = add_accessor(add_view(append(colors, nv * 12), nv * 12, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                                      TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
+        prim.indices = add_accessor(add_view(append(data->mesh_faces, nf * 12), nf * 12, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
+                                    TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, nf * 3);
+        // Material factors carried in the header (from a glTF read), else defaults.
+        tinygltf::Material mat;
+        mat.pbrMetallicRoughness.baseColorFactor = {1, 1, 1, 1};
+        mat.pbrMetallicRoughness.metallicFactor = 0.0;
+        mat.pbrMetallicRoughness.roughnessFactor = 0.5;
+        mat.doubleSided = true;
+        for (uint32_t i = 0; i < data->nb_metadata; ++i) {
+            const std::string k = data->metadata[i].key ? data->metadata[i].key : "", v = data->metadata[i].value ? data->metadata[i].value : "";
+            if (k == "material.baseColorFactor") {
+                std::vector<double> f;
+                char *end = nullptr;
+                for (const char *p = v.c_str(); *p;) {
+                    const double x = std::strtod(p, &end);
+                    if (end == p) break;
+                    f.push_back(x);
+                    p = end;
+                }
+                if (f.size() == 4) mat.pbrMetallicRoughness.baseColorFactor = f;
+            } else if (k == "material.metallicFactor") mat.pbrMetallicRoughness.metallicFactor = std::atof(v.c_str());
+            else if (k == "material.roughnessFactor") mat.pbrMetallicRoughness.roughnessFactor = std::atof(v.c_str());
+            else if (k == "material.name") mat.name = v;
+        }
+        m.materials.push_back(mat);
+        prim.material = 0;
+        buf.uri = "";
+        m.buffers.push_back(std::move(buf));
+        tinygltf::Mesh mesh;
+        mesh.primitives.push_back(prim);
+        m.meshes.push_back(mesh);
+        tinygltf::Node node;
+        node.mesh = 0;
+        m.nodes.push_back(node);
+        tinygltf::Scene scene;
+        scene.nodes = {0};
+        m.scenes.push_back(scene);
+        m.defaultScene = 0;
+        const std::string ext = req->extension ? req->extension : "gltf";
+        tinygltf::TinyGLTF w;
+        if (!w.WriteGltfSceneToFile(&m, req->path, true, true, ext != "glb", ext == "glb"))
+            throw IoError("write failed");
+        return HZ_OK;
+    });
+}
+
+const char *const kExtensions[] = {"gltf", "glb", nullptr};
+const hz_loader kLoader = {
+    sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 4096, kExtensions, probe, open, get_info,
+    get_array_info, visit_metadata, nullptr, read_array, nullptr, read_mesh, close, write,
+};
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
+const hz_plugin_descriptor kDescriptor = {
+    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "glTF 2.0", "1.0.0", "Horizon",
+    "glTF 2.0 triangle meshes (.gltf, .glb) with vertex colours and PBR factors, metres Y-up <-> RAS+ mm", "MIT", kInterfaces,
+};
+
+}  // namespace
+
+HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;
