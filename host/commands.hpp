@@ -72,6 +72,7 @@ struct ViewOptions {
     std::string script;               // scripted input (tests)
     bool exit_after_script = true;
     std::string screenshot_dir = ".";
+    std::uint64_t lod_streamlines = 20000;  // tractograms above this get a centroid proxy while moving
 };
 
 core::Registry load_registry(const GlobalOptions &g);

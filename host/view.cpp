@@ -73,9 +73,12 @@ struct App {
     fs::path shot_dir = ".";
     std::string pending_shot;
     bool quit = false;
+    double last_motion = -1e9;  // glfwGetTime() of the last camera change
+    bool force_moving = false;  // scripts: `moving on|off`
 
     void drag_to(double x, double y) {
         const double dx = x - last_x, dy = y - last_y;
+        if (dragging || panning) last_motion = glfwGetTime();
         last_x = x, last_y = y;
         if (panning) {
             // Move the target in the view plane, in proportion to the distance.
@@ -89,7 +92,10 @@ struct App {
             orbit.pitch = std::clamp(orbit.pitch + dy * 0.008, -1.55, 1.55);
         }
     }
-    void scroll(double dy) { orbit.distance = std::clamp(orbit.distance * std::pow(0.9, dy), radius * 0.05, radius * 50); }
+    void scroll(double dy) {
+        last_motion = glfwGetTime();
+        orbit.distance = std::clamp(orbit.distance * std::pow(0.9, dy), radius * 0.05, radius * 50);
+    }
     void key(int k) {
         if (k == GLFW_KEY_S) pending_shot = (shot_dir / ("horizon-screenshot-" + std::to_string(++shots) + ".png")).string();
         else if (k == GLFW_KEY_R) orbit = home;
@@ -277,6 +283,31 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         app.r = &r;
         core::render::RenderSettings rs;
         rs.width = w0, rs.height = h0, rs.samples = o.samples, rs.lod_pixels = 0.5;
+        // Level of detail (paper section 3.4): a large tractogram is shown as
+        // its QuickBundlesX centroids while the camera moves, in full when
+        // it rests.
+        const std::size_t n_objects = scene.objects.size();
+        for (std::size_t i = 0; i < n_objects; ++i) {
+            const auto &ob = scene.objects[i];
+            if (ob.kind != HZ_DATA_STREAMLINES || ob.clustering || ob.proxy_for ||
+                ob.data.tractogram.nb_streamlines() <= o.lod_streamlines)
+                continue;
+            core::render::Object px;
+            px.name = ob.name + " (centroids while moving)";
+            px.kind = px.data.kind = HZ_DATA_STREAMLINES;
+            core::render::ClusterSpec cs;
+            cs.algorithm = "qbx";
+            cs.level = -1;
+            px.data.tractogram = core::render::cluster_centroids(reg, scene.objects[i].data.tractogram, cs);
+            px.render = "lines";
+            px.coloring = ob.coloring.mode == "data" ? core::render::Coloring{} : ob.coloring;
+            if (ob.coloring.mode == "data") px.coloring.mode = "direction";
+            px.material = ob.material;
+            px.proxy_for = i;
+            std::printf("%s: %llu streamlines; %llu QuickBundlesX centroids stand in while the camera moves\n", ob.name.c_str(),
+                        (unsigned long long)ob.data.tractogram.nb_streamlines(), (unsigned long long)px.data.tractogram.nb_streamlines());
+            scene.objects.push_back(std::move(px));
+        }
         const core::render::View v0 = core::render::fit_view(scene, scene.camera, double(w0) / h0);
         const core::Bounds b = core::render::scene_bounds(scene);
         if (!b.empty)
@@ -340,6 +371,10 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                             materials[obj].params[name] = v;
                         }
                         r.set_material(obj, materials[obj]);
+                    } else if (op == "moving") {
+                        std::string v;
+                        cmd >> v;
+                        app.force_moving = v == "on";
                     } else if (op == "quit") {
                         app.quit = true;
                     } else {
@@ -355,6 +390,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             int fw, fh;
             glfwGetFramebufferSize(win, &fw, &fh);
             if (fw <= 0 || fh <= 0) continue;
+            const bool moving = app.dragging || app.panning || glfwGetTime() - app.last_motion < 0.25 || app.force_moving;
+            r.set_interacting(moving);
             r.render_to_window(app.orbit.view(app.radius), fw, fh);
             if (!app.pending_shot.empty()) {
                 save_screenshot(reg, app.pending_shot, fw, fh);

@@ -214,6 +214,28 @@ class WindowTest(TempDirTest):
         self.assertGreater(np.mean(np.abs(shots[2] - shots[3])), 0.5, "switching the shading model changes the picture")
         self.assertTrue(os.path.exists(self.path("horizon-screenshot-1.png")), "the S key saves a screenshot")
 
+    def test_level_of_detail_while_moving(self):
+        # A tractogram above --lod-streamlines is drawn as QuickBundlesX
+        # centroids while the camera moves and in full at rest.
+        p = run("demo", "--out", self.path("d"), "--streamlines", "600", "--no-window", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        script = self.path("lod.txt")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 1", f"screenshot {self.path('rest.png')}", "moving on", "wait 1",
+                               f"screenshot {self.path('moving.png')}", "moving off", "wait 1",
+                               f"screenshot {self.path('rest2.png')}", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"),
+                            "--size", "480x320", "--lod-streamlines", "100", "--script", script],
+                           capture_output=True, text=True, timeout=300, env=env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("QuickBundlesX centroids stand in", p.stdout)
+        rest, moving, rest2 = (load(self.path(n)) for n in ("rest.png", "moving.png", "rest2.png"))
+        self.assertGreater(np.mean(np.abs(rest - moving)), 0.5, "the proxy is drawn while moving")
+        np.testing.assert_array_equal(rest, rest2)
+
     def test_no_display_points_to_render(self):
         p = run("view", "whatever.json", env=NO_DISPLAY)
         self.assertNotEqual(p.returncode, 0)

@@ -273,6 +273,16 @@ struct Renderer::Impl {
     Tex2dFbo resolved, behind, ldr;
     FrameStats stats;
     int max_samples = 1;
+    bool interacting = false;
+    std::vector<bool> has_proxy;
+
+    // Whether object `i` is drawn in this frame (visibility and level of detail).
+    bool drawn(std::size_t i) const {
+        const Object &o = scene.objects[i];
+        if (!o.visible) return false;
+        if (o.proxy_for) return interacting && *o.proxy_for < scene.objects.size() && scene.objects[*o.proxy_for].visible;
+        return !(interacting && i < has_proxy.size() && has_proxy[i]);
+    }
 
     explicit Impl(const Registry &r) : reg(r) {
         glGenVertexArrays(1, &empty_vao);
@@ -1091,7 +1101,7 @@ struct Renderer::Impl {
         bool later = false;
         for (const auto &g : objects) {
             const Object &o = scene.objects[g.index];
-            if (!o.visible) continue;
+            if (!drawn(g.index)) continue;
             if (o.opacity < 1.0 || g.refractive) {
                 later = true;
                 continue;
@@ -1106,14 +1116,14 @@ struct Renderer::Impl {
             glBindFramebuffer(GL_FRAMEBUFFER, msaa.fbo);
             for (const auto &g : objects) {
                 const Object &o = scene.objects[g.index];
-                if (o.visible && g.refractive && o.opacity >= 1.0) draw_object(g, o, m, v, false, w, h);
+                if (drawn(g.index) && g.refractive && o.opacity >= 1.0) draw_object(g, o, m, v, false, w, h);
             }
             glEnable(GL_BLEND);
             glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
             glDepthMask(GL_FALSE);
             for (const auto &g : objects) {
                 const Object &o = scene.objects[g.index];
-                if (o.visible && o.opacity < 1.0) draw_object(g, o, m, v, false, w, h);
+                if (drawn(g.index) && o.opacity < 1.0) draw_object(g, o, m, v, false, w, h);
             }
             glDepthMask(GL_TRUE);
             glDisable(GL_BLEND);
@@ -1161,6 +1171,9 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
     I.scene = std::move(scene);
     I.settings = settings;
     I.env_on = I.scene.environment.type != "none";  // programs are specialised on it
+    I.has_proxy.assign(I.scene.objects.size(), false);
+    for (const auto &o : I.scene.objects)
+        if (o.proxy_for && *o.proxy_for < I.has_proxy.size()) I.has_proxy[*o.proxy_for] = true;
     I.stats = FrameStats{};
     // Decimation tolerance: `lod_pixels` at the distance of the target.
     const double dist = glm::length(to_dvec3(view.eye) - to_dvec3(view.target));
@@ -1207,6 +1220,8 @@ void Renderer::set_material(std::size_t object, const Material &m) {
         }
     throw Error("object " + std::to_string(object) + " has no material");
 }
+
+void Renderer::set_interacting(bool on) { impl_->interacting = on; }
 
 void Renderer::set_exposure(double e) { impl_->scene.exposure = std::clamp(e, 1e-4, 1e4); }
 

@@ -76,6 +76,9 @@ public:
     void set_material(std::size_t object, const Material &m);
     void set_visible(std::size_t object, bool visible);
     void set_exposure(double exposure);
+    // While interacting, objects with a level-of-detail proxy are replaced
+    // by it (Object::proxy_for).
+    void set_interacting(bool interacting);
     const Scene &scene() const;
 
     // Camera fitted to the visible objects for the scene's camera spec.

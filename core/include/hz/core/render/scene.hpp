@@ -50,6 +50,10 @@ struct Object {
     hz_data_kind kind = 0;            // STREAMLINES, MESH or VOLUME (drawn as slices)
     Dataset data;
     bool visible = true;
+    // Level of detail: this object stands in for object `proxy_for` while the
+    // camera moves (e.g. QuickBundlesX centroids of a large tractogram) and
+    // is hidden otherwise; that object is hidden while moving.
+    std::optional<std::size_t> proxy_for;
     // streamlines
     std::string render = "lines";     // lines | tubes
     double radius_mm = 0.4;           // tubes; with width_by_size: the radius of the median cluster
