@@ -108,60 +108,6 @@ int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o) {
             }
             for (int c = 0; c < 3; ++c) albedo[c] = std::round(albedo[c] * 255.0) / 255.0;
 
-            core::render::Scene scene;
-            scene.environment.type = "none";
-            auto add = [&](core::render::Object ob) {
-                ob.material = mat;
-                ob.coloring.mode = "solid";
-                ob.coloring.color = albedo;
-                scene.objects.push_back(std::move(ob));
-            };
-            if (surface) {
-                core::render::Object s;
-                s.name = "sphere";
-                s.kind = s.data.kind = HZ_DATA_MESH;
-                s.data.mesh = core::render::make_sphere_mesh(20, 96, 48);
-                add(std::move(s));
-                core::render::Object pl;  // a plane seen almost edge-on
-                pl.name = "plane";
-                pl.kind = pl.data.kind = HZ_DATA_MESH;
-                pl.data.mesh.vertices = core::Buffer<float>{-60, -45, -24, 60, -45, -24, 60, 45, -24, -60, 45, -24};
-                pl.data.mesh.faces = core::Buffer<std::uint32_t>{0, 1, 2, 0, 2, 3};
-                add(std::move(pl));
-                core::render::Object tb;
-                tb.name = "tubes";
-                tb.kind = tb.data.kind = HZ_DATA_STREAMLINES;
-                tb.data.tractogram = curves();
-                tb.render = "tubes";
-                tb.radius_mm = 2.5;
-                add(std::move(tb));
-            }
-            if (line || surface) {
-                core::render::Object ln;
-                ln.name = "lines";
-                ln.kind = ln.data.kind = HZ_DATA_STREAMLINES;
-                ln.data.tractogram = curves();
-                for (std::size_t i = 0; i < ln.data.tractogram.positions.size(); i += 3) ln.data.tractogram.positions[i + 2] += 8.0f;
-                ln.render = "lines";
-                add(std::move(ln));
-            }
-            core::render::Light L;
-            L.type = "directional";
-            L.camera_space = false;
-            const double az = 2 * M_PI * U(rng), el = std::asin(2 * U(rng) - 1);
-            L.direction = {std::cos(el) * std::cos(az) - 0.5, std::cos(el) * std::sin(az) - 0.6, std::sin(el) + 0.4};
-            scene.lights = {L};
-            scene.camera.position = Vec3{-25, -140, 12 + 20 * U(rng)};  // low elevation: grazing on the plane
-            scene.camera.target = Vec3{0, 0, 0};
-            scene.camera.up = {0, 0, 1};
-            scene.camera.fov_deg = 34;
-            const core::render::View view = core::render::fit_view(scene, scene.camera, 1.0);
-            core::render::Renderer r(reg);
-            core::render::RenderSettings rs;
-            rs.width = W, rs.height = H, rs.samples = 1, rs.lod_pixels = 0;
-            r.set_scene(std::move(scene), view, rs);
-            const auto out = r.render_debug(view, W, H);
-
             // Values for the CPU: the schema defaults overridden like the renderer does.
             std::vector<double> values;
             for (uint32_t i = 0; i < sh->param_count; ++i) {
@@ -180,61 +126,115 @@ int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o) {
                 for (double x : values) std::fprintf(stderr, " %.9g", x);
                 std::fprintf(stderr, "\n");
             }
+            const double az = 2 * M_PI * U(rng), el = std::asin(2 * U(rng) - 1);
+            const double cam_z = 12 + 20 * U(rng);  // low elevation: grazing on the plane
             SetResult res;
-            for (int y = 0; y < H; ++y)
-                for (int x = 0; x < W; ++x) {
-                    const std::size_t px = (std::size_t(y) * W + x) * 4;
-                    if (out[0].rgba[px + 3] != 1.0f) continue;  // not covered
-                    ++res.pixels;
-                    const float *gv = &out[0].rgba[px];
-                    hz_shade_point p{};
-                    p.struct_size = sizeof p;
-                    const float *n = &out[1].rgba[px], *l = &out[2].rgba[px], *v = &out[3].rgba[px], *t = &out[4].rgba[px];
-                    // Which domain did the GPU use? Line objects with a LINE-capable model.
-                    bool is_line_px = false;
-                    {
-                        // n is perpendicular to t and faces v for lines: the GPU
-                        // only shades in the LINE domain when the model has it.
-                        is_line_px = line && !surface;
-                    }
-                    p.domain = is_line_px ? HZ_SHADE_LINE : HZ_SHADE_SURFACE;
-                    for (int k = 0; k < 3; ++k) p.n[k] = n[k], p.l[k] = l[k], p.v[k] = v[k], p.t[k] = t[k];
-                    const float bx = n[1] * t[2] - n[2] * t[1], by = n[2] * t[0] - n[0] * t[2], bz = n[0] * t[1] - n[1] * t[0];
-                    p.b[0] = bx, p.b[1] = by, p.b[2] = bz;
-                    double ref[3];
-                    if (sh->eval_reference(&p, values.data(), uint32_t(values.size()), ref) != HZ_OK) continue;
-                    // Sensitivity to float32 rounding of the inputs.
-                    double sens[3] = {0, 0, 0};
-                    for (int trial = 0; trial < 6; ++trial) {
-                        hz_shade_point q = p;
-                        for (double *a : {q.n, q.l, q.v, q.t})
-                            for (int k = 0; k < 3; ++k) a[k] *= 1.0 + (U(rng) * 2 - 1) * std::ldexp(1.0, -21);
-                        double alt[3];
-                        if (sh->eval_reference(&q, values.data(), uint32_t(values.size()), alt) == HZ_OK)
-                            for (int k = 0; k < 3; ++k) sens[k] = std::max(sens[k], std::abs(alt[k] - ref[k]));
-                    }
-                    bool fail = false;
-                    for (int k = 0; k < 3; ++k) {
-                        if (!std::isfinite(gv[k])) {
-                            ++res.nonfinite;
-                            fail = true;
-                            continue;
-                        }
-                        if (gv[k] < 0) ++res.negative, fail = true;
-                        const double err = std::abs(double(gv[k]) - ref[k]);
-                        const double tol = std::max({o.rel * std::abs(ref[k]), o.abs, 8 * sens[k]});
-                        res.max_err_over_tol = std::max(res.max_err_over_tol, err / tol);
-                        if (std::abs(ref[k]) > 1e-3) res.max_rel = std::max(res.max_rel, err / std::abs(ref[k]));
-                        if (err > tol) fail = true;
-                    }
-                    if (fail) {
-                        if (res.failures < 3 && o.verbose)
-                            std::fprintf(stderr, "  %s set %d pixel (%d,%d): gpu [%g %g %g] cpu [%g %g %g] n.l %.3g n.v %.3g\n", sp->info.id.c_str(), set, x,
-                                         y, gv[0], gv[1], gv[2], ref[0], ref[1], ref[2], n[0] * l[0] + n[1] * l[1] + n[2] * l[2],
-                                         n[0] * v[0] + n[1] * v[1] + n[2] * v[2]);
-                        ++res.failures;
-                    }
+            for (int pass = 0; pass < 2; ++pass) {
+                if (pass == 0 && !surface) continue;
+                core::render::Scene scene;
+                scene.environment.type = "none";
+                auto add = [&](core::render::Object ob) {
+                    ob.material = mat;
+                    ob.coloring.mode = "solid";
+                    ob.coloring.color = albedo;
+                    scene.objects.push_back(std::move(ob));
+                };
+                if (pass == 0) {
+                    core::render::Object s;
+                    s.name = "sphere";
+                    s.kind = s.data.kind = HZ_DATA_MESH;
+                    s.data.mesh = core::render::make_sphere_mesh(20, 96, 48);
+                    add(std::move(s));
+                    core::render::Object pl;  // a plane seen almost edge-on
+                    pl.name = "plane";
+                    pl.kind = pl.data.kind = HZ_DATA_MESH;
+                    pl.data.mesh.vertices = core::Buffer<float>{-60, -45, -24, 60, -45, -24, 60, 45, -24, -60, 45, -24};
+                    pl.data.mesh.faces = core::Buffer<std::uint32_t>{0, 1, 2, 0, 2, 3};
+                    add(std::move(pl));
+                    core::render::Object tb;
+                    tb.name = "tubes";
+                    tb.kind = tb.data.kind = HZ_DATA_STREAMLINES;
+                    tb.data.tractogram = curves();
+                    tb.render = "tubes";
+                    tb.radius_mm = 2.5;
+                    add(std::move(tb));
                 }
+                if (pass == 1) {
+                    core::render::Object ln;
+                    ln.name = "lines";
+                    ln.kind = ln.data.kind = HZ_DATA_STREAMLINES;
+                    ln.data.tractogram = curves();
+                    for (std::size_t i = 0; i < ln.data.tractogram.positions.size(); i += 3) ln.data.tractogram.positions[i + 2] += 8.0f;
+                    ln.render = "lines";
+                    add(std::move(ln));
+                }
+                core::render::Light L;
+                L.type = "directional";
+                L.camera_space = false;
+                L.direction = {std::cos(el) * std::cos(az) - 0.5, std::cos(el) * std::sin(az) - 0.6, std::sin(el) + 0.4};
+                scene.lights = {L};
+                scene.camera.position = Vec3{-25, -140, cam_z};
+                scene.camera.target = Vec3{0, 0, 0};
+                scene.camera.up = {0, 0, 1};
+                scene.camera.fov_deg = 34;
+                const core::render::View view = core::render::fit_view(scene, scene.camera, 1.0);
+                core::render::Renderer r(reg);
+                core::render::RenderSettings rs;
+                rs.width = W, rs.height = H, rs.samples = 1, rs.lod_pixels = 0;
+                r.set_scene(std::move(scene), view, rs);
+                const auto out = r.render_debug(view, W, H);
+
+                for (int y = 0; y < H; ++y)
+                    for (int x = 0; x < W; ++x) {
+                        const std::size_t px = (std::size_t(y) * W + x) * 4;
+                        if (out[0].rgba[px + 3] != 1.0f) continue;  // not covered
+                        ++res.pixels;
+                        const float *gv = &out[0].rgba[px];
+                        hz_shade_point p{};
+                        p.struct_size = sizeof p;
+                        const float *n = &out[1].rgba[px], *l = &out[2].rgba[px], *v = &out[3].rgba[px], *t = &out[4].rgba[px];
+                        // Which domain did the GPU use? Line objects with a LINE-capable model.
+                        // Pass 1 draws only lines, shaded in the LINE domain when
+                        // the model has one (else as surfaces, view-facing normal).
+                        p.domain = pass == 1 && line ? HZ_SHADE_LINE : HZ_SHADE_SURFACE;
+                        for (int k = 0; k < 3; ++k) p.n[k] = n[k], p.l[k] = l[k], p.v[k] = v[k], p.t[k] = t[k];
+                        const float bx = n[1] * t[2] - n[2] * t[1], by = n[2] * t[0] - n[0] * t[2], bz = n[0] * t[1] - n[1] * t[0];
+                        p.b[0] = bx, p.b[1] = by, p.b[2] = bz;
+                        double ref[3];
+                        if (sh->eval_reference(&p, values.data(), uint32_t(values.size()), ref) != HZ_OK) continue;
+                        // Sensitivity to float32 rounding of the inputs.
+                        double sens[3] = {0, 0, 0};
+                        for (int trial = 0; trial < 6; ++trial) {
+                            hz_shade_point q = p;
+                            for (double *a : {q.n, q.l, q.v, q.t})
+                                for (int k = 0; k < 3; ++k) a[k] *= 1.0 + (U(rng) * 2 - 1) * std::ldexp(1.0, -21);
+                            double alt[3];
+                            if (sh->eval_reference(&q, values.data(), uint32_t(values.size()), alt) == HZ_OK)
+                                for (int k = 0; k < 3; ++k) sens[k] = std::max(sens[k], std::abs(alt[k] - ref[k]));
+                        }
+                        bool fail = false;
+                        for (int k = 0; k < 3; ++k) {
+                            if (!std::isfinite(gv[k])) {
+                                ++res.nonfinite;
+                                fail = true;
+                                continue;
+                            }
+                            if (gv[k] < 0) ++res.negative, fail = true;
+                            const double err = std::abs(double(gv[k]) - ref[k]);
+                            const double tol = std::max({o.rel * std::abs(ref[k]), o.abs, 8 * sens[k]});
+                            res.max_err_over_tol = std::max(res.max_err_over_tol, err / tol);
+                            if (std::abs(ref[k]) > 1e-3) res.max_rel = std::max(res.max_rel, err / std::abs(ref[k]));
+                            if (err > tol) fail = true;
+                        }
+                        if (fail) {
+                            if (res.failures < 3 && o.verbose)
+                                std::fprintf(stderr, "  %s set %d pixel (%d,%d): gpu [%g %g %g] cpu [%g %g %g] n.l %.3g n.v %.3g\n", sp->info.id.c_str(), set, x,
+                                             y, gv[0], gv[1], gv[2], ref[0], ref[1], ref[2], n[0] * l[0] + n[1] * l[1] + n[2] * l[2],
+                                             n[0] * v[0] + n[1] * v[1] + n[2] * v[2]);
+                            ++res.failures;
+                        }
+                    }
+            }
             ++sets;
             total.pixels += res.pixels;
             total.failures += res.failures;
