@@ -73,6 +73,7 @@ struct ViewOptions {
     bool exit_after_script = true;
     std::string screenshot_dir = ".";
     std::uint64_t lod_streamlines = 20000;  // tractograms above this get a centroid proxy while moving
+    bool explore = false;                   // Fig. 5: QuickBundlesX centroids, expand / hide / repeat
 };
 
 core::Registry load_registry(const GlobalOptions &g);

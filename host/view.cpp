@@ -18,7 +18,9 @@
 #include <imgui_impl_glfw.h>
 #include <imgui_impl_opengl3.h>
 
+#include <algorithm>
 #include <cmath>
+#include <memory>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -101,6 +103,179 @@ struct App {
         else if (k == GLFW_KEY_R) orbit = home;
         else if (k == GLFW_KEY_Q || k == GLFW_KEY_ESCAPE) quit = true;
     }
+};
+
+
+// The interactive exploration of the paper's Fig. 5: a tractogram shown as
+// the centroids of one QuickBundlesX level (tubes, width by cluster size);
+// "expand" replaces a centroid by its children at the next level, or by its
+// streamlines at the last; "hide" removes a cluster; "repeat" re-clusters
+// what is still shown. Two scene objects: the centroids and the expanded
+// streamlines.
+class Explorer {
+public:
+    Explorer(const core::Registry &reg, core::Tractogram all, std::string name) : reg_(reg), all_(std::move(all)), name_(std::move(name)) {
+        std::vector<std::uint64_t> every(all_.nb_streamlines());
+        for (std::uint64_t i = 0; i < every.size(); ++i) every[i] = i;
+        cluster(every);
+    }
+    // Clusters shown, largest first (the panel's and the script's numbering).
+    const std::vector<std::uint64_t> &shown() const { return shown_; }
+    std::uint64_t size(std::uint64_t node) const { return member_off_[node + 1] - member_off_[node]; }
+    std::uint32_t level(std::uint64_t node) const { return level_[node]; }
+    std::uint32_t nb_levels() const { return nb_levels_; }
+    std::uint64_t expanded_streamlines() const { return expanded_.size(); }
+    std::string summary() const {
+        return std::to_string(shown_.size()) + " clusters, " + std::to_string(expanded_.size()) + " streamlines expanded, " +
+               std::to_string(rounds_) + " clustering round(s)";
+    }
+
+    void expand(std::size_t rank) {
+        const std::uint64_t node = at(rank);
+        std::erase(shown_, node);
+        if (level_[node] < nb_levels_) {
+            for (std::uint64_t k = 0; k < parent_.size(); ++k)
+                if (parent_[k] == std::int64_t(node)) shown_.push_back(k);
+        } else {
+            for (std::uint64_t m = member_off_[node]; m < member_off_[node + 1]; ++m) expanded_.push_back(subset_[members_[m]]);
+        }
+        sort();
+    }
+    void hide(std::size_t rank) { std::erase(shown_, at(rank)); }
+    void repeat() {
+        std::vector<std::uint64_t> keep = expanded_;
+        for (std::uint64_t node : shown_)
+            for (std::uint64_t m = member_off_[node]; m < member_off_[node + 1]; ++m) keep.push_back(subset_[members_[m]]);
+        std::sort(keep.begin(), keep.end());
+        keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
+        if (keep.empty()) throw core::Error("nothing is shown to cluster again");
+        cluster(keep);
+    }
+    void reset() {
+        std::vector<std::uint64_t> every(all_.nb_streamlines());
+        for (std::uint64_t i = 0; i < every.size(); ++i) every[i] = i;
+        cluster(every);
+    }
+
+    core::render::Object centroids_object() const {
+        core::render::Object o;
+        o.name = name_ + ": QuickBundlesX centroids";
+        o.kind = o.data.kind = HZ_DATA_STREAMLINES;
+        core::Tractogram &t = o.data.tractogram;
+        const std::uint64_t K = shown_.size(), P = nb_points_;
+        t.positions = core::Buffer<float>(K * P * 3);
+        t.offsets = core::Buffer<std::uint64_t>(K + 1);
+        core::DataArray sizes;
+        sizes.name = "cluster_size";
+        sizes.attach = HZ_ATTACH_STREAMLINE;
+        sizes.dtype = HZ_DTYPE_F32;
+        sizes.count = K;
+        sizes.bytes = core::Buffer<std::byte>(K * 4);
+        for (std::uint64_t i = 0; i < K; ++i) {
+            std::copy_n(centroids_.data() + shown_[i] * P * 3, P * 3, t.positions.data() + i * P * 3);
+            t.offsets[i] = i * P;
+            const float sz = float(size(shown_[i]));
+            std::memcpy(sizes.bytes.data() + 4 * i, &sz, 4);
+        }
+        t.offsets[K] = K * P;
+        t.arrays.push_back(std::move(sizes));
+        o.render = "tubes";
+        o.radius_mm = 1.0;
+        o.clustering = core::render::ClusterSpec{};
+        o.coloring.mode = "cluster";
+        return o;
+    }
+    core::render::Object streamlines_object() const {
+        core::render::Object o;
+        o.name = name_ + ": expanded streamlines";
+        o.kind = o.data.kind = HZ_DATA_STREAMLINES;
+        core::Tractogram &t = o.data.tractogram;
+        std::uint64_t nv = 0;
+        for (std::uint64_t s : expanded_) nv += all_.offsets[s + 1] - all_.offsets[s];
+        t.positions = core::Buffer<float>(nv * 3);
+        t.offsets = core::Buffer<std::uint64_t>(expanded_.size() + 1);
+        std::uint64_t v = 0;
+        for (std::size_t i = 0; i < expanded_.size(); ++i) {
+            const std::uint64_t b = all_.offsets[expanded_[i]], e = all_.offsets[expanded_[i] + 1];
+            t.offsets[i] = v;
+            std::copy(all_.positions.data() + b * 3, all_.positions.data() + e * 3, t.positions.data() + v * 3);
+            v += e - b;
+        }
+        t.offsets[expanded_.size()] = v;
+        o.render = "lines";
+        o.coloring.mode = "direction";
+        return o;
+    }
+
+private:
+    std::uint64_t at(std::size_t rank) const {
+        if (rank >= shown_.size()) throw core::Error("no cluster " + std::to_string(rank) + " (" + std::to_string(shown_.size()) + " shown)");
+        return shown_[rank];
+    }
+    void sort() {
+        std::stable_sort(shown_.begin(), shown_.end(), [&](std::uint64_t a, std::uint64_t b) { return size(a) > size(b); });
+    }
+    // QuickBundlesX (fast mode) over the streamlines `subset` of all_;
+    // shows the first level.
+    void cluster(const std::vector<std::uint64_t> &subset) {
+        core::Tractogram t;
+        std::uint64_t nv = 0;
+        for (std::uint64_t s : subset) nv += all_.offsets[s + 1] - all_.offsets[s];
+        t.positions = core::Buffer<float>(nv * 3);
+        t.offsets = core::Buffer<std::uint64_t>(subset.size() + 1);
+        std::uint64_t v = 0;
+        for (std::size_t i = 0; i < subset.size(); ++i) {
+            const std::uint64_t b = all_.offsets[subset[i]], e = all_.offsets[subset[i] + 1];
+            t.offsets[i] = v;
+            std::copy(all_.positions.data() + b * 3, all_.positions.data() + e * 3, t.positions.data() + v * 3);
+            v += e - b;
+        }
+        t.offsets[subset.size()] = v;
+        const core::LoadedPlugin *plugin = reg_.find("org.horizon.clustering.qbx");
+        if (!plugin) throw core::Error("the exploration needs the QuickBundlesX plugin (org.horizon.clustering.qbx)");
+        const hz_clustering *c = plugin->clustering();
+        hz_error err{};
+        err.struct_size = sizeof err;
+        hz_clusterer *obj = nullptr;
+        if (c->create(core::host_services(), &obj, &err) != HZ_OK) throw core::Error(err.message);
+        struct Guard {
+            const hz_clustering *c;
+            hz_clusterer *o;
+            ~Guard() { c->destroy(o); }
+        } guard{c, obj};
+        const double fast = 1.0;
+        c->set_param(obj, "mode", &fast, 1, &err);
+        const hz_streamlines_view view = t.view();
+        core::Task task;
+        if (c->run(obj, &view, nullptr, task.get(), &err) != HZ_OK) throw core::Error(err.message);
+        hz_cluster_tree_view tv{};
+        tv.struct_size = sizeof tv;
+        if (c->get_result(obj, &tv, &err) != HZ_OK) throw core::Error(err.message);
+        nb_levels_ = tv.nb_levels;
+        nb_points_ = tv.nb_points;
+        parent_.assign(tv.parent, tv.parent + tv.nb_nodes);
+        level_.assign(tv.level, tv.level + tv.nb_nodes);
+        centroids_.assign(tv.centroids, tv.centroids + tv.nb_nodes * tv.nb_points * 3);
+        member_off_.assign(tv.member_offsets, tv.member_offsets + tv.nb_nodes + 1);
+        members_.assign(tv.members, tv.members + member_off_.back());
+        subset_ = subset;
+        shown_.clear();
+        expanded_.clear();
+        for (std::uint64_t k = 0; k < tv.nb_nodes; ++k)
+            if (level_[k] == 1) shown_.push_back(k);
+        sort();
+        ++rounds_;
+    }
+
+    const core::Registry &reg_;
+    core::Tractogram all_;
+    std::string name_;
+    std::uint32_t nb_levels_ = 0, nb_points_ = 0;
+    std::vector<std::int64_t> parent_;
+    std::vector<std::uint32_t> level_;
+    std::vector<float> centroids_;
+    std::vector<std::uint64_t> member_off_, members_, subset_, shown_, expanded_;
+    int rounds_ = 0;
 };
 
 App *app_of(GLFWwindow *w) { return static_cast<App *>(glfwGetWindowUserPointer(w)); }
@@ -283,6 +458,29 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         app.r = &r;
         core::render::RenderSettings rs;
         rs.width = w0, rs.height = h0, rs.samples = o.samples, rs.lod_pixels = 0.5;
+        // The Fig. 5 exploration: the first tractogram becomes QuickBundlesX
+        // centroids (object ci) plus the streamlines expanded so far (si).
+        std::unique_ptr<Explorer> ex;
+        std::size_t ci = 0, si = 0;
+        if (o.explore) {
+            for (std::size_t i = 0; i < scene.objects.size() && !ex; ++i)
+                if (scene.objects[i].kind == HZ_DATA_STREAMLINES) {
+                    ex = std::make_unique<Explorer>(reg, std::move(scene.objects[i].data.tractogram), scene.objects[i].name);
+                    ci = i;
+                    scene.objects[i] = ex->centroids_object();
+                    si = scene.objects.size();
+                    scene.objects.push_back(ex->streamlines_object());
+                }
+            if (!ex) throw core::Error("--explore needs a tractogram");
+            std::printf("explore: %s\n", ex->summary().c_str());
+            std::fflush(stdout);
+        }
+        auto explore_refresh = [&](core::render::Renderer &rr) {
+            rr.replace_object(ci, ex->centroids_object());
+            rr.replace_object(si, ex->streamlines_object());
+            std::printf("explore: %s\n", ex->summary().c_str());
+            std::fflush(stdout);
+        };
         // Level of detail (paper section 3.4): a large tractogram is shown as
         // its QuickBundlesX centroids while the camera moves, in full when
         // it rests.
@@ -371,6 +569,15 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                             materials[obj].params[name] = v;
                         }
                         r.set_material(obj, materials[obj]);
+                    } else if (op == "expand" || op == "hide" || op == "repeat" || op == "reset") {
+                        if (!ex) throw core::Error(op + " needs --explore");
+                        std::size_t k = 0;
+                        if (op == "expand" || op == "hide") cmd >> k;
+                        if (op == "expand") ex->expand(k);
+                        else if (op == "hide") ex->hide(k);
+                        else if (op == "repeat") ex->repeat();
+                        else ex->reset();
+                        explore_refresh(r);
                     } else if (op == "moving") {
                         std::string v;
                         cmd >> v;
@@ -408,6 +615,29 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                         (unsigned long long)r.stats().triangles_drawn);
             ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset");
             if (ImGui::SliderFloat("exposure", &exposure, 0.05f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic)) r.set_exposure(exposure);
+            if (ex && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
+                ImGui::TextWrapped("%s", ex->summary().c_str());
+                bool changed = false;
+                try {
+                    if (ImGui::Button("Repeat: cluster what is shown")) ex->repeat(), changed = true;
+                    ImGui::SameLine();
+                    if (ImGui::Button("Reset")) ex->reset(), changed = true;
+                    const std::size_t n = std::min<std::size_t>(ex->shown().size(), 40);
+                    for (std::size_t k = 0; k < n && !changed; ++k) {
+                        const std::uint64_t node = ex->shown()[k];
+                        ImGui::PushID(int(100000 + k));
+                        ImGui::Text("#%zu  level %u  %llu streamlines", k, ex->level(node), (unsigned long long)ex->size(node));
+                        ImGui::SameLine();
+                        if (ImGui::SmallButton("expand")) ex->expand(k), changed = true;
+                        ImGui::SameLine();
+                        if (!changed && ImGui::SmallButton("hide")) ex->hide(k), changed = true;
+                        ImGui::PopID();
+                    }
+                    if (changed) explore_refresh(r);
+                } catch (const core::Error &e) {
+                    std::fprintf(stderr, "horizon: %s\n", e.what());
+                }
+            }
             for (std::size_t i = 0; i < r.scene().objects.size(); ++i) {
                 const auto &ob = r.scene().objects[i];
                 ImGui::PushID(int(i));

@@ -236,6 +236,33 @@ class WindowTest(TempDirTest):
         self.assertGreater(np.mean(np.abs(rest - moving)), 0.5, "the proxy is drawn while moving")
         np.testing.assert_array_equal(rest, rest2)
 
+    def test_explore_expand_hide_repeat(self):
+        # Paper Fig. 5: QuickBundlesX centroids; expand the largest cluster
+        # down to its streamlines, hide one, cluster again what is shown.
+        p = run("demo", "--out", self.path("d"), "--streamlines", "400", "--no-window", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        script = self.path("ex.txt")
+        lines = ["wait 1", f"screenshot {self.path('e0.png')}"] + ["expand 0"] * 40 + \
+                ["wait 1", f"screenshot {self.path('e1.png')}", "hide 0", "repeat", "wait 1", f"screenshot {self.path('e2.png')}", "quit"]
+        with open(script, "w") as f:
+            f.write("\n".join(lines) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), "--explore",
+                            "--size", "480x320", "--script", script], capture_output=True, text=True, timeout=300, env=env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        states = [l for l in p.stdout.splitlines() if l.startswith("explore:")]
+        import re
+        parsed = [tuple(map(int, re.findall(r"(\d+) clusters, (\d+) streamlines expanded, (\d+) clustering", l)[0])) for l in states]
+        self.assertEqual(parsed[0][1:], (0, 1))
+        self.assertTrue(any(e > 0 for _, e, _ in parsed), "expanding reaches the streamlines of a last-level cluster")
+        self.assertEqual(parsed[-1][2], 2, "repeat clusters again")
+        self.assertEqual(parsed[-2][0], parsed[-3][0] - 1, "hide removes a cluster")
+        shots = [load(self.path(f"e{i}.png")) for i in range(3)]
+        self.assertGreater(np.mean(np.abs(shots[0] - shots[1])), 0.5)
+        self.assertGreater(np.mean(np.abs(shots[1] - shots[2])), 0.5)
+
     def test_no_display_points_to_render(self):
         p = run("view", "whatever.json", env=NO_DISPLAY)
         self.assertNotEqual(p.returncode, 0)

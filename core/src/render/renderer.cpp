@@ -275,6 +275,37 @@ struct Renderer::Impl {
     int max_samples = 1;
     bool interacting = false;
     std::vector<bool> has_proxy;
+    double tol_mm = 0;  // streamline decimation tolerance of the current scene
+
+    void release(GpuObject &o) {
+        if (o.vao) glDeleteVertexArrays(1, &o.vao);
+        if (o.vbo) glDeleteBuffers(1, &o.vbo);
+        if (o.ebo) glDeleteBuffers(1, &o.ebo);
+        if (o.volume_tex) glDeleteTextures(1, &o.volume_tex);
+        if (o.colormap_tex) glDeleteTextures(1, &o.colormap_tex);
+        o.vao = o.vbo = o.ebo = o.volume_tex = o.colormap_tex = 0;
+    }
+
+    GpuObject upload(std::size_t i) {
+        const Object &o = scene.objects[i];
+        GpuObject g;
+        g.index = i;
+        if (o.kind == HZ_DATA_STREAMLINES) {
+            g.geom = o.render == "tubes" ? Geom::Tube : Geom::Line;
+            upload_streamlines(g, o, tol_mm);
+            resolve_material(g, o, o.material);
+        } else if (o.kind == HZ_DATA_MESH) {
+            g.geom = Geom::Mesh;
+            upload_mesh(g, o);
+            resolve_material(g, o, o.material);
+        } else if (o.kind == HZ_DATA_VOLUME) {
+            g.slices = true;
+            upload_slices(g, o);
+        } else {
+            throw Error(o.name + ": nothing to draw for this kind of data");
+        }
+        return g;
+    }
 
     // Whether object `i` is drawn in this frame (visibility and level of detail).
     bool drawn(std::size_t i) const {
@@ -330,13 +361,7 @@ struct Renderer::Impl {
     }
 
     void clear_objects() {
-        for (auto &o : objects) {
-            if (o.vao) glDeleteVertexArrays(1, &o.vao);
-            if (o.vbo) glDeleteBuffers(1, &o.vbo);
-            if (o.ebo) glDeleteBuffers(1, &o.ebo);
-            if (o.volume_tex) glDeleteTextures(1, &o.volume_tex);
-            if (o.colormap_tex) glDeleteTextures(1, &o.colormap_tex);
-        }
+        for (auto &o : objects) release(o);
         objects.clear();
     }
 
@@ -1179,26 +1204,8 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
     const double dist = glm::length(to_dvec3(view.eye) - to_dvec3(view.target));
     const double px_mm = 2.0 * dist * std::tan(glm::radians(view.fov_deg) / 2) / std::max(settings.height, 1);
     const double tol = settings.lod_pixels > 0 ? settings.lod_pixels * px_mm : 0.0;
-    for (std::size_t i = 0; i < I.scene.objects.size(); ++i) {
-        const Object &o = I.scene.objects[i];
-        GpuObject g;
-        g.index = i;
-        if (o.kind == HZ_DATA_STREAMLINES) {
-            g.geom = o.render == "tubes" ? Geom::Tube : Geom::Line;
-            I.upload_streamlines(g, o, tol);
-            I.resolve_material(g, o, o.material);
-        } else if (o.kind == HZ_DATA_MESH) {
-            g.geom = Geom::Mesh;
-            I.upload_mesh(g, o);
-            I.resolve_material(g, o, o.material);
-        } else if (o.kind == HZ_DATA_VOLUME) {
-            g.slices = true;
-            I.upload_slices(g, o);
-        } else {
-            throw Error(o.name + ": nothing to draw for this kind of data");
-        }
-        I.objects.push_back(std::move(g));
-    }
+    I.tol_mm = tol;
+    for (std::size_t i = 0; i < I.scene.objects.size(); ++i) I.objects.push_back(I.upload(i));
     if (I.settings.samples <= 0) {
         std::uint64_t segments = 0;
         for (const auto &g : I.objects) segments += g.segments;
@@ -1219,6 +1226,20 @@ void Renderer::set_material(std::size_t object, const Material &m) {
             return;
         }
     throw Error("object " + std::to_string(object) + " has no material");
+}
+
+void Renderer::replace_object(std::size_t i, Object o) {
+    Impl &I = *impl_;
+    if (i >= I.scene.objects.size()) throw Error("no object " + std::to_string(i));
+    if (o.kind != I.scene.objects[i].kind) throw Error(o.name + ": replace_object cannot change the kind of data");
+    I.scene.objects[i] = std::move(o);
+    for (auto &g : I.objects)
+        if (g.index == i) {
+            GpuObject fresh = I.upload(i);
+            I.release(g);
+            g = std::move(fresh);
+            return;
+        }
 }
 
 void Renderer::set_interacting(bool on) { impl_->interacting = on; }

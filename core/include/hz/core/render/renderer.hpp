@@ -75,6 +75,9 @@ public:
     // compiles the new program if needed. Throws Error.
     void set_material(std::size_t object, const Material &m);
     void set_visible(std::size_t object, bool visible);
+    // Replaces object `i` (same kind) with new data, colouring and material,
+    // re-uploading only that object. Throws Error.
+    void replace_object(std::size_t i, Object o);
     void set_exposure(double exposure);
     // While interacting, objects with a level-of-detail proxy are replaced
     // by it (Object::proxy_for).
