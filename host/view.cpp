@@ -179,6 +179,17 @@ public:
         }
         t.offsets[K] = K * P;
         t.arrays.push_back(std::move(sizes));
+        core::DataArray ids;  // keeps each cluster's colour while others are expanded or hidden
+        ids.name = "cluster_id";
+        ids.attach = HZ_ATTACH_STREAMLINE;
+        ids.dtype = HZ_DTYPE_F32;
+        ids.count = K;
+        ids.bytes = core::Buffer<std::byte>(K * 4);
+        for (std::uint64_t i = 0; i < K; ++i) {
+            const float id = float(shown_[i]);
+            std::memcpy(ids.bytes.data() + 4 * i, &id, 4);
+        }
+        t.arrays.push_back(std::move(ids));
         o.render = "tubes";
         o.radius_mm = 1.0;
         o.clustering = core::render::ClusterSpec{};

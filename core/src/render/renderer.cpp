@@ -710,6 +710,12 @@ struct Renderer::Impl {
             (a->attach == HZ_ATTACH_VERTEX ? per_vertex : per_streamline) = array_values(*a);
             range = c.range ? *c.range : finite_range(a->attach == HZ_ATTACH_VERTEX ? per_vertex : per_streamline);
         }
+        // Cluster colours: by a per-streamline "cluster_id" when present (stable
+        // while clusters are expanded or hidden), else by position.
+        std::vector<double> cluster_ids;
+        if (c.mode == "cluster")
+            for (const auto &x : t.arrays)
+                if (x.name == "cluster_id" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) cluster_ids = array_values(x);
         std::vector<float> radius(N, float(o.radius_mm));
         if (o.clustering && o.clustering->width_by_size) {
             for (const auto &x : t.arrays)
@@ -746,7 +752,8 @@ struct Renderer::Impl {
             stats.points_kept += keep.size();
             std::array<std::uint8_t, 4> cluster_col{};
             if (c.mode == "cluster") {
-                const double hue = std::fmod(s * 0.618033988749895, 1.0);
+                const double key = cluster_ids.empty() ? double(s) : cluster_ids[s];
+                const double hue = std::fmod(key * 0.618033988749895, 1.0);
                 const double h6 = hue * 6, x = 1 - std::abs(std::fmod(h6, 2.0) - 1);
                 double r = 0, gg = 0, bb = 0;
                 switch (int(h6)) {
