@@ -91,6 +91,15 @@ bool have_display();
 int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o);
 std::pair<int, int> parse_size(const std::string &s);
 int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o);
+// GPU equals CPU for one shading plugin of `reg` (needs a current GL context).
+struct ShaderGpuResult {
+    int sets = 0;
+    std::uint64_t pixels = 0, failures = 0, nonfinite = 0, negative = 0;
+    double max_rel = 0, max_err_over_tol = 0;
+    bool ok = false;
+};
+ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPlugin *plugin, const ShaderCheckOptions &o,
+                                 std::uint64_t seed);
 
 // Renders `scene` headlessly to o.out (PNG through the images plugin).
 int render_scene(const core::Registry &reg, core::render::Scene scene, const RenderOptions &o);

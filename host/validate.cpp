@@ -4,6 +4,8 @@
 // result instead of taking the validator down.
 #include "commands.hpp"
 
+#include <hz/core/render/context.hpp>
+
 #include <hz/core/data.hpp>
 #include <hz/core/io.hpp>
 #include <hz/core/phantom.hpp>
@@ -848,6 +850,32 @@ std::vector<Check> catalogue() {
                              }
                      }
                      return pass(std::to_string(evaluated) + " evaluations");
+                 }});
+    c.push_back({"shader-gpu-equals-cpu", HZ_KIND_SHADER, "the host's programs built from the GLSL equal the CPU reference pixel by pixel (headless OpenGL; see `horizon shader-check`)", [](const Ctx &x) {
+                     std::unique_ptr<core::render::GlContext> gl;
+                     try {
+                         gl = core::render::make_headless_context();
+                     } catch (const std::exception &e) {
+                         return skip(std::string("no headless OpenGL here: ") + e.what());
+                     }
+                     core::Registry reg(core::Registry::Options{false, 10.0});
+                     reg.add_module(x.module);
+                     const core::LoadedPlugin *p = reg.find(x.plugin.id);
+                     if (p == nullptr || p->shader() == nullptr) return fail("the shader interface does not resolve");
+                     ShaderCheckOptions o;
+                     o.sets = 4;
+                     o.size = 96;
+                     try {
+                         const ShaderGpuResult r = check_shader_gpu(reg, p, o, x.opts.seed);
+                         if (r.pixels == 0) return fail("nothing was drawn");
+                         if (!r.ok)
+                             return fail(std::to_string(r.failures) + " of " + std::to_string(r.pixels) + " pixels differ beyond tolerance (" +
+                                         std::to_string(r.nonfinite) + " NaN/Inf, " + std::to_string(r.negative) + " negative); max error/tolerance " +
+                                         std::to_string(r.max_err_over_tol));
+                         return pass(std::to_string(r.pixels) + " pixels, max error/tolerance " + std::to_string(r.max_err_over_tol));
+                     } catch (const std::exception &e) {
+                         return fail(e.what());  // e.g. the GLSL does not compile, with the compiler's line
+                     }
                  }});
     c.push_back({"shader-reference-reciprocity", HZ_KIND_SHADER, "f(l, v) == f(v, l) when the plugin claims reciprocity", [](const Ctx &x) {
                      const hz_shader &s = shader_of(x);

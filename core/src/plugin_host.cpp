@@ -449,6 +449,16 @@ void Registry::add_file(const fs::path &file) {
     }
 }
 
+void Registry::add_module(const Module &m) {
+    for (auto &p : m.plugins()) {
+        if (find(p.id)) continue;
+        LoadedPlugin lp;
+        lp.iface = m.interface(p.id, core_interface(p.kind));
+        lp.info = std::move(p);
+        plugins_.push_back(std::move(lp));
+    }
+}
+
 const LoadedPlugin *Registry::find(const std::string &id) const {
     for (const auto &p : plugins_)
         if (p.info.id == id) return &p;

@@ -54,6 +54,17 @@ class ValidateTest(TempDirTest):
         self.assertEqual(text.returncode, 1)
         self.assertIn("failed   shader-schema-wellformed", text.stdout)
 
+    def test_gpu_must_equal_cpu(self):
+        # The valid fixture passes the pixel comparison; one whose GLSL is a
+        # different function than its CPU reference fails exactly that check.
+        rc, rep = self.validate(os.path.join(FIXTURES, "fx_valid.so"))
+        self.assertEqual(checks(rep)["shader-gpu-equals-cpu"]["status"], "passed", rep)
+        rc, rep = self.validate(os.path.join(FIXTURES, "fx_gpu_mismatch.so"))
+        self.assertEqual(rc, 1)
+        failed = [c["check"] for c in rep["checks"] if c["status"] == "failed"]
+        self.assertEqual(failed, ["shader-gpu-equals-cpu"])
+        self.assertIn("pixels differ", checks(rep)["shader-gpu-equals-cpu"]["reason"])
+
     def test_extra_exports_are_reported(self):
         rc, rep = self.validate(os.path.join(FIXTURES, "fx_extra_export.so"))
         self.assertEqual(rc, 1)

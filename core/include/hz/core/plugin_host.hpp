@@ -127,6 +127,9 @@ public:
     void scan(const std::vector<fs::path> &dirs);
     // Loads one file (used by scan and by tests).
     void add_file(const fs::path &file);
+    // Registers the plugins of a module the caller already loaded and keeps
+    // alive for the registry's lifetime (`horizon validate`).
+    void add_module(const Module &m);
 
     const std::vector<LoadedPlugin> &plugins() const { return plugins_; }
     const std::vector<Rejection> &rejected() const { return rejected_; }
