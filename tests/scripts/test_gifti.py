@@ -3,13 +3,14 @@ both index orders, overlays; malformed files fail cleanly."""
 import base64
 import gzip
 import os
+import subprocess
 import zlib
 
 import nibabel as nib
 import numpy as np
 from nibabel.gifti import GiftiDataArray, GiftiImage
 
-from hztest import TempDirTest, run, run_json
+from hztest import HORIZON, TempDirTest, run, run_json
 
 NIB_DATA = os.path.join(os.path.dirname(nib.__file__), "gifti", "tests", "data")
 
@@ -113,13 +114,35 @@ class GiftiTest(TempDirTest):
             "missing_external.gii": text.replace('Encoding="Base64Binary"', 'Encoding="ExternalFileBinary"', 1).replace(
                 'ExternalFileName=""', 'ExternalFileName="nowhere.dat"', 1),
             "no_triangles.gii": self.write_only_points(v),
+            # Declared sizes far beyond what the file holds: rejected before
+            # any allocation of that size (found by fuzzing: a 600-byte file
+            # asked for 2.4 GB).
+            "huge_dims_ascii.gii": self.write_ascii_points(v).replace('Dim0="10"', 'Dim0="299999999"', 1),
+            "huge_dims_gzip.gii": text.replace('Encoding="Base64Binary"', 'Encoding="GZipBase64Binary"', 1).replace(
+                'Dim0="10"', 'Dim0="2000000000"', 1),
+            "huge_dims_external.gii": text.replace('Encoding="Base64Binary"', 'Encoding="ExternalFileBinary"', 1).replace(
+                'ExternalFileName=""', 'ExternalFileName="small.dat"', 1).replace('Dim0="10"', 'Dim0="2000000000"', 1),
         }
+        with open(self.path("small.dat"), "wb") as fh:
+            fh.write(v.tobytes())
         for name, content in cases.items():
             with self.subTest(case=name):
                 path = self.path(name)
                 with open(path, "w") as fh:
                     fh.write(content)
-                self.assert_clean_error(run("info", path, timeout=10), name)
+                p = subprocess.run(["/usr/bin/time", "-f", "%M", HORIZON, "info", path], capture_output=True, text=True, timeout=10,
+                                   env={**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"})
+                lines = p.stderr.strip().splitlines()
+                self.assertLess(int(lines[-1]), 300_000, f"{name}: peak RSS {lines[-1]} KB")
+                p.stderr = "\n".join(l for l in lines[:-1] if not l.startswith("Command exited")) + "\n"
+                self.assert_clean_error(p, name)
+
+    def write_ascii_points(self, v):
+        p = self.path("ascii_src.gii")
+        nib.save(GiftiImage(darrays=[GiftiDataArray(v, intent="NIFTI_INTENT_POINTSET", datatype="NIFTI_TYPE_FLOAT32",
+                                                    encoding="ASCII")]), p)
+        with open(p) as fh:
+            return fh.read()
 
     def write_only_points(self, v):
         p = self.path("points_only_src.gii")

@@ -136,8 +136,9 @@ Array read_array(const pugi::xml_node &da, std::size_t index, const fs::path &di
     };
     a.rows = dim(0);
     a.cols = ndim == 2 ? dim(1) : 1;
-    const std::uint64_t n = a.rows * a.cols;
+    const std::uint64_t n = a.rows * a.cols;  // each <= 2^31: no overflow
     const std::size_t es = dt_size(a.dtype);
+    if (n > (std::uint64_t(1) << 40) / std::max<std::size_t>(es, 1)) throw FormatError(at + ": Dims declare more than 2^40 bytes");
     std::string enc = da.attribute("Encoding").as_string();
     if (enc == "GIFTI_ENCODING_ASCII") enc = "ASCII";
     if (enc == "GIFTI_ENCODING_B64BIN") enc = "Base64Binary";
@@ -158,9 +159,16 @@ Array read_array(const pugi::xml_node &da, std::size_t index, const fs::path &di
         a.data_space = m.child_value("DataSpace");
         a.transformed_space = m.child_value("TransformedSpace");
     }
+    // Every size is checked against what the file holds before anything of
+    // size n is allocated (a few bytes must not ask for gigabytes).
     const char *text = da.child_value("Data");
-    std::vector<double> raw(n);
+    const std::size_t text_len = std::strlen(text);
+    std::vector<double> raw;
     if (enc == "ASCII") {
+        if (n > text_len / 2 + 1)
+            throw FormatError(at + ": Dims require " + std::to_string(n) + " numbers; the ASCII data has room for at most " +
+                              std::to_string(text_len / 2 + 1));
+        raw.resize(n);
         const char *p = text;
         for (std::uint64_t i = 0; i < n; ++i) {
             char *end = nullptr;
@@ -171,8 +179,12 @@ Array read_array(const pugi::xml_node &da, std::size_t index, const fs::path &di
     } else {
         std::vector<unsigned char> bytes;
         if (enc == "Base64Binary" || enc == "GZipBase64Binary") {
-            bytes = base64_decode(text, std::strlen(text));
+            bytes = base64_decode(text, text_len);
             if (enc == "GZipBase64Binary") {
+                // zlib expands at most 1032:1.
+                if (n * es > 1032 * std::uint64_t(bytes.size()) + 64)
+                    throw FormatError(at + ": Dims declare " + std::to_string(n * es) + " bytes; " + std::to_string(bytes.size()) +
+                                      " compressed bytes cannot hold them");
                 std::vector<unsigned char> out(n * es);
                 uLongf len = static_cast<uLongf>(out.size());
                 const int rc = uncompress(out.data(), &len, bytes.data(), static_cast<uLong>(bytes.size()));
@@ -188,6 +200,12 @@ Array read_array(const pugi::xml_node &da, std::size_t index, const fs::path &di
             const long long off = da.attribute("ExternalFileOffset").as_llong(0);
             if (name.empty() || off < 0) throw FormatError(at + ": ExternalFileBinary without a file name or with a negative offset");
             const fs::path ext = fs::path(name).is_absolute() ? fs::path(name) : dir / name;
+            std::error_code ec;
+            const std::uint64_t size = fs::file_size(ext, ec);
+            if (ec) throw FormatError(at + ": external file " + ext.string() + " cannot be opened");
+            if (std::uint64_t(off) > size || n * es > size - std::uint64_t(off))
+                throw FormatError(at + ": external file " + ext.string() + " holds " + std::to_string(size) + " bytes, Dims require " +
+                                  std::to_string(n * es) + " from offset " + std::to_string(off));
             std::ifstream in(ext, std::ios::binary);
             if (!in) throw FormatError(at + ": external file " + ext.string() + " cannot be opened");
             in.seekg(off);
@@ -199,6 +217,7 @@ Array read_array(const pugi::xml_node &da, std::size_t index, const fs::path &di
         }
         if (bytes.size() != n * es)
             throw FormatError(at + ": decoded " + std::to_string(bytes.size()) + " bytes, Dims and DataType require " + std::to_string(n * es));
+        raw.resize(n);
         for (std::uint64_t i = 0; i < n; ++i) raw[i] = load(bytes.data() + i * es, a.dtype, swap);
     }
     // Binary data stored column by column is transposed to rows. ASCII text is
