@@ -122,6 +122,11 @@ class GiftiTest(TempDirTest):
                 'Dim0="10"', 'Dim0="2000000000"', 1),
             "huge_dims_external.gii": text.replace('Encoding="Base64Binary"', 'Encoding="ExternalFileBinary"', 1).replace(
                 'ExternalFileName=""', 'ExternalFileName="small.dat"', 1).replace('Dim0="10"', 'Dim0="2000000000"', 1),
+            # A face index far outside any integer type (found by fuzzing: UB in the message).
+            "huge_face_index.gii": text.replace('Encoding="Base64Binary"', 'Encoding="ASCII"').replace(
+                b64_v, " ".join(map(str, v.ravel())), 1).replace(base64.b64encode(f.tobytes()).decode(),
+                                                                  "4.4e109 " + " ".join(map(str, f.ravel()[1:])), 1).replace(
+                'DataType="NIFTI_TYPE_INT32"', 'DataType="NIFTI_TYPE_FLOAT64"', 1),
         }
         with open(self.path("small.dat"), "wb") as fh:
             fh.write(v.tobytes())

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -116,6 +117,13 @@ struct Array {
     bool has_transform = false;
     std::string data_space, transformed_space;
 };
+
+// A value for a message, without converting out-of-range doubles to integers.
+std::string fmt_number(double x) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.17g", x);
+    return buf;
+}
 
 Array read_array(const pugi::xml_node &da, std::size_t index, const fs::path &dir) {
     Array a;
@@ -276,8 +284,8 @@ Surface read(const std::string &path) {
     for (std::size_t k = 0; k < s.faces.size(); ++k) {
         const double f = tris->values[k];
         if (!(f >= 0 && f < double(nv)) || f != std::floor(f))
-            throw FormatError("triangle " + std::to_string(k / 3) + " uses vertex " + std::to_string(static_cast<long long>(f)) +
-                              ", outside [0, " + std::to_string(nv) + ")");
+            throw FormatError("triangle " + std::to_string(k / 3) + " uses vertex " + fmt_number(f) + ", outside [0, " +
+                              std::to_string(nv) + ")");
         s.faces[k] = static_cast<std::uint32_t>(f);
     }
     if (points->has_transform) {
