@@ -72,10 +72,7 @@ public:
         if (display_ != EGL_NO_DISPLAY) {
             eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
             if (context_ != EGL_NO_CONTEXT) eglDestroyContext(display_, context_);
-            // No eglTerminate(): the display is shared per process and Mesa
-            // would unload its driver, after which leak reports of the
-            // driver's own allocations cannot be attributed (and suppressed,
-            // tests/lsan.supp) by module.
+            eglTerminate(display_);
         }
     }
     void make_current() override {
