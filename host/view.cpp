@@ -10,8 +10,6 @@
 #include <hz/core/io.hpp>
 #include <hz/core/render/renderer.hpp>
 
-#define GL_GLEXT_PROTOTYPES 1
-#include <GL/glcorearb.h>
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
 #include <imgui.h>
@@ -115,16 +113,12 @@ struct App {
 class Explorer {
 public:
     Explorer(const core::Registry &reg, core::Tractogram all, std::string name) : reg_(reg), all_(std::move(all)), name_(std::move(name)) {
-        std::vector<std::uint64_t> every(all_.nb_streamlines());
-        for (std::uint64_t i = 0; i < every.size(); ++i) every[i] = i;
-        cluster(every);
+        reset();
     }
     // Clusters shown, largest first (the panel's and the script's numbering).
     const std::vector<std::uint64_t> &shown() const { return shown_; }
-    std::uint64_t size(std::uint64_t node) const { return member_off_[node + 1] - member_off_[node]; }
-    std::uint32_t level(std::uint64_t node) const { return level_[node]; }
-    std::uint32_t nb_levels() const { return nb_levels_; }
-    std::uint64_t expanded_streamlines() const { return expanded_.size(); }
+    std::uint64_t size(std::uint64_t node) const { return tree_.size(node); }
+    std::uint32_t level(std::uint64_t node) const { return tree_.level[node]; }
     std::string summary() const {
         return std::to_string(shown_.size()) + " clusters, " + std::to_string(expanded_.size()) + " streamlines expanded, " +
                std::to_string(rounds_) + " clustering round(s)";
@@ -133,11 +127,12 @@ public:
     void expand(std::size_t rank) {
         const std::uint64_t node = at(rank);
         std::erase(shown_, node);
-        if (level_[node] < nb_levels_) {
-            for (std::uint64_t k = 0; k < parent_.size(); ++k)
-                if (parent_[k] == std::int64_t(node)) shown_.push_back(k);
+        if (tree_.level[node] < tree_.nb_levels) {
+            for (std::uint64_t k = 0; k < tree_.parent.size(); ++k)
+                if (tree_.parent[k] == std::int64_t(node)) shown_.push_back(k);
         } else {
-            for (std::uint64_t m = member_off_[node]; m < member_off_[node + 1]; ++m) expanded_.push_back(subset_[members_[m]]);
+            for (std::uint64_t m = tree_.member_offsets[node]; m < tree_.member_offsets[node + 1]; ++m)
+                expanded_.push_back(subset_[tree_.members[m]]);
         }
         sort();
     }
@@ -145,16 +140,16 @@ public:
     void repeat() {
         std::vector<std::uint64_t> keep = expanded_;
         for (std::uint64_t node : shown_)
-            for (std::uint64_t m = member_off_[node]; m < member_off_[node + 1]; ++m) keep.push_back(subset_[members_[m]]);
+            for (std::uint64_t m = tree_.member_offsets[node]; m < tree_.member_offsets[node + 1]; ++m) keep.push_back(subset_[tree_.members[m]]);
         std::sort(keep.begin(), keep.end());
         keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
         if (keep.empty()) throw core::Error("nothing is shown to cluster again");
-        cluster(keep);
+        cluster(std::move(keep));
     }
     void reset() {
         std::vector<std::uint64_t> every(all_.nb_streamlines());
         for (std::uint64_t i = 0; i < every.size(); ++i) every[i] = i;
-        cluster(every);
+        cluster(std::move(every));
     }
 
     core::render::Object centroids_object() const {
@@ -162,34 +157,19 @@ public:
         o.name = name_ + ": QuickBundlesX centroids";
         o.kind = o.data.kind = HZ_DATA_STREAMLINES;
         core::Tractogram &t = o.data.tractogram;
-        const std::uint64_t K = shown_.size(), P = nb_points_;
+        const std::uint64_t K = shown_.size(), P = tree_.nb_points;
         t.positions = core::Buffer<float>(K * P * 3);
         t.offsets = core::Buffer<std::uint64_t>(K + 1);
-        core::DataArray sizes;
-        sizes.name = "cluster_size";
-        sizes.attach = HZ_ATTACH_STREAMLINE;
-        sizes.dtype = HZ_DTYPE_F32;
-        sizes.count = K;
-        sizes.bytes = core::Buffer<std::byte>(K * 4);
+        std::vector<float> sizes(K), ids(K);  // ids keep each cluster's colour while others change
         for (std::uint64_t i = 0; i < K; ++i) {
-            std::copy_n(centroids_.data() + shown_[i] * P * 3, P * 3, t.positions.data() + i * P * 3);
+            std::copy_n(tree_.centroids.data() + shown_[i] * P * 3, P * 3, t.positions.data() + i * P * 3);
             t.offsets[i] = i * P;
-            const float sz = float(size(shown_[i]));
-            std::memcpy(sizes.bytes.data() + 4 * i, &sz, 4);
+            sizes[i] = float(size(shown_[i]));
+            ids[i] = float(shown_[i]);
         }
         t.offsets[K] = K * P;
-        t.arrays.push_back(std::move(sizes));
-        core::DataArray ids;  // keeps each cluster's colour while others are expanded or hidden
-        ids.name = "cluster_id";
-        ids.attach = HZ_ATTACH_STREAMLINE;
-        ids.dtype = HZ_DTYPE_F32;
-        ids.count = K;
-        ids.bytes = core::Buffer<std::byte>(K * 4);
-        for (std::uint64_t i = 0; i < K; ++i) {
-            const float id = float(shown_[i]);
-            std::memcpy(ids.bytes.data() + 4 * i, &id, 4);
-        }
-        t.arrays.push_back(std::move(ids));
+        t.arrays.push_back(core::f32_array("cluster_size", HZ_ATTACH_STREAMLINE, sizes));
+        t.arrays.push_back(core::f32_array("cluster_id", HZ_ATTACH_STREAMLINE, ids));
         o.render = "tubes";
         o.radius_mm = 1.0;
         o.clustering = core::render::ClusterSpec{};
@@ -200,19 +180,7 @@ public:
         core::render::Object o;
         o.name = name_ + ": expanded streamlines";
         o.kind = o.data.kind = HZ_DATA_STREAMLINES;
-        core::Tractogram &t = o.data.tractogram;
-        std::uint64_t nv = 0;
-        for (std::uint64_t s : expanded_) nv += all_.offsets[s + 1] - all_.offsets[s];
-        t.positions = core::Buffer<float>(nv * 3);
-        t.offsets = core::Buffer<std::uint64_t>(expanded_.size() + 1);
-        std::uint64_t v = 0;
-        for (std::size_t i = 0; i < expanded_.size(); ++i) {
-            const std::uint64_t b = all_.offsets[expanded_[i]], e = all_.offsets[expanded_[i] + 1];
-            t.offsets[i] = v;
-            std::copy(all_.positions.data() + b * 3, all_.positions.data() + e * 3, t.positions.data() + v * 3);
-            v += e - b;
-        }
-        t.offsets[expanded_.size()] = v;
+        o.data.tractogram = core::select_streamlines(all_, expanded_);
         o.render = "lines";
         o.coloring.mode = "direction";
         return o;
@@ -228,52 +196,13 @@ private:
     }
     // QuickBundlesX (fast mode) over the streamlines `subset` of all_;
     // shows the first level.
-    void cluster(const std::vector<std::uint64_t> &subset) {
-        core::Tractogram t;
-        std::uint64_t nv = 0;
-        for (std::uint64_t s : subset) nv += all_.offsets[s + 1] - all_.offsets[s];
-        t.positions = core::Buffer<float>(nv * 3);
-        t.offsets = core::Buffer<std::uint64_t>(subset.size() + 1);
-        std::uint64_t v = 0;
-        for (std::size_t i = 0; i < subset.size(); ++i) {
-            const std::uint64_t b = all_.offsets[subset[i]], e = all_.offsets[subset[i] + 1];
-            t.offsets[i] = v;
-            std::copy(all_.positions.data() + b * 3, all_.positions.data() + e * 3, t.positions.data() + v * 3);
-            v += e - b;
-        }
-        t.offsets[subset.size()] = v;
-        const core::LoadedPlugin *plugin = reg_.find("org.horizon.clustering.qbx");
-        if (!plugin) throw core::Error("the exploration needs the QuickBundlesX plugin (org.horizon.clustering.qbx)");
-        const hz_clustering *c = plugin->clustering();
-        hz_error err{};
-        err.struct_size = sizeof err;
-        hz_clusterer *obj = nullptr;
-        if (c->create(core::host_services(), &obj, &err) != HZ_OK) throw core::Error(err.message);
-        struct Guard {
-            const hz_clustering *c;
-            hz_clusterer *o;
-            ~Guard() { c->destroy(o); }
-        } guard{c, obj};
-        const double fast = 1.0;
-        c->set_param(obj, "mode", &fast, 1, &err);
-        const hz_streamlines_view view = t.view();
-        core::Task task;
-        if (c->run(obj, &view, nullptr, task.get(), &err) != HZ_OK) throw core::Error(err.message);
-        hz_cluster_tree_view tv{};
-        tv.struct_size = sizeof tv;
-        if (c->get_result(obj, &tv, &err) != HZ_OK) throw core::Error(err.message);
-        nb_levels_ = tv.nb_levels;
-        nb_points_ = tv.nb_points;
-        parent_.assign(tv.parent, tv.parent + tv.nb_nodes);
-        level_.assign(tv.level, tv.level + tv.nb_nodes);
-        centroids_.assign(tv.centroids, tv.centroids + tv.nb_nodes * tv.nb_points * 3);
-        member_off_.assign(tv.member_offsets, tv.member_offsets + tv.nb_nodes + 1);
-        members_.assign(tv.members, tv.members + member_off_.back());
-        subset_ = subset;
+    void cluster(std::vector<std::uint64_t> subset) {
+        tree_ = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), core::render::ClusterSpec{});
+        subset_ = std::move(subset);
         shown_.clear();
         expanded_.clear();
-        for (std::uint64_t k = 0; k < tv.nb_nodes; ++k)
-            if (level_[k] == 1) shown_.push_back(k);
+        for (std::uint64_t k = 0; k < tree_.level.size(); ++k)
+            if (tree_.level[k] == 1) shown_.push_back(k);
         sort();
         ++rounds_;
     }
@@ -281,11 +210,8 @@ private:
     const core::Registry &reg_;
     core::Tractogram all_;
     std::string name_;
-    std::uint32_t nb_levels_ = 0, nb_points_ = 0;
-    std::vector<std::int64_t> parent_;
-    std::vector<std::uint32_t> level_;
-    std::vector<float> centroids_;
-    std::vector<std::uint64_t> member_off_, members_, subset_, shown_, expanded_;
+    core::render::ClusterTree tree_;
+    std::vector<std::uint64_t> subset_, shown_, expanded_;
     int rounds_ = 0;
 };
 
@@ -396,18 +322,8 @@ bool material_controls(const core::Registry &reg, const core::render::Object &o,
     return changed;
 }
 
-void save_screenshot(const core::Registry &reg, const std::string &path, int w, int h) {
-    core::render::Image im;
-    im.width = w, im.height = h;
-    std::vector<std::uint8_t> tmp(std::size_t(w) * h * 4);
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
-    glReadBuffer(GL_BACK);
-    glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, tmp.data());
-    im.rgba.resize(tmp.size());
-    const std::size_t row = std::size_t(w) * 4;
-    for (int y = 0; y < h; ++y) std::memcpy(&im.rgba[y * row], &tmp[(h - 1 - y) * row], row);
-    write_image(reg, im, path);
+void save_screenshot(const core::Registry &reg, core::render::Renderer &r, const std::string &path, int w, int h) {
+    write_image(reg, r.read_window_image(w, h), path);
     std::printf("screenshot: %s\n", path.c_str());
     std::fflush(stdout);
 }
@@ -612,7 +528,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             r.set_interacting(moving);
             r.render_to_window(app.orbit.view(app.radius), fw, fh);
             if (!app.pending_shot.empty()) {
-                save_screenshot(reg, app.pending_shot, fw, fh);
+                save_screenshot(reg, r, app.pending_shot, fw, fh);
                 app.pending_shot.clear();
             }
 

@@ -1,6 +1,9 @@
 #include <hz/core/data.hpp>
 
 #include <algorithm>
+#include <cstring>
+
+#include <algorithm>
 #include <cmath>
 
 namespace hz::core {
@@ -34,6 +37,36 @@ const char *dtype_name(hz_dtype t) {
     case HZ_DTYPE_RGBA8: return "rgba8";
     default: return "unknown";
     }
+}
+
+DataArray f32_array(std::string name, hz_attach attach, const std::vector<float> &values) {
+    DataArray a;
+    a.name = std::move(name);
+    a.attach = attach;
+    a.dtype = HZ_DTYPE_F32;
+    a.count = values.size();
+    a.bytes = Buffer<std::byte>(values.size() * 4);
+    if (!values.empty()) std::memcpy(a.bytes.data(), values.data(), values.size() * 4);
+    return a;
+}
+
+Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids) {
+    Tractogram out;
+    std::uint64_t nv = 0;
+    for (std::uint64_t s : ids) nv += t.offsets[s + 1] - t.offsets[s];
+    out.positions = Buffer<float>(nv * 3);
+    out.offsets = Buffer<std::uint64_t>(ids.size() + 1);
+    std::uint64_t v = 0;
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+        const std::uint64_t b = t.offsets[ids[i]], e = t.offsets[ids[i] + 1];
+        out.offsets[i] = v;
+        std::copy(t.positions.data() + b * 3, t.positions.data() + e * 3, out.positions.data() + v * 3);
+        v += e - b;
+    }
+    out.offsets[ids.size()] = v;
+    out.reference = t.reference;
+    out.reference_dims = t.reference_dims;
+    return out;
 }
 
 const char *kind_name(hz_data_kind k) {

@@ -68,14 +68,13 @@ std::array<std::uint8_t, 4> rgba8(double r, double g, double b, double a = 1.0) 
     return {q(r), q(g), q(b), q(a)};
 }
 
-// Values of a named array as doubles (any dtype, first component).
-std::vector<double> array_values(const DataArray &a) {
-    std::vector<double> out(a.count);
-    const std::size_t es = dtype_size(a.dtype), stride = es * a.components;
-    for (std::uint64_t i = 0; i < a.count; ++i) {
-        const std::byte *p = a.bytes.data() + i * stride;
+// `count` values of type `dtype`, `stride` bytes apart, as doubles.
+std::vector<double> values_of(const std::byte *data, hz_dtype dtype, std::uint64_t count, std::size_t stride) {
+    std::vector<double> out(count);
+    for (std::uint64_t i = 0; i < count; ++i) {
+        const std::byte *p = data + i * stride;
         double v = 0;
-        switch (a.dtype) {
+        switch (dtype) {
         case HZ_DTYPE_U8: v = *reinterpret_cast<const std::uint8_t *>(p); break;
         case HZ_DTYPE_I8: v = *reinterpret_cast<const std::int8_t *>(p); break;
         case HZ_DTYPE_U16: { std::uint16_t x; std::memcpy(&x, p, 2); v = x; break; }
@@ -91,6 +90,11 @@ std::vector<double> array_values(const DataArray &a) {
         out[i] = v;
     }
     return out;
+}
+
+// Values of a named array as doubles (any dtype, first component).
+std::vector<double> array_values(const DataArray &a) {
+    return values_of(a.bytes.data(), a.dtype, a.count, dtype_size(a.dtype) * a.components);
 }
 
 std::array<double, 2> finite_range(const std::vector<double> &v) {
@@ -476,15 +480,7 @@ struct Renderer::Impl {
         if (im.dims.size() != 3 || im.dims[0] < 1 || im.dims[0] > 4) throw Error(path + ": environment: unsupported image layout");
         const std::uint64_t c = im.dims[0], w = im.dims[1], h = im.dims[2];
         std::vector<float> rgba(w * h * 4, 1.0f);
-        const std::vector<double> vals = [&] {
-            DataArray a;
-            a.dtype = im.dtype;
-            a.components = 1;
-            a.count = c * w * h;
-            a.bytes = Buffer<std::byte>(im.voxels.size());
-            std::memcpy(a.bytes.data(), im.voxels.data(), im.voxels.size());
-            return array_values(a);
-        }();
+        const std::vector<double> vals = values_of(im.voxels.data(), im.dtype, c * w * h, dtype_size(im.dtype));
         const double scale = im.dtype == HZ_DTYPE_U8 ? 1.0 / 255 : im.dtype == HZ_DTYPE_U16 ? 1.0 / 65535 : 1.0;
         const bool srgb = im.dtype == HZ_DTYPE_U8 || im.dtype == HZ_DTYPE_U16;
         for (std::uint64_t i = 0; i < w * h; ++i)
@@ -881,14 +877,8 @@ struct Renderer::Impl {
         const std::uint64_t X = v.dims[0], Y = v.dims[1], Z = v.dims[2];
         if (X > std::uint64_t(max3d) || Y > std::uint64_t(max3d) || Z > std::uint64_t(max3d))
             throw Error(o.name + ": volume larger than the GL 3D texture limit " + std::to_string(max3d));
-        // First 3D volume, scaled to float.
-        DataArray a;
-        a.dtype = v.dtype;
-        a.components = 1;
-        a.count = X * Y * Z;
-        a.bytes = Buffer<std::byte>(a.count * dtype_size(v.dtype));
-        std::memcpy(a.bytes.data(), v.voxels.data(), a.bytes.size());
-        std::vector<double> vals = array_values(a);
+        // First 3D volume, scaled to float (read in place, no copy of the voxels).
+        const std::vector<double> vals = values_of(v.voxels.data(), v.dtype, X * Y * Z, dtype_size(v.dtype));
         std::vector<float> f(vals.size());
         for (std::size_t i = 0; i < vals.size(); ++i) f[i] = float(vals[i] * v.scale_slope + v.scale_inter);
         glGenTextures(1, &g.volume_tex);
@@ -1344,20 +1334,34 @@ void Renderer::render_to_window(const View &view, int width, int height) {
     I.stats.draw_ms = ms_since(t0);
 }
 
+namespace {
+// RGBA8 pixels of the bound read framebuffer, rows flipped to top-first.
+Image read_pixels(int w, int h) {
+    Image im;
+    im.width = w, im.height = h;
+    im.rgba.resize(std::size_t(w) * h * 4);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    std::vector<std::uint8_t> tmp(im.rgba.size());
+    glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, tmp.data());
+    const std::size_t row = std::size_t(w) * 4;
+    for (int y = 0; y < h; ++y) std::memcpy(&im.rgba[y * row], &tmp[(h - 1 - y) * row], row);
+    return im;
+}
+}  // namespace
+
 Image Renderer::read_image() {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
-    Image im;
-    im.width = I.ldr.width, im.height = I.ldr.height;
-    im.rgba.resize(std::size_t(im.width) * im.height * 4);
     glBindFramebuffer(GL_READ_FRAMEBUFFER, I.ldr.fbo);
-    glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    std::vector<std::uint8_t> tmp(im.rgba.size());
-    glReadPixels(0, 0, im.width, im.height, GL_RGBA, GL_UNSIGNED_BYTE, tmp.data());
-    const std::size_t row = std::size_t(im.width) * 4;
-    for (int y = 0; y < im.height; ++y) std::memcpy(&im.rgba[y * row], &tmp[(im.height - 1 - y) * row], row);
+    Image im = read_pixels(I.ldr.width, I.ldr.height);
     I.stats.readback_ms = ms_since(t0);
     return im;
+}
+
+Image Renderer::read_window_image(int width, int height) {
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+    glReadBuffer(GL_BACK);
+    return read_pixels(width, height);
 }
 
 std::array<FloatImage, 5> Renderer::render_debug(const View &view, int w, int h) {

@@ -415,17 +415,10 @@ Mesh make_cortex_mesh(int subdivisions) {
             for (int c = 0; c < 3; ++c) m.faces[(h * nf + k) * 3 + c] = static_cast<std::uint32_t>(h * nv + f[k][c]);
     }
     // Per-vertex "curvature-like" overlay for colormap demos.
-    DataArray a;
-    a.name = "sulc";
-    a.attach = HZ_ATTACH_VERTEX;
-    a.dtype = HZ_DTYPE_F32;
-    a.count = nv * 2;
-    a.bytes = Buffer<std::byte>(nv * 2 * 4);
-    for (std::size_t i = 0; i < nv * 2; ++i) {
-        const float g = static_cast<float>(gyri(m.vertices[i * 3], m.vertices[i * 3 + 1], m.vertices[i * 3 + 2]));
-        std::memcpy(a.bytes.data() + 4 * i, &g, 4);
-    }
-    m.arrays.push_back(std::move(a));
+    std::vector<float> sulc(nv * 2);
+    for (std::size_t i = 0; i < nv * 2; ++i)
+        sulc[i] = static_cast<float>(gyri(m.vertices[i * 3], m.vertices[i * 3 + 1], m.vertices[i * 3 + 2]));
+    m.arrays.push_back(f32_array("sulc", HZ_ATTACH_VERTEX, sulc));
     return m;
 }
 
@@ -458,7 +451,7 @@ Volume make_head_volume(double voxel_mm) {
     return vol;
 }
 
-Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const ClusterSpec &spec) {
+ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec) {
     const std::string id = "org.horizon.clustering." + spec.algorithm;
     const LoadedPlugin *plugin = reg.find(id);
     if (plugin == nullptr) throw Error("clustering plugin '" + id + "' not found (see `horizon plugins`)");
@@ -485,30 +478,37 @@ Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const Clu
     hz_cluster_tree_view v{};
     v.struct_size = sizeof v;
     if (c->get_result(obj, &v, &err) != HZ_OK) throw Error(id + ": " + err.message);
-    const std::uint32_t level = spec.level < 0 ? v.nb_levels : static_cast<std::uint32_t>(spec.level);
-    if (level < 1 || level > v.nb_levels)
-        throw Error("clustering.level " + std::to_string(spec.level) + ": the tree has levels 1.." + std::to_string(v.nb_levels));
+    ClusterTree tree;
+    tree.nb_levels = v.nb_levels;
+    tree.nb_points = v.nb_points;
+    tree.parent.assign(v.parent, v.parent + v.nb_nodes);
+    tree.level.assign(v.level, v.level + v.nb_nodes);
+    tree.centroids.assign(v.centroids, v.centroids + v.nb_nodes * v.nb_points * 3);
+    tree.member_offsets.assign(v.member_offsets, v.member_offsets + v.nb_nodes + 1);
+    tree.members.assign(v.members, v.members + tree.member_offsets.back());
+    return tree;
+}
+
+Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const ClusterSpec &spec) {
+    const ClusterTree tree = run_clustering(reg, t, spec);
+    const std::uint32_t level = spec.level < 0 ? tree.nb_levels : static_cast<std::uint32_t>(spec.level);
+    if (level < 1 || level > tree.nb_levels)
+        throw Error("clustering.level " + std::to_string(spec.level) + ": the tree has levels 1.." + std::to_string(tree.nb_levels));
     std::vector<std::uint64_t> nodes;
-    for (std::uint64_t k = 0; k < v.nb_nodes; ++k)
-        if (v.level[k] == level) nodes.push_back(k);
+    for (std::uint64_t k = 0; k < tree.level.size(); ++k)
+        if (tree.level[k] == level) nodes.push_back(k);
     Tractogram out;
-    const std::uint64_t K = nodes.size(), P = v.nb_points;
+    const std::uint64_t K = nodes.size(), P = tree.nb_points;
     out.positions = Buffer<float>(K * P * 3);
     out.offsets = Buffer<std::uint64_t>(K + 1);
-    DataArray sizes;
-    sizes.name = "cluster_size";
-    sizes.attach = HZ_ATTACH_STREAMLINE;
-    sizes.dtype = HZ_DTYPE_F32;
-    sizes.count = K;
-    sizes.bytes = Buffer<std::byte>(K * 4);
+    std::vector<float> sizes(K);
     for (std::uint64_t i = 0; i < K; ++i) {
-        std::copy_n(v.centroids + nodes[i] * P * 3, P * 3, out.positions.data() + i * P * 3);
+        std::copy_n(tree.centroids.data() + nodes[i] * P * 3, P * 3, out.positions.data() + i * P * 3);
         out.offsets[i] = i * P;
-        const float sz = static_cast<float>(v.member_offsets[nodes[i] + 1] - v.member_offsets[nodes[i]]);
-        std::memcpy(sizes.bytes.data() + 4 * i, &sz, 4);
+        sizes[i] = static_cast<float>(tree.size(nodes[i]));
     }
     out.offsets[K] = K * P;
-    out.arrays.push_back(std::move(sizes));
+    out.arrays.push_back(f32_array("cluster_size", HZ_ATTACH_STREAMLINE, sizes));
     out.reference = t.reference;
     out.reference_dims = t.reference_dims;
     return out;

@@ -63,6 +63,9 @@ struct DataArray {
     Buffer<std::byte> bytes;  // count x components x dtype_size, C order
 };
 
+// A one-component float32 array of `values`.
+DataArray f32_array(std::string name, hz_attach attach, const std::vector<float> &values);
+
 // Streamlines: positions (V x 3 float32, RAS+ mm) + offsets (N + 1, sentinel).
 struct Tractogram {
     Buffer<float> positions;
@@ -78,6 +81,9 @@ struct Tractogram {
     // finite positions); throws Error naming `what`.
     void validate(const std::string &what) const;
 };
+
+// The streamlines `ids` of `t`, in that order (positions only; indices < N).
+Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids);
 
 // Triangle mesh, RAS+ mm.
 struct Mesh {

@@ -93,6 +93,8 @@ public:
     void render_to_window(const View &view, int width, int height);
     // Reads the last offscreen frame.
     Image read_image();
+    // Reads the window's back buffer after render_to_window (screenshots).
+    Image read_window_image(int width, int height);
 
     // GPU-equals-CPU support: renders without tonemapping, MSAA or the
     // environment, lit by exactly one light, with the shading inputs as extra

@@ -123,6 +123,21 @@ Mesh make_cortex_mesh(int subdivisions = 5);
 Mesh make_sphere_mesh(double radius_mm, int nu, int nv);  // UV sphere at the origin   // two hemispheres around the phantom's box
 Volume make_head_volume(double voxel_mm = 2.0); // a T1-like synthetic volume, same frame
 
+// A clustering tree, copied out of the plugin (hz_cluster_tree_view).
+struct ClusterTree {
+    std::uint32_t nb_levels = 0, nb_points = 0;
+    std::vector<std::int64_t> parent;            // per node; -1 for the root
+    std::vector<std::uint32_t> level;            // per node; 0 for the root
+    std::vector<float> centroids;                // nodes x nb_points x 3
+    std::vector<std::uint64_t> member_offsets;   // nodes + 1
+    std::vector<std::uint64_t> members;          // streamline indices into the input
+    std::uint64_t size(std::uint64_t node) const { return member_offsets[node + 1] - member_offsets[node]; }
+};
+
+// Runs clustering plugin `spec.algorithm` (fast mode: for display) with
+// spec.thresholds over `t`. Throws Error.
+ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec);
+
 // Applies `spec` to a tractogram: returns the chosen level's centroids with a
 // per-streamline "cluster_size" array. Throws Error.
 Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const ClusterSpec &spec);
