@@ -6,10 +6,40 @@
 #include <OpenImageIO/imageio.h>
 
 #include <cstdio>
+#include <fcntl.h>
+#include <mutex>
+#include <unistd.h>
 #include <cstring>
 #include <string>
 
 namespace {
+
+// Some of OpenImageIO's format libraries (libpng) also print their errors to
+// stderr; OIIO reports the same text through geterror(), which the caller
+// turns into one error line. Silence fd 2 around backend calls.
+class QuietStderr {
+public:
+    QuietStderr() {
+        std::fflush(stderr);
+        saved_ = ::dup(2);
+        const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+        if (saved_ >= 0 && null >= 0) ::dup2(null, 2);
+        if (null >= 0) ::close(null);
+    }
+    ~QuietStderr() {
+        std::fflush(stderr);
+        if (saved_ >= 0) {
+            ::dup2(saved_, 2);
+            ::close(saved_);
+        }
+    }
+    QuietStderr(const QuietStderr &) = delete;
+    QuietStderr &operator=(const QuietStderr &) = delete;
+
+private:
+    int saved_ = -1;
+};
+std::mutex quiet_mutex;  // one redirection at a time
 
 void put(char *err, size_t n, const std::string &msg) {
     if (err && n) {
@@ -27,13 +57,26 @@ OIIO::TypeDesc type_of(uint32_t dtype) {
     }
 }
 
+// Pixels as stored: OpenImageIO premultiplies colour by alpha on reading
+// (and divides on writing) unless told the data is unassociated.
+const OIIO::ImageSpec &unassociated_config() {
+    static const OIIO::ImageSpec config = [] {
+        OIIO::ImageSpec c;
+        c.attribute("oiio:UnassociatedAlpha", 1);
+        return c;
+    }();
+    return config;
+}
+
 // The widest pixel count we accept (keeps a forged header from asking for
 // an absurd allocation): 2^28 pixels x 4 channels.
 constexpr uint64_t kMaxPixels = 1ull << 28;
 
 int info(const char *path, hzimg_info *out, char *err, size_t n) {
+    std::lock_guard<std::mutex> lock(quiet_mutex);
+    QuietStderr quiet;
     try {
-        auto in = OIIO::ImageInput::open(path);
+        auto in = OIIO::ImageInput::open(path, &unassociated_config());
         if (!in) {
             put(err, n, OIIO::geterror());
             return -1;
@@ -61,8 +104,10 @@ int info(const char *path, hzimg_info *out, char *err, size_t n) {
 }
 
 int read(const char *path, uint32_t dtype, void *dst, uint64_t dst_bytes, char *err, size_t n) {
+    std::lock_guard<std::mutex> lock(quiet_mutex);
+    QuietStderr quiet;
     try {
-        auto in = OIIO::ImageInput::open(path);
+        auto in = OIIO::ImageInput::open(path, &unassociated_config());
         if (!in) {
             put(err, n, OIIO::geterror());
             return -1;
@@ -104,6 +149,7 @@ int write(const char *path, const char *ext, uint64_t w, uint64_t h, uint32_t ch
         OIIO::ImageSpec spec(int(w), int(h), int(ch), t);
         spec.attribute("png:compressionLevel", 3);
         spec.attribute("Software", "Horizon");
+        spec.attribute("oiio:UnassociatedAlpha", 1);
         if (!out->open(path, spec) || !out->write_image(t, px) || !out->close()) {
             put(err, n, out->geterror());
             return -1;
