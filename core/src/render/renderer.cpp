@@ -182,13 +182,24 @@ struct Fbo {
 };
 
 struct Tex2dFbo {
-    GLuint fbo = 0, tex = 0;
+    GLuint fbo = 0, tex = 0, depth = 0;
     int width = 0, height = 0;
     GLenum format = 0;
     void destroy() {
         if (fbo) glDeleteFramebuffers(1, &fbo);
         if (tex) glDeleteTextures(1, &tex);
-        fbo = tex = 0;
+        if (depth) glDeleteRenderbuffers(1, &depth);
+        fbo = tex = depth = 0;
+    }
+    // A depth buffer, for drawing into this target directly.
+    void ensure_depth() {
+        if (depth) return;
+        glGenRenderbuffers(1, &depth);
+        glBindRenderbuffer(GL_RENDERBUFFER, depth);
+        glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, width, height);
+        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+        glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
     }
     void ensure(int w, int h, GLenum internal, GLenum fmt, GLenum type) {
         if (fbo && width == w && height == h && format == internal) return;
@@ -223,7 +234,8 @@ struct GpuObject {
     std::string albedo;               // name of the colour parameter the colouring drives ("" if none)
     bool use_line_domain = false;
     bool refractive = false;          // the snippet reads hz_scene_behind: drawn after the opaque objects
-    Program *program = nullptr, *debug_program = nullptr;
+    // Programs by output (see Impl::Output), compiled when first needed.
+    mutable Program *program = nullptr, *display_program = nullptr, *debug_program = nullptr;
     // slices
     GLuint volume_tex = 0, colormap_tex = 0;
     GLsizei slice_vertices = 0;
@@ -267,14 +279,23 @@ struct Renderer::Impl {
     RenderSettings settings;
     std::vector<GpuObject> objects;
     std::map<std::string, std::unique_ptr<Program>> programs;
-    std::unique_ptr<Program> tonemap, sky, slice, env_face, prefilter, irradiance, lut_prog;
+    std::unique_ptr<Program> env_face, prefilter, irradiance, lut_prog;
+    std::map<std::string, std::unique_ptr<Program>> aux_programs;  // sky, slices, tonemap by output and curve
     GLuint empty_vao = 0;
     GLuint env_cube = 0, spec_cube = 0, diff_cube = 0, lut_tex = 0, black_cube = 0, black_tex = 0;
     int spec_levels = 6;
     bool env_on = false;
     glm::mat3 env_rotation{1.0f};
-    Fbo msaa;
+    Fbo msaa;          // the HDR path's multisampled RGBA16F target
+    Fbo msaa_display;  // the display path's multisampled RGBA8 target
     Tex2dFbo resolved, behind, ldr;
+    // Where shading programs write. Display: tonemapped, sRGB-encoded
+    // values straight into the RGBA8 image (one pass, no float target).
+    // HDR: linear radiance into RGBA16F, then a tonemapping pass; needed
+    // when translucent or refractive objects composite over the opaque
+    // image. Debug: the GPU-equals-CPU check's float outputs.
+    enum class Output { Hdr, Display, Debug };
+    bool display_direct = true;  // the output of the frame being drawn
     FrameStats stats;
     int max_samples = 1;
     bool interacting = false;
@@ -322,9 +343,6 @@ struct Renderer::Impl {
     explicit Impl(const Registry &r) : reg(r) {
         glGenVertexArrays(1, &empty_vao);
         glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
-        tonemap = make_simple(glsl::kFullscreenVS, glsl::kTonemapFS, "tonemap");
-        sky = make_simple(glsl::kFullscreenVS, glsl::kSkyFS, "sky");
-        slice = make_simple(glsl::kSliceVS, glsl::kSliceFS, "slices");
         const std::string head = "#version 410 core\n";
         env_face = make_simple(glsl::kFullscreenVS, head + glsl::kCubeCommon + glsl::kEnvSource + glsl::kEnvFaceFS, "environment");
         prefilter = make_simple(glsl::kFullscreenVS, head + glsl::kCubeCommon + glsl::kPrefilterFS, "environment prefilter");
@@ -346,12 +364,14 @@ struct Renderer::Impl {
     ~Impl() {
         clear_objects();
         for (auto &[k, p] : programs) glDeleteProgram(p->id);
-        for (auto *p : {&tonemap, &sky, &slice, &env_face, &prefilter, &irradiance, &lut_prog})
+        for (auto &[k, p] : aux_programs) glDeleteProgram(p->id);
+        for (auto *p : {&env_face, &prefilter, &irradiance, &lut_prog})
             if (*p) glDeleteProgram((*p)->id);
         GLuint texs[] = {env_cube, spec_cube, diff_cube, lut_tex, black_cube, black_tex};
         glDeleteTextures(6, texs);
         glDeleteVertexArrays(1, &empty_vao);
         msaa.destroy();
+        msaa_display.destroy();
         resolved.destroy();
         behind.destroy();
         ldr.destroy();
@@ -362,6 +382,58 @@ struct Renderer::Impl {
         p->id = link_program({compile_shader(GL_VERTEX_SHADER, vs, what + " (vertex)"), compile_shader(GL_FRAGMENT_SHADER, fs, what)}, what);
         p->fragment_source = fs;
         return p;
+    }
+
+    int tone_curve() const { return scene.tonemap == "aces" ? 0 : scene.tonemap == "reinhard" ? 1 : 2; }
+
+    enum class Aux { Sky, Slices, Tonemap };
+    // The host's sky, slice and tonemapping programs for an output and the
+    // scene's tone curve, compiled when first needed.
+    Program &aux(Aux which, bool display) {
+        const int curve = tone_curve();
+        const std::string key = std::to_string(int(which)) + (display ? "d" : "h") + std::to_string(curve);
+        auto it = aux_programs.find(key);
+        if (it != aux_programs.end()) return *it->second;
+        std::string fs = "#version 410 core\n#define HZ_TONEMAP " + std::to_string(curve) + "\n";
+        if (display) fs += "#define HZ_DISPLAY 1\n";
+        fs += glsl::kDisplay;
+        std::unique_ptr<Program> p;
+        if (which == Aux::Sky) p = make_simple(glsl::kFullscreenVS, fs + glsl::kSkyFS, "sky");
+        else if (which == Aux::Slices) p = make_simple(glsl::kSliceVS, fs + glsl::kSliceFS, "slices");
+        else p = make_simple(glsl::kFullscreenVS, fs + glsl::kTonemapFS, "tonemap");
+        Program &ref = *p;
+        aux_programs[key] = std::move(p);
+        return ref;
+    }
+
+    // Whether object `o` must be composited in linear radiance over the
+    // opaque image (translucent, or a shader that reads hz_scene_behind).
+    bool composited(const Object &o) const {
+        if (o.opacity < 1.0) return true;
+        if (o.kind == HZ_DATA_VOLUME) return false;
+        const LoadedPlugin *p = find_shader(reg, o.material.shader);
+        if (!p) return false;
+        for (hz_shade_domain d : {HZ_SHADE_LINE, HZ_SHADE_SURFACE})
+            if (p->shader()->domains & d)
+                if (const char *src = p->shader()->glsl_source(d, 410); src && std::strstr(src, "hz_scene_behind(")) return true;
+        return false;
+    }
+
+    // The output of the next frame: display unless something drawn needs
+    // the HDR path.
+    bool frame_is_direct() const {
+        for (const auto &g : objects) {
+            const Object &o = scene.objects[g.index];
+            if (drawn(g.index) && (o.opacity < 1.0 || g.refractive)) return false;
+        }
+        return true;
+    }
+
+    // The program of `g` for `out`, compiled on first use.
+    Program &program_for(const GpuObject &g, Output out) {
+        Program *&slot = out == Output::Debug ? g.debug_program : out == Output::Display ? g.display_program : g.program;
+        if (!slot) slot = get_program(g, out);
+        return *slot;
     }
 
     void clear_objects() {
@@ -549,11 +621,14 @@ struct Renderer::Impl {
         g.shader = p;
         g.values = std::move(values);
         g.albedo = albedo;
-        g.program = get_program(g, false);
-        g.debug_program = nullptr;
+        g.program = g.display_program = g.debug_program = nullptr;
+        // Compile now (errors surface here) for the output it will most
+        // likely be drawn with.
+        program_for(g, display_direct ? Output::Display : Output::Hdr);
     }
 
-    std::string fragment_source(const GpuObject &g, bool debug) const {
+    std::string fragment_source(const GpuObject &g, Output out) const {
+        const bool debug = out == Output::Debug;
         const hz_shader *sh = g.shader->shader();
         const hz_shade_domain dom = g.use_line_domain ? HZ_SHADE_LINE : HZ_SHADE_SURFACE;
         const char *snippet = sh->glsl_source(dom, 410);
@@ -565,9 +640,24 @@ struct Renderer::Impl {
         if (sh->output == HZ_SHADER_OUTPUT_BRDF) s << "#define HZ_OUTPUT_BRDF 1\n";
         if (sh->output == HZ_SHADER_OUTPUT_EMISSION) s << "#define HZ_OUTPUT_EMISSION 1\n";
         if (debug) s << "#define HZ_DEBUG_OUTPUTS 1\n";
+        if (out == Output::Display) s << "#define HZ_DISPLAY 1\n";
+        s << "#define HZ_TONEMAP " << tone_curve() << "\n";
         // Lights and environment as constants (see kShadeMain); with no
         // light at all, one black light keeps the arrays non-empty.
-        s << "#define HZ_NB_LIGHTS " << (debug ? 1 : std::clamp<std::size_t>(lights().size(), 1, 8)) << "\n";
+        // Light i is directional (l = a uniform unit vector) or a point light
+        // (l normalised per fragment), fixed in the program.
+        const std::vector<Light> ls = lights();
+        const std::size_t nl = debug ? 1 : std::clamp<std::size_t>(ls.size(), 1, 8);
+        s << "#define HZ_NB_LIGHTS " << nl << "\n";
+        s << "#define HZ_UNIT_VECTORS 1\n";
+        s << "#define HZ_APPLY_LIGHTS";
+        for (std::size_t i = 0; i < nl; ++i) {
+            const bool point = i < ls.size() && ls[i].type == "point";
+            s << " \\\n    p.l = " << (point ? "hz_safe_normalize(hz_light_vec[" + std::to_string(i) + "].xyz - v_pos, vec3(0.0))"
+                                              : "hz_light_vec[" + std::to_string(i) + "].xyz")
+              << "; HZ_LIGHT_TERM(" << i << ")";
+        }
+        s << "\n";
         s << "#define HZ_ENV " << (!debug && env_on ? 1 : 0) << "\n";
         if (g.refractive) s << "#define HZ_REFRACTIVE 1\n";
         if (std::strstr(snippet, "hz_ambient(")) s << "#define HZ_HAS_AMBIENT 1\n";
@@ -597,12 +687,12 @@ struct Renderer::Impl {
             }
             k += pi->components;
         }
-        s << glsl::kPrelude << decl.str() << "\n// ---- plugin " << g.shader->info.id << "\n" << snippet << "\n// ---- host\n" << glsl::kShadeMain;
+        s << glsl::kPrelude << glsl::kDisplay << decl.str() << "\n// ---- plugin " << g.shader->info.id << "\n" << snippet << "\n// ---- host\n" << glsl::kShadeMain;
         return s.str();
     }
 
-    Program *get_program(const GpuObject &g, bool debug) {
-        const std::string fs = fragment_source(g, debug);
+    Program *get_program(const GpuObject &g, Output out) {
+        const std::string fs = fragment_source(g, out);
         const std::string key = std::to_string(int(g.geom)) + "\n" + fs;
         auto it = programs.find(key);
         if (it != programs.end()) return it->second.get();
@@ -998,6 +1088,9 @@ struct Renderer::Impl {
                 d = d.x * m.right + d.y * m.up + d.z * m.back;
                 if (l.type == "point") d += to_dvec3(v.eye);
             }
+            // Directional: the unit vector the programs use as is (a zero
+            // direction lights nothing).
+            if (l.type != "point") d = glm::length(d) > 1e-300 ? glm::normalize(d) : glm::dvec3(0.0);
             vec.insert(vec.end(), {float(d.x), float(d.y), float(d.z), l.type == "point" ? 1.0f : 0.0f});
             rad.insert(rad.end(), {float(l.color[0] * l.intensity), float(l.color[1] * l.intensity), float(l.color[2] * l.intensity)});
         }
@@ -1032,7 +1125,9 @@ struct Renderer::Impl {
     void draw_object(const GpuObject &g, const Object &o, const Matrices &m, const View &v, bool debug, int w, int h) {
         if (g.slices) {
             if (debug) return;
+            Program *slice = &aux(Aux::Slices, display_direct);
             glUseProgram(slice->id);
+            glUniform1f(slice->loc("hz_exposure"), float(scene.exposure));
             glUniformMatrix4fv(slice->loc("hz_view_proj"), 1, GL_FALSE, glm::value_ptr(m.view_proj));
             glUniformMatrix4fv(slice->loc("u_ras_to_tex"), 1, GL_FALSE, glm::value_ptr(g.ras_to_tex));
             glUniform2f(slice->loc("u_window"), float(g.window[0]), float(g.window[1]));
@@ -1049,8 +1144,9 @@ struct Renderer::Impl {
             stats.triangles_drawn += g.triangles;
             return;
         }
-        Program &p = *(debug ? g.debug_program : g.program);
+        Program &p = program_for(g, debug ? Output::Debug : display_direct ? Output::Display : Output::Hdr);
         glUseProgram(p.id);
+        glUniform1f(p.loc("hz_exposure"), float(scene.exposure));
         glUniformMatrix4fv(p.loc("hz_view_proj"), 1, GL_FALSE, glm::value_ptr(m.view_proj));
         glUniform3f(p.loc("hz_eye"), float(v.eye[0]), float(v.eye[1]), float(v.eye[2]));
         glUniform3f(p.loc("hz_tangent_hint"), 0.0f, 0.0f, 1.0f);
@@ -1074,35 +1170,79 @@ struct Renderer::Impl {
         }
     }
 
-    void ensure_targets(int w, int h, int samples) {
-        samples = std::clamp(samples, 1, std::max(1, max_samples));
-        if (msaa.fbo && (msaa.width != w || msaa.height != h || msaa.samples != samples)) msaa.destroy();
-        if (!msaa.fbo) {
-            msaa.width = w, msaa.height = h, msaa.samples = samples;
-            glGenFramebuffers(1, &msaa.fbo);
-            glBindFramebuffer(GL_FRAMEBUFFER, msaa.fbo);
-            glGenRenderbuffers(1, &msaa.color);
-            glBindRenderbuffer(GL_RENDERBUFFER, msaa.color);
-            glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples > 1 ? samples : 0, GL_RGBA16F, w, h);
-            glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, msaa.color);
-            glGenRenderbuffers(1, &msaa.depth);
-            glBindRenderbuffer(GL_RENDERBUFFER, msaa.depth);
-            glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples > 1 ? samples : 0, GL_DEPTH_COMPONENT24, w, h);
-            glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, msaa.depth);
-            if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete multisample framebuffer");
+    static void ensure_fbo(Fbo &f, int w, int h, int samples, GLenum color_format) {
+        if (f.fbo && (f.width != w || f.height != h || f.samples != samples)) f.destroy();
+        if (f.fbo) return;
+        f.width = w, f.height = h, f.samples = samples;
+        glGenFramebuffers(1, &f.fbo);
+        glBindFramebuffer(GL_FRAMEBUFFER, f.fbo);
+        glGenRenderbuffers(1, &f.color);
+        glBindRenderbuffer(GL_RENDERBUFFER, f.color);
+        glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples > 1 ? samples : 0, color_format, w, h);
+        glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, f.color);
+        glGenRenderbuffers(1, &f.depth);
+        glBindRenderbuffer(GL_RENDERBUFFER, f.depth);
+        glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples > 1 ? samples : 0, GL_DEPTH_COMPONENT24, w, h);
+        glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f.depth);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete multisample framebuffer");
+    }
+
+    // Chooses the frame's output and makes its targets; returns the
+    // framebuffer the scene is drawn into. The finished image is always
+    // in `ldr` (RGBA8) after finish_frame().
+    GLuint begin_frame(int w, int h) {
+        const int samples = std::clamp(settings.samples, 1, std::max(1, max_samples));
+        display_direct = frame_is_direct();
+        ldr.ensure(w, h, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
+        if (!display_direct) {
+            ensure_fbo(msaa, w, h, samples, GL_RGBA16F);
+            resolved.ensure(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT);
+            return msaa.fbo;
         }
-        resolved.ensure(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT);
+        if (samples > 1) {
+            ensure_fbo(msaa_display, w, h, samples, GL_RGBA8);
+            return msaa_display.fbo;
+        }
+        ldr.ensure_depth();
+        return ldr.fbo;
+    }
+
+    void finish_frame(GLuint target, int w, int h) {
+        if (target == ldr.fbo) return;
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, target);
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_direct ? ldr.fbo : resolved.fbo);
+        glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+        if (!display_direct) tonemap_to(ldr.fbo, w, h);
+    }
+
+    // The scene's background as the frame's output stores it.
+    std::array<float, 3> background_value() const {
+        std::array<float, 3> c{float(scene.background[0]), float(scene.background[1]), float(scene.background[2])};
+        if (!display_direct) return c;
+        for (float &x : c) {
+            double v = std::max(0.0, double(x)) * scene.exposure;
+            const int curve = tone_curve();
+            if (curve == 0) v = (v * (2.51 * v + 0.03)) / (v * (2.43 * v + 0.59) + 0.14);
+            else if (curve == 1) v = v / (1.0 + v);
+            v = std::clamp(v, 0.0, 1.0);
+            x = float(v <= 0.0031308 ? v * 12.92 : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055);
+        }
+        return c;
     }
 
     void draw_scene(const View &v, int w, int h) {
         const Matrices m = matrices(v, w, h);
-        glBindFramebuffer(GL_FRAMEBUFFER, msaa.fbo);
+        const GLuint target = begin_frame(w, h);
+        glBindFramebuffer(GL_FRAMEBUFFER, target);
         glViewport(0, 0, w, h);
-        glClearColor(float(scene.background[0]), float(scene.background[1]), float(scene.background[2]), 1.0f);
+        const auto bg = background_value();
+        glClearColor(bg[0], bg[1], bg[2], 1.0f);
         glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
         if (env_on && scene.environment.visible) {
             glDisable(GL_DEPTH_TEST);
+            Program *sky = &aux(Aux::Sky, display_direct);
             glUseProgram(sky->id);
+            glUniform1f(sky->loc("hz_exposure"), float(scene.exposure));
             const glm::mat4 inv(m.inv_view_proj);
             glUniformMatrix4fv(sky->loc("u_inv_view_proj"), 1, GL_FALSE, glm::value_ptr(inv));
             glUniformMatrix3fv(sky->loc("u_rotation"), 1, GL_FALSE, glm::value_ptr(env_rotation));
@@ -1150,10 +1290,7 @@ struct Renderer::Impl {
             glDepthMask(GL_TRUE);
             glDisable(GL_BLEND);
         }
-        // Resolve and tonemap.
-        glBindFramebuffer(GL_READ_FRAMEBUFFER, msaa.fbo);
-        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, resolved.fbo);
-        glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+        finish_frame(target, w, h);
     }
 
     void tonemap_to(GLuint fbo, int w, int h) {
@@ -1161,12 +1298,12 @@ struct Renderer::Impl {
         glViewport(0, 0, w, h);
         glDisable(GL_DEPTH_TEST);
         glDisable(GL_BLEND);
+        Program *tonemap = &aux(Aux::Tonemap, false);
         glUseProgram(tonemap->id);
         glActiveTexture(GL_TEXTURE0);
         glBindTexture(GL_TEXTURE_2D, resolved.tex);
         glUniform1i(tonemap->loc("u_hdr"), 0);
-        glUniform1f(tonemap->loc("u_exposure"), float(scene.exposure));
-        glUniform1i(tonemap->loc("u_curve"), scene.tonemap == "aces" ? 0 : scene.tonemap == "reinhard" ? 1 : 2);
+        glUniform1f(tonemap->loc("hz_exposure"), float(scene.exposure));
         glBindVertexArray(empty_vao);
         glDrawArrays(GL_TRIANGLES, 0, 3);
     }
@@ -1193,6 +1330,8 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
     I.scene = std::move(scene);
     I.settings = settings;
     I.env_on = I.scene.environment.type != "none";  // programs are specialised on it
+    I.display_direct = std::none_of(I.scene.objects.begin(), I.scene.objects.end(),
+                                    [&](const Object &o) { return o.visible && I.composited(o); });
     I.has_proxy.assign(I.scene.objects.size(), false);
     for (const auto &o : I.scene.objects)
         if (o.proxy_for && *o.proxy_for < I.has_proxy.size()) I.has_proxy[*o.proxy_for] = true;
@@ -1316,10 +1455,7 @@ void Renderer::render(const View &view, int width, int height) {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
     I.stats.segments_drawn = I.stats.triangles_drawn = 0;
-    I.ensure_targets(width, height, I.settings.samples);
     I.draw_scene(view, width, height);
-    I.ldr.ensure(width, height, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
-    I.tonemap_to(I.ldr.fbo, width, height);
     glFinish();
     I.stats.draw_ms = ms_since(t0);
 }
@@ -1328,9 +1464,11 @@ void Renderer::render_to_window(const View &view, int width, int height) {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
     I.stats.segments_drawn = I.stats.triangles_drawn = 0;
-    I.ensure_targets(width, height, I.settings.samples);
     I.draw_scene(view, width, height);
-    I.tonemap_to(0, width, height);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, I.ldr.fbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
+    glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
     I.stats.draw_ms = ms_since(t0);
 }
 
@@ -1367,7 +1505,7 @@ Image Renderer::read_window_image(int width, int height) {
 std::array<FloatImage, 5> Renderer::render_debug(const View &view, int w, int h) {
     Impl &I = *impl_;
     for (auto &g : I.objects)
-        if (!g.slices && !g.debug_program) g.debug_program = I.get_program(g, true);
+        if (!g.slices) I.program_for(g, Impl::Output::Debug);
     GLuint fbo = 0, depth = 0, tex[5] = {};
     glGenFramebuffers(1, &fbo);
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
@@ -1411,7 +1549,11 @@ std::array<FloatImage, 5> Renderer::render_debug(const View &view, int w, int h)
 
 std::string Renderer::program_source(std::size_t object) const {
     for (const auto &g : impl_->objects)
-        if (g.index == object && g.program) return g.program->fragment_source;
+        if (g.index == object && !g.slices) {
+            const Program *p = impl_->display_direct ? g.display_program : g.program;
+            if (!p) p = g.display_program ? g.display_program : g.program;
+            if (p) return p->fragment_source;
+        }
     return {};
 }
 

@@ -58,47 +58,57 @@ float principled_schlick(float u) {
     return m2 * m2 * m;
 }
 
-// Scale-safe normalisation; returns false for a zero or non-finite vector.
-bool principled_normalize(inout vec3 a) {
+// The GLSL below has no branches: every guard of the reference becomes a
+// validity flag, and the result is selected at the end. On llvmpipe a branch
+// costs both of its sides, and it would keep the compiler from sharing the
+// work that does not depend on the light (normalising n and v, the tangent
+// frame, the view terms, the colour terms) between the host's per-light calls.
+
+// Scale-safe normalisation; `ok` is false for a zero or non-finite vector
+// (the result is then meaningless but finite or NaN, never selected).
+vec3 principled_unit(vec3 a, out bool ok) {
     float m = max(max(abs(a.x), abs(a.y)), abs(a.z));
-    if (!(m > 0.0) || isinf(m) || isnan(m)) return false;
-    a *= 1.0 / m;
-    a *= inversesqrt(dot(a, a));
-    return true;
+    ok = m > 0.0 && !isinf(m) && !isnan(m);
+    vec3 s = a * (1.0 / (ok ? m : 1.0));
+    return s * inversesqrt(max(dot(s, s), 1e-30));
 }
 
-bool principled_perp(vec3 w, vec3 n, out vec3 p) {
-    p = vec3(0.0);
+// The unit part of w orthogonal to n; `ok` false when w is zero, non-finite
+// or (nearly) parallel to n.
+vec3 principled_perp(vec3 w, vec3 n, out bool ok) {
     float m = max(max(abs(w.x), abs(w.y)), abs(w.z));
-    if (!(m > 0.0) || isinf(m) || isnan(m)) return false;
-    vec3 s = w / m;
+    bool finite = m > 0.0 && !isinf(m) && !isnan(m);
+    vec3 s = w / (finite ? m : 1.0);
     vec3 q = s - dot(s, n) * n;
-    if (!(length(q) > 1e-6 * length(s))) return false;
-    p = normalize(q);
-    return true;
+    ok = finite && length(q) > 1e-6 * length(s);
+    return normalize(ok ? q : vec3(1.0, 0.0, 0.0));
 }
 
 // Contract frame: X orthogonalised, else Y's, else Duff et al. 2017.
 void principled_frame(vec3 n, vec3 x, vec3 y, out vec3 tx, out vec3 ty) {
-    vec3 p;
-    if (principled_perp(x, n, p)) {
-        tx = p;
-    } else if (principled_perp(y, n, p)) {
-        tx = normalize(cross(p, n));
-    } else {
-        float s = n.z >= 0.0 ? 1.0 : -1.0;
-        float a = -1.0 / (s + n.z);
-        float b = n.x * n.y * a;
-        tx = vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
-    }
+    bool okx, oky;
+    vec3 px = principled_perp(x, n, okx);
+    vec3 py = principled_perp(y, n, oky);
+    float s = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (s + n.z);
+    float b = n.x * n.y * a;
+    vec3 duff = vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
+    tx = okx ? px : (oky ? normalize(cross(py, n)) : duff);
     ty = cross(n, tx);
 }
 
 vec3 hz_shade(HzShadePoint sp) {
+    bool okh;
+#ifdef HZ_UNIT_VECTORS
+    // The host passes n, l and v unit length and finite (l = 0 at a point
+    // light's own position, which NoL > 0 below rejects).
     vec3 n = sp.n, l = sp.l, v = sp.v;
-    if (!principled_normalize(n) || !principled_normalize(l) || !principled_normalize(v)) return vec3(0.0);
+    const bool okn = true, okl = true, okv = true;
+#else
+    bool okn, okl, okv;
+    vec3 n = principled_unit(sp.n, okn), l = principled_unit(sp.l, okl), v = principled_unit(sp.v, okv);
+#endif
     float NoL = dot(n, l), NoV = dot(n, v);
-    if (!(NoL > 0.0) || !(NoV > 0.0)) return vec3(0.0);
     vec3 C = clamp(u_base_color, 0.0, 1.0);
     float subsurface = clamp(u_subsurface, 0.0, 1.0), metallic = clamp(u_metallic, 0.0, 1.0);
     float specular = clamp(u_specular, 0.0, 1.0), specular_tint = clamp(u_specular_tint, 0.0, 1.0);
@@ -106,8 +116,15 @@ vec3 hz_shade(HzShadePoint sp) {
     float sheen = clamp(u_sheen, 0.0, 1.0), sheen_tint = clamp(u_sheen_tint, 0.0, 1.0);
     float clearcoat = clamp(u_clearcoat, 0.0, 1.0), clearcoat_gloss = clamp(u_clearcoat_gloss, 0.0, 1.0);
 
+#ifdef HZ_UNIT_VECTORS
+    // |l + v| is in [0, 2]: no rescaling needed.
     vec3 h = l + v;
-    if (!principled_normalize(h)) return vec3(0.0);
+    float hh = dot(h, h);
+    okh = hh > 1e-30;
+    h *= inversesqrt(okh ? hh : 1.0);
+#else
+    vec3 h = principled_unit(l + v, okh);
+#endif
     float NoH = dot(n, h), LoH = dot(l, h);
 
     float FL = principled_schlick(NoL), FV = principled_schlick(NoV), FH = principled_schlick(LoH);
@@ -137,9 +154,8 @@ vec3 hz_shade(HzShadePoint sp) {
     float a = max(0.001, r2), aa = a * a;
     vec3 nxh0 = cross(n, h);
     float dd = dot(nxh0, nxh0) + aa * NoH * NoH;
-    float Ds = aa / (principled_PI * dd * dd);
-    float vl = 1.0 / (NoL + sqrt(aa * (1.0 - NoL * NoL) + NoL * NoL));
-    float vv = 1.0 / (NoV + sqrt(aa * (1.0 - NoV * NoV) + NoV * NoV));
+    float dl = NoL + sqrt(aa * (1.0 - NoL * NoL) + NoL * NoL);
+    float dv = NoV + sqrt(aa * (1.0 - NoV * NoV) + NoV * NoV);
 #else
     vec3 X, Y;
     principled_frame(n, sp.t, sp.b, X, Y);
@@ -147,19 +163,26 @@ vec3 hz_shade(HzShadePoint sp) {
     float ax = max(0.001, r2 / aspect), ay = max(0.001, r2 * aspect);
     float HoX = dot(h, X), HoY = dot(h, Y);
     float dden = (HoX / ax) * (HoX / ax) + (HoY / ay) * (HoY / ay) + NoH * NoH;
-    float Ds = 1.0 / (principled_PI * ax * ay * dden * dden);
+    float Dden = principled_PI * ax * ay * dden * dden;
     vec2 lxy = vec2(dot(l, X) * ax, dot(l, Y) * ay), vxy = vec2(dot(v, X) * ax, dot(v, Y) * ay);
-    float vl = 1.0 / (NoL + sqrt(dot(lxy, lxy) + NoL * NoL));
-    float vv = 1.0 / (NoV + sqrt(dot(vxy, vxy) + NoV * NoV));
+    float dl = NoL + sqrt(dot(lxy, lxy) + NoL * NoL);
+    float dv = NoV + sqrt(dot(vxy, vxy) + NoV * NoV);
 #endif
 #if HZ_PARAM_visibility == 1
 #ifdef HZ_ZERO_anisotropic
-    float Gs = 0.5 / (NoL * sqrt(aa * (1.0 - NoV * NoV) + NoV * NoV) + NoV * sqrt(aa * (1.0 - NoL * NoL) + NoL * NoL));
+    float Gden = 2.0 * (NoL * sqrt(aa * (1.0 - NoV * NoV) + NoV * NoV) + NoV * sqrt(aa * (1.0 - NoL * NoL) + NoL * NoL));
 #else
-    float Gs = 0.5 / (NoL * sqrt(dot(vxy, vxy) + NoV * NoV) + NoV * sqrt(dot(lxy, lxy) + NoL * NoL));
+    float Gden = 2.0 * (NoL * sqrt(dot(vxy, vxy) + NoV * NoV) + NoV * sqrt(dot(lxy, lxy) + NoL * NoL));
 #endif
 #else
-    float Gs = vl * vv;
+    float Gden = dl * dv;
+#endif
+    // D * G with one division: D = aa / (pi dd^2) (isotropic) or
+    // 1 / (pi ax ay dden^2); G = 1 / Gden.
+#ifdef HZ_ZERO_anisotropic
+    float DsGs = aa / (principled_PI * dd * dd * Gden);
+#else
+    float DsGs = 1.0 / (Dden * Gden);
 #endif
 
     vec3 Cspec0 = mix(0.08 * specular * mix(vec3(1.0), Ctint, specular_tint), C, metallic);
@@ -179,7 +202,7 @@ vec3 hz_shade(HzShadePoint sp) {
 #ifndef HZ_ZERO_sheen
     diffuse += FH * sheen * mix(vec3(1.0), Ctint, sheen_tint);
 #endif
-    vec3 f = diffuse * (1.0 - metallic) + Ds * Gs * Fs;
+    vec3 f = diffuse * (1.0 - metallic) + DsGs * Fs;
 
 #ifndef HZ_ZERO_clearcoat
     // Clearcoat: GTR1, Burley 2012.
@@ -194,16 +217,21 @@ vec3 hz_shade(HzShadePoint sp) {
     float Fr = mix(0.04, 1.0, FH);
     f += 0.25 * clearcoat * Dr * Fr * gl * gv;
 #endif
-    return f;
+    bool ok = okn && okl && okv && okh && NoL > 0.0 && NoV > 0.0;
+    return ok ? f : vec3(0.0);
 }
 
 // Image-based lighting, split-sum (Karis 2013): diffuse from the irradiance,
 // specular and clearcoat from the prefiltered environment.
 vec3 hz_ambient(HzShadePoint sp) {
+#ifdef HZ_UNIT_VECTORS
     vec3 n = sp.n, v = sp.v;
-    if (!principled_normalize(n) || !principled_normalize(v)) return vec3(0.0);
+    const bool okn = true, okv = true;
+#else
+    bool okn, okv;
+    vec3 n = principled_unit(sp.n, okn), v = principled_unit(sp.v, okv);
+#endif
     float NoV = dot(n, v);
-    if (!(NoV > 0.0)) return vec3(0.0);
     vec3 C = clamp(u_base_color, 0.0, 1.0);
     float metallic = clamp(u_metallic, 0.0, 1.0), roughness = clamp(u_roughness, 0.0, 1.0);
     float lum = dot(vec3(0.3, 0.6, 0.1), C);
@@ -218,7 +246,7 @@ vec3 hz_ambient(HzShadePoint sp) {
     vec2 cb = hz_env_brdf(NoV, cr);
     c += 0.25 * clamp(u_clearcoat, 0.0, 1.0) * hz_env_radiance(r, cr) * (0.04 * cb.x + cb.y);
 #endif
-    return c;
+    return okn && okv && NoV > 0.0 ? c : vec3(0.0);
 }
 )glsl";
 

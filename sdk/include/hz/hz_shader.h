@@ -43,6 +43,11 @@
  *       mat3 hz_view_rotation;             world -> camera (x right, y up)
  *   A snippet that calls hz_scene_behind is drawn after the opaque objects
  *   and composites what it transmits itself (no blending).
+ *   - `#define HZ_UNIT_VECTORS 1` (newer 1.2 hosts; test it with #ifdef):
+ *     p.n, p.l and p.v are finite and unit length (p.l is the zero
+ *     vector only at a point light's own position), so the snippet may skip
+ *     normalising them. p.t and p.b carry no such promise. Without the
+ *     macro, normalise them yourself; eval_reference must do so always.
  *   A snippet may define `vec3 hz_ambient(HzShadePoint p)`: the radiance it
  *   reflects (or transmits) from the environment towards p.v. Without it the
  *   host uses hz_shade(p with l = n) * hz_env_irradiance(n) (BRDF output) or
