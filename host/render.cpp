@@ -88,6 +88,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"environment_ms", s.environment_ms},
                             {"first_frame_ms", first_ms},
                             {"frame_ms", frame_ms},
+                            {"frame_ms_min", frames.empty() ? first_ms : frames.front()},
                             {"frames", o.frames},
                             {"readback_ms", s.readback_ms},
                             {"write_ms", write_ms},
