@@ -112,7 +112,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
 
 int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     const core::Registry reg = load_registry(g);
-    core::loader_for_write(reg, o.out);  // fail on an unwritable target before the work
+    core::loader_for_write(reg, o.out, HZ_DATA_IMAGE);  // fail on an unwritable target before the work
     core::render::Scene scene = core::render::load_scene(reg, o.scene);
     return render_scene(reg, std::move(scene), o);
 }

@@ -271,6 +271,8 @@ fs::path write_view(const Ctx &c, const hz_dataset_view &v, std::string &msg) {
     const std::string p = out.string();
     req.path = p.c_str();
     req.extension = ext.c_str();
+    req.final_path = p.c_str();  // written in place: companions stay where the plugin put them
+    req.add_companion = [](void *, const char *t, const char *f) -> hz_status { return t && f ? HZ_OK : HZ_E_INVALID_ARGUMENT; };
     hz_error err = new_error();
     const hz_status st = l.write(&req, &v, nullptr, &err);
     if (st != HZ_OK) {

@@ -162,16 +162,20 @@ const LoadedPlugin &loader_for_read(const Registry &reg, const fs::path &path) {
                 " loaders tried; see `horizon plugins`)");
 }
 
-const LoadedPlugin &loader_for_write(const Registry &reg, const fs::path &path) {
+const LoadedPlugin &loader_for_write(const Registry &reg, const fs::path &path, hz_data_kind kind) {
     const LoadedPlugin *best = nullptr;
     std::size_t best_len = 0;
+    bool best_holds = false;
     for (const auto *p : reg.of_kind(HZ_KIND_LOADER)) {
         const hz_loader *l = p->loader();
         if (!(l->caps & HZ_LOADER_CAN_WRITE) || l->write == nullptr) continue;
         const std::string ext = matching_extension(*l, path);
-        if (!ext.empty() && ext.size() > best_len) {
+        if (ext.empty()) continue;
+        const bool holds = kind != 0 && (l->data_kinds & kind);
+        if ((holds && !best_holds) || (holds == best_holds && ext.size() > best_len)) {
             best = p;
             best_len = ext.size();
+            best_holds = holds;
         }
     }
     if (best == nullptr)
@@ -274,7 +278,7 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
         throw Error(path.string() + ": refusing to overwrite the input file");
     if (fs::exists(path, ec) && !force) throw Error(path.string() + ": already exists (use --force to replace it)");
     if (fs::is_directory(path, ec)) throw Error(path.string() + ": is a directory");
-    const LoadedPlugin &p = loader_for_write(reg, path);
+    const LoadedPlugin &p = loader_for_write(reg, path, ds.kind);
     const hz_loader *l = p.loader();
     if (!(l->data_kinds & ds.kind))
         throw Error(path.string() + ": " + p.info.name + " cannot hold " + kind_name(ds.kind) + " data");
@@ -282,7 +286,13 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
     if (!fs::is_directory(dir, ec)) throw Error(path.string() + ": directory " + dir.string() + " does not exist");
     std::random_device rd;
-    const fs::path tmp = dir / ("." + path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rd() % 1000000));
+    std::string tmp_name = ".";  // (appended piecewise: GCC 12 warns falsely on a + chain here)
+    tmp_name += path.filename().string();
+    tmp_name += ".tmp-";
+    tmp_name += std::to_string(::getpid());
+    tmp_name += '-';
+    tmp_name += std::to_string(rd() % 1000000);
+    const fs::path tmp = dir / tmp_name;
 
     std::vector<hz_metadata_entry> meta;
     for (const auto &[k, v] : ds.metadata) meta.push_back({k.c_str(), v.c_str()});
@@ -328,7 +338,13 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     view.metadata = meta.data();
 
     const std::string stmp = tmp.string();
+    const std::string sfinal = path.string();
     const std::string ext = matching_extension(*l, path);
+    // Companion files of multi-file formats: (temporary, final) pairs.
+    struct Companions {
+        fs::path dir;
+        std::vector<std::pair<fs::path, fs::path>> files;
+    } companions{dir, {}};
     hz_write_request req{};
     req.struct_size = sizeof req;
     req.path = stmp.c_str();
@@ -338,15 +354,56 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     };
     std::vector<std::string> local_dropped;
     req.ctx = dropped != nullptr ? dropped : &local_dropped;
+    req.final_path = sfinal.c_str();
+    req.add_companion = [](void *ctx, const char *temp, const char *final) -> hz_status {
+        if (ctx == nullptr || temp == nullptr || final == nullptr) return HZ_E_INVALID_ARGUMENT;
+        auto *c = static_cast<Companions *>(ctx);
+        std::error_code e;
+        const fs::path t(temp), f(final);
+        // Both must lie in the target's directory: a plugin cannot rename files elsewhere.
+        if (!fs::equivalent(t.has_parent_path() ? t.parent_path() : fs::path("."), c->dir, e) ||
+            !fs::equivalent(f.has_parent_path() ? f.parent_path() : fs::path("."), c->dir, e) || !f.has_filename())
+            return HZ_E_INVALID_ARGUMENT;
+        c->files.emplace_back(t, f);
+        return HZ_OK;
+    };
+    req.companion_ctx = &companions;
+    auto discard = [&] {
+        std::error_code e;
+        fs::remove_all(tmp, e);
+        for (const auto &[t, f] : companions.files) fs::remove(t, e);
+    };
     hz_error err = make_error();
     const hz_status st = l->write(&req, &view, task, &err);
     if (st != HZ_OK) {
-        fs::remove_all(tmp, ec);
+        discard();
         std::string msg = err.message[0] ? err.message : ("write failed with status " + std::to_string(st));
         // Report the user's target, not our temporary name.
         for (auto pos = msg.find(stmp); pos != std::string::npos; pos = msg.find(stmp)) msg.replace(pos, stmp.size(), path.string());
         if (msg.find(path.string()) == std::string::npos) msg = path.string() + ": " + msg;
         throw Error(msg);
+    }
+    // Companions first, so the main file never appears without them.
+    for (const auto &[t, f] : companions.files) {
+        if (!fs::exists(t, ec)) {
+            discard();
+            throw Error(path.string() + ": the writer reported a companion file it did not write (" + f.string() + ")");
+        }
+        if (fs::exists(f, ec) && (!protect.empty() && fs::equivalent(f, protect, ec))) {
+            discard();
+            throw Error(f.string() + ": refusing to overwrite the input file");
+        }
+        if (fs::exists(f, ec) && !force) {
+            discard();
+            throw Error(f.string() + ": already exists (use --force to replace it)");
+        }
+    }
+    for (const auto &[t, f] : companions.files) {
+        fs::rename(t, f, ec);
+        if (ec) {
+            discard();
+            throw Error(f.string() + ": cannot rename the temporary file into place: " + ec.message());
+        }
     }
     fs::rename(tmp, path, ec);
     if (ec) {

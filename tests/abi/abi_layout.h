@@ -37,4 +37,6 @@ HZ_SA(sizeof(hz_cluster_tree_view) == 72, "hz_cluster_tree_view");
 HZ_SA(sizeof(hz_clustering) == 56, "hz_clustering");
 HZ_SA(offsetof(hz_dataset_view, metadata) == 352, "dataset_view.metadata (1.0 layout)");
 HZ_SA(sizeof(hz_dataset_view) == 448, "hz_dataset_view (1.1)");
-HZ_SA(sizeof(hz_write_request) == 40, "hz_write_request");
+HZ_SA(offsetof(hz_write_request, ctx) == 32, "write_request.ctx (1.0 layout)");
+HZ_SA(offsetof(hz_write_request, final_path) == 40, "write_request.final_path (1.3)");
+HZ_SA(sizeof(hz_write_request) == 64, "hz_write_request");

@@ -212,3 +212,37 @@ class NiftiTest(TempDirTest):
         with open(self.path("short.img"), "r+b") as fh:
             fh.truncate(os.path.getsize(self.path("short.img")) // 2)
         self.assert_clean_error(run("info", self.path("short.hdr")), "short")
+
+    def test_writes_pairs(self):
+        """convert writes .hdr/.img pairs (plain and gzipped) that nibabel reads
+        as it reads the source; both files appear together or not at all."""
+        rng = np.random.default_rng(11)
+        for i, dt in enumerate((np.int16, np.float32, np.uint8)):
+            data = (rng.random((5, 6, 7, 2)) * 90).astype(dt)
+            src_path = self.path(f"src{i}.nii.gz")
+            nib.save(nib.Nifti1Image(data, random_affine(rng)), src_path)
+            src = nib.load(src_path)
+            for target, other in (("hdr", "img"), ("img", "hdr"), ("hdr.gz", "img.gz"), ("img.gz", "hdr.gz")):
+                with self.subTest(dtype=np.dtype(dt).name, target=target):
+                    out = self.path(f"p{i}.{target}")
+                    ours = self.roundtrip(src_path, os.path.basename(out))
+                    self.assertIsInstance(ours, nib.Nifti1Pair)
+                    self.assertNotIsInstance(ours, nib.Nifti1Image)
+                    self.assertTrue(os.path.exists(self.path(f"p{i}.{other}")))
+                    self.assertEqual(ours.header["magic"], b"ni1")
+                    self.assert_same(src, ours)
+                    # And back into a single file.
+                    self.assert_same(src, self.roundtrip(out, f"back{i}.nii"))
+        # An existing companion is not replaced without --force, and nothing is left behind.
+        src_path = self.path("src0.nii.gz")
+        with open(self.path("lonely.img"), "wb") as f:
+            f.write(b"keep me")
+        p = run("convert", src_path, self.path("lonely.hdr"))
+        self.assert_clean_error(p, "lonely.img")
+        self.assertIn("already exists", p.stderr)
+        self.assertFalse(os.path.exists(self.path("lonely.hdr")))
+        with open(self.path("lonely.img"), "rb") as f:
+            self.assertEqual(f.read(), b"keep me")
+        self.assertEqual([n for n in os.listdir(self.tmp) if ".tmp-" in n], [])
+        self.assertEqual(run("convert", src_path, self.path("lonely.hdr"), "--force").returncode, 0)
+        self.assert_same(nib.load(src_path), nib.load(self.path("lonely.hdr")))

@@ -307,7 +307,7 @@ Image Image::open(const std::string &path) {
     return img;
 }
 
-void write(const std::string &path, bool gz, DType dtype, const std::vector<std::uint64_t> &dims, const void *voxels,
+void write(const std::string &path, const std::string &image_path, bool gz, DType dtype, const std::vector<std::uint64_t> &dims, const void *voxels,
            const std::array<double, 16> &A, double slope, double inter) {
     if (dims.empty() || dims.size() > 7) throw FormatError("NIfTI holds 1 to 7 dimensions");
     unsigned char h[352] = {};
@@ -337,7 +337,8 @@ void write(const std::string &path, bool gz, DType dtype, const std::vector<std:
     for (int j = 0; j < 3; ++j)
         putf(80 + 4 * j, std::sqrt(A[j] * A[j] + A[4 + j] * A[4 + j] + A[8 + j] * A[8 + j]));
     for (int j = 3; j < 7; ++j) putf(80 + 4 * j, 1.0);
-    putf(108, 352);
+    const bool pair = !image_path.empty();
+    putf(108, pair ? 0 : 352);
     const bool scaled = !(slope == 1 && inter == 0);
     putf(112, scaled ? slope : 0.0);  // slope 0: no scaling
     putf(116, scaled ? inter : 0.0);
@@ -345,27 +346,37 @@ void write(const std::string &path, bool gz, DType dtype, const std::vector<std:
     put16(252, 0);                    // qform_code: unknown (the sform carries the affine)
     put16(254, 1);                    // sform_code: scanner
     for (int i = 0; i < 12; ++i) putf(280 + 4 * i, A[static_cast<std::size_t>(i)]);
-    std::memcpy(h + 344, "n+1", 4);
+    std::memcpy(h + 344, pair ? "ni1" : "n+1", 4);
     const std::uint64_t bytes = n * dtype_size(dtype);
-    bool ok;
-    if (gz) {
-        gzFile g = gzopen(path.c_str(), "wb6");
-        if (g == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
-        ok = gzwrite(g, h, sizeof h) == static_cast<int>(sizeof h);
-        const auto *p = static_cast<const unsigned char *>(voxels);
-        for (std::uint64_t done = 0; ok && done < bytes;) {
-            const unsigned chunk = static_cast<unsigned>(std::min<std::uint64_t>(bytes - done, 1 << 26));
-            ok = gzwrite(g, p + done, chunk) == static_cast<int>(chunk);
-            done += chunk;
+    // One file: `head` bytes of header, then (optionally) the voxels.
+    auto put_file = [&](const std::string &file, const unsigned char *head, std::size_t head_bytes, const void *body,
+                        std::uint64_t body_bytes) {
+        bool ok;
+        if (gz) {
+            gzFile g = gzopen(file.c_str(), "wb6");
+            if (g == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
+            ok = head_bytes == 0 || gzwrite(g, head, static_cast<unsigned>(head_bytes)) == static_cast<int>(head_bytes);
+            const auto *p = static_cast<const unsigned char *>(body);
+            for (std::uint64_t done = 0; ok && done < body_bytes;) {
+                const unsigned chunk = static_cast<unsigned>(std::min<std::uint64_t>(body_bytes - done, 1 << 26));
+                ok = gzwrite(g, p + done, chunk) == static_cast<int>(chunk);
+                done += chunk;
+            }
+            ok = gzclose(g) == Z_OK && ok;
+        } else {
+            std::FILE *f = std::fopen(file.c_str(), "wb");
+            if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
+            ok = std::fwrite(head, 1, head_bytes, f) == head_bytes && std::fwrite(body, 1, body_bytes, f) == body_bytes;
+            ok = std::fclose(f) == 0 && ok;
         }
-        ok = gzclose(g) == Z_OK && ok;
+        if (!ok) throw FormatError(std::string("write failed: ") + std::strerror(errno));
+    };
+    if (pair) {
+        put_file(path, h, 348, nullptr, 0);  // a .hdr is the bare 348-byte header
+        put_file(image_path, nullptr, 0, voxels, bytes);
     } else {
-        std::FILE *f = std::fopen(path.c_str(), "wb");
-        if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
-        ok = std::fwrite(h, 1, sizeof h, f) == sizeof h && std::fwrite(voxels, 1, bytes, f) == bytes;
-        ok = std::fclose(f) == 0 && ok;
+        put_file(path, h, sizeof h, voxels, bytes);
     }
-    if (!ok) throw FormatError(std::string("write failed: ") + std::strerror(errno));
 }
 
 }  // namespace nifti

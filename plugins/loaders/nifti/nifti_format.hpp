@@ -58,7 +58,10 @@ private:
 
 // Writes a single-file NIfTI-1 (.nii, or gzipped when `gz`), little-endian,
 // sform_code 1 = the affine, qform from the affine when it is a rotation.
-void write(const std::string &path, bool gz, DType dtype, const std::vector<std::uint64_t> &dims, const void *voxels,
+// Writes a single-file NIfTI-1 (.nii, "n+1") to `path`, or, when
+// `image_path` is not empty, a header-only .hdr ("ni1") to `path` and the
+// voxels to `image_path`; `gz` compresses every file written.
+void write(const std::string &path, const std::string &image_path, bool gz, DType dtype, const std::vector<std::uint64_t> &dims, const void *voxels,
            const std::array<double, 16> &affine, double slope, double inter);
 
 int probe(const unsigned char *head, std::uint64_t size);

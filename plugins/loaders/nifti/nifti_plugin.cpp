@@ -5,6 +5,7 @@
 #include <hz/cpp/plugin.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cstring>
 #include <memory>
 
@@ -203,8 +204,29 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
     if (data->kind != HZ_DATA_VOLUME) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "nifti: %s: NIfTI holds volumes only", req->path);
     return run(err, req->path, [&]() -> hz_status {
         const std::string ext = req->extension ? req->extension : "nii";
-        if (ext != "nii" && ext != "nii.gz")
-            throw nifti::FormatError("writing ." + ext + " is not supported (write .nii or .nii.gz)");
+        const bool pair = ext == "hdr" || ext == "img" || ext == "hdr.gz" || ext == "img.gz";
+        if (ext != "nii" && ext != "nii.gz" && !pair) throw nifti::FormatError("writing ." + ext + " is not supported");
+        // A pair: `path` gets the file the user named, the other one is a
+        // companion the host renames with it.
+        std::string header_tmp = req->path, image_tmp, companion_final;
+        const bool gz = ext == "nii.gz" || ext == "hdr.gz" || ext == "img.gz";
+        if (pair) {
+            if (!HZ_HAS_FIELD(req, hz_write_request, companion_ctx) || req->add_companion == nullptr || req->final_path == nullptr)
+                throw nifti::FormatError("this host cannot receive the second file of a .hdr/.img pair (needs ABI 1.3)");
+            const std::string final_path = req->final_path;
+            const std::string named = ext.substr(0, 3), other = named == "hdr" ? "img" : "hdr";
+            const std::size_t cut = final_path.size() - ext.size();
+            auto lower = [](std::string x) {
+                for (char &c : x) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+                return x;
+            };
+            if (final_path.size() < ext.size() || lower(final_path.substr(cut)) != ext)
+                throw nifti::FormatError("cannot derive the ." + other + " name from " + final_path);
+            companion_final = final_path.substr(0, cut) + other + (gz ? ".gz" : "");
+            const std::string companion_tmp = std::string(req->path) + "." + other;
+            if (named == "hdr") image_tmp = companion_tmp;
+            else header_tmp = companion_tmp, image_tmp = req->path;
+        }
         const hz_array_view &vx = data->voxels;
         nifti::DType dt;
         if (!from_hz(vx.dtype, dt)) throw nifti::FormatError("voxel type cannot be stored in NIfTI");
@@ -230,7 +252,10 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             static const char *own[] = {"pixdim", "datatype", "vox_offset", "qform_code", "sform_code", "affine_source", "scaling"};
             if (std::find(std::begin(own), std::end(own), k) == std::end(own)) req->on_dropped(req->ctx, ("header entry '" + k + "'").c_str());
         }
-        nifti::write(req->path, ext == "nii.gz", dt, dims, vx.data, aff, slope, inter);
+        if (pair && req->add_companion(req->companion_ctx, (header_tmp == req->path ? image_tmp : header_tmp).c_str(),
+                                       companion_final.c_str()) != HZ_OK)
+            throw nifti::FormatError("the host refused the companion file " + companion_final);
+        nifti::write(header_tmp, image_tmp, gz, dt, dims, vx.data, aff, slope, inter);
         return HZ_OK;
     });
 }
@@ -243,7 +268,7 @@ const hz_loader kLoader = {
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "NIfTI-1/2", "1.0.0", "Horizon",
-    "NIfTI-1 and NIfTI-2 volumes (.nii, .nii.gz, .hdr/.img pairs), both byte orders; writes .nii and .nii.gz", "MIT", kInterfaces,
+    "NIfTI-1 and NIfTI-2 volumes (.nii, .nii.gz, .hdr/.img pairs), both byte orders; writes all of these", "MIT", kInterfaces,
 };
 
 const hz_host *host() { return hz::single_plugin<kDescriptor, kLoader>::host(); }

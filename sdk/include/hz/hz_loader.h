@@ -212,6 +212,25 @@ typedef struct hz_write_request {
      */
     void(HZ_ABI *on_dropped)(void *ctx, const char *what);
     void *ctx;
+    /* ---- since 1.3 (check with HZ_HAS_FIELD) ---- */
+    /*
+     * The name `path` receives when the write succeeds (the user's target).
+     * [valid during write()]
+     */
+    const char *final_path;
+    /*
+     * For formats that keep one dataset in several files (NIfTI .hdr + .img).
+     * The writer writes each extra file to a temporary path of its choice in
+     * the directory of `path`, then reports it: `temp_path` is what it wrote,
+     * `final` the name the file must take (derived from final_path). The host
+     * copies both strings. After a successful write() the host renames every
+     * companion into place, then `path` (so a reader never finds the main
+     * file without its companions); after a failed write() it deletes them.
+     * Returns HZ_E_INVALID_ARGUMENT for a NULL or out-of-directory path.
+     * [calling-thread, only during write()]
+     */
+    hz_status(HZ_ABI *add_companion)(void *companion_ctx, const char *temp_path, const char *final);
+    void *companion_ctx;
 } hz_write_request;
 
 /* Callback of visit_metadata(); strings valid only during the callback. */

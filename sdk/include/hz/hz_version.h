@@ -19,6 +19,8 @@
  *          textures, rendered frames); hz_shader snippets may define
  *          hz_ambient() and use the host's hz_env_* functions and
  *          HZ_ZERO_<param> specialisation macros (see hz_shader.h).
+ *   1.3.0  hz_write_request gains final_path and add_companion (appended):
+ *          writers of multi-file formats (NIfTI .hdr/.img pairs).
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -29,7 +31,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 2
+#define HZ_ABI_VERSION_MINOR 3
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */

@@ -20,8 +20,11 @@ std::string matching_extension(const hz_loader &loader, const fs::path &path);
 
 // Picks the loader for reading `path`; throws Error naming the file.
 const LoadedPlugin &loader_for_read(const Registry &reg, const fs::path &path);
-// Picks the writer for `path` by extension; throws Error naming the file.
-const LoadedPlugin &loader_for_write(const Registry &reg, const fs::path &path);
+// Picks the writer for `path` by extension (the longest claimed suffix);
+// with `kind` set, writers that hold that kind of data come first (.hdr is a
+// NIfTI header for volumes and a Radiance picture for images). Throws Error
+// naming the file.
+const LoadedPlugin &loader_for_write(const Registry &reg, const fs::path &path, hz_data_kind kind = 0);
 
 // The hz_array_view of a volume's voxels (contiguous, x fastest; axes beyond
 // 4 merged into the last).
