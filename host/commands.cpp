@@ -109,6 +109,7 @@ json describe(const core::Dataset &ds) {
         const auto &m = ds.mesh;
         j["nb_vertices"] = m.nb_vertices();
         j["nb_faces"] = m.nb_faces();
+        if (core::is_overlay(ds)) j["overlay_vertices"] = core::overlay_vertices(ds);
         const auto b = core::bounds_of(m.vertices.data(), m.nb_vertices());
         j["bbox_ras_mm"] = b.empty ? json(nullptr) : json{{"min", b.min}, {"max", b.max}};
         j["transform"] = affine_json(m.transform);
@@ -185,7 +186,11 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json) {
         if (groups > 5) std::printf("group:         ... %zu groups in all\n", groups);
     }
     if (ds.kind == HZ_DATA_MESH) {
-        std::printf("vertices:      %llu\ntriangles:     %llu\n", (unsigned long long)ds.mesh.nb_vertices(), (unsigned long long)ds.mesh.nb_faces());
+        if (core::is_overlay(ds))
+            std::printf("overlay:       per-vertex values for a surface of %llu vertices (no geometry)\n",
+                        (unsigned long long)core::overlay_vertices(ds));
+        else
+            std::printf("vertices:      %llu\ntriangles:     %llu\n", (unsigned long long)ds.mesh.nb_vertices(), (unsigned long long)ds.mesh.nb_faces());
         if (!j["bbox_ras_mm"].is_null()) {
             const auto &mn = j["bbox_ras_mm"]["min"];
             const auto &mx = j["bbox_ras_mm"]["max"];
@@ -226,6 +231,8 @@ int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string
     for (const auto &d : dropped) std::fprintf(stderr, "horizon: warning: %s: dropped %s\n", out.c_str(), d.c_str());
     if (ds.kind == HZ_DATA_STREAMLINES)
         std::printf("%s -> %s (%llu streamlines)\n", in.c_str(), out.c_str(), (unsigned long long)ds.tractogram.nb_streamlines());
+    else if (core::is_overlay(ds))
+        std::printf("%s -> %s (per-vertex values for %llu vertices)\n", in.c_str(), out.c_str(), (unsigned long long)core::overlay_vertices(ds));
     else if (ds.kind == HZ_DATA_MESH)
         std::printf("%s -> %s (mesh, %llu vertices, %llu triangles)\n", in.c_str(), out.c_str(), (unsigned long long)ds.mesh.nb_vertices(),
                     (unsigned long long)ds.mesh.nb_faces());

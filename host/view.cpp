@@ -240,8 +240,19 @@ core::render::Scene scene_from_files(const core::Registry &reg, const std::vecto
     core::render::Scene s;
     for (const auto &f : files) {
         core::render::Object o;
+        core::Dataset data = core::read_dataset(reg, f);
+        if (core::is_overlay(data)) {
+            // Per-vertex values (lh.thickness, overlay-only GIFTI): onto the
+            // last surface named before it, which is then coloured by them.
+            auto last = std::find_if(s.objects.rbegin(), s.objects.rend(), [](const core::render::Object &x) { return x.kind == HZ_DATA_MESH; });
+            if (last == s.objects.rend()) throw core::Error(f + ": per-vertex values need their surface named before them (view lh.white lh.thickness)");
+            const auto names = core::attach_overlay(last->data.mesh, data, f);
+            last->coloring.mode = "data";
+            last->coloring.array = names.front();
+            continue;
+        }
         o.name = fs::path(f).filename().string();
-        o.data = core::read_dataset(reg, f);
+        o.data = std::move(data);
         o.kind = o.data.kind;
         if (o.kind == HZ_DATA_STREAMLINES) {
             o.coloring.mode = "direction";

@@ -121,6 +121,38 @@ void Tractogram::validate(const std::string &what) const {
     }
 }
 
+bool is_overlay(const Dataset &ds) { return overlay_vertices(ds) > 0; }
+
+std::uint64_t overlay_vertices(const Dataset &ds) {
+    if (ds.kind != HZ_DATA_MESH || ds.mesh.nb_vertices() != 0 || ds.mesh.nb_faces() != 0 || ds.mesh.arrays.empty()) return 0;
+    const std::uint64_t n = ds.mesh.arrays.front().count;
+    for (const auto &a : ds.mesh.arrays)
+        if (a.attach != HZ_ATTACH_VERTEX || a.count != n) return 0;
+    return n;
+}
+
+std::vector<std::string> attach_overlay(Mesh &mesh, const Dataset &overlay, const std::string &what) {
+    const std::uint64_t n = overlay_vertices(overlay);
+    if (n == 0) throw Error(what + ": not a per-vertex overlay (a curv file or an overlay-only GIFTI)");
+    if (n != mesh.nb_vertices())
+        throw Error(what + ": has values for " + std::to_string(n) + " vertices, the surface has " + std::to_string(mesh.nb_vertices()));
+    std::vector<std::string> names;
+    for (const auto &a : overlay.mesh.arrays) {
+        DataArray copy;
+        copy.attach = a.attach, copy.dtype = a.dtype, copy.components = a.components, copy.count = a.count;
+        copy.bytes = Buffer<std::byte>(a.bytes.size());
+        if (a.bytes.size()) std::memcpy(copy.bytes.data(), a.bytes.data(), a.bytes.size());
+        auto taken = [&](const std::string &nm) {
+            return std::any_of(mesh.arrays.begin(), mesh.arrays.end(), [&](const DataArray &x) { return x.name == nm; });
+        };
+        copy.name = a.name;
+        for (int k = 2; taken(copy.name); ++k) copy.name = a.name + " (" + std::to_string(k) + ")";
+        names.push_back(copy.name);
+        mesh.arrays.push_back(std::move(copy));
+    }
+    return names;
+}
+
 Bounds bounds_of(const float *xyz, std::uint64_t n) {
     Bounds b;
     if (n == 0) return b;

@@ -71,3 +71,34 @@ class FreeSurferTest(TempDirTest):
                 with open(f, "wb") as fh:
                     fh.write(data)
                 self.assert_clean_error(run("info", f, timeout=10), name)
+
+    def test_curv_overlays(self):
+        """curv files (lh.thickness, lh.curv) read as per-vertex values,
+        as nibabel's read_morph_data reads them; written back, and to an
+        overlay-only GIFTI and back."""
+        rng = np.random.default_rng(5)
+        vals = (rng.random(40) * 5 - 1).astype(np.float32)
+        src = self.path("lh.thickness")
+        fs.write_morph_data(src, vals)
+        info = run_json("info", src, "--json")
+        self.assertEqual(info["overlay_vertices"], 40)
+        self.assertEqual([a["name"] for a in info["arrays"]], ["thickness"])
+        for target in ("rh.curv", "v.shape.gii"):
+            out = self.path(target)
+            self.assertEqual(run("convert", src, out, "--force").returncode, 0)
+            got = fs.read_morph_data(out) if target.endswith("curv") else nib.load(out).darrays[0].data
+            np.testing.assert_array_equal(got, vals)
+        back = self.path("back.sulc")
+        self.assertEqual(run("convert", self.path("v.shape.gii"), back, "--force").returncode, 0)
+        np.testing.assert_array_equal(fs.read_morph_data(back), vals)
+        # A surface has no values to put in a curv file; a curv file has no geometry for a surface.
+        self.assert_clean_error(run("convert", self.make("lh.white"), self.path("x.curv")), "x.curv")
+        self.assert_clean_error(run("convert", src, self.path("x.white")), "x.white")
+        # Truncated: fewer values than declared.
+        with open(src, "rb") as fh:
+            good = fh.read()
+        for name, data in {"short.curv": good[:-9], "no_values.curv": good[:15]}.items():
+            with self.subTest(case=name):
+                with open(self.path(name), "wb") as fh:
+                    fh.write(data)
+                self.assert_clean_error(run("info", self.path(name), timeout=10), name)

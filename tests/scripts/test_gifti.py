@@ -86,10 +86,31 @@ class GiftiTest(TempDirTest):
             with self.subTest(file=name):
                 path = os.path.join(NIB_DATA, name)
                 self.check_roundtrip(path)
-        # Face indices past the vertex count (nibabel reads them unchecked), and overlay-only files.
-        for name in ("base64bin.gii", "gzipbase64.gii", "label.gii", "rh.shape.curv.gii", "task.func.gii"):
+        # Face indices past the vertex count (nibabel reads them unchecked).
+        for name in ("base64bin.gii",):
             with self.subTest(file=name):
                 self.assert_clean_error(run("info", os.path.join(NIB_DATA, name)), name)
+        # Overlay-only files: per-vertex values for a surface kept elsewhere,
+        # read as nibabel reads them and written back overlay-only.
+        for name in ("label.gii", "rh.shape.curv.gii", "task.func.gii", "gzipbase64.gii"):
+            with self.subTest(file=name):
+                path = os.path.join(NIB_DATA, name)
+                ref = nib.load(path)
+                info = run_json("info", path, "--json")
+                self.assertEqual(info["nb_vertices"], 0)
+                self.assertEqual(info["overlay_vertices"], ref.darrays[0].data.shape[0])
+                self.assertEqual(len(info["arrays"]), len(ref.darrays))
+                out = self.path("ov_" + name)
+                self.assertEqual(run("convert", path, out, "--force").returncode, 0)
+                back = nib.load(out)
+                self.assertEqual(len(back.darrays), len(ref.darrays))
+                for a, b in zip(ref.darrays, back.darrays):
+                    np.testing.assert_array_equal(np.asarray(b.data).reshape(a.data.shape), a.data)
+        # Arrays of different lengths cannot describe one surface.
+        mixed = nib.gifti.GiftiImage(darrays=[nib.gifti.GiftiDataArray(np.zeros(5, np.float32), intent="NIFTI_INTENT_SHAPE"),
+                                               nib.gifti.GiftiDataArray(np.zeros(6, np.float32), intent="NIFTI_INTENT_SHAPE")])
+        nib.save(mixed, self.path("mixed.gii"))
+        self.assert_clean_error(run("info", self.path("mixed.gii")), "mixed.gii")
 
     def test_malformed(self):
         rng = np.random.default_rng(4)

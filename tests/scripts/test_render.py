@@ -117,6 +117,50 @@ class RenderTest(TempDirTest):
         self.assertEqual(stats["points_total"], stats["points_total"])
         self.assertGreater(stats["segments"], 100)
 
+    def make_surface_with_thickness(self):
+        """A FreeSurfer sphere-like surface and a thickness overlay that varies with z (nibabel writes both)."""
+        import nibabel.freesurfer as fsio
+        u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 40, endpoint=False), np.linspace(0.1, np.pi - 0.1, 20))
+        verts = (np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)], -1).reshape(-1, 3) * 60).astype(np.float32)
+        faces = []
+        for i in range(19):
+            for j in range(40):
+                a, b, c, d = i * 40 + j, i * 40 + (j + 1) % 40, (i + 1) * 40 + j, (i + 1) * 40 + (j + 1) % 40
+                faces += [[a, c, b], [b, c, d]]
+        fsio.write_geometry(self.path("lh.white"), verts, np.array(faces, np.int32))
+        fsio.write_morph_data(self.path("lh.thickness"), (1.5 + verts[:, 2] / 40).astype(np.float32))
+        fsio.write_morph_data(self.path("short.thickness"), np.ones(10, np.float32))
+
+    def test_surface_overlays(self):
+        """A curv overlay from its own file colours the surface it names."""
+        self.make_surface_with_thickness()
+        plain, _ = render_scene(self, {"objects": [{"type": "surface", "file": "lh.white"}], "camera": {"view": "left"}}, "plain")
+        scene = {"objects": [{"type": "surface", "file": "lh.white", "overlays": ["lh.thickness"]}], "camera": {"view": "left"}}
+        coloured, _ = render_scene(self, scene, "coloured")
+        a, b = load(plain), load(coloured)
+        self.assertGreater(np.mean(np.abs(a - b)), 5.0, "the overlay colours the surface")
+        # viridis runs from purple to yellow: thickness grows with z, so the
+        # top of the surface and its bottom get different colours.
+        fg = np.abs(b - b[0, 0]).sum(axis=2) > 30
+        ys = np.nonzero(fg.any(axis=1))[0]
+        third = (ys[-1] - ys[0]) // 3
+        top = b[ys[0]:ys[0] + third][fg[ys[0]:ys[0] + third]].mean(axis=0)
+        bottom = b[ys[-1] - third:ys[-1]][fg[ys[-1] - third:ys[-1]]].mean(axis=0)
+        self.assertGreater(top[1] - bottom[1], 30, f"top {top}, bottom {bottom}")
+        bad = {"objects": [{"type": "surface", "file": "lh.white", "overlays": ["short.thickness"]}]}
+        path = self.path("bad_overlay.json")
+        with open(path, "w") as f:
+            json.dump(bad, f)
+        p = run("render", path, "-o", self.path("bad.png"), env=NO_DISPLAY)
+        self.assert_clean_error(p, "bad_overlay.json")
+        self.assertIn("short.thickness: has values for 10 vertices, the surface has 800", p.stderr)
+        alone = {"objects": [{"type": "surface", "file": "lh.thickness"}]}
+        with open(self.path("alone.json"), "w") as f:
+            json.dump(alone, f)
+        p = run("render", self.path("alone.json"), "-o", self.path("alone.png"), env=NO_DISPLAY)
+        self.assert_clean_error(p, "alone.json")
+        self.assertIn("per-vertex values only", p.stderr)
+
     def test_decimation_keeps_the_picture(self):
         scene = {"objects": [{"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 2000}, "render": "lines"}]}
         full, s0 = render_scene(self, scene, "full", "--lod-pixels", "0", size="400x300")
@@ -213,6 +257,26 @@ class WindowTest(TempDirTest):
         self.assertGreater(np.mean(np.abs(shots[1] - shots[2])), 1.0, "zoom changes the view")
         self.assertGreater(np.mean(np.abs(shots[2] - shots[3])), 0.5, "switching the shading model changes the picture")
         self.assertTrue(os.path.exists(self.path("horizon-screenshot-1.png")), "the S key saves a screenshot")
+
+    def test_view_surface_and_overlay_files(self):
+        """`horizon view lh.white lh.thickness`: the overlay colours the surface before it."""
+        RenderTest.make_surface_with_thickness(self)
+        shots = {}
+        for name, files in (("plain", ["lh.white"]), ("overlay", ["lh.white", "lh.thickness"])):
+            script = self.path(name + ".txt")
+            with open(script, "w") as f:
+                f.write(f"wait 1\nscreenshot {self.path(name + '.png')}\nquit\n")
+            env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+            if "ASAN_OPTIONS" in env:
+                env["ASAN_OPTIONS"] += ":detect_leaks=0"
+            p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", *[self.path(x) for x in files],
+                                "--size", "320x240", "--script", script], capture_output=True, text=True, timeout=300, env=env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            shots[name] = load(self.path(name + ".png"))
+        self.assertGreater(np.mean(np.abs(shots["plain"] - shots["overlay"])), 5.0)
+        p = run("view", self.path("lh.thickness"), env={**os.environ, "DISPLAY": ":0"}, timeout=60)
+        self.assert_clean_error(p, "lh.thickness")
+        self.assertIn("need their surface", p.stderr)
 
     def test_level_of_detail_while_moving(self):
         # A tractogram above --lod-streamlines is drawn as QuickBundlesX

@@ -239,7 +239,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             check_keys(o, {"type", "name", "file", "builtin", "phantom", "render", "radius", "color", "material", "clustering", "visible", "opacity"}, what, where);
             ob.coloring.mode = "direction";
         } else if (type == "surface") {
-            check_keys(o, {"type", "name", "file", "builtin", "color", "material", "visible", "opacity"}, what, where);
+            check_keys(o, {"type", "name", "file", "builtin", "overlays", "color", "material", "visible", "opacity"}, what, where);
             ob.coloring.color = {0.85, 0.72, 0.68};
         } else {
             check_keys(o, {"type", "name", "file", "builtin", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity"}, what, where);
@@ -286,7 +286,28 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (ob.data.kind != want)
             fail(what, where, std::string("the file holds ") + kind_name(ob.data.kind) + ", not what type '" + type + "' shows");
         ob.kind = want;
+        if (want == HZ_DATA_MESH && is_overlay(ob.data))
+            fail(what, where, "the file holds per-vertex values only; give the surface in 'file' and this file in 'overlays'");
         if (want == HZ_DATA_MESH && !ob.data.metadata.empty()) apply_file_material(ob, o.contains("material"), o.contains("color"));
+        if (o.contains("overlays")) {
+            // Per-vertex values from other files (curv, thickness, overlay-only GIFTI).
+            const json &ov = o["overlays"];
+            if (!ov.is_array() && !ov.is_string()) fail(what, where + ".overlays", "expected a file name or an array of file names");
+            const json list = ov.is_string() ? json::array({ov}) : ov;
+            std::string first;
+            for (std::size_t k = 0; k < list.size(); ++k) {
+                const std::string at = where + ".overlays[" + std::to_string(k) + "]";
+                fs::path p = str(list[k], what, at);
+                if (p.is_relative()) p = base / p;
+                try {
+                    const auto names = attach_overlay(ob.data.mesh, read_dataset(reg, p), p.string());
+                    if (first.empty() && !names.empty()) first = names.front();
+                } catch (const Error &e) {
+                    fail(what, at, e.what());
+                }
+            }
+            if (!o.contains("color") && !first.empty()) ob.coloring.mode = "data", ob.coloring.array = first;
+        }
         if (type == "slices" && !ob.slice_x && !ob.slice_y && !ob.slice_z) {
             // Default: the three slices through the volume's centre.
             ob.slice_x = ob.slice_y = ob.slice_z = std::nan("");

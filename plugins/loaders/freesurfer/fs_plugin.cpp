@@ -4,6 +4,10 @@
 // vnum x 3 float32; fnum x 3 int32; an optional volume-info footer. The
 // coordinates are surface RAS (tkr-RAS) and are used as stored, as nibabel
 // does; the footer (with c_ras) is kept as header entries and written back.
+// Also "new format" curv files (lh.curv, lh.thickness, lh.sulc, ...): magic
+// FF FF FF, int32 vnum, fnum, values per vertex (1), vnum float32: read as a
+// per-vertex overlay without geometry, named after the file (lh.thickness ->
+// "thickness"), and written from one.
 #include "mapped_file.hpp"
 
 #include <hz/cpp/plugin.hpp>
@@ -28,6 +32,8 @@ struct FormatError : std::runtime_error {
 };
 
 struct Surface {
+    bool curv = false;                // a curv file: per-vertex values only
+    std::vector<float> values;        // curv values
     std::string created;
     std::vector<float> vertices;
     std::vector<std::uint32_t> faces;
@@ -36,8 +42,28 @@ struct Surface {
 
 std::uint32_t be32(const unsigned char *p) { return (std::uint32_t(p[0]) << 24) | (std::uint32_t(p[1]) << 16) | (std::uint32_t(p[2]) << 8) | p[3]; }
 
+// A "new format" curv file: FF FF FF, then vnum, fnum, values per vertex = 1.
+bool looks_like_curv(const unsigned char *b, std::uint64_t size) {
+    return size >= 15 && b[0] == 0xFF && b[1] == 0xFF && b[2] == 0xFF && be32(b + 11) == 1 && static_cast<std::int32_t>(be32(b + 3)) >= 0;
+}
+
+Surface parse_curv(const unsigned char *b, std::uint64_t size) {
+    Surface s;
+    s.curv = true;
+    const auto vnum = static_cast<std::int32_t>(be32(b + 3));
+    const std::uint64_t need = 15 + 4ull * static_cast<std::uint64_t>(vnum);
+    if (vnum == 0) throw FormatError("curv file with 0 vertices");
+    if (size < need)
+        throw FormatError("curv file declares " + std::to_string(vnum) + " values (" + std::to_string(need) + " bytes), the file has " +
+                          std::to_string(size));
+    s.values.resize(static_cast<std::size_t>(vnum));
+    for (std::size_t i = 0; i < s.values.size(); ++i) s.values[i] = std::bit_cast<float>(be32(b + 15 + 4 * i));
+    return s;
+}
+
 Surface parse(const unsigned char *b, std::uint64_t size) {
     if (size < 3) throw FormatError("file is " + std::to_string(size) + " bytes: no magic number");
+    if (looks_like_curv(b, size)) return parse_curv(b, size);
     if (b[0] != 0xFF || b[1] != 0xFF || b[2] != 0xFE) {
         if (b[0] == 0xFF && b[1] == 0xFF && (b[2] == 0xFF || b[2] == 0xFD))
             throw FormatError("a FreeSurfer quad surface (magic FF FF " + std::string(b[2] == 0xFF ? "FF" : "FD") + "): not supported yet");
@@ -100,8 +126,17 @@ Surface parse(const unsigned char *b, std::uint64_t size) {
 
 struct Reader {
     std::string path;
+    std::string array_name;  // curv: named after the file
     Surface s;
 };
+
+// lh.thickness -> "thickness"; a name without a dot is used whole.
+std::string overlay_name(const std::string &path) {
+    std::string base = path.substr(path.find_last_of('/') + 1);
+    const auto dot = base.find('.');
+    if (dot != std::string::npos && dot + 1 < base.size()) base = base.substr(dot + 1);
+    return base.empty() ? "curv" : base;
+}
 Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
 template <class F>
@@ -110,7 +145,8 @@ hz_status run(hz_error *err, const std::string &path, F &&body) {
 }
 
 int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) {
-    return size >= 3 && head[0] == 0xFF && head[1] == 0xFF && head[2] == 0xFE ? 90 : 0;
+    if (size >= 3 && head[0] == 0xFF && head[1] == 0xFF && head[2] == 0xFE) return 90;
+    return looks_like_curv(head, size) ? 80 : 0;
 }
 
 hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
@@ -122,6 +158,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         r->path = req->path;
         const hzio::MappedFile m(r->path);
         r->s = parse(m.data(), m.size());
+        r->array_name = overlay_name(r->path);
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
     });
@@ -132,7 +169,8 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: get_info: bad arguments");
     const Surface &s = as_reader(reader)->s;
     out->kind = HZ_DATA_MESH;
-    std::snprintf(out->format, sizeof out->format, "freesurfer triangles");
+    std::snprintf(out->format, sizeof out->format, s.curv ? "freesurfer curv" : "freesurfer triangles");
+    out->nb_arrays = s.curv ? 1 : 0;
     out->nb_vertices = s.vertices.size() / 3;
     out->nb_faces = s.faces.size() / 3;
     static const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
@@ -141,13 +179,36 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
     return HZ_OK;
 }
 
-hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *, hz_error *err) {
-    return hz::set_errorf(err, HZ_E_NOT_FOUND, "freesurfer: %s: no extra array %u", reader ? as_reader(reader)->path.c_str() : "?", index);
+hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
+    if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: get_array_info: NULL");
+    const Reader &r = *as_reader(reader);
+    if (!r.s.curv || index != 0) return hz::set_errorf(err, HZ_E_NOT_FOUND, "freesurfer: %s: no extra array %u", r.path.c_str(), index);
+    out->attach = HZ_ATTACH_VERTEX;
+    out->name = r.array_name.c_str();
+    out->dtype = HZ_DTYPE_F32;
+    out->components = 1;
+    out->count = r.s.values.size();
+    return HZ_OK;
+}
+
+hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
+    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: read_array: NULL");
+    const Reader &r = *as_reader(reader);
+    if (!r.s.curv || index != 0) return hz::set_errorf(err, HZ_E_NOT_FOUND, "freesurfer: %s: no extra array %u", r.path.c_str(), index);
+    if (dst->dtype != HZ_DTYPE_F32 || dst->ndim < 1 || dst->shape[0] != r.s.values.size())
+        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "freesurfer: %s: read_array: destination does not match", r.path.c_str());
+    for (std::uint64_t i = 0; i < r.s.values.size(); ++i) {
+        unsigned char *cell = hz::view_cell(*dst, i, 0, 4);
+        if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: read_array: destination too small", r.path.c_str());
+        std::memcpy(cell, &r.s.values[i], 4);
+    }
+    return HZ_OK;
 }
 
 hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
     if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: visit_metadata: NULL");
     const Surface &s = as_reader(reader)->s;
+    if (s.curv) return HZ_OK;
     visitor(ctx, "created", s.created.c_str());
     for (const auto &[k, v] : s.footer) visitor(ctx, k.c_str(), v.c_str());
     return HZ_OK;
@@ -166,11 +227,50 @@ hz_status HZ_ABI read_mesh(hz_reader *reader, const hz_mesh_dst *dst, const hz_t
 
 void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
 
+const char *const kCurvExtensions[] = {"curv", "thickness", "sulc", "area"};
+
+// One per-vertex, one-component float array as a curv file.
+hz_status write_curv(const hz_write_request *req, const hz_dataset_view *data) {
+    const hz_named_array *pick = nullptr;
+    for (uint32_t i = 0; i < data->nb_arrays; ++i) {
+        const hz_named_array &a = data->arrays[i];
+        const bool fits = a.attach == HZ_ATTACH_VERTEX && a.components == 1 && (a.dtype == HZ_DTYPE_F32 || a.dtype == HZ_DTYPE_F64) &&
+                          (data->mesh_nb_vertices == 0 || a.count == data->mesh_nb_vertices);
+        if (fits && pick == nullptr) pick = &a;
+        else if (req->on_dropped) req->on_dropped(req->ctx, ("array '" + std::string(a.name ? a.name : "") + "' (a curv file holds one per-vertex value)").c_str());
+    }
+    if (pick == nullptr) throw FormatError("a curv file needs a per-vertex array of one float value per vertex; this data has none");
+    if (pick->count == 0 || pick->count > 0x7FFFFFFF) throw FormatError("curv files hold 1 to 2^31-1 values");
+    if (data->mesh_nb_vertices > 0 && req->on_dropped) req->on_dropped(req->ctx, "the surface geometry (a curv file holds values only)");
+    std::vector<unsigned char> out = {0xFF, 0xFF, 0xFF};
+    auto put = [&](std::uint32_t v) {
+        for (int s = 24; s >= 0; s -= 8) out.push_back(static_cast<unsigned char>(v >> s));
+    };
+    put(static_cast<std::uint32_t>(pick->count));
+    put(static_cast<std::uint32_t>(data->mesh_nb_faces));
+    put(1);
+    for (std::uint64_t i = 0; i < pick->count; ++i) {
+        const float v = pick->dtype == HZ_DTYPE_F32 ? static_cast<const float *>(pick->data)[i]
+                                                     : static_cast<float>(static_cast<const double *>(pick->data)[i]);
+        put(std::bit_cast<std::uint32_t>(v));
+    }
+    std::FILE *f = std::fopen(req->path, "wb");
+    if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
+    const bool ok = std::fwrite(out.data(), 1, out.size(), f) == out.size();
+    if ((std::fclose(f) != 0) || !ok) throw FormatError("write failed");
+    return HZ_OK;
+}
+
 hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
     if (req == nullptr || req->path == nullptr || data == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: write: NULL request or data");
     if (data->kind != HZ_DATA_MESH) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "freesurfer: %s: holds surfaces only", req->path);
     return run(err, req->path, [&]() -> hz_status {
+        const std::string ext = req->extension ? req->extension : "";
+        if (std::find(std::begin(kCurvExtensions), std::end(kCurvExtensions), ext) != std::end(kCurvExtensions))
+            return write_curv(req, data);
+        if (data->mesh_nb_vertices == 0 && data->nb_arrays > 0)
+            throw FormatError("no surface geometry to write (per-vertex values go in a curv file: lh.curv, lh.thickness, ...)");
         if (data->mesh_nb_vertices > 0x7FFFFFFF || data->mesh_nb_faces > 0x7FFFFFFF) throw FormatError("too many vertices or faces");
         for (uint32_t i = 0; i < data->nb_arrays && req->on_dropped; ++i)
             req->on_dropped(req->ctx, ("array '" + std::string(data->arrays[i].name ? data->arrays[i].name : "") +
@@ -210,15 +310,16 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
     });
 }
 
-const char *const kExtensions[] = {"white", "pial", "inflated", "sphere", "orig", "smoothwm", "midthickness", "surf", nullptr};
+const char *const kExtensions[] = {"white", "pial",      "inflated", "sphere", "orig", "smoothwm", "midthickness",
+                                   "surf",  "curv",      "thickness", "sulc",  "area", nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 3, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, nullptr, nullptr, nullptr, read_mesh, close, write,
+    sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 15, kExtensions, probe, open, get_info,
+    get_array_info, visit_metadata, nullptr, read_array, nullptr, read_mesh, close, write,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "FreeSurfer surface", "1.0.0", "Horizon",
-    "FreeSurfer binary triangle surfaces (lh.white, rh.pial, ...), with the volume-info footer", "MIT", kInterfaces,
+    "FreeSurfer binary triangle surfaces (lh.white, rh.pial, ...) with the volume-info footer, and curv overlays (lh.curv, lh.thickness, ...)", "MIT", kInterfaces,
 };
 
 }  // namespace

@@ -267,10 +267,31 @@ Surface read(const std::string &path) {
         if (a.intent == "NIFTI_INTENT_POINTSET" && !points) points = &a;
         else if (a.intent == "NIFTI_INTENT_TRIANGLE" && !tris) tris = &a;
     }
-    if (!points)
-        throw FormatError(arrays.empty() ? "no DataArray at all"
-                                         : "no NIFTI_INTENT_POINTSET array: an overlay-only file (" + std::to_string(arrays.size()) +
-                                               " arrays); overlays are read together with their surface");
+    if (arrays.empty()) throw FormatError("no DataArray at all");
+    // An overlay-only file (thickness, curvature, labels of a surface kept
+    // elsewhere): per-vertex arrays that all have the first array's rows.
+    auto add_overlay = [&](const Array &a) {
+        Overlay o;
+        o.intent = a.intent;
+        o.name = a.name.empty() ? a.intent : a.name;
+        o.components = static_cast<std::uint32_t>(a.cols);
+        o.integer = a.dtype != DT::F32 && a.dtype != DT::F64;
+        if (o.integer) o.labels.assign(a.values.begin(), a.values.end());
+        else o.values.assign(a.values.begin(), a.values.end());
+        s.overlays.push_back(std::move(o));
+    };
+    if (!points) {
+        if (tris) throw FormatError("a NIFTI_INTENT_TRIANGLE array without a NIFTI_INTENT_POINTSET");
+        s.rows = arrays.front().rows;
+        if (s.rows == 0) throw FormatError("overlay-only file whose first array has no rows");
+        for (const auto &a : arrays) {
+            if (a.rows != s.rows)
+                throw FormatError("overlay-only file with arrays of " + std::to_string(s.rows) + " and " + std::to_string(a.rows) +
+                                  " rows: not one surface's vertices");
+            add_overlay(a);
+        }
+        return s;
+    }
     if (!tris) throw FormatError("no NIFTI_INTENT_TRIANGLE array (a point cloud, not a mesh)");
     if (points->cols != 3) throw FormatError("POINTSET has " + std::to_string(points->cols) + " columns, expected 3");
     if (tris->cols != 3) throw FormatError("TRIANGLE has " + std::to_string(tris->cols) + " columns, expected 3");
@@ -293,17 +314,11 @@ Surface read(const std::string &path) {
         s.data_space = points->data_space;
         s.transformed_space = points->transformed_space;
     }
+    s.rows = nv;
     for (const auto &a : arrays) {
         if (&a == points || &a == tris) continue;
         if (a.rows != nv) continue;  // not per vertex (e.g. a second surface): not an overlay of this mesh
-        Overlay o;
-        o.intent = a.intent;
-        o.name = a.name.empty() ? a.intent : a.name;
-        o.components = static_cast<std::uint32_t>(a.cols);
-        o.integer = a.dtype != DT::F32 && a.dtype != DT::F64;
-        if (o.integer) o.labels.assign(a.values.begin(), a.values.end());
-        else o.values.assign(a.values.begin(), a.values.end());
-        s.overlays.push_back(std::move(o));
+        add_overlay(a);
     }
     return s;
 }
@@ -315,7 +330,8 @@ void write(const std::string &path, const Surface &s, bool gz) {
     decl.append_attribute("encoding") = "UTF-8";
     pugi::xml_node root = doc.append_child("GIFTI");
     root.append_attribute("Version") = "1.0";
-    root.append_attribute("NumberOfDataArrays") = static_cast<unsigned>(2 + s.overlays.size());
+    const bool geometry = !s.overlay_only();
+    root.append_attribute("NumberOfDataArrays") = static_cast<unsigned>((geometry ? 2 : 0) + s.overlays.size());
     pugi::xml_node meta = root.append_child("MetaData");
     for (const auto &[k, v] : s.metadata) {
         pugi::xml_node md = meta.append_child("MD");
@@ -367,11 +383,13 @@ void write(const std::string &path, const Surface &s, bool gz) {
         da.append_child("Data").text().set(payload.c_str());
     };
     static_assert(std::endian::native == std::endian::little, "the GIFTI writer assumes a little-endian host");
-    add("NIFTI_INTENT_POINTSET", "NIFTI_TYPE_FLOAT32", s.vertices.size() / 3, 3, s.vertices.data(), 4, "", true);
-    std::vector<std::int32_t> f(s.faces.begin(), s.faces.end());
-    add("NIFTI_INTENT_TRIANGLE", "NIFTI_TYPE_INT32", s.faces.size() / 3, 3, f.data(), 4, "", false);
+    if (geometry) {
+        add("NIFTI_INTENT_POINTSET", "NIFTI_TYPE_FLOAT32", s.vertices.size() / 3, 3, s.vertices.data(), 4, "", true);
+        std::vector<std::int32_t> f(s.faces.begin(), s.faces.end());
+        add("NIFTI_INTENT_TRIANGLE", "NIFTI_TYPE_INT32", s.faces.size() / 3, 3, f.data(), 4, "", false);
+    }
     for (const auto &o : s.overlays) {
-        const std::uint64_t rows = s.vertices.size() / 3;
+        const std::uint64_t rows = geometry ? s.vertices.size() / 3 : s.rows;
         if (o.integer) {
             add("NIFTI_INTENT_LABEL", "NIFTI_TYPE_INT32", rows, o.components, o.labels.data(), 4, o.name, false);
         } else {

@@ -33,13 +33,16 @@ struct Surface {
     std::string data_space, transformed_space;
     std::vector<Overlay> overlays;
     std::vector<std::pair<std::string, std::string>> metadata;
+    std::uint64_t rows = 0;             // vertices the overlays describe (= vertices / 3 unless overlay-only)
+    bool overlay_only() const { return vertices.empty() && faces.empty() && !overlays.empty(); }
 };
 
 // Reads and validates a whole .gii file (faces in range, sizes = Dims).
 Surface read(const std::string &path);
 
 // Writes GZipBase64Binary (gz) or Base64Binary arrays, little-endian,
-// row-major: POINTSET, TRIANGLE, then float overlays as NIFTI_INTENT_SHAPE.
+// row-major: POINTSET, TRIANGLE, then float overlays as NIFTI_INTENT_SHAPE
+// (an overlay-only file when `s` has no geometry).
 void write(const std::string &path, const Surface &s, bool gz);
 
 int probe(const unsigned char *head, std::uint64_t size);

@@ -64,7 +64,7 @@ hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info
     out->name = o.name.c_str();
     out->dtype = o.integer ? HZ_DTYPE_I32 : HZ_DTYPE_F32;
     out->components = o.components;
-    out->count = r.s.vertices.size() / 3;
+    out->count = r.s.rows;
     return HZ_OK;
 }
 
@@ -93,7 +93,7 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
     const Reader &r = *as_reader(reader);
     if (index >= r.s.overlays.size()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "gifti: %s: no extra array %u", r.path.c_str(), index);
     const gifti::Overlay &o = r.s.overlays[index];
-    const std::uint64_t rows = r.s.vertices.size() / 3;
+    const std::uint64_t rows = r.s.rows;
     if (dst->ndim != 2 || dst->shape[0] != rows || dst->shape[1] != o.components || dst->dtype != (o.integer ? HZ_DTYPE_I32 : HZ_DTYPE_F32))
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "gifti: %s: read_array: destination does not match", r.path.c_str());
     for (std::uint64_t i = 0; i < rows; ++i)
@@ -127,10 +127,15 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             else if (k == "TransformedSpace") s.transformed_space = v;
             else s.metadata.emplace_back(k, v);
         }
+        // No geometry: an overlay-only file, its rows set by the first per-vertex array.
+        s.rows = data->mesh_nb_vertices;
+        if (s.rows == 0)
+            for (uint32_t i = 0; i < data->nb_arrays && s.rows == 0; ++i)
+                if (data->arrays[i].attach == HZ_ATTACH_VERTEX) s.rows = data->arrays[i].count;
         for (uint32_t i = 0; i < data->nb_arrays; ++i) {
             const hz_named_array &a = data->arrays[i];
             const std::string name = a.name ? a.name : "";
-            if (a.attach != HZ_ATTACH_VERTEX || a.count != data->mesh_nb_vertices) {
+            if (a.attach != HZ_ATTACH_VERTEX || a.count != s.rows) {
                 if (req->on_dropped) req->on_dropped(req->ctx, ("array '" + name + "' (GIFTI overlays are per vertex)").c_str());
                 continue;
             }
@@ -154,6 +159,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             }
             s.overlays.push_back(std::move(o));
         }
+        if (s.vertices.empty() && s.overlays.empty()) throw gifti::FormatError("nothing to write: no surface and no per-vertex array");
         gifti::write(req->path, s, true);
         return HZ_OK;
     });

@@ -116,6 +116,17 @@ struct Dataset {
     Volume volume;
 };
 
+// A per-vertex overlay without geometry (a FreeSurfer curv file, an
+// overlay-only GIFTI): a mesh dataset with no vertices, no faces and
+// per-vertex arrays, all of one count.
+bool is_overlay(const Dataset &ds);
+// The vertex count an overlay describes (0 if `ds` is not one).
+std::uint64_t overlay_vertices(const Dataset &ds);
+// Appends the per-vertex arrays of `overlay` to `mesh` (a name already taken
+// gets " (2)", " (3)", ...). Throws Error naming `what` when the overlay's
+// vertex count is not the mesh's. Returns the names as added.
+std::vector<std::string> attach_overlay(Mesh &mesh, const Dataset &overlay, const std::string &what);
+
 const char *kind_name(hz_data_kind k);
 const char *space_name(hz_space s);
 
