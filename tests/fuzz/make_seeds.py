@@ -13,7 +13,7 @@ out = sys.argv[1]
 rng = np.random.default_rng(0)
 sl = [rng.normal(size=(int(rng.integers(1, 8)), 3)).astype(np.float32) * 10 for _ in range(6)]
 nib_data = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
-for kind in ("tck", "trk", "trx", "nifti", "gifti"):
+for kind in ("tck", "trk", "trx", "nifti", "gifti", "freesurfer"):
     os.makedirs(os.path.join(out, kind), exist_ok=True)
 t = nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4))
 nib.streamlines.save(t, os.path.join(out, "tck", "small.tck"))
@@ -49,3 +49,14 @@ for enc in ("GIFTI_ENCODING_ASCII", "GIFTI_ENCODING_B64BIN", "GIFTI_ENCODING_B64
                               GiftiDataArray(tris, intent="NIFTI_INTENT_TRIANGLE", datatype="NIFTI_TYPE_INT32", encoding=enc),
                               GiftiDataArray(verts[:, 0].copy(), intent="NIFTI_INTENT_SHAPE", datatype="NIFTI_TYPE_FLOAT32", encoding=enc)])
     nib.save(img, os.path.join(out, "gifti", enc.split("_")[-1].lower() + ".gii"))
+# FreeSurfer: a small surface with and without the volume-info footer, and a curv file.
+from collections import OrderedDict
+import nibabel.freesurfer as fsio
+fv = (rng.normal(size=(6, 3)) * 20).astype(np.float32)
+ff = np.array([[0, 1, 2], [2, 3, 4], [4, 5, 0]], np.int32)
+fsio.write_geometry(os.path.join(out, "freesurfer", "lh.white"), fv, ff)
+vi = OrderedDict(head=np.array([2, 0, 20], dtype=np.int32), valid="1  # volume info valid", filename="vol.nii",
+                 volume=np.array([256, 256, 256]), voxelsize=np.array([1.0, 1.0, 1.0]), xras=np.array([-1.0, 0, 0]),
+                 yras=np.array([0, 0, -1.0]), zras=np.array([0, 1.0, 0]), cras=np.array([1.5, -2.0, 3.25]))
+fsio.write_geometry(os.path.join(out, "freesurfer", "rh.pial"), fv, ff, volume_info=vi)
+fsio.write_morph_data(os.path.join(out, "freesurfer", "lh.thickness"), rng.random(6).astype(np.float32))

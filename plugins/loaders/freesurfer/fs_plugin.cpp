@@ -8,6 +8,7 @@
 // FF FF FF, int32 vnum, fnum, values per vertex (1), vnum float32: read as a
 // per-vertex overlay without geometry, named after the file (lh.thickness ->
 // "thickness"), and written from one.
+#include "fs_format.hpp"
 #include "mapped_file.hpp"
 
 #include <hz/cpp/plugin.hpp>
@@ -27,102 +28,11 @@ namespace {
 
 constexpr const char *kId = "org.horizon.loader.freesurfer";
 
-struct FormatError : std::runtime_error {
-    using std::runtime_error::runtime_error;
-};
-
-struct Surface {
-    bool curv = false;                // a curv file: per-vertex values only
-    std::vector<float> values;        // curv values
-    std::string created;
-    std::vector<float> vertices;
-    std::vector<std::uint32_t> faces;
-    std::vector<std::pair<std::string, std::string>> footer;  // volume info, in file order
-};
-
-std::uint32_t be32(const unsigned char *p) { return (std::uint32_t(p[0]) << 24) | (std::uint32_t(p[1]) << 16) | (std::uint32_t(p[2]) << 8) | p[3]; }
-
-// A "new format" curv file: FF FF FF, then vnum, fnum, values per vertex = 1.
-bool looks_like_curv(const unsigned char *b, std::uint64_t size) {
-    return size >= 15 && b[0] == 0xFF && b[1] == 0xFF && b[2] == 0xFF && be32(b + 11) == 1 && static_cast<std::int32_t>(be32(b + 3)) >= 0;
-}
-
-Surface parse_curv(const unsigned char *b, std::uint64_t size) {
-    Surface s;
-    s.curv = true;
-    const auto vnum = static_cast<std::int32_t>(be32(b + 3));
-    const std::uint64_t need = 15 + 4ull * static_cast<std::uint64_t>(vnum);
-    if (vnum == 0) throw FormatError("curv file with 0 vertices");
-    if (size < need)
-        throw FormatError("curv file declares " + std::to_string(vnum) + " values (" + std::to_string(need) + " bytes), the file has " +
-                          std::to_string(size));
-    s.values.resize(static_cast<std::size_t>(vnum));
-    for (std::size_t i = 0; i < s.values.size(); ++i) s.values[i] = std::bit_cast<float>(be32(b + 15 + 4 * i));
-    return s;
-}
-
-Surface parse(const unsigned char *b, std::uint64_t size) {
-    if (size < 3) throw FormatError("file is " + std::to_string(size) + " bytes: no magic number");
-    if (looks_like_curv(b, size)) return parse_curv(b, size);
-    if (b[0] != 0xFF || b[1] != 0xFF || b[2] != 0xFE) {
-        if (b[0] == 0xFF && b[1] == 0xFF && (b[2] == 0xFF || b[2] == 0xFD))
-            throw FormatError("a FreeSurfer quad surface (magic FF FF " + std::string(b[2] == 0xFF ? "FF" : "FD") + "): not supported yet");
-        throw FormatError("magic is not FF FF FE (not a FreeSurfer triangle surface)");
-    }
-    Surface s;
-    std::uint64_t pos = 3;
-    const void *nl = std::memchr(b + pos, '\n', static_cast<std::size_t>(std::min<std::uint64_t>(size - pos, 4096)));
-    if (nl == nullptr) throw FormatError("no end to the 'created by' line within 4096 bytes");
-    const auto end = static_cast<std::uint64_t>(static_cast<const unsigned char *>(nl) - b);
-    s.created.assign(reinterpret_cast<const char *>(b + pos), end - pos);
-    pos = end + 1;
-    if (pos < size && b[pos] == '\n') ++pos;
-    if (size - pos < 8) throw FormatError("file ends before the vertex and face counts");
-    const auto vnum = static_cast<std::int32_t>(be32(b + pos)), fnum = static_cast<std::int32_t>(be32(b + pos + 4));
-    pos += 8;
-    if (vnum < 0 || fnum < 0) throw FormatError("negative vertex or face count (" + std::to_string(vnum) + ", " + std::to_string(fnum) + ")");
-    const std::uint64_t need = 12ull * static_cast<std::uint64_t>(vnum) + 12ull * static_cast<std::uint64_t>(fnum);
-    if (need > size - pos)
-        throw FormatError(std::to_string(vnum) + " vertices and " + std::to_string(fnum) + " faces need " + std::to_string(need) +
-                          " bytes, the file has " + std::to_string(size - pos) + " left");
-    s.vertices.resize(3 * static_cast<std::size_t>(vnum));
-    for (std::size_t i = 0; i < s.vertices.size(); ++i, pos += 4) {
-        s.vertices[i] = std::bit_cast<float>(be32(b + pos));
-        if (!std::isfinite(s.vertices[i])) throw FormatError("vertex " + std::to_string(i / 3) + " has a non-finite coordinate");
-    }
-    s.faces.resize(3 * static_cast<std::size_t>(fnum));
-    for (std::size_t i = 0; i < s.faces.size(); ++i, pos += 4) {
-        const auto f = static_cast<std::int32_t>(be32(b + pos));
-        if (f < 0 || f >= vnum)
-            throw FormatError("face " + std::to_string(i / 3) + " uses vertex " + std::to_string(f) + ", outside [0, " + std::to_string(vnum) + ")");
-        s.faces[i] = static_cast<std::uint32_t>(f);
-    }
-    // Optional footer: tag 20 (or 2, 0, 20) then "key = value" lines.
-    if (size - pos >= 4) {
-        std::uint64_t q = pos;
-        std::int32_t tag = static_cast<std::int32_t>(be32(b + q));
-        if (tag == 2 && size - q >= 12 && be32(b + q + 4) == 0 && be32(b + q + 8) == 20) q += 12;
-        else if (tag == 20) q += 4;
-        else q = size;
-        std::string text(reinterpret_cast<const char *>(b + q), static_cast<std::size_t>(size - q));
-        std::size_t start = 0;
-        while (start < text.size()) {
-            const auto e = text.find('\n', start);
-            const std::string line = text.substr(start, e == std::string::npos ? std::string::npos : e - start);
-            start = e == std::string::npos ? text.size() : e + 1;
-            const auto eq = line.find('=');
-            if (eq == std::string::npos) continue;
-            auto trim = [](std::string x) {
-                const auto a = x.find_first_not_of(" \t"), z = x.find_last_not_of(" \t\r");
-                return a == std::string::npos ? std::string() : x.substr(a, z - a + 1);
-            };
-            std::string k = trim(line.substr(0, eq)), v = trim(line.substr(eq + 1));
-            if (const auto hash = v.find('#'); hash != std::string::npos) v = trim(v.substr(0, hash));
-            if (!k.empty() && s.footer.size() < 64) s.footer.emplace_back(k, v);
-        }
-    }
-    return s;
-}
+using fsurf::FormatError;
+using fsurf::Surface;
+using fsurf::be32;
+using fsurf::looks_like_curv;
+using fsurf::parse;
 
 struct Reader {
     std::string path;
