@@ -177,11 +177,94 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size) {
     return h;
 }
 
+namespace {
+
+// Float32LE, the common case: blocks of 16 triples are tested for NaN/Inf
+// with integer masks (the compiler vectorises the loop); only blocks that
+// hold a delimiter are looked at triple by triple. Same checks, same errors
+// as the generic walk. Returns false when it does not apply.
+bool scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header &h, const Tick &cancelled, Layout &L,
+                bool &terminated, std::string &error) {
+    if (h.datatype != DataType::Float32LE || !kLittle) return false;
+    constexpr std::uint32_t kExp = 0x7F800000u, kMant = 0x007FFFFFu;
+    std::uint64_t in_track = 0, next_tick = 0;
+    for (std::uint64_t i = 0; i < n_triples;) {
+        if (i >= next_tick) {
+            if (cancelled && cancelled(h.data_offset + i * 12)) throw Cancelled{};
+            next_tick = i + (1u << 20);
+        }
+        if (i + 16 <= n_triples) {
+            std::uint32_t w[48];
+            std::memcpy(w, data + 12 * i, sizeof w);
+            unsigned special = 0;
+            for (int k = 0; k < 48; ++k) special |= (w[k] & kExp) == kExp;
+            if (!special) {
+                in_track += 16;
+                i += 16;
+                continue;
+            }
+        }
+        // One triple: finite, all-NaN (end of a streamline), all-Inf (end of the file) or malformed.
+        const std::uint64_t end = std::min(n_triples, i + 16);
+        for (; i < end; ++i) {
+            std::uint32_t w[3];
+            std::memcpy(w, data + 12 * i, sizeof w);
+            int nans = 0, infs = 0;
+            for (std::uint32_t x : w) {
+                const bool e = (x & kExp) == kExp;
+                nans += e && (x & kMant) != 0;
+                infs += e && (x & kMant) == 0;
+            }
+            const std::uint64_t at = h.data_offset + i * 12;
+            if (nans == 0 && infs == 0) {
+                ++in_track;
+                continue;
+            }
+            if (nans == 3) {
+                L.delimiters.push_back(i);
+                ++L.nb_streamlines;
+                L.nb_vertices += in_track;
+                in_track = 0;
+                continue;
+            }
+            if (infs == 3) {
+                if (in_track != 0) {
+                    error = "last streamline is not closed by a NaN triple before the Inf terminator (byte " + std::to_string(at) + ")";
+                    return true;
+                }
+                terminated = true;
+                L.end_offset = at + 12;
+                return true;
+            }
+            error = "partial NaN/Inf triple at byte " + std::to_string(at) +
+                    " (only all-NaN ends a streamline and all-Inf ends the file)";
+            return true;
+        }
+    }
+    return true;
+}
+
+}  // namespace
+
 Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled) {
     const std::uint64_t es = element_size(h.datatype);
     const std::uint64_t avail = size - h.data_offset;
     const std::uint64_t n_triples = avail / (3 * es);
     Layout L;
+    {
+        bool terminated = false;
+        std::string error;
+        if (scan_f32le(bytes + h.data_offset, n_triples, h, cancelled, L, terminated, error)) {
+            if (!error.empty()) throw FormatError(error);
+            if (!terminated) {
+                if (avail % (3 * es) != 0)
+                    throw FormatError("data ends inside a point (file truncated at byte " + std::to_string(size) + ")");
+                throw FormatError("no 'Inf Inf Inf' terminator (file truncated?)");
+            }
+            L.trailing_bytes = size - L.end_offset;
+            return L;
+        }
+    }
     std::uint64_t in_track = 0;  // points in the open streamline
     bool terminated = false;
     std::string error;
@@ -230,6 +313,25 @@ void decode(const unsigned char *bytes, const Header &h, const Layout &L, float 
     const std::uint64_t n_triples = (L.end_offset - h.data_offset) / (3 * es);
     std::uint64_t v = 0, s = 0;
     offsets[0] = 0;
+    if (L.delimiters.size() == L.nb_streamlines && L.nb_streamlines > 0 && h.datatype == DataType::Float32LE && kLittle) {
+        // The runs between the delimiters found by scan(), copied as they are.
+        const unsigned char *data = bytes + h.data_offset;
+        std::uint64_t start = 0, next_tick = 0;
+        for (std::uint64_t k = 0; k < L.nb_streamlines; ++k) {
+            const std::uint64_t end = L.delimiters[k];
+            if (end >= next_tick) {
+                if (cancelled && cancelled(h.data_offset + end * 12)) throw Cancelled{};
+                next_tick = end + (1u << 20);
+            }
+            const std::uint64_t n = end - start;
+            if (n) std::memcpy(positions + 3 * v, data + 12 * start, 12 * n);
+            v += n;
+            offsets[k + 1] = v;
+            start = end + 1;
+        }
+        if (v != L.nb_vertices) throw FormatError("file changed while reading");
+        return;
+    }
     for_each_triple(bytes + h.data_offset, n_triples, h.datatype, [&](std::uint64_t i, double x, double y, double z) {
         if ((i & 0xFFFFF) == 0 && cancelled && cancelled(h.data_offset + i * 3 * es)) throw Cancelled{};
         if (std::isnan(x)) {

@@ -45,6 +45,9 @@ struct Layout {
     std::uint64_t nb_vertices = 0;
     std::uint64_t end_offset = 0;        // byte just after the Inf terminator
     std::uint64_t trailing_bytes = 0;    // bytes after the terminator (ignored, as mrtrix does)
+    // Float32LE files: the triple index of every NaN delimiter, so decode()
+    // copies the runs between them without looking at the data again.
+    std::vector<std::uint64_t> delimiters;
 };
 
 // Walks the data once, checking every triple; throws FormatError on a partial
