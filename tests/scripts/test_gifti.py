@@ -111,6 +111,20 @@ class GiftiTest(TempDirTest):
                                                nib.gifti.GiftiDataArray(np.zeros(6, np.float32), intent="NIFTI_INTENT_SHAPE")])
         nib.save(mixed, self.path("mixed.gii"))
         self.assert_clean_error(run("info", self.path("mixed.gii")), "mixed.gii")
+        # An integer overlay whose ASCII text holds a number far outside int32
+        # (found by fuzzing: an undefined conversion).
+        labels = nib.gifti.GiftiImage(darrays=[nib.gifti.GiftiDataArray(np.arange(3, dtype=np.int32), intent="NIFTI_INTENT_LABEL",
+                                                                         encoding="GIFTI_ENCODING_ASCII")])
+        nib.save(labels, self.path("labels.gii"))
+        self.assertEqual(run("info", self.path("labels.gii")).returncode, 0)
+        with open(self.path("labels.gii")) as fh:
+            text = fh.read()
+        body = text[text.index("<Data>") + 6:text.index("</Data>")]
+        with open(self.path("huge_label.gii"), "w") as fh:
+            fh.write(text.replace("<Data>" + body, "<Data>" + body.replace("2", "2.22222e+43", 1), 1))
+        p = run("info", self.path("huge_label.gii"))
+        self.assert_clean_error(p, "huge_label.gii")
+        self.assertIn("not an int32 value", p.stderr)
 
     def test_malformed(self):
         rng = np.random.default_rng(4)

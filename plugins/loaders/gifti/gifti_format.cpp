@@ -276,8 +276,18 @@ Surface read(const std::string &path) {
         o.name = a.name.empty() ? a.intent : a.name;
         o.components = static_cast<std::uint32_t>(a.cols);
         o.integer = a.dtype != DT::F32 && a.dtype != DT::F64;
-        if (o.integer) o.labels.assign(a.values.begin(), a.values.end());
-        else o.values.assign(a.values.begin(), a.values.end());
+        if (o.integer) {
+            // Integer arrays (labels) are kept as int32; a value outside it
+            // (an ASCII array can hold any number) is an error, not a wrap.
+            o.labels.reserve(a.values.size());
+            for (const double x : a.values) {
+                if (!(x >= -2147483648.0 && x <= 2147483647.0) || x != std::floor(x))
+                    throw FormatError("integer array '" + o.name + "' holds " + fmt_number(x) + ", not an int32 value");
+                o.labels.push_back(static_cast<std::int32_t>(x));
+            }
+        } else {
+            o.values.assign(a.values.begin(), a.values.end());
+        }
         s.overlays.push_back(std::move(o));
     };
     if (!points) {
