@@ -36,19 +36,24 @@ const hz_param_info kStallingParams[] = {
 const hz_param_info kMalloParams[] = {color("kd", "Diffuse", "diffuse albedo", 0.7, 0.4, 0.2)};
 const hz_param_info kFlatParams[] = {color("color", "Colour", "the radiance shown, unlit", 0.8, 0.8, 0.8)};
 
-const char kLambertGlsl[] = R"glsl(
-vec3 hz_shade(HzShadePoint p) {
-    vec3 n = normalize(p.n);
-    if (!(dot(n, normalize(p.l)) > 0.0) || !(dot(n, normalize(p.v)) > 0.0)) return vec3(0.0);
-    return max(u_albedo, vec3(0.0)) * 0.3183098861837907;
+// The surface models below skip normalising n, l, v where the host passes
+// them as unit vectors (HZ_UNIT_VECTORS) and select instead of branching
+// (llvmpipe pays for both sides of a branch).
+#define CLASSIC_UNIT_NLV \
+    "#ifdef HZ_UNIT_VECTORS\n" \
+    "    vec3 n = p.n, l = p.l, v = p.v;\n" \
+    "#else\n" \
+    "    vec3 n = normalize(p.n), l = normalize(p.l), v = normalize(p.v);\n" \
+    "#endif\n"
+const char kLambertGlsl[] = "vec3 hz_shade(HzShadePoint p) {\n" CLASSIC_UNIT_NLV R"glsl(
+    bool lit = dot(n, l) > 0.0 && dot(n, v) > 0.0;
+    return lit ? max(u_albedo, vec3(0.0)) * 0.3183098861837907 : vec3(0.0);
 }
 )glsl";
 const char kFlatGlsl[] = R"glsl(
 vec3 hz_shade(HzShadePoint p) { return max(u_color, vec3(0.0)); }
 )glsl";
-const char kBlinnGlsl[] = R"glsl(
-vec3 hz_shade(HzShadePoint p) {
-    vec3 n = normalize(p.n), l = normalize(p.l), v = normalize(p.v);
+const char kBlinnGlsl[] = "vec3 hz_shade(HzShadePoint p) {\n" CLASSIC_UNIT_NLV R"glsl(
     float NoL = dot(n, l), NoV = dot(n, v);
     vec3 h = l + v;
     float NoH = dot(h, h) > 0.0 ? max(dot(n, normalize(h)), 0.0) : 0.0;
@@ -56,13 +61,12 @@ vec3 hz_shade(HzShadePoint p) {
     return max(u_ka, vec3(0.0)) + max(u_kd, vec3(0.0)) * max(NoL, 0.0) + max(u_ks, vec3(0.0)) * spec;
 }
 )glsl";
-const char kBlinnBrdfGlsl[] = R"glsl(
-vec3 hz_shade(HzShadePoint p) {
-    vec3 n = normalize(p.n), l = normalize(p.l), v = normalize(p.v);
-    if (!(dot(n, l) > 0.0) || !(dot(n, v) > 0.0)) return vec3(0.0);
+const char kBlinnBrdfGlsl[] = "vec3 hz_shade(HzShadePoint p) {\n" CLASSIC_UNIT_NLV R"glsl(
+    bool lit = dot(n, l) > 0.0 && dot(n, v) > 0.0;
     float s = max(u_shininess, 1.0);
     float NoH = max(dot(n, normalize(l + v)), 0.0);
-    return max(u_kd, vec3(0.0)) * 0.3183098861837907 + max(u_ks, vec3(0.0)) * (s + 8.0) / 25.132741228718345 * pow(NoH, s);
+    vec3 f = max(u_kd, vec3(0.0)) * 0.3183098861837907 + max(u_ks, vec3(0.0)) * (s + 8.0) / 25.132741228718345 * pow(NoH, s);
+    return lit ? f : vec3(0.0);
 }
 )glsl";
 const char kStallingGlsl[] = R"glsl(
