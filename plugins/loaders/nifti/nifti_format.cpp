@@ -366,7 +366,8 @@ void write(const std::string &path, const std::string &image_path, bool gz, DTyp
         } else {
             std::FILE *f = std::fopen(file.c_str(), "wb");
             if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
-            ok = std::fwrite(head, 1, head_bytes, f) == head_bytes && std::fwrite(body, 1, body_bytes, f) == body_bytes;
+            ok = (head_bytes == 0 || std::fwrite(head, 1, head_bytes, f) == head_bytes) &&
+                 (body_bytes == 0 || std::fwrite(body, 1, body_bytes, f) == body_bytes);
             ok = std::fclose(f) == 0 && ok;
         }
         if (!ok) throw FormatError(std::string("write failed: ") + std::strerror(errno));
