@@ -13,7 +13,7 @@ out = sys.argv[1]
 rng = np.random.default_rng(0)
 sl = [rng.normal(size=(int(rng.integers(1, 8)), 3)).astype(np.float32) * 10 for _ in range(6)]
 nib_data = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
-for kind in ("tck", "trk", "trx", "nifti", "gifti", "freesurfer"):
+for kind in ("tck", "trk", "trx", "nifti", "gifti", "freesurfer", "gltf"):
     os.makedirs(os.path.join(out, kind), exist_ok=True)
 t = nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4))
 nib.streamlines.save(t, os.path.join(out, "tck", "small.tck"))
@@ -60,3 +60,18 @@ vi = OrderedDict(head=np.array([2, 0, 20], dtype=np.int32), valid="1  # volume i
                  yras=np.array([0, 0, -1.0]), zras=np.array([0, 1.0, 0]), cras=np.array([1.5, -2.0, 3.25]))
 fsio.write_geometry(os.path.join(out, "freesurfer", "rh.pial"), fv, ff, volume_info=vi)
 fsio.write_morph_data(os.path.join(out, "freesurfer", "lh.thickness"), rng.random(6).astype(np.float32))
+# glTF: the hand-written documents of tests/scripts/test_gltf.py, as .gltf and .glb.
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
+from test_gltf import gltf_json, to_glb  # noqa: E402
+gpos = [[0, 0, 0], [0.01, 0, 0], [0, 0.01, 0], [0, 0, 0.01]]
+gidx = [0, 1, 2, 0, 2, 3]
+doc, blob = gltf_json(gpos, gidx, colors=[[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]],
+                      material={"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.2, 0.2, 1], "metallicFactor": 0.1}})
+with open(os.path.join(out, "gltf", "a.gltf"), "w") as f:
+    json.dump(doc, f)
+with open(os.path.join(out, "gltf", "a.glb"), "wb") as f:
+    f.write(to_glb(doc, blob))
+doc, blob = gltf_json(gpos, gidx, nodes=[{"children": [1], "translation": [0.01, 0, 0]},
+                                         {"mesh": 0, "rotation": [0, 0.7071, 0, 0.7071], "scale": [2, 2, 2]}], index_type=5123)
+with open(os.path.join(out, "gltf", "nodes.glb"), "wb") as f:
+    f.write(to_glb(doc, blob))

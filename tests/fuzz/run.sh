@@ -10,7 +10,7 @@ cmake -S . -B "$dir" -DHZ_FUZZ=ON -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_C_COMPILE
 cmake --build "$dir" -j"$(nproc)" > /dev/null
 seeds="$dir/seeds"
 rm -rf "$seeds" && /usr/bin/python3 tests/fuzz/make_seeds.py "$seeds"
-for t in tck trk trx nifti gifti freesurfer; do
+for t in tck trk trx nifti gifti freesurfer gltf; do
   mkdir -p "$dir/corpus/$t"
   log="$dir/fuzz_$t.log"
   if ! "$dir/bin/fuzz_$t" -max_total_time="$secs" -rss_limit_mb=2048 -max_len=65536 \

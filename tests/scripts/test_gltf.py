@@ -150,7 +150,12 @@ class GltfTest(TempDirTest):
         bad_count["accessors"][0]["count"] = 1_000_000
         cycle = json.loads(json.dumps(doc))
         cycle["nodes"] = [{"children": [1]}, {"children": [0], "mesh": 0}]
+        # A chain of 60 nodes, each listing the next twice: 2^60 instances
+        # of one mesh from a 5 kB file. Must fail fast, not hang or allocate.
+        blowup = json.loads(json.dumps(doc))
+        blowup["nodes"] = [{"children": [i + 1, i + 1]} for i in range(60)] + [{"mesh": 0}]
         cases = {
+            "blowup.gltf": json.dumps(blowup).encode(),
             "trunc.glb": glb[: len(glb) // 2],
             "notjson.gltf": b"{ \"asset\": {\"version\": \"2.0\"}, oops",
             "index.gltf": json.dumps(doc2).encode(),
