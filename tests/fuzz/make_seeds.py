@@ -13,7 +13,7 @@ out = sys.argv[1]
 rng = np.random.default_rng(0)
 sl = [rng.normal(size=(int(rng.integers(1, 8)), 3)).astype(np.float32) * 10 for _ in range(6)]
 nib_data = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
-for kind in ("tck", "trk", "trx", "nifti", "gifti", "freesurfer", "gltf"):
+for kind in ("tck", "trk", "trx", "nifti", "gifti", "freesurfer", "gltf", "images"):
     os.makedirs(os.path.join(out, kind), exist_ok=True)
 t = nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4))
 nib.streamlines.save(t, os.path.join(out, "tck", "small.tck"))
@@ -75,3 +75,17 @@ doc, blob = gltf_json(gpos, gidx, nodes=[{"children": [1], "translation": [0.01,
                                          {"mesh": 0, "rotation": [0, 0.7071, 0, 0.7071], "scale": [2, 2, 2]}], index_type=5123)
 with open(os.path.join(out, "gltf", "nodes.glb"), "wb") as f:
     f.write(to_glb(doc, blob))
+# Images: the first byte picks the extension the fuzz target gives the file
+# (0 png, 1 jpg, 2 exr, 3 hdr, 4 tif); small pictures written by Pillow and a
+# hand-written Radiance file.
+import io
+from PIL import Image
+grad = (np.arange(8 * 6 * 3).reshape(6, 8, 3) * 5 % 256).astype(np.uint8)
+for code, fmt, mode in ((0, "PNG", "RGB"), (0, "PNG", "RGBA"), (1, "JPEG", "RGB"), (4, "TIFF", "RGB")):
+    b = io.BytesIO()
+    Image.fromarray(grad if mode == "RGB" else np.dstack([grad, grad[..., :1]])).save(b, fmt)
+    with open(os.path.join(out, "images", f"{fmt.lower()}_{mode}.bin"), "wb") as f:
+        f.write(bytes([code]) + b.getvalue())
+rgbe = bytes([128, 64, 32, 129]) * (4 * 3)
+with open(os.path.join(out, "images", "radiance.bin"), "wb") as f:
+    f.write(bytes([3]) + b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 3 +X 4\n" + rgbe)
