@@ -19,6 +19,9 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <unordered_map>
+#include <set>
+#include <map>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -120,16 +123,23 @@ public:
     std::uint64_t size(std::uint64_t node) const { return tree_.size(node); }
     std::uint32_t level(std::uint64_t node) const { return tree_.level[node]; }
     std::string summary() const {
+        std::string colours;
+        for (std::uint64_t node : shown_) colours += (colours.empty() ? "" : " ") + std::to_string(colour_[node]);
         return std::to_string(shown_.size()) + " clusters, " + std::to_string(expanded_.size()) + " streamlines expanded, " +
-               std::to_string(rounds_) + " clustering round(s)";
+               std::to_string(rounds_) + " clustering round(s); colours " + colours;
     }
 
     void expand(std::size_t rank) {
         const std::uint64_t node = at(rank);
         std::erase(shown_, node);
         if (tree_.level[node] < tree_.nb_levels) {
+            // The largest child keeps the parent's colour, the others get new ones.
+            std::vector<std::uint64_t> kids;
             for (std::uint64_t k = 0; k < tree_.parent.size(); ++k)
-                if (tree_.parent[k] == std::int64_t(node)) shown_.push_back(k);
+                if (tree_.parent[k] == std::int64_t(node)) kids.push_back(k);
+            std::stable_sort(kids.begin(), kids.end(), [&](std::uint64_t a, std::uint64_t b) { return size(a) > size(b); });
+            for (std::size_t i = 0; i < kids.size(); ++i) colour_[kids[i]] = i == 0 ? colour_[node] : next_colour_++;
+            shown_.insert(shown_.end(), kids.begin(), kids.end());
         } else {
             for (std::uint64_t m = tree_.member_offsets[node]; m < tree_.member_offsets[node + 1]; ++m)
                 expanded_.push_back(subset_[tree_.members[m]]);
@@ -144,12 +154,17 @@ public:
         std::sort(keep.begin(), keep.end());
         keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
         if (keep.empty()) throw core::Error("nothing is shown to cluster again");
-        cluster(std::move(keep));
+        // Each streamline's colour now, so that the new clusters can keep them.
+        std::unordered_map<std::uint64_t, std::uint64_t> before;
+        for (std::uint64_t node : shown_)
+            for (std::uint64_t m = tree_.member_offsets[node]; m < tree_.member_offsets[node + 1]; ++m) before[subset_[tree_.members[m]]] = colour_[node];
+        cluster(std::move(keep), &before);
     }
     void reset() {
         std::vector<std::uint64_t> every(all_.nb_streamlines());
         for (std::uint64_t i = 0; i < every.size(); ++i) every[i] = i;
-        cluster(std::move(every));
+        next_colour_ = 0;
+        cluster(std::move(every), nullptr);
     }
 
     core::render::Object centroids_object() const {
@@ -160,12 +175,12 @@ public:
         const std::uint64_t K = shown_.size(), P = tree_.nb_points;
         t.positions = core::Buffer<float>(K * P * 3);
         t.offsets = core::Buffer<std::uint64_t>(K + 1);
-        std::vector<float> sizes(K), ids(K);  // ids keep each cluster's colour while others change
+        std::vector<float> sizes(K), ids(K);  // a cluster's colour id, stable while others change
         for (std::uint64_t i = 0; i < K; ++i) {
             std::copy_n(tree_.centroids.data() + shown_[i] * P * 3, P * 3, t.positions.data() + i * P * 3);
             t.offsets[i] = i * P;
             sizes[i] = float(size(shown_[i]));
-            ids[i] = float(shown_[i]);
+            ids[i] = float(colour_[shown_[i]]);
         }
         t.offsets[K] = K * P;
         t.arrays.push_back(core::f32_array("cluster_size", HZ_ATTACH_STREAMLINE, sizes));
@@ -195,8 +210,10 @@ private:
         std::stable_sort(shown_.begin(), shown_.end(), [&](std::uint64_t a, std::uint64_t b) { return size(a) > size(b); });
     }
     // QuickBundlesX (fast mode) over the streamlines `subset` of all_;
-    // shows the first level.
-    void cluster(std::vector<std::uint64_t> subset) {
+    // shows the first level. With `before` (streamline -> colour id), each
+    // new cluster, largest first, takes the colour most of its streamlines
+    // had, unless a larger one took it already; the rest get new colours.
+    void cluster(std::vector<std::uint64_t> subset, const std::unordered_map<std::uint64_t, std::uint64_t> *before) {
         tree_ = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), core::render::ClusterSpec{});
         subset_ = std::move(subset);
         shown_.clear();
@@ -204,6 +221,22 @@ private:
         for (std::uint64_t k = 0; k < tree_.level.size(); ++k)
             if (tree_.level[k] == 1) shown_.push_back(k);
         sort();
+        colour_.assign(tree_.level.size(), 0);
+        std::set<std::uint64_t> taken;
+        for (std::uint64_t node : shown_) {
+            std::uint64_t pick = next_colour_;
+            if (before != nullptr) {
+                std::map<std::uint64_t, std::uint64_t> votes;
+                for (std::uint64_t m = tree_.member_offsets[node]; m < tree_.member_offsets[node + 1]; ++m)
+                    if (auto it = before->find(subset_[tree_.members[m]]); it != before->end()) ++votes[it->second];
+                std::uint64_t best = 0;
+                for (const auto &[c, n] : votes)
+                    if (n > best && !taken.count(c)) best = n, pick = c;
+            }
+            if (pick == next_colour_) ++next_colour_;
+            taken.insert(pick);
+            colour_[node] = pick;
+        }
         ++rounds_;
     }
 
@@ -212,6 +245,8 @@ private:
     std::string name_;
     core::render::ClusterTree tree_;
     std::vector<std::uint64_t> subset_, shown_, expanded_;
+    std::vector<std::uint64_t> colour_;  // per tree node: its colour id (the palette entry)
+    std::uint64_t next_colour_ = 0;
     int rounds_ = 0;
 };
 

@@ -319,10 +319,18 @@ class WindowTest(TempDirTest):
         states = [l for l in p.stdout.splitlines() if l.startswith("explore:")]
         import re
         parsed = [tuple(map(int, re.findall(r"(\d+) clusters, (\d+) streamlines expanded, (\d+) clustering", l)[0])) for l in states]
+        colours = [l.split("colours", 1)[1].split() for l in states]
         self.assertEqual(parsed[0][1:], (0, 1))
         self.assertTrue(any(e > 0 for _, e, _ in parsed), "expanding reaches the streamlines of a last-level cluster")
         self.assertEqual(parsed[-1][2], 2, "repeat clusters again")
         self.assertEqual(parsed[-2][0], parsed[-3][0] - 1, "hide removes a cluster")
+        # Colours are stable: expanding keeps the other clusters' colours, and
+        # after repeat most clusters keep the colour their streamlines had.
+        self.assertEqual(len(set(colours[0])), len(colours[0]), "one colour per cluster")
+        before, after = set(colours[-2]), colours[-1]
+        kept = sum(c in before for c in after)
+        self.assertGreaterEqual(kept, min(len(after), len(before)) * 0.5, f"colours before {colours[-2]}, after {after}")
+        self.assertEqual(len(set(after)), len(after), "one colour per cluster after repeat")
         shots = [load(self.path(f"e{i}.png")) for i in range(3)]
         self.assertGreater(np.mean(np.abs(shots[0] - shots[1])), 0.5)
         self.assertGreater(np.mean(np.abs(shots[1] - shots[2])), 0.5)
