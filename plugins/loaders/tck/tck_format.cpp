@@ -179,69 +179,89 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size) {
 
 namespace {
 
+// The validating walk over the data section, one classified triple at a
+// time; both scans below drive it. Triple `index` at byte `at` has `nans`
+// NaN and `infs` infinite components.
+struct Walk {
+    Walk(Layout &layout, bool record) : L(layout), record_delimiters(record) {}
+    Layout &L;
+    bool record_delimiters;
+    std::uint64_t in_track = 0;  // points in the open streamline
+    bool terminated = false;
+    std::string error;
+
+    // Returns false when the walk ends (terminator or error).
+    bool triple(int nans, int infs, std::uint64_t index, std::uint64_t at, std::uint64_t triple_bytes) {
+        if (nans == 0 && infs == 0) {
+            ++in_track;
+            return true;
+        }
+        if (nans == 3) {  // end of a streamline (possibly empty)
+            if (record_delimiters) L.delimiters.push_back(index);
+            ++L.nb_streamlines;
+            L.nb_vertices += in_track;
+            in_track = 0;
+            return true;
+        }
+        if (infs == 3) {
+            if (in_track != 0) {
+                error = "last streamline is not closed by a NaN triple before the Inf terminator (byte " + std::to_string(at) + ")";
+                return false;
+            }
+            terminated = true;
+            L.end_offset = at + triple_bytes;
+            return false;
+        }
+        error = "partial NaN/Inf triple at byte " + std::to_string(at) + " (only all-NaN ends a streamline and all-Inf ends the file)";
+        return false;
+    }
+
+    // Throws what the walk found wrong; fills the trailing bytes.
+    void finish(std::uint64_t size, std::uint64_t avail, std::uint64_t triple_bytes) const {
+        if (!error.empty()) throw FormatError(error);
+        if (!terminated) {
+            if (avail % triple_bytes != 0) throw FormatError("data ends inside a point (file truncated at byte " + std::to_string(size) + ")");
+            throw FormatError("no 'Inf Inf Inf' terminator (file truncated?)");
+        }
+        L.trailing_bytes = size - L.end_offset;
+    }
+};
+
 // Float32LE, the common case: blocks of 16 triples are tested for NaN/Inf
 // with integer masks (the compiler vectorises the loop); only blocks that
-// hold a delimiter are looked at triple by triple. Same checks, same errors
-// as the generic walk. Returns false when it does not apply.
-bool scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header &h, const Tick &cancelled, Layout &L,
-                bool &terminated, std::string &error) {
-    if (h.datatype != DataType::Float32LE || !kLittle) return false;
+// hold a delimiter go through the walk triple by triple. It also records the
+// delimiters, so decode() copies the runs between them.
+void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header &h, const Tick &cancelled, Walk &w) {
     constexpr std::uint32_t kExp = 0x7F800000u, kMant = 0x007FFFFFu;
-    std::uint64_t in_track = 0, next_tick = 0;
+    std::uint64_t next_tick = 0;
     for (std::uint64_t i = 0; i < n_triples;) {
         if (i >= next_tick) {
             if (cancelled && cancelled(h.data_offset + i * 12)) throw Cancelled{};
             next_tick = i + (1u << 20);
         }
         if (i + 16 <= n_triples) {
-            std::uint32_t w[48];
-            std::memcpy(w, data + 12 * i, sizeof w);
+            std::uint32_t b[48];
+            std::memcpy(b, data + 12 * i, sizeof b);
             unsigned special = 0;
-            for (int k = 0; k < 48; ++k) special |= (w[k] & kExp) == kExp;
+            for (int k = 0; k < 48; ++k) special |= (b[k] & kExp) == kExp;
             if (!special) {
-                in_track += 16;
+                w.in_track += 16;
                 i += 16;
                 continue;
             }
         }
-        // One triple: finite, all-NaN (end of a streamline), all-Inf (end of the file) or malformed.
-        const std::uint64_t end = std::min(n_triples, i + 16);
-        for (; i < end; ++i) {
-            std::uint32_t w[3];
-            std::memcpy(w, data + 12 * i, sizeof w);
+        for (const std::uint64_t end = std::min(n_triples, i + 16); i < end; ++i) {
+            std::uint32_t b[3];
+            std::memcpy(b, data + 12 * i, sizeof b);
             int nans = 0, infs = 0;
-            for (std::uint32_t x : w) {
+            for (std::uint32_t x : b) {
                 const bool e = (x & kExp) == kExp;
                 nans += e && (x & kMant) != 0;
                 infs += e && (x & kMant) == 0;
             }
-            const std::uint64_t at = h.data_offset + i * 12;
-            if (nans == 0 && infs == 0) {
-                ++in_track;
-                continue;
-            }
-            if (nans == 3) {
-                L.delimiters.push_back(i);
-                ++L.nb_streamlines;
-                L.nb_vertices += in_track;
-                in_track = 0;
-                continue;
-            }
-            if (infs == 3) {
-                if (in_track != 0) {
-                    error = "last streamline is not closed by a NaN triple before the Inf terminator (byte " + std::to_string(at) + ")";
-                    return true;
-                }
-                terminated = true;
-                L.end_offset = at + 12;
-                return true;
-            }
-            error = "partial NaN/Inf triple at byte " + std::to_string(at) +
-                    " (only all-NaN ends a streamline and all-Inf ends the file)";
-            return true;
+            if (!w.triple(nans, infs, i, h.data_offset + i * 12, 12)) return;
         }
     }
-    return true;
 }
 
 }  // namespace
@@ -251,59 +271,19 @@ Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, con
     const std::uint64_t avail = size - h.data_offset;
     const std::uint64_t n_triples = avail / (3 * es);
     Layout L;
-    {
-        bool terminated = false;
-        std::string error;
-        if (scan_f32le(bytes + h.data_offset, n_triples, h, cancelled, L, terminated, error)) {
-            if (!error.empty()) throw FormatError(error);
-            if (!terminated) {
-                if (avail % (3 * es) != 0)
-                    throw FormatError("data ends inside a point (file truncated at byte " + std::to_string(size) + ")");
-                throw FormatError("no 'Inf Inf Inf' terminator (file truncated?)");
-            }
-            L.trailing_bytes = size - L.end_offset;
-            return L;
-        }
+    const bool f32le = h.datatype == DataType::Float32LE && kLittle;
+    Walk w(L, f32le);
+    if (f32le) {
+        scan_f32le(bytes + h.data_offset, n_triples, h, cancelled, w);
+    } else {
+        for_each_triple(bytes + h.data_offset, n_triples, h.datatype, [&](std::uint64_t i, double x, double y, double z) {
+            if ((i & 0xFFFFF) == 0 && cancelled && cancelled(h.data_offset + i * 3 * es)) throw Cancelled{};
+            const int nans = std::isnan(x) + std::isnan(y) + std::isnan(z);
+            const int infs = std::isinf(x) + std::isinf(y) + std::isinf(z);
+            return w.triple(nans, infs, i, h.data_offset + i * 3 * es, 3 * es);
+        });
     }
-    std::uint64_t in_track = 0;  // points in the open streamline
-    bool terminated = false;
-    std::string error;
-    for_each_triple(bytes + h.data_offset, n_triples, h.datatype, [&](std::uint64_t i, double x, double y, double z) {
-        if ((i & 0xFFFFF) == 0 && cancelled && cancelled(h.data_offset + i * 3 * es)) throw Cancelled{};
-        const int nans = std::isnan(x) + std::isnan(y) + std::isnan(z);
-        const int infs = std::isinf(x) + std::isinf(y) + std::isinf(z);
-        const std::uint64_t at = h.data_offset + i * 3 * es;
-        if (nans == 0 && infs == 0) {
-            ++in_track;
-            return true;
-        }
-        if (nans == 3) {  // end of a streamline (possibly empty)
-            ++L.nb_streamlines;
-            L.nb_vertices += in_track;
-            in_track = 0;
-            return true;
-        }
-        if (infs == 3) {
-            if (in_track != 0) {
-                error = "last streamline is not closed by a NaN triple before the Inf terminator (byte " +
-                        std::to_string(at) + ")";
-                return false;
-            }
-            terminated = true;
-            L.end_offset = at + 3 * es;
-            return false;
-        }
-        error = "partial NaN/Inf triple at byte " + std::to_string(at) +
-                " (only all-NaN ends a streamline and all-Inf ends the file)";
-        return false;
-    });
-    if (!error.empty()) throw FormatError(error);
-    if (!terminated) {
-        if (avail % (3 * es) != 0)
-            throw FormatError("data ends inside a point (file truncated at byte " + std::to_string(size) + ")");
-        throw FormatError("no 'Inf Inf Inf' terminator (file truncated?)");
-    }
-    L.trailing_bytes = size - L.end_offset;
+    w.finish(size, avail, 3 * es);
     return L;
 }
 
