@@ -406,26 +406,29 @@ struct Renderer::Impl {
         return ref;
     }
 
+    // A snippet that reads the opaque image behind it (drawn after it).
+    static bool reads_scene_behind(const char *snippet) { return snippet && std::strstr(snippet, "hz_scene_behind("); }
+
     // Whether object `o` must be composited in linear radiance over the
-    // opaque image (translucent, or a shader that reads hz_scene_behind).
+    // opaque image: translucent, or a shader that reads hz_scene_behind.
+    // Before upload (the shader's snippets for any domain) ...
     bool composited(const Object &o) const {
         if (o.opacity < 1.0) return true;
         if (o.kind == HZ_DATA_VOLUME) return false;
         const LoadedPlugin *p = find_shader(reg, o.material.shader);
         if (!p) return false;
         for (hz_shade_domain d : {HZ_SHADE_LINE, HZ_SHADE_SURFACE})
-            if (p->shader()->domains & d)
-                if (const char *src = p->shader()->glsl_source(d, 410); src && std::strstr(src, "hz_scene_behind(")) return true;
+            if ((p->shader()->domains & d) && reads_scene_behind(p->shader()->glsl_source(d, 410))) return true;
         return false;
     }
+    // ... and once uploaded (the snippet it is drawn with).
+    bool composited(const GpuObject &g) const { return scene.objects[g.index].opacity < 1.0 || g.refractive; }
 
     // The output of the next frame: display unless something drawn needs
     // the HDR path.
     bool frame_is_direct() const {
-        for (const auto &g : objects) {
-            const Object &o = scene.objects[g.index];
-            if (drawn(g.index) && (o.opacity < 1.0 || g.refractive)) return false;
-        }
+        for (const auto &g : objects)
+            if (drawn(g.index) && composited(g)) return false;
         return true;
     }
 
@@ -584,7 +587,7 @@ struct Renderer::Impl {
         g.use_line_domain = g.geom == Geom::Line && (sh->domains & HZ_SHADE_LINE);
         {
             const char *src = sh->glsl_source(g.use_line_domain ? HZ_SHADE_LINE : HZ_SHADE_SURFACE, 410);
-            g.refractive = src && std::strstr(src, "hz_scene_behind(");
+            g.refractive = reads_scene_behind(src);
         }
         std::vector<double> values;
         std::set<std::string> known;
@@ -1264,7 +1267,7 @@ struct Renderer::Impl {
         for (const auto &g : objects) {
             const Object &o = scene.objects[g.index];
             if (!drawn(g.index)) continue;
-            if (o.opacity < 1.0 || g.refractive) {
+            if (composited(g)) {
                 later = true;
                 continue;
             }

@@ -137,6 +137,18 @@ hz_status HZ_ABI read_mesh(hz_reader *reader, const hz_mesh_dst *dst, const hz_t
 
 void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
 
+// Big-endian output, as every FreeSurfer file.
+void put_be32(std::vector<unsigned char> &out, std::uint32_t v) {
+    for (int sh = 24; sh >= 0; sh -= 8) out.push_back(static_cast<unsigned char>(v >> sh));
+}
+
+void save(const char *path, const std::vector<unsigned char> &bytes) {
+    std::FILE *f = std::fopen(path, "wb");
+    if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
+    const bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+    if ((std::fclose(f) != 0) || !ok) throw FormatError("write failed");
+}
+
 const char *const kCurvExtensions[] = {"curv", "thickness", "sulc", "area"};
 
 // One per-vertex, one-component float array as a curv file.
@@ -153,9 +165,7 @@ hz_status write_curv(const hz_write_request *req, const hz_dataset_view *data) {
     if (pick->count == 0 || pick->count > 0x7FFFFFFF) throw FormatError("curv files hold 1 to 2^31-1 values");
     if (data->mesh_nb_vertices > 0 && req->on_dropped) req->on_dropped(req->ctx, "the surface geometry (a curv file holds values only)");
     std::vector<unsigned char> out = {0xFF, 0xFF, 0xFF};
-    auto put = [&](std::uint32_t v) {
-        for (int s = 24; s >= 0; s -= 8) out.push_back(static_cast<unsigned char>(v >> s));
-    };
+    auto put = [&](std::uint32_t v) { put_be32(out, v); };
     put(static_cast<std::uint32_t>(pick->count));
     put(static_cast<std::uint32_t>(data->mesh_nb_faces));
     put(1);
@@ -164,10 +174,7 @@ hz_status write_curv(const hz_write_request *req, const hz_dataset_view *data) {
                                                      : static_cast<float>(static_cast<const double *>(pick->data)[i]);
         put(std::bit_cast<std::uint32_t>(v));
     }
-    std::FILE *f = std::fopen(req->path, "wb");
-    if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
-    const bool ok = std::fwrite(out.data(), 1, out.size(), f) == out.size();
-    if ((std::fclose(f) != 0) || !ok) throw FormatError("write failed");
+    save(req->path, out);
     return HZ_OK;
 }
 
@@ -198,9 +205,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         std::strftime(stamp, sizeof stamp, "%a %b %d %H:%M:%S %Y", std::localtime(&now));
         const std::string created = std::string("created by horizon on ") + stamp + "\n\n";
         out.insert(out.end(), created.begin(), created.end());
-        auto put = [&](std::uint32_t v) {
-            for (int s = 24; s >= 0; s -= 8) out.push_back(static_cast<unsigned char>(v >> s));
-        };
+        auto put = [&](std::uint32_t v) { put_be32(out, v); };
         put(static_cast<std::uint32_t>(data->mesh_nb_vertices));
         put(static_cast<std::uint32_t>(data->mesh_nb_faces));
         for (std::uint64_t i = 0; i < 3 * data->mesh_nb_vertices; ++i) put(std::bit_cast<std::uint32_t>(data->mesh_vertices[i]));
@@ -212,10 +217,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             put(2), put(0), put(20);
             out.insert(out.end(), footer.begin(), footer.end());
         }
-        std::FILE *f = std::fopen(req->path, "wb");
-        if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
-        const bool ok = std::fwrite(out.data(), 1, out.size(), f) == out.size();
-        if ((std::fclose(f) != 0) || !ok) throw FormatError("write failed");
+        save(req->path, out);
         return HZ_OK;
     });
 }
