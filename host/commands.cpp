@@ -93,8 +93,10 @@ json describe(const core::Dataset &ds) {
         }
         j["nb_empty_streamlines"] = empty;
         j["points_per_streamline"] = {{"min", t.nb_streamlines() ? min_pts : 0}, {"max", max_pts}};
-        const auto b = core::bounds_of(t.positions.data(), t.nb_vertices());
+        // read_dataset computed the bounds while validating the positions.
+        const auto b = !ds.bounds.empty || t.nb_vertices() == 0 ? ds.bounds : core::bounds_of(t.positions.data(), t.nb_vertices());
         j["bbox_ras_mm"] = b.empty ? json(nullptr) : json{{"min", b.min}, {"max", b.max}};
+        j["positions_mapped"] = ds.mapped;
         j["affine"] = affine_json(t.reference);
         j["reference_dims"] = t.reference_dims;
         j["arrays"] = json::array();
@@ -165,6 +167,7 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json) {
         std::printf("vertices:      %llu (per streamline %llu..%llu)\n", (unsigned long long)j["nb_vertices"].get<std::uint64_t>(),
                     (unsigned long long)j["points_per_streamline"]["min"].get<std::uint64_t>(),
                     (unsigned long long)j["points_per_streamline"]["max"].get<std::uint64_t>());
+        if (ds.mapped) std::printf("positions:     mapped from the file (no copy)\n");
         if (!j["bbox_ras_mm"].is_null()) {
             const auto &mn = j["bbox_ras_mm"]["min"];
             const auto &mx = j["bbox_ras_mm"]["max"];

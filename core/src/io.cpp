@@ -1,10 +1,17 @@
 #include <hz/core/io.hpp>
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <mutex>
 #include <random>
-#include <unistd.h>
 
 namespace hz::core {
 
@@ -46,6 +53,72 @@ std::vector<unsigned char> read_head(const fs::path &path, std::size_t n) {
     return buf;
 }
 
+
+// Zero-copy positions (ABI 1.4 locate_positions): maps `nb_vertices` x 3
+// float32 at ext.offset of ext.path copy-on-write (the data model may edit
+// them; the file never changes), verifies the zip CRC when the loader gave
+// one and the finiteness of every coordinate, and returns the bounds. The
+// checksum and the scan share one pass over the pages, split over the cores.
+Buffer<float> map_positions(const hz_positions_extent &ext, std::uint64_t nb_vertices, const fs::path &path, Bounds &bounds) {
+    const std::string where = path.string();
+    const std::string file = ext.path ? ext.path : "";
+    if (file.empty()) throw Error(where + ": loader located the positions in no file");
+    const std::uint64_t bytes = nb_vertices * 12;
+    if (ext.offset % 4 != 0) throw Error(where + ": loader located the positions at a misaligned offset");
+    const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) throw Error(where + ": cannot open " + file + ": " + std::strerror(errno));
+    struct stat st {};
+    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode) || std::uint64_t(st.st_size) < ext.offset ||
+        std::uint64_t(st.st_size) - ext.offset < bytes) {
+        ::close(fd);
+        throw Error(where + ": the positions extend past the end of " + file);
+    }
+    const std::uint64_t page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+    const std::uint64_t start = ext.offset / page * page, len = ext.offset - start + bytes;
+    // Populated read-only (a populate of a writable private mapping would
+    // copy every page), then made writable: a write copies only its page.
+    void *base = ::mmap(nullptr, len, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, static_cast<off_t>(start));
+    const int map_errno = errno;
+    ::close(fd);
+    if (base == MAP_FAILED) throw Error(where + ": cannot map " + file + ": " + std::strerror(map_errno));
+    if (::mprotect(base, len, PROT_READ | PROT_WRITE) != 0) {
+        const int e = errno;
+        ::munmap(base, len);
+        throw Error(where + ": cannot map " + file + " copy-on-write: " + std::strerror(e));
+    }
+    std::shared_ptr<void> owner(base, [len](void *q) { ::munmap(q, len); });
+    auto *xyz = reinterpret_cast<float *>(static_cast<unsigned char *>(base) + (ext.offset - start));
+
+    const bool check_crc = (ext.flags & HZ_EXTENT_HAS_CRC32) != 0;
+    struct Part {
+        std::uint64_t begin, end;
+        uLong crc;
+        Bounds b;
+    };
+    std::vector<Part> parts;
+    std::mutex mu;
+    parallel_ranges(nb_vertices, 1u << 20, [&](std::uint64_t b, std::uint64_t e) {
+        Part part{b, e, crc32_z(0, Z_NULL, 0), {}};
+        constexpr std::uint64_t kBlock = 16384;  // points: 192 KiB, checksummed then scanned while in cache
+        for (std::uint64_t s = b; s < e; s += kBlock) {
+            const std::uint64_t n = std::min(e, s + kBlock) - s;
+            if (check_crc) part.crc = crc32_z(part.crc, reinterpret_cast<const Bytef *>(xyz + 3 * s), n * 12);
+            merge_bounds(part.b, finite_bounds(xyz + 3 * s, n, where, s));
+        }
+        std::lock_guard lock(mu);
+        parts.push_back(part);
+    });
+    std::sort(parts.begin(), parts.end(), [](const Part &a, const Part &b) { return a.begin < b.begin; });
+    uLong crc = crc32_z(0, Z_NULL, 0);
+    bounds = Bounds{};
+    for (const auto &p : parts) {
+        crc = crc32_combine(crc, p.crc, static_cast<z_off_t>((p.end - p.begin) * 12));
+        merge_bounds(bounds, p.b);
+    }
+    if (check_crc && crc != ext.crc32)
+        throw Error(where + ": the positions fail their zip CRC-32 check (the archive is corrupt)");
+    return Buffer<float>(xyz, 3 * nb_vertices, std::move(owner));
+}
 
 // Reads extra array `i` of an open reader into the data model.
 DataArray read_extra_array(const hz_loader &l, hz_reader *r, uint32_t i, const fs::path &path, const hz_task *task) {
@@ -219,18 +292,37 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         Tractogram &t = ds.tractogram;
         std::copy(std::begin(info.voxel_to_ras), std::end(info.voxel_to_ras), t.reference.begin());
         std::copy(std::begin(info.ref_dims), std::end(info.ref_dims), t.reference_dims.begin());
+        // Zero-copy when the loader can say where float32 RAS+ mm positions lie.
+        hz_positions_extent ext{};
+        ext.struct_size = sizeof ext;
+        bool mapped = false;
+        if (HZ_HAS_FIELD(l, hz_loader, locate_positions) && l->locate_positions != nullptr && info.nb_vertices > 0) {
+            st = l->locate_positions(g.r, &ext, &err);
+            if (st == HZ_OK) mapped = true;
+            else if (st != HZ_E_UNSUPPORTED) throw Error(failure(err, st, path, "locate_positions"));
+            err = make_error();
+        }
         // Loaders validate declared sizes against the file before reporting them.
-        t.positions = Buffer<float>(3 * info.nb_vertices);
         t.offsets = Buffer<std::uint64_t>(info.nb_streamlines + 1);
         hz_streamlines_dst dst{};
         dst.struct_size = sizeof dst;
-        dst.positions = t.positions.data();
-        dst.positions_capacity = t.positions.size();
+        if (mapped) {
+            dst.flags = HZ_STREAMLINES_OFFSETS_ONLY;
+        } else {
+            t.positions = Buffer<float>(3 * info.nb_vertices);
+            dst.positions = t.positions.data();
+            dst.positions_capacity = t.positions.size();
+        }
         dst.offsets = t.offsets.data();
         dst.offsets_capacity = t.offsets.size();
         st = l->read_streamlines(g.r, &dst, task, &err);
         if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines"));
-        t.validate(path.string());
+        if (mapped) {
+            t.positions = map_positions(ext, info.nb_vertices, path, ds.bounds);
+            ds.mapped = true;
+        }
+        if (mapped) t.validate_offsets(path.string());  // the coordinates were checked as they were mapped
+        else ds.bounds = t.validate(path.string());
         for (uint32_t i = 0; i < info.nb_arrays; ++i) t.arrays.push_back(read_extra_array(*l, g.r, i, path, task));
     } else if (info.kind == HZ_DATA_VOLUME || info.kind == HZ_DATA_IMAGE) {
         if (l->read_volume == nullptr) throw Error(path.string() + ": loader " + p.info.id + " has no read_volume");

@@ -105,6 +105,68 @@ class TrxTest(TempDirTest):
         self.assertEqual(p.returncode, 0)
         self.assertEqual(p.stderr.count("dropped"), 4)
 
+    def test_zero_copy(self):
+        """Float32 positions stored as plain bytes at an aligned offset are mapped, not copied (ABI 1.4
+        locate_positions): Horizon's own files, the directory form, and other writers' zips when aligned.
+        Everything else is read as before, with the same answer."""
+        rng = np.random.default_rng(12)
+        sl = random_streamlines(40, rng, 2, 30)
+        pos = np.concatenate(sl)
+
+        def check(f, mapped):
+            info = run_json("info", f, "--json")
+            self.assertEqual(info["positions_mapped"], mapped, f)
+            np.testing.assert_array_equal(info["bbox_ras_mm"]["min"], pos.min(axis=0).astype(np.float64))
+            np.testing.assert_array_equal(info["bbox_ras_mm"]["max"], pos.max(axis=0).astype(np.float64))
+            got = self.read_back(f)
+            np.testing.assert_allclose(np.concatenate(got), pos, atol=1e-3)
+
+        src = self.path("src.trx")
+        make_trx(src, sl)
+        own = self.path("own.trx")
+        self.assertEqual(run("convert", src, own).returncode, 0)
+        check(own, True)  # Horizon writes the positions first, at byte 64
+        d = self.path("dir.trx")
+        os.makedirs(d)
+        make_trx(d, sl, directory=True)
+        check(d, True)
+        check(self.path_made(sl, compression=zipfile.ZIP_DEFLATED), False)  # deflated: decoded
+        # Another writer's stored zip: mapped when the data happens to be 4-byte aligned, copied when not.
+        for pad in range(4):
+            f = self.path(f"pad{pad}.trx")
+            make_trx(f, sl, header_patch={"PAD": "x" * pad})
+            with zipfile.ZipFile(f) as z:
+                i = z.getinfo("positions.3.float32")
+            with open(f, "rb") as fh:
+                fh.seek(i.header_offset + 26)
+                nl, el = np.frombuffer(fh.read(4), np.uint16)
+            check(f, (i.header_offset + 30 + int(nl) + int(el)) % 4 == 0)
+
+        # Mapped positions are still checked: a NaN is named by its vertex, a flipped byte fails the CRC.
+        bad = [s.copy() for s in sl]
+        bad[3][1, 2] = np.nan
+        f = self.path("nan.trx")
+        os.makedirs(f)
+        make_trx(f, bad, directory=True)
+        p = run("info", f)
+        self.assertNotEqual(p.returncode, 0)
+        k = sum(len(s) for s in sl[:3]) + 1
+        self.assertIn(f"non-finite coordinate at vertex {k}", p.stderr)
+        raw = bytearray(open(own, "rb").read())
+        raw[64 + 4 * 7] ^= 0x40
+        f = self.path("flipped.trx")
+        open(f, "wb").write(bytes(raw))
+        p = run("info", f)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("flipped.trx", p.stderr)
+        self.assertIn("CRC-32", p.stderr)
+        self.assertEqual(len(p.stderr.strip().splitlines()), 1)
+
+    def path_made(self, sl, **kw):
+        f = self.path("made_%d.trx" % len(os.listdir(self.tmp)))
+        make_trx(f, sl, **kw)
+        return f
+
     def test_header_only_empty(self):
         f = self.path("empty.trx")
         with zipfile.ZipFile(f, "w") as z:

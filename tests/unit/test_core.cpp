@@ -157,3 +157,38 @@ TEST_CASE("a pre-cancelled task stops a read") {
     CHECK_THROWS_WITH(read_dataset(reg, d / "a.tck", task.get()), Catch::Contains("cancelled"));
     fs::remove_all(d);
 }
+
+TEST_CASE("zero-copy TRX positions: mapped copy-on-write, checked, and the file never changes") {
+    const Registry reg = bundled();
+    REQUIRE(reg.find("org.horizon.loader.trx") != nullptr);
+    const fs::path d = scratch("zerocopy");
+    Dataset ds;
+    ds.kind = HZ_DATA_STREAMLINES;
+    ds.tractogram = make_phantom({.nb_streamlines = 300});
+    write_dataset(reg, ds, d / "a.trx", false, nullptr);
+    const std::string before = slurp(d / "a.trx");
+
+    Dataset back = read_dataset(reg, d / "a.trx");
+    REQUIRE(back.mapped);  // Horizon's writer aligns the stored positions for this
+    Tractogram &t = back.tractogram;
+    REQUIRE(t.nb_vertices() == ds.tractogram.nb_vertices());
+    CHECK(std::equal(t.positions.begin(), t.positions.end(), ds.tractogram.positions.begin()));
+    const Bounds b = bounds_of(ds.tractogram.positions.data(), ds.tractogram.nb_vertices());
+    CHECK(back.bounds.min == b.min);
+    CHECK(back.bounds.max == b.max);
+
+    // Writing through the view copies that page only; the file is untouched.
+    t.positions[0] = 1234.5f;
+    Buffer<float> moved = std::move(t.positions);
+    CHECK(t.positions.empty());
+    CHECK(moved[0] == 1234.5f);
+    CHECK(slurp(d / "a.trx") == before);
+    CHECK(read_dataset(reg, d / "a.trx").tractogram.positions[0] == ds.tractogram.positions[0]);
+
+    // A flipped bit inside the stored positions fails the zip CRC, named.
+    std::string corrupt = before;
+    corrupt[64 + 4 * 1000] ^= 0x01;  // the positions start at byte 64
+    std::ofstream(d / "c.trx", std::ios::binary) << corrupt;
+    CHECK_THROWS_WITH(read_dataset(reg, d / "c.trx"), Catch::Contains("c.trx") && Catch::Contains("CRC-32"));
+    fs::remove_all(d);
+}

@@ -469,7 +469,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 const char *const kExtensions[] = {"gltf", "glb", nullptr};
 const hz_loader kLoader = {
     sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 4096, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, nullptr, read_array, nullptr, read_mesh, close, write,
+    get_array_info, visit_metadata, nullptr, read_array, nullptr, read_mesh, close, write, nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {

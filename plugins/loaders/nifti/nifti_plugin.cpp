@@ -263,7 +263,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 const char *const kExtensions[] = {"nii", "nii.gz", "hdr", "img", "hdr.gz", "img.gz", nullptr};
 const hz_loader kLoader = {
     sizeof(hz_loader), HZ_DATA_VOLUME, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 548, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, nullptr, nullptr, read_volume, nullptr, close, write,
+    get_array_info, visit_metadata, nullptr, nullptr, read_volume, nullptr, close, write, nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {

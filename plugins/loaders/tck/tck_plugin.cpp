@@ -163,6 +163,7 @@ const hz_loader kLoader = {
     nullptr,  // read_mesh
     close,
     write,
+    nullptr,  // locate_positions: TCK interleaves a delimiter triple after each streamline
 };
 
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};

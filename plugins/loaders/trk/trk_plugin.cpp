@@ -244,7 +244,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 const char *const kExtensions[] = {"trk", nullptr};
 const hz_loader kLoader = {
     sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 1000, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, read_streamlines, read_array, nullptr, nullptr, close, write,
+    get_array_info, visit_metadata, read_streamlines, read_array, nullptr, nullptr, close, write, nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {

@@ -63,6 +63,8 @@ public:
     virtual std::vector<Entry> entries() const = 0;
     // Reads exactly entry.bytes bytes into out; throws on short/corrupt data.
     virtual void read(const Entry &e, void *out) const = 0;
+    // Where the entry's bytes lie as stored, when they lie in a file as is.
+    virtual bool locate(const Entry &e, Extent &out) const = 0;
 };
 
 File::File() = default;
@@ -74,7 +76,7 @@ namespace {
 
 class ZipContainer : public Container {
 public:
-    explicit ZipContainer(const std::string &path) {
+    explicit ZipContainer(const std::string &path) : path_(path) {
         int code = 0;
         za_ = zip_open(path.c_str(), ZIP_RDONLY | ZIP_CHECKCONS, &code);
         if (za_ == nullptr) {
@@ -122,7 +124,91 @@ public:
         if (done != e.bytes || tail > 0) throw FormatError("zip entry '" + e.path + "' does not hold its declared size");
     }
 
+    bool locate(const Entry &e, Extent &out) const override {
+        zip_stat_t st;
+        zip_stat_init(&st);
+        const zip_uint64_t idx = index_.at(e.path);
+        if (zip_stat_index(za_, idx, 0, &st) != 0) return false;
+        const zip_uint64_t need = ZIP_STAT_COMP_METHOD | ZIP_STAT_ENCRYPTION_METHOD | ZIP_STAT_CRC | ZIP_STAT_COMP_SIZE;
+        if ((st.valid & need) != need || st.comp_method != ZIP_CM_STORE || st.encryption_method != ZIP_EM_NONE ||
+            st.comp_size != e.bytes)
+            return false;
+        const hzio::MappedFile m(path_);
+        std::uint64_t offset = 0;
+        if (!stored_data_offset(m.data(), m.size(), e.path, e.bytes, offset) || offset % 4 != 0) return false;
+        out.file = path_;
+        out.offset = offset;
+        out.has_crc = true;
+        out.crc = st.crc;
+        return true;
+    }
+
 private:
+    // libzip does not say where an entry's data starts; the central directory
+    // does (ZIP APPNOTE 4.3.12, 4.3.16, 4.4.7 and the Zip64 records 4.3.14/15
+    // and extra field 4.5.3). libzip has already checked the archive's
+    // consistency (ZIP_CHECKCONS); anything unexpected here only means the
+    // entry is read through libzip instead.
+    static std::uint64_t le(const unsigned char *p, int n) {
+        std::uint64_t v = 0;
+        for (int i = n - 1; i >= 0; --i) v = (v << 8) | p[i];
+        return v;
+    }
+    static bool stored_data_offset(const unsigned char *z, std::uint64_t size, const std::string &name, std::uint64_t bytes,
+                                   std::uint64_t &data_offset) {
+        if (size < 22) return false;
+        std::uint64_t eocd = size - 22;
+        const std::uint64_t lowest = size > 22 + 65535 ? size - 22 - 65535 : 0;
+        while (le(z + eocd, 4) != 0x06054b50) {
+            if (eocd == lowest) return false;
+            --eocd;
+        }
+        std::uint64_t entries = le(z + eocd + 10, 2), cd_size = le(z + eocd + 12, 4), cd_offset = le(z + eocd + 16, 4);
+        if ((entries == 0xFFFF || cd_size == 0xFFFFFFFF || cd_offset == 0xFFFFFFFF) && eocd >= 20 &&
+            le(z + eocd - 20, 4) == 0x07064b50) {
+            const std::uint64_t rec = le(z + eocd - 20 + 8, 8);
+            if (rec > size || size - rec < 56 || le(z + rec, 4) != 0x06064b50) return false;
+            entries = le(z + rec + 32, 8), cd_size = le(z + rec + 40, 8), cd_offset = le(z + rec + 48, 8);
+        }
+        if (cd_offset > size || cd_size > size - cd_offset) return false;
+        std::uint64_t p = cd_offset;
+        const std::uint64_t end = cd_offset + cd_size;
+        for (std::uint64_t i = 0; i < entries; ++i) {
+            if (end - p < 46 || le(z + p, 4) != 0x02014b50) return false;
+            const std::uint64_t method = le(z + p + 10, 2), name_len = le(z + p + 28, 2), extra_len = le(z + p + 30, 2),
+                                comment_len = le(z + p + 32, 2);
+            std::uint64_t comp = le(z + p + 20, 4), raw = le(z + p + 24, 4), local = le(z + p + 42, 4);
+            if (end - p - 46 < name_len + extra_len + comment_len) return false;
+            if (name_len == name.size() && std::memcmp(z + p + 46, name.data(), name_len) == 0) {
+                // Zip64 extended information: the 8-byte values present, in this order, for fields saturated above.
+                for (std::uint64_t q = p + 46 + name_len; q + 4 <= p + 46 + name_len + extra_len;) {
+                    const std::uint64_t id = le(z + q, 2), len = le(z + q + 2, 2);
+                    if (q + 4 + len > p + 46 + name_len + extra_len) return false;
+                    if (id == 0x0001) {
+                        std::uint64_t r = q + 4;
+                        for (std::uint64_t *f : {&raw, &comp, &local})
+                            if (*f == 0xFFFFFFFF) {
+                                if (r + 8 > q + 4 + len) return false;
+                                *f = le(z + r, 8);
+                                r += 8;
+                            }
+                    }
+                    q += 4 + len;
+                }
+                if (method != 0 || comp != bytes || raw != bytes || local > size || size - local < 30 ||
+                    le(z + local, 4) != 0x04034b50)
+                    return false;
+                const std::uint64_t start = local + 30 + le(z + local + 26, 2) + le(z + local + 28, 2);
+                if (start > size || size - start < bytes) return false;
+                data_offset = start;
+                return true;
+            }
+            p += 46 + name_len + extra_len + comment_len;
+        }
+        return false;
+    }
+
+    std::string path_;
     zip_t *za_ = nullptr;
     std::map<std::string, zip_uint64_t> index_;
     std::vector<Entry> list_;
@@ -143,6 +229,15 @@ public:
         hzio::MappedFile m((root_ / e.path).string());
         if (m.size() != e.bytes) throw FormatError("'" + e.path + "' changed size while reading");
         if (e.bytes) std::memcpy(out, m.data(), e.bytes);
+    }
+    bool locate(const Entry &e, Extent &out) const override {
+        std::error_code ec;
+        const fs::path file = root_ / e.path;
+        if (fs::file_size(file, ec) != e.bytes || ec) return false;
+        out.file = file.string();
+        out.offset = 0;
+        out.has_crc = false;
+        return true;
     }
 
 private:
@@ -373,6 +468,7 @@ void read_streamlines(const File &f, float *positions, std::uint64_t *offsets, c
             throw FormatError("final offset " + std::to_string(offsets[N]) + " != NB_VERTICES " + std::to_string(V));
     }
     if (cancelled && cancelled()) throw Cancelled{};
+    if (positions == nullptr) return;  // offsets only: the host mapped the positions
     if (f.positions_dtype == DType::F32) {
         f.container->read(f.positions, positions);  // straight into the host's buffer
     } else if (f.positions_dtype == DType::F16) {
@@ -392,6 +488,12 @@ void read_streamlines(const File &f, float *positions, std::uint64_t *offsets, c
             for (std::uint64_t i = b; i < e; ++i)
                 if (!std::isfinite(positions[i])) throw FormatError("positions hold a non-finite value at vertex " + std::to_string(i / 3));
     }
+}
+
+bool locate_positions(const File &f, Extent &out) {
+    if (!f.has_positions || f.positions_dtype != DType::F32 || f.nb_vertices == 0) return false;
+    if constexpr (std::endian::native == std::endian::big) return false;
+    return f.container->locate(f.positions, out);
 }
 
 void read_array(const File &f, const Array &a, void *out) {
@@ -435,12 +537,21 @@ void write(const std::string &path, const float *positions, std::uint64_t V, con
         zip_set_file_compression(za, static_cast<zip_uint64_t>(idx), ZIP_CM_STORE, 0);  // stored: readers can map it
     };
     try {
-        add("header.json", header.data(), header.size());
+        // Positions first, their data at byte 64 of the file: a padding extra
+        // field in the local header (id 0xD935, the one Android's zipalign
+        // uses) makes 30 + 19 (name) + 4 + 11 = 64, so readers can map the
+        // floats aligned. (A Zip64 local extra, 20 bytes, keeps the alignment.)
+        const std::uint64_t pidx = static_cast<std::uint64_t>(zip_get_num_entries(za, 0));
         add("positions.3.float32", positions, 3 * V * sizeof(float));
+        static const zip_uint8_t pad[11] = {};
+        if (zip_file_extra_field_set(za, pidx, 0xD935, ZIP_EXTRA_FIELD_NEW, pad, sizeof pad, ZIP_FL_LOCAL) != 0)
+            throw FormatError(std::string("zip: ") + zip_strerror(za));
+        add("header.json", header.data(), header.size());
         add("offsets.uint64", offsets, (N + 1) * sizeof(std::uint64_t));
         std::map<std::string, bool> seen;
         for (const auto &a : arrays) {
-            const std::string cols = a.cols > 1 ? "." + std::to_string(a.cols) : "";
+            std::string cols;  // (built piecewise: GCC 12 warns falsely on "." + to_string)
+            if (a.cols > 1) cols.append(".").append(std::to_string(a.cols));
             std::string name;
             switch (a.kind) {
             case Kind::Dpv: name = "dpv/" + a.name + cols + "." + dtype_name(a.dtype); break;

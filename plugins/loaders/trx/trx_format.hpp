@@ -63,8 +63,21 @@ struct File {
 File open(const std::string &path);
 
 // Reads positions (converted to float32) and offsets (with the sentinel) into
-// host buffers; validates offsets and finiteness.
+// host buffers; validates offsets and finiteness. positions == nullptr reads
+// the offsets only (the host mapped the positions, see locate_positions).
 void read_streamlines(const File &f, float *positions, std::uint64_t *offsets, const std::function<bool()> &cancelled);
+
+// Where float32 positions lie in a file, for mapping them without a copy.
+struct Extent {
+    std::string file;           // the archive, or the directory's positions file
+    std::uint64_t offset = 0;   // byte offset of the first coordinate (a multiple of 4)
+    bool has_crc = false;       // zip entries: the stored CRC-32 of the bytes
+    std::uint32_t crc = 0;
+};
+// True, filling `out`, when the positions are float32 and stored as plain
+// bytes at a 4-byte aligned offset (a directory, or a stored zip entry);
+// false otherwise (the caller reads them with read_streamlines).
+bool locate_positions(const File &f, Extent &out);
 // Reads one array's raw bytes (rows x cols x dtype_size) into `out`; groups
 // are range-checked.
 void read_array(const File &f, const Array &a, void *out);

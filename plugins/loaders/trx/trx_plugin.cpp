@@ -14,6 +14,7 @@ constexpr const char *kId = "org.horizon.loader.trx";
 struct Reader {
     std::string path;
     trx::File file;
+    trx::Extent extent;  // locate_positions' answer; its file name is handed out
 };
 Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
@@ -108,12 +109,13 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
     if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: read_streamlines: NULL");
     Reader &r = *as_reader(reader);
     const trx::File &f = r.file;
-    if (dst->positions_capacity < 3 * f.nb_vertices || dst->offsets_capacity < f.nb_streamlines + 1)
+    const bool offsets_only = HZ_HAS_FIELD(dst, hz_streamlines_dst, flags) && (dst->flags & HZ_STREAMLINES_OFFSETS_ONLY);
+    if ((!offsets_only && dst->positions_capacity < 3 * f.nb_vertices) || dst->offsets_capacity < f.nb_streamlines + 1)
         return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trx: %s: destination too small", r.path.c_str());
-    if ((dst->positions == nullptr && f.nb_vertices > 0) || dst->offsets == nullptr)
+    if ((!offsets_only && dst->positions == nullptr && f.nb_vertices > 0) || dst->offsets == nullptr)
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "trx: %s: NULL destination", r.path.c_str());
     return run(err, r.path, [&]() -> hz_status {
-        trx::read_streamlines(f, dst->positions, dst->offsets, [task] { return hz::cancelled(task); });
+        trx::read_streamlines(f, offsets_only ? nullptr : dst->positions, dst->offsets, [task] { return hz::cancelled(task); });
         hz::report(task, 1.0);
         return HZ_OK;
     });
@@ -149,6 +151,21 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
 }
 
 void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
+
+hz_status HZ_ABI locate_positions(hz_reader *reader, hz_positions_extent *out, hz_error *err) {
+    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_positions_extent))
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: locate_positions: bad arguments");
+    Reader &r = *as_reader(reader);
+    return run(err, r.path, [&]() -> hz_status {
+        r.extent = trx::Extent{};
+        if (!trx::locate_positions(r.file, r.extent)) return HZ_E_UNSUPPORTED;
+        out->path = r.extent.file.c_str();
+        out->offset = r.extent.offset;
+        out->flags = r.extent.has_crc ? HZ_EXTENT_HAS_CRC32 : 0;
+        out->crc32 = r.extent.crc;
+        return HZ_OK;
+    });
+}
 
 hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
     if (req == nullptr || req->path == nullptr || data == nullptr)
@@ -216,7 +233,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 const char *const kExtensions[] = {"trx", nullptr};
 const hz_loader kLoader = {
     sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 4096, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, read_streamlines, read_array, nullptr, nullptr, close, write,
+    get_array_info, visit_metadata, read_streamlines, read_array, nullptr, nullptr, close, write, locate_positions,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {

@@ -13,7 +13,9 @@
  * close() is always allowed, also after any failed call.
  *
  * Bulk data goes into HOST-owned destinations, bounded by the capacities the
- * host passes; a loader never returns memory the host has to free.
+ * host passes; a loader never returns memory the host has to free. Since 1.4
+ * a loader may instead tell the host where the positions lie in a file, so
+ * the host maps them without a copy (locate_positions()).
  */
 #ifndef HZ_LOADER_H
 #define HZ_LOADER_H
@@ -121,6 +123,16 @@ typedef struct hz_array_info {
     uint64_t count;           /* rows                                                   */
 } hz_array_info;
 
+/* Flags of hz_streamlines_dst (since 1.4; zero before). */
+typedef uint32_t hz_streamlines_flags;
+enum {
+    /* Only the offsets are wanted: positions is NULL and positions_capacity 0
+       (the host mapped the positions after locate_positions()). The host sets
+       it only for a loader whose locate_positions() returned HZ_OK on this
+       reader. */
+    HZ_STREAMLINES_OFFSETS_ONLY = 1u << 0
+};
+
 /*
  * Destination of read_streamlines(). HOST-owned buffers, valid for the call.
  * positions receives nb_vertices x 3 floats (RAS+ mm); offsets receives
@@ -129,7 +141,7 @@ typedef struct hz_array_info {
  */
 typedef struct hz_streamlines_dst {
     uint32_t struct_size;
-    uint32_t reserved0;
+    hz_streamlines_flags flags;          /* since 1.4 (was reserved, zero)      */
     float *positions;
     uint64_t positions_capacity;
     uint64_t *offsets;
@@ -233,6 +245,32 @@ typedef struct hz_write_request {
     void *companion_ctx;
 } hz_write_request;
 
+/* Flags of hz_positions_extent. */
+typedef uint32_t hz_extent_flags;
+enum {
+    HZ_EXTENT_HAS_CRC32 = 1u << 0 /* crc32 holds the stored bytes' checksum */
+};
+
+/*
+ * Since 1.4. Where a file stores the streamline positions exactly as the
+ * host holds them: nb_vertices x 3 float32, little-endian, RAS+ mm (no
+ * transform), contiguous, starting at byte `offset` (a multiple of 4) of the
+ * file `path`. Output struct (caller zero-fills, sets struct_size).
+ */
+typedef struct hz_positions_extent {
+    uint32_t struct_size;
+    hz_extent_flags flags;
+    /* The file holding the positions: the path opened, or another file of a
+       multi-file dataset (a TRX directory's positions.3.float32). PLUGIN-
+       owned, valid until close(). */
+    const char *path;
+    uint64_t offset;          /* byte offset of the first coordinate            */
+    uint32_t crc32;           /* zlib crc32 of the nb_vertices x 12 bytes, when
+                                 flags has HZ_EXTENT_HAS_CRC32 (a zip entry):
+                                 the host verifies it                           */
+    uint32_t reserved0;
+} hz_positions_extent;
+
 /* Callback of visit_metadata(); strings valid only during the callback. */
 typedef void(HZ_ABI *hz_metadata_visitor)(void *ctx, const char *key, const char *value);
 
@@ -319,6 +357,20 @@ typedef struct hz_loader {
      */
     hz_status(HZ_ABI *write)(const hz_write_request *req, const hz_dataset_view *data,
                              const hz_task *task, hz_error *err);
+
+    /* ---- since 1.4 (check with HZ_HAS_FIELD; may be NULL) ---- */
+    /*
+     * Zero-copy reading. After get_info(), for a streamlines file: when the
+     * positions are stored as hz_positions_extent describes, fills `out` and
+     * returns HZ_OK; the host then maps that extent read-only (copy-on-write)
+     * instead of receiving a copy, verifies the checksum if one is given,
+     * checks every coordinate is finite, and calls read_streamlines() with
+     * HZ_STREAMLINES_OFFSETS_ONLY. Otherwise (another dtype, a compressed
+     * entry, a misaligned offset) returns HZ_E_UNSUPPORTED and the host
+     * reads as before. The plugin has checked that the extent lies inside
+     * the file. [worker, serialized per reader]
+     */
+    hz_status(HZ_ABI *locate_positions)(hz_reader *reader, hz_positions_extent *out, hz_error *err);
 } hz_loader;
 
 HZ_EXTERN_C_END

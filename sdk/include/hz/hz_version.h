@@ -21,6 +21,10 @@
  *          HZ_ZERO_<param> specialisation macros (see hz_shader.h).
  *   1.3.0  hz_write_request gains final_path and add_companion (appended):
  *          writers of multi-file formats (NIfTI .hdr/.img pairs).
+ *   1.4.0  hz_loader gains locate_positions and hz_positions_extent
+ *          (appended); hz_streamlines_dst.reserved0 becomes flags
+ *          (HZ_STREAMLINES_OFFSETS_ONLY): zero-copy reading of positions
+ *          the host maps from the file (TRX stored zips and directories).
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -31,7 +35,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 3
+#define HZ_ABI_VERSION_MINOR 4
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */

@@ -222,7 +222,7 @@ static const char *const k_extensions[] = {"hzt", NULL};
 static const hz_loader k_loader = {
     sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 8, k_extensions,
     probe, open_file, get_info, get_array_info, visit_metadata, read_streamlines, NULL, NULL, NULL,
-    close_reader, write_file,
+    close_reader, write_file, NULL /* locate_positions (1.4): no zero-copy here */,
 };
 
 static const char *const k_interfaces[] = {HZ_INTERFACE_LOADER, NULL};

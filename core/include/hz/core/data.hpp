@@ -7,6 +7,8 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <type_traits>
 #include <memory>
 #include <span>
 #include <stdexcept>
@@ -21,30 +23,74 @@ struct Error : std::runtime_error {
     using std::runtime_error::runtime_error;
 };
 
-// A heap array that is not zero-filled on creation (decoders overwrite it),
-// so that reading 1 GB of positions does not first write 1 GB of zeros.
+// `bytes` of uninitialised memory aligned to 64 bytes; throws std::bad_alloc.
+std::shared_ptr<void> allocate_uninitialised(std::size_t bytes);
+
+// An array that is not zero-filled on creation (decoders overwrite it), so
+// that reading 1 GB of positions does not first write 1 GB of zeros. A Buffer
+// may also view memory owned by someone else (a file mapping the host made
+// for a zero-copy read): `owner` keeps it alive. Move-only.
 template <class T>
 class Buffer {
+    static_assert(std::is_trivially_copyable_v<T>);
+
 public:
     Buffer() = default;
-    explicit Buffer(std::size_t n) : data_(n ? std::make_unique_for_overwrite<T[]>(n) : nullptr), size_(n) {}
-    Buffer(std::initializer_list<T> init) : Buffer(init.size()) { std::copy(init.begin(), init.end(), data_.get()); }
-    T *data() { return data_.get(); }
-    const T *data() const { return data_.get(); }
+    explicit Buffer(std::size_t n) : size_(n) {
+        if (n == 0) return;
+        std::shared_ptr<void> block = allocate_uninitialised(n * sizeof(T));
+        ptr_ = static_cast<T *>(block.get());
+        owner_ = std::move(block);
+    }
+    Buffer(std::initializer_list<T> init) : Buffer(init.size()) { std::copy(init.begin(), init.end(), ptr_); }
+    // A view of `n` elements at `p`, alive as long as `owner`.
+    Buffer(T *p, std::size_t n, std::shared_ptr<void> owner) : ptr_(n ? p : nullptr), size_(n), owner_(std::move(owner)) {}
+    Buffer(const Buffer &) = delete;
+    Buffer &operator=(const Buffer &) = delete;
+    Buffer(Buffer &&o) noexcept : ptr_(std::exchange(o.ptr_, nullptr)), size_(std::exchange(o.size_, 0)), owner_(std::move(o.owner_)) {}
+    Buffer &operator=(Buffer &&o) noexcept {
+        if (this != &o) {
+            ptr_ = std::exchange(o.ptr_, nullptr);
+            size_ = std::exchange(o.size_, 0);
+            owner_ = std::move(o.owner_);
+        }
+        return *this;
+    }
+    T *data() { return ptr_; }
+    const T *data() const { return ptr_; }
     std::size_t size() const { return size_; }
     bool empty() const { return size_ == 0; }
-    T &operator[](std::size_t i) { return data_[i]; }
-    const T &operator[](std::size_t i) const { return data_[i]; }
-    T *begin() { return data(); }
-    T *end() { return data() + size_; }
-    const T *begin() const { return data(); }
-    const T *end() const { return data() + size_; }
-    std::span<const T> span() const { return {data(), size_}; }
+    T &operator[](std::size_t i) { return ptr_[i]; }
+    const T &operator[](std::size_t i) const { return ptr_[i]; }
+    T *begin() { return ptr_; }
+    T *end() { return ptr_ + size_; }
+    const T *begin() const { return ptr_; }
+    const T *end() const { return ptr_ + size_; }
+    std::span<const T> span() const { return {ptr_, size_}; }
 
 private:
-    std::unique_ptr<T[]> data_;
+    T *ptr_ = nullptr;
     std::size_t size_ = 0;
+    std::shared_ptr<void> owner_;
 };
+
+// Axis-aligned bounds in RAS+ mm of a set of xyz triples; empty -> all zero.
+struct Bounds {
+    std::array<double, 3> min{}, max{};
+    bool empty = true;
+};
+Bounds bounds_of(const float *xyz, std::uint64_t nb_points);
+// Grows `a` to hold `b`.
+void merge_bounds(Bounds &a, const Bounds &b);
+// Checks that the nb_points xyz triples at `xyz` are finite and returns their
+// bounds, in one pass, on up to two threads per core pair (std::thread) when
+// there are millions. Throws Error "`what`: non-finite coordinate at vertex
+// K" (K counted from `first_vertex`) for the first such vertex.
+Bounds finite_bounds(const float *xyz, std::uint64_t nb_points, const std::string &what, std::uint64_t first_vertex = 0);
+// Runs fn(begin, end) over [0, n) split into contiguous ranges of at least
+// `grain` items, one per thread (the calling thread takes the first); the
+// first exception thrown by the lowest range is rethrown.
+void parallel_ranges(std::uint64_t n, std::uint64_t grain, const std::function<void(std::uint64_t, std::uint64_t)> &fn);
 
 // Row-major 4x4 affine.
 using Affine = std::array<double, 16>;
@@ -78,8 +124,11 @@ struct Tractogram {
     std::uint64_t nb_vertices() const { return positions.size() / 3; }
     hz_streamlines_view view() const;
     // Checks the invariants (offsets start at 0, non-decreasing, sentinel,
-    // finite positions); throws Error naming `what`.
-    void validate(const std::string &what) const;
+    // finite positions); throws Error naming `what`. Returns the bounds of
+    // the positions (computed in the same pass).
+    Bounds validate(const std::string &what) const;
+    // The offsets part of validate() alone.
+    void validate_offsets(const std::string &what) const;
 };
 
 // The streamlines `ids` of `t`, in that order (positions only; indices < N).
@@ -114,6 +163,12 @@ struct Dataset {
     Tractogram tractogram;
     Mesh mesh;
     Volume volume;
+    // Bounds of the streamline positions or mesh vertices as read (empty for
+    // volumes and overlays); read_dataset fills it during validation.
+    Bounds bounds;
+    // True when the positions view a copy-on-write mapping of the file (a
+    // zero-copy read) rather than a decoded copy.
+    bool mapped = false;
 };
 
 // A per-vertex overlay without geometry (a FreeSurfer curv file, an
@@ -130,11 +185,5 @@ std::vector<std::string> attach_overlay(Mesh &mesh, const Dataset &overlay, cons
 const char *kind_name(hz_data_kind k);
 const char *space_name(hz_space s);
 
-// Axis-aligned bounds in RAS+ mm of a set of xyz triples; empty -> all zero.
-struct Bounds {
-    std::array<double, 3> min{}, max{};
-    bool empty = true;
-};
-Bounds bounds_of(const float *xyz, std::uint64_t nb_points);
 
 }  // namespace hz::core
