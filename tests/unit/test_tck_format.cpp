@@ -207,3 +207,44 @@ TEST_CASE("tck: the Float32LE block scan agrees with the generic walk on long st
         }
     }
 }
+
+TEST_CASE("tck: the parallel Float32LE scan and copy span chunks like one sequential walk") {
+    // 3.2 million triples: four scan chunks of 2^20 triples, several copy
+    // chunks, streamlines crossing every chunk boundary. The same data as
+    // Float64BE takes the sequential generic walk.
+    std::vector<float> xs;
+    std::vector<std::uint64_t> lengths;
+    std::uint64_t triples = 0;
+    for (int s = 0; triples < 3'200'000; ++s) {
+        const std::uint64_t n = s % 997 == 0 ? 0 : 1 + (static_cast<std::uint64_t>(s) * 7919) % 4000;
+        lengths.push_back(n);
+        for (std::uint64_t i = 0; i < 3 * n; ++i) xs.push_back(static_cast<float>((s * 31 + i) % 20011) * 0.01f - 100.0f);
+        for (int k = 0; k < 3; ++k) xs.push_back(NaN);
+        triples += n + 1;
+    }
+    for (int k = 0; k < 3; ++k) xs.push_back(Inf);
+    auto encode = [](const std::vector<float> &v, bool f64) {
+        std::string out = header(f64 ? "Float64BE" : "Float32LE");
+        out.reserve(out.size() + v.size() * (f64 ? 8 : 4));
+        for (float f : v) out += f64 ? f64be({f}) : f32le({f});
+        return out;
+    };
+    const Parsed a = parse(encode(xs, false)), b = parse(encode(xs, true));
+    REQUIRE(a.l.nb_streamlines == lengths.size());
+    CHECK(a.l.nb_vertices == b.l.nb_vertices);
+    CHECK(a.off == b.off);
+    CHECK(a.pos == b.pos);
+    for (std::size_t s = 0; s < lengths.size(); s += 101) CHECK(a.off[s + 1] - a.off[s] == lengths[s]);
+    // Two faults in different chunks: the first in file order is reported.
+    std::vector<float> bad = xs;
+    const std::size_t late = 3 * 3'000'000, early = 3 * 1'500'000 + 1;
+    for (std::size_t at : {late, early}) {
+        std::size_t i = at;
+        while (std::isnan(bad[i]) || std::isinf(bad[i])) ++i;
+        bad[i] = NaN;
+        if (at == early) {
+            const std::size_t byte = header("Float32LE").size() + 12 * (i / 3);
+            CHECK_THROWS_WITH(parse(encode(bad, false)), Catch::Contains("partial NaN/Inf triple at byte " + std::to_string(byte)));
+        }
+    }
+}

@@ -39,6 +39,13 @@ void MappedFile::release_before(std::uint64_t end) const {
     if (len > 0) ::madvise(const_cast<unsigned char *>(data_), len, MADV_DONTNEED);
 }
 
+void MappedFile::release(std::uint64_t begin, std::uint64_t end) const {
+    if (data_ == nullptr) return;
+    const std::uint64_t page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+    const std::uint64_t b = (begin + page - 1) / page * page, e = std::min(end, size_) / page * page;
+    if (e > b) ::madvise(const_cast<unsigned char *>(data_) + b, e - b, MADV_DONTNEED);
+}
+
 MappedFile::~MappedFile() {
     if (data_ != nullptr) ::munmap(const_cast<unsigned char *>(data_), size_);
 }

@@ -25,6 +25,8 @@ public:
     // page cache and fault back in on access): keeps peak memory near the
     // decoded data when a file is walked front to back.
     void release_before(std::uint64_t end) const;
+    // The same for the whole pages inside [begin, end) (a decoded chunk).
+    void release(std::uint64_t begin, std::uint64_t end) const;
 
 private:
     const unsigned char *data_ = nullptr;

@@ -3,6 +3,8 @@
 // and mrtrix3's files).
 #include "tck_format.hpp"
 
+#include "parallel.hpp"
+
 #include <algorithm>
 #include <bit>
 #include <cerrno>
@@ -227,46 +229,68 @@ struct Walk {
     }
 };
 
-// Float32LE, the common case: blocks of 16 triples are tested for NaN/Inf
-// with integer masks (the compiler vectorises the loop); only blocks that
-// hold a delimiter go through the walk triple by triple. It also records the
-// delimiters, so decode() copies the runs between them.
-void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header &h, const Tick &cancelled, Walk &w) {
+// Float32LE, the common case. Chunks of a million triples are classified in
+// parallel: blocks of 16 triples are tested for NaN/Inf with integer masks
+// (the compiler vectorises the loop), and the index of every triple with a
+// NaN or Inf component is kept (8 bytes per such 12-byte triple at most).
+// Those triples then go through the walk in file order, the runs between
+// them counting as plain points; the walk records the delimiters, so
+// decode() copies the runs between them.
+void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header &h, const Tick &cancelled, const Release &release,
+                Walk &w) {
     constexpr std::uint32_t kExp = 0x7F800000u, kMant = 0x007FFFFFu;
-    std::uint64_t next_tick = 0;
-    for (std::uint64_t i = 0; i < n_triples;) {
-        if (i >= next_tick) {
-            if (cancelled && cancelled(h.data_offset + i * 12)) throw Cancelled{};
-            next_tick = i + (1u << 20);
-        }
-        if (i + 16 <= n_triples) {
-            std::uint32_t b[48];
-            std::memcpy(b, data + 12 * i, sizeof b);
-            unsigned special = 0;
-            for (int k = 0; k < 48; ++k) special |= (b[k] & kExp) == kExp;
-            if (!special) {
-                w.in_track += 16;
-                i += 16;
-                continue;
+    constexpr std::uint64_t kChunk = 1u << 20;
+    const std::size_t nchunks = static_cast<std::size_t>((n_triples + kChunk - 1) / kChunk);
+    std::vector<std::vector<std::uint64_t>> specials(nchunks);
+    const bool done = hzio::parallel_chunks(
+        nchunks,
+        [&](std::size_t c) {
+            const std::uint64_t b = c * kChunk, e = std::min(n_triples, b + kChunk);
+            auto &out = specials[c];
+            for (std::uint64_t i = b; i < e;) {
+                if (i + 16 <= e) {
+                    std::uint32_t blk[48];
+                    std::memcpy(blk, data + 12 * i, sizeof blk);
+                    unsigned special = 0;
+                    for (int k = 0; k < 48; ++k) special |= (blk[k] & kExp) == kExp;
+                    if (!special) {
+                        i += 16;
+                        continue;
+                    }
+                }
+                for (const std::uint64_t end = std::min(e, i + 16); i < end; ++i) {
+                    std::uint32_t t[3];
+                    std::memcpy(t, data + 12 * i, sizeof t);
+                    if (((t[0] & kExp) == kExp) | ((t[1] & kExp) == kExp) | ((t[2] & kExp) == kExp)) out.push_back(i);
+                }
             }
-        }
-        for (const std::uint64_t end = std::min(n_triples, i + 16); i < end; ++i) {
-            std::uint32_t b[3];
-            std::memcpy(b, data + 12 * i, sizeof b);
+            if (release) release(h.data_offset + 12 * b, h.data_offset + 12 * e);
+        },
+        [&] { return cancelled && cancelled(0); });
+    if (!done) throw Cancelled{};
+    std::uint64_t next = 0;  // first triple not yet walked
+    for (auto &chunk : specials) {
+        for (const std::uint64_t i : chunk) {
+            std::uint32_t t[3];
+            std::memcpy(t, data + 12 * i, sizeof t);
             int nans = 0, infs = 0;
-            for (std::uint32_t x : b) {
+            for (std::uint32_t x : t) {
                 const bool e = (x & kExp) == kExp;
                 nans += e && (x & kMant) != 0;
                 infs += e && (x & kMant) == 0;
             }
+            w.in_track += i - next;
+            next = i + 1;
             if (!w.triple(nans, infs, i, h.data_offset + i * 12, 12)) return;
         }
+        std::vector<std::uint64_t>().swap(chunk);
     }
+    w.in_track += n_triples - next;
 }
 
 }  // namespace
 
-Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled) {
+Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled, const Release &release) {
     const std::uint64_t es = element_size(h.datatype);
     const std::uint64_t avail = size - h.data_offset;
     const std::uint64_t n_triples = avail / (3 * es);
@@ -274,7 +298,7 @@ Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, con
     const bool f32le = h.datatype == DataType::Float32LE && kLittle;
     Walk w(L, f32le);
     if (f32le) {
-        scan_f32le(bytes + h.data_offset, n_triples, h, cancelled, w);
+        scan_f32le(bytes + h.data_offset, n_triples, h, cancelled, release, w);
     } else {
         for_each_triple(bytes + h.data_offset, n_triples, h.datatype, [&](std::uint64_t i, double x, double y, double z) {
             if ((i & 0xFFFFF) == 0 && cancelled && cancelled(h.data_offset + i * 3 * es)) throw Cancelled{};
@@ -288,28 +312,42 @@ Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, con
 }
 
 void decode(const unsigned char *bytes, const Header &h, const Layout &L, float *positions, std::uint64_t *offsets,
-            const Tick &cancelled) {
+            const Tick &cancelled, const Release &release) {
     const std::uint64_t es = element_size(h.datatype);
     const std::uint64_t n_triples = (L.end_offset - h.data_offset) / (3 * es);
     std::uint64_t v = 0, s = 0;
     offsets[0] = 0;
     if (L.delimiters.size() == L.nb_streamlines && L.nb_streamlines > 0 && h.datatype == DataType::Float32LE && kLittle) {
-        // The runs between the delimiters found by scan(), copied as they are.
+        // The runs between the delimiters found by scan(), copied as they
+        // are, in parallel chunks of whole streamlines (about 12 MiB each).
+        // Streamline k starts at triple delimiters[k-1] + 1, which is vertex
+        // delimiters[k-1] + 1 - k: every earlier delimiter is one triple.
         const unsigned char *data = bytes + h.data_offset;
-        std::uint64_t start = 0, next_tick = 0;
-        for (std::uint64_t k = 0; k < L.nb_streamlines; ++k) {
-            const std::uint64_t end = L.delimiters[k];
-            if (end >= next_tick) {
-                if (cancelled && cancelled(h.data_offset + end * 12)) throw Cancelled{};
-                next_tick = end + (1u << 20);
+        const std::vector<std::uint64_t> &D = L.delimiters;
+        std::vector<std::uint64_t> first{0};  // first streamline of each chunk
+        for (std::uint64_t k = 0, start = 0; k < L.nb_streamlines; ++k)
+            if (D[k] - start >= (1u << 20)) {
+                first.push_back(k + 1);
+                start = D[k] + 1;
             }
-            const std::uint64_t n = end - start;
-            if (n) std::memcpy(positions + 3 * v, data + 12 * start, 12 * n);
-            v += n;
-            offsets[k + 1] = v;
-            start = end + 1;
-        }
-        if (v != L.nb_vertices) throw FormatError("file changed while reading");
+        if (first.back() != L.nb_streamlines) first.push_back(L.nb_streamlines);
+        const bool done = hzio::parallel_chunks(
+            first.size() - 1,
+            [&](std::size_t c) {
+                const std::uint64_t k0 = first[c], k1 = first[c + 1];
+                std::uint64_t start = k0 == 0 ? 0 : D[k0 - 1] + 1;
+                const std::uint64_t chunk_begin = start;
+                for (std::uint64_t k = k0; k < k1; ++k) {
+                    const std::uint64_t n = D[k] - start;
+                    if (n) std::memcpy(positions + 3 * (start - k), data + 12 * start, 12 * n);
+                    offsets[k + 1] = D[k] - k;
+                    start = D[k] + 1;
+                }
+                if (release) release(h.data_offset + 12 * chunk_begin, h.data_offset + 12 * start);
+            },
+            [&] { return cancelled && cancelled(0); });
+        if (!done) throw Cancelled{};
+        if (offsets[L.nb_streamlines] != L.nb_vertices) throw FormatError("file changed while reading");
         return;
     }
     for_each_triple(bytes + h.data_offset, n_triples, h.datatype, [&](std::uint64_t i, double x, double y, double z) {

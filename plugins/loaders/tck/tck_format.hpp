@@ -38,6 +38,9 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size);
 // Called about every million points with the byte offset reached; returns
 // true to cancel. The plugin also uses it to drop the mapped pages behind.
 using Tick = std::function<bool(std::uint64_t)>;
+// Called, from any thread, for each byte range of the file a parallel pass
+// has finished with (the plugin drops those mapped pages).
+using Release = std::function<void(std::uint64_t, std::uint64_t)>;
 
 // Result of the validating scan of the data section.
 struct Layout {
@@ -53,13 +56,19 @@ struct Layout {
 // Walks the data once, checking every triple; throws FormatError on a partial
 // NaN/Inf triple, a missing terminator, a streamline not closed by NaN, or a
 // truncated triple. `cancelled` is polled periodically (may be empty).
-Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled = {});
+// Float32LE data is classified in parallel chunks (hzio::parallel_chunks;
+// `cancelled` then runs on the calling thread with offset 0), and the rare
+// NaN/Inf triples are walked in order afterwards: the same rules, the same
+// first error.
+Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled = {},
+            const Release &release = {});
 
 // Decodes positions (float32, RAS+ mm) and offsets (nb_streamlines + 1).
 // The buffers must hold layout.nb_vertices * 3 floats and
 // layout.nb_streamlines + 1 offsets.
+// Float32LE files are copied in parallel chunks of whole streamlines.
 void decode(const unsigned char *bytes, const Header &h, const Layout &layout, float *positions,
-            std::uint64_t *offsets, const Tick &cancelled = {});
+            std::uint64_t *offsets, const Tick &cancelled = {}, const Release &release = {});
 
 // True when cancelled() stopped scan/decode.
 struct Cancelled {};

@@ -46,6 +46,11 @@ tck::Tick tick(const hz_task *task, const hzio::MappedFile &file) {
     };
 }
 
+// Drops the mapped pages of a chunk a parallel pass is done with.
+tck::Release release(const hzio::MappedFile &file) {
+    return [&file](std::uint64_t begin, std::uint64_t end) { file.release(begin, end); };
+}
+
 int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return tck::probe(head, size); }
 
 hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
@@ -57,7 +62,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         r->path = req->path;
         r->file = std::make_unique<hzio::MappedFile>(r->path);
         r->header = tck::parse_header(r->file->data(), r->file->size());
-        r->layout = tck::scan(r->file->data(), r->file->size(), r->header, tick(nullptr, *r->file));
+        r->layout = tck::scan(r->file->data(), r->file->size(), r->header, tick(nullptr, *r->file), release(*r->file));
         for (const auto &w : r->header.warnings) log(HZ_LOG_WARN, r->path + ": " + w);
         if (r->layout.trailing_bytes != 0)
             log(HZ_LOG_WARN, r->path + ": " + std::to_string(r->layout.trailing_bytes) +
@@ -111,7 +116,7 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
                               (unsigned long long)(r.layout.nb_streamlines + 1));
     return run(err, r.path, [&]() -> hz_status {
         hz::report(task, 0.0, "decoding TCK");
-        tck::decode(r.file->data(), r.header, r.layout, dst->positions, dst->offsets, tick(task, *r.file));
+        tck::decode(r.file->data(), r.header, r.layout, dst->positions, dst->offsets, tick(task, *r.file), release(*r.file));
         hz::report(task, 1.0, nullptr);
         return HZ_OK;
     });

@@ -2,6 +2,8 @@
 // the voxmm -> RAS+ mm convention and the name encoding of scalar columns).
 #include "trk_format.hpp"
 
+#include "parallel.hpp"
+
 #include <algorithm>
 #include <bit>
 #include <cerrno>
@@ -222,7 +224,10 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
     const std::uint64_t point_bytes = 4ull * (3 + h.n_scalars), prop_bytes = 4ull * h.n_properties;
     std::uint64_t pos = kHeaderSize;
     const std::uint64_t want = h.n_count > 0 ? static_cast<std::uint64_t>(h.n_count) : UINT64_MAX;
+    constexpr std::uint64_t kChunkBytes = 16u << 20;
+    l.chunks.push_back({0, pos, 0});
     while (l.nb_streamlines < want) {
+        if (pos - l.chunks.back().byte >= kChunkBytes) l.chunks.push_back({l.nb_streamlines, pos, l.nb_vertices});
         if ((l.nb_streamlines & 0xFFFF) == 0 && cancelled && cancelled(pos)) throw Cancelled{};
         if (pos == size) break;
         if (size - pos < 4)
@@ -241,35 +246,68 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
     if (h.n_count > 0 && l.nb_streamlines < want)
         throw FormatError("header n_count is " + std::to_string(h.n_count) + " but the file holds " + std::to_string(l.nb_streamlines) +
                           " streamlines (truncated?)");
+    l.chunks.push_back({l.nb_streamlines, pos, l.nb_vertices});
     return l;
 }
 
-void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout &l, float *positions, std::uint64_t *offsets,
-            float *scalars, float *properties, const Tick &cancelled) {
+namespace {
+
+// One chunk of records; Swap: the file's byte order is not the host's.
+template <bool Swap>
+void decode_chunk(const unsigned char *b, const Header &h, const Chunk &from, const Chunk &to, float *positions,
+                  std::uint64_t *offsets, float *scalars, float *properties) {
     const Mat4 &A = h.to_rasmm;
     const std::uint32_t ns = h.n_scalars, np = h.n_properties;
-    std::uint64_t pos = kHeaderSize, v = 0;
-    if (offsets) offsets[0] = 0;
-    for (std::uint64_t s = 0; s < l.nb_streamlines; ++s) {
-        if ((s & 0xFFFF) == 0 && cancelled && cancelled(pos)) throw Cancelled{};
-        const auto n = static_cast<std::uint64_t>(load<std::int32_t>(b + pos, h.swap));
+    const std::uint64_t point_bytes = 4ull * (3 + ns);
+    std::uint64_t pos = from.byte, v = from.vertex;
+    for (std::uint64_t s = from.streamline; s < to.streamline; ++s) {
+        const auto n = static_cast<std::uint64_t>(load<std::int32_t>(b + pos, Swap));
         pos += 4;
-        for (std::uint64_t i = 0; i < n; ++i, ++v) {
-            const float x = load<float>(b + pos, h.swap), y = load<float>(b + pos + 4, h.swap), z = load<float>(b + pos + 8, h.swap);
-            pos += 12;
-            if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
-                throw FormatError("streamline " + std::to_string(s) + " point " + std::to_string(i) + " has a non-finite coordinate");
-            if (positions) {
+        const unsigned char *rec = b + pos;
+        if (positions) {
+            // Branch-free over the streamline (vectorisable); locate a bad value only on failure.
+            unsigned bad = 0;
+            float *out = positions + 3 * v;
+            for (std::uint64_t i = 0; i < n; ++i) {
+                const unsigned char *p = rec + i * point_bytes;
+                const float x = load<float>(p, Swap), y = load<float>(p + 4, Swap), z = load<float>(p + 8, Swap);
+                bad |= !(std::fabs(x) <= 3.4028235e38f) | !(std::fabs(y) <= 3.4028235e38f) | !(std::fabs(z) <= 3.4028235e38f);
                 for (int r = 0; r < 3; ++r)
-                    positions[3 * v + r] = static_cast<float>(A[4 * r] * x + A[4 * r + 1] * y + A[4 * r + 2] * z + A[4 * r + 3]);
+                    out[3 * i + r] = static_cast<float>(A[4 * r] * x + A[4 * r + 1] * y + A[4 * r + 2] * z + A[4 * r + 3]);
             }
-            for (std::uint32_t k = 0; k < ns; ++k, pos += 4)
-                if (scalars) scalars[v * ns + k] = load<float>(b + pos, h.swap);
+            if (bad)
+                for (std::uint64_t i = 0; i < n; ++i)
+                    for (int c = 0; c < 3; ++c)
+                        if (!std::isfinite(load<float>(rec + i * point_bytes + 4 * c, Swap)))
+                            throw FormatError("streamline " + std::to_string(s) + " point " + std::to_string(i) + " has a non-finite coordinate");
         }
+        if (scalars)
+            for (std::uint64_t i = 0; i < n; ++i)
+                for (std::uint32_t k = 0; k < ns; ++k) scalars[(v + i) * ns + k] = load<float>(rec + i * point_bytes + 12 + 4 * k, Swap);
+        pos += n * point_bytes;
+        v += n;
         for (std::uint32_t k = 0; k < np; ++k, pos += 4)
-            if (properties) properties[s * np + k] = load<float>(b + pos, h.swap);
+            if (properties) properties[s * np + k] = load<float>(b + pos, Swap);
         if (offsets) offsets[s + 1] = v;
     }
+}
+
+}  // namespace
+
+void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout &l, float *positions, std::uint64_t *offsets,
+            float *scalars, float *properties, const Tick &cancelled, const Release &release) {
+    if (offsets) offsets[0] = 0;
+    if (l.chunks.size() < 2) return;
+    const bool done = hzio::parallel_chunks(
+        l.chunks.size() - 1,
+        [&](std::size_t c) {
+            const Chunk &from = l.chunks[c], &to = l.chunks[c + 1];
+            if (h.swap) decode_chunk<true>(b, h, from, to, positions, offsets, scalars, properties);
+            else decode_chunk<false>(b, h, from, to, positions, offsets, scalars, properties);
+            if (release) release(from.byte, to.byte);
+        },
+        [&] { return cancelled && cancelled(0); });
+    if (!done) throw Cancelled{};
 }
 
 void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,

@@ -49,17 +49,28 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size);
 // to cancel. The plugin also drops the mapped pages behind with it.
 using Tick = std::function<bool(std::uint64_t)>;
 
+// Where a run of whole records starts: decode() splits the file at these.
+struct Chunk {
+    std::uint64_t streamline = 0, byte = 0, vertex = 0;
+};
 struct Layout {
     std::uint64_t nb_streamlines = 0, nb_vertices = 0;
+    // Starts of runs of about 16 MiB, then {N, end of the records, V}.
+    std::vector<Chunk> chunks;
 };
 // Walks the records once, checking every count against the file size.
 Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled = {});
 
 // Decodes into host buffers: positions (V x 3, RAS+ mm), offsets (N + 1),
 // scalars (V x n_scalars, may be null), properties (N x n_properties, may
-// be null). Non-finite coordinates are rejected (FormatError).
+// be null). Non-finite coordinates are rejected (FormatError; the first in
+// file order). The chunks are decoded in parallel (hzio::parallel_chunks);
+// `cancelled` is polled on the calling thread between chunks, and
+// `release(begin, end)` (may be empty) is called for each decoded chunk's
+// byte range, from any thread.
+using Release = std::function<void(std::uint64_t, std::uint64_t)>;
 void decode(const unsigned char *bytes, std::uint64_t size, const Header &h, const Layout &l, float *positions,
-            std::uint64_t *offsets, float *scalars, float *properties, const Tick &cancelled = {});
+            std::uint64_t *offsets, float *scalars, float *properties, const Tick &cancelled = {}, const Release &release = {});
 
 // What write() needs beyond the streamlines.
 struct WriteSpec {

@@ -39,6 +39,11 @@ trk::Tick tick(const hz_task *task, const hzio::MappedFile &file) {
     };
 }
 
+// Drops the mapped pages of a decoded chunk.
+trk::Release release(const hzio::MappedFile &file) {
+    return [&file](std::uint64_t begin, std::uint64_t end) { file.release(begin, end); };
+}
+
 int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return trk::probe(head, size); }
 
 hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
@@ -119,7 +124,7 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         r.scalars.resize(r.layout.nb_vertices * r.header.n_scalars);
         r.properties.resize(r.layout.nb_streamlines * r.header.n_properties);
         trk::decode(r.file->data(), r.file->size(), r.header, r.layout, dst->positions, dst->offsets,
-                    r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, *r.file));
+                    r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, *r.file), release(*r.file));
         r.extras_decoded = true;
         hz::report(task, 1.0);
         return HZ_OK;
@@ -135,7 +140,7 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
             r.scalars.resize(r.layout.nb_vertices * r.header.n_scalars);
             r.properties.resize(r.layout.nb_streamlines * r.header.n_properties);
             trk::decode(r.file->data(), r.file->size(), r.header, r.layout, nullptr, nullptr,
-                        r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, *r.file));
+                        r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, *r.file), release(*r.file));
             r.extras_decoded = true;
         }
         const bool scalar = index < r.header.scalars.size();

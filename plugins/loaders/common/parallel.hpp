@@ -1,0 +1,56 @@
+// Chunked parallel decoding for the loader plugins (std::thread; no SDK
+// types). Loaders split a file into runs of whole records during their scan
+// and decode the runs concurrently into the host's buffers.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <cstddef>
+#include <exception>
+#include <functional>
+#include <thread>
+#include <vector>
+
+namespace hzio {
+
+// Runs body(c) for every chunk c in [0, n) on up to min(n, cores, 8)
+// threads, the calling thread being one of them; chunks are taken in order
+// from a shared counter. `poll` (may be empty) runs on the calling thread
+// only (the ABI's cancellation query is calling-thread only), before each of
+// its chunks; when it returns true no further chunk starts and the function
+// returns false once the running ones finish.
+//
+// If bodies throw, every chunk before the lowest failing one still runs,
+// later ones are skipped, and that chunk's exception is rethrown: the error
+// reported is the first in file order, as a sequential decode would report.
+inline bool parallel_chunks(std::size_t n, const std::function<void(std::size_t)> &body, const std::function<bool()> &poll) {
+    const std::size_t threads = std::max<std::size_t>(1, std::min<std::size_t>({n, std::thread::hardware_concurrency(), 8}));
+    std::atomic<std::size_t> next{0};
+    std::atomic<std::size_t> first_failed{n};
+    std::atomic<bool> cancelled{false};
+    std::vector<std::exception_ptr> errors(n);
+    auto work = [&](bool caller) {
+        for (;;) {
+            if (caller && poll && poll()) cancelled = true;
+            if (cancelled) return;
+            const std::size_t c = next.fetch_add(1);
+            if (c >= n || c > first_failed.load()) return;
+            try {
+                body(c);
+            } catch (...) {
+                errors[c] = std::current_exception();
+                std::size_t f = first_failed.load();
+                while (c < f && !first_failed.compare_exchange_weak(f, c)) {
+                }
+            }
+        }
+    };
+    std::vector<std::thread> pool;
+    for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work, false);
+    work(true);
+    for (auto &t : pool) t.join();
+    if (first_failed < n) std::rethrow_exception(errors[first_failed]);
+    return !cancelled;
+}
+
+}  // namespace hzio

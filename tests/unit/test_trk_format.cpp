@@ -1,0 +1,83 @@
+// The TRK format code on its own: the parallel chunked decode against one
+// sequential chunk, and the first error in file order.
+#include "trk_format.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+std::string slurp(const std::string &p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), {});
+}
+
+}  // namespace
+
+TEST_CASE("trk: the parallel chunked decode equals one sequential chunk; the first bad point in file order is named") {
+    // About 40 MB of records: three chunks of 16 MiB, with one scalar column
+    // and one property so records are not plain points.
+    std::vector<float> pos, scal, prop;
+    std::vector<std::uint64_t> off{0};
+    for (int s = 0; off.back() < 3'200'000; ++s) {
+        const std::uint64_t n = 1 + (static_cast<std::uint64_t>(s) * 7919) % 300;
+        for (std::uint64_t i = 0; i < n; ++i) {
+            for (int c = 0; c < 3; ++c) pos.push_back(static_cast<float>((s * 13 + i * 3 + c) % 1999) * 0.05f - 50.0f);
+            scal.push_back(static_cast<float>(i));
+        }
+        prop.push_back(static_cast<float>(s));
+        off.push_back(off.back() + n);
+    }
+    const std::uint64_t N = off.size() - 1, V = off.back();
+    trk::WriteSpec spec;
+    spec.vox_to_ras = {-2, 0, 0, 90, 0, 2, 0, -126, 0, 0, 2, -72, 0, 0, 0, 1};  // LAS, 2 mm
+    spec.dims = {91, 109, 91};
+    spec.scalars = {{"index", 1}};
+    spec.properties = {{"id", 1}};
+    spec.scalar_data = scal.data();
+    spec.property_data = prop.data();
+    const std::string path = (std::filesystem::temp_directory_path() / "hz_unit_trk_chunks.trk").string();
+    trk::write(path, pos.data(), V, off.data(), N, spec);
+    std::string file = slurp(path);
+    std::filesystem::remove(path);
+
+    auto decode = [](const std::string &f, bool one_chunk) {
+        const auto *b = reinterpret_cast<const unsigned char *>(f.data());
+        const trk::Header h = trk::parse_header(b, f.size());
+        trk::Layout l = trk::scan(b, f.size(), h);
+        if (one_chunk) l.chunks = {l.chunks.front(), l.chunks.back()};
+        std::vector<float> p(3 * l.nb_vertices), sc(l.nb_vertices), pr(l.nb_streamlines);
+        std::vector<std::uint64_t> o(l.nb_streamlines + 1);
+        trk::decode(b, f.size(), h, l, p.data(), o.data(), sc.data(), pr.data());
+        return std::make_tuple(l.chunks.size(), p, o, sc, pr);
+    };
+    const auto [chunks, p, o, sc, pr] = decode(file, false);
+    const auto [chunks1, p1, o1, sc1, pr1] = decode(file, true);
+    CHECK(chunks >= 4);  // at least three chunks and the end marker
+    CHECK(chunks1 == 2);
+    CHECK(o == off);
+    CHECK(o1 == off);
+    CHECK(p == p1);
+    CHECK(sc == scal);
+    CHECK(pr == prop);
+    for (std::size_t i = 0; i < pos.size(); i += 9973) CHECK(std::fabs(p[i] - pos[i]) < 1e-4f);
+
+    // Non-finite values in the third and the second chunk: the second's is reported.
+    auto poison = [&](std::uint64_t streamline) {
+        // Record layout: count, then per point x y z + 1 scalar, then 1 property.
+        std::uint64_t at = 1000;
+        for (std::uint64_t s = 0; s < streamline; ++s) at += 4 + (off[s + 1] - off[s]) * 16 + 4;
+        const float nan = NAN;
+        std::memcpy(file.data() + at + 4 + 16 + 4, &nan, 4);  // point 1, y
+    };
+    const std::uint64_t late = N * 9 / 10, early = N / 2;
+    poison(late);
+    poison(early);
+    CHECK_THROWS_WITH(decode(file, false), Catch::Contains("streamline " + std::to_string(early) + " point 1 has a non-finite"));
+}
