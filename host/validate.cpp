@@ -13,6 +13,7 @@
 #include <boost/dll/library_info.hpp>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cmath>
@@ -748,6 +749,63 @@ std::vector<Check> catalogue() {
                      const hz_status st = l.read_streamlines ? read_with(l, files[0], t, msg, task.get())
                                                              : read_volume_with(l, files[0], v, msg, task.get());
                      if (st != HZ_E_CANCELLED) return fail("status " + std::to_string(st) + " instead of HZ_E_CANCELLED");
+                     return pass();
+                 }});
+
+    c.push_back({"loader-locate-positions", HZ_KIND_LOADER,
+                 "locate_positions (1.4), when offered, names bytes equal to what read_streamlines gives, and offsets-only reads agree",
+                 [](const Ctx &x) {
+                     const hz_loader &l = loader_of(x);
+                     if (!HZ_HAS_FIELD(&l, hz_loader, locate_positions) || !l.locate_positions) return skip("no locate_positions");
+                     if (!l.read_streamlines) return fail("locate_positions without read_streamlines");
+                     std::string msg;
+                     const auto files = loader_samples(x, msg);
+                     if (files.empty()) return skip("no sample file");
+                     core::Tractogram full;
+                     if (read_with(l, files[0], full, msg) != HZ_OK) return skip("sample does not read: " + msg);
+                     hz_error err = new_error();
+                     hz_open_request req{};
+                     req.struct_size = sizeof req;
+                     const std::string p = files[0].string();
+                     req.path = p.c_str();
+                     hz_reader *r = nullptr;
+                     if (l.open(&req, &r, &err) != HZ_OK) return fail(std::string("sample does not open: ") + err.message);
+                     struct Close {
+                         const hz_loader &l;
+                         hz_reader *r;
+                         ~Close() { l.close(r); }
+                     } closer{l, r};
+                     hz_dataset_info info{};
+                     info.struct_size = sizeof info;
+                     if (l.get_info(r, &info, &err) != HZ_OK) return fail(std::string("get_info: ") + err.message);
+                     hz_positions_extent ext{};
+                     ext.struct_size = sizeof ext;
+                     const hz_status st = l.locate_positions(r, &ext, &err);
+                     if (st == HZ_E_UNSUPPORTED) return pass("declines for this sample (reads by copy)");
+                     if (st != HZ_OK) return fail("status " + std::to_string(st) + ": " + err.message);
+                     if (ext.path == nullptr) return fail("HZ_OK with a NULL path");
+                     if (ext.offset % 4 != 0) return fail("offset " + std::to_string(ext.offset) + " is not a multiple of 4");
+                     const std::uint64_t bytes = info.nb_vertices * 12;
+                     std::ifstream in(ext.path, std::ios::binary);
+                     std::string stored(bytes, '\0');
+                     in.seekg(static_cast<std::streamoff>(ext.offset));
+                     if (!in.read(stored.data(), static_cast<std::streamsize>(bytes)))
+                         return fail(std::string("the extent lies past the end of ") + ext.path);
+                     if (full.positions.size() * 4 != bytes || std::memcmp(stored.data(), full.positions.data(), bytes) != 0)
+                         return fail("the located bytes differ from read_streamlines' positions");
+                     if ((ext.flags & HZ_EXTENT_HAS_CRC32) &&
+                         crc32_z(0, reinterpret_cast<const Bytef *>(stored.data()), bytes) != ext.crc32)
+                         return fail("the CRC-32 given does not match the located bytes");
+                     core::Buffer<std::uint64_t> off(info.nb_streamlines + 1);
+                     hz_streamlines_dst dst{};
+                     dst.struct_size = sizeof dst;
+                     dst.flags = HZ_STREAMLINES_OFFSETS_ONLY;
+                     dst.offsets = off.data();
+                     dst.offsets_capacity = off.size();
+                     if (l.read_streamlines(r, &dst, nullptr, &err) != HZ_OK)
+                         return fail(std::string("an offsets-only read fails: ") + err.message);
+                     if (!std::equal(off.begin(), off.end(), full.offsets.begin()))
+                         return fail("offsets-only read gives other offsets");
                      return pass();
                  }});
 

@@ -35,6 +35,13 @@ class ValidateTest(TempDirTest):
                      "loader-buffer-too-small", "loader-cancel", "exports-only-entry"]:
             self.assertEqual(c[name]["status"], "passed", name)
 
+    def test_zero_copy_contract_is_checked(self):
+        # TRX offers locate_positions (ABI 1.4): the located bytes, CRC and offsets-only read are checked.
+        rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_trx.so"))
+        self.assertEqual(checks(rep)["loader-locate-positions"]["status"], "passed")
+        rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_tck.so"))
+        self.assertEqual(checks(rep)["loader-locate-positions"]["status"], "skipped")
+
     def test_templates_pass(self):
         for f in sorted(glob.glob(os.path.join(TEMPLATES, "*.so"))):
             with self.subTest(plugin=os.path.basename(f)):

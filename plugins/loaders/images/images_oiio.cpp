@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <fcntl.h>
 #include <mutex>
+#include <vector>
 #include <unistd.h>
 #include <cstring>
 #include <string>
@@ -122,6 +123,25 @@ int read(const char *path, uint32_t dtype, void *dst, uint64_t dst_bytes, char *
         if (uint64_t(s.width) * uint64_t(s.height) * uint64_t(ch) * t.size() > dst_bytes) {
             put(err, n, "destination too small");
             return -1;
+        }
+        // OpenImageIO 2.4 sizes its conversion buffer by the TIFF RowsPerStrip
+        // tag; a forged value (more rows per strip than the image has) asks
+        // for gigabytes for a tiny image (found by fuzz_images). Such files
+        // are read one scanline at a time, converting through a row buffer.
+        const int rps = s.get_int_attribute("tiff:RowsPerStrip", 0);
+        if (rps > s.height) {
+            const size_t px_in = size_t(s.nchannels) * t.size(), px_out = size_t(ch) * t.size();
+            std::vector<unsigned char> row(size_t(s.width) * px_in);
+            auto *out = static_cast<unsigned char *>(dst);
+            for (int y = 0; y < s.height; ++y) {
+                if (!in->read_scanline(s.y + y, s.z, t, row.data())) {
+                    put(err, n, in->geterror());
+                    return -1;
+                }
+                for (int x = 0; x < s.width; ++x)
+                    std::memcpy(out + (size_t(y) * size_t(s.width) + size_t(x)) * px_out, row.data() + size_t(x) * px_in, px_out);
+            }
+            return 0;
         }
         if (!in->read_image(0, 0, 0, ch, t, dst)) {
             put(err, n, in->geterror());
