@@ -11,6 +11,15 @@
 #include <thread>
 #include <vector>
 
+// Compiles a function for AVX-512 and AVX2 as well as the baseline, the
+// variant chosen when the library loads (GCC target_clones; the compiler
+// vectorises plain loops, no intrinsics). Empty elsewhere.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#  define HZIO_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#else
+#  define HZIO_SIMD_CLONES
+#endif
+
 namespace hzio {
 
 // Runs body(c) for every chunk c in [0, n) on up to min(n, cores, 8)

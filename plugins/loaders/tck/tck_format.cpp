@@ -236,6 +236,21 @@ struct Walk {
 // Those triples then go through the walk in file order, the runs between
 // them counting as plain points; the walk records the delimiters, so
 // decode() copies the runs between them.
+// The first block of 16 triples in [i, e) (e - i a multiple of 16) that
+// holds a float with an all-ones exponent (NaN or Inf), or e.
+HZIO_SIMD_CLONES
+std::uint64_t next_special_block(const unsigned char *data, std::uint64_t i, std::uint64_t e) {
+    constexpr std::uint32_t kExp = 0x7F800000u;
+    for (; i < e; i += 16) {
+        std::uint32_t blk[48];
+        std::memcpy(blk, data + 12 * i, sizeof blk);
+        unsigned special = 0;
+        for (int k = 0; k < 48; ++k) special |= (blk[k] & kExp) == kExp;
+        if (special) return i;
+    }
+    return e;
+}
+
 void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header &h, const Tick &cancelled, const Release &release,
                 Walk &w) {
     constexpr std::uint32_t kExp = 0x7F800000u, kMant = 0x007FFFFFu;
@@ -246,17 +261,12 @@ void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header
         nchunks,
         [&](std::size_t c) {
             const std::uint64_t b = c * kChunk, e = std::min(n_triples, b + kChunk);
+            const std::uint64_t whole = b + (e - b) / 16 * 16;
             auto &out = specials[c];
             for (std::uint64_t i = b; i < e;) {
-                if (i + 16 <= e) {
-                    std::uint32_t blk[48];
-                    std::memcpy(blk, data + 12 * i, sizeof blk);
-                    unsigned special = 0;
-                    for (int k = 0; k < 48; ++k) special |= (blk[k] & kExp) == kExp;
-                    if (!special) {
-                        i += 16;
-                        continue;
-                    }
+                if (i < whole) {
+                    i = next_special_block(data, i, whole);
+                    if (i == whole && whole == e) break;
                 }
                 for (const std::uint64_t end = std::min(e, i + 16); i < end; ++i) {
                     std::uint32_t t[3];
