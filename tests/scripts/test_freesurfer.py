@@ -72,6 +72,59 @@ class FreeSurferTest(TempDirTest):
                     fh.write(data)
                 self.assert_clean_error(run("info", f, timeout=10), name)
 
+    def test_annotations(self):
+        """Annotations (lh.aparc.annot) read as nibabel's read_annot reads them: a label index per vertex
+        (-1 unlabeled) and the label colours, both colour-table formats; malformed ones fail cleanly."""
+        rng = np.random.default_rng(8)
+        n = 300
+        names = [b"unknown", b"bankssts", b"caudalanteriorcingulate", b"cuneus", b"frontalpole"]
+        ctab = np.array([[25, 5, 25, 0, 0], [25, 100, 40, 0, 0], [125, 100, 160, 0, 0], [220, 180, 140, 0, 0],
+                         [100, 0, 100, 30, 0]], np.int32)
+        labels = rng.integers(-1, len(names), n).astype(np.int32)
+        src = self.path("lh.aparc.annot")
+        fs.write_annot(src, labels, ctab, names)
+        want_labels, want_ctab, want_names = fs.read_annot(src)
+        info = run_json("info", src, "--json")
+        self.assertEqual(info["format"], "freesurfer annot")
+        self.assertEqual(info["overlay_vertices"], n)
+        self.assertEqual([(a["name"], a["dtype"], a["components"]) for a in info["arrays"]],
+                         [("aparc", "int32", 1), ("aparc rgba", "uint8", 4)])
+        header = dict(info["header"])
+        for i, nm in enumerate(want_names):
+            r, g, b, t = want_ctab[i, :4]
+            self.assertEqual(header[f"label {i}"], f"{nm.decode()} {r} {g} {b} {t}")
+        # The label indices, through an overlay-only GIFTI; GIFTI overlays here hold no colour arrays, which
+        # is reported (the colours are checked in the rendering tests).
+        gii = self.path("aparc.func.gii")
+        p = run("convert", src, gii)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("dropped array 'aparc rgba'", p.stderr)
+        np.testing.assert_array_equal(nib.load(gii).darrays[0].data, want_labels)
+        # The old colour-table format (n > 0 entries, no indices), written by hand.
+        def be(*v):
+            return struct.pack(">%di" % len(v), *v)
+        packed = lambda c: int(c[0]) + int(c[1]) * 256 + int(c[2]) * 65536
+        old = be(4) + b"".join(be(i, packed(ctab[k]) if k >= 0 else 0) for i, k in enumerate([1, 2, -1, 1])) + be(1, 3)
+        old += be(7) + b"NOFILE\0" + b"".join(be(len(nm) + 1) + nm + b"\0" + be(*ctab[i, :4]) for i, nm in enumerate(names[:3]))
+        with open(self.path("lh.old.annot"), "wb") as fh:
+            fh.write(old)
+        info = run_json("info", self.path("lh.old.annot"), "--json")
+        self.assertEqual(info["overlay_vertices"], 4)
+        self.assertEqual(dict(info["header"])["label 2"], "caudalanteriorcingulate 125 100 160 0")
+        # Writing annotations is not supported: said so, nothing written.
+        self.assert_clean_error(run("convert", gii, self.path("x.annot")), "x.annot")
+        # Malformed: truncated anywhere, a vertex out of range, a negative or absurd table.
+        with open(src, "rb") as fh:
+            good = fh.read()
+        bad = {"cut_pairs.annot": good[:4 + 8 * 100], "cut_table.annot": good[:-7], "no_table.annot": good[:4 + 8 * n],
+               "vertex.annot": good[:4] + be(n + 5) + good[8:], "version.annot": good[:4 + 8 * n] + be(1, -3) + good[4 + 8 * n + 8:],
+               "huge.annot": good[:4 + 8 * n] + be(1, -2, 5, 7) + b"NOFILE\0" + be(0x7FFFFFFF), "empty.annot": b""}
+        for name, data in bad.items():
+            with self.subTest(case=name):
+                with open(self.path(name), "wb") as fh:
+                    fh.write(data)
+                self.assert_clean_error(run("info", self.path(name), timeout=10), name)
+
     def test_curv_overlays(self):
         """curv files (lh.thickness, lh.curv) read as per-vertex values,
         as nibabel's read_morph_data reads them; written back, and to an

@@ -161,6 +161,29 @@ class RenderTest(TempDirTest):
         self.assert_clean_error(p, "alone.json")
         self.assertIn("per-vertex values only", p.stderr)
 
+    def test_surface_annotation_colours(self):
+        """An annotation (lh.aparc.annot) colours the surface by its labels' colours: the upper half red, the lower
+        half blue, unlabeled vertices the surface's own grey."""
+        import nibabel.freesurfer as fsio
+        self.make_surface_with_thickness()
+        verts, _ = fsio.read_geometry(self.path("lh.white"))
+        labels = np.where(verts[:, 2] > 0, 1, 2).astype(np.int32)
+        ctab = np.array([[25, 5, 25, 0, 0], [255, 0, 0, 0, 0], [0, 0, 255, 0, 0]], np.int32)
+        fsio.write_annot(self.path("lh.aparc.annot"), labels, ctab, [b"unknown", b"upper", b"lower"])
+        scene = {"objects": [{"type": "surface", "file": "lh.white", "overlays": ["lh.aparc.annot"],
+                              "material": {"shader": "flat"}}], "camera": {"view": "left"}}
+        out, _ = render_scene(self, scene, "annot")
+        b = load(out)
+        fg = np.abs(b - b[0, 0]).sum(axis=2) > 30
+        ys = np.nonzero(fg.any(axis=1))[0]
+        third = (ys[-1] - ys[0]) // 3
+        top = b[ys[0]:ys[0] + third][fg[ys[0]:ys[0] + third]].mean(axis=0)
+        bottom = b[ys[-1] - third:ys[-1]][fg[ys[-1] - third:ys[-1]]].mean(axis=0)
+        self.assertGreater(top[0], 200, f"top {top}")
+        self.assertLess(top[2], 40, f"top {top}")
+        self.assertGreater(bottom[2], 200, f"bottom {bottom}")
+        self.assertLess(bottom[0], 40, f"bottom {bottom}")
+
     def test_decimation_keeps_the_picture(self):
         scene = {"objects": [{"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 2000}, "render": "lines"}]}
         full, s0 = render_scene(self, scene, "full", "--lod-pixels", "0", size="400x300")

@@ -924,6 +924,25 @@ struct Renderer::Impl {
             data = array_values(*a);
             range = c.range ? *c.range : finite_range(data);
         }
+        // Per-vertex colours ("rgb"): 8/16-bit values are sRGB-encoded (FreeSurfer annotation colours), float
+        // values linear in 0..1 (glTF COLOR_0).
+        std::vector<std::array<double, 3>> rgb;
+        if (c.mode == "rgb") {
+            const DataArray *a = nullptr;
+            for (const auto &x : m.arrays)
+                if (x.name == c.array && x.attach == HZ_ATTACH_VERTEX && x.count == nv && x.components >= 3) a = &x;
+            if (!a) throw Error(o.name + ": color: no per-vertex colour array '" + c.array + "' (3 or 4 components)");
+            const std::size_t es = dtype_size(a->dtype);
+            const double scale = a->dtype == HZ_DTYPE_U8 ? 255.0 : a->dtype == HZ_DTYPE_U16 ? 65535.0 : 0.0;
+            rgb.resize(nv);
+            for (int k = 0; k < 3; ++k) {
+                const auto v = values_of(a->bytes.data() + k * es, a->dtype, a->count, es * a->components);
+                for (std::uint64_t i = 0; i < nv; ++i) {
+                    const double x = std::isfinite(v[i]) ? v[i] : 0.0;
+                    rgb[i][std::size_t(k)] = scale > 0 ? srgb_to_linear(std::clamp(x / scale, 0.0, 1.0)) : std::clamp(x, 0.0, 1.0);
+                }
+            }
+        }
         struct MV {
             float pos[3];
             float normal[3];
@@ -940,7 +959,8 @@ struct Renderer::Impl {
             if (c.mode == "data") {
                 const auto cm = colormap(c.colormap, (data[i] - range[0]) / (range[1] - range[0]));
                 col = rgba8(srgb_to_linear(cm[0]), srgb_to_linear(cm[1]), srgb_to_linear(cm[2]));
-            } else col = rgba8(c.color[0], c.color[1], c.color[2]);
+            } else if (c.mode == "rgb") col = rgba8(rgb[i][0], rgb[i][1], rgb[i][2]);
+            else col = rgba8(c.color[0], c.color[1], c.color[2]);
             std::memcpy(v.rgba, col.data(), 4);
         }
         glGenVertexArrays(1, &g.vao);

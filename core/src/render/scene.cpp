@@ -86,9 +86,21 @@ Material parse_material(const json &j, const std::string &what, const std::strin
     return m;
 }
 
+}  // namespace
+
+std::string colour_array(const Mesh &m) {
+    for (const auto &a : m.arrays)
+        if (a.attach == HZ_ATTACH_VERTEX && a.count == m.nb_vertices() && (a.components == 3 || a.components == 4) &&
+            (a.dtype == HZ_DTYPE_U8 || a.dtype == HZ_DTYPE_U16 || a.dtype == HZ_DTYPE_F32 || a.dtype == HZ_DTYPE_F64))
+            return a.name;
+    return {};
+}
+
+namespace {
+
 Coloring parse_coloring(const json &j, const std::string &what, const std::string &where) {
     Coloring c;
-    const std::set<std::string> modes = {"direction", "solid", "data", "cluster"};
+    const std::set<std::string> modes = {"direction", "solid", "data", "cluster", "rgb"};
     if (j.is_string()) {
         c.mode = str(j, what, where, modes);
         return c;
@@ -105,6 +117,7 @@ Coloring parse_coloring(const json &j, const std::string &what, const std::strin
     if (j.contains("colormap")) c.colormap = str(j["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
     if (j.contains("range")) c.range = vec<2>(j["range"], what, where + ".range");
     if (c.mode == "data" && c.array.empty()) fail(what, where, "mode 'data' needs 'array' (the name of a per-point or per-streamline array)");
+    if (c.mode == "rgb" && c.array.empty()) fail(what, where, "mode 'rgb' needs 'array' (the name of a per-vertex colour array)");
     return c;
 }
 
@@ -289,12 +302,17 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (want == HZ_DATA_MESH && is_overlay(ob.data))
             fail(what, where, "the file holds per-vertex values only; give the surface in 'file' and this file in 'overlays'");
         if (want == HZ_DATA_MESH && !ob.data.metadata.empty()) apply_file_material(ob, o.contains("material"), o.contains("color"));
+        // A surface with per-vertex colours (glTF COLOR_0) shows them by default.
+        if (want == HZ_DATA_MESH && !o.contains("color")) {
+            const std::string rgb = colour_array(ob.data.mesh);
+            if (!rgb.empty()) ob.coloring.mode = "rgb", ob.coloring.array = rgb;
+        }
         if (o.contains("overlays")) {
             // Per-vertex values from other files (curv, thickness, overlay-only GIFTI).
             const json &ov = o["overlays"];
             if (!ov.is_array() && !ov.is_string()) fail(what, where + ".overlays", "expected a file name or an array of file names");
             const json list = ov.is_string() ? json::array({ov}) : ov;
-            std::string first;
+            std::string first, first_rgb;
             for (std::size_t k = 0; k < list.size(); ++k) {
                 const std::string at = where + ".overlays[" + std::to_string(k) + "]";
                 fs::path p = str(list[k], what, at);
@@ -302,12 +320,17 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                 try {
                     const auto names = attach_overlay(ob.data.mesh, read_dataset(reg, p), p.string());
                     if (first.empty() && !names.empty()) first = names.front();
+                    for (const auto &nm : names)  // label colours (an annotation) win over its label numbers
+                        for (const auto &a : ob.data.mesh.arrays)
+                            if (first_rgb.empty() && a.name == nm && (a.components == 3 || a.components == 4)) first_rgb = nm;
                 } catch (const Error &e) {
                     fail(what, at, e.what());
                 }
             }
-            if (!o.contains("color") && !first.empty()) ob.coloring.mode = "data", ob.coloring.array = first;
+            if (!o.contains("color") && !first_rgb.empty()) ob.coloring.mode = "rgb", ob.coloring.array = first_rgb;
+            else if (!o.contains("color") && !first.empty()) ob.coloring.mode = "data", ob.coloring.array = first;
         }
+
         if (type == "slices" && !ob.slice_x && !ob.slice_y && !ob.slice_z) {
             // Default: the three slices through the volume's centre.
             ob.slice_x = ob.slice_y = ob.slice_z = std::nan("");

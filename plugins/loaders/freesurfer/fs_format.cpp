@@ -92,4 +92,88 @@ Surface parse(const unsigned char *b, std::uint64_t size) {
     return s;
 }
 
+Annotation parse_annot(const unsigned char *b, std::uint64_t size) {
+    std::uint64_t pos = 0;
+    auto need = [&](std::uint64_t n, const char *what) {
+        if (n > size - pos)
+            throw FormatError(std::string(what) + " needs " + std::to_string(n) + " bytes at byte " + std::to_string(pos) + ", " +
+                              std::to_string(size - pos) + " left");
+    };
+    auto i32 = [&](const char *what) {
+        need(4, what);
+        const auto v = static_cast<std::int32_t>(be32(b + pos));
+        pos += 4;
+        return v;
+    };
+    auto text = [&](const char *what) {
+        const std::int32_t n = i32(what);
+        if (n < 0) throw FormatError(std::string(what) + " has a negative length (" + std::to_string(n) + ")");
+        need(std::uint64_t(n), what);
+        std::string s(reinterpret_cast<const char *>(b + pos), std::size_t(n));
+        pos += std::uint64_t(n);
+        s.erase(std::find(s.begin(), s.end(), '\0'), s.end());  // names are stored with their NUL
+        return s;
+    };
+    Annotation a;
+    const std::int32_t vnum = i32("the vertex count");
+    if (vnum <= 0) throw FormatError("annotation for " + std::to_string(vnum) + " vertices");
+    need(8ull * std::uint64_t(vnum), "the vertex labels");
+    std::vector<std::uint32_t> values(std::size_t(vnum), 0);
+    for (std::int32_t i = 0; i < vnum; ++i) {
+        const auto vno = static_cast<std::int32_t>(be32(b + pos));
+        const std::uint32_t value = be32(b + pos + 4);
+        pos += 8;
+        if (vno < 0 || vno >= vnum) throw FormatError("label pair " + std::to_string(i) + " names vertex " + std::to_string(vno) + " of " + std::to_string(vnum));
+        values[std::size_t(vno)] = value;
+    }
+    if (pos == size) throw FormatError("no colour table after the labels");
+    if (i32("the colour-table flag") != 1) throw FormatError("the colour-table flag is not 1");
+    const std::int32_t n = i32("the colour-table size");
+    constexpr std::uint64_t kEntryMin = 24;  // index/length + r g b t, the least an entry takes
+    if (n > 0) {  // old format: entries 0..n-1
+        a.orig_table = text("the original table name");
+        if (std::uint64_t(n) > (size - pos) / 20) throw FormatError("colour table of " + std::to_string(n) + " entries is longer than the file");
+        for (std::int32_t i = 0; i < n; ++i) {
+            AnnotEntry e;
+            e.index = i;
+            e.name = text("a label name");
+            e.r = i32("a colour"), e.g = i32("a colour"), e.b = i32("a colour"), e.t = i32("a colour");
+            a.table.push_back(std::move(e));
+        }
+    } else if (n == -2) {
+        const std::int32_t max_index = i32("the largest label index");
+        if (max_index < 0) throw FormatError("negative largest label index");
+        a.orig_table = text("the original table name");
+        const std::int32_t count = i32("the colour-table entry count");
+        if (count < 0 || std::uint64_t(count) > (size - pos) / kEntryMin)
+            throw FormatError("colour table of " + std::to_string(count) + " entries is longer than the file");
+        for (std::int32_t i = 0; i < count; ++i) {
+            AnnotEntry e;
+            e.index = i32("a label index");
+            if (e.index < 0 || e.index >= max_index)
+                throw FormatError("label index " + std::to_string(e.index) + " outside 0.." + std::to_string(max_index - 1));
+            e.name = text("a label name");
+            e.r = i32("a colour"), e.g = i32("a colour"), e.b = i32("a colour"), e.t = i32("a colour");
+            a.table.push_back(std::move(e));
+        }
+    } else {
+        throw FormatError("colour-table version " + std::to_string(-n) + " (only the old format and version 2 are defined)");
+    }
+    for (const auto &e : a.table)
+        for (std::int32_t c : {e.r, e.g, e.b, e.t})
+            if (c < 0 || c > 255) throw FormatError("label '" + e.name + "' has a colour component outside 0..255");
+    // value -> index of the entry with that colour (the first, if colours repeat)
+    std::vector<std::pair<std::uint32_t, std::int32_t>> by_value;
+    for (const auto &e : a.table) by_value.emplace_back(e.packed(), e.index);
+    std::stable_sort(by_value.begin(), by_value.end(), [](const auto &x, const auto &y) { return x.first < y.first; });
+    a.labels.resize(values.size());
+    for (std::size_t i = 0; i < values.size(); ++i) {
+        a.labels[i] = -1;
+        if (values[i] == 0) continue;
+        const auto it = std::lower_bound(by_value.begin(), by_value.end(), values[i], [](const auto &x, std::uint32_t v) { return x.first < v; });
+        if (it != by_value.end() && it->first == values[i]) a.labels[i] = it->second;
+    }
+    return a;
+}
+
 }  // namespace fsurf

@@ -27,6 +27,31 @@ struct Surface {
     std::vector<std::pair<std::string, std::string>> footer;  // volume info, in file order
 };
 
+// An annotation (lh.aparc.annot): a label per vertex and its colour table.
+// Format (nibabel freesurfer/io.py read_annot; FreeSurfer's colortab.c):
+// big-endian int32 vnum, vnum (vertex, value) pairs where value packs the
+// label's colour as r + g*256 + b*65536 (0: no label); int32 1 (a colour
+// table follows); then either the old table (int32 n > 0, int32 length +
+// original-table path, n x {int32 length + name, int32 r g b t}) or
+// version 2 (int32 -2, int32 max index, int32 length + path, int32 count,
+// count x {int32 index, int32 length + name, int32 r g b t}).
+struct AnnotEntry {
+    std::int32_t index = 0;
+    std::string name;
+    std::int32_t r = 0, g = 0, b = 0, t = 0;  // t: transparency
+    std::uint32_t packed() const { return std::uint32_t(r) + std::uint32_t(g) * 256u + std::uint32_t(b) * 65536u; }
+};
+struct Annotation {
+    // Per vertex: the colour-table index of its label, -1 without one (a
+    // value of 0, or a colour no entry has).
+    std::vector<std::int32_t> labels;
+    std::vector<AnnotEntry> table;  // in file order
+    std::string orig_table;
+};
+// Parses a whole .annot file; throws FormatError. Every count is checked
+// against the bytes left before anything is allocated.
+Annotation parse_annot(const unsigned char *b, std::uint64_t size);
+
 std::uint32_t be32(const unsigned char *p);
 // True for the first bytes of a curv file (needs 15 bytes).
 bool looks_like_curv(const unsigned char *b, std::uint64_t size);

@@ -7,13 +7,18 @@
 // Also "new format" curv files (lh.curv, lh.thickness, lh.sulc, ...): magic
 // FF FF FF, int32 vnum, fnum, values per vertex (1), vnum float32: read as a
 // per-vertex overlay without geometry, named after the file (lh.thickness ->
-// "thickness"), and written from one.
+// "thickness"), and written from one. And annotations (lh.aparc.annot, read
+// only): an overlay of two per-vertex arrays, "aparc" (int32 colour-table
+// index, -1 unlabeled) and "aparc rgba" (uint8 x 4, the label's sRGB colour,
+// alpha 255 - transparency; unlabeled vertices grey with alpha 0), with the
+// table as header entries "label <index>" = "<name> <r> <g> <b> <t>".
 #include "fs_format.hpp"
 #include "mapped_file.hpp"
 
 #include <hz/cpp/plugin.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -36,15 +41,22 @@ using fsurf::parse;
 
 struct Reader {
     std::string path;
-    std::string array_name;  // curv: named after the file
+    std::string array_name;  // curv, annot: named after the file
+    std::string rgba_name;   // annot: "<name> rgba"
     Surface s;
+    bool annot = false;
+    fsurf::Annotation a;
+    std::vector<std::pair<std::string, std::string>> annot_meta;
 };
+
+bool is_annot_name(const std::string &path) { return path.size() > 6 && path.compare(path.size() - 6, 6, ".annot") == 0; }
 
 // lh.thickness -> "thickness"; a name without a dot is used whole.
 std::string overlay_name(const std::string &path) {
     std::string base = path.substr(path.find_last_of('/') + 1);
     const auto dot = base.find('.');
     if (dot != std::string::npos && dot + 1 < base.size()) base = base.substr(dot + 1);
+    if (base.size() > 6 && base.compare(base.size() - 6, 6, ".annot") == 0) base.resize(base.size() - 6);
     return base.empty() ? "curv" : base;
 }
 Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
@@ -54,9 +66,12 @@ hz_status run(hz_error *err, const std::string &path, F &&body) {
     return hz::format_guard<FormatError, hzio::IoError>(err, "freesurfer", path, body);
 }
 
-int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) {
+int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *name) {
     if (size >= 3 && head[0] == 0xFF && head[1] == 0xFF && head[2] == 0xFE) return 90;
-    return looks_like_curv(head, size) ? 80 : 0;
+    if (looks_like_curv(head, size)) return 80;
+    // Annotations have no magic number: the name, a positive vertex count and vertex 0 first.
+    if (name != nullptr && is_annot_name(name) && size >= 8 && static_cast<std::int32_t>(be32(head)) > 0 && be32(head + 4) == 0) return 60;
+    return 0;
 }
 
 hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
@@ -67,8 +82,18 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         auto r = std::make_unique<Reader>();
         r->path = req->path;
         const hzio::MappedFile m(r->path);
-        r->s = parse(m.data(), m.size());
         r->array_name = overlay_name(r->path);
+        if (is_annot_name(r->path)) {
+            r->annot = true;
+            r->a = fsurf::parse_annot(m.data(), m.size());
+            r->rgba_name = r->array_name + " rgba";
+            if (!r->a.orig_table.empty()) r->annot_meta.emplace_back("orig_table", r->a.orig_table);
+            for (const auto &e : r->a.table)
+                r->annot_meta.emplace_back("label " + std::to_string(e.index), e.name + " " + std::to_string(e.r) + " " + std::to_string(e.g) +
+                                                                                   " " + std::to_string(e.b) + " " + std::to_string(e.t));
+        } else {
+            r->s = parse(m.data(), m.size());
+        }
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
     });
@@ -79,8 +104,8 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: get_info: bad arguments");
     const Surface &s = as_reader(reader)->s;
     out->kind = HZ_DATA_MESH;
-    std::snprintf(out->format, sizeof out->format, s.curv ? "freesurfer curv" : "freesurfer triangles");
-    out->nb_arrays = s.curv ? 1 : 0;
+    std::snprintf(out->format, sizeof out->format, as_reader(reader)->annot ? "freesurfer annot" : s.curv ? "freesurfer curv" : "freesurfer triangles");
+    out->nb_arrays = as_reader(reader)->annot ? 2 : s.curv ? 1 : 0;
     out->nb_vertices = s.vertices.size() / 3;
     out->nb_faces = s.faces.size() / 3;
     static const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
@@ -92,6 +117,14 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
 hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
     if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: get_array_info: NULL");
     const Reader &r = *as_reader(reader);
+    if (r.annot && index < 2) {
+        out->attach = HZ_ATTACH_VERTEX;
+        out->name = index == 0 ? r.array_name.c_str() : r.rgba_name.c_str();
+        out->dtype = index == 0 ? HZ_DTYPE_I32 : HZ_DTYPE_U8;
+        out->components = index == 0 ? 1 : 4;
+        out->count = r.a.labels.size();
+        return HZ_OK;
+    }
     if (!r.s.curv || index != 0) return hz::set_errorf(err, HZ_E_NOT_FOUND, "freesurfer: %s: no extra array %u", r.path.c_str(), index);
     out->attach = HZ_ATTACH_VERTEX;
     out->name = r.array_name.c_str();
@@ -104,6 +137,28 @@ hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info
 hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
     if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: read_array: NULL");
     const Reader &r = *as_reader(reader);
+    if (r.annot && index < 2) {
+        const std::uint64_t n = r.a.labels.size();
+        if (dst->dtype != (index == 0 ? HZ_DTYPE_I32 : HZ_DTYPE_U8) || dst->ndim < 1 || dst->shape[0] != n)
+            return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "freesurfer: %s: read_array: destination does not match", r.path.c_str());
+        // colour of each table index
+        std::vector<std::array<unsigned char, 4>> colour;
+        for (const auto &e : r.a.table) {
+            if (std::size_t(e.index) >= colour.size()) colour.resize(std::size_t(e.index) + 1, {128, 128, 128, 0});
+            colour[std::size_t(e.index)] = {static_cast<unsigned char>(e.r), static_cast<unsigned char>(e.g), static_cast<unsigned char>(e.b),
+                                            static_cast<unsigned char>(255 - e.t)};
+        }
+        for (std::uint64_t i = 0; i < n; ++i) {
+            const std::int32_t l = r.a.labels[i];
+            for (std::uint32_t c = 0; c < (index == 0 ? 1u : 4u); ++c) {
+                unsigned char *cell = hz::view_cell(*dst, i, c, index == 0 ? 4 : 1);
+                if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: read_array: destination too small", r.path.c_str());
+                if (index == 0) std::memcpy(cell, &l, 4);
+                else *cell = l >= 0 ? colour[std::size_t(l)][c] : (c == 3 ? 0 : 128);
+            }
+        }
+        return HZ_OK;
+    }
     if (!r.s.curv || index != 0) return hz::set_errorf(err, HZ_E_NOT_FOUND, "freesurfer: %s: no extra array %u", r.path.c_str(), index);
     if (dst->dtype != HZ_DTYPE_F32 || dst->ndim < 1 || dst->shape[0] != r.s.values.size())
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "freesurfer: %s: read_array: destination does not match", r.path.c_str());
@@ -118,7 +173,8 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
 hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
     if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: visit_metadata: NULL");
     const Surface &s = as_reader(reader)->s;
-    if (s.curv) return HZ_OK;
+    for (const auto &[k, v] : as_reader(reader)->annot_meta) visitor(ctx, k.c_str(), v.c_str());
+    if (s.curv || as_reader(reader)->annot) return HZ_OK;
     visitor(ctx, "created", s.created.c_str());
     for (const auto &[k, v] : s.footer) visitor(ctx, k.c_str(), v.c_str());
     return HZ_OK;
@@ -184,6 +240,8 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
     if (data->kind != HZ_DATA_MESH) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "freesurfer: %s: holds surfaces only", req->path);
     return run(err, req->path, [&]() -> hz_status {
         const std::string ext = req->extension ? req->extension : "";
+        if (ext == "annot")
+            throw FormatError("writing FreeSurfer annotations is not supported (the labels can be written as a GIFTI overlay: .label.gii)");
         if (std::find(std::begin(kCurvExtensions), std::end(kCurvExtensions), ext) != std::end(kCurvExtensions))
             return write_curv(req, data);
         if (data->mesh_nb_vertices == 0 && data->nb_arrays > 0)
@@ -223,7 +281,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 }
 
 const char *const kExtensions[] = {"white", "pial",      "inflated", "sphere", "orig", "smoothwm", "midthickness",
-                                   "surf",  "curv",      "thickness", "sulc",  "area", nullptr};
+                                   "surf",  "curv",      "thickness", "sulc",  "area", "annot", nullptr};
 const hz_loader kLoader = {
     sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 15, kExtensions, probe, open, get_info,
     get_array_info, visit_metadata, nullptr, read_array, nullptr, read_mesh, close, write, nullptr,
@@ -231,7 +289,7 @@ const hz_loader kLoader = {
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "FreeSurfer surface", "1.0.0", "Horizon",
-    "FreeSurfer binary triangle surfaces (lh.white, rh.pial, ...) with the volume-info footer, and curv overlays (lh.curv, lh.thickness, ...)", "MIT", kInterfaces,
+    "FreeSurfer binary triangle surfaces (lh.white, rh.pial, ...) with the volume-info footer, curv overlays (lh.curv, lh.thickness, ...) and annotations (lh.aparc.annot, read)", "MIT", kInterfaces,
 };
 
 }  // namespace

@@ -271,7 +271,8 @@ void decode_chunk(const unsigned char *b, const Header &h, const Chunk &from, co
             for (std::uint64_t i = 0; i < n; ++i) {
                 const unsigned char *p = rec + i * point_bytes;
                 const float x = load<float>(p, Swap), y = load<float>(p + 4, Swap), z = load<float>(p + 8, Swap);
-                bad |= !(std::fabs(x) <= 3.4028235e38f) | !(std::fabs(y) <= 3.4028235e38f) | !(std::fabs(z) <= 3.4028235e38f);
+                bad |= unsigned(!(std::fabs(x) <= 3.4028235e38f)) | unsigned(!(std::fabs(y) <= 3.4028235e38f)) |
+                       unsigned(!(std::fabs(z) <= 3.4028235e38f));
                 for (int r = 0; r < 3; ++r)
                     out[3 * i + r] = static_cast<float>(A[4 * r] * x + A[4 * r + 1] * y + A[4 * r + 2] * z + A[4 * r + 3]);
             }

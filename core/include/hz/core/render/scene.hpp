@@ -138,6 +138,10 @@ struct ClusterTree {
 // spec.thresholds over `t`. Throws Error.
 ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec);
 
+// The first per-vertex array of `m` that holds colours (3 or 4 components:
+// uint8/uint16 sRGB-encoded, float linear 0..1), or "" (coloring mode "rgb").
+std::string colour_array(const Mesh &m);
+
 // Applies `spec` to a tractogram: returns the chosen level's centroids with a
 // per-streamline "cluster_size" array. Throws Error.
 Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const ClusterSpec &spec);
