@@ -284,8 +284,13 @@ class WindowTest(TempDirTest):
     def test_view_surface_and_overlay_files(self):
         """`horizon view lh.white lh.thickness`: the overlay colours the surface before it."""
         RenderTest.make_surface_with_thickness(self)
+        import nibabel.freesurfer as fsio
+        verts, _ = fsio.read_geometry(self.path("lh.white"))
+        fsio.write_annot(self.path("lh.aparc.annot"), np.where(verts[:, 2] > 0, 1, 0).astype(np.int32),
+                         np.array([[0, 0, 255, 0, 0], [255, 0, 0, 0, 0]], np.int32), [b"lower", b"upper"])
         shots = {}
-        for name, files in (("plain", ["lh.white"]), ("overlay", ["lh.white", "lh.thickness"])):
+        for name, files in (("plain", ["lh.white"]), ("overlay", ["lh.white", "lh.thickness"]),
+                            ("annot", ["lh.white", "lh.aparc.annot"])):
             script = self.path(name + ".txt")
             with open(script, "w") as f:
                 f.write(f"wait 1\nscreenshot {self.path(name + '.png')}\nquit\n")
@@ -297,6 +302,10 @@ class WindowTest(TempDirTest):
             self.assertEqual(p.returncode, 0, p.stderr)
             shots[name] = load(self.path(name + ".png"))
         self.assertGreater(np.mean(np.abs(shots["plain"] - shots["overlay"])), 5.0)
+        # The annotation shows its label colours: strongly red and strongly blue pixels, no green.
+        a = shots["annot"].reshape(-1, 3).astype(float)
+        self.assertGreater(np.sum((a[:, 0] > 150) & (a[:, 2] < 60)), 500, "red label")
+        self.assertGreater(np.sum((a[:, 2] > 150) & (a[:, 0] < 60)), 500, "blue label")
         p = run("view", self.path("lh.thickness"), env={**os.environ, "DISPLAY": ":0"}, timeout=60)
         self.assert_clean_error(p, "lh.thickness")
         self.assertIn("need their surface", p.stderr)
