@@ -60,6 +60,8 @@ vi = OrderedDict(head=np.array([2, 0, 20], dtype=np.int32), valid="1  # volume i
                  yras=np.array([0, 0, -1.0]), zras=np.array([0, 1.0, 0]), cras=np.array([1.5, -2.0, 3.25]))
 fsio.write_geometry(os.path.join(out, "freesurfer", "rh.pial"), fv, ff, volume_info=vi)
 fsio.write_morph_data(os.path.join(out, "freesurfer", "lh.thickness"), rng.random(6).astype(np.float32))
+fsio.write_annot(os.path.join(out, "freesurfer", "lh.aparc.annot"), np.array([0, 1, -1, 2, 1, 0], np.int32),
+                 np.array([[25, 5, 25, 0, 0], [220, 20, 10, 0, 0], [20, 220, 60, 0, 0]], np.int32), [b"unknown", b"a", b"b"])
 # glTF: the hand-written documents of tests/scripts/test_gltf.py, as .gltf and .glb.
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
 from test_gltf import gltf_json, to_glb  # noqa: E402
