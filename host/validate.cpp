@@ -70,6 +70,16 @@ hz_error new_error() {
     return e;
 }
 
+// Opens `file` with `l`; NULL (with err filled) when it does not open.
+hz_reader *open_sample(const hz_loader &l, const fs::path &file, hz_error &err) {
+    hz_open_request req{};
+    req.struct_size = sizeof req;
+    const std::string p = file.string();
+    req.path = p.c_str();
+    hz_reader *r = nullptr;
+    return l.open(&req, &r, &err) == HZ_OK ? r : nullptr;
+}
+
 // A buffer whose last byte is followed by an inaccessible page: a write or
 // read past the end faults at once (the child reports "crashed").
 class GuardedBuffer {
@@ -710,12 +720,8 @@ std::vector<Check> catalogue() {
                      const auto files = loader_samples(x, msg);
                      if (files.empty()) return skip("no sample file");
                      hz_error err = new_error();
-                     hz_open_request req{};
-                     req.struct_size = sizeof req;
-                     const std::string p = files[0].string();
-                     req.path = p.c_str();
-                     hz_reader *r = nullptr;
-                     if (l.open(&req, &r, &err) != HZ_OK) return fail(std::string("sample does not open: ") + err.message);
+                     hz_reader *r = open_sample(l, files[0], err);
+                     if (r == nullptr) return fail(std::string("sample does not open: ") + err.message);
                      hz_dataset_info info{};
                      info.struct_size = sizeof info;
                      l.get_info(r, &info, &err);
@@ -764,12 +770,8 @@ std::vector<Check> catalogue() {
                      core::Tractogram full;
                      if (read_with(l, files[0], full, msg) != HZ_OK) return skip("sample does not read: " + msg);
                      hz_error err = new_error();
-                     hz_open_request req{};
-                     req.struct_size = sizeof req;
-                     const std::string p = files[0].string();
-                     req.path = p.c_str();
-                     hz_reader *r = nullptr;
-                     if (l.open(&req, &r, &err) != HZ_OK) return fail(std::string("sample does not open: ") + err.message);
+                     hz_reader *r = open_sample(l, files[0], err);
+                     if (r == nullptr) return fail(std::string("sample does not open: ") + err.message);
                      struct Close {
                          const hz_loader &l;
                          hz_reader *r;

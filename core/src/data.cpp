@@ -78,11 +78,29 @@ bool minmax48(const float *q, std::uint64_t steps, float *mn, float *mx) {
     return bad == 0;
 }
 
+// The points [whole, n) folded into the 48 lanes, then the lanes into bounds.
+Bounds fold48(const float *xyz, std::uint64_t n, std::uint64_t whole, float *mn, float *mx) {
+    for (std::uint64_t i = whole; i < n; ++i)
+        for (int d = 0; d < 3; ++d) {
+            mn[d] = std::min(mn[d], xyz[3 * i + d]);
+            mx[d] = std::max(mx[d], xyz[3 * i + d]);
+        }
+    Bounds b;
+    b.empty = false;
+    for (int d = 0; d < 3; ++d) {
+        b.min[d] = b.max[d] = xyz[d];
+        for (int k = d; k < 48; k += 3) {
+            b.min[d] = std::min(b.min[d], double(mn[k]));
+            b.max[d] = std::max(b.max[d], double(mx[k]));
+        }
+    }
+    return b;
+}
+
 // One thread's share of finite_bounds, in blocks of 1024 points (a fault
 // is then located within its block only).
 Bounds finite_bounds_serial(const float *xyz, std::uint64_t n, std::uint64_t first_vertex, const std::string &what) {
-    Bounds b;
-    if (n == 0) return b;
+    if (n == 0) return {};
     float mn[48], mx[48];
     for (int k = 0; k < 48; ++k) mn[k] = mx[k] = xyz[k % 3];
     auto locate = [&](std::uint64_t s, std::uint64_t e) {
@@ -96,20 +114,7 @@ Bounds finite_bounds_serial(const float *xyz, std::uint64_t n, std::uint64_t fir
         if (!minmax48(xyz + 3 * s, (e - s) / 16, mn, mx)) locate(s, e);
     }
     locate(whole, n);
-    for (std::uint64_t i = whole; i < n; ++i)
-        for (int d = 0; d < 3; ++d) {
-            mn[d] = std::min(mn[d], xyz[3 * i + d]);
-            mx[d] = std::max(mx[d], xyz[3 * i + d]);
-        }
-    b.empty = false;
-    for (int d = 0; d < 3; ++d) {
-        b.min[d] = b.max[d] = xyz[d];
-        for (int k = d; k < 48; k += 3) {
-            b.min[d] = std::min(b.min[d], double(mn[k]));
-            b.max[d] = std::max(b.max[d], double(mx[k]));
-        }
-    }
-    return b;
+    return fold48(xyz, n, whole, mn, mx);
 }
 
 }  // namespace
@@ -267,27 +272,13 @@ std::vector<std::string> attach_overlay(Mesh &mesh, const Dataset &overlay, cons
 }
 
 Bounds bounds_of(const float *xyz, std::uint64_t n) {
-    Bounds b;
-    if (n == 0) return b;
-    b.empty = false;
+    if (n == 0) return {};
     // The finite_bounds kernel, its finiteness flag ignored (a NaN never wins a comparison).
     float mn[48], mx[48];
     for (int k = 0; k < 48; ++k) mn[k] = mx[k] = xyz[k % 3];
     const std::uint64_t whole = n / 16 * 16;
     minmax48(xyz, whole / 16, mn, mx);
-    for (std::uint64_t i = whole; i < n; ++i)
-        for (int d = 0; d < 3; ++d) {
-            mn[d] = std::min(mn[d], xyz[3 * i + d]);
-            mx[d] = std::max(mx[d], xyz[3 * i + d]);
-        }
-    for (int d = 0; d < 3; ++d) {
-        b.min[d] = b.max[d] = xyz[d];
-        for (int k = d; k < 48; k += 3) {
-            b.min[d] = std::min(b.min[d], double(mn[k]));
-            b.max[d] = std::max(b.max[d], double(mx[k]));
-        }
-    }
-    return b;
+    return fold48(xyz, n, whole, mn, mx);
 }
 
 }  // namespace hz::core

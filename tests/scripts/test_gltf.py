@@ -136,6 +136,16 @@ class GltfTest(TempDirTest):
         obj = im[np.abs(im - im[0, 0]).sum(axis=2) > 30]
         self.assertGreater(len(obj), 50)
         self.assertGreater(obj[:, 0].mean(), 2 * obj[:, 2].mean(), "the red base colour factor is used")
+        # COLOR_0 multiplies it (glTF): the same mesh without vertex colours renders differently.
+        doc2, _ = gltf_json(pos, idx, material=material)
+        with open(self.path("plain.gltf"), "w") as f:
+            json.dump(doc2, f)
+        with open(self.path("plain.json"), "w") as f:
+            json.dump({"objects": [{"type": "surface", "file": "plain.gltf"}], "environment": {"type": "none"}}, f)
+        p = run("render", self.path("plain.json"), "-o", self.path("plain.png"), "--size", "160x120", env={"DISPLAY": ""})
+        self.assertEqual(p.returncode, 0, p.stderr)
+        plain = np.asarray(Image.open(self.path("plain.png")).convert("RGB")).astype(float)
+        self.assertGreater(np.abs(plain - im).mean(), 2.0, "the vertex colours are used")
 
     def test_malformed(self):
         rng = np.random.default_rng(3)

@@ -939,7 +939,8 @@ struct Renderer::Impl {
                 const auto v = values_of(a->bytes.data() + k * es, a->dtype, a->count, es * a->components);
                 for (std::uint64_t i = 0; i < nv; ++i) {
                     const double x = std::isfinite(v[i]) ? v[i] : 0.0;
-                    rgb[i][std::size_t(k)] = scale > 0 ? srgb_to_linear(std::clamp(x / scale, 0.0, 1.0)) : std::clamp(x, 0.0, 1.0);
+                    rgb[i][std::size_t(k)] = c.tint[std::size_t(k)] *
+                                             (scale > 0 ? srgb_to_linear(std::clamp(x / scale, 0.0, 1.0)) : std::clamp(x, 0.0, 1.0));
                 }
             }
         }

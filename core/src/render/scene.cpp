@@ -302,10 +302,16 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (want == HZ_DATA_MESH && is_overlay(ob.data))
             fail(what, where, "the file holds per-vertex values only; give the surface in 'file' and this file in 'overlays'");
         if (want == HZ_DATA_MESH && !ob.data.metadata.empty()) apply_file_material(ob, o.contains("material"), o.contains("color"));
-        // A surface with per-vertex colours (glTF COLOR_0) shows them by default.
+        // A surface with per-vertex colours (glTF COLOR_0) shows them by default, times the file's base
+        // colour when it has one (glTF: baseColorFactor x COLOR_0).
         if (want == HZ_DATA_MESH && !o.contains("color")) {
             const std::string rgb = colour_array(ob.data.mesh);
-            if (!rgb.empty()) ob.coloring.mode = "rgb", ob.coloring.array = rgb;
+            if (!rgb.empty()) {
+                const bool base = std::any_of(ob.data.metadata.begin(), ob.data.metadata.end(),
+                                              [](const auto &kv) { return kv.first == "material.baseColorFactor"; });
+                if (base && ob.coloring.mode == "solid") ob.coloring.tint = ob.coloring.color;
+                ob.coloring.mode = "rgb", ob.coloring.array = rgb;
+            }
         }
         if (o.contains("overlays")) {
             // Per-vertex values from other files (curv, thickness, overlay-only GIFTI).

@@ -35,6 +35,7 @@ struct Coloring {
     std::string array;
     std::string colormap = "viridis";
     std::optional<std::array<double, 2>> range;  // default: the data's min/max
+    std::array<double, 3> tint{1, 1, 1};         // "rgb": multiplies the per-vertex colours (glTF baseColorFactor)
 };
 
 // Replace a tractogram by one level of a clustering tree (paper Fig. 5).
