@@ -157,7 +157,7 @@ Annotation parse_annot(const unsigned char *b, std::uint64_t size) {
             a.table.push_back(std::move(e));
         }
     } else {
-        throw FormatError("colour-table version " + std::to_string(-n) + " (only the old format and version 2 are defined)");
+        throw FormatError("colour-table version " + std::to_string(-std::int64_t(n)) + " (only the old format and version 2 are defined)");
     }
     for (const auto &e : a.table)
         for (std::int32_t c : {e.r, e.g, e.b, e.t})
