@@ -281,14 +281,7 @@ core::render::Scene scene_from_files(const core::Registry &reg, const std::vecto
             // last surface named before it, which is then coloured by them.
             auto last = std::find_if(s.objects.rbegin(), s.objects.rend(), [](const core::render::Object &x) { return x.kind == HZ_DATA_MESH; });
             if (last == s.objects.rend()) throw core::Error(f + ": per-vertex values need their surface named before them (view lh.white lh.thickness)");
-            const auto names = core::attach_overlay(last->data.mesh, data, f);
-            // Label colours (an annotation) when the overlay has them, else its first value array.
-            std::string rgb;
-            for (const auto &nm : names)
-                for (const auto &a : last->data.mesh.arrays)
-                    if (rgb.empty() && a.name == nm && (a.components == 3 || a.components == 4)) rgb = nm;
-            last->coloring.mode = rgb.empty() ? "data" : "rgb";
-            last->coloring.array = rgb.empty() ? names.front() : rgb;
+            core::render::colour_by_overlay(*last, core::attach_overlay(last->data.mesh, data, f));
             continue;
         }
         o.name = fs::path(f).filename().string();

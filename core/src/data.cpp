@@ -120,9 +120,11 @@ Bounds finite_bounds_serial(const float *xyz, std::uint64_t n, std::uint64_t fir
 }  // namespace
 
 Bounds finite_bounds(const float *xyz, std::uint64_t n, const std::string &what, std::uint64_t first_vertex) {
+    constexpr std::uint64_t kGrain = 1u << 20;  // points per thread at least
+    if (n < 2 * kGrain) return finite_bounds_serial(xyz, n, first_vertex, what);  // (no threads, no allocation)
     std::vector<Bounds> parts;
     std::mutex mu;
-    parallel_ranges(n, 1u << 20, [&](std::uint64_t b, std::uint64_t e) {
+    parallel_ranges(n, kGrain, [&](std::uint64_t b, std::uint64_t e) {
         const Bounds r = finite_bounds_serial(xyz + 3 * b, e - b, first_vertex + b, what);
         std::lock_guard lock(mu);
         parts.push_back(r);

@@ -319,12 +319,13 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         dst.offsets_capacity = t.offsets.size();
         st = l->read_streamlines(g.r, &dst, task, &err);
         if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines"));
-        if (mapped) {
+        if (mapped) {  // the coordinates are checked as they are mapped
             t.positions = map_positions(ext, info.nb_vertices, path, ds.bounds);
             ds.mapped = true;
+            t.validate_offsets(path.string());
+        } else {
+            ds.bounds = t.validate(path.string());
         }
-        if (mapped) t.validate_offsets(path.string());  // the coordinates were checked as they were mapped
-        else ds.bounds = t.validate(path.string());
         for (uint32_t i = 0; i < info.nb_arrays; ++i) t.arrays.push_back(read_extra_array(*l, g.r, i, path, task));
     } else if (info.kind == HZ_DATA_VOLUME || info.kind == HZ_DATA_IMAGE) {
         if (l->read_volume == nullptr) throw Error(path.string() + ": loader " + p.info.id + " has no read_volume");

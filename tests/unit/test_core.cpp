@@ -30,6 +30,14 @@ Registry bundled() {
     return r;
 }
 
+// A streamlines dataset of the phantom's first `n` streamlines.
+Dataset phantom_dataset(std::uint64_t n) {
+    Dataset ds;
+    ds.kind = HZ_DATA_STREAMLINES;
+    ds.tractogram = make_phantom({.nb_streamlines = n});
+    return ds;
+}
+
 std::string slurp(const fs::path &p) {
     std::ifstream in(p, std::ios::binary);
     return std::string((std::istreambuf_iterator<char>(in)), {});
@@ -115,9 +123,7 @@ TEST_CASE("read and write through the TCK plugin, selection by extension and by 
     const Registry reg = bundled();
     REQUIRE(reg.find("org.horizon.loader.tck") != nullptr);
     const fs::path d = scratch("io");
-    Dataset ds;
-    ds.kind = HZ_DATA_STREAMLINES;
-    ds.tractogram = make_phantom({.nb_streamlines = 200});
+    Dataset ds = phantom_dataset(200);
     ds.metadata = {{"comment", "unit test"}};
     std::vector<std::string> dropped;
     write_dataset(reg, ds, d / "a.tck", false, &dropped);
@@ -148,9 +154,7 @@ TEST_CASE("read and write through the TCK plugin, selection by extension and by 
 TEST_CASE("a pre-cancelled task stops a read") {
     const Registry reg = bundled();
     const fs::path d = scratch("cancel");
-    Dataset ds;
-    ds.kind = HZ_DATA_STREAMLINES;
-    ds.tractogram = make_phantom({.nb_streamlines = 50});
+    Dataset ds = phantom_dataset(50);
     write_dataset(reg, ds, d / "a.tck", false, nullptr);
     Task task;
     task.cancel();
@@ -162,9 +166,7 @@ TEST_CASE("zero-copy TRX positions: mapped copy-on-write, checked, and the file 
     const Registry reg = bundled();
     REQUIRE(reg.find("org.horizon.loader.trx") != nullptr);
     const fs::path d = scratch("zerocopy");
-    Dataset ds;
-    ds.kind = HZ_DATA_STREAMLINES;
-    ds.tractogram = make_phantom({.nb_streamlines = 300});
+    Dataset ds = phantom_dataset(300);
     write_dataset(reg, ds, d / "a.trx", false, nullptr);
     const std::string before = slurp(d / "a.trx");
 

@@ -88,12 +88,20 @@ Material parse_material(const json &j, const std::string &what, const std::strin
 
 }  // namespace
 
-std::string colour_array(const Mesh &m) {
+std::string colour_array(const Mesh &m, const std::vector<std::string> *among) {
     for (const auto &a : m.arrays)
         if (a.attach == HZ_ATTACH_VERTEX && a.count == m.nb_vertices() && (a.components == 3 || a.components == 4) &&
-            (a.dtype == HZ_DTYPE_U8 || a.dtype == HZ_DTYPE_U16 || a.dtype == HZ_DTYPE_F32 || a.dtype == HZ_DTYPE_F64))
+            (a.dtype == HZ_DTYPE_U8 || a.dtype == HZ_DTYPE_U16 || a.dtype == HZ_DTYPE_F32 || a.dtype == HZ_DTYPE_F64) &&
+            (among == nullptr || std::find(among->begin(), among->end(), a.name) != among->end()))
             return a.name;
     return {};
+}
+
+void colour_by_overlay(Object &ob, const std::vector<std::string> &names) {
+    if (names.empty()) return;
+    const std::string rgb = colour_array(ob.data.mesh, &names);
+    ob.coloring.mode = rgb.empty() ? "data" : "rgb";
+    ob.coloring.array = rgb.empty() ? names.front() : rgb;
 }
 
 namespace {
@@ -175,7 +183,8 @@ void apply_file_material(Object &ob, bool has_material, bool has_color) {
     if (!has_color) {
         std::istringstream in(meta["material.baseColorFactor"]);
         std::array<double, 3> c{};
-        if (in >> c[0] >> c[1] >> c[2]) ob.coloring.mode = "solid", ob.coloring.color = c;
+        // Solid, or the tint of per-vertex colours (glTF: baseColorFactor x COLOR_0).
+        if (in >> c[0] >> c[1] >> c[2]) ob.coloring.mode = "solid", ob.coloring.color = c, ob.coloring.tint = c;
     }
     if (!has_material) {
         ob.material.shader = "principled";
@@ -302,39 +311,29 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (want == HZ_DATA_MESH && is_overlay(ob.data))
             fail(what, where, "the file holds per-vertex values only; give the surface in 'file' and this file in 'overlays'");
         if (want == HZ_DATA_MESH && !ob.data.metadata.empty()) apply_file_material(ob, o.contains("material"), o.contains("color"));
-        // A surface with per-vertex colours (glTF COLOR_0) shows them by default, times the file's base
-        // colour when it has one (glTF: baseColorFactor x COLOR_0).
+        // A surface with per-vertex colours (glTF COLOR_0) shows them by default, tinted by the file's base colour.
         if (want == HZ_DATA_MESH && !o.contains("color")) {
             const std::string rgb = colour_array(ob.data.mesh);
-            if (!rgb.empty()) {
-                const bool base = std::any_of(ob.data.metadata.begin(), ob.data.metadata.end(),
-                                              [](const auto &kv) { return kv.first == "material.baseColorFactor"; });
-                if (base && ob.coloring.mode == "solid") ob.coloring.tint = ob.coloring.color;
-                ob.coloring.mode = "rgb", ob.coloring.array = rgb;
-            }
+            if (!rgb.empty()) ob.coloring.mode = "rgb", ob.coloring.array = rgb;
         }
         if (o.contains("overlays")) {
             // Per-vertex values from other files (curv, thickness, overlay-only GIFTI).
             const json &ov = o["overlays"];
             if (!ov.is_array() && !ov.is_string()) fail(what, where + ".overlays", "expected a file name or an array of file names");
             const json list = ov.is_string() ? json::array({ov}) : ov;
-            std::string first, first_rgb;
+            std::vector<std::string> added;
             for (std::size_t k = 0; k < list.size(); ++k) {
                 const std::string at = where + ".overlays[" + std::to_string(k) + "]";
                 fs::path p = str(list[k], what, at);
                 if (p.is_relative()) p = base / p;
                 try {
                     const auto names = attach_overlay(ob.data.mesh, read_dataset(reg, p), p.string());
-                    if (first.empty() && !names.empty()) first = names.front();
-                    for (const auto &nm : names)  // label colours (an annotation) win over its label numbers
-                        for (const auto &a : ob.data.mesh.arrays)
-                            if (first_rgb.empty() && a.name == nm && (a.components == 3 || a.components == 4)) first_rgb = nm;
+                    added.insert(added.end(), names.begin(), names.end());
                 } catch (const Error &e) {
                     fail(what, at, e.what());
                 }
             }
-            if (!o.contains("color") && !first_rgb.empty()) ob.coloring.mode = "rgb", ob.coloring.array = first_rgb;
-            else if (!o.contains("color") && !first.empty()) ob.coloring.mode = "data", ob.coloring.array = first;
+            if (!o.contains("color")) colour_by_overlay(ob, added);
         }
 
         if (type == "slices" && !ob.slice_x && !ob.slice_y && !ob.slice_z) {

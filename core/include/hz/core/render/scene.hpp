@@ -140,8 +140,13 @@ struct ClusterTree {
 ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec);
 
 // The first per-vertex array of `m` that holds colours (3 or 4 components:
-// uint8/uint16 sRGB-encoded, float linear 0..1), or "" (coloring mode "rgb").
-std::string colour_array(const Mesh &m);
+// uint8/uint16 sRGB-encoded, float linear 0..1), or "" (coloring mode "rgb");
+// only arrays named in `among` when it is given.
+std::string colour_array(const Mesh &m, const std::vector<std::string> *among = nullptr);
+// Colours `ob` by the overlay arrays `names` just attached to its mesh: the
+// first colour array among them (an annotation's label colours), else the
+// first array through the colormap. No-op for no names.
+void colour_by_overlay(Object &ob, const std::vector<std::string> &names);
 
 // Applies `spec` to a tractogram: returns the chosen level's centroids with a
 // per-streamline "cluster_size" array. Throws Error.
