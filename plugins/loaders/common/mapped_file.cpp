@@ -32,12 +32,7 @@ MappedFile::MappedFile(const std::string &path) {
     ::close(fd);
 }
 
-void MappedFile::release_before(std::uint64_t end) const {
-    if (data_ == nullptr) return;
-    const std::uint64_t page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
-    const std::uint64_t len = std::min(end, size_) / page * page;
-    if (len > 0) ::madvise(const_cast<unsigned char *>(data_), len, MADV_DONTNEED);
-}
+void MappedFile::release_before(std::uint64_t end) const { release(0, end); }
 
 void MappedFile::release(std::uint64_t begin, std::uint64_t end) const {
     if (data_ == nullptr) return;
