@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cfloat>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <thread>
 #include <deque>
@@ -210,22 +211,28 @@ inline double mdf_below(const float *a, const float *b, std::uint32_t P, double 
     return sum / static_cast<double>(P);
 }
 
-// Fast mode: the same MDF in float32, blocks of 16 points whose squared
-// differences and square roots the compiler vectorises; early exit as above.
+// Fast mode: the same MDF in float32, blocks of 4 points whose squared
+// differences and square roots the compiler vectorises; early exit as above
+// (after the first block, a wrongly oriented candidate usually stops).
 inline double mdf_fast(const float *a, const float *b, std::uint32_t P, double bound) {
     const double stop_sum = bound * static_cast<double>(P);
     float sum = 0.0f;
-    for (std::uint32_t n = 0; n < P; n += 16) {
-        const std::uint32_t m = std::min<std::uint32_t>(P - n, 16);
-        float sq[48], r[16];
+    std::uint32_t n = 0;
+    for (; n + 4 <= P; n += 4) {
+        float sq[12], r[4];
         const float *pa = a + 3 * n, *pb = b + 3 * n;
-        for (std::uint32_t i = 0; i < 3 * m; ++i) {
+        for (int i = 0; i < 12; ++i) {
             const float t = pa[i] - pb[i];
             sq[i] = t * t;
         }
-        for (std::uint32_t j = 0; j < m; ++j) r[j] = std::sqrt(sq[3 * j] + sq[3 * j + 1] + sq[3 * j + 2]);
-        for (std::uint32_t j = 0; j < m; ++j) sum += r[j];
-        if (n + m < P && double(sum) >= stop_sum) return std::numeric_limits<double>::infinity();
+        for (int j = 0; j < 4; ++j) r[j] = std::sqrt(sq[3 * j] + sq[3 * j + 1] + sq[3 * j + 2]);
+        sum += (r[0] + r[1]) + (r[2] + r[3]);
+        if (n + 4 < P && double(sum) >= stop_sum) return std::numeric_limits<double>::infinity();
+    }
+    for (; n < P; ++n) {
+        const float *pa = a + 3 * n, *pb = b + 3 * n;
+        const float x = pa[0] - pb[0], y = pa[1] - pb[1], z = pa[2] - pb[2];
+        sum += std::sqrt(x * x + y * y + z * z);
     }
     return double(sum) / double(P);
 }
@@ -245,6 +252,29 @@ inline void update_centroid(float *c, std::uint64_t size, const float *e, std::u
     for (std::uint32_t i = 0; i < 3 * P; ++i) c[i] = ((c[i] * fs) + e[i]) / fs1;
 }
 
+// update_centroid, then the new centroid's AABB (see aabb()) and mean point
+// (see LowerBound::mean) in the same pass, with the same arithmetic.
+inline void update_summary(float *c, std::uint64_t size, const float *e, std::uint32_t P, float box_c[3], float box_r[3],
+                           float mean[3]) {
+    update_centroid(c, size, e, P);  // vectorised: divisions dominate
+    float mn[3], mx[3];
+    double s[3] = {0, 0, 0};
+    for (int d = 0; d < 3; ++d) mn[d] = mx[d] = c[d];
+    for (int d = 0; d < 3; ++d) s[d] += c[d];
+    for (std::uint32_t i = 1; i < P; ++i)
+        for (int d = 0; d < 3; ++d) {
+            const float v = c[3 * i + d];
+            mn[d] = std::min(mn[d], v);
+            mx[d] = std::max(mx[d], v);
+            s[d] += v;
+        }
+    for (int d = 0; d < 3; ++d) {
+        box_r[d] = (mx[d] - mn[d]) / 2.0f;
+        box_c[d] = mn[d] + box_r[d];
+        mean[d] = static_cast<float>(s[d] / P);
+    }
+}
+
 void check_order(const std::vector<std::uint64_t> &order, std::uint64_t N) {
     if (order.size() != N) throw InputError("ordering has " + std::to_string(order.size()) + " entries for " + std::to_string(N) + " streamlines");
     std::vector<bool> seen(N, false);
@@ -255,56 +285,99 @@ void check_order(const std::vector<std::uint64_t> &order, std::uint64_t N) {
 }
 
 struct Node {
+    // Written by the stage that updates this node (the one that searched
+    // its parent's children) ...
     Node *parent = nullptr;
     std::uint32_t level = 0;
+    std::uint32_t slot = 0;  // this node's index in its parent's kids
     double threshold = 0;  // used to split its children
     std::vector<float> c;
     std::uint64_t size = 0;
     std::vector<std::uint64_t> indices;
-    std::vector<Node *> children;  // creation order
+    // ... and by the stage that searches its children: on a cache line of
+    // their own, so that the two pipeline stages never share one.
     // What the search needs of each child, contiguous (the hot loop of QBX):
     // its centroid's AABB and mean point, refreshed when the child changes.
     struct Kid {
         float box_c[3], box_r[3];
-        double mean[3];
     };
+    alignas(64) std::vector<Node *> children;  // creation order
     std::vector<Kid> kids;  // parallel to `children`
-    std::uint32_t slot = 0;  // this node's index in its parent's kids
+    std::vector<float> mx, my, mz;  // the children's mean points, one array per axis
+    char pad_[64];
 };
 
 // A rigorous lower bound on the distance DIPY computes, from mean points.
 // By the triangle inequality, the real-valued MDF is at least the distance
 // between the two mean points. DIPY's value differs from the real one only
 // by the float32 rounding of each coordinate difference (relative 2^-24)
-// and double roundings; the mean points carry an absolute error below
-// `slack`. So mdf >= (|ma - mb| - slack) * (1 - 1e-7): when that is already
-// >= the best distance so far, computing the MDF cannot change the result,
-// and exact mode skips it.
+// and double roundings. The mean points are computed in double and stored
+// as float32 (absolute error below `slack` in all), and their squared
+// distance q is computed in float32 (relative error below 2^-21). So
+// mdf >= (sqrt(q / (1 + 2^-21)) - slack) * (1 - 1e-7): when that is already
+// >= the bound a candidate must beat, computing its MDF cannot change the
+// result, and it is skipped.
 struct LowerBound {
     double slack = 0;
     double factor = 1.0 - 1e-7;
     void prepare(const Features &f) {
         float m = 0;
         for (float v : f.direct) m = std::max(m, std::fabs(v));
-        slack = 4e-12 * double(m) * double(std::max<std::uint32_t>(f.nb_points, 1)) + 1e-300;
+        slack = 4e-12 * double(m) * double(std::max<std::uint32_t>(f.nb_points, 1)) + 0x1p-21 * double(m) + 1e-300;
     }
-    static void mean(const float *x, std::uint32_t P, double out[3]) {
+    static void mean(const float *x, std::uint32_t P, float out[3]) {
         double s[3] = {0, 0, 0};
         for (std::uint32_t i = 0; i < P; ++i)
             for (int d = 0; d < 3; ++d) s[d] += x[3 * i + d];
-        for (int d = 0; d < 3; ++d) out[d] = s[d] / P;
+        for (int d = 0; d < 3; ++d) out[d] = static_cast<float>(s[d] / P);
     }
     // Squared form, without a square root per candidate: hopeless when
-    // |ma - mb|^2 >= limit2(best) = ((best / factor) + slack)^2, rounded up.
-    double limit2(double best) const {
-        const double lim = best / factor + slack;
-        return lim * lim * (1.0 + 1e-15);
-    }
-    static bool hopeless(const double a[3], const double b[3], double lim2) {
-        const double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
-        return dx * dx + dy * dy + dz * dz >= lim2;
+    // q >= limit2(bound) = ((bound / factor) + slack)^2 (1 + 2^-20), rounded
+    // up to float32.
+    float limit2(double bound) const {
+        const double lim = bound / factor + slack;
+        const double l2 = lim * lim * (1.0 + 0x1p-20);
+        if (!(l2 < double(std::numeric_limits<float>::max()))) return std::numeric_limits<float>::infinity();
+        float f = static_cast<float>(l2);
+        std::uint32_t u;
+        std::memcpy(&u, &f, 4);
+        ++u;  // rounded up (l2 > 0)
+        std::memcpy(&f, &u, 4);
+        return f;
     }
 };
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#  define QB_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#else
+#  define QB_SIMD_CLONES
+#endif
+
+// Squared float32 distances from the mean points (mx, my, mz)[0..K) to `a`
+// and to `b`: every candidate's lower bound at once, a plain loop the
+// compiler vectorises at the width of the clone picked at load time.
+// Returns the smallest of them (the bit patterns of non-negative floats
+// order as integers, which keeps the reduction vectorisable).
+QB_SIMD_CLONES
+float screen(std::size_t K, const float *mx, const float *my, const float *mz, const float a[3], const float b[3], float *la,
+             float *lb) {
+    std::int32_t mn = 0x7f800000;  // +inf
+    const float ax = a[0], ay = a[1], az = a[2], bx = b[0], by = b[1], bz = b[2];
+    for (std::size_t k = 0; k < K; ++k) {
+        const float dx = mx[k] - ax, dy = my[k] - ay, dz = mz[k] - az;
+        const float ex = mx[k] - bx, ey = my[k] - by, ez = mz[k] - bz;
+        const float qa = dx * dx + dy * dy + dz * dz, qb = ex * ex + ey * ey + ez * ez;
+        la[k] = qa;
+        lb[k] = qb;
+        std::int32_t ia, ib;
+        std::memcpy(&ia, &qa, 4);
+        std::memcpy(&ib, &qb, 4);
+        mn = std::min(mn, std::min(ia, ib));
+    }
+    float r;
+    std::memcpy(&r, &mn, 4);
+    return r;
+}
 
 // AABB(X): per axis min/max (float32), r = (mx - mn) / 2, c = mn + r.
 inline void aabb(const float *x, std::uint32_t P, float c[3], float r[3]) {
@@ -317,6 +390,103 @@ inline void aabb(const float *x, std::uint32_t P, float c[3], float r[3]) {
         r[d] = (mx - mn) / 2.0f;
         c[d] = mn + r[d];
     }
+}
+
+// The smallest value that compares greater than v after the rounding the
+// caller applies (float32 for QBX, none for QB).
+// (v >= 0; the next representable value is the bit pattern plus one.)
+inline float next_float(float v) {
+    if (!(v < std::numeric_limits<float>::infinity())) return v;
+    std::uint32_t u;
+    std::memcpy(&u, &v, 4);
+    ++u;
+    std::memcpy(&v, &u, 4);
+    return v;
+}
+template <bool F32>
+inline double next_up(double v) {
+    if constexpr (F32) return next_float(static_cast<float>(v));
+    else return std::nextafter(v, std::numeric_limits<double>::infinity());
+}
+
+// The candidates of one search: K clusters, each in two orientations, with
+// their lower bounds (la: direct, lb: flipped) and their positions in
+// DIPY's scan order. QBX scans child 0 direct, child 0 flipped, child 1
+// direct, ... (key 2k + flip); QB scans every cluster direct, then every
+// cluster flipped (key flip K + k).
+struct Candidates {
+    std::size_t K = 0;
+    const float *la = nullptr, *lb = nullptr;
+    float min_lb = 0;  // the smallest of them
+    bool interleaved = true;  // QBX keys; QB otherwise
+    std::int64_t key(std::size_t k, bool flip) const {
+        return interleaved ? static_cast<std::int64_t>(2 * k + flip) : static_cast<std::int64_t>(flip ? K + k : k);
+    }
+};
+
+// Best-first search for DIPY's choice: the lexicographic minimum of
+// (value, key) among the candidates, where value = the distance (rounded
+// to float32 when F32) and key = the position in DIPY's scan order (its
+// "first strict minimum" is exactly that minimum). Only candidates for
+// which `tested(k)` holds take part, as in DIPY. A candidate whose distance
+// is >= `cap` is irrelevant to the caller and may be skipped.
+//
+// The candidate with the smallest lower bound goes first, so the bound is
+// tight from the start; every other one is skipped when its lower bound
+// shows it cannot beat the best so far under the tie rule (a smaller key
+// wins ties, so those get the next representable value as their bound).
+// The answer is therefore the one a full scan gives whenever that answer's
+// distance is below `cap`. Returns the key, or -1 when none qualified.
+template <class Metric, bool F32, class Centroid, class Tested>
+std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, double cap, const LowerBound &lbound,
+                        std::uint32_t P, Centroid centroid, Tested tested, double &best_out) {
+    double best = std::numeric_limits<double>::infinity();
+    std::int64_t key = -1;
+    double bound_lo = cap, bound_hi = cap;  // for keys below / above `key`
+    float lim_lo = lbound.limit2(cap), lim_hi = lim_lo;
+    auto consider = [&](std::size_t k, bool flip) {
+        const std::int64_t c = cs.key(k, flip);
+        const bool below = c < key;
+        if ((flip ? cs.lb : cs.la)[k] >= (below ? lim_lo : lim_hi) || !tested(k)) return;
+        const double bound = below ? bound_lo : bound_hi;
+        double d = Metric::dist(centroid(k), flip ? fg : fd, P, bound);
+        if (!(d < bound)) return;  // cannot win (or pruned by the metric)
+        if constexpr (F32) d = static_cast<float>(d);
+        if (key < 0 || d < best || (d == best && below)) {
+            best = d;
+            key = c;
+            bound_hi = std::min(cap, best);
+            bound_lo = std::min(cap, next_up<F32>(best));
+            lim_hi = lbound.limit2(bound_hi);
+            lim_lo = lbound.limit2(bound_lo);
+        }
+    };
+    const std::size_t K = cs.K;
+    if (K == 0) return -1;
+    // The first candidate with the smallest lower bound.
+    std::size_t first = 0;
+    bool first_flip = false;
+    for (std::size_t k = 0; k < K; ++k) {
+        if (cs.la[k] == cs.min_lb) {
+            first = k;
+            break;
+        }
+        if (cs.lb[k] == cs.min_lb) {
+            first = k;
+            first_flip = true;
+            break;
+        }
+    }
+    consider(first, first_flip);
+    // The rest, through a filter at the current lim_lo (>= lim_hi, and it
+    // only shrinks), kept in a register; consider() applies the exact test.
+    const float lim = lim_lo;
+    for (std::size_t k = 0; k < K; ++k) {
+        if (cs.la[k] < lim && (k != first || first_flip)) [[unlikely]] consider(k, false);
+        if (cs.lb[k] < lim && (k != first || !first_flip)) [[unlikely]] consider(k, true);
+    }
+    best_out = best;
+    return key;
 }
 
 // Flattens nodes into the ABI layout: by level, DFS pre-order within a level.
@@ -358,7 +528,7 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
     const std::uint64_t N = f.direct.size() / (3 * std::max<std::uint32_t>(P, 1));
     check_order(order, N);
     std::vector<float> C;  // K x P x 3
-    std::vector<double> means;  // K x 3, for the lower bound
+    std::vector<float> mx, my, mz, la, lb;  // the clusters' mean points; scratch
     LowerBound lbound;
     lbound.prepare(f);
     lbound.factor = Metric::kBoundFactor;
@@ -371,37 +541,42 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
         }
         const std::uint64_t idx = order[it];
         const float *fd = &f.direct[idx * P * 3], *fg = &f.flipped[idx * P * 3];
-        double mf[3], mg[3];
+        float mf[3], mg[3];
         LowerBound::mean(fd, P, mf);
         LowerBound::mean(fg, P, mg);
         const std::uint64_t K = sizes.size();
-        std::uint64_t k1 = 0, k2 = 0;
-        double d1 = std::numeric_limits<double>::infinity(), d2 = d1;
-        double lim = lbound.limit2(d1);
-        for (std::uint64_t k = 0; k < K; ++k) {  // first strict minimum
-            if (LowerBound::hopeless(&means[3 * k], mf, lim)) continue;
-            const double d = Metric::dist(&C[k * P * 3], fd, P, d1);
-            if (d < d1) d1 = d, k1 = k, lim = lbound.limit2(d1);
-        }
-        lim = lbound.limit2(d2);
-        for (std::uint64_t k = 0; k < K; ++k) {
-            if (LowerBound::hopeless(&means[3 * k], mg, lim)) continue;
-            const double d = Metric::dist(&C[k * P * 3], fg, P, d2);
-            if (d < d2) d2 = d, k2 = k, lim = lbound.limit2(d2);
-        }
-        const bool use_g = d2 < d1;  // tie -> direct
-        std::uint64_t k = use_g ? k2 : k1;
-        const double d = use_g ? d2 : d1;
+        la.resize(K);
+        lb.resize(K);
+        Candidates cs;
+        cs.K = K;
+        cs.la = la.data();
+        cs.lb = lb.data();
+        cs.interleaved = false;
+        cs.min_lb = screen(K, mx.data(), my.data(), mz.data(), mf, mg, la.data(), lb.data());
+        auto centroid = [&](std::size_t k) { return &C[k * P * 3]; };
+        auto all = [](std::size_t) { return true; };
+        double d = 0;
+        std::int64_t key = best_first<Metric, false>(cs, fd, fg, T, lbound, P, centroid, all, d);
+        if (key < 0 || !(d < T))  // a new cluster, seeded in the nearest one's orientation
+            key = best_first<Metric, false>(cs, fd, fg, std::numeric_limits<double>::infinity(), lbound, P, centroid, all, d);
+        const bool use_g = key >= 0 && static_cast<std::uint64_t>(key) >= K;
+        std::uint64_t k = key < 0 ? 0 : (use_g ? key - K : key);
         const float *e = use_g ? fg : fd;
-        if (!(d < T)) {  // join iff d < T (strict)
+        if (key < 0 || !(d < T)) {  // join iff d < T (strict)
             k = K;
             C.resize(C.size() + P * 3, 0.0f);
-            means.resize(means.size() + 3, 0.0);
+            mx.push_back(0);
+            my.push_back(0);
+            mz.push_back(0);
             sizes.push_back(0);
             indices.emplace_back();
         }
         update_centroid(&C[k * P * 3], sizes[k], e, P);
-        LowerBound::mean(&C[k * P * 3], P, &means[3 * k]);
+        float m[3];
+        LowerBound::mean(&C[k * P * 3], P, m);
+        mx[k] = m[0];
+        my[k] = m[1];
+        mz[k] = m[2];
         ++sizes[k];
         indices[k].push_back(idx);
     }
@@ -439,44 +614,53 @@ struct QbxOps {
 
     // n.C = ((n.C * size) + e) / (size + 1); refresh n's record in its parent.
     void update(Node &n, std::uint64_t idx, const float *e) const {
-        update_centroid(n.c.data(), n.size, e, P);
+        Node::Kid &me = n.parent->kids[n.slot];
+        float m[3];
+        update_summary(n.c.data(), n.size, e, P, me.box_c, me.box_r, m);
         ++n.size;
         n.indices.push_back(idx);
-        if (n.parent != nullptr) {
-            Node::Kid &me = n.parent->kids[n.slot];
-            aabb(n.c.data(), P, me.box_c, me.box_r);
-            LowerBound::mean(n.c.data(), P, me.mean);
+        {
+            n.parent->mx[n.slot] = m[0];
+            n.parent->my[n.slot] = m[1];
+            n.parent->mz[n.slot] = m[2];
         }
     }
 
     // Searches n's children for the streamline; returns the chosen child
     // (created when none is within n's threshold) and the orientation it is
-    // to be updated with.
-    Node *search(Node &n, const float *fd, const float *fg, const float bc[3], const float br[3], const double mf[3],
-                 const double mg[3], bool &flip_out, std::deque<Node> &store) const {
-        double best = DBL_MAX;
-        std::int64_t kid = -1;
-        bool flip = false;
+    // to be updated with. Candidate key 2k + flip is DIPY's scan order
+    // (child 0 direct, child 0 flipped, child 1 direct, ...); a candidate
+    // takes part only when its box overlaps the streamline's, as in DIPY.
+    Node *search(Node &n, const float *fd, const float *fg, const float bc[3], const float br[3], const float mf[3],
+                 const float mg[3], bool &flip_out, std::deque<Node> &store, std::vector<float> &scratch) const {
+        const std::size_t K = n.kids.size();
+        scratch.resize(2 * K);
+        Candidates cs;
+        cs.K = K;
+        cs.la = scratch.data();
+        cs.lb = scratch.data() + K;
+        cs.min_lb = screen(K, n.mx.data(), n.my.data(), n.mz.data(), mf, mg, scratch.data(), scratch.data() + K);
         const float pad = static_cast<float>(n.threshold);
-        double lim = lbound.limit2(best);
-        for (std::size_t k = 0; k < n.kids.size(); ++k) {
+        auto tested = [&](std::size_t k) {
             const Node::Kid &ch = n.kids[k];
-            const bool overlap = std::fabs(ch.box_c[0] - bc[0]) <= ch.box_r[0] + br[0] + pad &&
-                                 std::fabs(ch.box_c[1] - bc[1]) <= ch.box_r[1] + br[1] + pad &&
-                                 std::fabs(ch.box_c[2] - bc[2]) <= ch.box_r[2] + br[2] + pad;
-            if (!overlap) continue;
-            const float *cc = n.children[k]->c.data();
-            // DIPY rounds each distance to float32 before comparing.
-            if (!LowerBound::hopeless(ch.mean, mf, lim)) {
-                const double dd = static_cast<float>(Metric::dist(cc, fd, P, best));
-                if (dd < best) best = dd, kid = static_cast<std::int64_t>(k), flip = false, lim = lbound.limit2(best);
-            }
-            if (!LowerBound::hopeless(ch.mean, mg, lim)) {
-                const double dg = static_cast<float>(Metric::dist(cc, fg, P, best));
-                if (dg < best) best = dg, kid = static_cast<std::int64_t>(k), flip = true, lim = lbound.limit2(best);
-            }
-        }
-        if (best > n.threshold) {  // join iff dist <= threshold (non-strict)
+            return std::fabs(ch.box_c[0] - bc[0]) <= ch.box_r[0] + br[0] + pad &&
+                   std::fabs(ch.box_c[1] - bc[1]) <= ch.box_r[1] + br[1] + pad &&
+                   std::fabs(ch.box_c[2] - bc[2]) <= ch.box_r[2] + br[2] + pad;
+        };
+        auto centroid = [&](std::size_t k) { return n.children[k]->c.data(); };
+        // Children farther than the threshold only matter when none is
+        // within it: then DIPY seeds the new child with the orientation of
+        // the nearest one, which the second, uncapped search finds.
+        double best = 0;
+        std::int64_t key = best_first<Metric, true>(cs, fd, fg, next_up<true>(n.threshold), lbound, P, centroid, tested, best);
+        std::int64_t kid;
+        bool flip;
+        if (key >= 0 && best <= n.threshold) {  // join iff dist <= threshold (non-strict)
+            kid = key / 2;
+            flip = key & 1;
+        } else {
+            key = best_first<Metric, true>(cs, fd, fg, std::numeric_limits<double>::infinity(), lbound, P, centroid, tested, best);
+            flip = key >= 0 && (key & 1);
             Node &c = store.emplace_back();
             c.parent = &n;
             c.level = n.level + 1;
@@ -486,6 +670,9 @@ struct QbxOps {
             c.slot = static_cast<std::uint32_t>(kid);
             n.children.push_back(&c);
             n.kids.push_back({});
+            n.mx.push_back(0);
+            n.my.push_back(0);
+            n.mz.push_back(0);
         }
         flip_out = flip;
         return n.children[static_cast<std::size_t>(kid)];
@@ -529,7 +716,7 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
     struct Geometry {
         const float *fd, *fg;
         float bc[3], br[3];
-        double mf[3], mg[3];
+        float mf[3], mg[3];
     };
     auto geometry = [&](std::uint64_t idx) {
         Geometry g;
@@ -540,10 +727,11 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
         LowerBound::mean(g.fg, P, g.mg);
         return g;
     };
+    std::vector<float> scratch_a, scratch_b;  // each stage's lower bounds
     auto stage_a = [&](std::uint64_t it) {
         const Geometry g = geometry(order[it]);
         bool flip = false;
-        Node *n1 = ops.search(root, g.fd, g.fg, g.bc, g.br, g.mf, g.mg, flip, store_a);
+        Node *n1 = ops.search(root, g.fd, g.fg, g.bc, g.br, g.mf, g.mg, flip, store_a, scratch_a);
         ops.update(*n1, order[it], flip ? g.fg : g.fd);
         handoff[it] = {n1, flip};
     };
@@ -554,7 +742,7 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
             const Geometry g = geometry(order[it]);
             while (node->level < L) {
                 bool next_flip = false;
-                Node *child = ops.search(*node, g.fd, g.fg, g.bc, g.br, g.mf, g.mg, next_flip, store_b);
+                Node *child = ops.search(*node, g.fd, g.fg, g.bc, g.br, g.mf, g.mg, next_flip, store_b, scratch_b);
                 ops.update(*child, order[it], next_flip ? g.fg : g.fd);
                 node = child;
                 flip = next_flip;
