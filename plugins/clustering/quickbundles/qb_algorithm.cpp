@@ -40,6 +40,12 @@ inline double seg_len(const Poly &s, std::uint64_t i) {  // |p[i] - p[i-1]|, DIP
 
 }  // namespace
 
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#  define QB_SEG_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#else
+#  define QB_SEG_CLONES
+#endif
+
 namespace {
 
 // DIPY's walk along the polyline `s` whose segment lengths are seg(i) =
@@ -92,19 +98,75 @@ void resample(const float *p, std::uint64_t n, std::uint32_t P, bool reversed, f
     resample_walk(s, P, L, [&](std::uint64_t k) { return seg_len(s, k); }, out);
 }
 
-void resample_both(const float *p, std::uint64_t n, std::uint32_t P, float *fwd, float *rev, std::vector<double> &seg) {
+namespace {
+
+// DIPY's walk again, over precomputed cumulative arc lengths: arc[k] is the
+// same sum, in the same order, that resample_walk accumulates as it goes,
+// so the output is bitwise the same; the serial additions are done once,
+// beforehand, and the walk itself only compares. at(k) = the k-th point.
+template <class At>
+void walk_arcs(std::uint64_t n, std::uint32_t P, const double *arc, At at, float *out) {
+    const double L = arc[n - 1];
+    if (!(L > 0.0)) {
+        for (std::uint32_t i = 0; i < P; ++i)
+            for (int d = 0; d < 3; ++d) out[3 * i + d] = at(n - 1)[d];
+        return;
+    }
+    const double step = L / static_cast<double>(P - 1);
+    double t = 0.0;
+    std::uint32_t i = 0;
+    std::uint64_t k = 0;
+    while (t < L && i < P) {
+        while (t > arc[k]) ++k;  // DIPY's "else: k++" steps (t < L = arc[n-1] bounds k)
+        if (t == arc[k]) {
+            for (int d = 0; d < 3; ++d) out[3 * i + d] = at(k)[d];
+            ++k;
+        } else {
+            const double ratio = 1.0 - ((arc[k] - t) / (arc[k] - arc[k - 1]));
+            const float *a = at(k - 1), *b = at(k);
+            for (int d = 0; d < 3; ++d)
+                out[3 * i + d] = static_cast<float>(static_cast<double>(a[d]) +
+                                                    ratio * static_cast<double>(static_cast<float>(b[d] - a[d])));
+        }
+        t += step;
+        ++i;
+    }
+    for (int d = 0; d < 3; ++d) out[3 * (P - 1) + d] = at(n - 1)[d];
+}
+
+}  // namespace
+
+QB_SEG_CLONES
+void segment_lengths(const float *p, std::uint64_t n, double *seg) {
+    for (std::uint64_t i = 1; i < n; ++i) {
+        const double dx = static_cast<float>(p[3 * i] - p[3 * i - 3]);
+        const double dy = static_cast<float>(p[3 * i + 1] - p[3 * i - 2]);
+        const double dz = static_cast<float>(p[3 * i + 2] - p[3 * i - 1]);
+        seg[i] = std::sqrt(((0.0 + dx * dx) + dy * dy) + dz * dz);
+    }
+}
+
+double resample_both(const float *p, std::uint64_t n, std::uint32_t P, float *fwd, float *rev, std::vector<double> &scratch) {
     // Each segment's length once: the reversed polyline's float differences
     // are the exact negations of the forward ones, so its segment i is the
     // forward segment n - i, bit for bit. Only the summation order differs.
-    seg.resize(n);
-    const Poly s{p, n, false};
-    double L = 0.0;
-    for (std::uint64_t i = 1; i < n; ++i) L += (seg[i] = seg_len(s, i));
-    resample_walk(s, P, L, [&](std::uint64_t k) { return seg[k]; }, fwd);
-    if (rev == nullptr) return;
-    double Lr = 0.0;
-    for (std::uint64_t i = 1; i < n; ++i) Lr += seg[n - i];
-    resample_walk(Poly{p, n, true}, P, Lr, [&](std::uint64_t k) { return seg[n - k]; }, rev);
+    scratch.resize(3 * n);
+    double *seg = scratch.data(), *arc = seg + n, *arc_r = arc + n;
+    segment_lengths(p, n, seg);
+    arc[0] = arc_r[0] = 0.0;
+    if (rev != nullptr) {
+        double a = 0.0, b = 0.0;  // two independent chains, one loop
+        for (std::uint64_t i = 1; i < n; ++i) {
+            arc[i] = a += seg[i];
+            arc_r[i] = b += seg[n - i];
+        }
+    } else {
+        double a = 0.0;
+        for (std::uint64_t i = 1; i < n; ++i) arc[i] = a += seg[i];
+    }
+    walk_arcs(n, P, arc, [&](std::uint64_t k) { return p + 3 * k; }, fwd);
+    if (rev != nullptr) walk_arcs(n, P, arc_r, [&](std::uint64_t k) { return p + 3 * (n - 1 - k); }, rev);
+    return arc[n - 1];
 }
 
 double mdf_direct(const float *a, const float *b, std::uint32_t P) {
@@ -143,17 +205,20 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
                 stop = true;
                 break;
             }
-            for (std::uint64_t v = 0; v < 3 * n; ++v)
-                if (!std::isfinite(p[v])) {
-                    errors[w] = "streamline " + std::to_string(s) + " has a non-finite coordinate at vertex " +
-                                std::to_string(in.offsets[s] + v / 3);
-                    stop = true;
-                    break;
-                }
-            if (stop) break;
             float *fd = &f.direct[s * P * 3], *fg = &f.flipped[s * P * 3];
             // DIPY resamples the reversed polyline for the flipped features.
-            resample_both(p, n, P, fd, exact_flip ? fg : nullptr, seg);
+            // A non-finite coordinate makes the length non-finite, so the
+            // coordinates are only searched then (or for a single point).
+            const double L = resample_both(p, n, P, fd, exact_flip ? fg : nullptr, seg);
+            if (!std::isfinite(L) || n == 1)
+                for (std::uint64_t v = 0; v < 3 * n; ++v)
+                    if (!std::isfinite(p[v])) {
+                        errors[w] = "streamline " + std::to_string(s) + " has a non-finite coordinate at vertex " +
+                                    std::to_string(in.offsets[s] + v / 3);
+                        stop = true;
+                        break;
+                    }
+            if (stop) break;
             if (!exact_flip) {
                 for (std::uint32_t i = 0; i < P; ++i) std::copy_n(fd + 3 * (P - 1 - i), 3, fg + 3 * i);
             }

@@ -34,9 +34,11 @@ using ProgressFn = std::function<void(double)>;
 // equal, or a single point) give nb_points copies of the point, where DIPY
 // reads uninitialised memory. n must be >= 1.
 void resample(const float *p, std::uint64_t n, std::uint32_t nb_points, bool reversed, float *out);
-// Both at once (rev may be NULL), each segment length computed once; `seg`
-// is scratch space reused across calls. Bitwise equal to two resample() calls.
-void resample_both(const float *p, std::uint64_t n, std::uint32_t nb_points, float *fwd, float *rev, std::vector<double> &seg);
+// Both at once (rev may be NULL), each segment length computed once and the
+// cumulative lengths summed before the walks; `scratch` is reused across
+// calls. Bitwise equal to two resample() calls. Returns the polyline length
+// (non-finite when a coordinate is).
+double resample_both(const float *p, std::uint64_t n, std::uint32_t nb_points, float *fwd, float *rev, std::vector<double> &scratch);
 
 // DIPY's AveragePointwiseEuclideanMetric.c_dist: float32 differences,
 // double sums in order, divided by nb_points.
