@@ -187,7 +187,7 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
     f.nb_points = P;
     const std::uint64_t N = in.nb_streamlines;
     f.direct.resize(N * P * 3);
-    f.flipped.resize(N * P * 3);
+    if (exact_flip) f.flipped.resize(N * P * 3);
     threads = std::max(1u, std::min<unsigned>(threads, static_cast<unsigned>(std::max<std::uint64_t>(1, N / 4096))));
     std::vector<std::thread> pool;
     std::atomic<bool> stop{false};
@@ -205,11 +205,11 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
                 stop = true;
                 break;
             }
-            float *fd = &f.direct[s * P * 3], *fg = &f.flipped[s * P * 3];
+            float *fd = &f.direct[s * P * 3], *fg = exact_flip ? &f.flipped[s * P * 3] : nullptr;
             // DIPY resamples the reversed polyline for the flipped features.
             // A non-finite coordinate makes the length non-finite, so the
             // coordinates are only searched then (or for a single point).
-            const double L = resample_both(p, n, P, fd, exact_flip ? fg : nullptr, seg);
+            const double L = resample_both(p, n, P, fd, fg, seg);
             if (!std::isfinite(L) || n == 1)
                 for (std::uint64_t v = 0; v < 3 * n; ++v)
                     if (!std::isfinite(p[v])) {
@@ -219,9 +219,6 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
                         break;
                     }
             if (stop) break;
-            if (!exact_flip) {
-                for (std::uint32_t i = 0; i < P; ++i) std::copy_n(fd + 3 * (P - 1 - i), 3, fg + 3 * i);
-            }
         }
     };
     const std::uint64_t chunk = (N + threads - 1) / threads;
@@ -238,10 +235,6 @@ Features identity_features(const float *points, std::uint64_t n, std::uint32_t P
     Features f;
     f.nb_points = P;
     f.direct.assign(points, points + n * P * 3);
-    f.flipped.resize(n * P * 3);
-    for (std::uint64_t s = 0; s < n; ++s)
-        for (std::uint32_t i = 0; i < P; ++i)
-            for (int d = 0; d < 3; ++d) f.flipped[(s * P + i) * 3 + d] = f.direct[(s * P + (P - 1 - i)) * 3 + d];
     return f;
 }
 
@@ -358,7 +351,9 @@ struct Node {
     double threshold = 0;  // used to split its children
     std::vector<float> c;
     std::uint64_t size = 0;
-    std::vector<std::uint64_t> indices;
+    std::vector<std::uint64_t> indices;  // QB's members (QBX records paths instead)
+    std::uint32_t uid = 0;  // QBX: which stage's store holds it, and where
+    std::uint64_t out = 0;  // its position in the flattened tree
     // ... and by the stage that searches its children: on a cache line of
     // their own, so that the two pipeline stages never share one.
     // What the search needs of each child, contiguous (the hot loop of QBX):
@@ -555,7 +550,17 @@ std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, 
 }
 
 // Flattens nodes into the ABI layout: by level, DFS pre-order within a level.
-Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &thresholds, std::uint32_t P) {
+// QBX's members, recorded per streamline rather than per node: the node
+// that processing step `it` joined at level l (1..L) is node(path[it * L + l - 1]).
+struct Paths {
+    const std::vector<std::uint32_t> &path;
+    std::uint32_t L;
+    const std::vector<std::uint64_t> &order;
+    std::function<const Node *(std::uint32_t)> node;
+};
+
+Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &thresholds, std::uint32_t P,
+             const Paths *paths = nullptr) {
     std::vector<const Node *> dfs;
     std::vector<const Node *> stack = {&root};
     while (!stack.empty()) {
@@ -568,19 +573,31 @@ Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &
     for (std::uint32_t l = 0; l <= levels; ++l)
         for (auto k : dfs)
             if (k->level == l) order.push_back(k);
-    std::unordered_map<const Node *, std::int64_t> id;
-    id.reserve(order.size());
-    for (std::size_t i = 0; i < order.size(); ++i) id[order[i]] = static_cast<std::int64_t>(i);
     Tree t;
     t.thresholds = thresholds;
     t.nb_points = P;
+    t.member_offsets.reserve(order.size() + 1);
     t.member_offsets.push_back(0);
-    for (auto k : order) {
-        t.parent.push_back(k->parent ? id[k->parent] : -1);
+    for (std::size_t i = 0; i < order.size(); ++i) {
+        const Node *k = order[i];
+        const_cast<Node *>(k)->out = i;
+        t.parent.push_back(k->parent ? static_cast<std::int64_t>(k->parent->out) : -1);
         t.level.push_back(k->level);
         t.centroids.insert(t.centroids.end(), k->c.begin(), k->c.end());
-        t.members.insert(t.members.end(), k->indices.begin(), k->indices.end());
-        t.member_offsets.push_back(t.members.size());
+        t.member_offsets.push_back(t.member_offsets.back() + k->size);
+    }
+    if (paths == nullptr) {
+        t.members.reserve(t.member_offsets.back());
+        for (auto k : order) t.members.insert(t.members.end(), k->indices.begin(), k->indices.end());
+    } else {
+        // Every node's members in processing order, scattered in one pass.
+        t.members.resize(t.member_offsets.back());
+        std::copy(paths->order.begin(), paths->order.end(), t.members.begin());  // the root
+        std::vector<std::uint64_t> cursor(t.member_offsets.begin(), t.member_offsets.end() - 1);
+        const std::uint64_t N = paths->order.size();
+        const std::uint32_t L = paths->L;
+        for (std::uint64_t it = 0; it < N; ++it)
+            for (std::uint32_t l = 0; l < L; ++l) t.members[cursor[paths->node(paths->path[it * L + l])->out]++] = paths->order[it];
     }
     return t;
 }
@@ -593,7 +610,7 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
     const std::uint64_t N = f.direct.size() / (3 * std::max<std::uint32_t>(P, 1));
     check_order(order, N);
     std::vector<float> C;  // K x P x 3
-    std::vector<float> mx, my, mz, la, lb;  // the clusters' mean points; scratch
+    std::vector<float> mx, my, mz, la, lb, fg_buf(3 * P);  // the clusters' mean points; scratch
     LowerBound lbound;
     lbound.prepare(f);
     lbound.factor = Metric::kBoundFactor;
@@ -605,7 +622,7 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
             if (progress) progress(double(it) / double(N));
         }
         const std::uint64_t idx = order[it];
-        const float *fd = &f.direct[idx * P * 3], *fg = &f.flipped[idx * P * 3];
+        const float *fd = &f.direct[idx * P * 3], *fg = flipped_of(f, idx, fg_buf.data());
         float mf[3], mg[3];
         LowerBound::mean(fd, P, mf);
         LowerBound::mean(fg, P, mg);
@@ -678,17 +695,14 @@ struct QbxOps {
     const LowerBound &lbound;
 
     // n.C = ((n.C * size) + e) / (size + 1); refresh n's record in its parent.
-    void update(Node &n, std::uint64_t idx, const float *e) const {
+    void update(Node &n, const float *e) const {
         Node::Kid &me = n.parent->kids[n.slot];
         float m[3];
         update_summary(n.c.data(), n.size, e, P, me.box_c, me.box_r, m);
         ++n.size;
-        n.indices.push_back(idx);
-        {
-            n.parent->mx[n.slot] = m[0];
-            n.parent->my[n.slot] = m[1];
-            n.parent->mz[n.slot] = m[2];
-        }
+        n.parent->mx[n.slot] = m[0];
+        n.parent->my[n.slot] = m[1];
+        n.parent->mz[n.slot] = m[2];
     }
 
     // Searches n's children for the streamline; returns the chosen child
@@ -697,7 +711,7 @@ struct QbxOps {
     // (child 0 direct, child 0 flipped, child 1 direct, ...); a candidate
     // takes part only when its box overlaps the streamline's, as in DIPY.
     Node *search(Node &n, const float *fd, const float *fg, const float bc[3], const float br[3], const float mf[3],
-                 const float mg[3], bool &flip_out, std::deque<Node> &store, std::vector<float> &scratch) const {
+                 const float mg[3], bool &flip_out, std::deque<Node> &store, std::uint32_t tag, std::vector<float> &scratch) const {
         const std::size_t K = n.kids.size();
         scratch.resize(2 * K);
         Candidates cs;
@@ -727,6 +741,7 @@ struct QbxOps {
             key = best_first<Metric, true>(cs, fd, fg, std::numeric_limits<double>::infinity(), lbound, P, centroid, tested, best);
             flip = key >= 0 && (key & 1);
             Node &c = store.emplace_back();
+            c.uid = tag | static_cast<std::uint32_t>(store.size() - 1);
             c.parent = &n;
             c.level = n.level + 1;
             c.threshold = c.level < L ? t[c.level] : 0.0;
@@ -775,6 +790,8 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
     };
     std::vector<Handoff> handoff(N);
     std::vector<std::uint8_t> leaf_flip(N, 0);
+    std::vector<std::uint32_t> path(N * L);  // each step's node per level
+    constexpr std::uint32_t kStageB = 0x80000000u;  // uid tag of stage B's nodes
     std::atomic<std::uint64_t> published{0};
     std::atomic<bool> stop{false};
 
@@ -783,10 +800,11 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
         float bc[3], br[3];
         float mf[3], mg[3];
     };
-    auto geometry = [&](std::uint64_t idx) {
+    std::vector<float> fg_a(3 * P), fg_b(3 * P), fg_r(3 * P);  // each stage's flipped features
+    auto geometry = [&](std::uint64_t idx, float *fg_buf) {
         Geometry g;
         g.fd = &f.direct[idx * P * 3];
-        g.fg = &f.flipped[idx * P * 3];
+        g.fg = flipped_of(f, idx, fg_buf);
         aabb(g.fd, P, g.bc, g.br);
         LowerBound::mean(g.fd, P, g.mf);
         LowerBound::mean(g.fg, P, g.mg);
@@ -794,21 +812,23 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
     };
     std::vector<float> scratch_a, scratch_b;  // each stage's lower bounds
     auto stage_a = [&](std::uint64_t it) {
-        const Geometry g = geometry(order[it]);
+        const Geometry g = geometry(order[it], fg_a.data());
         bool flip = false;
-        Node *n1 = ops.search(root, g.fd, g.fg, g.bc, g.br, g.mf, g.mg, flip, store_a, scratch_a);
-        ops.update(*n1, order[it], flip ? g.fg : g.fd);
+        Node *n1 = ops.search(root, g.fd, g.fg, g.bc, g.br, g.mf, g.mg, flip, store_a, 0, scratch_a);
+        ops.update(*n1, flip ? g.fg : g.fd);
+        path[it * L] = n1->uid;
         handoff[it] = {n1, flip};
     };
     auto stage_b = [&](std::uint64_t it) {
         Node *node = handoff[it].node;
         bool flip = handoff[it].flip;
         if (node->level < L) {
-            const Geometry g = geometry(order[it]);
+            const Geometry g = geometry(order[it], fg_b.data());
             while (node->level < L) {
                 bool next_flip = false;
-                Node *child = ops.search(*node, g.fd, g.fg, g.bc, g.br, g.mf, g.mg, next_flip, store_b, scratch_b);
-                ops.update(*child, order[it], next_flip ? g.fg : g.fd);
+                Node *child = ops.search(*node, g.fd, g.fg, g.bc, g.br, g.mf, g.mg, next_flip, store_b, kStageB, scratch_b);
+                ops.update(*child, next_flip ? g.fg : g.fd);
+                path[it * L + child->level - 1] = child->uid;
                 node = child;
                 flip = next_flip;
             }
@@ -855,13 +875,15 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
     bool use_flip = false;
     for (std::uint64_t it = 0; it < N; ++it) {
         const std::uint64_t idx = order[it];
-        update_centroid(root.c.data(), root.size, use_flip ? &f.flipped[idx * P * 3] : &f.direct[idx * P * 3], P);
+        update_centroid(root.c.data(), root.size, use_flip ? flipped_of(f, idx, fg_r.data()) : &f.direct[idx * P * 3], P);
         ++root.size;
         use_flip = leaf_flip[it];
     }
-    root.indices = order;
     if (progress) progress(1.0);
-    return flatten(root, L, t, P);
+    const Paths paths{path, L, order, [&](std::uint32_t uid) -> const Node * {
+                          return uid & kStageB ? &store_b[uid & ~kStageB] : &store_a[uid];
+                      }};
+    return flatten(root, L, t, P, &paths);
 }
 
 Tree quickbundles(const Features &f, double T, const std::vector<std::uint64_t> &order, Mode mode, const CancelFn &cancel,
