@@ -556,7 +556,9 @@ struct Paths {
     const std::vector<std::uint32_t> &path;
     std::uint32_t L;
     const std::vector<std::uint64_t> &order;
-    std::function<const Node *(std::uint32_t)> node;
+    const std::deque<Node> &store_a, &store_b;  // uid = index in A's store, or kStageB | index in B's
+    static constexpr std::uint32_t kStageB = 0x80000000u;
+    const Node &node(std::uint32_t uid) const { return uid & kStageB ? store_b[uid & ~kStageB] : store_a[uid]; }
 };
 
 Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &thresholds, std::uint32_t P,
@@ -590,14 +592,23 @@ Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &
         t.members.reserve(t.member_offsets.back());
         for (auto k : order) t.members.insert(t.members.end(), k->indices.begin(), k->indices.end());
     } else {
-        // Every node's members in processing order, scattered in one pass.
+        // Every node's members in processing order, scattered level by
+        // level (the levels' ranges are disjoint: one thread each, two at once).
         t.members.resize(t.member_offsets.back());
         std::copy(paths->order.begin(), paths->order.end(), t.members.begin());  // the root
-        std::vector<std::uint64_t> cursor(t.member_offsets.begin(), t.member_offsets.end() - 1);
         const std::uint64_t N = paths->order.size();
         const std::uint32_t L = paths->L;
-        for (std::uint64_t it = 0; it < N; ++it)
-            for (std::uint32_t l = 0; l < L; ++l) t.members[cursor[paths->node(paths->path[it * L + l])->out]++] = paths->order[it];
+        auto scatter = [&](std::uint32_t l) {
+            std::vector<std::uint64_t> cursor(t.member_offsets.begin(), t.member_offsets.end() - 1);
+            for (std::uint64_t it = 0; it < N; ++it) t.members[cursor[paths->node(paths->path[it * L + l]).out]++] = paths->order[it];
+        };
+        std::thread helper;
+        if (L >= 2 && N >= 100000)
+            helper = std::thread([&] {
+                for (std::uint32_t l = 1; l < L; l += 2) scatter(l);
+            });
+        for (std::uint32_t l = 0; l < L; l += helper.joinable() ? 2 : 1) scatter(l);
+        if (helper.joinable()) helper.join();
     }
     return t;
 }
@@ -791,7 +802,7 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
     std::vector<Handoff> handoff(N);
     std::vector<std::uint8_t> leaf_flip(N, 0);
     std::vector<std::uint32_t> path(N * L);  // each step's node per level
-    constexpr std::uint32_t kStageB = 0x80000000u;  // uid tag of stage B's nodes
+    constexpr std::uint32_t kStageB = Paths::kStageB;  // uid tag of stage B's nodes
     std::atomic<std::uint64_t> published{0};
     std::atomic<bool> stop{false};
 
@@ -880,9 +891,7 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
         use_flip = leaf_flip[it];
     }
     if (progress) progress(1.0);
-    const Paths paths{path, L, order, [&](std::uint32_t uid) -> const Node * {
-                          return uid & kStageB ? &store_b[uid & ~kStageB] : &store_a[uid];
-                      }};
+    const Paths paths{path, L, order, store_a, store_b};
     return flatten(root, L, t, P, &paths);
 }
 
