@@ -168,6 +168,27 @@ class ClusterEdgeCasesTest(TempDirTest):
         lab = self.labels(self.write("huge.tck", [huge, huge[::-1].copy()]), "--algorithm", "qbx")
         np.testing.assert_array_equal(lab[0], lab[1] * [0, 1, 1, 1, 1])
 
+    def test_extreme_scales_match_dipy(self):
+        """Coordinates near 1e20 mm (squared distances overflow float32, so the
+        pruning bounds become infinite) and near 1e-30 mm (they underflow to 0):
+        the labels and the centroids, whose first member's orientation comes from
+        the nearest too-far cluster, are still DIPY's, bit for bit."""
+        rng = np.random.default_rng(4)
+        for scale in (1e20, 1e-30):
+            with self.subTest(scale=scale):
+                sl = [(s * np.float32(scale)).astype(np.float32) for s in random_streamlines(40, rng, 2, 30, scale=5)]
+                f = self.write("x.tck", sl)
+                sl = [s.astype(np.float32) for s in nib.streamlines.load(f).streamlines]
+                cents = self.path("c.tck")
+                for algo, ref in (("qbx", QuickBundlesX([30, 25, 20, 15]).cluster(sl).get_clusters(4)),
+                                  ("qb", QuickBundles(15.0).cluster(sl))):
+                    lab = self.labels(f, "--algorithm", algo, "--centroids", cents)
+                    np.testing.assert_array_equal(lab[:, -1], dipy_labels(ref, len(sl)))
+                    ours = list(nib.streamlines.load(cents).streamlines)
+                    self.assertEqual(len(ref), len(ours))
+                    for a, b in zip(ref, ours):
+                        self.assertTrue(np.array_equal(a.centroid, b), f"{algo}: centroids differ bitwise")
+
     def test_bad_input_fails_cleanly(self):
         f = self.write("nan.tck", [np.array([[0, 0, 0], [1, 1, 1]], np.float32)])
         with open(f, "r+b") as fh:  # turn one coordinate into +Inf (not a delimiter: TCK rejects it)

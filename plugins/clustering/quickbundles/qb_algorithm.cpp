@@ -500,6 +500,7 @@ struct Candidates {
 template <class Metric, bool F32, class Centroid, class Tested>
 std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, double cap, const LowerBound &lbound,
                         std::uint32_t P, Centroid centroid, Tested tested, double &best_out) {
+    constexpr float kInf = std::numeric_limits<float>::infinity();
     double best = std::numeric_limits<double>::infinity();
     std::int64_t key = -1;
     double bound_lo = cap, bound_hi = cap;  // for keys below / above `key`
@@ -507,7 +508,10 @@ std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, 
     auto consider = [&](std::size_t k, bool flip) {
         const std::int64_t c = cs.key(k, flip);
         const bool below = c < key;
-        if ((flip ? cs.lb : cs.la)[k] >= (below ? lim_lo : lim_hi) || !tested(k)) return;
+        // (An infinite limit prunes nothing, even a bound that overflowed
+        // float32 for coordinates beyond 1e19 mm.)
+        const float lim = below ? lim_lo : lim_hi;
+        if (((flip ? cs.lb : cs.la)[k] >= lim && lim < kInf) || !tested(k)) return;
         const double bound = below ? bound_lo : bound_hi;
         double d = Metric::dist(centroid(k), flip ? fg : fd, P, bound);
         if (!(d < bound)) return;  // cannot win (or pruned by the metric)
@@ -540,10 +544,11 @@ std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, 
     consider(first, first_flip);
     // The rest, through a filter at the current lim_lo (>= lim_hi, and it
     // only shrinks), kept in a register; consider() applies the exact test.
-    const float lim = lim_lo;
+    const float lim = lim_lo < kInf ? lim_lo : kInf;
+    const bool all = !(lim_lo < kInf);
     for (std::size_t k = 0; k < K; ++k) {
-        if (cs.la[k] < lim && (k != first || first_flip)) [[unlikely]] consider(k, false);
-        if (cs.lb[k] < lim && (k != first || !first_flip)) [[unlikely]] consider(k, true);
+        if ((cs.la[k] < lim || all) && (k != first || first_flip)) [[unlikely]] consider(k, false);
+        if ((cs.lb[k] < lim || all) && (k != first || !first_flip)) [[unlikely]] consider(k, true);
     }
     best_out = best;
     return key;
