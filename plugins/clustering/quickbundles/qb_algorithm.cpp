@@ -18,28 +18,6 @@
 
 namespace qb {
 
-namespace {
-
-// Points of the streamline, forward or reversed, without copying it.
-struct Poly {
-    const float *p;
-    std::uint64_t n;
-    bool rev;
-    const float *at(std::uint64_t i) const { return p + 3 * (rev ? n - 1 - i : i); }
-};
-
-inline double seg_len(const Poly &s, std::uint64_t i) {  // |p[i] - p[i-1]|, DIPY's c_arclengths
-    const float *a = s.at(i), *b = s.at(i - 1);
-    double q = 0.0;
-    for (int d = 0; d < 3; ++d) {
-        const double dn = static_cast<double>(static_cast<float>(a[d] - b[d]));
-        q += dn * dn;
-    }
-    return std::sqrt(q);
-}
-
-}  // namespace
-
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #  define QB_SEG_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
@@ -48,62 +26,12 @@ inline double seg_len(const Poly &s, std::uint64_t i) {  // |p[i] - p[i-1]|, DIP
 
 namespace {
 
-// DIPY's walk along the polyline `s` whose segment lengths are seg(i) =
-// |s[i] - s[i-1]| (i >= 1), with L their sum in index order.
-template <class Seg>
-void resample_walk(const Poly &s, std::uint32_t P, double L, Seg seg, float *out) {
-    const std::uint64_t n = s.n;
-    if (!(L > 0.0)) {  // zero length: DIPY leaves uninitialised memory here
-        for (std::uint32_t i = 0; i < P; ++i)
-            for (int d = 0; d < 3; ++d) out[3 * i + d] = s.at(n - 1)[d];
-        return;
-    }
-    const double step = L / static_cast<double>(P - 1);
-    double t = 0.0;
-    std::uint32_t i = 0;
-    std::uint64_t k = 0;
-    double arc_k = 0.0, arc_km1 = 0.0;  // arc[k], arc[k-1], walked incrementally
-    while (t < L && i < P) {
-        if (t == arc_k) {
-            for (int d = 0; d < 3; ++d) out[3 * i + d] = s.at(k)[d];
-            t += step;
-            ++i;
-            ++k;
-            arc_km1 = arc_k;
-            arc_k = k < n ? arc_k + seg(k) : arc_k;
-        } else if (t < arc_k) {
-            const double ratio = 1.0 - ((arc_k - t) / (arc_k - arc_km1));
-            const float *a = s.at(k - 1), *b = s.at(k);
-            for (int d = 0; d < 3; ++d)
-                out[3 * i + d] = static_cast<float>(static_cast<double>(a[d]) +
-                                                    ratio * static_cast<double>(static_cast<float>(b[d] - a[d])));
-            t += step;
-            ++i;
-        } else {
-            ++k;
-            arc_km1 = arc_k;
-            arc_k = k < n ? arc_k + seg(k) : arc_k;
-        }
-    }
-    for (int d = 0; d < 3; ++d) out[3 * (P - 1) + d] = s.at(n - 1)[d];
-}
-
-}  // namespace
-
-void resample(const float *p, std::uint64_t n, std::uint32_t P, bool reversed, float *out) {
-    const Poly s{p, n, reversed};
-    // Total length: the same additions, in the same order, as DIPY's arc array.
-    double L = 0.0;
-    for (std::uint64_t i = 1; i < n; ++i) L += seg_len(s, i);
-    resample_walk(s, P, L, [&](std::uint64_t k) { return seg_len(s, k); }, out);
-}
-
-namespace {
-
-// DIPY's walk again, over precomputed cumulative arc lengths: arc[k] is the
-// same sum, in the same order, that resample_walk accumulates as it goes,
-// so the output is bitwise the same; the serial additions are done once,
-// beforehand, and the walk itself only compares. at(k) = the k-th point.
+// DIPY's c_set_number_of_points walk (DIPY-QBX.md section 3.2) over the
+// cumulative arc lengths arc[0..n): arc[k] is the same sum, in the same
+// order, that DIPY accumulates as it walks, so the output is bitwise the
+// same; the serial additions are done once, beforehand, and the walk itself
+// only compares. at(k) = the k-th point. A zero-length polyline gives
+// copies of its last point, where DIPY reads uninitialised memory.
 template <class At>
 void walk_arcs(std::uint64_t n, std::uint32_t P, const double *arc, At at, float *out) {
     const double L = arc[n - 1];
@@ -137,7 +65,7 @@ void walk_arcs(std::uint64_t n, std::uint32_t P, const double *arc, At at, float
 }  // namespace
 
 QB_SEG_CLONES
-void segment_lengths(const float *p, std::uint64_t n, double *seg) {
+void segment_lengths(const float *p, std::uint64_t n, double *seg) {  // |p[i] - p[i-1]|, DIPY's c_arclengths
     for (std::uint64_t i = 1; i < n; ++i) {
         const double dx = static_cast<float>(p[3 * i] - p[3 * i - 3]);
         const double dy = static_cast<float>(p[3 * i + 1] - p[3 * i - 2]);
@@ -310,28 +238,6 @@ inline void update_centroid(float *c, std::uint64_t size, const float *e, std::u
     for (std::uint32_t i = 0; i < 3 * P; ++i) c[i] = ((c[i] * fs) + e[i]) / fs1;
 }
 
-// update_centroid, then the new centroid's AABB (see aabb()) and mean point
-// (see LowerBound::mean) in the same pass, with the same arithmetic.
-inline void update_summary(float *c, std::uint64_t size, const float *e, std::uint32_t P, float box_c[3], float box_r[3],
-                           float mean[3]) {
-    update_centroid(c, size, e, P);  // vectorised: divisions dominate
-    float mn[3], mx[3];
-    double s[3] = {0, 0, 0};
-    for (int d = 0; d < 3; ++d) mn[d] = mx[d] = c[d];
-    for (int d = 0; d < 3; ++d) s[d] += c[d];
-    for (std::uint32_t i = 1; i < P; ++i)
-        for (int d = 0; d < 3; ++d) {
-            const float v = c[3 * i + d];
-            mn[d] = std::min(mn[d], v);
-            mx[d] = std::max(mx[d], v);
-            s[d] += v;
-        }
-    for (int d = 0; d < 3; ++d) {
-        box_r[d] = (mx[d] - mn[d]) / 2.0f;
-        box_c[d] = mn[d] + box_r[d];
-        mean[d] = static_cast<float>(s[d] / P);
-    }
-}
 
 void check_order(const std::vector<std::uint64_t> &order, std::uint64_t N) {
     if (order.size() != N) throw InputError("ordering has " + std::to_string(order.size()) + " entries for " + std::to_string(N) + " streamlines");
@@ -544,8 +450,8 @@ std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, 
     consider(first, first_flip);
     // The rest, through a filter at the current lim_lo (>= lim_hi, and it
     // only shrinks), kept in a register; consider() applies the exact test.
-    const float lim = lim_lo < kInf ? lim_lo : kInf;
-    const bool all = !(lim_lo < kInf);
+    const float lim = lim_lo;
+    const bool all = !(lim < kInf);
     for (std::size_t k = 0; k < K; ++k) {
         if ((cs.la[k] < lim || all) && (k != first || first_flip)) [[unlikely]] consider(k, false);
         if ((cs.lb[k] < lim || all) && (k != first || !first_flip)) [[unlikely]] consider(k, true);
@@ -714,7 +620,9 @@ struct QbxOps {
     void update(Node &n, const float *e) const {
         Node::Kid &me = n.parent->kids[n.slot];
         float m[3];
-        update_summary(n.c.data(), n.size, e, P, me.box_c, me.box_r, m);
+        update_centroid(n.c.data(), n.size, e, P);
+        aabb(n.c.data(), P, me.box_c, me.box_r);
+        LowerBound::mean(n.c.data(), P, m);
         ++n.size;
         n.parent->mx[n.slot] = m[0];
         n.parent->my[n.slot] = m[1];

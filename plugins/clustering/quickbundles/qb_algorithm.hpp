@@ -31,15 +31,13 @@ struct Cancelled {};
 using CancelFn = std::function<bool()>;
 using ProgressFn = std::function<void(double)>;
 
-// DIPY's c_set_number_of_points on streamline p[0..n) (or its reversal),
-// writing `nb_points` xyz triples. Zero-length streamlines (all points
-// equal, or a single point) give nb_points copies of the point, where DIPY
-// reads uninitialised memory. n must be >= 1.
-void resample(const float *p, std::uint64_t n, std::uint32_t nb_points, bool reversed, float *out);
-// Both at once (rev may be NULL), each segment length computed once and the
-// cumulative lengths summed before the walks; `scratch` is reused across
-// calls. Bitwise equal to two resample() calls. Returns the polyline length
-// (non-finite when a coordinate is).
+// DIPY's c_set_number_of_points on streamline p[0..n) into `fwd` and on its
+// reversal into `rev` (may be NULL), `nb_points` xyz triples each; each
+// segment length is computed once and the cumulative lengths are summed
+// before the walks; `scratch` is reused across calls. Zero-length
+// streamlines (all points equal, or a single point) give nb_points copies
+// of the point, where DIPY reads uninitialised memory. n must be >= 1.
+// Returns the polyline length (non-finite when a coordinate is).
 double resample_both(const float *p, std::uint64_t n, std::uint32_t nb_points, float *fwd, float *rev, std::vector<double> &scratch);
 
 // DIPY's AveragePointwiseEuclideanMetric.c_dist: float32 differences,
