@@ -49,6 +49,16 @@ for enc in ("GIFTI_ENCODING_ASCII", "GIFTI_ENCODING_B64BIN", "GIFTI_ENCODING_B64
                               GiftiDataArray(tris, intent="NIFTI_INTENT_TRIANGLE", datatype="NIFTI_TYPE_INT32", encoding=enc),
                               GiftiDataArray(verts[:, 0].copy(), intent="NIFTI_INTENT_SHAPE", datatype="NIFTI_TYPE_FLOAT32", encoding=enc)])
     nib.save(img, os.path.join(out, "gifti", enc.split("_")[-1].lower() + ".gii"))
+# A label GIFTI with a LabelTable.
+lt = nib.gifti.GiftiLabelTable()
+for k, name in ((0, "unknown"), (1, "cortex")):
+    lab = nib.gifti.GiftiLabel(k, 0.5, 0.25 * k, 0.1, 1.0)
+    lab.label = name
+    lt.labels.append(lab)
+img = GiftiImage(darrays=[GiftiDataArray(np.array([0, 1, 1, 0], np.int32), intent="NIFTI_INTENT_LABEL", datatype="NIFTI_TYPE_INT32",
+                                         encoding="GIFTI_ENCODING_ASCII")])
+img.labeltable = lt
+nib.save(img, os.path.join(out, "gifti", "labels.gii"))
 # FreeSurfer: a small surface with and without the volume-info footer, and a curv file.
 from collections import OrderedDict
 import nibabel.freesurfer as fsio
@@ -62,6 +72,13 @@ fsio.write_geometry(os.path.join(out, "freesurfer", "rh.pial"), fv, ff, volume_i
 fsio.write_morph_data(os.path.join(out, "freesurfer", "lh.thickness"), rng.random(6).astype(np.float32))
 fsio.write_annot(os.path.join(out, "freesurfer", "lh.aparc.annot"), np.array([0, 1, -1, 2, 1, 0], np.int32),
                  np.array([[25, 5, 25, 0, 0], [220, 20, 10, 0, 0], [20, 220, 60, 0, 0]], np.int32), [b"unknown", b"a", b"b"])
+# Quad surfaces (int16 and float32 coordinates), written by hand as nibabel reads them.
+def b3(x):
+    return int(x).to_bytes(3, "big")
+quads = [[0, 1, 2, 3], [2, 3, 4, 5]]
+for magic, coords in ((b"\xff\xff\xff", (fv * 100).astype(">i2")), (b"\xff\xff\xfd", fv.astype(">f4"))):
+    with open(os.path.join(out, "freesurfer", "quad_" + magic.hex()), "wb") as f:
+        f.write(magic + b3(6) + b3(2) + coords.tobytes() + b"".join(b3(q) for qd in quads for q in qd))
 # glTF: the hand-written documents of tests/scripts/test_gltf.py, as .gltf and .glb.
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts"))
 from test_gltf import gltf_json, to_glb  # noqa: E402

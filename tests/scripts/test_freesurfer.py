@@ -1,5 +1,6 @@
 """FreeSurfer triangle surfaces through `horizon`, against nibabel's
 read_geometry; conversions to and from GIFTI; malformed files."""
+import os
 import struct
 from collections import OrderedDict
 
@@ -59,7 +60,7 @@ class FreeSurferTest(TempDirTest):
         bad_face[head + 8 + 10 * 12: head + 8 + 10 * 12 + 4] = struct.pack(">i", 10)
         cases = {
             "bad_magic.white": b"\xff\xff\xfa" + good[3:],
-            "quad.white": b"\xff\xff\xff" + good[3:],
+            "quad.white": b"\xff\xff\xff" + good[3:],  # a triangle file's bytes under the quad magic
             "truncated.white": good[:752 if len(good) > 752 else len(good) - 5],
             "absurd_vnum.white": counts(2 ** 30, 8),
             "negative_vnum.white": counts(-3, 8),
@@ -71,6 +72,42 @@ class FreeSurferTest(TempDirTest):
                 with open(f, "wb") as fh:
                     fh.write(data)
                 self.assert_clean_error(run("info", f, timeout=10), name)
+
+    def test_quad_surfaces(self):
+        """Quad surfaces (FF FF FF with int16 coordinates in 1/100 mm, FF FF FD with float32) read as nibabel's
+        read_geometry reads them, each quad split into two triangles by its rule; a quad file is told from a
+        curv file (same magic) by its layout; malformed ones fail cleanly."""
+        rng = np.random.default_rng(3)
+        nv, nq = 40, 30
+        quads = rng.integers(0, nv, size=(nq, 4))
+        def b3(x):
+            return int(x).to_bytes(3, "big")
+        for magic, coords in ((b"\xff\xff\xff", rng.integers(-20000, 20000, size=(nv, 3)).astype(">i2")),
+                              (b"\xff\xff\xfd", (rng.normal(size=(nv, 3)) * 50).astype(">f4"))):
+            with self.subTest(magic=magic.hex()):
+                data = magic + b3(nv) + b3(nq) + coords.tobytes() + b"".join(b3(q) for q in quads.ravel())
+                src = self.path("lh.orig" if magic == b"\xff\xff\xff" else "lh.new.orig")
+                with open(src, "wb") as fh:
+                    fh.write(data)
+                want_v, want_f = fs.read_geometry(src)
+                info = run_json("info", src, "--json")
+                self.assertEqual((info["format"], info["nb_vertices"], info["nb_faces"]), ("freesurfer quads", nv, 2 * nq))
+                for target in ("q.gii", "q.white"):
+                    out = self.path(target)
+                    p = run("convert", src, out, "--force")
+                    self.assertEqual(p.returncode, 0, p.stderr)
+                    v, f = (fs.read_geometry(out) if target.endswith("white") else
+                            (nib.load(out).agg_data("NIFTI_INTENT_POINTSET"), nib.load(out).agg_data("NIFTI_INTENT_TRIANGLE")))
+                    np.testing.assert_allclose(v, want_v, rtol=1e-6, atol=1e-6)  # float32 of nibabel's float64
+                    np.testing.assert_array_equal(f, want_f)
+                bad_index = bytearray(data)
+                bad_index[-3:] = b3(nv)
+                for name, bad in {"cut.orig": data[:-2], "head.orig": data[:7], "index.orig": bytes(bad_index),
+                                  "counts.orig": magic + b3(0xFFFFFF) + b3(0xFFFFFF) + data[9:]}.items():
+                    with self.subTest(case=name):
+                        with open(self.path(name), "wb") as fh:
+                            fh.write(bad)
+                        self.assert_clean_error(run("info", self.path(name), timeout=10), name)
 
     def test_annotations(self):
         """Annotations (lh.aparc.annot) read as nibabel's read_annot reads them: a label index per vertex
@@ -93,13 +130,36 @@ class FreeSurferTest(TempDirTest):
         for i, nm in enumerate(want_names):
             r, g, b, t = want_ctab[i, :4]
             self.assertEqual(header[f"label {i}"], f"{nm.decode()} {r} {g} {b} {t}")
-        # The label indices, through an overlay-only GIFTI; GIFTI overlays here hold no colour arrays, which
-        # is reported (the colours are checked in the rendering tests).
-        gii = self.path("aparc.func.gii")
+        # The label indices, through an overlay-only label GIFTI: the colour table becomes its LabelTable (so
+        # the colour array is not dropped), as nibabel reads it.
+        gii = self.path("aparc.label.gii")
         p = run("convert", src, gii)
         self.assertEqual(p.returncode, 0, p.stderr)
-        self.assertIn("dropped array 'aparc rgba'", p.stderr)
-        np.testing.assert_array_equal(nib.load(gii).darrays[0].data, want_labels)
+        self.assertNotIn("dropped", p.stderr)
+        g = nib.load(gii)
+        self.assertEqual(g.darrays[0].intent, nib.nifti1.intent_codes["NIFTI_INTENT_LABEL"])
+        np.testing.assert_array_equal(g.darrays[0].data, want_labels)
+        table = {l.key: l for l in g.labeltable.labels}
+        self.assertEqual(sorted(table), list(range(len(want_names))))
+        for i, nm in enumerate(want_names):
+            r, gg, b, t = want_ctab[i, :4]
+            self.assertEqual(table[i].label, nm.decode())
+            np.testing.assert_allclose(table[i].rgba, [r / 255, gg / 255, b / 255, (255 - t) / 255], atol=1e-7)
+        # ... and the GIFTI reads back with the same table and colours, and writes an annotation nibabel reads
+        # as the original (labels, colour table, names).
+        ginfo = run_json("info", gii, "--json")
+        self.assertEqual([(a["name"], a["dtype"]) for a in ginfo["arrays"]], [("aparc", "int32"), ("aparc rgba", "uint8")])
+        self.assertEqual(dict(ginfo["header"])["label 4"], "frontalpole 100 0 100 30")
+        for via, name in ((src, "rh.copy.annot"), (gii, "rh.fromgii.annot")):
+            with self.subTest(via=via):
+                out = self.path(name)
+                p = run("convert", via, out)
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertNotIn("dropped", p.stderr)
+                l2, c2, n2 = fs.read_annot(out)
+                np.testing.assert_array_equal(l2, want_labels)
+                np.testing.assert_array_equal(c2, want_ctab)
+                self.assertEqual(n2, want_names)
         # The old colour-table format (n > 0 entries, no indices), written by hand.
         def be(*v):
             return struct.pack(">%di" % len(v), *v)
@@ -111,8 +171,31 @@ class FreeSurferTest(TempDirTest):
         info = run_json("info", self.path("lh.old.annot"), "--json")
         self.assertEqual(info["overlay_vertices"], 4)
         self.assertEqual(dict(info["header"])["label 2"], "caudalanteriorcingulate 125 100 160 0")
-        # Writing annotations is not supported: said so, nothing written.
-        self.assert_clean_error(run("convert", gii, self.path("x.annot")), "x.annot")
+        # Writing an annotation needs labels the table defines, and a table: said so, nothing written.
+        lt = nib.gifti.GiftiLabelTable()
+        for k, nm in ((0, "unknown"), (1, "a b c")):  # names may contain spaces
+            lab = nib.gifti.GiftiLabel(k, 0.1 * k, 0.2, 0.3, 1.0)
+            lab.label = nm
+            lt.labels.append(lab)
+        for case, vals, table in (("undefined", [0, 1, 2], lt), ("no_table", [0, 1, 1], None), ("good", [0, 1, -1], lt)):
+            with self.subTest(case=case):
+                img = nib.gifti.GiftiImage(darrays=[nib.gifti.GiftiDataArray(np.array(vals, np.int32), intent="NIFTI_INTENT_LABEL",
+                                                                             datatype="NIFTI_TYPE_INT32")])
+                if table is not None:
+                    img.labeltable = table
+                g2 = self.path(case + ".label.gii")
+                nib.save(img, g2)
+                out = self.path(case + ".annot")
+                p = run("convert", g2, out)
+                if case == "good":
+                    self.assertEqual(p.returncode, 0, p.stderr)
+                    l3, c3, n3 = fs.read_annot(out)
+                    np.testing.assert_array_equal(l3, [0, 1, -1])
+                    self.assertEqual(n3, [b"unknown", b"a b c"])
+                    np.testing.assert_array_equal(c3[:, :4], [[0, 51, 77, 0], [26, 51, 77, 0]])
+                else:
+                    self.assert_clean_error(p, out)
+                    self.assertFalse(os.path.exists(out))
         # Malformed: truncated anywhere, a vertex out of range, a negative or absurd table.
         with open(src, "rb") as fh:
             good = fh.read()

@@ -99,11 +99,19 @@ class GiftiTest(TempDirTest):
                 info = run_json("info", path, "--json")
                 self.assertEqual(info["nb_vertices"], 0)
                 self.assertEqual(info["overlay_vertices"], ref.darrays[0].data.shape[0])
-                self.assertEqual(len(info["arrays"]), len(ref.darrays))
+                # A label array of a file with a LabelTable also reads as its colours ("<name> rgba").
+                table = {l.key: l.label for l in ref.labeltable.labels}
+                derived = [a for a in ref.darrays if a.intent == nib.nifti1.intent_codes["NIFTI_INTENT_LABEL"] and table]
+                self.assertEqual(len(info["arrays"]), len(ref.darrays) + len(derived))
+                self.assertEqual({k: v.split(" ")[0] for k, v in info["header"] if k.startswith("label ")},
+                                 {f"label {k}": v for k, v in table.items()})
                 out = self.path("ov_" + name)
-                self.assertEqual(run("convert", path, out, "--force").returncode, 0)
+                p = run("convert", path, out, "--force")
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertNotIn("dropped", p.stderr)
                 back = nib.load(out)
                 self.assertEqual(len(back.darrays), len(ref.darrays))
+                self.assertEqual({l.key: l.label for l in back.labeltable.labels}, table)
                 for a, b in zip(ref.darrays, back.darrays):
                     np.testing.assert_array_equal(np.asarray(b.data).reshape(a.data.shape), a.data)
         # Arrays of different lengths cannot describe one surface.

@@ -29,13 +29,74 @@ static Surface parse_curv(const unsigned char *b, std::uint64_t size) {
     return s;
 }
 
+static std::uint32_t be24(const unsigned char *p) { return (std::uint32_t(p[0]) << 16) | (std::uint32_t(p[1]) << 8) | p[2]; }
+
+// Bytes a quad file with the counts in its first 9 bytes needs.
+static std::uint64_t quad_bytes(const unsigned char *b) {
+    const std::uint64_t per_vertex = b[2] == 0xFF ? 6 : 12;  // int16 x 3 (old) or float32 x 3 (new)
+    return 9 + per_vertex * be24(b + 3) + 12ull * be24(b + 6);
+}
+
+bool is_quad(const unsigned char *b, std::uint64_t size) {
+    if (size < 9 || b[0] != 0xFF || b[1] != 0xFF || (b[2] != 0xFF && b[2] != 0xFD)) return false;
+    if (b[2] == 0xFD) return true;
+    // FF FF FF is also a curv file's magic: a quad file unless the curv
+    // layout (values per vertex = 1 at byte 11) fits and the quad one does not.
+    if (!looks_like_curv(b, size)) return true;
+    const std::uint64_t curv_need = 15 + 4ull * be32(b + 3);
+    return size == quad_bytes(b) && size != curv_need;
+}
+
+// FreeSurfer's quad surfaces (nibabel read_geometry): magic FF FF FF (int16
+// coordinates in 1/100 mm) or FF FF FD (float32), 3-byte vertex and quad
+// counts, the coordinates, then 4 3-byte indices per quad. Each quad is
+// split into two triangles by nibabel's (and FreeSurfer's) rule.
+static Surface parse_quad(const unsigned char *b, std::uint64_t size) {
+    Surface s;
+    s.quad = true;
+    const bool old = b[2] == 0xFF;
+    const std::uint32_t nv = be24(b + 3), nq = be24(b + 6);
+    if (nv == 0) throw FormatError("quad surface with 0 vertices");
+    if (quad_bytes(b) > size)
+        throw FormatError("quad surface of " + std::to_string(nv) + " vertices and " + std::to_string(nq) + " quads needs " +
+                          std::to_string(quad_bytes(b)) + " bytes, the file has " + std::to_string(size));
+    s.created = old ? "int16, 1/100 mm" : "float32";
+    s.vertices.resize(3ull * nv);
+    std::uint64_t pos = 9;
+    for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+        if (old) {
+            const auto v = static_cast<std::int16_t>((std::uint16_t(b[pos]) << 8) | b[pos + 1]);
+            s.vertices[i] = static_cast<float>(double(v) / 100.0);
+            pos += 2;
+        } else {
+            s.vertices[i] = std::bit_cast<float>(be32(b + pos));
+            if (!std::isfinite(s.vertices[i])) throw FormatError("vertex " + std::to_string(i / 3) + " has a non-finite coordinate");
+            pos += 4;
+        }
+    }
+    s.faces.resize(6ull * nq);
+    for (std::uint32_t q = 0; q < nq; ++q) {
+        std::uint32_t v[4];
+        for (int k = 0; k < 4; ++k, pos += 3) {
+            v[k] = be24(b + pos);
+            if (v[k] >= nv)
+                throw FormatError("quad " + std::to_string(q) + " uses vertex " + std::to_string(v[k]) + ", outside [0, " + std::to_string(nv) + ")");
+        }
+        std::uint32_t *f = s.faces.data() + 6ull * q;
+        if (v[0] % 2 == 0) f[0] = v[0], f[1] = v[1], f[2] = v[3], f[3] = v[2], f[4] = v[3], f[5] = v[1];
+        else f[0] = v[0], f[1] = v[1], f[2] = v[2], f[3] = v[0], f[4] = v[2], f[5] = v[3];
+    }
+    return s;
+}
+
 Surface parse(const unsigned char *b, std::uint64_t size) {
     if (size < 3) throw FormatError("file is " + std::to_string(size) + " bytes: no magic number");
+    if (is_quad(b, size)) return parse_quad(b, size);
     if (looks_like_curv(b, size)) return parse_curv(b, size);
     if (b[0] != 0xFF || b[1] != 0xFF || b[2] != 0xFE) {
         if (b[0] == 0xFF && b[1] == 0xFF && (b[2] == 0xFF || b[2] == 0xFD))
-            throw FormatError("a FreeSurfer quad surface (magic FF FF " + std::string(b[2] == 0xFF ? "FF" : "FD") + "): not supported yet");
-        throw FormatError("magic is not FF FF FE (not a FreeSurfer triangle surface)");
+            throw FormatError("file ends inside the quad surface header (" + std::to_string(size) + " bytes)");
+        throw FormatError("magic is not FF FF FE, FF FF FF or FF FF FD (not a FreeSurfer surface or curv file)");
     }
     Surface s;
     std::uint64_t pos = 3;

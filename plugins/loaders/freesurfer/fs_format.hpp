@@ -3,7 +3,7 @@
 // start FF FF FE, a "created by ..." line and a blank line, int32 vnum,
 // fnum, vnum x 3 float32, fnum x 3 int32, an optional volume-info footer;
 // curv files start FF FF FF, int32 vnum, fnum, values per vertex (1), then
-// vnum float32.
+// vnum float32; quad surfaces start FF FF FF or FF FF FD (read only).
 #pragma once
 
 #include <cstdint>
@@ -20,6 +20,7 @@ struct FormatError : std::runtime_error {
 
 struct Surface {
     bool curv = false;                // a curv file: per-vertex values only
+    bool quad = false;                // read from a quad surface (faces: each quad split in two)
     std::vector<float> values;        // curv values
     std::string created;
     std::vector<float> vertices;
@@ -55,7 +56,10 @@ Annotation parse_annot(const unsigned char *b, std::uint64_t size);
 std::uint32_t be32(const unsigned char *p);
 // True for the first bytes of a curv file (needs 15 bytes).
 bool looks_like_curv(const unsigned char *b, std::uint64_t size);
-// Parses a whole file (surface or curv); throws FormatError. Counts are
+// True for a quad surface (FF FF FD, or FF FF FF laid out as a quad file
+// rather than a curv file); needs 9 bytes and the whole file's size.
+bool is_quad(const unsigned char *b, std::uint64_t size);
+// Parses a whole file (triangle or quad surface, or curv); throws FormatError. Counts are
 // checked against `size` before anything is allocated.
 Surface parse(const unsigned char *b, std::uint64_t size);
 

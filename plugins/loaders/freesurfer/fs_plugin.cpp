@@ -1,4 +1,4 @@
-// hz.loader/1: FreeSurfer binary triangle surfaces (lh.white, rh.pial, ...).
+// hz.loader/1: FreeSurfer binary surfaces (lh.white, rh.pial, ...).
 // Format (nibabel freesurfer/io.py, FORMATS.md 1.7): big-endian; magic
 // FF FF FE; a "created by ..." line and a blank line; int32 vnum, fnum;
 // vnum x 3 float32; fnum x 3 int32; an optional volume-info footer. The
@@ -7,12 +7,14 @@
 // Also "new format" curv files (lh.curv, lh.thickness, lh.sulc, ...): magic
 // FF FF FF, int32 vnum, fnum, values per vertex (1), vnum float32: read as a
 // per-vertex overlay without geometry, named after the file (lh.thickness ->
-// "thickness"), and written from one. And annotations (lh.aparc.annot, read
-// only): an overlay of two per-vertex arrays, "aparc" (int32 colour-table
-// index, -1 unlabeled) and "aparc rgba" (uint8 x 4, the label's sRGB colour,
+// "thickness"), and written from one. Quad surfaces (FF FF FF / FF FF FD,
+// read only) are split into triangles as nibabel does. And annotations
+// (lh.aparc.annot, read and written): an overlay of two per-vertex arrays,
+// "aparc" (int32 colour-table index, -1 unlabeled) and "aparc rgba" (uint8 x 4, the label's sRGB colour,
 // alpha 255 - transparency; unlabeled vertices grey with alpha 0), with the
 // table as header entries "label <index>" = "<name> <r> <g> <b> <t>".
 #include "fs_format.hpp"
+#include "label_table.hpp"
 #include "mapped_file.hpp"
 
 #include <hz/cpp/plugin.hpp>
@@ -69,6 +71,7 @@ hz_status run(hz_error *err, const std::string &path, F &&body) {
 int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *name) {
     if (size >= 3 && head[0] == 0xFF && head[1] == 0xFF && head[2] == 0xFE) return 90;
     if (looks_like_curv(head, size)) return 80;
+    if (size >= 9 && head[0] == 0xFF && head[1] == 0xFF && (head[2] == 0xFF || head[2] == 0xFD)) return 80;  // quad surface
     // Annotations have no magic number: the name, a positive vertex count and vertex 0 first.
     if (name != nullptr && is_annot_name(name) && size >= 8 && static_cast<std::int32_t>(be32(head)) > 0 && be32(head + 4) == 0) return 60;
     return 0;
@@ -88,9 +91,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
             r->a = fsurf::parse_annot(m.data(), m.size());
             r->rgba_name = r->array_name + " rgba";
             if (!r->a.orig_table.empty()) r->annot_meta.emplace_back("orig_table", r->a.orig_table);
-            for (const auto &e : r->a.table)
-                r->annot_meta.emplace_back("label " + std::to_string(e.index), e.name + " " + std::to_string(e.r) + " " + std::to_string(e.g) +
-                                                                                   " " + std::to_string(e.b) + " " + std::to_string(e.t));
+            for (const auto &e : r->a.table) r->annot_meta.emplace_back(hzlabel::key(e.index), hzlabel::value({e.index, e.name, e.r, e.g, e.b, e.t}));
         } else {
             r->s = parse(m.data(), m.size());
         }
@@ -104,7 +105,7 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: get_info: bad arguments");
     const Surface &s = as_reader(reader)->s;
     out->kind = HZ_DATA_MESH;
-    std::snprintf(out->format, sizeof out->format, as_reader(reader)->annot ? "freesurfer annot" : s.curv ? "freesurfer curv" : "freesurfer triangles");
+    std::snprintf(out->format, sizeof out->format, as_reader(reader)->annot ? "freesurfer annot" : s.curv ? "freesurfer curv" : s.quad ? "freesurfer quads" : "freesurfer triangles");
     out->nb_arrays = as_reader(reader)->annot ? 2 : s.curv ? 1 : 0;
     out->nb_vertices = s.vertices.size() / 3;
     out->nb_faces = s.faces.size() / 3;
@@ -175,7 +176,7 @@ hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, 
     const Surface &s = as_reader(reader)->s;
     for (const auto &[k, v] : as_reader(reader)->annot_meta) visitor(ctx, k.c_str(), v.c_str());
     if (s.curv || as_reader(reader)->annot) return HZ_OK;
-    visitor(ctx, "created", s.created.c_str());
+    visitor(ctx, s.quad ? "quad coordinates" : "created", s.created.c_str());
     for (const auto &[k, v] : s.footer) visitor(ctx, k.c_str(), v.c_str());
     return HZ_OK;
 }
@@ -234,14 +235,93 @@ hz_status write_curv(const hz_write_request *req, const hz_dataset_view *data) {
     return HZ_OK;
 }
 
+// An annotation from a per-vertex int32 label array (an annotation's, or a
+// GIFTI label array's) and the label table in the header entries ("label
+// <index>" = "<name> r g b t"), written as nibabel's write_annot writes it:
+// colour table version 2, every vertex listed in order, value 0 for -1.
+hz_status write_annot(const hz_write_request *req, const hz_dataset_view *data) {
+    const hz_named_array *pick = nullptr;
+    for (uint32_t i = 0; i < data->nb_arrays; ++i) {
+        const hz_named_array &a = data->arrays[i];
+        const std::string name = a.name ? a.name : "";
+        const bool fits = a.attach == HZ_ATTACH_VERTEX && a.components == 1 && a.dtype == HZ_DTYPE_I32 &&
+                          (data->mesh_nb_vertices == 0 || a.count == data->mesh_nb_vertices);
+        if (fits && pick == nullptr) {
+            pick = &a;
+            continue;
+        }
+        // The label colours ("<labels> rgba") are the colour table's.
+        const bool colours = pick != nullptr && pick->name != nullptr && name == std::string(pick->name) + " rgba";
+        if (!colours && req->on_dropped) req->on_dropped(req->ctx, ("array '" + name + "' (an annotation holds one label per vertex)").c_str());
+    }
+    if (pick == nullptr) throw FormatError("an annotation needs a per-vertex int32 label array; this data has none");
+    if (pick->count == 0 || pick->count > 0x7FFFFFFF) throw FormatError("annotations hold 1 to 2^31-1 vertices");
+    std::vector<hzlabel::Entry> table;
+    std::string orig_table = "NOFILE";
+    for (uint32_t i = 0; i < data->nb_metadata; ++i) {
+        const char *k = data->metadata[i].key, *v = data->metadata[i].value;
+        if (k == nullptr || v == nullptr) continue;
+        if (auto e = hzlabel::parse(k, v)) table.push_back(std::move(*e));
+        else if (std::string(k) == "orig_table") orig_table = v;
+    }
+    if (table.empty()) throw FormatError("an annotation needs a colour table (header entries 'label <index>' = '<name> r g b t'); this data has none");
+    std::int32_t max_index = 0;
+    std::vector<std::int32_t> sorted;
+    for (const auto &e : table) {
+        if (e.index < 0) throw FormatError("label index " + std::to_string(e.index) + " is negative (annotation indices are 0 or more)");
+        max_index = std::max(max_index, e.index);
+        sorted.push_back(e.index);
+    }
+    std::sort(sorted.begin(), sorted.end());
+    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) throw FormatError("the colour table lists a label index twice");
+    // index -> packed colour, the value stored per vertex
+    std::vector<std::pair<std::int32_t, std::uint32_t>> packed;
+    for (const auto &e : table) packed.emplace_back(e.index, std::uint32_t(e.r) + std::uint32_t(e.g) * 256u + std::uint32_t(e.b) * 65536u);
+    std::sort(packed.begin(), packed.end());
+    const auto *labels = static_cast<const std::int32_t *>(pick->data);
+    std::vector<unsigned char> out;
+    auto put = [&](std::uint32_t v) { put_be32(out, v); };
+    auto put_text = [&](const std::string &t) {
+        put(static_cast<std::uint32_t>(t.size() + 1));
+        out.insert(out.end(), t.begin(), t.end());
+        out.push_back(0);
+    };
+    out.reserve(8 * pick->count + 64 * table.size() + 64);
+    put(static_cast<std::uint32_t>(pick->count));
+    for (std::uint64_t i = 0; i < pick->count; ++i) {
+        const std::int32_t l = labels[i];
+        std::uint32_t value = 0;
+        if (l != -1) {
+            const auto it = std::lower_bound(packed.begin(), packed.end(), std::pair{l, 0u});
+            if (it == packed.end() || it->first != l)
+                throw FormatError("vertex " + std::to_string(i) + " has label " + std::to_string(l) + ", which the colour table does not define");
+            value = it->second;
+        }
+        put(static_cast<std::uint32_t>(i));
+        put(value);
+    }
+    put(1);                                            // a colour table follows
+    put(static_cast<std::uint32_t>(-2));               // version 2
+    put(static_cast<std::uint32_t>(max_index + 1));    // largest index + 1
+    put_text(orig_table);
+    put(static_cast<std::uint32_t>(table.size()));
+    for (const auto &e : table) {
+        put(static_cast<std::uint32_t>(e.index));
+        put_text(e.name);
+        put(std::uint32_t(e.r)), put(std::uint32_t(e.g)), put(std::uint32_t(e.b)), put(std::uint32_t(e.t));
+    }
+    if (data->mesh_nb_vertices > 0 && req->on_dropped) req->on_dropped(req->ctx, "the surface geometry (an annotation holds labels only)");
+    save(req->path, out);
+    return HZ_OK;
+}
+
 hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
     if (req == nullptr || req->path == nullptr || data == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: write: NULL request or data");
     if (data->kind != HZ_DATA_MESH) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "freesurfer: %s: holds surfaces only", req->path);
     return run(err, req->path, [&]() -> hz_status {
         const std::string ext = req->extension ? req->extension : "";
-        if (ext == "annot")
-            throw FormatError("writing FreeSurfer annotations is not supported (the labels can be written as a GIFTI overlay: .label.gii)");
+        if (ext == "annot") return write_annot(req, data);
         if (std::find(std::begin(kCurvExtensions), std::end(kCurvExtensions), ext) != std::end(kCurvExtensions))
             return write_curv(req, data);
         if (data->mesh_nb_vertices == 0 && data->nb_arrays > 0)
@@ -289,7 +369,7 @@ const hz_loader kLoader = {
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "FreeSurfer surface", "1.0.0", "Horizon",
-    "FreeSurfer binary triangle surfaces (lh.white, rh.pial, ...) with the volume-info footer, curv overlays (lh.curv, lh.thickness, ...) and annotations (lh.aparc.annot, read)", "MIT", kInterfaces,
+    "FreeSurfer binary surfaces (lh.white, rh.pial, ...; triangle files with the volume-info footer, quad files read), curv overlays (lh.curv, lh.thickness, ...) and annotations (lh.aparc.annot)", "MIT", kInterfaces,
 };
 
 }  // namespace

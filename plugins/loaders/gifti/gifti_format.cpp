@@ -9,12 +9,16 @@
 
 #include <algorithm>
 #include <bit>
+#include <climits>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
 namespace gifti {
 
@@ -259,6 +263,29 @@ Surface read(const std::string &path) {
     Surface s;
     s.transform = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
     for (const auto &md : root.child("MetaData").children("MD")) s.metadata.emplace_back(md.child_value("Name"), md.child_value("Value"));
+    for (const auto &lab : root.child("LabelTable").children("Label")) {
+        Label l;
+        // "Index" is GIFTI's earlier name for "Key" (nibabel's label.gii)
+        const std::string key = lab.attribute("Key") ? lab.attribute("Key").as_string() : lab.attribute("Index").as_string();
+        char *end = nullptr;
+        const long long k = std::strtoll(key.c_str(), &end, 10);
+        if (key.empty() || *end != '\0' || k < INT32_MIN || k > INT32_MAX)
+            throw FormatError("LabelTable entry " + std::to_string(s.labels.size()) + ": Key '" + key + "' is not an int32");
+        l.key = static_cast<std::int32_t>(k);
+        l.name = lab.child_value();
+        // Missing colour attributes (nibabel writes none for a colourless
+        // label) read as opaque black; components are clamped to [0, 1].
+        for (auto [attr, dst, def] : {std::tuple{"Red", &l.red, 0.0}, {"Green", &l.green, 0.0}, {"Blue", &l.blue, 0.0}, {"Alpha", &l.alpha, 1.0}}) {
+            const pugi::xml_attribute a = lab.attribute(attr);
+            if (!a) { *dst = def; continue; }
+            const std::string text = a.as_string();
+            const double x = std::strtod(text.c_str(), &end);
+            if (text.empty() || *end != '\0' || !std::isfinite(x))
+                throw FormatError("LabelTable entry " + std::to_string(s.labels.size()) + ": " + attr + " '" + text + "' is not a number");
+            *dst = std::clamp(x, 0.0, 1.0);
+        }
+        s.labels.push_back(std::move(l));
+    }
     std::vector<Array> arrays;
     std::size_t i = 0;
     for (const auto &da : root.children("DataArray")) arrays.push_back(read_array(da, i++, fs::path(path).parent_path()));
@@ -348,7 +375,17 @@ void write(const std::string &path, const Surface &s, bool gz) {
         md.append_child("Name").append_child(pugi::node_cdata).set_value(k.c_str());
         md.append_child("Value").append_child(pugi::node_cdata).set_value(v.c_str());
     }
-    root.append_child("LabelTable");
+    pugi::xml_node table = root.append_child("LabelTable");
+    for (const Label &l : s.labels) {
+        pugi::xml_node lab = table.append_child("Label");
+        lab.append_attribute("Key") = l.key;
+        for (auto [attr, x] : {std::pair{"Red", l.red}, {"Green", l.green}, {"Blue", l.blue}, {"Alpha", l.alpha}}) {
+            char buf[32];
+            std::snprintf(buf, sizeof buf, "%.9g", x);
+            lab.append_attribute(attr) = buf;
+        }
+        lab.append_child(pugi::node_cdata).set_value(l.name.c_str());
+    }
     auto add = [&](const char *intent, const char *dtype, std::uint64_t rows, std::uint64_t cols, const void *data, std::size_t es,
                    const std::string &name, bool xform) {
         pugi::xml_node da = root.append_child("DataArray");

@@ -26,6 +26,13 @@ struct Overlay {
     std::vector<std::int32_t> labels; // integer data
 };
 
+// One entry of the file's LabelTable: a label key and its colour (0..1).
+struct Label {
+    std::int32_t key = 0;
+    std::string name;
+    double red = 0, green = 0, blue = 0, alpha = 1;
+};
+
 struct Surface {
     std::vector<float> vertices;        // N x 3, as stored (mm in DataSpace)
     std::vector<std::uint32_t> faces;   // M x 3, 0-based
@@ -33,6 +40,7 @@ struct Surface {
     std::string data_space, transformed_space;
     std::vector<Overlay> overlays;
     std::vector<std::pair<std::string, std::string>> metadata;
+    std::vector<Label> labels;          // the LabelTable (keys of the NIFTI_INTENT_LABEL arrays)
     std::uint64_t rows = 0;             // vertices the overlays describe (= vertices / 3 unless overlay-only)
     bool overlay_only() const { return vertices.empty() && faces.empty() && !overlays.empty(); }
 };
@@ -42,7 +50,8 @@ Surface read(const std::string &path);
 
 // Writes GZipBase64Binary (gz) or Base64Binary arrays, little-endian,
 // row-major: POINTSET, TRIANGLE, then float overlays as NIFTI_INTENT_SHAPE
-// (an overlay-only file when `s` has no geometry).
+// (or their intent) and integer ones as NIFTI_INTENT_LABEL, with `s.labels`
+// as the LabelTable (an overlay-only file when `s` has no geometry).
 void write(const std::string &path, const Surface &s, bool gz);
 
 int probe(const unsigned char *head, std::uint64_t size);

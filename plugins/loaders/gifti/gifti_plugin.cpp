@@ -1,10 +1,13 @@
 // hz.loader/1 adapter for GIFTI surfaces and overlays (gifti_format.hpp).
 #include "gifti_format.hpp"
+#include "label_table.hpp"
 #include "mapped_file.hpp"
 
 #include <hz/cpp/plugin.hpp>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstring>
 #include <memory>
 
@@ -15,6 +18,13 @@ constexpr const char *kId = "org.horizon.loader.gifti";
 struct Reader {
     std::string path;
     gifti::Surface s;
+    // The LabelTable as header entries ("label <key>" = "<name> r g b t").
+    std::vector<std::pair<std::string, std::string>> label_meta;
+    // For each NIFTI_INTENT_LABEL overlay (when the file has a LabelTable):
+    // a derived uint8 x 4 array "<name> rgba", the colour of each vertex's
+    // label (unknown keys grey with alpha 0), listed after the overlays.
+    std::vector<std::size_t> rgba_of;  // overlay index of each derived array
+    std::vector<std::string> rgba_names;
 };
 Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
@@ -33,6 +43,21 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         auto r = std::make_unique<Reader>();
         r->path = req->path;
         r->s = gifti::read(r->path);
+        for (const gifti::Label &l : r->s.labels) {
+            hzlabel::Entry e;
+            e.index = l.key;
+            e.name = l.name;
+            e.r = static_cast<std::int32_t>(std::lround(l.red * 255)), e.g = static_cast<std::int32_t>(std::lround(l.green * 255));
+            e.b = static_cast<std::int32_t>(std::lround(l.blue * 255)), e.t = 255 - static_cast<std::int32_t>(std::lround(l.alpha * 255));
+            r->label_meta.emplace_back(hzlabel::key(e.index), hzlabel::value(e));
+        }
+        for (std::size_t i = 0; i < r->s.overlays.size() && !r->s.labels.empty(); ++i) {
+            const gifti::Overlay &o = r->s.overlays[i];
+            if (o.integer && o.components == 1 && o.intent == "NIFTI_INTENT_LABEL") {
+                r->rgba_of.push_back(i);
+                r->rgba_names.push_back(o.name + " rgba");
+            }
+        }
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
     });
@@ -51,13 +76,21 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
     // used as stored (nibabel, Workbench).
     std::copy(s.transform.begin(), s.transform.end(), out->voxel_to_ras);
     out->source_space = HZ_SPACE_RASMM;
-    out->nb_arrays = static_cast<uint32_t>(s.overlays.size());
+    out->nb_arrays = static_cast<uint32_t>(s.overlays.size() + as_reader(reader)->rgba_of.size());
     return HZ_OK;
 }
 
 hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
     if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: get_array_info: NULL");
     const Reader &r = *as_reader(reader);
+    if (index >= r.s.overlays.size() && index - r.s.overlays.size() < r.rgba_of.size()) {
+        out->attach = HZ_ATTACH_VERTEX;
+        out->name = r.rgba_names[index - r.s.overlays.size()].c_str();
+        out->dtype = HZ_DTYPE_U8;
+        out->components = 4;
+        out->count = r.s.rows;
+        return HZ_OK;
+    }
     if (index >= r.s.overlays.size()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "gifti: %s: no extra array %u", r.path.c_str(), index);
     const gifti::Overlay &o = r.s.overlays[index];
     out->attach = HZ_ATTACH_VERTEX;
@@ -72,6 +105,7 @@ hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, 
     if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: visit_metadata: NULL");
     const gifti::Surface &s = as_reader(reader)->s;
     for (const auto &[k, v] : s.metadata) visitor(ctx, k.c_str(), v.c_str());
+    for (const auto &[k, v] : as_reader(reader)->label_meta) visitor(ctx, k.c_str(), v.c_str());
     if (!s.data_space.empty()) visitor(ctx, "DataSpace", s.data_space.c_str());
     if (!s.transformed_space.empty()) visitor(ctx, "TransformedSpace", s.transformed_space.c_str());
     return HZ_OK;
@@ -91,9 +125,29 @@ hz_status HZ_ABI read_mesh(hz_reader *reader, const hz_mesh_dst *dst, const hz_t
 hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
     if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: read_array: NULL");
     const Reader &r = *as_reader(reader);
+    const std::uint64_t rows = r.s.rows;
+    if (index >= r.s.overlays.size() && index - r.s.overlays.size() < r.rgba_of.size()) {
+        if (dst->dtype != HZ_DTYPE_U8 || dst->ndim < 1 || dst->shape[0] != rows)
+            return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "gifti: %s: read_array: destination does not match", r.path.c_str());
+        const gifti::Overlay &o = r.s.overlays[r.rgba_of[index - r.s.overlays.size()]];
+        std::vector<std::pair<std::int32_t, std::array<unsigned char, 4>>> colour;  // key -> rgba, sorted by key
+        for (const gifti::Label &l : r.s.labels)
+            colour.push_back({l.key, {static_cast<unsigned char>(std::lround(l.red * 255)), static_cast<unsigned char>(std::lround(l.green * 255)),
+                                      static_cast<unsigned char>(std::lround(l.blue * 255)), static_cast<unsigned char>(std::lround(l.alpha * 255))}});
+        std::stable_sort(colour.begin(), colour.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
+        for (std::uint64_t i = 0; i < rows; ++i) {
+            const auto it = std::lower_bound(colour.begin(), colour.end(), o.labels[i], [](const auto &a, std::int32_t k) { return a.first < k; });
+            const bool known = it != colour.end() && it->first == o.labels[i];
+            for (std::uint32_t c = 0; c < 4; ++c) {
+                unsigned char *cell = hz::view_cell(*dst, i, c, 1);
+                if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
+                *cell = known ? it->second[c] : (c == 3 ? 0 : 128);
+            }
+        }
+        return HZ_OK;
+    }
     if (index >= r.s.overlays.size()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "gifti: %s: no extra array %u", r.path.c_str(), index);
     const gifti::Overlay &o = r.s.overlays[index];
-    const std::uint64_t rows = r.s.rows;
     if (dst->ndim != 2 || dst->shape[0] != rows || dst->shape[1] != o.components || dst->dtype != (o.integer ? HZ_DTYPE_I32 : HZ_DTYPE_F32))
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "gifti: %s: read_array: destination does not match", r.path.c_str());
     for (std::uint64_t i = 0; i < rows; ++i)
@@ -125,7 +179,10 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             const std::string v = data->metadata[i].value ? data->metadata[i].value : "";
             if (k == "DataSpace") s.data_space = v;
             else if (k == "TransformedSpace") s.transformed_space = v;
-            else s.metadata.emplace_back(k, v);
+            else if (auto e = hzlabel::parse(k, v)) {
+                // a label table entry (an annotation's, or a GIFTI LabelTable's) goes in the LabelTable
+                s.labels.push_back({e->index, e->name, e->r / 255.0, e->g / 255.0, e->b / 255.0, e->alpha() / 255.0});
+            } else s.metadata.emplace_back(k, v);
         }
         // No geometry: an overlay-only file, its rows set by the first per-vertex array.
         s.rows = data->mesh_nb_vertices;
@@ -154,7 +211,18 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                 const auto *p = static_cast<const std::int32_t *>(a.data);
                 o.labels.assign(p, p + n);
             } else {
-                if (req->on_dropped) req->on_dropped(req->ctx, ("array '" + name + "' (type not stored in GIFTI)").c_str());
+                // The colours of a label array ("<labels> rgba", as annotations
+                // and label GIFTIs are read) are kept by the LabelTable.
+                const bool label_colours = !s.labels.empty() && a.dtype == HZ_DTYPE_U8 && a.components == 4 && name.size() > 5 &&
+                                           name.compare(name.size() - 5, 5, " rgba") == 0 && [&] {
+                                               const std::string base = name.substr(0, name.size() - 5);
+                                               for (uint32_t j = 0; j < data->nb_arrays; ++j)
+                                                   if (data->arrays[j].dtype == HZ_DTYPE_I32 && data->arrays[j].components == 1 &&
+                                                       data->arrays[j].name != nullptr && base == data->arrays[j].name)
+                                                       return true;
+                                               return false;
+                                           }();
+                if (!label_colours && req->on_dropped) req->on_dropped(req->ctx, ("array '" + name + "' (type not stored in GIFTI)").c_str());
                 continue;
             }
             s.overlays.push_back(std::move(o));

@@ -1,0 +1,71 @@
+// A label table (FreeSurfer annotation colour table, GIFTI LabelTable) as
+// header entries, the form every loader that reads or writes labels shares:
+//
+//   key   "label <index>"            e.g. "label 3"
+//   value "<name> <r> <g> <b> <t>"   e.g. "cuneus 220 180 140 0"
+//
+// r, g, b are 0..255 sRGB, t is FreeSurfer's transparency (255 - alpha).
+// The name may contain spaces: the last four fields are the numbers.
+// Header-only, no SDK types.
+#pragma once
+
+#include <cstdint>
+#include <cstdlib>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace hzlabel {
+
+struct Entry {
+    std::int32_t index = 0;
+    std::string name;
+    std::int32_t r = 0, g = 0, b = 0, t = 0;
+    std::uint8_t alpha() const { return static_cast<std::uint8_t>(255 - t); }
+};
+
+inline std::string key(std::int32_t index) { return "label " + std::to_string(index); }
+
+inline std::string value(const Entry &e) {
+    return e.name + " " + std::to_string(e.r) + " " + std::to_string(e.g) + " " + std::to_string(e.b) + " " + std::to_string(e.t);
+}
+
+// Parses one header entry; nullopt when `k` is not "label <int32>" or the
+// value does not end in four integers in 0..255.
+inline std::optional<Entry> parse(std::string_view k, std::string_view v) {
+    constexpr std::string_view prefix = "label ";
+    if (k.substr(0, prefix.size()) != prefix || k.size() == prefix.size() || k.size() > prefix.size() + 11) return std::nullopt;
+    const std::string num(k.substr(prefix.size()));
+    char *end = nullptr;
+    const long long index = std::strtoll(num.c_str(), &end, 10);
+    if (*end != '\0' || index < INT32_MIN || index > INT32_MAX) return std::nullopt;
+    Entry e;
+    e.index = static_cast<std::int32_t>(index);
+    std::int32_t *fields[4] = {&e.t, &e.b, &e.g, &e.r};
+    std::size_t stop = v.size();
+    for (std::int32_t *f : fields) {
+        while (stop > 0 && v[stop - 1] == ' ') --stop;
+        std::size_t start = stop;
+        while (start > 0 && v[start - 1] >= '0' && v[start - 1] <= '9') --start;
+        if (start == stop || stop - start > 3) return std::nullopt;
+        const int x = std::atoi(std::string(v.substr(start, stop - start)).c_str());
+        if (x > 255) return std::nullopt;
+        *f = x;
+        stop = start;
+    }
+    while (stop > 0 && v[stop - 1] == ' ') --stop;
+    e.name = std::string(v.substr(0, stop));
+    return e;
+}
+
+// Collects the label entries among header entries (pairs of key, value).
+template <class Pairs>
+std::vector<Entry> collect(const Pairs &pairs) {
+    std::vector<Entry> out;
+    for (const auto &[k, v] : pairs)
+        if (auto e = parse(k, v)) out.push_back(std::move(*e));
+    return out;
+}
+
+}  // namespace hzlabel
