@@ -13,7 +13,7 @@ out = sys.argv[1]
 rng = np.random.default_rng(0)
 sl = [rng.normal(size=(int(rng.integers(1, 8)), 3)).astype(np.float32) * 10 for _ in range(6)]
 nib_data = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
-for kind in ("tck", "trk", "trx", "nifti", "gifti", "freesurfer", "gltf", "images"):
+for kind in ("tck", "trk", "trx", "nifti", "gifti", "freesurfer", "gltf", "images", "plyobj"):
     os.makedirs(os.path.join(out, kind), exist_ok=True)
 t = nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4))
 nib.streamlines.save(t, os.path.join(out, "tck", "small.tck"))
@@ -108,3 +108,21 @@ for code, fmt, mode in ((0, "PNG", "RGB"), (0, "PNG", "RGBA"), (1, "JPEG", "RGB"
 rgbe = bytes([128, 64, 32, 129]) * (4 * 3)
 with open(os.path.join(out, "images", "radiance.bin"), "wb") as f:
     f.write(bytes([3]) + b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 3 +X 4\n" + rgbe)
+
+# PLY (ASCII, binary both byte orders, with colours) and OBJ (with colours, a quad, relative indices).
+import struct
+pv = (rng.normal(size=(6, 3)) * 10).astype(np.float32)
+pf = [[0, 1, 2], [2, 3, 4], [4, 5, 0]]
+head = "ply\nformat {}\ncomment seed\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n" \
+       "property uchar red\nproperty uchar green\nproperty uchar blue\nelement face 3\nproperty list uchar int vertex_indices\nend_header\n"
+cols = rng.integers(0, 256, size=(6, 3))
+with open(os.path.join(out, "plyobj", "ascii.ply"), "w") as f:
+    f.write(head.format("ascii 1.0") + "".join("%g %g %g %d %d %d\n" % (*p, *c) for p, c in zip(pv, cols)) +
+            "".join("3 %d %d %d\n" % tuple(t) for t in pf))
+for fmt, e in (("binary_little_endian 1.0", "<"), ("binary_big_endian 1.0", ">")):
+    body = b"".join(struct.pack(e + "3f3B", *p, *c) for p, c in zip(pv, cols)) + b"".join(struct.pack(e + "B3i", 3, *t) for t in pf)
+    with open(os.path.join(out, "plyobj", fmt.split()[0] + ".ply"), "wb") as f:
+        f.write(head.format(fmt).encode() + body)
+with open(os.path.join(out, "plyobj", "a.obj"), "w") as f:
+    f.write("# seed\no part\n" + "".join("v %g %g %g %g %g %g\n" % (*p, *(c / 255)) for p, c in zip(pv, cols)) +
+            "vn 0 0 1\nvt 0 0\nf 1/1/1 2/1/1 3/1/1\nf 3 4 5 6\nf -1 -2 -3\nl 1 2\n")
