@@ -164,6 +164,11 @@ class PlyObjTest(TempDirTest):
             "absurd.ply": good.replace(b"element vertex 10", b"element vertex 2000000000"),
             "huge.ply": good.replace(b"element vertex 10", b"element vertex 99999999999"),
             "no_end.ply": good[:body - 11],
+            # found by fuzz_plyobj: Assimp 5.2 crashed on an end_header that is not on its own line
+            "inline_end.ply": good.replace(b"vertex_indices\nend_header", b"vertex_indices*end_header"),
+            "lone_cr.ply": good.replace(b"property float z", b"property float\r\r\r z"),  # found by fuzz_plyobj too
+            "long_list.ply": good[:-13] + b"\xff" + good[-12:],  # the last face claims 255 indices
+            "two_vertex_face.ply": good[:-13] + b"\x02" + good[-12:],
             "index.ply": bytes(bad_index),
             "nan.ply": bytes(nan_vertex),
             "bad_format.ply": good.replace(b"binary_little_endian", b"binary_middle_endian"),

@@ -2,7 +2,6 @@
 #include "plyobj_format.hpp"
 
 #include <assimp/Importer.hpp>
-#include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <tiny_obj_loader.h>
 
@@ -81,7 +80,8 @@ PlyHeader check_ply_header(const unsigned char *data, std::uint64_t size) {
     if (nl == std::string::npos) throw FormatError("no 'end_header' line within the first " + std::to_string(limit) + " bytes");
     h.header_bytes = nl + 1;
     for (std::size_t i = 0; i < end; ++i)
-        if (text[i] == '\0' || (static_cast<unsigned char>(text[i]) < 0x20 && text[i] != '\n' && text[i] != '\r' && text[i] != '\t'))
+        if ((static_cast<unsigned char>(text[i]) < 0x20 && text[i] != '\n' && text[i] != '\r' && text[i] != '\t') ||
+            (text[i] == '\r' && text[i + 1] != '\n'))  // (found by fuzzing: Assimp splits lines at a lone CR)
             throw FormatError("the header holds a control byte at offset " + std::to_string(i));
     std::vector<PlyElement> elements;
     std::istringstream in(text.substr(0, static_cast<std::size_t>(end)));
@@ -243,9 +243,10 @@ Mesh read_ply(const unsigned char *data, std::uint64_t size) {
     check_ply_body(h, data, size);
     if (h.faces == 0) throw FormatError("no faces (" + std::to_string(h.vertices) + " vertices: a point cloud, not a mesh)");
     Assimp::Importer importer;
-    // Polygons are split into triangles over the same vertices; nothing else
-    // is changed (no welding, no reordering, no normals).
-    const aiScene *scene = importer.ReadFileFromMemory(data, static_cast<std::size_t>(size), aiProcess_Triangulate, "ply");
+    // No post-processing: no welding, no reordering, no normals. Polygons are
+    // split into fans here, after their indices are checked (Assimp's own
+    // triangulation runs before any check, on whatever the parser produced).
+    const aiScene *scene = importer.ReadFileFromMemory(data, static_cast<std::size_t>(size), 0, "ply");
     if (scene == nullptr) throw FormatError(std::string("not read by Assimp: ") + trim(importer.GetErrorString()));
     if (scene->mNumMeshes != 1 || scene->mMeshes == nullptr || scene->mMeshes[0] == nullptr)
         throw FormatError("Assimp returned " + std::to_string(scene->mNumMeshes) + " meshes, expected 1");
@@ -262,13 +263,16 @@ Mesh read_ply(const unsigned char *data, std::uint64_t size) {
     out.faces.reserve(3ull * m.mNumFaces);
     for (unsigned f = 0; f < m.mNumFaces; ++f) {
         const aiFace &face = m.mFaces[f];
-        if (face.mNumIndices != 3) {
+        if (face.mNumIndices < 3 || face.mIndices == nullptr) {
             ++skipped;  // a point or a line
             continue;
         }
-        for (unsigned k = 0; k < 3; ++k) {
+        for (unsigned k = 0; k < face.mNumIndices; ++k)
             if (face.mIndices[k] >= m.mNumVertices)
                 throw FormatError("a face uses vertex " + std::to_string(face.mIndices[k]) + ", outside [0, " + std::to_string(m.mNumVertices) + ")");
+        for (unsigned k = 2; k < face.mNumIndices; ++k) {  // a fan: 0 1 2, 0 2 3, ...
+            out.faces.push_back(face.mIndices[0]);
+            out.faces.push_back(face.mIndices[k - 1]);
             out.faces.push_back(face.mIndices[k]);
         }
     }
