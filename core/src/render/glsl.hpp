@@ -453,7 +453,13 @@ vec3 hz_display(vec3 c) {
     c = c / (1.0 + c);
 #endif
     c = clamp(c, 0.0, 1.0);
-    return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+    // sRGB encoding. Above the linear toe, 1.055 c^(1/2.4) - 0.055 is replaced
+    // by a fit in c^(1/2), c^(1/4), c^(1/8) (three square roots, which
+    // llvmpipe runs as single instructions, instead of pow's exp2/log2
+    // polynomials): at most 0.25 of an 8-bit step from the exact curve.
+    vec3 s1 = sqrt(c), s2 = sqrt(s1), s3 = sqrt(s2);
+    vec3 hi = 0.662002687 * s1 + 0.684122060 * s2 - 0.323583601 * s3 - 0.0225411470 * c;
+    return mix(c * 12.92, hi, step(vec3(0.0031308), c));
 }
 )glsl";
 
