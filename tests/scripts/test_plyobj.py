@@ -167,6 +167,8 @@ class PlyObjTest(TempDirTest):
             # found by fuzz_plyobj: Assimp 5.2 crashed on an end_header that is not on its own line
             "inline_end.ply": good.replace(b"vertex_indices\nend_header", b"vertex_indices*end_header"),
             "lone_cr.ply": good.replace(b"property float z", b"property float\r\r\r z"),  # found by fuzz_plyobj too
+            # found by fuzz_plyobj: a hundred property-less elements made Assimp 5.2 allocate 2.3 GB
+            "bare_elements.ply": good.replace(b"end_header\n", b"element pad 6\n" * 100 + b"end_header\n", 1),
             "long_list.ply": good[:-13] + b"\xff" + good[-12:],  # the last face claims 255 indices
             "two_vertex_face.ply": good[:-13] + b"\x02" + good[-12:],
             "index.ply": bytes(bad_index),
