@@ -9,11 +9,14 @@
 // Header-only, no SDK types.
 #pragma once
 
+#include <algorithm>
+#include <array>
 #include <cstdint>
 #include <cstdlib>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace hzlabel {
@@ -23,6 +26,28 @@ struct Entry {
     std::string name;
     std::int32_t r = 0, g = 0, b = 0, t = 0;
     std::uint8_t alpha() const { return static_cast<std::uint8_t>(255 - t); }
+    // FreeSurfer's per-vertex annotation value: r + g*256 + b*65536.
+    std::uint32_t packed() const { return std::uint32_t(r) + std::uint32_t(g) * 256u + std::uint32_t(b) * 65536u; }
+};
+
+// The RGBA colour of each label index, for the "<labels> rgba" arrays that
+// annotations and label GIFTIs are read with: an index the table does not
+// define (and -1, unlabeled) is grey with alpha 0. The first entry wins
+// when an index is listed twice.
+class Colours {
+public:
+    explicit Colours(const std::vector<Entry> &table) {
+        for (const Entry &e : table)
+            by_index_.push_back({e.index, {std::uint8_t(e.r), std::uint8_t(e.g), std::uint8_t(e.b), e.alpha()}});
+        std::stable_sort(by_index_.begin(), by_index_.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
+    }
+    std::array<std::uint8_t, 4> operator()(std::int32_t index) const {
+        const auto it = std::lower_bound(by_index_.begin(), by_index_.end(), index, [](const auto &a, std::int32_t k) { return a.first < k; });
+        return it != by_index_.end() && it->first == index ? it->second : std::array<std::uint8_t, 4>{128, 128, 128, 0};
+    }
+
+private:
+    std::vector<std::pair<std::int32_t, std::array<std::uint8_t, 4>>> by_index_;
 };
 
 inline std::string key(std::int32_t index) { return "label " + std::to_string(index); }

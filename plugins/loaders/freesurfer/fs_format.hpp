@@ -6,6 +6,8 @@
 // vnum float32; quad surfaces start FF FF FF or FF FF FD (read only).
 #pragma once
 
+#include "label_table.hpp"
+
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -36,12 +38,7 @@ struct Surface {
 // original-table path, n x {int32 length + name, int32 r g b t}) or
 // version 2 (int32 -2, int32 max index, int32 length + path, int32 count,
 // count x {int32 index, int32 length + name, int32 r g b t}).
-struct AnnotEntry {
-    std::int32_t index = 0;
-    std::string name;
-    std::int32_t r = 0, g = 0, b = 0, t = 0;  // t: transparency
-    std::uint32_t packed() const { return std::uint32_t(r) + std::uint32_t(g) * 256u + std::uint32_t(b) * 65536u; }
-};
+using AnnotEntry = hzlabel::Entry;  // index, name, r g b t (t: transparency)
 struct Annotation {
     // Per vertex: the colour-table index of its label, -1 without one (a
     // value of 0, or a colour no entry has).

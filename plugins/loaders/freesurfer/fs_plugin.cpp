@@ -91,7 +91,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
             r->a = fsurf::parse_annot(m.data(), m.size());
             r->rgba_name = r->array_name + " rgba";
             if (!r->a.orig_table.empty()) r->annot_meta.emplace_back("orig_table", r->a.orig_table);
-            for (const auto &e : r->a.table) r->annot_meta.emplace_back(hzlabel::key(e.index), hzlabel::value({e.index, e.name, e.r, e.g, e.b, e.t}));
+            for (const auto &e : r->a.table) r->annot_meta.emplace_back(hzlabel::key(e.index), hzlabel::value(e));
         } else {
             r->s = parse(m.data(), m.size());
         }
@@ -142,20 +142,14 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
         const std::uint64_t n = r.a.labels.size();
         if (dst->dtype != (index == 0 ? HZ_DTYPE_I32 : HZ_DTYPE_U8) || dst->ndim < 1 || dst->shape[0] != n)
             return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "freesurfer: %s: read_array: destination does not match", r.path.c_str());
-        // colour of each table index
-        std::vector<std::array<unsigned char, 4>> colour;
-        for (const auto &e : r.a.table) {
-            if (std::size_t(e.index) >= colour.size()) colour.resize(std::size_t(e.index) + 1, {128, 128, 128, 0});
-            colour[std::size_t(e.index)] = {static_cast<unsigned char>(e.r), static_cast<unsigned char>(e.g), static_cast<unsigned char>(e.b),
-                                            static_cast<unsigned char>(255 - e.t)};
-        }
+        const hzlabel::Colours colour(r.a.table);
         for (std::uint64_t i = 0; i < n; ++i) {
             const std::int32_t l = r.a.labels[i];
             for (std::uint32_t c = 0; c < (index == 0 ? 1u : 4u); ++c) {
                 unsigned char *cell = hz::view_cell(*dst, i, c, index == 0 ? 4 : 1);
                 if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: read_array: destination too small", r.path.c_str());
                 if (index == 0) std::memcpy(cell, &l, 4);
-                else *cell = l >= 0 ? colour[std::size_t(l)][c] : (c == 3 ? 0 : 128);
+                else *cell = colour(l)[c];
             }
         }
         return HZ_OK;
@@ -265,19 +259,16 @@ hz_status write_annot(const hz_write_request *req, const hz_dataset_view *data) 
         else if (std::string(k) == "orig_table") orig_table = v;
     }
     if (table.empty()) throw FormatError("an annotation needs a colour table (header entries 'label <index>' = '<name> r g b t'); this data has none");
-    std::int32_t max_index = 0;
-    std::vector<std::int32_t> sorted;
-    for (const auto &e : table) {
-        if (e.index < 0) throw FormatError("label index " + std::to_string(e.index) + " is negative (annotation indices are 0 or more)");
-        max_index = std::max(max_index, e.index);
-        sorted.push_back(e.index);
-    }
-    std::sort(sorted.begin(), sorted.end());
-    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) throw FormatError("the colour table lists a label index twice");
     // index -> packed colour, the value stored per vertex
     std::vector<std::pair<std::int32_t, std::uint32_t>> packed;
-    for (const auto &e : table) packed.emplace_back(e.index, std::uint32_t(e.r) + std::uint32_t(e.g) * 256u + std::uint32_t(e.b) * 65536u);
+    for (const auto &e : table) {
+        if (e.index < 0) throw FormatError("label index " + std::to_string(e.index) + " is negative (annotation indices are 0 or more)");
+        packed.emplace_back(e.index, e.packed());
+    }
     std::sort(packed.begin(), packed.end());
+    for (std::size_t i = 1; i < packed.size(); ++i)
+        if (packed[i].first == packed[i - 1].first) throw FormatError("the colour table lists a label index twice");
+    const std::int32_t max_index = packed.back().first;
     const auto *labels = static_cast<const std::int32_t *>(pick->data);
     std::vector<unsigned char> out;
     auto put = [&](std::uint32_t v) { put_be32(out, v); };

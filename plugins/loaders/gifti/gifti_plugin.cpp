@@ -18,8 +18,9 @@ constexpr const char *kId = "org.horizon.loader.gifti";
 struct Reader {
     std::string path;
     gifti::Surface s;
-    // The LabelTable as header entries ("label <key>" = "<name> r g b t").
-    std::vector<std::pair<std::string, std::string>> label_meta;
+    // The LabelTable in 0..255 components, listed as header entries
+    // ("label <key>" = "<name> r g b t").
+    std::vector<hzlabel::Entry> labels;
     // For each NIFTI_INTENT_LABEL overlay (when the file has a LabelTable):
     // a derived uint8 x 4 array "<name> rgba", the colour of each vertex's
     // label (unknown keys grey with alpha 0), listed after the overlays.
@@ -49,7 +50,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
             e.name = l.name;
             e.r = static_cast<std::int32_t>(std::lround(l.red * 255)), e.g = static_cast<std::int32_t>(std::lround(l.green * 255));
             e.b = static_cast<std::int32_t>(std::lround(l.blue * 255)), e.t = 255 - static_cast<std::int32_t>(std::lround(l.alpha * 255));
-            r->label_meta.emplace_back(hzlabel::key(e.index), hzlabel::value(e));
+            r->labels.push_back(std::move(e));
         }
         for (std::size_t i = 0; i < r->s.overlays.size() && !r->s.labels.empty(); ++i) {
             const gifti::Overlay &o = r->s.overlays[i];
@@ -105,7 +106,7 @@ hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, 
     if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: visit_metadata: NULL");
     const gifti::Surface &s = as_reader(reader)->s;
     for (const auto &[k, v] : s.metadata) visitor(ctx, k.c_str(), v.c_str());
-    for (const auto &[k, v] : as_reader(reader)->label_meta) visitor(ctx, k.c_str(), v.c_str());
+    for (const hzlabel::Entry &e : as_reader(reader)->labels) visitor(ctx, hzlabel::key(e.index).c_str(), hzlabel::value(e).c_str());
     if (!s.data_space.empty()) visitor(ctx, "DataSpace", s.data_space.c_str());
     if (!s.transformed_space.empty()) visitor(ctx, "TransformedSpace", s.transformed_space.c_str());
     return HZ_OK;
@@ -130,18 +131,13 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
         if (dst->dtype != HZ_DTYPE_U8 || dst->ndim < 1 || dst->shape[0] != rows)
             return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "gifti: %s: read_array: destination does not match", r.path.c_str());
         const gifti::Overlay &o = r.s.overlays[r.rgba_of[index - r.s.overlays.size()]];
-        std::vector<std::pair<std::int32_t, std::array<unsigned char, 4>>> colour;  // key -> rgba, sorted by key
-        for (const gifti::Label &l : r.s.labels)
-            colour.push_back({l.key, {static_cast<unsigned char>(std::lround(l.red * 255)), static_cast<unsigned char>(std::lround(l.green * 255)),
-                                      static_cast<unsigned char>(std::lround(l.blue * 255)), static_cast<unsigned char>(std::lround(l.alpha * 255))}});
-        std::stable_sort(colour.begin(), colour.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
+        const hzlabel::Colours colour(r.labels);
         for (std::uint64_t i = 0; i < rows; ++i) {
-            const auto it = std::lower_bound(colour.begin(), colour.end(), o.labels[i], [](const auto &a, std::int32_t k) { return a.first < k; });
-            const bool known = it != colour.end() && it->first == o.labels[i];
+            const std::array<std::uint8_t, 4> rgba = colour(o.labels[i]);
             for (std::uint32_t c = 0; c < 4; ++c) {
                 unsigned char *cell = hz::view_cell(*dst, i, c, 1);
                 if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
-                *cell = known ? it->second[c] : (c == 3 ? 0 : 128);
+                *cell = rgba[c];
             }
         }
         return HZ_OK;

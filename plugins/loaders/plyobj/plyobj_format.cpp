@@ -178,15 +178,11 @@ void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t
     auto fail = [&](const PlyElement &e, std::uint64_t r, const std::string &what) {
         throw FormatError("element '" + e.name + "' record " + std::to_string(r) + ": " + what);
     };
-    // Binary: one integer of type t at pos (signed or unsigned), advancing.
-    auto read_binary_int = [&](const std::string &t) -> std::int64_t {
-        const unsigned n = type_size(t);
-        unsigned char b[8];
-        for (unsigned i = 0; i < n; ++i) b[i] = data[pos + (big ? n - 1 - i : i)];
-        pos += n;
+    // Binary: one integer of n bytes at pos, advancing.
+    auto read_binary_int = [&](unsigned n, bool is_signed) -> std::int64_t {
         std::uint64_t u = 0;
-        for (unsigned i = 0; i < n; ++i) u |= std::uint64_t(b[i]) << (8 * i);
-        const bool is_signed = t == "char" || t == "int8" || t == "short" || t == "int16" || t == "int" || t == "int32";
+        for (unsigned i = 0; i < n; ++i) u |= std::uint64_t(data[pos + (big ? n - 1 - i : i)]) << (8 * i);
+        pos += n;
         if (is_signed && n < 8 && (u >> (8 * n - 1)) != 0) return static_cast<std::int64_t>(u | (~std::uint64_t(0) << (8 * n)));
         return static_cast<std::int64_t>(u);
     };
@@ -201,43 +197,65 @@ void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t
         const char *b = t.data() + (t.size() > 1 && t[0] == '+');
         return !t.empty() && std::from_chars(b, t.data() + t.size(), v).ptr == t.data() + t.size();
     };
+    auto is_signed = [](const std::string &t) { return t == "char" || t == "int8" || t == "short" || t == "int16" || t == "int" || t == "int32"; };
+    // What each property is, decided once per element rather than per value.
+    struct Kind {
+        unsigned size, count_size;
+        bool is_signed, count_signed, is_float, list, indices;
+    };
     for (const PlyElement &e : h.elements) {
+        std::vector<Kind> kinds;
+        bool fixed = !ascii;
+        std::uint64_t record = 0;
+        for (const PlyProperty &p : e.properties) {
+            const bool list = !p.count_type.empty();
+            kinds.push_back({type_size(p.type), list ? type_size(p.count_type) : 0, is_signed(p.type), list && is_signed(p.count_type),
+                             is_float(p.type), list, e.name == "face" && (p.name == "vertex_indices" || p.name == "vertex_index")});
+            fixed &= !list;
+            record += type_size(p.type);
+        }
+        if (fixed) {  // binary records of one size: nothing to walk, only to fit
+            if (e.count * record > size - pos) fail(e, (size - pos) / record, "the file ends inside it");
+            pos += e.count * record;
+            continue;
+        }
         for (std::uint64_t r = 0; r < e.count; ++r) {
-            for (const PlyProperty &p : e.properties) {
-                const bool indices = e.name == "face" && (p.name == "vertex_indices" || p.name == "vertex_index");
+            for (std::size_t j = 0; j < kinds.size(); ++j) {
+                const Kind &k = kinds[j];
+                const std::string &name = e.properties[j].name;
                 std::int64_t n = 1;
-                if (!p.count_type.empty()) {  // the list length
+                if (k.list) {  // the list length
                     if (ascii) {
                         const std::string_view t = token();
-                        if (!ascii_int(t, n)) fail(e, r, "list length '" + std::string(t.substr(0, 20)) + "' of '" + p.name + "' is not an integer");
+                        if (!ascii_int(t, n)) fail(e, r, "list length '" + std::string(t.substr(0, 20)) + "' of '" + name + "' is not an integer");
                     } else {
-                        if (size - pos < type_size(p.count_type)) fail(e, r, "the file ends inside it");
-                        n = read_binary_int(p.count_type);
+                        if (size - pos < k.count_size) fail(e, r, "the file ends inside it");
+                        n = read_binary_int(k.count_size, k.count_signed);
                     }
-                    const std::uint64_t item = ascii ? 2 : type_size(p.type);
+                    const std::uint64_t item = ascii ? 2 : k.size;
                     if (n < 0 || std::uint64_t(n) > (size - pos + 1) / item)
-                        fail(e, r, "list '" + p.name + "' of " + std::to_string(n) + " values, more than the file holds");
-                    if (indices && n < 3) fail(e, r, "a face of " + std::to_string(n) + " vertices");
+                        fail(e, r, "list '" + name + "' of " + std::to_string(n) + " values, more than the file holds");
+                    if (k.indices && n < 3) fail(e, r, "a face of " + std::to_string(n) + " vertices");
                 }
-                for (std::int64_t k = 0; k < n; ++k) {
+                for (std::int64_t i = 0; i < n; ++i) {
                     std::int64_t v = 0;
                     if (ascii) {
                         const std::string_view t = token();
                         if (t.empty()) fail(e, r, "the file ends inside it");
-                        if (is_float(p.type)) {
+                        if (k.is_float) {
                             double d = 0;
                             const char *b = t.data() + (t.size() > 1 && t[0] == '+');
                             if (std::from_chars(b, t.data() + t.size(), d).ptr != t.data() + t.size())
-                                fail(e, r, "'" + std::string(t.substr(0, 20)) + "' is not a number (" + p.name + ")");
+                                fail(e, r, "'" + std::string(t.substr(0, 20)) + "' is not a number (" + name + ")");
                         } else if (!ascii_int(t, v)) {
-                            fail(e, r, "'" + std::string(t.substr(0, 20)) + "' is not an integer (" + p.name + ")");
+                            fail(e, r, "'" + std::string(t.substr(0, 20)) + "' is not an integer (" + name + ")");
                         }
                     } else {
-                        if (size - pos < type_size(p.type)) fail(e, r, "the file ends inside it");
-                        if (indices) v = read_binary_int(p.type);
-                        else pos += type_size(p.type);
+                        if (size - pos < k.size) fail(e, r, "the file ends inside it");
+                        if (k.indices) v = read_binary_int(k.size, k.is_signed);
+                        else pos += k.size;
                     }
-                    if (indices && (v < 0 || std::uint64_t(v) >= h.vertices))
+                    if (k.indices && (v < 0 || std::uint64_t(v) >= h.vertices))
                         fail(e, r, "uses vertex " + std::to_string(v) + ", outside [0, " + std::to_string(h.vertices) + ")");
                 }
             }
