@@ -57,6 +57,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     rs.width = w, rs.height = h;
     rs.samples = o.samples;
     rs.lod_pixels = o.lod_pixels;
+    rs.bake_materials = true;  // a scene file's materials do not change while it renders
     const core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
     try {
         r.set_scene(std::move(scene), view, rs);

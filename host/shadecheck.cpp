@@ -171,6 +171,7 @@ ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPl
             core::render::Renderer r(reg);
             core::render::RenderSettings rs;
             rs.width = W, rs.height = H, rs.samples = 1, rs.lod_pixels = 0;
+            rs.bake_materials = set % 2 == 1;  // both program forms: uniforms and baked constants
             r.set_scene(std::move(scene), view, rs);
             const auto out = r.render_debug(view, W, H);
 

@@ -123,6 +123,16 @@ for fmt, e in (("binary_little_endian 1.0", "<"), ("binary_big_endian 1.0", ">")
     body = b"".join(struct.pack(e + "3f3B", *p, *c) for p, c in zip(pv, cols)) + b"".join(struct.pack(e + "B3i", 3, *t) for t in pf)
     with open(os.path.join(out, "plyobj", fmt.split()[0] + ".ply"), "wb") as f:
         f.write(head.format(fmt).encode() + body)
+# extra vertex properties of several types (read into per-vertex arrays)
+head_p = "ply\nformat {}\nelement vertex 6\nproperty float x\nproperty short s\nproperty float y\nproperty float z\n" \
+         "property double quality\nproperty uchar u\nelement face 3\nproperty list uchar int vertex_indices\nend_header\n"
+with open(os.path.join(out, "plyobj", "props_ascii.ply"), "w") as f:
+    f.write(head_p.format("ascii 1.0") + "".join("%g %d %g %g %g %d\n" % (p[0], i - 3, p[1], p[2], p[0] * 0.5, i) for i, p in enumerate(pv)) +
+            "".join("3 %d %d %d\n" % tuple(t) for t in pf))
+with open(os.path.join(out, "plyobj", "props_be.ply"), "wb") as f:
+    f.write(head_p.format("binary_big_endian 1.0").encode() +
+            b"".join(struct.pack(">fhffdB", p[0], i - 3, p[1], p[2], p[0] * 0.5, i) for i, p in enumerate(pv)) +
+            b"".join(struct.pack(">B3i", 3, *t) for t in pf))
 with open(os.path.join(out, "plyobj", "a.obj"), "w") as f:
     f.write("# seed\no part\n" + "".join("v %g %g %g %g %g %g\n" % (*p, *(c / 255)) for p, c in zip(pv, cols)) +
             "vn 0 0 1\nvt 0 0\nf 1/1/1 2/1/1 3/1/1\nf 3 4 5 6\nf -1 -2 -3\nl 1 2\n")

@@ -101,11 +101,82 @@ class PlyObjTest(TempDirTest):
         out = self.path("lab.ply")
         p = run("convert", self.path("lab.gii"), out)
         self.assertEqual(p.returncode, 0, p.stderr)
-        self.assertIn("dropped array", p.stderr)  # the label indices themselves
+        self.assertNotIn("dropped array", p.stderr)
         m = meshio.read(out)
         rgba = ply_colours(m, ("red", "green", "blue", "alpha"))
         want = np.concatenate([ctab[:, :3], 255 - ctab[:, 3:]], 1)[labels]
         np.testing.assert_array_equal(rgba, want)
+        # the label indices themselves: an int vertex property named after the array
+        info = run_json("info", self.path("lab.gii"), "--json")
+        name = [a["name"] for a in info["arrays"] if a["dtype"] == "int32"][0]
+        np.testing.assert_array_equal(m.point_data[name], labels)
+        # OBJ cannot hold them, and says so
+        p = run("convert", self.path("lab.gii"), self.path("lab.obj"))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("dropped array '%s'" % name, p.stderr)
+
+    def test_vertex_properties(self):
+        """Scalar vertex properties other than position, normal and colour (MeshLab's quality, a thickness, a
+        label) read as per-vertex arrays of their own type, as meshio reads them, in ASCII, little- and
+        big-endian files; PLY writes them back bit for bit; other formats that hold per-vertex data keep them."""
+        rng = np.random.default_rng(5)
+        v, f = surface(rng, 40, 50)
+        pd = {"quality": rng.normal(size=len(v)).astype(np.float32),
+              "label": rng.integers(-5, 100000, len(v)).astype(np.int32),
+              "thickness": rng.normal(size=len(v)),  # float64
+              "nx": np.zeros(len(v), np.float32)}  # a normal: not an array
+        for binary in (True, False):
+            with self.subTest(binary=binary):
+                src = self.path("p%d.ply" % binary)
+                meshio.write(src, meshio.Mesh(v, [("triangle", f)], point_data=pd), binary=binary)
+                ref = meshio.read(src)
+                info = run_json("info", src, "--json")
+                self.assertEqual([(a["name"], a["dtype"], a["components"]) for a in info["arrays"]],
+                                 [("quality", "float32", 1), ("label", "int32", 1), ("thickness", "float64", 1)])
+                out = self.path("out%d.ply" % binary)
+                p = run("convert", src, out)
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertNotIn("dropped", p.stderr)
+                m = meshio.read(out)
+                for k in ("quality", "label", "thickness"):
+                    self.assertEqual(m.point_data[k].dtype, ref.point_data[k].dtype)
+                    np.testing.assert_array_equal(m.point_data[k], ref.point_data[k])
+                # through GIFTI (float32 and int32 arrays) and back
+                gii, back = self.path("p%d.gii" % binary), self.path("back%d.ply" % binary)
+                self.assertEqual(run("convert", src, gii).returncode, 0)
+                self.assertEqual(run("convert", gii, back).returncode, 0)
+                b = meshio.read(back)
+                np.testing.assert_array_equal(b.point_data["quality"], pd["quality"])
+                np.testing.assert_array_equal(b.point_data["label"], pd["label"])
+        # Big-endian, with short and uchar properties between the coordinates.
+        be = self.path("be_props.ply")
+        hdr = ("ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty float x\nproperty short s\nproperty float y\n"
+               "property float z\nproperty uchar u\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n").encode()
+        rows = [(1.5, -300, 2.5, 3.5, 200), (0, 7, 1, 0, 0), (4, 32767, 5, 6, 255)]
+        with open(be, "wb") as fh:
+            fh.write(hdr + b"".join(struct.pack(">fhffB", *r) for r in rows) + struct.pack(">B3i", 3, 0, 1, 2))
+        out = self.path("be_props_out.ply")
+        self.assertEqual(run("convert", be, out).returncode, 0)
+        # (meshio 7.0's binary reader has no 'short'; the vertex records are read here with numpy)
+        with open(out, "rb") as fh:
+            data = fh.read()
+        end = data.index(b"end_header\n") + len(b"end_header\n")
+        props = [l.split()[1:] for l in data[:end].decode().splitlines() if l.startswith("property ") and "list" not in l]
+        np_type = {"float": "<f4", "short": "<i2", "uchar": "u1"}
+        self.assertEqual(props, [["float", "x"], ["float", "y"], ["float", "z"], ["short", "s"], ["uchar", "u"]])
+        recs = np.frombuffer(data, dtype=[(n, np_type[t]) for t, n in props], count=3, offset=end)
+        np.testing.assert_array_equal(np.stack([recs["x"], recs["y"], recs["z"]], 1), [[r[0], r[2], r[3]] for r in rows])
+        np.testing.assert_array_equal(recs["s"], [r[1] for r in rows])
+        np.testing.assert_array_equal(recs["u"], [r[4] for r in rows])
+        # An ASCII integer outside its type is an error naming the record.
+        bad = self.path("bad_uchar.ply")
+        with open(bad, "w") as fh:
+            fh.write("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                     "property uchar u\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                     "0 0 0 1\n1 0 0 300\n0 1 0 2\n3 0 1 2\n")
+        p = run("info", bad)
+        self.assert_clean_error(p, "bad_uchar.ply")
+        self.assertIn("record 1", p.stderr)
 
     def test_vertex_order_polygons_and_unused_vertices(self):
         """Vertices stay one per record in file order, unused ones included; polygons become triangles over the

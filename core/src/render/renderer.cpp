@@ -14,7 +14,9 @@
 #include <chrono>
 #include <functional>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <optional>
 #include <map>
 #include <numeric>
 #include <set>
@@ -232,6 +234,9 @@ struct GpuObject {
     const LoadedPlugin *shader = nullptr;
     std::vector<double> values;       // schema order, every component
     std::string albedo;               // name of the colour parameter the colouring drives ("" if none)
+    // Every vertex has this colour (solid colouring, or data that happens to
+    // be constant): with baked materials it is a constant of the program.
+    std::optional<std::array<std::uint8_t, 4>> uniform_rgba;
     bool use_line_domain = false;
     bool refractive = false;          // the snippet reads hz_scene_behind: drawn after the opaque objects
     // Programs by output (see Impl::Output), compiled when first needed.
@@ -630,6 +635,42 @@ struct Renderer::Impl {
         program_for(g, display_direct ? Output::Display : Output::Hdr);
     }
 
+    // A GLSL float literal that reads back as float(v) exactly.
+    static std::string glsl_float(double v) {
+        char buf[32];
+        std::snprintf(buf, sizeof buf, "%.9g", double(float(v)));
+        std::string t = buf;
+        if (t.find_first_of(".e") == std::string::npos) t += ".0";
+        return t;
+    }
+
+    // Baked materials: parameter `pi` (values v) as a constant of the
+    // program instead of a uniform, so the compiler folds every expression
+    // of the parameters (and of a colour every vertex shares) once, instead
+    // of per fragment. Returns false for a type it does not bake.
+    static bool bake_declaration(std::ostringstream &decl, const hz_param_info *pi, const std::string &u, const double *v,
+                                 const GpuObject &g) {
+        switch (pi->type) {
+        case HZ_PARAM_FLOAT: decl << "const float " << u << " = " << glsl_float(v[0]) << ";\n"; return true;
+        case HZ_PARAM_INT:
+        case HZ_PARAM_ENUM: decl << "const int " << u << " = " << std::llround(v[0]) << ";\n"; return true;
+        case HZ_PARAM_BOOL: decl << "const bool " << u << " = " << (std::llround(v[0]) != 0 ? "true" : "false") << ";\n"; return true;
+        case HZ_PARAM_VEC2: decl << "const vec2 " << u << " = vec2(" << glsl_float(v[0]) << ", " << glsl_float(v[1]) << ");\n"; return true;
+        case HZ_PARAM_VEC3:
+        case HZ_PARAM_COLOR3:
+            if (pi->name == g.albedo) {
+                if (!g.uniform_rgba) return false;  // per-vertex colours
+                const auto &c = *g.uniform_rgba;
+                decl << "const vec3 " << u << " = vec3(" << glsl_float(c[0] / 255.0) << ", " << glsl_float(c[1] / 255.0) << ", "
+                     << glsl_float(c[2] / 255.0) << ");  // the colour every vertex has\n";
+                return true;
+            }
+            decl << "const vec3 " << u << " = vec3(" << glsl_float(v[0]) << ", " << glsl_float(v[1]) << ", " << glsl_float(v[2]) << ");\n";
+            return true;
+        default: return false;
+        }
+    }
+
     std::string fragment_source(const GpuObject &g, Output out) const {
         const bool debug = out == Output::Debug;
         const hz_shader *sh = g.shader->shader();
@@ -674,6 +715,10 @@ struct Renderer::Impl {
             if ((pi->flags & HZ_PARAM_FLAG_REQUIRES_RECOMPILE) &&
                 (pi->type == HZ_PARAM_INT || pi->type == HZ_PARAM_ENUM || pi->type == HZ_PARAM_BOOL))
                 s << "#define HZ_PARAM_" << pi->name << " " << std::llround(g.values[k]) << "\n";
+            if (settings.bake_materials && bake_declaration(decl, pi, u, g.values.data() + k, g)) {
+                k += pi->components;
+                continue;
+            }
             switch (pi->type) {
             case HZ_PARAM_FLOAT: decl << "uniform float " << u << ";\n"; break;
             case HZ_PARAM_INT:
@@ -780,6 +825,17 @@ struct Renderer::Impl {
         keep.push_back(std::uint32_t(n - 1));
     }
 
+    // The colour all vertices share, if they share one.
+    template <class Vertex>
+    static std::optional<std::array<std::uint8_t, 4>> same_colour(const std::vector<Vertex> &verts) {
+        if (verts.empty()) return std::nullopt;
+        std::array<std::uint8_t, 4> c;
+        std::memcpy(c.data(), verts[0].rgba, 4);
+        for (const Vertex &v : verts)
+            if (std::memcmp(v.rgba, c.data(), 4) != 0) return std::nullopt;
+        return c;
+    }
+
     void upload_streamlines(GpuObject &g, const Object &o, double tol_mm) {
         const Tractogram &t = o.data.tractogram;
         const std::uint64_t N = t.nb_streamlines();
@@ -878,6 +934,7 @@ struct Renderer::Impl {
                 verts.push_back(v);
             }
         }
+        g.uniform_rgba = same_colour(verts);
         glGenVertexArrays(1, &g.vao);
         glBindVertexArray(g.vao);
         glGenBuffers(1, &g.vbo);
@@ -964,6 +1021,7 @@ struct Renderer::Impl {
             else col = rgba8(c.color[0], c.color[1], c.color[2]);
             std::memcpy(v.rgba, col.data(), 4);
         }
+        g.uniform_rgba = same_colour(verts);
         glGenVertexArrays(1, &g.vao);
         glBindVertexArray(g.vao);
         glGenBuffers(1, &g.vbo);

@@ -45,6 +45,15 @@ unsigned type_size(const std::string &t) {
 
 bool is_float(const std::string &t) { return t == "float" || t == "float32" || t == "double" || t == "float64"; }
 
+const char *const kRoleProperties[] = {"x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha"};
+
+// An integer value's range check for a PLY integer type of `size` bytes.
+bool fits(std::int64_t v, unsigned size, bool is_signed) {
+    const int bits = int(8 * size);
+    if (is_signed) return v >= -(std::int64_t(1) << (bits - 1)) && v < (std::int64_t(1) << (bits - 1));
+    return v >= 0 && v < (std::int64_t(1) << bits);
+}
+
 // A read-only std::streambuf over memory, so that tinyobjloader parses the
 // mapped file without a copy.
 struct MemoryBuf : std::streambuf {
@@ -60,6 +69,17 @@ void check_finite(const std::vector<float> &v) {
 }
 
 }  // namespace
+
+unsigned ply_type_size(const std::string &t) { return type_size(t); }
+
+std::string ply_canonical_type(const std::string &t) {
+    static const std::pair<const char *, const char *> kAlias[] = {{"int8", "char"},   {"uint8", "uchar"}, {"int16", "short"},
+                                                                   {"uint16", "ushort"}, {"int32", "int"},   {"uint32", "uint"},
+                                                                   {"float32", "float"}, {"float64", "double"}};
+    for (const auto &[a, c] : kAlias)
+        if (t == a || t == c) return c;
+    return "";
+}
 
 PlyHeader check_ply_header(const unsigned char *data, std::uint64_t size) {
     PlyHeader h;
@@ -172,7 +192,7 @@ PlyHeader check_ply_header(const unsigned char *data, std::uint64_t size) {
 // reader is only ever given a file that holds what its header says: every
 // record inside the file, list lengths that fit, every face of at least 3
 // vertices that exist. Errors name the element and record.
-void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t size) {
+void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t size, std::vector<VertexProperty> *properties) {
     const bool ascii = h.format == "ascii", big = h.format == "binary_big_endian";
     std::uint64_t pos = h.header_bytes;
     auto fail = [&](const PlyElement &e, std::uint64_t r, const std::string &what) {
@@ -207,15 +227,39 @@ void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t
         std::vector<Kind> kinds;
         bool fixed = !ascii;
         std::uint64_t record = 0;
+        // The vertex properties to collect: index in the element -> output, and byte offset in a binary record.
+        std::vector<VertexProperty *> collect(e.properties.size(), nullptr);
+        std::vector<std::uint64_t> offset(e.properties.size(), 0);
+        const std::size_t first_out = properties ? properties->size() : 0;
         for (const PlyProperty &p : e.properties) {
             const bool list = !p.count_type.empty();
             kinds.push_back({type_size(p.type), list ? type_size(p.count_type) : 0, is_signed(p.type), list && is_signed(p.count_type),
                              is_float(p.type), list, e.name == "face" && (p.name == "vertex_indices" || p.name == "vertex_index")});
+            offset[kinds.size() - 1] = record;
             fixed &= !list;
             record += type_size(p.type);
+            if (properties && e.name == "vertex" && !list &&
+                std::none_of(std::begin(kRoleProperties), std::end(kRoleProperties), [&](const char *r) { return p.name == r; }))
+                properties->push_back({p.name, ply_canonical_type(p.type), {}});
         }
+        if (properties && e.name == "vertex")
+            for (std::size_t j = 0, o = first_out; j < e.properties.size(); ++j)
+                if (o < properties->size() && (*properties)[o].name == e.properties[j].name) {
+                    collect[j] = &(*properties)[o++];
+                    collect[j]->bytes.reserve(std::size_t(e.count * kinds[j].size));
+                }
         if (fixed) {  // binary records of one size: nothing to walk, only to fit
             if (e.count * record > size - pos) fail(e, (size - pos) / record, "the file ends inside it");
+            for (std::size_t j = 0; j < kinds.size(); ++j) {
+                if (collect[j] == nullptr) continue;
+                const unsigned n = kinds[j].size;
+                std::vector<unsigned char> &out = collect[j]->bytes;
+                out.resize(std::size_t(e.count * n));
+                for (std::uint64_t r = 0; r < e.count; ++r) {
+                    const unsigned char *src = data + pos + r * record + offset[j];
+                    for (unsigned b = 0; b < n; ++b) out[std::size_t(r * n + b)] = src[big ? n - 1 - b : b];
+                }
+            }
             pos += e.count * record;
             continue;
         }
@@ -247,9 +291,24 @@ void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t
                             const char *b = t.data() + (t.size() > 1 && t[0] == '+');
                             if (std::from_chars(b, t.data() + t.size(), d).ptr != t.data() + t.size())
                                 fail(e, r, "'" + std::string(t.substr(0, 20)) + "' is not a number (" + name + ")");
+                            if (collect[j]) {
+                                const float f = static_cast<float>(d);
+                                const unsigned char *src = k.size == 4 ? reinterpret_cast<const unsigned char *>(&f)
+                                                                       : reinterpret_cast<const unsigned char *>(&d);
+                                collect[j]->bytes.insert(collect[j]->bytes.end(), src, src + k.size);
+                            }
                         } else if (!ascii_int(t, v)) {
                             fail(e, r, "'" + std::string(t.substr(0, 20)) + "' is not an integer (" + name + ")");
+                        } else if (collect[j]) {
+                            if (!fits(v, k.size, k.is_signed))
+                                fail(e, r, std::to_string(v) + " does not fit the type of '" + name + "' (" + e.properties[j].type + ")");
+                            const auto u = static_cast<std::uint64_t>(v);  // little-endian host
+                            for (unsigned b = 0; b < k.size; ++b) collect[j]->bytes.push_back(static_cast<unsigned char>(u >> (8 * b)));
                         }
+                    } else if (collect[j]) {
+                        if (size - pos < k.size) fail(e, r, "the file ends inside it");
+                        for (unsigned b = 0; b < k.size; ++b) collect[j]->bytes.push_back(data[pos + (big ? k.size - 1 - b : b)]);
+                        pos += k.size;
                     } else {
                         if (size - pos < k.size) fail(e, r, "the file ends inside it");
                         if (k.indices) v = read_binary_int(k.size, k.is_signed);
@@ -265,7 +324,8 @@ void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t
 
 Mesh read_ply(const unsigned char *data, std::uint64_t size) {
     const PlyHeader h = check_ply_header(data, size);
-    check_ply_body(h, data, size);
+    std::vector<VertexProperty> properties;
+    check_ply_body(h, data, size, &properties);
     if (h.faces == 0) throw FormatError("no faces (" + std::to_string(h.vertices) + " vertices: a point cloud, not a mesh)");
     Assimp::Importer importer;
     // No post-processing: no welding, no reordering, no normals. Polygons are
@@ -310,6 +370,7 @@ Mesh read_ply(const unsigned char *data, std::uint64_t size) {
             out.colors[3ull * i + 2] = std::clamp(c.b, 0.0f, 1.0f);
         }
     }
+    out.properties = std::move(properties);
     out.metadata.emplace_back("ply format", h.format);
     for (const auto &c : h.comments) out.metadata.emplace_back("comment", c);
     for (const auto &e : h.other_elements) out.metadata.emplace_back("ignored element", e);
@@ -435,16 +496,26 @@ void write_ply(const std::string &path, const WriteInput &in) {
         if (c != "created by Horizon (RAS+ mm)") h += "comment " + one_line(c) + "\n";
     h += "element vertex " + std::to_string(in.nb_vertices) + "\nproperty float x\nproperty float y\nproperty float z\n";
     if (rgba) h += "property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n";
+    std::size_t rec = rgba ? 16 : 12;
+    std::vector<unsigned> sizes;
+    for (const auto &p : in.properties) {
+        const unsigned n = type_size(p.type);
+        if (n == 0 || p.type != ply_canonical_type(p.type) || p.data == nullptr) throw FormatError("vertex property '" + p.name + "': bad type '" + p.type + "'");
+        h += "property " + p.type + " " + p.name + "\n";
+        sizes.push_back(n);
+        rec += n;
+    }
     h += "element face " + std::to_string(in.nb_faces) + "\nproperty list uchar int vertex_indices\nend_header\n";
     File f(path);
     f.put(h.data(), h.size());
-    const std::size_t rec = rgba ? 16 : 12;
     std::vector<unsigned char> chunk;
     chunk.reserve(rec * 65536);
     for (std::uint64_t i = 0; i < in.nb_vertices; ++i) {
         const auto *p = reinterpret_cast<const unsigned char *>(in.vertices + 3 * i);
         chunk.insert(chunk.end(), p, p + 12);
         if (rgba) chunk.insert(chunk.end(), in.colors.begin() + std::ptrdiff_t(4 * i), in.colors.begin() + std::ptrdiff_t(4 * i + 4));
+        for (std::size_t k = 0; k < sizes.size(); ++k)
+            chunk.insert(chunk.end(), in.properties[k].data + i * sizes[k], in.properties[k].data + (i + 1) * sizes[k]);
         if (chunk.size() >= rec * 65536) f.put(chunk.data(), chunk.size()), chunk.clear();
     }
     for (std::uint64_t i = 0; i < in.nb_faces; ++i) {

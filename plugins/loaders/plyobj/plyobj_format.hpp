@@ -27,10 +27,25 @@ struct FormatError : std::runtime_error {
     using std::runtime_error::runtime_error;
 };
 
+// A scalar per-vertex property other than position, normal and colour
+// (MeshLab's quality, a curvature, a label): read into a per-vertex array of
+// the same name and type, and written back as a property.
+struct VertexProperty {
+    std::string name;
+    std::string type;                    // canonical PLY type: char uchar short ushort int uint float double
+    std::vector<unsigned char> bytes;    // one value per vertex, host (little-endian) order
+};
+
+// The size of a canonical or alias PLY type name (int8 ... float64), 0 if unknown.
+unsigned ply_type_size(const std::string &type);
+// The canonical name of a PLY type (float32 -> float), or "" if unknown.
+std::string ply_canonical_type(const std::string &type);
+
 struct Mesh {
     std::vector<float> vertices;         // N x 3, as stored (RAS+ mm by convention)
     std::vector<std::uint32_t> faces;    // M x 3, 0-based, < N
     std::vector<float> colors;           // N x 3 in [0, 1], or empty
+    std::vector<VertexProperty> properties;  // PLY: the vertex element's other scalar properties, in file order
     std::vector<std::pair<std::string, std::string>> metadata;  // PLY comments, ignored elements
 };
 
@@ -61,7 +76,11 @@ PlyHeader check_ply_header(const unsigned char *data, std::uint64_t size);
 
 // Walks the body record by record as `h` declares it (sizes, list lengths,
 // numbers, face indices); throws FormatError naming the element and record.
-void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t size);
+// With `properties`, also collects the vertex element's scalar properties
+// other than x y z, nx ny nz and red green blue alpha (an integer outside
+// its type's range is an error).
+void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t size,
+                    std::vector<VertexProperty> *properties = nullptr);
 
 // Reads a whole PLY file held in memory (header and body checked first, then
 // Assimp); throws FormatError.
@@ -80,6 +99,13 @@ struct WriteInput {
     std::uint64_t nb_faces = 0;
     std::vector<std::uint8_t> colors;
     std::vector<std::string> comments;
+    // PLY only: extra vertex properties, each `nb_vertices` values of its
+    // canonical type, host order; `data` is borrowed for the call.
+    struct Property {
+        std::string name, type;
+        const unsigned char *data = nullptr;
+    };
+    std::vector<Property> properties;
 };
 void write_ply(const std::string &path, const WriteInput &in);
 void write_obj(const std::string &path, const WriteInput &in);

@@ -75,14 +75,57 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
     static const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
     std::memcpy(out->voxel_to_ras, identity, sizeof identity);
     out->source_space = HZ_SPACE_RASMM;
-    out->nb_arrays = r.m.colors.empty() ? 0 : 1;
+    out->nb_arrays = (r.m.colors.empty() ? 0 : 1) + static_cast<uint32_t>(r.m.properties.size());
     return HZ_OK;
+}
+
+// Arrays: "color" first when the file has colours, then the PLY vertex properties.
+hz_dtype dtype_of(const std::string &ply_type) {
+    if (ply_type == "char") return HZ_DTYPE_I8;
+    if (ply_type == "uchar") return HZ_DTYPE_U8;
+    if (ply_type == "short") return HZ_DTYPE_I16;
+    if (ply_type == "ushort") return HZ_DTYPE_U16;
+    if (ply_type == "int") return HZ_DTYPE_I32;
+    if (ply_type == "uint") return HZ_DTYPE_U32;
+    if (ply_type == "float") return HZ_DTYPE_F32;
+    return HZ_DTYPE_F64;
+}
+const char *ply_type_of(uint32_t dtype) {
+    switch (dtype) {
+    case HZ_DTYPE_I8: return "char";
+    case HZ_DTYPE_U8: return "uchar";
+    case HZ_DTYPE_I16: return "short";
+    case HZ_DTYPE_U16: return "ushort";
+    case HZ_DTYPE_I32: return "int";
+    case HZ_DTYPE_U32: return "uint";
+    case HZ_DTYPE_F32: return "float";
+    case HZ_DTYPE_F64: return "double";
+    default: return nullptr;
+    }
+}
+const plyobj::VertexProperty *property_at(const Reader &r, uint32_t index) {
+    if (!r.m.colors.empty()) {
+        if (index == 0) return nullptr;
+        --index;
+    }
+    return index < r.m.properties.size() ? &r.m.properties[index] : nullptr;
+}
+bool valid_array(const Reader &r, uint32_t index) {
+    return (index == 0 && !r.m.colors.empty()) || property_at(r, index) != nullptr;
 }
 
 hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
     if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: get_array_info: NULL");
     const Reader &r = *as_reader(reader);
-    if (index != 0 || r.m.colors.empty()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "plyobj: %s: no extra array %u", r.path.c_str(), index);
+    if (!valid_array(r, index)) return hz::set_errorf(err, HZ_E_NOT_FOUND, "plyobj: %s: no extra array %u", r.path.c_str(), index);
+    if (const plyobj::VertexProperty *p = property_at(r, index)) {
+        out->attach = HZ_ATTACH_VERTEX;
+        out->name = p->name.c_str();
+        out->dtype = dtype_of(p->type);
+        out->components = 1;
+        out->count = r.m.vertices.size() / 3;
+        return HZ_OK;
+    }
     out->attach = HZ_ATTACH_VERTEX;
     out->name = "color";
     out->dtype = HZ_DTYPE_F32;
@@ -94,7 +137,19 @@ hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info
 hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
     if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: read_array: NULL");
     const Reader &r = *as_reader(reader);
-    if (index != 0 || r.m.colors.empty()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "plyobj: %s: no extra array %u", r.path.c_str(), index);
+    if (!valid_array(r, index)) return hz::set_errorf(err, HZ_E_NOT_FOUND, "plyobj: %s: no extra array %u", r.path.c_str(), index);
+    if (const plyobj::VertexProperty *p = property_at(r, index)) {
+        const std::uint64_t n = r.m.vertices.size() / 3;
+        const unsigned size = plyobj::ply_type_size(p->type);
+        if (dst->dtype != dtype_of(p->type) || dst->ndim < 1 || dst->shape[0] != n)
+            return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "plyobj: %s: read_array: destination does not match", r.path.c_str());
+        for (std::uint64_t i = 0; i < n; ++i) {
+            unsigned char *cell = hz::view_cell(*dst, i, 0, size);
+            if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "plyobj: %s: read_array: destination too small", r.path.c_str());
+            std::memcpy(cell, p->bytes.data() + i * size, size);
+        }
+        return HZ_OK;
+    }
     const std::uint64_t n = r.m.colors.size() / 3;
     if (dst->dtype != HZ_DTYPE_F32 || dst->ndim < 1 || dst->shape[0] != n)
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "plyobj: %s: read_array: destination does not match", r.path.c_str());
@@ -150,10 +205,33 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             if (is_float_colour && (colour == nullptr || colour->dtype != HZ_DTYPE_F32)) colour = &a;
             else if (is_rgba8 && colour == nullptr) colour = &a;
         }
+        // PLY: every other per-vertex scalar array whose name is a PLY word
+        // (and not one of the properties written for geometry and colour)
+        // becomes a vertex property of its type.
+        auto ply_word = [](const char *name) {
+            if (name == nullptr || *name == 0 || std::strlen(name) > 128) return false;
+            for (const char *c = name; *c; ++c)
+                if (static_cast<unsigned char>(*c) <= 0x20 || static_cast<unsigned char>(*c) >= 0x7f) return false;
+            for (const char *r : {"x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha"})
+                if (std::strcmp(name, r) == 0) return false;
+            return true;
+        };
+        std::vector<const hz_named_array *> kept = {colour};
+        for (uint32_t i = 0; i < data->nb_arrays && ext != "obj"; ++i) {
+            const hz_named_array &a = data->arrays[i];
+            if (&a == colour || a.attach != HZ_ATTACH_VERTEX || a.count != nv || a.components != 1 || ply_type_of(a.dtype) == nullptr ||
+                a.data == nullptr || !ply_word(a.name))
+                continue;
+            if (std::any_of(in.properties.begin(), in.properties.end(), [&](const auto &p) { return p.name == a.name; })) continue;
+            in.properties.push_back({a.name, ply_type_of(a.dtype), static_cast<const unsigned char *>(a.data)});
+            kept.push_back(&a);
+        }
         for (uint32_t i = 0; i < data->nb_arrays && req->on_dropped; ++i)
-            if (&data->arrays[i] != colour)
+            if (std::find(kept.begin(), kept.end(), &data->arrays[i]) == kept.end())
                 req->on_dropped(req->ctx, ("array '" + std::string(data->arrays[i].name ? data->arrays[i].name : "") + "' (" + ext +
-                                           " keeps geometry and vertex colours only)").c_str());
+                                           (ext == "obj" ? " keeps geometry and vertex colours only)"
+                                                         : " keeps geometry, vertex colours and per-vertex scalars of 8-64 bits)"))
+                                              .c_str());
         if (colour != nullptr) {
             in.colors.resize(4 * nv);
             for (std::uint64_t i = 0; i < nv; ++i)

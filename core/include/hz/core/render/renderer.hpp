@@ -49,6 +49,14 @@ struct RenderSettings {
     // rasterises multisampled lines about 5-8x slower).
     int samples = 0;
     double lod_pixels = 0.5;         // streamline decimation tolerance in pixels (0 = keep every point)
+    // Material parameters, and a base colour shared by every vertex of an
+    // object, become constants of the object's program instead of uniforms:
+    // the GLSL compiler then folds everything computed from them, and
+    // fragments only do the work that varies. Each new set of values
+    // compiles a new program, so this is for scenes whose materials stay
+    // fixed (`horizon render`); the window, whose sliders change them, keeps
+    // uniforms.
+    bool bake_materials = false;
 };
 
 struct FrameStats {
