@@ -1,4 +1,4 @@
-// libFuzzer target: PLY (header checks, then Assimp) and OBJ (vertex checks,
+// libFuzzer target: PLY (Horizon's header checks and decoder) and OBJ (vertex checks,
 // then tinyobjloader) from memory, as the plugin parses its mapped file.
 // Inputs starting "ply" go to the PLY reader, all others to the OBJ reader.
 #include "plyobj_format.hpp"

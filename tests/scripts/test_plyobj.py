@@ -240,6 +240,11 @@ class PlyObjTest(TempDirTest):
             "lone_cr.ply": good.replace(b"property float z", b"property float\r\r\r z"),  # found by fuzz_plyobj too
             # found by fuzz_plyobj: a hundred property-less elements made Assimp 5.2 allocate 2.3 GB
             "bare_elements.ply": good.replace(b"end_header\n", b"element pad 6\n" * 100 + b"end_header\n", 1),
+            # found by fuzz_plyobj: a 29-digit colour value passed the checks (std::from_chars reports it out of
+            # range, not unparsed) and Assimp 5.2 then allocated 7.6 GB
+            "long_int.ply": b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                            b"property uchar red\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                            b"0 0 0 1\n1 0 0 88888888888888888888888888888\n0 1 0 2\n3 0 1 2\n",
             "long_list.ply": good[:-13] + b"\xff" + good[-12:],  # the last face claims 255 indices
             "two_vertex_face.ply": good[:-13] + b"\x02" + good[-12:],
             "index.ply": bytes(bad_index),

@@ -1,8 +1,6 @@
-// PLY (Assimp) and OBJ (tinyobjloader) meshes; see plyobj_format.hpp.
+// PLY (Horizon's decoder) and OBJ (tinyobjloader) meshes; see plyobj_format.hpp.
 #include "plyobj_format.hpp"
 
-#include <assimp/Importer.hpp>
-#include <assimp/scene.h>
 #include <tiny_obj_loader.h>
 
 #include <algorithm>
@@ -188,23 +186,16 @@ PlyHeader check_ply_header(const unsigned char *data, std::uint64_t size) {
     return h;
 }
 
-// Walks every record of the body as the header declares it, so that the
-// reader is only ever given a file that holds what its header says: every
-// record inside the file, list lengths that fit, every face of at least 3
-// vertices that exist. Errors name the element and record.
-void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t size, std::vector<VertexProperty> *properties) {
+// Decodes the body record by record as the header declares it. Every value
+// is read and checked (inside the file, a number of its type, list lengths
+// that fit, faces of at least 3 vertices that exist); the vertex element's
+// coordinates, colours and other scalar properties and the face element's
+// polygons (as fans) go to `out`. Errors name the element and record.
+void decode_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t size, Mesh &out) {
     const bool ascii = h.format == "ascii", big = h.format == "binary_big_endian";
     std::uint64_t pos = h.header_bytes;
     auto fail = [&](const PlyElement &e, std::uint64_t r, const std::string &what) {
         throw FormatError("element '" + e.name + "' record " + std::to_string(r) + ": " + what);
-    };
-    // Binary: one integer of n bytes at pos, advancing.
-    auto read_binary_int = [&](unsigned n, bool is_signed) -> std::int64_t {
-        std::uint64_t u = 0;
-        for (unsigned i = 0; i < n; ++i) u |= std::uint64_t(data[pos + (big ? n - 1 - i : i)]) << (8 * i);
-        pos += n;
-        if (is_signed && n < 8 && (u >> (8 * n - 1)) != 0) return static_cast<std::int64_t>(u | (~std::uint64_t(0) << (8 * n)));
-        return static_cast<std::int64_t>(u);
     };
     // ASCII: the next whitespace-separated token.
     auto token = [&]() -> std::string_view {
@@ -213,53 +204,103 @@ void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t
         while (pos < size && data[pos] != ' ' && data[pos] != '\t' && data[pos] != '\r' && data[pos] != '\n') ++pos;
         return {reinterpret_cast<const char *>(data + start), std::size_t(pos - start)};
     };
-    auto ascii_int = [&](std::string_view t, std::int64_t &v) {
-        const char *b = t.data() + (t.size() > 1 && t[0] == '+');
-        return !t.empty() && std::from_chars(b, t.data() + t.size(), v).ptr == t.data() + t.size();
-    };
     auto is_signed = [](const std::string &t) { return t == "char" || t == "int8" || t == "short" || t == "int16" || t == "int" || t == "int32"; };
-    // What each property is, decided once per element rather than per value.
+    // What each property is and where its values go, decided once per element.
+    enum class Role { Skip, Coord, Colour, Extra, Indices };
     struct Kind {
         unsigned size, count_size;
-        bool is_signed, count_signed, is_float, list, indices;
+        bool is_signed, count_signed, is_float, list;
+        Role role;
+        int axis;  // Coord / Colour: 0..2
+        VertexProperty *extra;
     };
+    // One value of a property: ints exactly, floats as double.
+    struct Value {
+        std::int64_t i;
+        double d;
+    };
+    auto read_value = [&](const PlyElement &e, std::uint64_t r, unsigned n, bool is_float, bool sgn, const std::string &name) -> Value {
+        if (ascii) {
+            const std::string_view t = token();
+            if (t.empty()) fail(e, r, "the file ends inside it");
+            const char *b = t.data() + (t.size() > 1 && t[0] == '+'), *end = t.data() + t.size();
+            if (is_float) {
+                double d = 0;
+                const auto res = std::from_chars(b, end, d);
+                if (res.ptr != end || res.ec != std::errc())
+                    fail(e, r, "'" + std::string(t.substr(0, 20)) + "' is not a number (" + name + ")");
+                return {0, d};
+            }
+            std::int64_t v = 0;
+            const auto res = std::from_chars(b, end, v);
+            if (res.ptr != end || res.ec != std::errc())
+                fail(e, r, "'" + std::string(t.substr(0, 20)) + "' is not an integer (" + name + ")");
+            if (!fits(v, n, sgn)) fail(e, r, std::to_string(v) + " does not fit the type of '" + name + "'");
+            return {v, double(v)};
+        }
+        if (size - pos < n) fail(e, r, "the file ends inside it");
+        std::uint64_t u = 0;
+        for (unsigned i = 0; i < n; ++i) u |= std::uint64_t(data[pos + (big ? n - 1 - i : i)]) << (8 * i);
+        pos += n;
+        if (is_float) {
+            if (n == 4) {
+                float f;
+                const auto u32 = static_cast<std::uint32_t>(u);
+                std::memcpy(&f, &u32, 4);
+                return {0, f};
+            }
+            double d;
+            std::memcpy(&d, &u, 8);
+            return {0, d};
+        }
+        std::int64_t v = static_cast<std::int64_t>(u);
+        if (sgn && n < 8 && (u >> (8 * n - 1)) != 0) v = static_cast<std::int64_t>(u | (~std::uint64_t(0) << (8 * n)));
+        return {v, double(v)};
+    };
+    const std::uint64_t nv = h.vertices;
+    bool colours = false;
+    std::vector<std::uint32_t> polygon;
     for (const PlyElement &e : h.elements) {
+        const bool vertex = e.name == "vertex", face = e.name == "face";
         std::vector<Kind> kinds;
         bool fixed = !ascii;
         std::uint64_t record = 0;
-        // The vertex properties to collect: index in the element -> output, and byte offset in a binary record.
-        std::vector<VertexProperty *> collect(e.properties.size(), nullptr);
-        std::vector<std::uint64_t> offset(e.properties.size(), 0);
-        const std::size_t first_out = properties ? properties->size() : 0;
+        int colour_axes = 0;
         for (const PlyProperty &p : e.properties) {
             const bool list = !p.count_type.empty();
-            kinds.push_back({type_size(p.type), list ? type_size(p.count_type) : 0, is_signed(p.type), list && is_signed(p.count_type),
-                             is_float(p.type), list, e.name == "face" && (p.name == "vertex_indices" || p.name == "vertex_index")});
-            offset[kinds.size() - 1] = record;
+            Kind k{type_size(p.type), list ? type_size(p.count_type) : 0, is_signed(p.type), list && is_signed(p.count_type),
+                   is_float(p.type), list, Role::Skip, 0, nullptr};
+            if (vertex) {
+                static const char *const kCoord[] = {"x", "y", "z"}, *const kColour[] = {"red", "green", "blue"};
+                for (int a = 0; a < 3; ++a) {
+                    if (p.name == kCoord[a]) k.role = Role::Coord, k.axis = a;
+                    if (p.name == kColour[a]) k.role = Role::Colour, k.axis = a, ++colour_axes;
+                }
+                if (k.role == Role::Skip && !list &&
+                    std::none_of(std::begin(kRoleProperties), std::end(kRoleProperties), [&](const char *r) { return p.name == r; })) {
+                    out.properties.push_back({p.name, ply_canonical_type(p.type), {}});
+                    k.role = Role::Extra;
+                }
+            } else if (face && list && (p.name == "vertex_indices" || p.name == "vertex_index") && !k.is_float) {
+                k.role = Role::Indices;
+            }
+            kinds.push_back(k);
             fixed &= !list;
             record += type_size(p.type);
-            if (properties && e.name == "vertex" && !list &&
-                std::none_of(std::begin(kRoleProperties), std::end(kRoleProperties), [&](const char *r) { return p.name == r; }))
-                properties->push_back({p.name, ply_canonical_type(p.type), {}});
         }
-        if (properties && e.name == "vertex")
-            for (std::size_t j = 0, o = first_out; j < e.properties.size(); ++j)
-                if (o < properties->size() && (*properties)[o].name == e.properties[j].name) {
-                    collect[j] = &(*properties)[o++];
-                    collect[j]->bytes.reserve(std::size_t(e.count * kinds[j].size));
-                }
-        if (fixed) {  // binary records of one size: nothing to walk, only to fit
+        if (vertex) {
+            // (pointers into out.properties, now that it no longer grows)
+            std::size_t next = out.properties.size();
+            for (auto it = kinds.rbegin(); it != kinds.rend(); ++it)
+                if (it->role == Role::Extra) it->extra = &out.properties[--next];
+            for (Kind &k : kinds)
+                if (k.extra) k.extra->bytes.reserve(std::size_t(e.count * k.size));
+            out.vertices.assign(3 * std::size_t(e.count), 0.0f);
+            colours = colour_axes == 3;
+            if (colours) out.colors.assign(3 * std::size_t(e.count), 0.0f);
+        }
+        if (fixed && !vertex && !face) {  // binary records of one size, nothing to keep: only to fit
             if (e.count * record > size - pos) fail(e, (size - pos) / record, "the file ends inside it");
-            for (std::size_t j = 0; j < kinds.size(); ++j) {
-                if (collect[j] == nullptr) continue;
-                const unsigned n = kinds[j].size;
-                std::vector<unsigned char> &out = collect[j]->bytes;
-                out.resize(std::size_t(e.count * n));
-                for (std::uint64_t r = 0; r < e.count; ++r) {
-                    const unsigned char *src = data + pos + r * record + offset[j];
-                    for (unsigned b = 0; b < n; ++b) out[std::size_t(r * n + b)] = src[big ? n - 1 - b : b];
-                }
-            }
             pos += e.count * record;
             continue;
         }
@@ -269,54 +310,52 @@ void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t
                 const std::string &name = e.properties[j].name;
                 std::int64_t n = 1;
                 if (k.list) {  // the list length
-                    if (ascii) {
-                        const std::string_view t = token();
-                        if (!ascii_int(t, n)) fail(e, r, "list length '" + std::string(t.substr(0, 20)) + "' of '" + name + "' is not an integer");
-                    } else {
-                        if (size - pos < k.count_size) fail(e, r, "the file ends inside it");
-                        n = read_binary_int(k.count_size, k.count_signed);
-                    }
+                    n = read_value(e, r, k.count_size, false, k.count_signed, name).i;
                     const std::uint64_t item = ascii ? 2 : k.size;
                     if (n < 0 || std::uint64_t(n) > (size - pos + 1) / item)
                         fail(e, r, "list '" + name + "' of " + std::to_string(n) + " values, more than the file holds");
-                    if (k.indices && n < 3) fail(e, r, "a face of " + std::to_string(n) + " vertices");
+                    if (k.role == Role::Indices && n < 3) fail(e, r, "a face of " + std::to_string(n) + " vertices");
+                    polygon.clear();
                 }
                 for (std::int64_t i = 0; i < n; ++i) {
-                    std::int64_t v = 0;
-                    if (ascii) {
-                        const std::string_view t = token();
-                        if (t.empty()) fail(e, r, "the file ends inside it");
-                        if (k.is_float) {
-                            double d = 0;
-                            const char *b = t.data() + (t.size() > 1 && t[0] == '+');
-                            if (std::from_chars(b, t.data() + t.size(), d).ptr != t.data() + t.size())
-                                fail(e, r, "'" + std::string(t.substr(0, 20)) + "' is not a number (" + name + ")");
-                            if (collect[j]) {
-                                const float f = static_cast<float>(d);
-                                const unsigned char *src = k.size == 4 ? reinterpret_cast<const unsigned char *>(&f)
-                                                                       : reinterpret_cast<const unsigned char *>(&d);
-                                collect[j]->bytes.insert(collect[j]->bytes.end(), src, src + k.size);
-                            }
-                        } else if (!ascii_int(t, v)) {
-                            fail(e, r, "'" + std::string(t.substr(0, 20)) + "' is not an integer (" + name + ")");
-                        } else if (collect[j]) {
-                            if (!fits(v, k.size, k.is_signed))
-                                fail(e, r, std::to_string(v) + " does not fit the type of '" + name + "' (" + e.properties[j].type + ")");
-                            const auto u = static_cast<std::uint64_t>(v);  // little-endian host
-                            for (unsigned b = 0; b < k.size; ++b) collect[j]->bytes.push_back(static_cast<unsigned char>(u >> (8 * b)));
-                        }
-                    } else if (collect[j]) {
-                        if (size - pos < k.size) fail(e, r, "the file ends inside it");
-                        for (unsigned b = 0; b < k.size; ++b) collect[j]->bytes.push_back(data[pos + (big ? k.size - 1 - b : b)]);
-                        pos += k.size;
-                    } else {
-                        if (size - pos < k.size) fail(e, r, "the file ends inside it");
-                        if (k.indices) v = read_binary_int(k.size, k.is_signed);
-                        else pos += k.size;
+                    const std::uint64_t at = pos;
+                    const Value v = read_value(e, r, k.size, k.is_float, k.is_signed, name);
+                    switch (k.role) {
+                    case Role::Coord: out.vertices[3 * r + std::size_t(k.axis)] = static_cast<float>(v.d); break;
+                    case Role::Colour: {
+                        // integers in [0, type max], floats in [0, 1]
+                        const double scale = k.is_float ? 1.0 : double((std::uint64_t(1) << (8 * k.size - (k.is_signed ? 1 : 0))) - 1);
+                        if (colours) out.colors[3 * r + std::size_t(k.axis)] = static_cast<float>(std::clamp(v.d / scale, 0.0, 1.0));
+                        break;
                     }
-                    if (k.indices && (v < 0 || std::uint64_t(v) >= h.vertices))
-                        fail(e, r, "uses vertex " + std::to_string(v) + ", outside [0, " + std::to_string(h.vertices) + ")");
+                    case Role::Extra:
+                        if (ascii) {
+                            if (k.is_float) {
+                                const float f = static_cast<float>(v.d);
+                                const auto *src = k.size == 4 ? reinterpret_cast<const unsigned char *>(&f) : reinterpret_cast<const unsigned char *>(&v.d);
+                                k.extra->bytes.insert(k.extra->bytes.end(), src, src + k.size);
+                            } else {
+                                const auto u = static_cast<std::uint64_t>(v.i);  // little-endian host
+                                for (unsigned b = 0; b < k.size; ++b) k.extra->bytes.push_back(static_cast<unsigned char>(u >> (8 * b)));
+                            }
+                        } else {
+                            for (unsigned b = 0; b < k.size; ++b) k.extra->bytes.push_back(data[at + (big ? k.size - 1 - b : b)]);
+                        }
+                        break;
+                    case Role::Indices:
+                        if (v.i < 0 || std::uint64_t(v.i) >= nv)
+                            fail(e, r, "uses vertex " + std::to_string(v.i) + ", outside [0, " + std::to_string(nv) + ")");
+                        polygon.push_back(static_cast<std::uint32_t>(v.i));
+                        break;
+                    case Role::Skip: break;
+                    }
                 }
+                if (k.role == Role::Indices)
+                    for (std::size_t q = 2; q < polygon.size(); ++q) {  // a fan: 0 1 2, 0 2 3, ...
+                        out.faces.push_back(polygon[0]);
+                        out.faces.push_back(polygon[q - 1]);
+                        out.faces.push_back(polygon[q]);
+                    }
             }
         }
     }
@@ -324,57 +363,14 @@ void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t
 
 Mesh read_ply(const unsigned char *data, std::uint64_t size) {
     const PlyHeader h = check_ply_header(data, size);
-    std::vector<VertexProperty> properties;
-    check_ply_body(h, data, size, &properties);
     if (h.faces == 0) throw FormatError("no faces (" + std::to_string(h.vertices) + " vertices: a point cloud, not a mesh)");
-    Assimp::Importer importer;
-    // No post-processing: no welding, no reordering, no normals. Polygons are
-    // split into fans here, after their indices are checked (Assimp's own
-    // triangulation runs before any check, on whatever the parser produced).
-    const aiScene *scene = importer.ReadFileFromMemory(data, static_cast<std::size_t>(size), 0, "ply");
-    if (scene == nullptr) throw FormatError(std::string("not read by Assimp: ") + trim(importer.GetErrorString()));
-    if (scene->mNumMeshes != 1 || scene->mMeshes == nullptr || scene->mMeshes[0] == nullptr)
-        throw FormatError("Assimp returned " + std::to_string(scene->mNumMeshes) + " meshes, expected 1");
-    const aiMesh &m = *scene->mMeshes[0];
-    if (m.mNumVertices != h.vertices)
-        throw FormatError("Assimp returned " + std::to_string(m.mNumVertices) + " vertices for " + std::to_string(h.vertices) +
-                          " vertex records (overlays would not line up)");
     Mesh out;
-    out.vertices.resize(3ull * m.mNumVertices);
-    for (unsigned i = 0; i < m.mNumVertices; ++i)
-        out.vertices[3ull * i] = m.mVertices[i].x, out.vertices[3ull * i + 1] = m.mVertices[i].y, out.vertices[3ull * i + 2] = m.mVertices[i].z;
+    decode_ply_body(h, data, size, out);
     check_finite(out.vertices);
-    std::uint64_t skipped = 0;
-    out.faces.reserve(3ull * m.mNumFaces);
-    for (unsigned f = 0; f < m.mNumFaces; ++f) {
-        const aiFace &face = m.mFaces[f];
-        if (face.mNumIndices < 3 || face.mIndices == nullptr) {
-            ++skipped;  // a point or a line
-            continue;
-        }
-        for (unsigned k = 0; k < face.mNumIndices; ++k)
-            if (face.mIndices[k] >= m.mNumVertices)
-                throw FormatError("a face uses vertex " + std::to_string(face.mIndices[k]) + ", outside [0, " + std::to_string(m.mNumVertices) + ")");
-        for (unsigned k = 2; k < face.mNumIndices; ++k) {  // a fan: 0 1 2, 0 2 3, ...
-            out.faces.push_back(face.mIndices[0]);
-            out.faces.push_back(face.mIndices[k - 1]);
-            out.faces.push_back(face.mIndices[k]);
-        }
-    }
-    if (out.faces.empty()) throw FormatError("no triangles (faces of fewer than 3 vertices only)");
-    if (m.HasVertexColors(0)) {
-        out.colors.resize(3ull * m.mNumVertices);
-        for (unsigned i = 0; i < m.mNumVertices; ++i) {
-            const aiColor4D &c = m.mColors[0][i];
-            out.colors[3ull * i] = std::clamp(c.r, 0.0f, 1.0f), out.colors[3ull * i + 1] = std::clamp(c.g, 0.0f, 1.0f);
-            out.colors[3ull * i + 2] = std::clamp(c.b, 0.0f, 1.0f);
-        }
-    }
-    out.properties = std::move(properties);
+    if (out.faces.empty()) throw FormatError("no triangles");
     out.metadata.emplace_back("ply format", h.format);
     for (const auto &c : h.comments) out.metadata.emplace_back("comment", c);
     for (const auto &e : h.other_elements) out.metadata.emplace_back("ignored element", e);
-    if (skipped) out.metadata.emplace_back("ignored faces", std::to_string(skipped) + " (fewer than 3 vertices)");
     return out;
 }
 

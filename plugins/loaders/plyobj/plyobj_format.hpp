@@ -1,18 +1,19 @@
 // PLY and Wavefront OBJ triangle meshes. Pure C++ without SDK types;
 // plyobj_plugin.cpp adapts it to hz.loader/1.
 //
-// Reading goes through Debian's libraries: PLY through Assimp (ASCII and
-// both binary byte orders), OBJ through tinyobjloader. Both keep the file's
-// vertices in file order, one per vertex record, so per-vertex overlays
-// (thickness, labels) stay aligned. Before Assimp sees a PLY file its header
-// is parsed here and every element's declared size is checked against the
-// bytes after the header, so a 100-byte file cannot ask for 2^31 records.
+// PLY is read by Horizon's own decoder: every record is walked as the
+// header declares it, every value checked, the header's declared sizes
+// checked against the file before anything is allocated. (Until 2026-11 it
+// went through Assimp after these checks; fuzzing kept finding inputs the
+// checks passed and Assimp 5.2 still mis-parsed into crashes or allocations
+// of several GB, and the checking walk already decoded every value.) OBJ is
+// read through tinyobjloader. Both keep the file's vertices in file order,
+// one per vertex record, so per-vertex overlays (thickness, labels) stay
+// aligned.
 //
-// Writing is done here, not by Assimp's exporters: Assimp 5.2's binary PLY
-// exporter writes files its own importer misreads, and its OBJ exporter
-// drops unused vertices and renumbers the rest, which would break overlays.
-// PLY is written as binary little-endian, OBJ as text with "%.9g" (float32
-// round-trips exactly).
+// Writing is done here: PLY as binary little-endian, OBJ as text with
+// "%.9g" (float32 round-trips exactly); Assimp's OBJ exporter drops unused
+// vertices and renumbers the rest, which would break overlays.
 #pragma once
 
 #include <cstdint>
@@ -74,16 +75,15 @@ struct PlyHeader {
 // throws FormatError naming the problem.
 PlyHeader check_ply_header(const unsigned char *data, std::uint64_t size);
 
-// Walks the body record by record as `h` declares it (sizes, list lengths,
-// numbers, face indices); throws FormatError naming the element and record.
-// With `properties`, also collects the vertex element's scalar properties
-// other than x y z, nx ny nz and red green blue alpha (an integer outside
-// its type's range is an error).
-void check_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t size,
-                    std::vector<VertexProperty> *properties = nullptr);
+// Decodes the body record by record as `h` declares it: every value is read
+// and checked (inside the file, a number of its type, an integer within its
+// type's range, list lengths that fit, faces of at least 3 vertices that
+// exist). The vertex element's coordinates, colours (red green blue) and its
+// other scalar properties, and the face element's polygons split into fans,
+// go to `out`. Throws FormatError naming the element and record.
+void decode_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_t size, Mesh &out);
 
-// Reads a whole PLY file held in memory (header and body checked first, then
-// Assimp); throws FormatError.
+// Reads a whole PLY file held in memory; throws FormatError.
 Mesh read_ply(const unsigned char *data, std::uint64_t size);
 
 // Reads a whole OBJ file held in memory (materials are not read: an mtllib
