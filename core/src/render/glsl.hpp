@@ -448,17 +448,19 @@ vec3 hz_display(vec3 c) {
     c *= hz_exposure;
     if (any(isnan(c))) return vec3(1.0, 0.0, 1.0);
 #if HZ_TONEMAP == 0
-    c = clamp((c * (2.51 * c + 0.03)) / (c * (2.43 * c + 0.59) + 0.14), 0.0, 1.0);
+    c = (c * (2.51 * c + 0.03)) / (c * (2.43 * c + 0.59) + 0.14);  // (clamped below)
 #elif HZ_TONEMAP == 1
     c = c / (1.0 + c);
 #endif
     c = clamp(c, 0.0, 1.0);
     // sRGB encoding. Above the linear toe, 1.055 c^(1/2.4) - 0.055 is replaced
-    // by a fit in c^(1/2), c^(1/4), c^(1/8) (three square roots, which
-    // llvmpipe runs as single instructions, instead of pow's exp2/log2
-    // polynomials): at most 0.25 of an 8-bit step from the exact curve.
-    vec3 s1 = sqrt(c), s2 = sqrt(s1), s3 = sqrt(s2);
-    vec3 hi = 0.662002687 * s1 + 0.684122060 * s2 - 0.323583601 * s3 - 0.0225411470 * c;
+    // by a degree-6 minimax polynomial in s = sqrt(c) (one square root, which
+    // llvmpipe runs as one instruction, and six multiply-adds, instead of
+    // pow's exp2/log2 polynomials): at most 0.04 of an 8-bit step from the
+    // exact curve on [0.0031308, 1].
+    vec3 s = sqrt(c);
+    vec3 hi = ((((((-0.947712481 * s + 3.41879153) * s - 5.00326586) * s + 3.89848161) * s - 1.89948356) * s + 1.57527125) * s -
+              0.0422319509);
     return mix(c * 12.92, hi, step(vec3(0.0031308), c));
 }
 )glsl";

@@ -152,8 +152,13 @@ vec3 hz_shade(HzShadePoint sp) {
     float r2 = roughness * roughness;
 #ifdef HZ_ZERO_anisotropic
     float a = max(0.001, r2), aa = a * a;
+    // |n x h|^2 = 1 - NoH^2. The cross product keeps it exact near NoH = 1,
+    // which only matters for a tiny alpha: with alpha^2 >= 1e-2 the
+    // subtraction's rounding stays below 1e-5 of dd. (Baked programs have a
+    // constant alpha, so the compiler keeps only one of the two forms.)
     vec3 nxh0 = cross(n, h);
-    float dd = dot(nxh0, nxh0) + aa * NoH * NoH;
+    float sin2h = aa >= 1e-2 ? max(1.0 - NoH * NoH, 0.0) : dot(nxh0, nxh0);
+    float dd = sin2h + aa * NoH * NoH;
     float dl = NoL + sqrt(aa * (1.0 - NoL * NoL) + NoL * NoL);
     float dv = NoV + sqrt(aa * (1.0 - NoV * NoV) + NoV * NoV);
 #else
