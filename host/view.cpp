@@ -77,6 +77,11 @@ struct App {
     std::string pending_shot;
     bool quit = false;
     double last_motion = -1e9;  // glfwGetTime() of the last camera change
+    // glfwGetTime() of the last material change: the programs use uniforms
+    // from then until the values have stayed put for kBakeAfter seconds,
+    // then baked constants (one compile), faster per frame.
+    double last_material_edit = -1e9;
+    static constexpr double kBakeAfter = 0.75;
     bool force_moving = false;  // scripts: `moving on|off`
 
     void drag_to(double x, double y) {
@@ -429,6 +434,9 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         app.r = &r;
         core::render::RenderSettings rs;
         rs.width = w0, rs.height = h0, rs.samples = o.samples, rs.lod_pixels = 0.5;
+        // Baked materials, except while the material panel is being edited
+        // (each new value would compile a program): see App::material_edited.
+        rs.bake_materials = true;
         // The Fig. 5 exploration: the first tractogram becomes QuickBundlesX
         // centroids (object ci) plus the streamlines expanded so far (si).
         std::unique_ptr<Explorer> ex;
@@ -539,6 +547,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                             for (double x; cmd >> x;) v.push_back(x);
                             materials[obj].params[name] = v;
                         }
+                        app.last_material_edit = glfwGetTime();
+                        r.set_bake_materials(false);
                         r.set_material(obj, materials[obj]);
                     } else if (op == "expand" || op == "hide" || op == "repeat" || op == "reset") {
                         if (!ex) throw core::Error(op + " needs --explore");
@@ -570,6 +580,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             if (fw <= 0 || fh <= 0) continue;
             const bool moving = app.dragging || app.panning || glfwGetTime() - app.last_motion < 0.25 || app.force_moving;
             r.set_interacting(moving);
+            r.set_bake_materials(glfwGetTime() - app.last_material_edit > App::kBakeAfter);
             r.render_to_window(app.orbit.view(app.radius), fw, fh);
             if (!app.pending_shot.empty()) {
                 save_screenshot(reg, r, app.pending_shot, fw, fh);
@@ -617,6 +628,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                     if (ImGui::Checkbox("visible", &vis)) r.set_visible(i, vis);
                     if (ob.kind != HZ_DATA_VOLUME && material_controls(reg, ob, materials[i])) {
                         try {
+                            app.last_material_edit = glfwGetTime();
+                            r.set_bake_materials(false);
                             r.set_material(i, materials[i]);
                         } catch (const core::Error &e) {
                             std::fprintf(stderr, "horizon: %s\n", e.what());

@@ -281,6 +281,31 @@ class WindowTest(TempDirTest):
         self.assertGreater(np.mean(np.abs(shots[2] - shots[3])), 0.5, "switching the shading model changes the picture")
         self.assertTrue(os.path.exists(self.path("horizon-screenshot-1.png")), "the S key saves a screenshot")
 
+    def test_window_bakes_materials_once_the_panel_is_left_alone(self):
+        """Editing a material switches the window's programs to uniforms (no compile per slider value); once the
+        values stay put they are baked into constants; both forms draw the same picture."""
+        scene = self.path("scene.json")
+        with open(scene, "w") as f:
+            json.dump({"objects": [{"type": "surface", "builtin": "sphere", "color": [0.8, 0.5, 0.4]}],
+                       "camera": {"position": [0, -58, 0], "target": [0, 0, 0], "fov": 60}}, f)
+        script = self.path("script.txt")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 2", "set 0 roughness 0.3", "set 0 metallic 0.2", "wait 1",
+                               f"screenshot {self.path('uniform.png')}", "wait 60",
+                               f"screenshot {self.path('baked.png')}", "wait 1", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "-v", "view", scene, "--size", "320x240",
+                            "--script", script], capture_output=True, text=True, timeout=300, env=env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        log = p.stderr
+        self.assertIn("renderer: uniform material programs", log)
+        self.assertGreater(log.rfind("renderer: baked material programs"), log.find("renderer: uniform material programs"))
+        a, b = load(self.path("uniform.png")), load(self.path("baked.png"))
+        self.assertGreater(a.std(), 10.0, "a lit sphere")
+        self.assertLessEqual(np.abs(a - b).max(), 2.0, "baked constants draw what the uniforms draw")
+
     def test_view_surface_and_overlay_files(self):
         """`horizon view lh.white lh.thickness`: the overlay colours the surface before it."""
         RenderTest.make_surface_with_thickness(self)

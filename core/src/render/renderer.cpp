@@ -1464,6 +1464,16 @@ void Renderer::set_interacting(bool on) { impl_->interacting = on; }
 
 void Renderer::set_exposure(double e) { impl_->scene.exposure = std::clamp(e, 1e-4, 1e4); }
 
+void Renderer::set_bake_materials(bool bake) {
+    Impl &I = *impl_;
+    if (I.settings.bake_materials == bake) return;
+    I.settings.bake_materials = bake;
+    spdlog::debug("renderer: {} material programs", bake ? "baked" : "uniform");
+    // Each object picks up its program for the new form when next drawn
+    // (compiled then, or found among the programs already built).
+    for (GpuObject &g : I.objects) g.program = g.display_program = g.debug_program = nullptr;
+}
+
 void Renderer::set_visible(std::size_t object, bool visible) {
     if (object < impl_->scene.objects.size()) impl_->scene.objects[object].visible = visible;
 }

@@ -87,6 +87,10 @@ public:
     // re-uploading only that object. Throws Error.
     void replace_object(std::size_t i, Object o);
     void set_exposure(double exposure);
+    // Switches RenderSettings::bake_materials. The window bakes once the
+    // material panel has been left alone for a moment and goes back to
+    // uniforms while a slider moves; programs of both forms stay cached.
+    void set_bake_materials(bool bake);
     // While interacting, objects with a level-of-detail proxy are replaced
     // by it (Object::proxy_for).
     void set_interacting(bool interacting);
