@@ -33,6 +33,14 @@
  *     `#if HZ_PARAM_fresnel == 1`); the host recompiles when it changes.
  *   - HZ_DOMAIN_SURFACE or HZ_DOMAIN_LINE, and HZ_OUTPUT_BRDF when `output`
  *     is HZ_SHADER_OUTPUT_BRDF.
+ *   - Baked materials (host behaviour, no ABI change): where a material's
+ *     values stay fixed (`horizon render`; the window once its material
+ *     panel is idle) the host declares float, int, enum, bool, vec2, vec3
+ *     and colour parameters as `const <type> u_<name> = <value>;` instead
+ *     of uniforms, and the HZ_ALBEDO colour too when every vertex of the
+ *     object has the same colour. A snippet therefore only reads u_<name>
+ *     (never assigns it, except HZ_ALBEDO's host-side assignment) and must
+ *     compute the same result either way; float arrays stay uniforms.
  *   - Environment lighting (world-space directions pointing away from the
  *     surface; all return 0 when the scene has no environment):
  *       vec3 hz_env_radiance(vec3 dir, float roughness);  prefiltered radiance
