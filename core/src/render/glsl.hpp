@@ -100,7 +100,7 @@ void main() {
     p.n = hz_safe_normalize(tt > 1e-30 ? p.v - dot(p.v, t) / tt * t : p.v, vn);
     p.b = cross(p.n, t);
 #endif
-#ifdef HZ_ALBEDO
+#ifdef HZ_ALBEDO_PER_VERTEX
     HZ_ALBEDO = v_color.rgb;
 #endif
     vec3 c = vec3(0.0);

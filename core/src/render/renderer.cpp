@@ -662,7 +662,7 @@ struct Renderer::Impl {
                 if (!g.uniform_rgba) return false;  // per-vertex colours
                 const auto &c = *g.uniform_rgba;
                 decl << "const vec3 " << u << " = vec3(" << glsl_float(c[0] / 255.0) << ", " << glsl_float(c[1] / 255.0) << ", "
-                     << glsl_float(c[2] / 255.0) << ");  // the colour every vertex has\n";
+                     << glsl_float(c[2] / 255.0) << ");  // the colour every vertex has\n#define HZ_ALBEDO " << u << "\n";
                 return true;
             }
             decl << "const vec3 " << u << " = vec3(" << glsl_float(v[0]) << ", " << glsl_float(v[1]) << ", " << glsl_float(v[2]) << ");\n";
@@ -727,7 +727,8 @@ struct Renderer::Impl {
             case HZ_PARAM_VEC2: decl << "uniform vec2 " << u << ";\n"; break;
             case HZ_PARAM_VEC3: decl << "uniform vec3 " << u << ";\n"; break;
             case HZ_PARAM_COLOR3:
-                if (pi->name == g.albedo) decl << "vec3 " << u << ";  // set from the object's colouring\n#define HZ_ALBEDO " << u << "\n";
+                if (pi->name == g.albedo)
+                    decl << "vec3 " << u << ";  // set from the object's colouring\n#define HZ_ALBEDO " << u << "\n#define HZ_ALBEDO_PER_VERTEX 1\n";
                 else decl << "uniform vec3 " << u << ";\n";
                 break;
             case HZ_PARAM_FLOAT_ARRAY: decl << "uniform float " << u << "[" << pi->components << "];\n"; break;

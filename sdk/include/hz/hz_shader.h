@@ -38,9 +38,9 @@
  *     panel is idle) the host declares float, int, enum, bool, vec2, vec3
  *     and colour parameters as `const <type> u_<name> = <value>;` instead
  *     of uniforms, and the HZ_ALBEDO colour too when every vertex of the
- *     object has the same colour. A snippet therefore only reads u_<name>
- *     (never assigns it, except HZ_ALBEDO's host-side assignment) and must
- *     compute the same result either way; float arrays stay uniforms.
+ *     object has the same colour (HZ_ALBEDO still names it). A snippet
+ *     therefore only reads u_<name>, never assigns it, and must compute the
+ *     same result either way; float arrays stay uniforms.
  *   - Environment lighting (world-space directions pointing away from the
  *     surface; all return 0 when the scene has no environment):
  *       vec3 hz_env_radiance(vec3 dir, float roughness);  prefiltered radiance
