@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <utility>
 
 namespace {
 
@@ -80,28 +81,20 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
 }
 
 // Arrays: "color" first when the file has colours, then the PLY vertex properties.
+// Canonical PLY scalar types and the dtypes they read into (both directions).
+constexpr std::pair<const char *, hz_dtype> kPlyTypes[] = {
+    {"char", HZ_DTYPE_I8},  {"uchar", HZ_DTYPE_U8}, {"short", HZ_DTYPE_I16}, {"ushort", HZ_DTYPE_U16},
+    {"int", HZ_DTYPE_I32},  {"uint", HZ_DTYPE_U32}, {"float", HZ_DTYPE_F32}, {"double", HZ_DTYPE_F64},
+};
 hz_dtype dtype_of(const std::string &ply_type) {
-    if (ply_type == "char") return HZ_DTYPE_I8;
-    if (ply_type == "uchar") return HZ_DTYPE_U8;
-    if (ply_type == "short") return HZ_DTYPE_I16;
-    if (ply_type == "ushort") return HZ_DTYPE_U16;
-    if (ply_type == "int") return HZ_DTYPE_I32;
-    if (ply_type == "uint") return HZ_DTYPE_U32;
-    if (ply_type == "float") return HZ_DTYPE_F32;
-    return HZ_DTYPE_F64;
+    for (const auto &[name, dtype] : kPlyTypes)
+        if (ply_type == name) return dtype;
+    return HZ_DTYPE_F64;  // (not reached: the decoder keeps canonical names only)
 }
-const char *ply_type_of(uint32_t dtype) {
-    switch (dtype) {
-    case HZ_DTYPE_I8: return "char";
-    case HZ_DTYPE_U8: return "uchar";
-    case HZ_DTYPE_I16: return "short";
-    case HZ_DTYPE_U16: return "ushort";
-    case HZ_DTYPE_I32: return "int";
-    case HZ_DTYPE_U32: return "uint";
-    case HZ_DTYPE_F32: return "float";
-    case HZ_DTYPE_F64: return "double";
-    default: return nullptr;
-    }
+const char *ply_type_of(hz_dtype dtype) {
+    for (const auto &[name, d] : kPlyTypes)
+        if (d == dtype) return name;
+    return nullptr;
 }
 const plyobj::VertexProperty *property_at(const Reader &r, uint32_t index) {
     if (!r.m.colors.empty()) {
