@@ -43,8 +43,6 @@ unsigned type_size(const std::string &t) {
 
 bool is_float(const std::string &t) { return t == "float" || t == "float32" || t == "double" || t == "float64"; }
 
-const char *const kRoleProperties[] = {"x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha"};
-
 // An integer value's range check for a PLY integer type of `size` bytes.
 bool fits(std::int64_t v, unsigned size, bool is_signed) {
     const int bits = int(8 * size);
@@ -69,6 +67,12 @@ void check_finite(const std::vector<float> &v) {
 }  // namespace
 
 unsigned ply_type_size(const std::string &t) { return type_size(t); }
+
+bool is_role_property(std::string_view name) {
+    for (const char *r : {"x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha"})
+        if (name == r) return true;
+    return false;
+}
 
 std::string ply_canonical_type(const std::string &t) {
     static const std::pair<const char *, const char *> kAlias[] = {{"int8", "char"},   {"uint8", "uchar"}, {"int16", "short"},
@@ -213,6 +217,7 @@ void decode_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_
         Role role;
         int axis;  // Coord / Colour: 0..2
         VertexProperty *extra;
+        double colour_scale;  // Colour: integers in [0, type max], floats in [0, 1]
     };
     // One value of a property: ints exactly, floats as double.
     struct Value {
@@ -269,15 +274,16 @@ void decode_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_
         for (const PlyProperty &p : e.properties) {
             const bool list = !p.count_type.empty();
             Kind k{type_size(p.type), list ? type_size(p.count_type) : 0, is_signed(p.type), list && is_signed(p.count_type),
-                   is_float(p.type), list, Role::Skip, 0, nullptr};
+                   is_float(p.type), list, Role::Skip, 0, nullptr, 1.0};
             if (vertex) {
                 static const char *const kCoord[] = {"x", "y", "z"}, *const kColour[] = {"red", "green", "blue"};
                 for (int a = 0; a < 3; ++a) {
                     if (p.name == kCoord[a]) k.role = Role::Coord, k.axis = a;
                     if (p.name == kColour[a]) k.role = Role::Colour, k.axis = a, ++colour_axes;
                 }
-                if (k.role == Role::Skip && !list &&
-                    std::none_of(std::begin(kRoleProperties), std::end(kRoleProperties), [&](const char *r) { return p.name == r; })) {
+                if (k.role == Role::Colour && !k.is_float)
+                    k.colour_scale = double((std::uint64_t(1) << (8 * k.size - (k.is_signed ? 1 : 0))) - 1);
+                if (k.role == Role::Skip && !list && !is_role_property(p.name)) {
                     out.properties.push_back({p.name, ply_canonical_type(p.type), {}});
                     k.role = Role::Extra;
                 }
@@ -322,12 +328,9 @@ void decode_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_
                     const Value v = read_value(e, r, k.size, k.is_float, k.is_signed, name);
                     switch (k.role) {
                     case Role::Coord: out.vertices[3 * r + std::size_t(k.axis)] = static_cast<float>(v.d); break;
-                    case Role::Colour: {
-                        // integers in [0, type max], floats in [0, 1]
-                        const double scale = k.is_float ? 1.0 : double((std::uint64_t(1) << (8 * k.size - (k.is_signed ? 1 : 0))) - 1);
-                        if (colours) out.colors[3 * r + std::size_t(k.axis)] = static_cast<float>(std::clamp(v.d / scale, 0.0, 1.0));
+                    case Role::Colour:
+                        if (colours) out.colors[3 * r + std::size_t(k.axis)] = static_cast<float>(std::clamp(v.d / k.colour_scale, 0.0, 1.0));
                         break;
-                    }
                     case Role::Extra:
                         if (ascii) {
                             if (k.is_float) {

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -41,6 +42,9 @@ struct VertexProperty {
 unsigned ply_type_size(const std::string &type);
 // The canonical name of a PLY type (float32 -> float), or "" if unknown.
 std::string ply_canonical_type(const std::string &type);
+// A vertex property Horizon reads for geometry or colour (x y z, nx ny nz,
+// red green blue alpha), as opposed to one kept as a per-vertex array.
+bool is_role_property(std::string_view name);
 
 struct Mesh {
     std::vector<float> vertices;         // N x 3, as stored (RAS+ mm by convention)

@@ -176,7 +176,8 @@ void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
 
 // Vertex colours from the data: "color" (float RGB or RGBA in [0, 1], from
 // glTF, PLY or OBJ), else a uint8 RGBA array (an annotation's or a label
-// GIFTI's "<labels> rgba"). Every other array is reported as dropped.
+// GIFTI's "<labels> rgba"). PLY also keeps per-vertex scalar arrays as
+// vertex properties; every other array is reported as dropped.
 hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
     if (req == nullptr || req->path == nullptr || data == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: write: NULL request or data");
@@ -205,9 +206,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             if (name == nullptr || *name == 0 || std::strlen(name) > 128) return false;
             for (const char *c = name; *c; ++c)
                 if (static_cast<unsigned char>(*c) <= 0x20 || static_cast<unsigned char>(*c) >= 0x7f) return false;
-            for (const char *r : {"x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha"})
-                if (std::strcmp(name, r) == 0) return false;
-            return true;
+            return !plyobj::is_role_property(name);
         };
         std::vector<const hz_named_array *> kept = {colour};
         for (uint32_t i = 0; i < data->nb_arrays && ext != "obj"; ++i) {
@@ -254,7 +253,7 @@ const hz_loader kLoader = {
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "PLY and OBJ", "1.0.0", "Horizon",
-    "PLY (ASCII and binary, through Assimp) and Wavefront OBJ (tinyobjloader) triangle meshes with vertex colours, RAS+ mm", "MIT",
+    "PLY (ASCII and binary, with scalar vertex properties) and Wavefront OBJ (tinyobjloader) triangle meshes with vertex colours, RAS+ mm", "MIT",
     kInterfaces,
 };
 
