@@ -250,6 +250,8 @@ class PlyObjTest(TempDirTest):
             "index.ply": bytes(bad_index),
             "nan.ply": bytes(nan_vertex),
             "bad_format.ply": good.replace(b"binary_little_endian", b"binary_middle_endian"),
+            "wrong_magic.ply": b"plx" + good[3:],
+            "empty.ply": b"",
             "points.ply": b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n",
             "index.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n",
             "negative.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n",
@@ -262,7 +264,10 @@ class PlyObjTest(TempDirTest):
             with self.subTest(case=name):
                 with open(self.path(name), "wb") as fh:
                     fh.write(data)
-                self.assert_clean_error(run("info", self.path(name), timeout=10), name)
+                p = run("info", self.path(name), timeout=10)
+                self.assert_clean_error(p, name)
+                if name in ("wrong_magic.ply", "empty.ply"):
+                    self.assertIn("not a PLY file", p.stderr)
         # A surface without faces cannot be written; nothing is left behind.
         fs.write_morph_data(self.path("lh.thickness"), np.ones(5, np.float32))
         out = self.path("x.ply")

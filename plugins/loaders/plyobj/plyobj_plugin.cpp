@@ -58,7 +58,8 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         auto r = std::make_unique<Reader>();
         r->path = req->path;
         const hzio::MappedFile f(r->path);
-        r->ply = is_ply(f.data(), f.size());
+        // A .ply name is read as PLY (so a wrong magic says so), anything else by its content.
+        r->ply = is_ply(f.data(), f.size()) || ends_with(req->path, ".ply");
         r->m = r->ply ? plyobj::read_ply(f.data(), f.size()) : plyobj::read_obj(f.data(), f.size());
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
