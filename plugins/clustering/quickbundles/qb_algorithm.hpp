@@ -5,6 +5,7 @@
 // Pure C++, no SDK types; compiled with -ffp-contract=off.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <stdexcept>
@@ -32,17 +33,18 @@ using CancelFn = std::function<bool()>;
 using ProgressFn = std::function<void(double)>;
 
 // DIPY's c_set_number_of_points on streamline p[0..n) into `fwd` and on its
-// reversal into `rev` (may be NULL), `nb_points` xyz triples each; each
-// segment length is computed once and the cumulative lengths are summed
-// before the walks; `scratch` is reused across calls. Zero-length
-// streamlines (all points equal, or a single point) give nb_points copies
-// of the point, where DIPY reads uninitialised memory. n must be >= 1.
-// Returns the polyline length (non-finite when a coordinate is).
+// reversal into `rev` (may be NULL), `nb_points` points each, stored per
+// axis (x[0..P), y[0..P), z[0..P)); each segment length is computed once
+// and the cumulative lengths are summed before the walks; `scratch` is
+// reused across calls. Zero-length streamlines (all points equal, or a
+// single point) give nb_points copies of the point, where DIPY reads
+// uninitialised memory. n must be >= 1. Returns the polyline length
+// (non-finite when a coordinate is).
 double resample_both(const float *p, std::uint64_t n, std::uint32_t nb_points, float *fwd, float *rev, std::vector<double> &scratch);
 
-// DIPY's AveragePointwiseEuclideanMetric.c_dist: float32 differences,
-// double sums in order, divided by nb_points.
-double mdf_direct(const float *a, const float *b, std::uint32_t nb_points);
+// Floats after the last feature or centroid block of an array: a SIMD load
+// of a block's last axis may read (and mask off) up to one vector past it.
+inline constexpr std::size_t kTail = 16;
 
 // A std::allocator that leaves values uninitialised: feature arrays are
 // written by the resampling workers, so their pages are first touched there,
@@ -64,13 +66,24 @@ struct UninitAllocator : std::allocator<T> {
 };
 using FloatArray = std::vector<float, UninitAllocator<float>>;
 
-// Direct and flipped features of every streamline: nb_streamlines x P x 3
-// each. `flipped` is empty when the flipped features are the exact reversal
-// of the direct ones (fast mode, identity features): flipped_of() then
-// builds them on demand, which saves a third of the memory at 5M streamlines.
+// Direct and flipped features of every streamline: one block of 3P floats
+// per streamline, per axis (x[0..P), y[0..P), z[0..P)), then kTail floats.
+// The per-axis layout lets a distance load P coordinates of one axis at
+// once; every computation is element-wise or per axis in point order, so
+// the values are those of DIPY's interleaved arrays. `flipped` is empty
+// when the flipped features are the exact reversal of the direct ones
+// (fast mode, identity features): flipped_of() then builds them on demand,
+// which saves a third of the memory at 5M streamlines.
 struct Features {
     std::uint32_t nb_points = 0;
+    std::uint64_t count = 0;  // streamlines
     FloatArray direct, flipped;
+    // Per streamline, kGeom floats that every search reads: the AABB of the
+    // direct features (centre xyz, half-size xyz) and the mean points of
+    // the direct and the flipped features (xyz each).
+    FloatArray geom;
+    float max_abs = 0;  // the largest |coordinate| of any feature
+    static constexpr std::size_t kGeom = 12;
 };
 // The flipped features of streamline `idx`: a pointer into f.flipped, or
 // `buf` (3 * nb_points floats) filled with the reversal of the direct ones.
@@ -78,8 +91,8 @@ inline const float *flipped_of(const Features &f, std::uint64_t idx, float *buf)
     const std::uint32_t P = f.nb_points;
     if (!f.flipped.empty()) return f.flipped.data() + idx * P * 3;
     const float *d = f.direct.data() + idx * P * 3;
-    for (std::uint32_t i = 0; i < P; ++i)
-        for (int k = 0; k < 3; ++k) buf[3 * i + k] = d[3 * (P - 1 - i) + k];
+    for (int k = 0; k < 3; ++k)
+        for (std::uint32_t i = 0; i < P; ++i) buf[k * P + i] = d[k * P + (P - 1 - i)];
     return buf;
 }
 // Also validates the input (InputError for an empty streamline or a
@@ -88,8 +101,8 @@ inline const float *flipped_of(const Features &f, std::uint64_t idx, float *buf)
 // features for ~10% of streamlines); otherwise they are that reversal (and
 // not stored).
 Features extract_features(const Input &in, std::uint32_t nb_points, unsigned threads, const CancelFn &cancel, bool exact_flip);
-// Features are the points themselves (qbx_and_merge after its own
-// resampling): flipped is then the exact reversal (not stored).
+// Features are the points themselves, given xyz-interleaved, n x P x 3
+// (qbx_and_merge's centroids): flipped is then the exact reversal (not stored).
 Features identity_features(const float *points, std::uint64_t n, std::uint32_t nb_points);
 
 enum class Mode { Exact, Fast };

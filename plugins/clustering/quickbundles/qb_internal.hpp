@@ -1,0 +1,103 @@
+// What qb_algorithm.cpp (shared code) and qb_search.cpp (the searches,
+// compiled once per SIMD target by Highway) both need: the tree's nodes, the
+// flattening into the ABI layout, and the entry points of the searches.
+#pragma once
+
+#include "qb_algorithm.hpp"
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <vector>
+
+namespace qb::detail {
+
+// AABB of a feature block: per axis min/max (float32), r = (max - min) / 2,
+// c = min + r (DIPY's test, DIPY-QBX.md section 3.5).
+inline void feature_box(const float *x, std::uint32_t P, float c[3], float r[3]) {
+    for (int d = 0; d < 3; ++d) {
+        const float *a = x + d * P;
+        float mn = a[0], mx = a[0];
+        for (std::uint32_t i = 1; i < P; ++i) {
+            mn = a[i] < mn ? a[i] : mn;
+            mx = a[i] > mx ? a[i] : mx;
+        }
+        r[d] = (mx - mn) / 2.0f;
+        c[d] = mn + r[d];
+    }
+}
+
+// Mean point of a feature block, summed in double in point order (or in
+// reverse order: the mean of the block's reversal), stored as float32.
+inline void feature_mean(const float *x, std::uint32_t P, float out[3], bool reversed = false) {
+    double s[3] = {0, 0, 0};
+    for (int d = 0; d < 3; ++d)
+        for (std::uint32_t i = 0; i < P; ++i) s[d] += x[d * P + (reversed ? P - 1 - i : i)];
+    for (int d = 0; d < 3; ++d) out[d] = static_cast<float>(s[d] / P);
+}
+
+// A QBX/QB tree node while the tree grows. A node's centroid lives in its
+// parent's `kid_c` (the root's in `c`), so that a search reads one
+// contiguous array of its candidates.
+struct Node {
+    // Written by the stage that updates this node (the one that searched
+    // its parent's children) ...
+    Node *parent = nullptr;
+    std::uint32_t level = 0;
+    std::uint32_t slot = 0;  // this node's index in its parent's children
+    double threshold = 0;  // used to split its children
+    std::vector<float> c;  // the root's centroid (SoA, 3P + kTail floats)
+    std::uint64_t size = 0;
+    std::vector<std::uint64_t> indices;  // QB's members (QBX records paths instead)
+    std::uint32_t uid = 0;  // QBX: which stage's store holds it, and where
+    std::uint64_t out = 0;  // its position in the flattened tree
+    // QBX, level-1 nodes, main thread only: whether the main thread
+    // continues below this node itself, and 1 + the last streamline it sent
+    // the worker to continue below it.
+    bool deep_main = false;
+    std::uint64_t last_sent = 0;
+    // ... and by the stage that searches its children: on a cache line of
+    // their own, so that the two pipeline stages never share one.
+    // What the search needs of each child, contiguous (the hot loop of QBX):
+    // its centroid, its centroid's AABB and mean point, refreshed when the
+    // child changes.
+    struct Kid {
+        float box_c[3], box_r[3];
+    };
+    alignas(64) std::vector<Node *> children;  // creation order
+    std::vector<float> kid_c;  // children's centroids, SoA blocks of 3P floats, then kTail
+    std::vector<Kid> kids;  // parallel to `children`
+    std::vector<float> mx, my, mz;  // the children's mean points, one array per axis
+    char pad_[64];
+
+    const float *centroid(std::uint32_t P) const { return parent ? parent->kid_c.data() + std::size_t(slot) * 3 * P : c.data(); }
+};
+
+// QBX's members, recorded per streamline rather than per node: the node
+// that processing step `it` joined at level l (1..L) is node(path[it * L + l - 1]).
+struct Paths {
+    const std::vector<std::uint32_t> &path;
+    std::uint32_t L;
+    const std::vector<std::uint64_t> &order;
+    const std::deque<Node> &store_a, &store_b;  // uid = index in A's store, or kStageB | index in B's
+    static constexpr std::uint32_t kStageB = 0x80000000u;
+    const Node &node(std::uint32_t uid) const { return uid & kStageB ? store_b[uid & ~kStageB] : store_a[uid]; }
+};
+
+// Flattens the tree into the ABI layout (by level, DFS pre-order within a
+// level; centroids converted to xyz-interleaved). Members from the nodes'
+// `indices`, or from `paths` when given.
+Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &thresholds, std::uint32_t P,
+             const Paths *paths = nullptr);
+
+// InputError unless `order` is a permutation of 0..N-1.
+void check_order(const std::vector<std::uint64_t> &order, std::uint64_t N);
+
+// The searches (qb_search.cpp), dispatched to the best SIMD target of the
+// CPU they run on.
+Tree run_qb(const Features &f, double threshold, const std::vector<std::uint64_t> &order, Mode mode, const CancelFn &cancel,
+            const ProgressFn &progress);
+Tree run_qbx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order, Mode mode,
+             const CancelFn &cancel, const ProgressFn &progress);
+
+}  // namespace qb::detail

@@ -1,0 +1,816 @@
+// The searches of QuickBundles and QuickBundlesX (DIPY-QBX.md sections 3.4
+// and 3.5): exact mode with DIPY 1.6's arithmetic, fast mode in float32.
+// Highway compiles this file once per SIMD target (foreach_target.h) and
+// run_qb / run_qbx dispatch to the best one the CPU supports, so the
+// distance kernel and every plain loop here run at the CPU's vector width
+// (AVX-512 on this project's machines) without the build assuming it.
+// Exact mode's values do not depend on the target: its arithmetic is scalar
+// double or element-wise float32, and this file is compiled with
+// -ffp-contract=off. Fast mode's sums follow the vector width, so a near-tie
+// may resolve differently on a CPU of another width.
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "qb_search.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
+#include "qb_internal.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <deque>
+#include <limits>
+#include <thread>
+#include <type_traits>
+
+HWY_BEFORE_NAMESPACE();
+namespace qb::detail {
+namespace HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+namespace {
+
+// DIPY's AveragePointwiseEuclideanMetric.c_dist (float32 differences,
+// double sums in point order, divided by P) when it can beat `bound`, +inf when it cannot. The partial
+// sums only grow, and rounding is monotonic, so stopping once
+// partial / P >= bound never changes which candidate wins: the result is the
+// same as DIPY's full computation followed by the comparison.
+inline double mdf_below(const float *a, const float *b, std::uint32_t P, double bound) {
+    // sum >= stop_sum implies sum / P >= bound: the (1 + 2^-50) factor
+    // outweighs the two roundings of the products.
+    const double stop_sum = bound * static_cast<double>(P) * (1.0 + 0x1p-50);
+    double sum = 0.0;
+    std::uint32_t n = 0;
+    while (n < P) {
+        // Four points at a time: the per-point terms are independent (the
+        // compiler vectorises them); only the sum is sequential, as in DIPY.
+        const std::uint32_t m = std::min<std::uint32_t>(P - n, 4);
+        double r[4];
+        for (std::uint32_t j = 0; j < m; ++j) {
+            const std::uint32_t p = n + j;
+            const double dx = static_cast<float>(a[p] - b[p]);
+            const double dy = static_cast<float>(a[P + p] - b[P + p]);
+            const double dz = static_cast<float>(a[2 * P + p] - b[2 * P + p]);
+            r[j] = std::sqrt(((0.0 + dx * dx) + dy * dy) + dz * dz);
+        }
+        for (std::uint32_t j = 0; j < m; ++j) sum += r[j];
+        n += m;
+        if (n < P && sum >= stop_sum) return std::numeric_limits<double>::infinity();
+    }
+    return sum / static_cast<double>(P);
+}
+
+// Fast mode: the distances from centroid c to the streamline's direct (f)
+// and flipped (g) features, float32 differences and sums: one vector of
+// points per axis at a time (P = 12 is one masked vector of 16 lanes with
+// AVX-512), the two orientations as independent chains, each summed across
+// lanes at the end. No early exit: the whole distance costs about what one
+// exit test would. Blocks are 3P floats; the masked loads of the last axis
+// may touch the kTail floats after them.
+// sqrt(s) as s * rsqrt(s) with one Newton step: within a few ulp of the
+// rounded square root (the float32 sums around it round as much), at a
+// fraction of the cost of a vector square root. s = 0 gives 0.
+template <class D, class V>
+HWY_INLINE V fast_sqrt(D d, V s) {
+    const V y = hn::ApproximateReciprocalSqrt(hn::Max(s, hn::Set(d, std::numeric_limits<float>::min())));
+    const V r = hn::Mul(s, y);
+    return hn::Mul(r, hn::NegMulAdd(hn::Mul(r, hn::Set(d, 0.5f)), y, hn::Set(d, 1.5f)));  // r (1.5 - r y / 2)
+}
+
+template <class D, class V>
+HWY_INLINE V point_dists(D d, V cx, V cy, V cz, V x, V y, V z) {
+    const V dx = hn::Sub(cx, x), dy = hn::Sub(cy, y), dz = hn::Sub(cz, z);
+    return fast_sqrt(d, hn::MulAdd(dz, dz, hn::MulAdd(dy, dy, hn::Mul(dx, dx))));
+}
+
+HWY_INLINE void mdf_pair(const float *HWY_RESTRICT c, const float *HWY_RESTRICT f, const float *HWY_RESTRICT g, std::uint32_t P,
+                         double &df, double &dg) {
+    const hn::ScalableTag<float> d;
+    const std::size_t N = hn::Lanes(d);
+    auto af = hn::Zero(d), ag = hn::Zero(d);
+    std::size_t i = 0;
+    for (; i + N <= P; i += N) {
+        const auto cx = hn::LoadU(d, c + i), cy = hn::LoadU(d, c + P + i), cz = hn::LoadU(d, c + 2 * P + i);
+        af = hn::Add(af, point_dists(d, cx, cy, cz, hn::LoadU(d, f + i), hn::LoadU(d, f + P + i), hn::LoadU(d, f + 2 * P + i)));
+        ag = hn::Add(ag, point_dists(d, cx, cy, cz, hn::LoadU(d, g + i), hn::LoadU(d, g + P + i), hn::LoadU(d, g + 2 * P + i)));
+    }
+    if (i < P) {  // masked-off lanes load zeros in both, which add 0
+        const auto m = hn::FirstN(d, P - i);
+        const auto cx = hn::MaskedLoad(m, d, c + i), cy = hn::MaskedLoad(m, d, c + P + i), cz = hn::MaskedLoad(m, d, c + 2 * P + i);
+        af = hn::Add(af, point_dists(d, cx, cy, cz, hn::MaskedLoad(m, d, f + i), hn::MaskedLoad(m, d, f + P + i),
+                                     hn::MaskedLoad(m, d, f + 2 * P + i)));
+        ag = hn::Add(ag, point_dists(d, cx, cy, cz, hn::MaskedLoad(m, d, g + i), hn::MaskedLoad(m, d, g + P + i),
+                                     hn::MaskedLoad(m, d, g + 2 * P + i)));
+    }
+    df = double(hn::GetLane(hn::SumOfLanes(d, af))) / double(P);
+    dg = double(hn::GetLane(hn::SumOfLanes(d, ag))) / double(P);
+}
+
+// A centroid's AABB (as feature_box: min/max are exact, so the same values)
+// and its mean point, summed in float32 (LowerBound's slack covers that
+// rounding): what update() refreshes after every change, one vector per
+// axis at a time.
+HWY_INLINE void box_and_mean(const float *HWY_RESTRICT x, std::uint32_t P, float c[3], float r[3], float mean[3]) {
+    const hn::ScalableTag<float> d;
+    const std::size_t N = hn::Lanes(d);
+    const auto inf = hn::Set(d, std::numeric_limits<float>::infinity()), ninf = hn::Neg(inf);
+    for (int a = 0; a < 3; ++a) {
+        const float *p = x + a * P;
+        auto mn = inf, mx = ninf, sum = hn::Zero(d);
+        std::size_t i = 0;
+        for (; i + N <= P; i += N) {
+            const auto v = hn::LoadU(d, p + i);
+            mn = hn::Min(mn, v);
+            mx = hn::Max(mx, v);
+            sum = hn::Add(sum, v);
+        }
+        if (i < P) {
+            const auto m = hn::FirstN(d, P - i);
+            const auto v = hn::MaskedLoad(m, d, p + i);
+            mn = hn::Min(mn, hn::IfThenElse(m, v, inf));
+            mx = hn::Max(mx, hn::IfThenElse(m, v, ninf));
+            sum = hn::Add(sum, v);
+        }
+        const float lo = hn::GetLane(hn::MinOfLanes(d, mn)), hi = hn::GetLane(hn::MaxOfLanes(d, mx));
+        r[a] = (hi - lo) / 2.0f;
+        c[a] = lo + r[a];
+        mean[a] = hn::GetLane(hn::SumOfLanes(d, sum)) / static_cast<float>(P);
+    }
+}
+
+// The reversal of a feature block (its flipped features in fast mode),
+// per axis; a loop the compiler vectorises.
+inline void reverse_block(const float *HWY_RESTRICT x, std::uint32_t P, float *HWY_RESTRICT out) {
+    for (int d = 0; d < 3; ++d)
+        for (std::uint32_t i = 0; i < P; ++i) out[d * P + i] = x[d * P + (P - 1 - i)];
+}
+
+struct ExactMetric {
+    static double dist(const float *a, const float *b, std::uint32_t P, double bound) { return mdf_below(a, b, P, bound); }
+    static constexpr double kBoundFactor = 1.0 - 1e-7;  // DIPY's value vs the real MDF
+};
+struct FastMetric {  // (its searches are search_fast's, below)
+    static constexpr double kBoundFactor = 1.0 - 1e-5;  // float32 sums of up to 1000 terms
+};
+template <class Metric>
+constexpr bool kFast = std::is_same_v<Metric, FastMetric>;
+
+// The flipped features of streamline idx: stored (exact mode), or the
+// reversal of the direct ones in `buf`.
+inline const float *flipped_of(const Features &f, std::uint64_t idx, float *buf, std::uint32_t P) {
+    if (!f.flipped.empty()) return f.flipped.data() + idx * P * 3;
+    reverse_block(f.direct.data() + idx * P * 3, P, buf);
+    return buf;
+}
+
+// C = ((C * (float)size) + e) / (float)(size + 1), in float32, as DIPY.
+inline void update_centroid(float *c, std::uint64_t size, const float *e, std::uint32_t P) {
+    const float fs = static_cast<float>(size), fs1 = static_cast<float>(size + 1);
+    for (std::uint32_t i = 0; i < 3 * P; ++i) c[i] = ((c[i] * fs) + e[i]) / fs1;
+}
+
+
+// A rigorous lower bound on the distance DIPY computes, from mean points.
+// By the triangle inequality, the real-valued MDF is at least the distance
+// between the two mean points. DIPY's value differs from the real one only
+// by the float32 rounding of each coordinate difference (relative 2^-24)
+// and double roundings. A streamline's mean point is computed in double and
+// stored as float32 (error below 2^-24 m per axis, m = the largest
+// |coordinate|); a centroid's is summed in float32 (error below P 2^-24 m
+// per axis); together below `slack` in length. Their squared distance q is
+// computed in float32 (relative error below 2^-21). So
+// mdf >= (sqrt(q / (1 + 2^-21)) - slack) * (1 - 1e-7): when that is already
+// >= the bound a candidate must beat, computing its MDF cannot change the
+// result, and it is skipped.
+struct LowerBound {
+    double slack = 0;
+    double factor = 1.0 - 1e-7;
+    void prepare(const Features &f) {
+        const float m = f.max_abs;
+        const double P = std::max<std::uint32_t>(f.nb_points, 1);
+        slack = 4e-12 * double(m) * P + 0x1p-21 * double(m) + 2.0 * P * 0x1p-24 * double(m) + 1e-300;
+    }
+    // Squared form, without a square root per candidate: hopeless when
+    // q >= limit2(bound) = ((bound / factor) + slack)^2 (1 + 2^-20), rounded
+    // up to float32.
+    float limit2(double bound) const {
+        const double lim = bound / factor + slack;
+        const double l2 = lim * lim * (1.0 + 0x1p-20);
+        if (!(l2 < double(std::numeric_limits<float>::max()))) return std::numeric_limits<float>::infinity();
+        float f = static_cast<float>(l2);
+        std::uint32_t u;
+        std::memcpy(&u, &f, 4);
+        ++u;  // rounded up (l2 > 0)
+        std::memcpy(&f, &u, 4);
+        return f;
+    }
+};
+
+// Squared float32 distances from the mean points (mx, my, mz)[0..K) to `a`
+// and to `b`: every candidate's lower bound at once, a plain loop the
+// compiler vectorises at the width of this file's target.
+// Returns the smallest of them (the bit patterns of non-negative floats
+// order as integers, which keeps the reduction vectorisable).
+float screen(std::size_t K, const float *mx, const float *my, const float *mz, const float a[3], const float b[3], float *la,
+             float *lb) {
+    std::int32_t mn = 0x7f800000;  // +inf
+    const float ax = a[0], ay = a[1], az = a[2], bx = b[0], by = b[1], bz = b[2];
+    for (std::size_t k = 0; k < K; ++k) {
+        const float dx = mx[k] - ax, dy = my[k] - ay, dz = mz[k] - az;
+        const float ex = mx[k] - bx, ey = my[k] - by, ez = mz[k] - bz;
+        const float qa = dx * dx + dy * dy + dz * dz, qb = ex * ex + ey * ey + ez * ez;
+        la[k] = qa;
+        lb[k] = qb;
+        std::int32_t ia, ib;
+        std::memcpy(&ia, &qa, 4);
+        std::memcpy(&ib, &qb, 4);
+        mn = std::min(mn, std::min(ia, ib));
+    }
+    float r;
+    std::memcpy(&r, &mn, 4);
+    return r;
+}
+
+// The smallest value that compares greater than v after the rounding the
+// caller applies (float32 for QBX, none for QB).
+// (v >= 0; the next representable value is the bit pattern plus one.)
+inline float next_float(float v) {
+    if (!(v < std::numeric_limits<float>::infinity())) return v;
+    std::uint32_t u;
+    std::memcpy(&u, &v, 4);
+    ++u;
+    std::memcpy(&v, &u, 4);
+    return v;
+}
+template <bool F32>
+inline double next_up(double v) {
+    if constexpr (F32) return next_float(static_cast<float>(v));
+    else return std::nextafter(v, std::numeric_limits<double>::infinity());
+}
+
+// The candidates of one search: K clusters, each in two orientations, with
+// their lower bounds (la: direct, lb: flipped) and their positions in
+// DIPY's scan order. QBX scans child 0 direct, child 0 flipped, child 1
+// direct, ... (key 2k + flip); QB scans every cluster direct, then every
+// cluster flipped (key flip K + k).
+struct Candidates {
+    std::size_t K = 0;
+    const float *la = nullptr, *lb = nullptr;
+    float min_lb = 0;  // the smallest of them
+    bool interleaved = true;  // QBX keys; QB otherwise
+    std::int64_t key(std::size_t k, bool flip) const {
+        return interleaved ? static_cast<std::int64_t>(2 * k + flip) : static_cast<std::int64_t>(flip ? K + k : k);
+    }
+};
+
+// Best-first search for DIPY's choice: the lexicographic minimum of
+// (value, key) among the candidates, where value = the distance (rounded
+// to float32 when F32) and key = the position in DIPY's scan order (its
+// "first strict minimum" is exactly that minimum). Only candidates for
+// which `tested(k)` holds take part, as in DIPY. A candidate whose distance
+// is >= `cap` is irrelevant to the caller and may be skipped.
+//
+// The candidate with the smallest lower bound goes first, so the bound is
+// tight from the start; every other one is skipped when its lower bound
+// shows it cannot beat the best so far under the tie rule (a smaller key
+// wins ties, so those get the next representable value as their bound).
+// The answer is therefore the one a full scan gives whenever that answer's
+// distance is below `cap`. Returns the key, or -1 when none qualified.
+template <class Metric, bool F32, class Centroid, class Tested>
+std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, double cap, const LowerBound &lbound,
+                        std::uint32_t P, Centroid centroid, Tested tested, double &best_out) {
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    double best = std::numeric_limits<double>::infinity();
+    std::int64_t key = -1;
+    double bound_lo = cap, bound_hi = cap;  // for keys below / above `key`
+    float lim_lo = lbound.limit2(cap), lim_hi = lim_lo;
+    auto consider = [&](std::size_t k, bool flip) {
+        const std::int64_t c = cs.key(k, flip);
+        const bool below = c < key;
+        // (An infinite limit prunes nothing, even a bound that overflowed
+        // float32 for coordinates beyond 1e19 mm.)
+        const float lim = below ? lim_lo : lim_hi;
+        if (((flip ? cs.lb : cs.la)[k] >= lim && lim < kInf) || !tested(k)) return;
+        const double bound = below ? bound_lo : bound_hi;
+        double d = Metric::dist(centroid(k), flip ? fg : fd, P, bound);
+        if (!(d < bound)) return;  // cannot win (or pruned by the metric)
+        if constexpr (F32) d = static_cast<float>(d);
+        if (key < 0 || d < best || (d == best && below)) {
+            best = d;
+            key = c;
+            bound_hi = std::min(cap, best);
+            bound_lo = std::min(cap, next_up<F32>(best));
+            lim_hi = lbound.limit2(bound_hi);
+            lim_lo = lbound.limit2(bound_lo);
+        }
+    };
+    const std::size_t K = cs.K;
+    if (K == 0) return -1;
+    // The first candidate with the smallest lower bound.
+    std::size_t first = 0;
+    bool first_flip = false;
+    for (std::size_t k = 0; k < K; ++k) {
+        if (cs.la[k] == cs.min_lb) {
+            first = k;
+            break;
+        }
+        if (cs.lb[k] == cs.min_lb) {
+            first = k;
+            first_flip = true;
+            break;
+        }
+    }
+    consider(first, first_flip);
+    // The rest, through a filter at the current lim_lo (>= lim_hi, and it
+    // only shrinks), kept in a register; consider() applies the exact test.
+    const float lim = lim_lo;
+    const bool all = !(lim < kInf);
+    for (std::size_t k = 0; k < K; ++k) {
+        if ((cs.la[k] < lim || all) && (k != first || first_flip)) [[unlikely]] consider(k, false);
+        if ((cs.lb[k] < lim || all) && (k != first || !first_flip)) [[unlikely]] consider(k, true);
+    }
+    best_out = best;
+    return key;
+}
+
+// Squared float32 distances from the mean points (mx, my, mz)[0..K) to `a`
+// (fast mode: both orientations share them); returns the smallest.
+float screen1(std::size_t K, const float *mx, const float *my, const float *mz, const float a[3], float *q) {
+    std::int32_t mn = 0x7f800000;  // +inf
+    const float ax = a[0], ay = a[1], az = a[2];
+    for (std::size_t k = 0; k < K; ++k) {
+        const float dx = mx[k] - ax, dy = my[k] - ay, dz = mz[k] - az;
+        const float v = dx * dx + dy * dy + dz * dz;
+        q[k] = v;
+        std::int32_t iv;
+        std::memcpy(&iv, &v, 4);
+        mn = std::min(mn, iv);
+    }
+    float r;
+    std::memcpy(&r, &mn, 4);
+    return r;
+}
+
+// Nodes with at most this many children are searched without lower bounds.
+constexpr std::size_t kSearchAll = 8;
+
+// Fast mode's search: the same choice as best_first (the lexicographic
+// minimum of (distance, key) over the candidates for which tested(k)
+// holds), uncapped, from float32 distances. The flipped features' mean
+// point is the direct one's, so both orientations of a child share one
+// lower bound and are computed together by mdf_pair. The children of a
+// node below level 1 (about 5) are all computed, independent of each other
+// and without a branch between them; more go best-first: the one with the
+// smallest lower bound, then every other one whose bound can still win.
+// Keys as in Candidates. Returns the key, or -1 when none was tested.
+template <bool F32, class Tested>
+std::int64_t search_fast(std::size_t K, bool interleaved, const float *kid_c, const float *mx, const float *my, const float *mz,
+                         const float *fd, const float *fg, const float mf[3], std::uint32_t P, const LowerBound &lbound,
+                         Tested tested, std::vector<float> &scratch, double &best_out) {
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    double best = std::numeric_limits<double>::infinity();
+    std::int64_t key = -1;
+    auto take = [&](double d, std::int64_t c) {
+        if constexpr (F32) d = static_cast<float>(d);
+        if (d < best || (d == best && c < key)) {
+            best = d;
+            key = c;
+        }
+    };
+    // The distances of a batch of candidates first, then the choice: the
+    // batch's distances do not wait for each other's comparisons, so the
+    // CPU overlaps them.
+    std::size_t batch[kSearchAll];
+    double dist[2 * kSearchAll];
+    auto run = [&](std::size_t n) {
+        for (std::size_t j = 0; j < n; ++j) mdf_pair(kid_c + batch[j] * 3 * P, fd, fg, P, dist[2 * j], dist[2 * j + 1]);
+        for (std::size_t j = 0; j < n; ++j) {
+            const std::size_t k = batch[j];
+            take(dist[2 * j], interleaved ? std::int64_t(2 * k) : std::int64_t(k));
+            take(dist[2 * j + 1], interleaved ? std::int64_t(2 * k + 1) : std::int64_t(K + k));
+        }
+    };
+    if (K <= kSearchAll) {
+        std::size_t n = 0;
+        for (std::size_t k = 0; k < K; ++k)
+            if (tested(k)) batch[n++] = k;
+        run(n);
+    } else {
+        const hn::ScalableTag<float> d;
+        const std::size_t N = hn::Lanes(d), Kp = (K + N - 1) / N * N;
+        scratch.resize(Kp);
+        float *q = scratch.data();
+        const float mn = screen1(K, mx, my, mz, mf, q);
+        std::fill(q + K, q + Kp, kInf);
+        std::size_t first = 0;
+        for (std::size_t k0 = 0; k0 < Kp; k0 += N) {
+            const std::intptr_t j = hn::FindFirstTrue(d, hn::Eq(hn::LoadU(d, q + k0), hn::Set(d, mn)));
+            if (j >= 0) {
+                first = k0 + static_cast<std::size_t>(j);
+                break;
+            }
+        }
+        if (tested(first)) {
+            batch[0] = first;
+            run(1);
+        }
+        // The rest whose bound is below the limit, a vector of bounds at a
+        // time. (An infinite limit prunes nothing, even a bound that
+        // overflowed float32 for coordinates beyond 1e19 mm.)
+        float lim = key < 0 ? kInf : lbound.limit2(next_up<F32>(best));
+        std::size_t n = 0;
+        auto add = [&](std::size_t k) {
+            if (k == first || !tested(k)) return;
+            batch[n++] = k;
+            if (n == kSearchAll) {
+                run(n);
+                n = 0;
+                if (key >= 0) lim = lbound.limit2(next_up<F32>(best));
+            }
+        };
+        if (!(lim < kInf)) {
+            for (std::size_t k = 0; k < K; ++k) add(k);
+        } else {
+            for (std::size_t k0 = 0; k0 < Kp; k0 += N) {
+                std::uint64_t bits = 0;  // (at most 16 lanes of float32)
+                hn::StoreMaskBits(d, hn::Lt(hn::LoadU(d, q + k0), hn::Set(d, lim)), reinterpret_cast<std::uint8_t *>(&bits));
+                for (; bits != 0; bits &= bits - 1) {
+                    const std::size_t k = k0 + static_cast<std::size_t>(__builtin_ctzll(bits));
+                    if (q[k] < lim) add(k);
+                }
+            }
+        }
+        run(n);
+    }
+    best_out = best;
+    return key;
+}
+
+}  // namespace
+
+template <class Metric>
+Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &order, const CancelFn &cancel, const ProgressFn &progress) {
+    const std::uint32_t P = f.nb_points;
+    const std::uint64_t N = f.count;
+    check_order(order, N);
+    std::vector<float> C(kTail, 0.0f);  // K feature blocks, then kTail floats
+    std::vector<float> mx, my, mz, la, lb, fg_buf(3 * P + kTail);  // the clusters' mean points; scratch
+    LowerBound lbound;
+    lbound.prepare(f);
+    lbound.factor = Metric::kBoundFactor;
+    std::vector<std::uint64_t> sizes;
+    std::vector<std::vector<std::uint64_t>> indices;
+    for (std::uint64_t it = 0; it < N; ++it) {
+        if ((it & 1023) == 0) {
+            if (cancel && cancel()) throw Cancelled{};
+            if (progress) progress(double(it) / double(N));
+        }
+        const std::uint64_t idx = order[it];
+        const float *fd = &f.direct[idx * P * 3], *fg = flipped_of(f, idx, fg_buf.data(), P);
+        const float *mf = &f.geom[idx * Features::kGeom + 6], *mg = mf + 3;
+        const std::uint64_t K = sizes.size();
+        auto all = [](std::size_t) { return true; };
+        double d = 0;
+        std::int64_t key;
+        if constexpr (kFast<Metric>) {
+            key = search_fast<false>(K, false, C.data(), mx.data(), my.data(), mz.data(), fd, fg, mf, P, lbound, all, la, d);
+        } else {
+            la.resize(K);
+            lb.resize(K);
+            Candidates cs;
+            cs.K = K;
+            cs.la = la.data();
+            cs.lb = lb.data();
+            cs.interleaved = false;
+            cs.min_lb = screen(K, mx.data(), my.data(), mz.data(), mf, mg, la.data(), lb.data());
+            auto centroid = [&](std::size_t k) { return &C[k * P * 3]; };
+            key = best_first<Metric, false>(cs, fd, fg, T, lbound, P, centroid, all, d);
+            if (key < 0 || !(d < T))  // a new cluster, seeded in the nearest one's orientation
+                key = best_first<Metric, false>(cs, fd, fg, std::numeric_limits<double>::infinity(), lbound, P, centroid, all, d);
+        }
+        const bool use_g = key >= 0 && static_cast<std::uint64_t>(key) >= K;
+        std::uint64_t k = key < 0 ? 0 : (use_g ? key - K : key);
+        const float *e = use_g ? fg : fd;
+        if (key < 0 || !(d < T)) {  // join iff d < T (strict)
+            k = K;
+            C.resize(C.size() + P * 3, 0.0f);  // (a block of zeros before the tail)
+            mx.push_back(0);
+            my.push_back(0);
+            mz.push_back(0);
+            sizes.push_back(0);
+            indices.emplace_back();
+        }
+        update_centroid(&C[k * P * 3], sizes[k], e, P);
+        float m[3], unused[6];
+        box_and_mean(&C[k * P * 3], P, unused, unused + 3, m);
+        mx[k] = m[0];
+        my[k] = m[1];
+        mz[k] = m[2];
+        ++sizes[k];
+        indices[k].push_back(idx);
+    }
+    // Root: every streamline in processing order, mean of the oriented features.
+    std::deque<Node> nodes(1);
+    nodes[0].threshold = T;
+    nodes[0].c.assign(P * 3 + kTail, 0.0f);
+    for (std::uint64_t k = 0; k < sizes.size(); ++k) {
+        Node &n = nodes.emplace_back();
+        n.parent = &nodes[0];
+        n.level = 1;
+        n.slot = static_cast<std::uint32_t>(k);
+        n.size = sizes[k];
+        n.indices = std::move(indices[k]);
+        nodes[0].children.push_back(&n);
+    }
+    nodes[0].indices = order;
+    nodes[0].size = N;
+    // Root centroid: size-weighted mean of the clusters (float64, then float32).
+    for (std::uint32_t i = 0; i < P * 3; ++i) {
+        double acc = 0;
+        for (std::size_t k = 0; k < sizes.size(); ++k) acc += double(C[k * P * 3 + i]) * double(sizes[k]);
+        nodes[0].c[i] = N ? static_cast<float>(acc / double(N)) : 0.0f;
+    }
+    nodes[0].kid_c = std::move(C);
+    if (progress) progress(1.0);
+    return flatten(nodes[0], 1, {T}, P);
+}
+
+// The two halves of one QBX step at node `n` (DIPY-QBX.md section 3.5).
+template <class Metric>
+struct QbxOps {
+    std::uint32_t P, L;
+    const std::vector<double> &t;
+    const LowerBound &lbound;
+
+    // n.C = ((n.C * size) + e) / (size + 1); refresh n's record in its parent.
+    void update(Node &n, const float *e) const {
+        Node::Kid &me = n.parent->kids[n.slot];
+        float m[3];
+        float *c = n.parent->kid_c.data() + std::size_t(n.slot) * 3 * P;
+        update_centroid(c, n.size, e, P);
+        box_and_mean(c, P, me.box_c, me.box_r, m);
+        ++n.size;
+        n.parent->mx[n.slot] = m[0];
+        n.parent->my[n.slot] = m[1];
+        n.parent->mz[n.slot] = m[2];
+    }
+
+    // Searches n's children for the streamline; returns the chosen child
+    // (created when none is within n's threshold) and the orientation it is
+    // to be updated with. Candidate key 2k + flip is DIPY's scan order
+    // (child 0 direct, child 0 flipped, child 1 direct, ...); a candidate
+    // takes part only when its box overlaps the streamline's, as in DIPY.
+    // `geom`: the streamline's Features::geom (box centre, half-size, mean
+    // points of both orientations).
+    Node *search(Node &n, const float *fd, const float *fg, const float *geom, bool &flip_out, std::deque<Node> &store,
+                 std::uint32_t tag, std::vector<float> &scratch) const {
+        const float *bc = geom, *br = geom + 3, *mf = geom + 6, *mg = geom + 9;
+        const std::size_t K = n.kids.size();
+        const float pad = static_cast<float>(n.threshold);
+        auto tested = [&](std::size_t k) {
+            const Node::Kid &ch = n.kids[k];
+            return std::fabs(ch.box_c[0] - bc[0]) <= ch.box_r[0] + br[0] + pad &&
+                   std::fabs(ch.box_c[1] - bc[1]) <= ch.box_r[1] + br[1] + pad &&
+                   std::fabs(ch.box_c[2] - bc[2]) <= ch.box_r[2] + br[2] + pad;
+        };
+        const float *kid_c = n.kid_c.data();
+        double best = 0;
+        std::int64_t key;
+        if constexpr (kFast<Metric>) {
+            key = search_fast<true>(K, true, kid_c, n.mx.data(), n.my.data(), n.mz.data(), fd, fg, mf, P, lbound, tested, scratch, best);
+        } else {
+            scratch.resize(2 * K);
+            Candidates cs;
+            cs.K = K;
+            cs.la = scratch.data();
+            cs.lb = scratch.data() + K;
+            cs.min_lb = screen(K, n.mx.data(), n.my.data(), n.mz.data(), mf, mg, scratch.data(), scratch.data() + K);
+            auto centroid = [&](std::size_t k) { return kid_c + k * 3 * P; };
+            // Children farther than the threshold only matter when none is
+            // within it: then DIPY seeds the new child with the orientation
+            // of the nearest one, which the second, uncapped search finds.
+            key = best_first<Metric, true>(cs, fd, fg, next_up<true>(n.threshold), lbound, P, centroid, tested, best);
+            if (!(key >= 0 && best <= n.threshold))
+                key = best_first<Metric, true>(cs, fd, fg, std::numeric_limits<double>::infinity(), lbound, P, centroid, tested, best);
+        }
+        std::int64_t kid;
+        bool flip;
+        if (key >= 0 && best <= n.threshold) {  // join iff dist <= threshold (non-strict)
+            kid = key / 2;
+            flip = key & 1;
+        } else {  // a new child, seeded in the nearest one's orientation
+            flip = key >= 0 && (key & 1);
+            Node &c = store.emplace_back();
+            c.uid = tag | static_cast<std::uint32_t>(store.size() - 1);
+            c.parent = &n;
+            c.level = n.level + 1;
+            c.threshold = c.level < L ? t[c.level] : 0.0;
+            kid = static_cast<std::int64_t>(n.children.size());
+            c.slot = static_cast<std::uint32_t>(kid);
+            n.children.push_back(&c);
+            n.kids.push_back({});
+            n.kid_c.resize(n.children.size() * 3 * P + kTail, 0.0f);
+            n.mx.push_back(0);
+            n.my.push_back(0);
+            n.mz.push_back(0);
+        }
+        flip_out = flip;
+        return n.children[static_cast<std::size_t>(kid)];
+    }
+};
+
+// QuickBundlesX on two threads, computing exactly what the sequential
+// algorithm computes. The main thread searches the root's children and
+// updates the chosen level-1 node for every streamline, in order; below
+// level 1, each level-1 node's subtree is continued either by the main
+// thread itself or by a worker, which follows the main thread through
+// `handoff`. Level-1 decisions depend only on level-1 centroids, deeper
+// ones only on the nodes of the same subtree, and a subtree is only ever
+// continued by one thread at a time, in streamline order: the main thread
+// takes a subtree over only once the worker has finished every streamline
+// it was sent for it, and hands one back at any time (the worker then sees
+// the main thread's updates through the release/acquire of `published`).
+// Which thread continues a subtree decides only the speed: the main thread
+// takes subtrees while the worker lags behind and gives them back once it
+// has caught up, so both stay busy. The one coupling across streamlines,
+// DIPY's orientation of the root update by the previous streamline's leaf
+// flip, touches only the root centroid, which no search reads: the main
+// thread replays it in order, as far as the leaf flips are known.
+template <class Metric>
+Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector<std::uint64_t> &order, const CancelFn &cancel,
+              const ProgressFn &progress) {
+    const std::uint32_t P = f.nb_points;
+    const std::uint64_t N = f.count;
+    const std::uint32_t L = static_cast<std::uint32_t>(t.size());
+    if (L == 0) throw InputError("QuickBundlesX needs at least one threshold");
+    check_order(order, N);
+    std::deque<Node> store_a, store_b;  // each thread's nodes (stable addresses)
+    Node &root = store_a.emplace_back();
+    root.threshold = t[0];
+    root.c.assign(P * 3 + kTail, 0.0f);
+    LowerBound lbound;
+    lbound.prepare(f);
+    lbound.factor = Metric::kBoundFactor;
+    const QbxOps<Metric> ops{P, L, t, lbound};
+
+    struct Handoff {
+        Node *node;  // the level-1 node, or null when the main thread went on below it
+        bool flip;
+    };
+    std::vector<Handoff> handoff(N);
+    std::vector<std::uint8_t> leaf_flip(N, 0);
+    std::vector<std::uint32_t> path(N * L);  // each step's node per level
+    constexpr std::uint32_t kStageB = Paths::kStageB;  // uid tag of the worker's nodes
+    // (Each on a cache line of its own: they are written by different threads.)
+    alignas(64) std::atomic<std::uint64_t> published{0};  // main -> worker: handoff[0..published) is set
+    alignas(64) std::atomic<std::uint64_t> done{0};  // worker -> main: it has continued every streamline below this
+    alignas(64) std::atomic<bool> stop{false};
+
+    // One thread's view of a streamline: its features in both orientations
+    // and its Features::geom; and its buffers. (Cache-line aligned: the
+    // worker's lives on its own stack, and the two are written per streamline.)
+    struct alignas(64) Lane {
+        std::vector<float> fg, scratch;
+        const float *fd = nullptr, *g = nullptr, *geom = nullptr;
+    };
+    Lane main_lane;
+    main_lane.fg.resize(3 * P + kTail);
+    auto load = [&](Lane &ln, std::uint64_t it) {
+        const std::uint64_t idx = order[it];
+        ln.fd = &f.direct[idx * P * 3];
+        ln.g = flipped_of(f, idx, ln.fg.data(), P);
+        ln.geom = &f.geom[idx * Features::kGeom];
+    };
+    // Levels 2..L of streamline `it`, from its level-1 node.
+    auto below = [&](Lane &ln, std::uint64_t it, Node *node, bool flip, std::deque<Node> &store, std::uint32_t tag) {
+        while (node->level < L) {
+            bool next_flip = false;
+            Node *child = ops.search(*node, ln.fd, ln.g, ln.geom, next_flip, store, tag, ln.scratch);
+            ops.update(*child, next_flip ? ln.g : ln.fd);
+            path[it * L + child->level - 1] = child->uid;
+            node = child;
+            flip = next_flip;
+        }
+        leaf_flip[it] = flip;
+    };
+
+    const bool threaded = L >= 2 && N >= 20000;
+    std::thread worker;
+    if (threaded) {
+        worker = std::thread([&] {
+            Lane worker_lane;
+            worker_lane.fg.resize(3 * P + kTail);
+            std::uint64_t it = 0;
+            while (it < N) {
+                const std::uint64_t avail = published.load(std::memory_order_acquire);
+                if (avail == it) {
+                    if (stop.load(std::memory_order_acquire) && published.load(std::memory_order_acquire) == it) return;
+                    std::this_thread::yield();
+                    continue;
+                }
+                for (; it < avail; ++it) {
+                    const Handoff h = handoff[it];
+                    if (h.node == nullptr) continue;
+                    load(worker_lane, it);
+                    below(worker_lane, it, h.node, h.flip, store_b, kStageB);
+                }
+                done.store(it, std::memory_order_release);
+            }
+        });
+    }
+    // The root, replayed in order up to `end`: every streamline, oriented by
+    // the previous one's leaf flip.
+    std::uint64_t replayed = 0;
+    bool use_flip = false;
+    auto replay = [&](std::uint64_t end) {
+        for (; replayed < end; ++replayed) {
+            const std::uint64_t idx = order[replayed];
+            update_centroid(root.c.data(), root.size, use_flip ? flipped_of(f, idx, main_lane.fg.data(), P) : &f.direct[idx * P * 3], P);
+            ++root.size;
+            use_flip = leaf_flip[replayed];
+        }
+    };
+    // The worker's lag (streamlines published but not yet continued) above
+    // which the main thread takes subtrees over, and below which it gives
+    // them back.
+    constexpr std::uint64_t kTakeLag = 1024, kGiveLag = 128;
+    bool cancelled = false;
+    std::uint64_t worker_done = 0;  // `done`, as last read
+    for (std::uint64_t it = 0; it < N; ++it) {
+        if ((it & 1023) == 0) {
+            if (cancel && cancel()) {
+                cancelled = true;
+                break;
+            }
+            if (progress) progress(double(it) / double(N));
+            if (threaded) replay(done.load(std::memory_order_acquire));
+        }
+        if ((it & 63) == 0 && threaded) worker_done = done.load(std::memory_order_acquire);
+        load(main_lane, it);
+        bool flip = false;
+        Node *n1 = ops.search(root, main_lane.fd, main_lane.g, main_lane.geom, flip, store_a, 0, main_lane.scratch);
+        ops.update(*n1, flip ? main_lane.g : main_lane.fd);
+        path[it * L] = n1->uid;
+        if (!threaded) {
+            below(main_lane, it, n1, flip, store_a, 0);
+            continue;
+        }
+        const std::uint64_t lag = it - worker_done;
+        if (!n1->deep_main && lag > kTakeLag && worker_done >= n1->last_sent) n1->deep_main = true;
+        else if (n1->deep_main && lag < kGiveLag) n1->deep_main = false;
+        if (n1->deep_main) {
+            below(main_lane, it, n1, flip, store_a, 0);
+            handoff[it] = {nullptr, flip};
+        } else {
+            handoff[it] = {n1, flip};
+            n1->last_sent = it + 1;
+        }
+        if ((it & 63) == 63) published.store(it + 1, std::memory_order_release);
+    }
+    if (threaded) {
+        if (!cancelled) published.store(N, std::memory_order_release);
+        stop.store(true, std::memory_order_release);
+        worker.join();
+    }
+    if (cancelled) throw Cancelled{};
+    replay(N);
+    if (progress) progress(1.0);
+    const Paths paths{path, L, order, store_a, store_b};
+    return flatten(root, L, t, P, &paths);
+}
+
+Tree RunQb(const Features &f, double T, const std::vector<std::uint64_t> &order, Mode mode, const CancelFn &cancel,
+           const ProgressFn &progress) {
+    return mode == Mode::Exact ? qb_impl<ExactMetric>(f, T, order, cancel, progress)
+                               : qb_impl<FastMetric>(f, T, order, cancel, progress);
+}
+
+Tree RunQbx(const Features &f, const std::vector<double> &t, const std::vector<std::uint64_t> &order, Mode mode,
+            const CancelFn &cancel, const ProgressFn &progress) {
+    return mode == Mode::Exact ? qbx_impl<ExactMetric>(f, t, order, cancel, progress)
+                               : qbx_impl<FastMetric>(f, t, order, cancel, progress);
+}
+
+}  // namespace HWY_NAMESPACE
+}  // namespace qb::detail
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace qb::detail {
+
+HWY_EXPORT(RunQb);
+HWY_EXPORT(RunQbx);
+
+Tree run_qb(const Features &f, double threshold, const std::vector<std::uint64_t> &order, Mode mode, const CancelFn &cancel,
+            const ProgressFn &progress) {
+    return HWY_DYNAMIC_DISPATCH(RunQb)(f, threshold, order, mode, cancel, progress);
+}
+
+Tree run_qbx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order, Mode mode,
+             const CancelFn &cancel, const ProgressFn &progress) {
+    return HWY_DYNAMIC_DISPATCH(RunQbx)(f, thresholds, order, mode, cancel, progress);
+}
+
+}  // namespace qb::detail
+#endif  // HWY_ONCE
