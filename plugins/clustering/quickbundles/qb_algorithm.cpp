@@ -75,27 +75,66 @@ void segment_lengths(const float *p, std::uint64_t n, double *seg) {  // |p[i] -
     }
 }
 
-double resample_both(const float *p, std::uint64_t n, std::uint32_t P, float *fwd, float *rev, std::vector<double> &scratch) {
+namespace {
+
+// resample_both for two streamlines at once, a (na >= 1 points) and b
+// (nb = 0: none): the same values, with the arc-length sums of both (and of
+// their reversals) interleaved in one loop. Each sum is a chain of
+// dependent additions in DIPY's order; independent chains side by side let
+// the CPU overlap their latencies. Returns the polyline lengths in L.
+void resample_pair(const float *pa, std::uint64_t na, float *fa, float *ga, const float *pb, std::uint64_t nb, float *fb, float *gb,
+                   std::uint32_t P, std::vector<double> &scratch, double L[2]) {
     // Each segment's length once: the reversed polyline's float differences
     // are the exact negations of the forward ones, so its segment i is the
     // forward segment n - i, bit for bit. Only the summation order differs.
-    scratch.resize(3 * n);
-    double *seg = scratch.data(), *arc = seg + n, *arc_r = arc + n;
-    segment_lengths(p, n, seg);
-    arc[0] = arc_r[0] = 0.0;
-    if (rev != nullptr) {
-        double a = 0.0, b = 0.0;  // two independent chains, one loop
-        for (std::uint64_t i = 1; i < n; ++i) {
-            arc[i] = a += seg[i];
-            arc_r[i] = b += seg[n - i];
+    scratch.resize(3 * (na + nb));
+    double *sa = scratch.data(), *aa = sa + na, *ra = aa + na;
+    double *sb = ra + na, *ab = sb + nb, *rb = ab + nb;
+    segment_lengths(pa, na, sa);
+    if (nb) segment_lengths(pb, nb, sb);
+    const bool rev = ga != nullptr;
+    aa[0] = ra[0] = 0.0;
+    if (nb) ab[0] = rb[0] = 0.0;
+    double x = 0.0, u = 0.0, y = 0.0, v = 0.0;
+    const std::uint64_t m = std::min(na, nb);
+    std::uint64_t i = 1;
+    if (rev)
+        for (; i < m; ++i) {
+            aa[i] = x += sa[i];
+            ra[i] = u += sa[na - i];
+            ab[i] = y += sb[i];
+            rb[i] = v += sb[nb - i];
         }
-    } else {
-        double a = 0.0;
-        for (std::uint64_t i = 1; i < n; ++i) arc[i] = a += seg[i];
+    else
+        for (; i < m; ++i) {
+            aa[i] = x += sa[i];
+            ab[i] = y += sb[i];
+        }
+    for (std::uint64_t k = i; k < na; ++k) {
+        aa[k] = x += sa[k];
+        if (rev) ra[k] = u += sa[na - k];
     }
-    walk_arcs(n, P, arc, [&](std::uint64_t k) { return p + 3 * k; }, fwd);
-    if (rev != nullptr) walk_arcs(n, P, arc_r, [&](std::uint64_t k) { return p + 3 * (n - 1 - k); }, rev);
-    return arc[n - 1];
+    for (std::uint64_t k = i; k < nb; ++k) {
+        ab[k] = y += sb[k];
+        if (rev) rb[k] = v += sb[nb - k];
+    }
+    walk_arcs(na, P, aa, [&](std::uint64_t k) { return pa + 3 * k; }, fa);
+    if (rev) walk_arcs(na, P, ra, [&](std::uint64_t k) { return pa + 3 * (na - 1 - k); }, ga);
+    L[0] = aa[na - 1];
+    L[1] = 0.0;
+    if (nb) {
+        walk_arcs(nb, P, ab, [&](std::uint64_t k) { return pb + 3 * k; }, fb);
+        if (rev) walk_arcs(nb, P, rb, [&](std::uint64_t k) { return pb + 3 * (nb - 1 - k); }, gb);
+        L[1] = ab[nb - 1];
+    }
+}
+
+}  // namespace
+
+double resample_both(const float *p, std::uint64_t n, std::uint32_t P, float *fwd, float *rev, std::vector<double> &scratch) {
+    double L[2];
+    resample_pair(p, n, fwd, rev, nullptr, 0, nullptr, nullptr, P, scratch, L);
+    return L[0];
 }
 
 Features extract_features(const Input &in, std::uint32_t P, unsigned threads, const CancelFn &cancel, bool exact_flip) {
@@ -115,37 +154,54 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
     // resamples them: one pass over the input.
     auto work = [&](unsigned w, std::uint64_t begin, std::uint64_t end) {
         std::vector<double> seg;  // segment lengths, reused across streamlines
-        for (std::uint64_t s = begin; s < end && !stop; ++s) {
-            if (w == 0 && (s & 4095) == 0 && cancel && cancel()) stop = true;
-            const float *p = in.positions + 3 * in.offsets[s];
-            const std::uint64_t n = in.offsets[s + 1] > in.offsets[s] ? in.offsets[s + 1] - in.offsets[s] : 0;
-            if (n == 0) {
-                errors[w] = "streamline " + std::to_string(s) + " has no points (remove empty streamlines before clustering)";
-                stop = true;
-                break;
+        for (std::uint64_t s = begin; s < end && !stop; s += 2) {  // two at a time (resample_pair)
+            if (w == 0 && (s - begin) % 4096 == 0 && cancel && cancel()) stop = true;
+            const std::uint64_t cnt = std::min<std::uint64_t>(2, end - s);
+            const float *p[2] = {nullptr, nullptr};
+            std::uint64_t n[2] = {0, 0};
+            float *fd[2] = {nullptr, nullptr}, *fg[2] = {nullptr, nullptr};
+            for (std::uint64_t j = 0; j < cnt; ++j) {
+                const std::uint64_t t = s + j;
+                p[j] = in.positions + 3 * in.offsets[t];
+                n[j] = in.offsets[t + 1] > in.offsets[t] ? in.offsets[t + 1] - in.offsets[t] : 0;
+                if (n[j] == 0) {
+                    errors[w] = "streamline " + std::to_string(t) + " has no points (remove empty streamlines before clustering)";
+                    stop = true;
+                }
+                fd[j] = &f.direct[t * P * 3];
+                if (exact_flip) fg[j] = &f.flipped[t * P * 3];
             }
-            float *fd = &f.direct[s * P * 3], *fg = exact_flip ? &f.flipped[s * P * 3] : nullptr;
-            // DIPY resamples the reversed polyline for the flipped features.
-            // A non-finite coordinate makes the length non-finite, so the
-            // coordinates are only searched then (or for a single point).
-            const double L = resample_both(p, n, P, fd, fg, seg);
-            if (!std::isfinite(L) || n == 1)
-                for (std::uint64_t v = 0; v < 3 * n; ++v)
-                    if (!std::isfinite(p[v])) {
-                        errors[w] = "streamline " + std::to_string(s) + " has a non-finite coordinate at vertex " +
-                                    std::to_string(in.offsets[s] + v / 3);
-                        stop = true;
-                        break;
-                    }
             if (stop) break;
-            float *g = &f.geom[s * Features::kGeom];
-            detail::feature_box(fd, P, g, g + 3);
-            detail::feature_mean(fd, P, g + 6);
-            if (exact_flip) detail::feature_mean(fg, P, g + 9);
-            else detail::feature_mean(fd, P, g + 9, true);
-            float m = max_abs[w];
-            for (std::uint32_t i = 0; i < 3 * P; ++i) m = std::max(m, std::fabs(fd[i]));
-            max_abs[w] = m;
+            // DIPY resamples the reversed polyline for the flipped features.
+            double L[2];
+            resample_pair(p[0], n[0], fd[0], fg[0], p[1], n[1], fd[1], fg[1], P, seg, L);
+            for (std::uint64_t j = 0; j < cnt && !stop; ++j) {
+                const std::uint64_t t = s + j;
+                // A non-finite coordinate makes the length non-finite, so
+                // the coordinates are only searched then (or for a single point).
+                if (!std::isfinite(L[j]) || n[j] == 1)
+                    for (std::uint64_t v = 0; v < 3 * n[j]; ++v)
+                        if (!std::isfinite(p[j][v])) {
+                            errors[w] = "streamline " + std::to_string(t) + " has a non-finite coordinate at vertex " +
+                                        std::to_string(in.offsets[t] + v / 3);
+                            stop = true;
+                            break;
+                        }
+                if (stop) break;
+                float *g = &f.geom[t * Features::kGeom];
+                detail::feature_box(fd[j], P, g, g + 3);
+                detail::feature_mean(fd[j], P, g + 6);
+                if (exact_flip) {
+                    detail::feature_mean(fg[j], P, g + 9);
+                } else {  // the reversal's mean point (the bound's slack covers the summation order)
+                    g[9] = g[6];
+                    g[10] = g[7];
+                    g[11] = g[8];
+                }
+                float m = max_abs[w];
+                for (std::uint32_t i = 0; i < 3 * P; ++i) m = std::max(m, std::fabs(fd[j][i]));
+                max_abs[w] = m;
+            }
         }
     };
     const std::uint64_t chunk = (N + threads - 1) / threads;
@@ -175,7 +231,7 @@ Features identity_features(const float *points, std::uint64_t n, std::uint32_t P
         float *g = &f.geom[s * Features::kGeom];
         detail::feature_box(fd, P, g, g + 3);
         detail::feature_mean(fd, P, g + 6);
-        detail::feature_mean(fd, P, g + 9, true);
+        std::copy_n(g + 6, 3, g + 9);  // the reversal's mean point
         for (std::uint32_t i = 0; i < 3 * P; ++i) f.max_abs = std::max(f.max_abs, std::fabs(fd[i]));
     }
     return f;
@@ -231,9 +287,16 @@ Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &
         std::copy(paths->order.begin(), paths->order.end(), t.members.begin());  // the root
         const std::uint64_t N = paths->order.size();
         const std::uint32_t L = paths->L;
+        // Each node's output position by uid, in two flat tables.
+        std::vector<std::uint32_t> out_a(paths->store_a.size()), out_b(paths->store_b.size());
+        for (std::size_t i = 0; i < out_a.size(); ++i) out_a[i] = static_cast<std::uint32_t>(paths->store_a[i].out);
+        for (std::size_t i = 0; i < out_b.size(); ++i) out_b[i] = static_cast<std::uint32_t>(paths->store_b[i].out);
         auto scatter = [&](std::uint32_t l) {
             std::vector<std::uint64_t> cursor(t.member_offsets.begin(), t.member_offsets.end() - 1);
-            for (std::uint64_t it = 0; it < N; ++it) t.members[cursor[paths->node(paths->path[it * L + l]).out]++] = paths->order[it];
+            for (std::uint64_t it = 0; it < N; ++it) {
+                const std::uint32_t uid = paths->path[it * L + l];
+                t.members[cursor[uid & Paths::kStageB ? out_b[uid & ~Paths::kStageB] : out_a[uid]]++] = paths->order[it];
+            }
         };
         std::thread helper;
         if (L >= 2 && N >= 100000)

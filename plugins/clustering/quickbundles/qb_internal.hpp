@@ -27,12 +27,12 @@ inline void feature_box(const float *x, std::uint32_t P, float c[3], float r[3])
     }
 }
 
-// Mean point of a feature block, summed in double in point order (or in
-// reverse order: the mean of the block's reversal), stored as float32.
-inline void feature_mean(const float *x, std::uint32_t P, float out[3], bool reversed = false) {
+// Mean point of a feature block, summed in double in point order, stored
+// as float32.
+inline void feature_mean(const float *x, std::uint32_t P, float out[3]) {
     double s[3] = {0, 0, 0};
     for (int d = 0; d < 3; ++d)
-        for (std::uint32_t i = 0; i < P; ++i) s[d] += x[d * P + (reversed ? P - 1 - i : i)];
+        for (std::uint32_t i = 0; i < P; ++i) s[d] += x[d * P + i];
     for (int d = 0; d < 3; ++d) out[d] = static_cast<float>(s[d] / P);
 }
 
