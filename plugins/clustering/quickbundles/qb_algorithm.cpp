@@ -77,9 +77,13 @@ void segment_lengths(const float *p, std::uint64_t n, double *seg) {  // |p[i] -
 
 namespace {
 
-// resample_both for two streamlines at once, a (na >= 1 points) and b
-// (nb = 0: none): the same values, with the arc-length sums of both (and of
-// their reversals) interleaved in one loop. Each sum is a chain of
+// DIPY's c_set_number_of_points on two streamlines at once, a (na >= 1
+// points) and b (nb = 0: none), into fa / fb and, for their reversals
+// (when ga is not NULL), into ga / gb; P points each, stored per axis.
+// Zero-length streamlines (all points equal, or a single point) give P
+// copies of the point, where DIPY reads uninitialised memory. The
+// arc-length sums of both (and of their reversals) are interleaved in one
+// loop. Each sum is a chain of
 // dependent additions in DIPY's order; independent chains side by side let
 // the CPU overlap their latencies. Returns the polyline lengths in L.
 void resample_pair(const float *pa, std::uint64_t na, float *fa, float *ga, const float *pb, std::uint64_t nb, float *fb, float *gb,
@@ -130,12 +134,6 @@ void resample_pair(const float *pa, std::uint64_t na, float *fa, float *ga, cons
 }
 
 }  // namespace
-
-double resample_both(const float *p, std::uint64_t n, std::uint32_t P, float *fwd, float *rev, std::vector<double> &scratch) {
-    double L[2];
-    resample_pair(p, n, fwd, rev, nullptr, 0, nullptr, nullptr, P, scratch, L);
-    return L[0];
-}
 
 Features extract_features(const Input &in, std::uint32_t P, unsigned threads, const CancelFn &cancel, bool exact_flip) {
     Features f;

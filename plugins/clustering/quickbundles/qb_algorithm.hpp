@@ -32,16 +32,6 @@ struct Cancelled {};
 using CancelFn = std::function<bool()>;
 using ProgressFn = std::function<void(double)>;
 
-// DIPY's c_set_number_of_points on streamline p[0..n) into `fwd` and on its
-// reversal into `rev` (may be NULL), `nb_points` points each, stored per
-// axis (x[0..P), y[0..P), z[0..P)); each segment length is computed once
-// and the cumulative lengths are summed before the walks; `scratch` is
-// reused across calls. Zero-length streamlines (all points equal, or a
-// single point) give nb_points copies of the point, where DIPY reads
-// uninitialised memory. n must be >= 1. Returns the polyline length
-// (non-finite when a coordinate is).
-double resample_both(const float *p, std::uint64_t n, std::uint32_t nb_points, float *fwd, float *rev, std::vector<double> &scratch);
-
 // Floats after the last feature or centroid block of an array: a SIMD load
 // of a block's last axis may read (and mask off) up to one vector past it.
 inline constexpr std::size_t kTail = 16;
@@ -72,7 +62,7 @@ using FloatArray = std::vector<float, UninitAllocator<float>>;
 // once; every computation is element-wise or per axis in point order, so
 // the values are those of DIPY's interleaved arrays. `flipped` is empty
 // when the flipped features are the exact reversal of the direct ones
-// (fast mode, identity features): flipped_of() then builds them on demand,
+// (fast mode, identity features): the searches then build them on demand,
 // which saves a third of the memory at 5M streamlines.
 struct Features {
     std::uint32_t nb_points = 0;
@@ -85,16 +75,6 @@ struct Features {
     float max_abs = 0;  // the largest |coordinate| of any feature
     static constexpr std::size_t kGeom = 12;
 };
-// The flipped features of streamline `idx`: a pointer into f.flipped, or
-// `buf` (3 * nb_points floats) filled with the reversal of the direct ones.
-inline const float *flipped_of(const Features &f, std::uint64_t idx, float *buf) {
-    const std::uint32_t P = f.nb_points;
-    if (!f.flipped.empty()) return f.flipped.data() + idx * P * 3;
-    const float *d = f.direct.data() + idx * P * 3;
-    for (int k = 0; k < 3; ++k)
-        for (std::uint32_t i = 0; i < P; ++i) buf[k * P + i] = d[k * P + (P - 1 - i)];
-    return buf;
-}
 // Also validates the input (InputError for an empty streamline or a
 // non-finite coordinate). `exact_flip`: flipped features resample the
 // reversed polyline, as DIPY (bitwise different from reversing the direct
