@@ -133,6 +133,19 @@ void resample_pair(const float *pa, std::uint64_t na, float *fa, float *ga, cons
     }
 }
 
+// A streamline's Features::geom from its direct features fd and its
+// flipped ones fg (NULL: the reversal of fd, whose mean point is fd's; the
+// bound's slack covers the summation order). Returns its largest |coordinate|.
+float fill_geom(const float *fd, const float *fg, std::uint32_t P, float *g) {
+    detail::feature_box(fd, P, g, g + 3);
+    detail::feature_mean(fd, P, g + 6);
+    if (fg != nullptr) detail::feature_mean(fg, P, g + 9);
+    else std::copy_n(g + 6, 3, g + 9);
+    float m = 0.0f;
+    for (std::uint32_t i = 0; i < 3 * P; ++i) m = std::max(m, std::fabs(fd[i]));
+    return m;
+}
+
 }  // namespace
 
 Features extract_features(const Input &in, std::uint32_t P, unsigned threads, const CancelFn &cancel, bool exact_flip) {
@@ -186,19 +199,7 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
                             break;
                         }
                 if (stop) break;
-                float *g = &f.geom[t * Features::kGeom];
-                detail::feature_box(fd[j], P, g, g + 3);
-                detail::feature_mean(fd[j], P, g + 6);
-                if (exact_flip) {
-                    detail::feature_mean(fg[j], P, g + 9);
-                } else {  // the reversal's mean point (the bound's slack covers the summation order)
-                    g[9] = g[6];
-                    g[10] = g[7];
-                    g[11] = g[8];
-                }
-                float m = max_abs[w];
-                for (std::uint32_t i = 0; i < 3 * P; ++i) m = std::max(m, std::fabs(fd[j][i]));
-                max_abs[w] = m;
+                max_abs[w] = std::max(max_abs[w], fill_geom(fd[j], fg[j], P, &f.geom[t * Features::kGeom]));
             }
         }
     };
@@ -224,14 +225,8 @@ Features identity_features(const float *points, std::uint64_t n, std::uint32_t P
         for (std::uint32_t i = 0; i < P; ++i)
             for (int d = 0; d < 3; ++d) f.direct[s * P * 3 + d * P + i] = points[(s * P + i) * 3 + d];
     f.geom.resize(n * Features::kGeom);
-    for (std::uint64_t s = 0; s < n; ++s) {
-        const float *fd = &f.direct[s * P * 3];
-        float *g = &f.geom[s * Features::kGeom];
-        detail::feature_box(fd, P, g, g + 3);
-        detail::feature_mean(fd, P, g + 6);
-        std::copy_n(g + 6, 3, g + 9);  // the reversal's mean point
-        for (std::uint32_t i = 0; i < 3 * P; ++i) f.max_abs = std::max(f.max_abs, std::fabs(fd[i]));
-    }
+    for (std::uint64_t s = 0; s < n; ++s)
+        f.max_abs = std::max(f.max_abs, fill_geom(&f.direct[s * P * 3], nullptr, P, &f.geom[s * Features::kGeom]));
     return f;
 }
 

@@ -207,29 +207,32 @@ struct LowerBound {
     }
 };
 
-// Squared float32 distances from the mean points (mx, my, mz)[0..K) to `a`
-// and to `b`: every candidate's lower bound at once, a plain loop the
-// compiler vectorises at the width of this file's target.
-// Returns the smallest of them (the bit patterns of non-negative floats
-// order as integers, which keeps the reduction vectorisable).
-float screen(std::size_t K, const float *mx, const float *my, const float *mz, const float a[3], const float b[3], float *la,
-             float *lb) {
+// Squared float32 distances from the mean points (mx, my, mz)[0..K) to `a`:
+// every candidate's lower bound at once, a plain loop the compiler
+// vectorises at the width of this file's target. Returns the smallest of
+// them (the bit patterns of non-negative floats order as integers, which
+// keeps the reduction vectorisable).
+float screen1(std::size_t K, const float *mx, const float *my, const float *mz, const float a[3], float *q) {
     std::int32_t mn = 0x7f800000;  // +inf
-    const float ax = a[0], ay = a[1], az = a[2], bx = b[0], by = b[1], bz = b[2];
+    const float ax = a[0], ay = a[1], az = a[2];
     for (std::size_t k = 0; k < K; ++k) {
         const float dx = mx[k] - ax, dy = my[k] - ay, dz = mz[k] - az;
-        const float ex = mx[k] - bx, ey = my[k] - by, ez = mz[k] - bz;
-        const float qa = dx * dx + dy * dy + dz * dz, qb = ex * ex + ey * ey + ez * ez;
-        la[k] = qa;
-        lb[k] = qb;
-        std::int32_t ia, ib;
-        std::memcpy(&ia, &qa, 4);
-        std::memcpy(&ib, &qb, 4);
-        mn = std::min(mn, std::min(ia, ib));
+        const float v = dx * dx + dy * dy + dz * dz;
+        q[k] = v;
+        std::int32_t iv;
+        std::memcpy(&iv, &v, 4);
+        mn = std::min(mn, iv);
     }
     float r;
     std::memcpy(&r, &mn, 4);
     return r;
+}
+
+// Both orientations' bounds (exact mode: the flipped features have their own
+// mean point `b`); returns the smallest of all.
+inline float screen(std::size_t K, const float *mx, const float *my, const float *mz, const float a[3], const float b[3], float *la,
+                    float *lb) {
+    return std::min(screen1(K, mx, my, mz, a, la), screen1(K, mx, my, mz, b, lb));
 }
 
 // The smallest value that compares greater than v after the rounding the
@@ -332,24 +335,6 @@ std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, 
     }
     best_out = best;
     return key;
-}
-
-// Squared float32 distances from the mean points (mx, my, mz)[0..K) to `a`
-// (fast mode: both orientations share them); returns the smallest.
-float screen1(std::size_t K, const float *mx, const float *my, const float *mz, const float a[3], float *q) {
-    std::int32_t mn = 0x7f800000;  // +inf
-    const float ax = a[0], ay = a[1], az = a[2];
-    for (std::size_t k = 0; k < K; ++k) {
-        const float dx = mx[k] - ax, dy = my[k] - ay, dz = mz[k] - az;
-        const float v = dx * dx + dy * dy + dz * dz;
-        q[k] = v;
-        std::int32_t iv;
-        std::memcpy(&iv, &v, 4);
-        mn = std::min(mn, iv);
-    }
-    float r;
-    std::memcpy(&r, &mn, 4);
-    return r;
 }
 
 // Nodes with at most this many children are searched without lower bounds.
