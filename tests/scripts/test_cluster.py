@@ -109,6 +109,55 @@ class ClusterVsDipyTest(TempDirTest):
         self.assertFalse(np.array_equal(a, c))  # processing order matters, and is documented
 
 
+    def test_fast_mode_agrees_with_dipy(self):
+        """--mode fast (float32 resampling and distances): its labels at every
+        level equal DIPY's on at least 99.9 % of the streamlines (the issue's
+        bar; rounding may only decide near-ties), and where a cluster has the
+        same members its centroid is DIPY's to float32 rounding."""
+        cases = [("qbx", QuickBundlesX([30, 25, 20, 15]).cluster(self.sl, ordering=self.order), (1, 2, 3, 4)),
+                 ("qb", QuickBundles(15.0).cluster(self.sl, ordering=self.order), (1,))]
+        for algo, ref, levels in cases:
+            for level in levels:
+                with self.subTest(algorithm=algo, level=level):
+                    clusters = ref.get_clusters(level) if algo == "qbx" else ref
+                    _, lab, cents = self.ours("--algorithm", algo, "--order", self.order_file, "--mode", "fast", level=level)
+                    want = dipy_labels(clusters, self.n)
+                    self.assertGreaterEqual((lab[:, level] == want).mean(), 0.999)
+                    for i, c in enumerate(clusters):
+                        members = np.flatnonzero(lab[:, level] == i)
+                        if i < len(cents) and np.array_equal(members, np.sort(np.asarray(c.indices))):
+                            np.testing.assert_allclose(cents[i], c.centroid, rtol=0, atol=1e-3)
+
+    def test_fast_resampling_matches_dipy(self):
+        """Threshold 0 makes every streamline its own cluster, so fast mode's
+        centroids are its resampled streamlines (seeded in either orientation):
+        they are DIPY's set_number_of_points to float32 rounding, including a
+        100,000-point streamline and streamlines with repeated points."""
+        from dipy.tracking.streamline import set_number_of_points
+        rng = np.random.default_rng(11)
+        sl = random_streamlines(200, rng, 2, 300, scale=90)
+        t = np.linspace(0, 1, 100_000, dtype=np.float32)
+        sl.append((np.stack([t * 150, np.sin(t * 30) * 20, np.cos(t * 7) * 40], axis=1) + 500).astype(np.float32))
+        sl.append(np.repeat(sl[0], 3, axis=0))  # zero-length segments (the same points as sl[0])
+        f = self.path("r.tck")
+        with open(f, "wb") as fh:
+            fh.write(tck_bytes(sl))
+        sl = [s.astype(np.float32) for s in nib.streamlines.load(f).streamlines]
+        for nb in (12, 20, 33):
+            with self.subTest(nb_points=nb):
+                cents = self.path("c.tck")
+                p = run("cluster", f, "--algorithm", "qb", "--thresholds", "0", "--nb-points", str(nb), "--mode", "fast",
+                        "--labels", self.path("l.csv"), "--centroids", cents, "--force")
+                self.assertEqual(p.returncode, 0, p.stderr)
+                lab = np.loadtxt(self.path("l.csv"), delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
+                ours = list(nib.streamlines.load(cents).streamlines)
+                for i, s in enumerate(sl):
+                    want = set_number_of_points(s, nb)
+                    got = ours[lab[i, 1]]
+                    err = min(np.abs(got - want).max(), np.abs(got[::-1] - want).max())
+                    self.assertLess(err, 1e-5 * max(1.0, np.abs(want).max()), f"streamline {i}")
+
+
 class ClusterEdgeCasesTest(TempDirTest):
     def write(self, name, sl):
         f = self.path(name)
@@ -207,3 +256,47 @@ class ClusterEdgeCasesTest(TempDirTest):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class ClusterEdgeCasesFastTest(ClusterEdgeCasesTest):
+    """The same cases in fast mode (float32 resampling and distances)."""
+
+    def labels(self, f, *args):
+        return super().labels(f, *args, "--mode", "fast")
+
+    def test_extreme_scales_match_dipy(self):
+        """Near 1e20 mm and near 1e-30 mm float32 squares overflow and
+        underflow: fast mode resamples such streamlines with DIPY's double
+        arithmetic, and its labels are still DIPY's. Its distances are float32
+        (infinite or zero there), so which orientation seeds or joins a cluster
+        is a tie: at 1e20 mm (every streamline its own cluster) the centroids
+        are DIPY's in one orientation or the other; at 1e-30 mm (one cluster)
+        the members' orientations are arbitrary and only the labels are checked."""
+        rng = np.random.default_rng(4)
+        for scale in (1e20, 1e-30):
+            with self.subTest(scale=scale):
+                sl = [(s * np.float32(scale)).astype(np.float32) for s in random_streamlines(40, rng, 2, 30, scale=5)]
+                f = self.write("x.tck", sl)
+                sl = [s.astype(np.float32) for s in nib.streamlines.load(f).streamlines]
+                cents = self.path("c.tck")
+                for algo, ref in (("qbx", QuickBundlesX([30, 25, 20, 15]).cluster(sl).get_clusters(4)),
+                                  ("qb", QuickBundles(15.0).cluster(sl))):
+                    lab = self.labels(f, "--algorithm", algo, "--centroids", cents)
+                    np.testing.assert_array_equal(lab[:, -1], dipy_labels(ref, len(sl)))
+                    ours = list(nib.streamlines.load(cents).streamlines)
+                    self.assertEqual(len(ref), len(ours))
+                    if scale < 1:
+                        continue
+                    for a, b in zip(ref, ours):
+                        err = min(np.abs(b - a.centroid).max(), np.abs(b[::-1] - a.centroid).max())
+                        self.assertLessEqual(err, 1e-5 * np.abs(a.centroid).max())
+
+    def test_bad_input_fails_cleanly(self):
+        f = self.write("inf.tck", [np.array([[0, 0, 0], [1, 1, 1]], np.float32)])
+        with open(f, "r+b") as fh:
+            data = fh.read()
+            fh.seek(data.index(b"END\n") + 4 + 4)
+            fh.write(np.float32(np.inf).tobytes())
+        p = run("cluster", f, "--labels", self.path("l.csv"), "--mode", "fast")
+        self.assert_clean_error(p, "inf.tck")
+        self.assertFalse(os.path.exists(self.path("l.csv")))

@@ -148,10 +148,11 @@ float fill_geom(const float *fd, const float *fg, std::uint32_t P, float *g) {
 
 }  // namespace
 
-Features extract_features(const Input &in, std::uint32_t P, unsigned threads, const CancelFn &cancel, bool exact_flip) {
+Features extract_features(const Input &in, std::uint32_t P, unsigned threads, const CancelFn &cancel, Resampling how) {
     Features f;
     f.nb_points = P;
     const std::uint64_t N = in.nb_streamlines;
+    const bool exact_flip = how == Resampling::Dipy;
     f.count = N;
     f.direct.resize(N * P * 3 + kTail);
     if (exact_flip) f.flipped.resize(N * P * 3 + kTail);
@@ -165,41 +166,67 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
     // resamples them: one pass over the input.
     auto work = [&](unsigned w, std::uint64_t begin, std::uint64_t end) {
         std::vector<double> seg;  // segment lengths, reused across streamlines
-        for (std::uint64_t s = begin; s < end && !stop; s += 2) {  // two at a time (resample_pair)
-            if (w == 0 && (s - begin) % 4096 == 0 && cancel && cancel()) stop = true;
-            const std::uint64_t cnt = std::min<std::uint64_t>(2, end - s);
-            const float *p[2] = {nullptr, nullptr};
-            std::uint64_t n[2] = {0, 0};
-            float *fd[2] = {nullptr, nullptr}, *fg[2] = {nullptr, nullptr};
-            for (std::uint64_t j = 0; j < cnt; ++j) {
-                const std::uint64_t t = s + j;
-                p[j] = in.positions + 3 * in.offsets[t];
-                n[j] = in.offsets[t + 1] > in.offsets[t] ? in.offsets[t + 1] - in.offsets[t] : 0;
-                if (n[j] == 0) {
+        std::vector<float> scratch;  // resample_fast's
+        constexpr std::uint64_t kBatch = 64;  // streamlines per step (even: resample_pair takes two)
+        double L[kBatch];
+        for (std::uint64_t s0 = begin; s0 < end && !stop; s0 += kBatch) {
+            if (w == 0 && (s0 - begin) % 4096 == 0 && cancel && cancel()) stop = true;
+            const std::uint64_t s1 = std::min(end, s0 + kBatch);
+            bool fast = how == Resampling::Fast;
+            for (std::uint64_t t = s0; t < s1; ++t) {
+                const std::uint64_t n = in.offsets[t + 1] > in.offsets[t] ? in.offsets[t + 1] - in.offsets[t] : 0;
+                if (n == 0) {
                     errors[w] = "streamline " + std::to_string(t) + " has no points (remove empty streamlines before clustering)";
                     stop = true;
+                    break;
                 }
-                fd[j] = &f.direct[t * P * 3];
-                if (exact_flip) fg[j] = &f.flipped[t * P * 3];
+                if (n >= (std::uint64_t{1} << 29)) fast = false;  // beyond resample_fast's 32-bit gathers
             }
             if (stop) break;
-            // DIPY resamples the reversed polyline for the flipped features.
-            double L[2];
-            resample_pair(p[0], n[0], fd[0], fg[0], p[1], n[1], fd[1], fg[1], P, seg, L);
-            for (std::uint64_t j = 0; j < cnt && !stop; ++j) {
-                const std::uint64_t t = s + j;
+            if (fast) {
+                detail::resample_fast(in, s0, s1, P, f.direct.data(), scratch, L);
+            } else {
+                // DIPY resamples the reversed polyline for the flipped features.
+                for (std::uint64_t s = s0; s < s1; s += 2) {
+                    const std::uint64_t cnt = std::min<std::uint64_t>(2, s1 - s);
+                    const float *p[2] = {nullptr, nullptr};
+                    std::uint64_t n[2] = {0, 0};
+                    float *fd[2] = {nullptr, nullptr}, *fg[2] = {nullptr, nullptr};
+                    for (std::uint64_t j = 0; j < cnt; ++j) {
+                        const std::uint64_t t = s + j;
+                        p[j] = in.positions + 3 * in.offsets[t];
+                        n[j] = in.offsets[t + 1] - in.offsets[t];
+                        fd[j] = &f.direct[t * P * 3];
+                        if (exact_flip) fg[j] = &f.flipped[t * P * 3];
+                    }
+                    resample_pair(p[0], n[0], fd[0], fg[0], p[1], n[1], fd[1], fg[1], P, seg, &L[s - s0]);
+                }
+            }
+            for (std::uint64_t t = s0; t < s1 && !stop; ++t) {
+                const std::uint64_t n = in.offsets[t + 1] - in.offsets[t];
+                const float *p = in.positions + 3 * in.offsets[t];
                 // A non-finite coordinate makes the length non-finite, so
                 // the coordinates are only searched then (or for a single point).
-                if (!std::isfinite(L[j]) || n[j] == 1)
-                    for (std::uint64_t v = 0; v < 3 * n[j]; ++v)
-                        if (!std::isfinite(p[j][v])) {
+                // Fast mode's float32 squares overflow beyond ~1e19 mm and
+                // underflow below ~1e-19 mm: such streamlines (and any shorter
+                // than 1e-6 mm) are resampled with DIPY's double arithmetic.
+                const bool redo = fast && n > 1 && !(L[t - s0] >= 1e-6 && L[t - s0] <= DBL_MAX);
+                if (!std::isfinite(L[t - s0]) || n == 1 || redo) {
+                    for (std::uint64_t v = 0; v < 3 * n; ++v)
+                        if (!std::isfinite(p[v])) {
                             errors[w] = "streamline " + std::to_string(t) + " has a non-finite coordinate at vertex " +
                                         std::to_string(in.offsets[t] + v / 3);
                             stop = true;
                             break;
                         }
+                    if (!stop && redo) {
+                        double len[2];
+                        resample_pair(p, n, &f.direct[t * P * 3], nullptr, nullptr, 0, nullptr, nullptr, P, seg, len);
+                    }
+                }
                 if (stop) break;
-                max_abs[w] = std::max(max_abs[w], fill_geom(fd[j], fg[j], P, &f.geom[t * Features::kGeom]));
+                float *fd = &f.direct[t * P * 3];
+                max_abs[w] = std::max(max_abs[w], fill_geom(fd, exact_flip ? &f.flipped[t * P * 3] : nullptr, P, &f.geom[t * Features::kGeom]));
             }
         }
     };
@@ -320,7 +347,7 @@ Tree qbx_and_merge(const Input &in, const std::vector<double> &thresholds, std::
     if (thresholds.empty()) throw InputError("qbx_and_merge needs at least one threshold");
     // set_number_of_points(streamlines, P), then identity features: the
     // resampled points themselves, flipped by reversal.
-    const Features f = extract_features(in, P, threads, cancel, false);
+    const Features f = extract_features(in, P, threads, cancel, mode == Mode::Exact ? Resampling::DipyDirect : Resampling::Fast);
     const Tree qbx = quickbundlesx(f, thresholds, order, mode, cancel, progress);
     const std::uint32_t L = static_cast<std::uint32_t>(thresholds.size());
     std::vector<std::uint64_t> leaves;  // node ids of the last level, DFS order

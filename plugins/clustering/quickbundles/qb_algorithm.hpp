@@ -75,12 +75,18 @@ struct Features {
     float max_abs = 0;  // the largest |coordinate| of any feature
     static constexpr std::size_t kGeom = 12;
 };
+// How extract_features resamples:
+// * Dipy: DIPY's arithmetic, bit for bit, and flipped features resampled
+//   from the reversed polyline, as DIPY does (bitwise different from
+//   reversing the direct features for ~10% of streamlines): exact QB/QBX;
+// * DipyDirect: DIPY's arithmetic; flipped features are the reversal of
+//   the direct ones (not stored): exact qbx_and_merge;
+// * Fast: float32 vectors (qb_resample.cpp), flipped as the reversal: fast
+//   mode. The points differ from DIPY's by float32 rounding (~1e-6 relative).
+enum class Resampling { Dipy, DipyDirect, Fast };
 // Also validates the input (InputError for an empty streamline or a
-// non-finite coordinate). `exact_flip`: flipped features resample the
-// reversed polyline, as DIPY (bitwise different from reversing the direct
-// features for ~10% of streamlines); otherwise they are that reversal (and
-// not stored).
-Features extract_features(const Input &in, std::uint32_t nb_points, unsigned threads, const CancelFn &cancel, bool exact_flip);
+// non-finite coordinate).
+Features extract_features(const Input &in, std::uint32_t nb_points, unsigned threads, const CancelFn &cancel, Resampling how);
 // Features are the points themselves, given xyz-interleaved, n x P x 3
 // (qbx_and_merge's centroids): flipped is then the exact reversal (not stored).
 Features identity_features(const float *points, std::uint64_t n, std::uint32_t nb_points);

@@ -161,7 +161,8 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
             if (c.algo == Algo::Merge) {
                 c.tree = qb::qbx_and_merge(input, c.thresholds, c.nb_points, order, {}, c.mode, threads, cancel, progress);
             } else {
-                const qb::Features f = qb::extract_features(input, c.nb_points, threads, cancel, c.mode == qb::Mode::Exact);
+                const qb::Features f = qb::extract_features(input, c.nb_points, threads, cancel,
+                                                               c.mode == qb::Mode::Exact ? qb::Resampling::Dipy : qb::Resampling::Fast);
                 c.tree = c.algo == Algo::QB ? qb::quickbundles(f, c.thresholds[0], order, c.mode, cancel, progress)
                                             : qb::quickbundlesx(f, c.thresholds, order, c.mode, cancel, progress);
             }

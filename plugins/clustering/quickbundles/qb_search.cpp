@@ -85,7 +85,7 @@ HWY_INLINE V point_dists(D d, V cx, V cy, V cz, V x, V y, V z) {
 }
 
 HWY_INLINE void mdf_pair(const float *HWY_RESTRICT c, const float *HWY_RESTRICT f, const float *HWY_RESTRICT g, std::uint32_t P,
-                         double &df, double &dg) {
+                         float &sf, float &sg) {
     const hn::ScalableTag<float> d;
     const std::size_t N = hn::Lanes(d);
     auto af = hn::Zero(d), ag = hn::Zero(d);
@@ -103,8 +103,8 @@ HWY_INLINE void mdf_pair(const float *HWY_RESTRICT c, const float *HWY_RESTRICT 
         ag = hn::Add(ag, point_dists(d, cx, cy, cz, hn::MaskedLoad(m, d, g + i), hn::MaskedLoad(m, d, g + P + i),
                                      hn::MaskedLoad(m, d, g + 2 * P + i)));
     }
-    df = double(hn::GetLane(hn::SumOfLanes(d, af))) / double(P);
-    dg = double(hn::GetLane(hn::SumOfLanes(d, ag))) / double(P);
+    sf = hn::GetLane(hn::SumOfLanes(d, af));
+    sg = hn::GetLane(hn::SumOfLanes(d, ag));
 }
 
 // A centroid's AABB (as feature_box: min/max are exact, so the same values)
@@ -168,6 +168,17 @@ inline const float *flipped_of(const Features &f, std::uint64_t idx, float *buf,
 inline void update_centroid(float *c, std::uint64_t size, const float *e, std::uint32_t P) {
     const float fs = static_cast<float>(size), fs1 = static_cast<float>(size + 1);
     for (std::uint32_t i = 0; i < 3 * P; ++i) c[i] = ((c[i] * fs) + e[i]) / fs1;
+}
+// Fast mode's form of the same update: a product by 1 / (size + 1) instead
+// of a division per coordinate (within an ulp of it).
+inline void update_centroid_fast(float *c, std::uint64_t size, const float *e, std::uint32_t P) {
+    const float fs = static_cast<float>(size), inv = 1.0f / static_cast<float>(size + 1);
+    for (std::uint32_t i = 0; i < 3 * P; ++i) c[i] = ((c[i] * fs) + e[i]) * inv;
+}
+template <class Metric>
+inline void update_centroid_as(float *c, std::uint64_t size, const float *e, std::uint32_t P) {
+    if constexpr (kFast<Metric>) update_centroid_fast(c, size, e, P);
+    else update_centroid(c, size, e, P);
 }
 
 
@@ -367,13 +378,14 @@ std::int64_t search_fast(std::size_t K, bool interleaved, const float *kid_c, co
     // batch's distances do not wait for each other's comparisons, so the
     // CPU overlaps them.
     std::size_t batch[kSearchAll];
-    double dist[2 * kSearchAll];
+    float sum[2 * kSearchAll];
+    const float inv_p = 1.0f / static_cast<float>(P);  // (a product, not a division, per distance)
     auto run = [&](std::size_t n) {
-        for (std::size_t j = 0; j < n; ++j) mdf_pair(kid_c + batch[j] * 3 * P, fd, fg, P, dist[2 * j], dist[2 * j + 1]);
+        for (std::size_t j = 0; j < n; ++j) mdf_pair(kid_c + batch[j] * 3 * P, fd, fg, P, sum[2 * j], sum[2 * j + 1]);
         for (std::size_t j = 0; j < n; ++j) {
             const std::size_t k = batch[j];
-            take(dist[2 * j], interleaved ? std::int64_t(2 * k) : std::int64_t(k));
-            take(dist[2 * j + 1], interleaved ? std::int64_t(2 * k + 1) : std::int64_t(K + k));
+            take(sum[2 * j] * inv_p, interleaved ? std::int64_t(2 * k) : std::int64_t(k));
+            take(sum[2 * j + 1] * inv_p, interleaved ? std::int64_t(2 * k + 1) : std::int64_t(K + k));
         }
     };
     if (K <= kSearchAll) {
@@ -486,7 +498,7 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
             sizes.push_back(0);
             indices.emplace_back();
         }
-        update_centroid(&C[k * P * 3], sizes[k], e, P);
+        update_centroid_as<Metric>(&C[k * P * 3], sizes[k], e, P);
         float m[3], unused[6];
         box_and_mean(&C[k * P * 3], P, unused, unused + 3, m);
         mx[k] = m[0];
@@ -533,7 +545,7 @@ struct QbxOps {
         Node::Kid &me = n.parent->kids[n.slot];
         float m[3];
         float *c = n.parent->kid_c.data() + std::size_t(n.slot) * 3 * P;
-        update_centroid(c, n.size, e, P);
+        update_centroid_as<Metric>(c, n.size, e, P);
         box_and_mean(c, P, me.box_c, me.box_r, m);
         ++n.size;
         n.parent->mx[n.slot] = m[0];

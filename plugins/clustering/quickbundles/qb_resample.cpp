@@ -1,0 +1,138 @@
+// Fast mode's resampling: every streamline to P points equally spaced along
+// its arc length, in float32 vectors. Highway compiles this file once per
+// SIMD target (foreach_target.h) and resample_fast dispatches to the best
+// one the CPU supports.
+//
+// Exact mode resamples with DIPY's arithmetic instead (qb_algorithm.cpp):
+// double sums in point order and a serial walk, bit for bit DIPY's points.
+// Here the same points are computed with float32 rounding, a vector at a time:
+//   1. segment lengths, N segments at once (points loaded deinterleaved);
+//   2. cumulative lengths by an in-register prefix sum per vector, each
+//      vector offset by the double sum of the vectors before it, so the
+//      error of a cumulative length stays a few float32 ulps of it even on
+//      a 10-million-point streamline;
+//   3. for N targets at once, the segment each falls in: the count of
+//      cumulative lengths below it (no data-dependent branch);
+//   4. the segment's end points gathered, interpolated, and stored per axis.
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "qb_resample.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
+#include "qb_internal.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+HWY_BEFORE_NAMESPACE();
+namespace qb::detail {
+namespace HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+namespace {
+
+// Inclusive prefix sum of v's lanes (log2(N) shifted adds).
+template <class D, class V = hn::VFromD<D>>
+HWY_INLINE V prefix_sum(D d, V v) {
+    const hn::RebindToSigned<D> di;
+    const auto iota = hn::Iota(di, 0);
+    for (int k = 1; k < static_cast<int>(hn::Lanes(d)); k <<= 1) {
+        const auto from = hn::Max(hn::Sub(iota, hn::Set(di, k)), hn::Zero(di));
+        const V shifted = hn::TableLookupLanes(v, hn::IndicesFromVec(d, from));
+        v = hn::Add(v, hn::IfThenElseZero(hn::RebindMask(d, hn::Gt(iota, hn::Set(di, k - 1))), shifted));
+    }
+    return v;
+}
+
+// One streamline p[0..n) (n >= 1, n < 2^29) into out (x[0..P), y[0..P),
+// z[0..P)). Returns its length, summed in double (non-finite when a
+// coordinate is). arc: scratch of at least n + 2 N floats.
+double resample_one(const float *HWY_RESTRICT p, std::uint64_t n, std::uint32_t P, float *HWY_RESTRICT out, float *HWY_RESTRICT arc) {
+    const hn::ScalableTag<float> d;
+    const hn::RebindToSigned<decltype(d)> di;
+    using V = hn::Vec<decltype(d)>;
+    const std::size_t N = hn::Lanes(d);
+    const float *last = p + 3 * (n - 1);
+    // 1-2. arc[k] = length of the polyline up to point k.
+    arc[0] = 0.0f;
+    double carry = 0.0;
+    float tail[3 * (HWY_MAX_BYTES / sizeof(float) + 1)];
+    for (std::uint64_t i = 0; i + 1 < n; i += N) {
+        const float *src = p + 3 * i;
+        if (i + N >= n) {  // fewer than N segments left: pad with the last point (zero-length segments)
+            const std::uint64_t have = n - i;
+            std::copy_n(src, 3 * have, tail);
+            for (std::uint64_t k = have; k <= N; ++k) std::copy_n(last, 3, tail + 3 * k);
+            src = tail;
+        }
+        V x0, y0, z0, x1, y1, z1;
+        hn::LoadInterleaved3(d, src, x0, y0, z0);
+        hn::LoadInterleaved3(d, src + 3, x1, y1, z1);
+        const V dx = hn::Sub(x1, x0), dy = hn::Sub(y1, y0), dz = hn::Sub(z1, z0);
+        const V seg = hn::Sqrt(hn::MulAdd(dx, dx, hn::MulAdd(dy, dy, hn::Mul(dz, dz))));
+        hn::StoreU(hn::Add(hn::Set(d, static_cast<float>(carry)), prefix_sum(d, seg)), d, arc + i + 1);
+        carry += static_cast<double>(hn::GetLane(hn::SumOfLanes(d, seg)));
+    }
+    const double length = carry;
+    if (!(length > 0.0) || !(length < HUGE_VAL)) {  // one point, zero length, or non-finite: copies of the last point
+        for (std::uint32_t j = 0; j < P; ++j)
+            for (int a = 0; a < 3; ++a) out[a * P + j] = last[a];
+        return length;
+    }
+    // 3-4. Target j at j * step; the segment [k-1, k] it falls in has
+    // k = 1 + #{m in [1, n): arc[m] < t}, clamped to n - 1.
+    const float step = static_cast<float>(length / static_cast<double>(P - 1));
+    const auto top = hn::Set(di, static_cast<std::int32_t>(n - 1));
+    const auto one = hn::Set(di, 1);
+    for (std::uint32_t j0 = 0; j0 < P; j0 += static_cast<std::uint32_t>(N)) {
+        const V t = hn::Mul(hn::ConvertTo(d, hn::Add(hn::Iota(di, 0), hn::Set(di, static_cast<std::int32_t>(j0)))), hn::Set(d, step));
+        auto below = hn::Zero(di);  // minus the count (mask lanes are -1)
+        for (std::uint64_t m = 1; m < n; ++m) below = hn::Add(below, hn::VecFromMask(di, hn::RebindMask(di, hn::Lt(hn::Set(d, arc[m]), t))));
+        const auto k = hn::Min(hn::Sub(one, below), top);
+        const auto k1 = hn::Sub(k, one);
+        const V a = hn::GatherIndex(d, arc, k1), b = hn::GatherIndex(d, arc, k);
+        const V span = hn::Sub(b, a);
+        const auto ok = hn::Gt(span, hn::Zero(d));
+        V r = hn::Div(hn::Sub(t, a), hn::IfThenElse(ok, span, hn::Set(d, 1.0f)));
+        r = hn::IfThenElseZero(ok, hn::Min(hn::Max(r, hn::Zero(d)), hn::Set(d, 1.0f)));
+        const auto ia = hn::Mul(k1, hn::Set(di, 3)), ib = hn::Mul(k, hn::Set(di, 3));
+        const auto keep = hn::FirstN(d, P - j0);
+        for (int ax = 0; ax < 3; ++ax) {
+            const V pa = hn::GatherIndex(d, p + ax, ia), pb = hn::GatherIndex(d, p + ax, ib);
+            hn::BlendedStore(hn::MulAdd(r, hn::Sub(pb, pa), pa), keep, d, out + ax * P + j0);
+        }
+    }
+    for (int a = 0; a < 3; ++a) out[a * P + (P - 1)] = last[a];
+    return length;
+}
+
+}  // namespace
+
+void ResampleFast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, std::vector<float> &scratch,
+                  double *lengths) {
+    const std::size_t N = hn::Lanes(hn::ScalableTag<float>());
+    for (std::uint64_t s = begin; s < end; ++s) {
+        const std::uint64_t n = in.offsets[s + 1] - in.offsets[s];
+        if (scratch.size() < n + 2 * N) scratch.resize(n + 2 * N);
+        lengths[s - begin] = resample_one(in.positions + 3 * in.offsets[s], n, P, direct + s * P * 3, scratch.data());
+    }
+}
+
+}  // namespace HWY_NAMESPACE
+}  // namespace qb::detail
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace qb::detail {
+
+HWY_EXPORT(ResampleFast);
+
+void resample_fast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, std::vector<float> &scratch,
+                   double *lengths) {
+    HWY_DYNAMIC_DISPATCH(ResampleFast)(in, begin, end, P, direct, scratch, lengths);
+}
+
+}  // namespace qb::detail
+#endif  // HWY_ONCE
