@@ -84,6 +84,18 @@ def matched_fraction(a, b):
     return best.sum() / len(a)
 
 
+def fast_agreement(le, lf, levels):
+    """Fast mode against exact mode, worst level: the fraction of streamlines
+    in the same cluster (fast clusters mapped to the exact cluster holding most
+    of their members), and the fraction with the same cluster id. Ids are DFS
+    positions, so one cluster created elsewhere late in the run renumbers every
+    later one: the ids can differ for most streamlines while the clusters are
+    the same for all but a few."""
+    same = min(matched_fraction(lf[:, l], le[:, l]) for l in levels)
+    ids = min((le[:, l] == lf[:, l]).mean() for l in levels)
+    return f"fast in the same cluster: {100 * same:.3f}% (same id: {100 * ids:.3f}%)"
+
+
 def make_real(work, n):
     """DIPY's minimal_bundles (3 bundles x 2 subjects) replicated with random
     rigid transforms (rotation up to 10 degrees, translation up to 10 mm)."""
@@ -156,9 +168,7 @@ def main():
         exact_s, le = ours(args.build, tck, "qbx", "exact", lab)
         fast_s, lf = ours(args.build, tck, "qbx", "fast", lab)
         same = all(np.array_equal(le[:, l], dipy_labels(ref.get_clusters(l), n)) for l in range(1, 5))
-        fast_agree = min((le[:, l] == lf[:, l]).mean() for l in range(1, 5))
-        row(name, n, "QBX", dipy_s, exact_s, fast_s,
-            f"exact==DIPY at all levels: {same}; fast agrees on {100 * fast_agree:.3f}%")
+        row(name, n, "QBX", dipy_s, exact_s, fast_s, f"exact==DIPY at all levels: {same}; {fast_agreement(le, lf, range(1, 5))}")
         del sl, ref
 
     # 2. QB at 15 mm: DIPY on the smallest synthetic set only (it is O(N K)).
@@ -170,7 +180,7 @@ def main():
     exact_s, le = ours(args.build, tck, "qb", "exact", lab, thresholds=[15])
     fast_s, lf = ours(args.build, tck, "qb", "fast", lab, thresholds=[15])
     row(name, n, "QB 15 mm", dipy_s, exact_s, fast_s,
-        f"exact==DIPY: {np.array_equal(le[:, 1], dipy_labels(ref, n))}; fast agrees on {100 * (le[:, 1] == lf[:, 1]).mean():.3f}%")
+        f"exact==DIPY: {np.array_equal(le[:, 1], dipy_labels(ref, n))}; {fast_agreement(le, lf, [1])}")
     del sl, ref
 
     if args.dipy_qb_1m and "synthetic 1000k" in files:
@@ -182,7 +192,7 @@ def main():
         ref = QuickBundles(15.0).cluster(sl)
         dipy_s = time.perf_counter() - t0
         row("synthetic 1000k", n, "QB 15 mm", dipy_s, exact_s, fast_s,
-            f"exact==DIPY: {np.array_equal(le[:, 1], dipy_labels(ref, n))}; fast agrees on {100 * (le[:, 1] == lf[:, 1]).mean():.3f}%")
+            f"exact==DIPY: {np.array_equal(le[:, 1], dipy_labels(ref, n))}; {fast_agreement(le, lf, [1])}")
         del sl, ref
 
     # 3. 5M streamlines, Horizon only.
