@@ -277,3 +277,22 @@ class PlyObjTest(TempDirTest):
 
 if __name__ == "__main__":
     unittest.main()
+
+    def test_float64_vertex_data_written_to_gifti_as_float64(self):
+        """A double per-vertex property is written to GIFTI as NIFTI_TYPE_FLOAT64,
+        not narrowed to float32 (values float32 cannot hold survive exactly)."""
+        vals = np.array([0.1 + 1e-12, 1.0 / 3.0, 2.0 ** 40 + 0.5])
+        src, gii = self.path("d.ply"), self.path("d.gii")
+        with open(src, "w") as fh:
+            fh.write("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                     "property double thickness\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n")
+            for i, v in enumerate(vals):
+                fh.write(f"{i} {i * 2} 0 {v!r}\n")
+            fh.write("3 0 1 2\n")
+        p = run("convert", src, gii)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        arrays = [d for d in nib.load(gii).darrays if d.intent not in (1008, 1009)]  # not POINTSET / TRIANGLE
+        self.assertEqual(len(arrays), 1)
+        self.assertEqual(arrays[0].data.dtype, np.float64)
+        np.testing.assert_array_equal(arrays[0].data, vals)
+

@@ -439,6 +439,9 @@ void write(const std::string &path, const Surface &s, bool gz) {
         const std::uint64_t rows = geometry ? s.vertices.size() / 3 : s.rows;
         if (o.integer) {
             add("NIFTI_INTENT_LABEL", "NIFTI_TYPE_INT32", rows, o.components, o.labels.data(), 4, o.name, false);
+        } else if (!o.values64.empty()) {
+            add(o.intent.empty() ? "NIFTI_INTENT_SHAPE" : o.intent.c_str(), "NIFTI_TYPE_FLOAT64", rows, o.components, o.values64.data(), 8,
+                o.name, false);
         } else {
             add(o.intent.empty() ? "NIFTI_INTENT_SHAPE" : o.intent.c_str(), "NIFTI_TYPE_FLOAT32", rows, o.components, o.values.data(), 4,
                 o.name, false);

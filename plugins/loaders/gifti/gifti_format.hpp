@@ -23,6 +23,7 @@ struct Overlay {
     bool integer = false; // INT32/UINT8 data (labels) vs FLOAT32
     std::uint32_t components = 1;
     std::vector<float> values;        // float data, vertices x components
+    std::vector<double> values64;     // written as NIFTI_TYPE_FLOAT64 instead, when not empty (writer only)
     std::vector<std::int32_t> labels; // integer data
 };
 

@@ -199,9 +199,9 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             if (a.dtype == HZ_DTYPE_F32) {
                 const auto *p = static_cast<const float *>(a.data);
                 o.values.assign(p, p + n);
-            } else if (a.dtype == HZ_DTYPE_F64) {
+            } else if (a.dtype == HZ_DTYPE_F64) {  // kept as float64 (NIFTI_TYPE_FLOAT64), not narrowed
                 const auto *p = static_cast<const double *>(a.data);
-                o.values.assign(p, p + n);
+                o.values64.assign(p, p + n);
             } else if (a.dtype == HZ_DTYPE_I32) {
                 o.integer = true;
                 const auto *p = static_cast<const std::int32_t *>(a.data);
