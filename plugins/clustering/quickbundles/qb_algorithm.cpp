@@ -17,6 +17,8 @@
 #include <limits>
 #include <thread>
 
+#include <sys/mman.h>
+
 namespace qb {
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
@@ -148,9 +150,25 @@ float fill_geom(const float *fd, const float *fg, std::uint32_t P, float *g) {
 
 }  // namespace
 
+// Asks the kernel to map the whole pages of floats[0..n) now, in one call
+// (MADV_POPULATE_WRITE, Linux 5.14): faulting them in one by one costs
+// about a fifth of the resampling. Where the kernel cannot, the pages fault
+// in as they are written.
+void prefault(float *p, std::uint64_t n) {
+#ifdef MADV_POPULATE_WRITE
+    const std::uintptr_t page = 4096, a = reinterpret_cast<std::uintptr_t>(p);
+    const std::uintptr_t b = (a + page - 1) & ~(page - 1), e = (a + n * sizeof(float)) & ~(page - 1);
+    if (e > b) (void)madvise(reinterpret_cast<void *>(b), e - b, MADV_POPULATE_WRITE);
+#else
+    (void)p;
+    (void)n;
+#endif
+}
+
 Features extract_features(const Input &in, std::uint32_t P, unsigned threads, const CancelFn &cancel, Resampling how) {
     Features f;
     f.nb_points = P;
+    f.float_means = how == Resampling::Fast;
     const std::uint64_t N = in.nb_streamlines;
     const bool exact_flip = how == Resampling::Dipy;
     f.count = N;
@@ -165,6 +183,11 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
     // Each worker validates its streamlines (non-empty, finite) while it
     // resamples them: one pass over the input.
     auto work = [&](unsigned w, std::uint64_t begin, std::uint64_t end) {
+        // This worker's share of the output, mapped in one call before it is
+        // written (instead of a page fault per page).
+        prefault(f.direct.data() + begin * P * 3, (end - begin) * P * 3);
+        if (exact_flip) prefault(f.flipped.data() + begin * P * 3, (end - begin) * P * 3);
+        prefault(f.geom.data() + begin * Features::kGeom, (end - begin) * Features::kGeom);
         std::vector<double> seg;  // segment lengths, reused across streamlines
         std::vector<float> scratch;  // resample_fast's
         constexpr std::uint64_t kBatch = 64;  // streamlines per step (even: resample_pair takes two)
@@ -184,7 +207,7 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
             }
             if (stop) break;
             if (fast) {
-                detail::resample_fast(in, s0, s1, P, f.direct.data(), scratch, L);
+                detail::resample_fast(in, s0, s1, P, f.direct.data(), f.geom.data(), scratch, L, max_abs[w]);
             } else {
                 // DIPY resamples the reversed polyline for the flipped features.
                 for (std::uint64_t s = s0; s < s1; s += 2) {
@@ -225,6 +248,7 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
                     }
                 }
                 if (stop) break;
+                if (fast && !redo) continue;  // (resample_fast filled its geom)
                 float *fd = &f.direct[t * P * 3];
                 max_abs[w] = std::max(max_abs[w], fill_geom(fd, exact_flip ? &f.flipped[t * P * 3] : nullptr, P, &f.geom[t * Features::kGeom]));
             }

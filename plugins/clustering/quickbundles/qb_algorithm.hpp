@@ -73,6 +73,10 @@ struct Features {
     // the direct and the flipped features (xyz each).
     FloatArray geom;
     float max_abs = 0;  // the largest |coordinate| of any feature
+    // Whether the streamlines' mean points may have been summed in float32
+    // (fast resampling) rather than in double: the lower bounds of the
+    // searches then allow for the larger rounding.
+    bool float_means = false;
     static constexpr std::size_t kGeom = 12;
 };
 // How extract_features resamples:

@@ -102,11 +102,13 @@ Tree run_qbx(const Features &f, const std::vector<double> &thresholds, const std
 
 // Fast mode's resampling (qb_resample.cpp, also dispatched per SIMD
 // target): streamlines [begin, end) of `in` (each with 1 to 2^29 - 1 points)
-// to P >= 2 points in float32, into direct + s * P * 3 (per axis); their
-// lengths, summed in double, into lengths[0..end - begin). A streamline of
-// zero or non-finite length gets P copies of its last point. `scratch` is
-// the caller's, reused across calls (one per thread).
-void resample_fast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, std::vector<float> &scratch,
-                   double *lengths);
+// to P >= 2 points in float32, into direct + s * P * 3 (per axis), and their
+// Features::geom into geom + s * kGeom (mean points summed in float32);
+// their lengths, summed in double, into lengths[0..end - begin); max_abs
+// raised to their largest |coordinate|. A streamline of zero or non-finite
+// length gets P copies of its last point. `scratch` is the caller's, reused
+// across calls (one per thread).
+void resample_fast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, float *geom,
+                   std::vector<float> &scratch, double *lengths, float &max_abs);
 
 }  // namespace qb::detail

@@ -108,16 +108,48 @@ double resample_one(const float *HWY_RESTRICT p, std::uint64_t n, std::uint32_t 
     return length;
 }
 
+// A feature block's Features::geom (AABB centre and half-size as
+// feature_box computes them, bit for bit; the mean point, summed in
+// float32, for both orientations) and its largest |coordinate|, one vector per axis at a time, while
+// the block is still in L1.
+HWY_INLINE float geom_of(const float *HWY_RESTRICT x, std::uint32_t P, float *HWY_RESTRICT g) {
+    const hn::ScalableTag<float> d;
+    const std::size_t N = hn::Lanes(d);
+    const auto inf = hn::Set(d, HUGE_VALF), ninf = hn::Neg(inf);
+    auto big = hn::Zero(d);
+    for (int a = 0; a < 3; ++a) {
+        const float *p = x + a * P;
+        auto mn = inf, mx = ninf, sum = hn::Zero(d);
+        for (std::size_t i = 0; i < P; i += N) {
+            const auto m = hn::FirstN(d, P - i);
+            const auto v = hn::MaskedLoad(m, d, p + i);  // (zeros in the lanes past P)
+            mn = hn::Min(mn, hn::IfThenElse(m, v, inf));
+            mx = hn::Max(mx, hn::IfThenElse(m, v, ninf));
+            sum = hn::Add(sum, v);
+            big = hn::Max(big, hn::Abs(v));
+        }
+        const float lo = hn::GetLane(hn::MinOfLanes(d, mn)), hi = hn::GetLane(hn::MaxOfLanes(d, mx));
+        g[3 + a] = (hi - lo) / 2.0f;
+        g[a] = lo + g[3 + a];
+        g[6 + a] = g[9 + a] = hn::GetLane(hn::SumOfLanes(d, sum)) / static_cast<float>(P);
+    }
+    return hn::GetLane(hn::MaxOfLanes(d, big));
+}
+
 }  // namespace
 
-void ResampleFast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, std::vector<float> &scratch,
-                  double *lengths) {
+void ResampleFast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, float *geom,
+                  std::vector<float> &scratch, double *lengths, float &max_abs) {
     const std::size_t N = hn::Lanes(hn::ScalableTag<float>());
+    float big = max_abs;
     for (std::uint64_t s = begin; s < end; ++s) {
         const std::uint64_t n = in.offsets[s + 1] - in.offsets[s];
         if (scratch.size() < n + 2 * N) scratch.resize(n + 2 * N);
-        lengths[s - begin] = resample_one(in.positions + 3 * in.offsets[s], n, P, direct + s * P * 3, scratch.data());
+        float *out = direct + s * P * 3;
+        lengths[s - begin] = resample_one(in.positions + 3 * in.offsets[s], n, P, out, scratch.data());
+        big = std::max(big, geom_of(out, P, geom + s * Features::kGeom));
     }
+    max_abs = big;
 }
 
 }  // namespace HWY_NAMESPACE
@@ -129,9 +161,9 @@ namespace qb::detail {
 
 HWY_EXPORT(ResampleFast);
 
-void resample_fast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, std::vector<float> &scratch,
-                   double *lengths) {
-    HWY_DYNAMIC_DISPATCH(ResampleFast)(in, begin, end, P, direct, scratch, lengths);
+void resample_fast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, float *geom,
+                   std::vector<float> &scratch, double *lengths, float &max_abs) {
+    HWY_DYNAMIC_DISPATCH(ResampleFast)(in, begin, end, P, direct, geom, scratch, lengths, max_abs);
 }
 
 }  // namespace qb::detail

@@ -201,6 +201,10 @@ struct LowerBound {
         const float m = f.max_abs;
         const double P = std::max<std::uint32_t>(f.nb_points, 1);
         slack = 4e-12 * double(m) * P + 0x1p-21 * double(m) + 2.0 * P * 0x1p-24 * double(m) + 1e-300;
+        // A streamline's mean point summed in float32 (Features::float_means)
+        // is within P 2^-24 m per axis instead of 2^-24 m: sqrt(3) (2P) 2^-24 m
+        // in length with the centroid's, which 4 P 2^-24 m + 2^-21 m covers.
+        if (f.float_means) slack += 2.0 * P * 0x1p-24 * double(m);
     }
     // Squared form, without a square root per candidate: hopeless when
     // q >= limit2(bound) = ((bound / factor) + slack)^2 (1 + 2^-20), rounded
