@@ -140,6 +140,13 @@ json describe(const core::Dataset &ds) {
         }
         j["bbox_ras_mm"] = {{"min", mn}, {"max", mx}};
     }
+    if (ds.kind == HZ_DATA_IMAGE && ds.volume.dims.size() == 3) {  // dims = {channels, width, height}
+        const auto &v = ds.volume;
+        j["width"] = v.dims[1];
+        j["height"] = v.dims[2];
+        j["channels"] = v.dims[0];
+        j["dtype"] = core::dtype_name(v.dtype);
+    }
     j["header"] = json::array();
     for (const auto &[k, v] : ds.metadata) j["header"].push_back({k, v});
     return j;
@@ -217,6 +224,10 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json) {
             std::printf("  %10.4f %10.4f %10.4f %10.4f\n", row[0].get<double>(), row[1].get<double>(), row[2].get<double>(),
                         row[3].get<double>());
     }
+    if (j.contains("width"))
+        std::printf("image:         %llu x %llu pixels, %llu channel%s (%s)\n", (unsigned long long)j["width"].get<std::uint64_t>(),
+                    (unsigned long long)j["height"].get<std::uint64_t>(), (unsigned long long)j["channels"].get<std::uint64_t>(),
+                    j["channels"].get<std::uint64_t>() == 1 ? "" : "s", j["dtype"].get<std::string>().c_str());
     if (!ds.metadata.empty()) {
         std::printf("header:\n");
         for (const auto &[k, v] : ds.metadata) std::printf("  %s: %s\n", k.c_str(), v.c_str());

@@ -228,6 +228,16 @@ class FreeSurferTest(TempDirTest):
         back = self.path("back.sulc")
         self.assertEqual(run("convert", self.path("v.shape.gii"), back, "--force").returncode, 0)
         np.testing.assert_array_equal(fs.read_morph_data(back), vals)
+        # float64 values (a GIFTI FLOAT64 array) go into a curv file rounded to float32, and the
+        # conversion says so.
+        v64 = vals.astype(np.float64) + 1e-9
+        g64 = self.path("v64.shape.gii")
+        nib.save(nib.gifti.GiftiImage(darrays=[nib.gifti.GiftiDataArray(v64, intent="NIFTI_INTENT_SHAPE",
+                                                                        datatype="NIFTI_TYPE_FLOAT64")]), g64)
+        p = run("convert", g64, self.path("r64.curv"), "--force")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("float64 precision", p.stderr)
+        np.testing.assert_array_equal(fs.read_morph_data(self.path("r64.curv")), v64.astype(np.float32))
         # A surface has no values to put in a curv file; a curv file has no geometry for a surface.
         self.assert_clean_error(run("convert", self.make("lh.white"), self.path("x.curv")), "x.curv")
         self.assert_clean_error(run("convert", src, self.path("x.white")), "x.white")

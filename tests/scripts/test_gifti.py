@@ -60,6 +60,32 @@ class GiftiTest(TempDirTest):
                     self.assertEqual(len(info["arrays"]), 1)
                     self.check_roundtrip(path, v, f, ov)
 
+    def test_float64_overlay_kept(self):
+        """A NIFTI_TYPE_FLOAT64 array reads as float64 (not narrowed) and converts to GIFTI exactly."""
+        rng = np.random.default_rng(5)
+        v, f = surface(rng)
+        ov = rng.random(len(v)) * 1e3 + 1e-9  # values float32 cannot hold
+        for enc in ("GIFTI_ENCODING_ASCII", "GIFTI_ENCODING_B64BIN", "GIFTI_ENCODING_B64GZ"):
+            with self.subTest(encoding=enc):
+                arrays = [GiftiDataArray(v, intent="NIFTI_INTENT_POINTSET", datatype="NIFTI_TYPE_FLOAT32", encoding=enc),
+                          GiftiDataArray(f, intent="NIFTI_INTENT_TRIANGLE", datatype="NIFTI_TYPE_INT32", encoding=enc),
+                          GiftiDataArray(ov, intent="NIFTI_INTENT_SHAPE", datatype="NIFTI_TYPE_FLOAT64", encoding=enc)]
+                path = self.path(f"f64_{enc}.gii")
+                nib.save(GiftiImage(darrays=arrays), path)
+                ref = nib.load(path).agg_data("NIFTI_INTENT_SHAPE")
+                self.assertEqual(ref.dtype, np.float64)
+                info = run_json("info", path, "--json")
+                self.assertEqual([a["dtype"] for a in info["arrays"]], ["float64"])
+                out = self.path("f64_out.gii")
+                p = run("convert", path, out, "--force")
+                self.assertEqual(p.returncode, 0, p.stderr)
+                g = nib.load(out).agg_data("NIFTI_INTENT_SHAPE")
+                self.assertEqual(g.dtype, np.float64)
+                if enc == "GIFTI_ENCODING_ASCII":  # (nibabel writes ASCII with %.6g-like precision)
+                    np.testing.assert_array_equal(g, ref)
+                else:
+                    np.testing.assert_array_equal(g, ov)
+
     def test_big_endian_and_external(self):
         rng = np.random.default_rng(3)
         v, f = surface(rng)

@@ -22,6 +22,10 @@ class ImagesTest(TempDirTest):
             Image.fromarray(px, mode).save(src)
             info = run_json("info", src, "--json")
             self.assertEqual(info["kind"], "image")
+            self.assertEqual((info["width"], info["height"], info["channels"], info["dtype"]),
+                             (shape[1], shape[0], shape[2] if len(shape) == 3 else 1, "uint8"))
+            text = run("info", src).stdout
+            self.assertIn(f"image:         {shape[1]} x {shape[0]} pixels", text)
             for ext in ("tif", "png"):
                 out = self.path(f"b_{mode}.{ext}")
                 p = run("convert", src, out, "--force")

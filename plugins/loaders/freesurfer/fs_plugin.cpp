@@ -215,6 +215,9 @@ hz_status write_curv(const hz_write_request *req, const hz_dataset_view *data) {
     if (pick == nullptr) throw FormatError("a curv file needs a per-vertex array of one float value per vertex; this data has none");
     if (pick->count == 0 || pick->count > 0x7FFFFFFF) throw FormatError("curv files hold 1 to 2^31-1 values");
     if (data->mesh_nb_vertices > 0 && req->on_dropped) req->on_dropped(req->ctx, "the surface geometry (a curv file holds values only)");
+    if (pick->dtype == HZ_DTYPE_F64 && req->on_dropped)
+        req->on_dropped(req->ctx, ("the float64 precision of array '" + std::string(pick->name ? pick->name : "") +
+                                   "' (curv values are float32: rounded)").c_str());
     std::vector<unsigned char> out = {0xFF, 0xFF, 0xFF};
     auto put = [&](std::uint32_t v) { put_be32(out, v); };
     put(static_cast<std::uint32_t>(pick->count));

@@ -312,6 +312,8 @@ Surface read(const std::string &path) {
                     throw FormatError("integer array '" + o.name + "' holds " + fmt_number(x) + ", not an int32 value");
                 o.labels.push_back(static_cast<std::int32_t>(x));
             }
+        } else if (a.dtype == DT::F64) {
+            o.values64 = a.values;  // kept as float64, not narrowed
         } else {
             o.values.assign(a.values.begin(), a.values.end());
         }

@@ -20,10 +20,10 @@ struct FormatError : std::runtime_error {
 struct Overlay {
     std::string name;     // its Name meta value, else its intent
     std::string intent;
-    bool integer = false; // INT32/UINT8 data (labels) vs FLOAT32
+    bool integer = false; // integer data (labels, read as int32) vs FLOAT32/FLOAT64
     std::uint32_t components = 1;
-    std::vector<float> values;        // float data, vertices x components
-    std::vector<double> values64;     // written as NIFTI_TYPE_FLOAT64 instead, when not empty (writer only)
+    std::vector<float> values;        // FLOAT32 data, vertices x components
+    std::vector<double> values64;     // FLOAT64 data instead, when not empty (read and written as such)
     std::vector<std::int32_t> labels; // integer data
 };
 

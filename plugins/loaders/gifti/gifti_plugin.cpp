@@ -29,6 +29,9 @@ struct Reader {
 };
 Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
+// How an overlay is presented: int32 labels, float64 as stored, or float32.
+hz_dtype dtype_of(const gifti::Overlay &o) { return o.integer ? HZ_DTYPE_I32 : o.values64.empty() ? HZ_DTYPE_F32 : HZ_DTYPE_F64; }
+
 template <class F>
 hz_status run(hz_error *err, const std::string &path, F &&body) {
     return hz::format_guard<gifti::FormatError, hzio::IoError>(err, "gifti", path, body);
@@ -96,7 +99,7 @@ hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info
     const gifti::Overlay &o = r.s.overlays[index];
     out->attach = HZ_ATTACH_VERTEX;
     out->name = o.name.c_str();
-    out->dtype = o.integer ? HZ_DTYPE_I32 : HZ_DTYPE_F32;
+    out->dtype = dtype_of(o);
     out->components = o.components;
     out->count = r.s.rows;
     return HZ_OK;
@@ -144,14 +147,18 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
     }
     if (index >= r.s.overlays.size()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "gifti: %s: no extra array %u", r.path.c_str(), index);
     const gifti::Overlay &o = r.s.overlays[index];
-    if (dst->ndim != 2 || dst->shape[0] != rows || dst->shape[1] != o.components || dst->dtype != (o.integer ? HZ_DTYPE_I32 : HZ_DTYPE_F32))
+    if (dst->ndim != 2 || dst->shape[0] != rows || dst->shape[1] != o.components || dst->dtype != dtype_of(o))
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "gifti: %s: read_array: destination does not match", r.path.c_str());
+    const std::size_t width = o.values64.empty() ? 4 : 8;
     for (std::uint64_t i = 0; i < rows; ++i)
         for (std::uint32_t c = 0; c < o.components; ++c) {
-            unsigned char *cell = hz::view_cell(*dst, i, c, 4);
+            unsigned char *cell = hz::view_cell(*dst, i, c, width);
             if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
             const std::size_t k = i * o.components + c;
-            std::memcpy(cell, o.integer ? static_cast<const void *>(&o.labels[k]) : static_cast<const void *>(&o.values[k]), 4);
+            const void *src = o.integer ? static_cast<const void *>(&o.labels[k])
+                              : width == 8 ? static_cast<const void *>(&o.values64[k])
+                                           : static_cast<const void *>(&o.values[k]);
+            std::memcpy(cell, src, width);
         }
     return HZ_OK;
 }
