@@ -1,6 +1,7 @@
 // The TRK format code on its own: the parallel chunked decode against one
-// sequential chunk, and the first error in file order.
+// sequential chunk, the first error in file order, and the vector transform.
 #include "trk_format.hpp"
+#include "trk_transform.hpp"
 
 #include <catch2/catch.hpp>
 
@@ -80,4 +81,30 @@ TEST_CASE("trk: the parallel chunked decode equals one sequential chunk; the fir
     poison(late);
     poison(early);
     CHECK_THROWS_WITH(decode(file, false), Catch::Contains("streamline " + std::to_string(early) + " point 1 has a non-finite"));
+}
+
+TEST_CASE("trk: the vector transform of scalar-free points equals the scalar formula bit for bit; non-finite input is flagged") {
+    // An oblique affine with a translation, every length 0..40 (vector body
+    // and scalar tail), points at an offset of one float (unaligned vectors).
+    const double A[16] = {0.9, -0.31, 0.2, -90.25, 0.27, 1.1, -0.05, 126.5, -0.12, 0.08, 2.03, -72.125, 0, 0, 0, 1};
+    std::vector<float> in(1 + 3 * 40), out(3 * 40 + 1);
+    for (std::size_t i = 0; i < in.size(); ++i) in[i] = static_cast<float>(std::sin(double(i) * 12.9898) * 180.0);
+    for (std::uint64_t n = 0; n <= 40; ++n) {
+        std::fill(out.begin(), out.end(), -1.0f);
+        REQUIRE(trk::detail::transform_points(in.data() + 1, n, A, out.data()));
+        for (std::uint64_t i = 0; i < n; ++i)
+            for (int r = 0; r < 3; ++r) {
+                const float *p = in.data() + 1 + 3 * i;
+                const float want = static_cast<float>(A[4 * r] * double(p[0]) + A[4 * r + 1] * double(p[1]) + A[4 * r + 2] * double(p[2]) +
+                                                      A[4 * r + 3]);
+                REQUIRE(std::memcmp(&out[3 * i + r], &want, 4) == 0);
+            }
+        REQUIRE(out[3 * n] == -1.0f);  // nothing written past the n points
+    }
+    for (const float bad : {NAN, INFINITY, -INFINITY})
+        for (std::uint64_t at : {0, 3 * 17 + 2, 3 * 39 + 1}) {  // in the vector body and in the tail
+            std::vector<float> v(in.begin() + 1, in.end());
+            v[at] = bad;
+            REQUIRE_FALSE(trk::detail::transform_points(v.data(), 40, A, out.data()));
+        }
 }

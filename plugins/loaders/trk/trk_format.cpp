@@ -3,6 +3,7 @@
 #include "trk_format.hpp"
 
 #include "parallel.hpp"
+#include "trk_transform.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -268,6 +269,9 @@ void decode_chunk(const unsigned char *b, const Header &h, const Chunk &from, co
             // Branch-free over the streamline (vectorisable); locate a bad value only on failure.
             unsigned bad = 0;
             float *out = positions + 3 * v;
+            if (!Swap && ns == 0) {  // contiguous xyz triples: the vector kernel, same values
+                bad = !detail::transform_points(reinterpret_cast<const float *>(rec), n, A.data(), out);
+            } else
             for (std::uint64_t i = 0; i < n; ++i) {
                 const unsigned char *p = rec + i * point_bytes;
                 const float x = load<float>(p, Swap), y = load<float>(p + 4, Swap), z = load<float>(p + 8, Swap);
