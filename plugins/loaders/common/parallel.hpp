@@ -6,10 +6,13 @@
 #include <algorithm>
 #include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <exception>
 #include <functional>
 #include <thread>
 #include <vector>
+
+#include <sys/mman.h>
 
 // Compiles a function for AVX-512 and AVX2 as well as the baseline, the
 // variant chosen when the library loads (GCC target_clones; the compiler
@@ -21,6 +24,22 @@
 #endif
 
 namespace hzio {
+
+// Maps the whole pages of [p, p + bytes) for writing now, in one call
+// (MADV_POPULATE_WRITE, Linux 5.14), instead of one page fault per page as
+// a decoder first writes them: a chunk's output is about 12-16 MiB, 3-4
+// thousand pages. Nothing is written. Where the kernel cannot, the pages
+// fault in as before.
+inline void prefault_write(void *p, std::size_t bytes) noexcept {
+#ifdef MADV_POPULATE_WRITE
+    const std::uintptr_t page = 4096, a = reinterpret_cast<std::uintptr_t>(p);
+    const std::uintptr_t b = (a + page - 1) & ~(page - 1), e = (a + bytes) & ~(page - 1);
+    if (e > b) (void)madvise(reinterpret_cast<void *>(b), e - b, MADV_POPULATE_WRITE);
+#else
+    (void)p;
+    (void)bytes;
+#endif
+}
 
 // Runs body(c) for every chunk c in [0, n) on up to min(n, cores, 8)
 // threads, the calling thread being one of them; chunks are taken in order

@@ -347,6 +347,8 @@ void decode(const unsigned char *bytes, const Header &h, const Layout &L, float 
                 const std::uint64_t k0 = first[c], k1 = first[c + 1];
                 std::uint64_t start = k0 == 0 ? 0 : D[k0 - 1] + 1;
                 const std::uint64_t chunk_begin = start;
+                const std::uint64_t v0 = start - k0, v1 = D[k1 - 1] - (k1 - 1);  // this chunk's vertices
+                hzio::prefault_write(positions + 3 * v0, 12 * (v1 - v0));
                 for (std::uint64_t k = k0; k < k1; ++k) {
                     const std::uint64_t n = D[k] - start;
                     if (n) std::memcpy(positions + 3 * (start - k), data + 12 * start, 12 * n);

@@ -307,6 +307,7 @@ void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout
         l.chunks.size() - 1,
         [&](std::size_t c) {
             const Chunk &from = l.chunks[c], &to = l.chunks[c + 1];
+            if (positions) hzio::prefault_write(positions + 3 * from.vertex, 12 * (to.vertex - from.vertex));
             if (h.swap) decode_chunk<true>(b, h, from, to, positions, offsets, scalars, properties);
             else decode_chunk<false>(b, h, from, to, positions, offsets, scalars, properties);
             if (release) release(from.byte, to.byte);
