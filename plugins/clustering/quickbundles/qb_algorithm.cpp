@@ -17,7 +17,7 @@
 #include <limits>
 #include <thread>
 
-#include <sys/mman.h>
+#include "parallel.hpp"  // hzio::prefault_write (plugins/loaders/common)
 
 namespace qb {
 
@@ -150,21 +150,6 @@ float fill_geom(const float *fd, const float *fg, std::uint32_t P, float *g) {
 
 }  // namespace
 
-// Asks the kernel to map the whole pages of floats[0..n) now, in one call
-// (MADV_POPULATE_WRITE, Linux 5.14): faulting them in one by one costs
-// about a fifth of the resampling. Where the kernel cannot, the pages fault
-// in as they are written.
-void prefault(float *p, std::uint64_t n) {
-#ifdef MADV_POPULATE_WRITE
-    const std::uintptr_t page = 4096, a = reinterpret_cast<std::uintptr_t>(p);
-    const std::uintptr_t b = (a + page - 1) & ~(page - 1), e = (a + n * sizeof(float)) & ~(page - 1);
-    if (e > b) (void)madvise(reinterpret_cast<void *>(b), e - b, MADV_POPULATE_WRITE);
-#else
-    (void)p;
-    (void)n;
-#endif
-}
-
 Features extract_features(const Input &in, std::uint32_t P, unsigned threads, const CancelFn &cancel, Resampling how) {
     Features f;
     f.nb_points = P;
@@ -185,9 +170,9 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
     auto work = [&](unsigned w, std::uint64_t begin, std::uint64_t end) {
         // This worker's share of the output, mapped in one call before it is
         // written (instead of a page fault per page).
-        prefault(f.direct.data() + begin * P * 3, (end - begin) * P * 3);
-        if (exact_flip) prefault(f.flipped.data() + begin * P * 3, (end - begin) * P * 3);
-        prefault(f.geom.data() + begin * Features::kGeom, (end - begin) * Features::kGeom);
+        hzio::prefault_write(f.direct.data() + begin * P * 3, (end - begin) * P * 3 * sizeof(float));
+        if (exact_flip) hzio::prefault_write(f.flipped.data() + begin * P * 3, (end - begin) * P * 3 * sizeof(float));
+        hzio::prefault_write(f.geom.data() + begin * Features::kGeom, (end - begin) * Features::kGeom * sizeof(float));
         std::vector<double> seg;  // segment lengths, reused across streamlines
         std::vector<float> scratch;  // resample_fast's
         constexpr std::uint64_t kBatch = 64;  // streamlines per step (even: resample_pair takes two)

@@ -27,8 +27,8 @@ namespace hzio {
 
 // Maps the whole pages of [p, p + bytes) for writing now, in one call
 // (MADV_POPULATE_WRITE, Linux 5.14), instead of one page fault per page as
-// a decoder first writes them: a chunk's output is about 12-16 MiB, 3-4
-// thousand pages. Nothing is written. Where the kernel cannot, the pages
+// a decoder (or the clustering plugin's resampling) first writes them: a
+// chunk's output is about 12-16 MiB, 3-4 thousand pages. Nothing is written. Where the kernel cannot, the pages
 // fault in as before.
 inline void prefault_write(void *p, std::size_t bytes) noexcept {
 #ifdef MADV_POPULATE_WRITE

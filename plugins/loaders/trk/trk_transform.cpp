@@ -42,7 +42,7 @@ bool TransformPoints(const float *HWY_RESTRICT in, std::uint64_t n, const double
     VD a[12];
     for (int k = 0; k < 12; ++k) a[k] = hn::Set(dd, A[k]);
     const auto big = hn::Set(df, 3.4028235e38f);
-    auto finite = hn::Set(df, 0.0f) == hn::Set(df, 0.0f);  // all true
+    auto finite = hn::FirstN(df, N);  // all true
     std::uint64_t i = 0;
     for (; i + N <= n; i += N) {
         hn::Vec<decltype(df)> x, y, z;
