@@ -89,7 +89,12 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     const auto t0 = std::chrono::steady_clock::now();
     const core::Dataset ds = core::read_dataset(reg, o.input);
     if (ds.kind != HZ_DATA_STREAMLINES) throw core::Error(o.input + ": not a tractogram");
-    const core::Tractogram &t = ds.tractogram;
+    // A plugin older than ABI 1.5 would not skip a mapped TCK's delimiters:
+    // it gets a copy without them (made here, while reading).
+    core::Tractogram compact;
+    const bool copy = ds.tractogram.gap != 0 && !plugin->takes_gap();
+    if (copy) compact = ds.tractogram.compacted();
+    const core::Tractogram &t = copy ? compact : ds.tractogram;
     const auto t1 = std::chrono::steady_clock::now();
 
     ClusterRun run;
@@ -197,10 +202,9 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
         core::Dataset out;
         out.kind = HZ_DATA_STREAMLINES;
         out.metadata = ds.metadata;
-        out.tractogram.positions = core::Buffer<float>(t.positions.size());
-        std::copy(t.positions.begin(), t.positions.end(), out.tractogram.positions.begin());
-        out.tractogram.offsets = core::Buffer<std::uint64_t>(t.offsets.size());
-        std::copy(t.offsets.begin(), t.offsets.end(), out.tractogram.offsets.begin());
+        out.tractogram.positions = t.positions.shared();
+        out.tractogram.offsets = t.offsets.shared();
+        out.tractogram.gap = t.gap;
         out.tractogram.reference = t.reference;
         out.tractogram.reference_dims = t.reference_dims;
         // Per level: the labels as per-streamline data, and every cluster as

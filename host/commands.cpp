@@ -86,7 +86,7 @@ json describe(const core::Dataset &ds) {
         j["nb_vertices"] = t.nb_vertices();
         std::uint64_t empty = 0, min_pts = UINT64_MAX, max_pts = 0;
         for (std::uint64_t s = 0; s < t.nb_streamlines(); ++s) {
-            const std::uint64_t n = t.offsets[s + 1] - t.offsets[s];
+            const std::uint64_t n = t.size(s);
             empty += n == 0;
             min_pts = std::min(min_pts, n);
             max_pts = std::max(max_pts, n);
@@ -94,7 +94,7 @@ json describe(const core::Dataset &ds) {
         j["nb_empty_streamlines"] = empty;
         j["points_per_streamline"] = {{"min", t.nb_streamlines() ? min_pts : 0}, {"max", max_pts}};
         // read_dataset computed the bounds while validating the positions.
-        const auto b = !ds.bounds.empty || t.nb_vertices() == 0 ? ds.bounds : core::bounds_of(t.positions.data(), t.nb_vertices());
+        const auto b = !ds.bounds.empty || t.nb_vertices() == 0 ? ds.bounds : core::bounds_of(t.positions.data(), t.nb_stored());
         j["bbox_ras_mm"] = b.empty ? json(nullptr) : json{{"min", b.min}, {"max", b.max}};
         j["positions_mapped"] = ds.mapped;
         j["affine"] = affine_json(t.reference);

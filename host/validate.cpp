@@ -780,35 +780,67 @@ std::vector<Check> catalogue() {
                      hz_dataset_info info{};
                      info.struct_size = sizeof info;
                      if (l.get_info(r, &info, &err) != HZ_OK) return fail(std::string("get_info: ") + err.message);
-                     hz_positions_extent ext{};
-                     ext.struct_size = sizeof ext;
-                     const hz_status st = l.locate_positions(r, &ext, &err);
-                     if (st == HZ_E_UNSUPPORTED) return pass("declines for this sample (reads by copy)");
-                     if (st != HZ_OK) return fail("status " + std::to_string(st) + ": " + err.message);
-                     if (ext.path == nullptr) return fail("HZ_OK with a NULL path");
-                     if (ext.offset % 4 != 0) return fail("offset " + std::to_string(ext.offset) + " is not a multiple of 4");
-                     const std::uint64_t bytes = info.nb_vertices * 12;
-                     std::ifstream in(ext.path, std::ios::binary);
-                     std::string stored(bytes, '\0');
-                     in.seekg(static_cast<std::streamoff>(ext.offset));
-                     if (!in.read(stored.data(), static_cast<std::streamsize>(bytes)))
-                         return fail(std::string("the extent lies past the end of ") + ext.path);
-                     if (full.positions.size() * 4 != bytes || std::memcmp(stored.data(), full.positions.data(), bytes) != 0)
-                         return fail("the located bytes differ from read_streamlines' positions");
-                     if ((ext.flags & HZ_EXTENT_HAS_CRC32) &&
-                         crc32_z(0, reinterpret_cast<const Bytef *>(stored.data()), bytes) != ext.crc32)
-                         return fail("the CRC-32 given does not match the located bytes");
-                     core::Buffer<std::uint64_t> off(info.nb_streamlines + 1);
-                     hz_streamlines_dst dst{};
-                     dst.struct_size = sizeof dst;
-                     dst.flags = HZ_STREAMLINES_OFFSETS_ONLY;
-                     dst.offsets = off.data();
-                     dst.offsets_capacity = off.size();
-                     if (l.read_streamlines(r, &dst, nullptr, &err) != HZ_OK)
-                         return fail(std::string("an offsets-only read fails: ") + err.message);
-                     if (!std::equal(off.begin(), off.end(), full.offsets.begin()))
-                         return fail("offsets-only read gives other offsets");
-                     return pass();
+                     // Asked without, then with, the delimited layout (1.5): never a
+                     // layout the host did not accept; a delimited extent holds each
+                     // streamline's bytes followed by an all-NaN delimiter vertex.
+                     std::string how;
+                     for (const hz_extent_flags accepts : {hz_extent_flags(0), hz_extent_flags(HZ_EXTENT_DELIMITED)}) {
+                         hz_positions_extent ext{};
+                         ext.struct_size = sizeof ext;
+                         ext.accepts = accepts;
+                         const hz_status st = l.locate_positions(r, &ext, &err);
+                         if (st == HZ_E_UNSUPPORTED) {
+                             how += accepts ? " declines the delimited layout too;" : " declines the plain layout;";
+                             continue;
+                         }
+                         if (st != HZ_OK) return fail("status " + std::to_string(st) + ": " + err.message);
+                         if ((ext.flags & ~accepts & ~hz_extent_flags(HZ_EXTENT_HAS_CRC32)) != 0)
+                             return fail("answers with a layout flag the host did not accept");
+                         if (ext.path == nullptr) return fail("HZ_OK with a NULL path");
+                         if (ext.offset % 4 != 0) return fail("offset " + std::to_string(ext.offset) + " is not a multiple of 4");
+                         const bool delimited = (ext.flags & HZ_EXTENT_DELIMITED) != 0;
+                         const std::uint64_t stored_vertices = info.nb_vertices + (delimited ? info.nb_streamlines : 0);
+                         const std::uint64_t bytes = stored_vertices * 12;
+                         std::ifstream in(ext.path, std::ios::binary);
+                         std::string stored(bytes, '\0');
+                         in.seekg(static_cast<std::streamoff>(ext.offset));
+                         if (!in.read(stored.data(), static_cast<std::streamsize>(bytes)))
+                             return fail(std::string("the extent lies past the end of ") + ext.path);
+                         if ((ext.flags & HZ_EXTENT_HAS_CRC32) &&
+                             crc32_z(0, reinterpret_cast<const Bytef *>(stored.data()), bytes) != ext.crc32)
+                             return fail("the CRC-32 given does not match the located bytes");
+                         core::Buffer<std::uint64_t> off(info.nb_streamlines + 1);
+                         hz_streamlines_dst dst{};
+                         dst.struct_size = sizeof dst;
+                         dst.flags = HZ_STREAMLINES_OFFSETS_ONLY;
+                         dst.offsets = off.data();
+                         dst.offsets_capacity = off.size();
+                         if (l.read_streamlines(r, &dst, nullptr, &err) != HZ_OK)
+                             return fail(std::string("an offsets-only read fails: ") + err.message);
+                         if (!delimited) {
+                             if (full.positions.size() * 4 != bytes || std::memcmp(stored.data(), full.positions.data(), bytes) != 0)
+                                 return fail("the located bytes differ from read_streamlines' positions");
+                             if (!std::equal(off.begin(), off.end(), full.offsets.begin()))
+                                 return fail("offsets-only read gives other offsets");
+                             how += " maps the plain layout;";
+                             continue;
+                         }
+                         if (off[0] != 0 || off[info.nb_streamlines] != stored_vertices)
+                             return fail("delimited offsets do not span the extent");
+                         for (std::uint64_t k = 0; k < info.nb_streamlines; ++k) {
+                             if (off[k + 1] <= off[k] || off[k + 1] - off[k] - 1 != full.size(k))
+                                 return fail("delimited offsets give streamline " + std::to_string(k) + " another length");
+                             if (std::memcmp(stored.data() + 12 * off[k], full.positions.data() + 3 * full.begin(k), 12 * full.size(k)) != 0)
+                                 return fail("the located bytes of streamline " + std::to_string(k) + " differ from read_streamlines'");
+                             float d[3];
+                             std::memcpy(d, stored.data() + 12 * (off[k + 1] - 1), 12);
+                             if (!(std::isnan(d[0]) && std::isnan(d[1]) && std::isnan(d[2])))
+                                 return fail("the delimiter after streamline " + std::to_string(k) + " is not all NaN");
+                         }
+                         how += " maps the delimited layout;";
+                     }
+                     how.pop_back();
+                     return pass(how.substr(1));
                  }});
 
     // Shaders.

@@ -78,6 +78,43 @@ bool minmax48(const float *q, std::uint64_t steps, float *mn, float *mx) {
     return bad == 0;
 }
 
+// minmax48 for data that holds NaN delimiters: running minima/maxima that a
+// NaN never changes (lanes start at +/-inf), and the count of values that
+// are not finite.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#endif
+std::uint64_t minmax48_count(const float *q, std::uint64_t steps, float *mn, float *mx) {
+    std::uint32_t bad[48] = {};
+    for (std::uint64_t i = 0; i < steps; ++i, q += 48)
+        for (int k = 0; k < 48; ++k) {
+            const float v = q[k];
+            bad[k] += !(std::fabs(v) <= 3.4028235e38f);
+            mn[k] = v < mn[k] ? v : mn[k];
+            mx[k] = v > mx[k] ? v : mx[k];
+        }
+    std::uint64_t n = 0;
+    for (int k = 0; k < 48; ++k) n += bad[k];
+    return n;
+}
+
+// The 48 lanes of minmax48_count folded into bounds (empty when no lane saw
+// a number).
+Bounds fold48_nan(const float *mn, const float *mx) {
+    Bounds b;
+    for (int d = 0; d < 3; ++d) {
+        b.min[d] = HUGE_VAL;
+        b.max[d] = -HUGE_VAL;
+        for (int k = d; k < 48; k += 3) {
+            b.min[d] = std::min(b.min[d], double(mn[k]));
+            b.max[d] = std::max(b.max[d], double(mx[k]));
+        }
+    }
+    b.empty = !(b.min[0] <= b.max[0]);
+    if (b.empty) b = Bounds{};
+    return b;
+}
+
 // The points [whole, n) folded into the 48 lanes, then the lanes into bounds.
 Bounds fold48(const float *xyz, std::uint64_t n, std::uint64_t whole, float *mn, float *mx) {
     for (std::uint64_t i = whole; i < n; ++i)
@@ -118,6 +155,57 @@ Bounds finite_bounds_serial(const float *xyz, std::uint64_t n, std::uint64_t fir
 }
 
 }  // namespace
+
+Bounds delimited_bounds(const float *xyz, std::uint64_t n, const std::uint64_t *offsets, std::uint64_t N, const std::string &what) {
+    if (N == 0 || offsets[0] != 0) throw Error(what + ": offsets must start at 0");
+    for (std::uint64_t s = 0; s < N; ++s)
+        if (offsets[s + 1] <= offsets[s])
+            throw Error(what + ": streamline " + std::to_string(s) + " has no delimiter (offsets must increase)");
+    if (offsets[N] != n) throw Error(what + ": final offset " + std::to_string(offsets[N]) + " != " + std::to_string(n) + " vertices");
+    // Streamlines [s0, s1) per thread: their vertices must hold exactly
+    // 3 (s1 - s0) values that are not finite, all in the delimiters.
+    auto part = [&](std::uint64_t s0, std::uint64_t s1) {
+        const std::uint64_t b = offsets[s0], e = offsets[s1];
+        float mn[48], mx[48];
+        for (int k = 0; k < 48; ++k) mn[k] = HUGE_VALF, mx[k] = -HUGE_VALF;
+        const std::uint64_t whole = b + (e - b) / 16 * 16;
+        std::uint64_t bad = minmax48_count(xyz + 3 * b, (whole - b) / 16, mn, mx);
+        for (std::uint64_t i = whole; i < e; ++i)
+            for (int d = 0; d < 3; ++d) {
+                const float v = xyz[3 * i + d];
+                bad += !std::isfinite(v);
+                mn[d] = v < mn[d] ? v : mn[d];
+                mx[d] = v > mx[d] ? v : mx[d];
+            }
+        bool delimiters_nan = true;
+        for (std::uint64_t s = s0; s < s1; ++s) {
+            const float *q = xyz + 3 * (offsets[s + 1] - 1);
+            delimiters_nan &= std::isnan(q[0]) & std::isnan(q[1]) & std::isnan(q[2]);
+        }
+        if (bad != 3 * (s1 - s0) || !delimiters_nan)
+            for (std::uint64_t s = s0; s < s1; ++s) {  // (the first fault, for the message)
+                const float *q = xyz + 3 * (offsets[s + 1] - 1);
+                if (!(std::isnan(q[0]) && std::isnan(q[1]) && std::isnan(q[2])))
+                    throw Error(what + ": the delimiter after streamline " + std::to_string(s) + " is not a NaN triple");
+                for (std::uint64_t i = 3 * offsets[s]; i < 3 * (offsets[s + 1] - 1); ++i)
+                    if (!std::isfinite(xyz[i]))
+                        throw Error(what + ": non-finite coordinate in streamline " + std::to_string(s) + " at point " +
+                                    std::to_string(i / 3 - offsets[s]));
+            }
+        return fold48_nan(mn, mx);
+    };
+    constexpr std::uint64_t kGrain = 1u << 14;  // streamlines per thread at least
+    std::vector<Bounds> parts;
+    std::mutex mu;
+    parallel_ranges(N, kGrain, [&](std::uint64_t s0, std::uint64_t s1) {
+        const Bounds r = part(s0, s1);
+        std::lock_guard lock(mu);
+        parts.push_back(r);
+    });
+    Bounds all;
+    for (const auto &r : parts) merge_bounds(all, r);
+    return all;
+}
 
 Bounds finite_bounds(const float *xyz, std::uint64_t n, const std::string &what, std::uint64_t first_vertex) {
     constexpr std::uint64_t kGrain = 1u << 20;  // points per thread at least
@@ -179,12 +267,12 @@ DataArray f32_array(std::string name, hz_attach attach, const std::vector<float>
 Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids) {
     Tractogram out;
     std::uint64_t nv = 0;
-    for (std::uint64_t s : ids) nv += t.offsets[s + 1] - t.offsets[s];
+    for (std::uint64_t s : ids) nv += t.size(s);
     out.positions = Buffer<float>(nv * 3);
     out.offsets = Buffer<std::uint64_t>(ids.size() + 1);
     std::uint64_t v = 0;
     for (std::size_t i = 0; i < ids.size(); ++i) {
-        const std::uint64_t b = t.offsets[ids[i]], e = t.offsets[ids[i] + 1];
+        const std::uint64_t b = t.begin(ids[i]), e = t.end(ids[i]);
         out.offsets[i] = v;
         std::copy(t.positions.data() + b * 3, t.positions.data() + e * 3, out.positions.data() + v * 3);
         v += e - b;
@@ -215,17 +303,46 @@ const char *space_name(hz_space s) {
     }
 }
 
+Tractogram Tractogram::compacted() const {
+    Tractogram out;
+    out.reference = reference;
+    out.reference_dims = reference_dims;
+    for (const auto &a : arrays) {
+        DataArray c;
+        c.name = a.name, c.attach = a.attach, c.dtype = a.dtype, c.components = a.components, c.count = a.count;
+        c.bytes = a.bytes.shared();
+        out.arrays.push_back(std::move(c));
+    }
+    if (gap == 0) {
+        out.positions = positions.shared();
+        out.offsets = offsets.shared();
+        return out;
+    }
+    const std::uint64_t N = nb_streamlines();
+    out.positions = Buffer<float>(3 * nb_vertices());
+    out.offsets = Buffer<std::uint64_t>(N + 1);
+    // Streamline s moves back by s * gap vertices: copied in parallel runs.
+    for (std::uint64_t s = 0; s <= N; ++s) out.offsets[s] = offsets[s] - s * gap;
+    parallel_ranges(N, 1u << 14, [&](std::uint64_t s0, std::uint64_t s1) {
+        for (std::uint64_t s = s0; s < s1; ++s)
+            std::memcpy(out.positions.data() + 3 * out.offsets[s], positions.data() + 3 * begin(s), 12 * size(s));
+    });
+    return out;
+}
+
 hz_streamlines_view Tractogram::view() const {
     hz_streamlines_view v{};
     v.struct_size = sizeof v;
+    v.gap = gap;
     v.positions = positions.data();
-    v.nb_vertices = nb_vertices();
+    v.nb_vertices = nb_stored();
     v.offsets = offsets.data();
     v.nb_streamlines = nb_streamlines();
     return v;
 }
 
 Bounds Tractogram::validate(const std::string &what) const {
+    if (gap == 1) return delimited_bounds(positions.data(), nb_stored(), offsets.data(), nb_streamlines(), what);
     validate_offsets(what);
     return finite_bounds(positions.data(), nb_vertices(), what);
 }
@@ -234,11 +351,12 @@ void Tractogram::validate_offsets(const std::string &what) const {
     if (positions.size() % 3 != 0) throw Error(what + ": positions are not xyz triples");
     if (offsets.empty() || offsets[0] != 0) throw Error(what + ": offsets must start at 0");
     for (std::size_t i = 1; i < offsets.size(); ++i)
-        if (offsets[i] < offsets[i - 1])
-            throw Error(what + ": offsets decrease at streamline " + std::to_string(i - 1));
-    if (offsets[offsets.size() - 1] != nb_vertices())
+        if (offsets[i] < offsets[i - 1] + gap)
+            throw Error(what + (gap ? ": offsets leave no delimiter after streamline " : ": offsets decrease at streamline ") +
+                        std::to_string(i - 1));
+    if (offsets[offsets.size() - 1] != nb_stored())
         throw Error(what + ": final offset " + std::to_string(offsets[offsets.size() - 1]) + " != " +
-                    std::to_string(nb_vertices()) + " vertices");
+                    std::to_string(nb_stored()) + " vertices");
 }
 
 bool is_overlay(const Dataset &ds) { return overlay_vertices(ds) > 0; }
@@ -275,12 +393,19 @@ std::vector<std::string> attach_overlay(Mesh &mesh, const Dataset &overlay, cons
 
 Bounds bounds_of(const float *xyz, std::uint64_t n) {
     if (n == 0) return {};
-    // The finite_bounds kernel, its finiteness flag ignored (a NaN never wins a comparison).
+    // The delimited kernel, its count ignored: NaN (a mapped TCK's
+    // delimiters) never enters the bounds.
     float mn[48], mx[48];
-    for (int k = 0; k < 48; ++k) mn[k] = mx[k] = xyz[k % 3];
+    for (int k = 0; k < 48; ++k) mn[k] = HUGE_VALF, mx[k] = -HUGE_VALF;
     const std::uint64_t whole = n / 16 * 16;
-    minmax48(xyz, whole / 16, mn, mx);
-    return fold48(xyz, n, whole, mn, mx);
+    minmax48_count(xyz, whole / 16, mn, mx);
+    for (std::uint64_t i = whole; i < n; ++i)
+        for (int d = 0; d < 3; ++d) {
+            const float v = xyz[3 * i + d];
+            mn[d] = v < mn[d] ? v : mn[d];
+            mx[d] = v > mx[d] ? v : mx[d];
+        }
+    return fold48_nan(mn, mx);
 }
 
 }  // namespace hz::core

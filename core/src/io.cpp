@@ -60,10 +60,13 @@ std::vector<unsigned char> read_head(const fs::path &path, std::size_t n) {
 // them; the file never changes), verifies the zip CRC when the loader gave
 // one and the finiteness of every coordinate, and returns the bounds. The
 // checksum and the scan share one pass over the pages, split over the cores.
+// With HZ_EXTENT_DELIMITED, nb_vertices counts the delimiters, and the
+// caller checks them and computes the bounds (Tractogram::validate).
 Buffer<float> map_positions(const hz_positions_extent &ext, std::uint64_t nb_vertices, const fs::path &path, Bounds &bounds) {
     const std::string where = path.string();
     const std::string file = ext.path ? ext.path : "";
     if (file.empty()) throw Error(where + ": loader located the positions in no file");
+    const bool delimited = (ext.flags & HZ_EXTENT_DELIMITED) != 0;
     const std::uint64_t bytes = nb_vertices * 12;
     if (ext.offset % 4 != 0) throw Error(where + ": loader located the positions at a misaligned offset");
     const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
@@ -89,6 +92,7 @@ Buffer<float> map_positions(const hz_positions_extent &ext, std::uint64_t nb_ver
     }
     std::shared_ptr<void> owner(base, [len](void *q) { ::munmap(q, len); });
     auto *xyz = reinterpret_cast<float *>(static_cast<unsigned char *>(base) + (ext.offset - start));
+    if (delimited) return Buffer<float>(xyz, 3 * nb_vertices, std::move(owner));
 
     const bool check_crc = (ext.flags & HZ_EXTENT_HAS_CRC32) != 0;
     struct Part {
@@ -297,13 +301,19 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         // Zero-copy when the loader can say where float32 RAS+ mm positions lie.
         hz_positions_extent ext{};
         ext.struct_size = sizeof ext;
+        ext.accepts = HZ_EXTENT_DELIMITED;
         bool mapped = false;
         if (HZ_HAS_FIELD(l, hz_loader, locate_positions) && l->locate_positions != nullptr && info.nb_vertices > 0) {
             st = l->locate_positions(g.r, &ext, &err);
             if (st == HZ_OK) mapped = true;
             else if (st != HZ_E_UNSUPPORTED) throw Error(failure(err, st, path, "locate_positions"));
             err = make_error();
+            if (mapped && (ext.flags & ~(HZ_EXTENT_HAS_CRC32 | HZ_EXTENT_DELIMITED)) != 0)
+                throw Error(path.string() + ": loader located the positions with a layout flag the host does not know");
         }
+        const bool delimited = mapped && (ext.flags & HZ_EXTENT_DELIMITED) != 0;
+        // (A delimited extent holds one more vertex per streamline.)
+        const std::uint64_t stored = info.nb_vertices + (delimited ? info.nb_streamlines : 0);
         // Loaders validate declared sizes against the file before reporting them.
         t.offsets = Buffer<std::uint64_t>(info.nb_streamlines + 1);
         hz_streamlines_dst dst{};
@@ -319,7 +329,12 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         dst.offsets_capacity = t.offsets.size();
         st = l->read_streamlines(g.r, &dst, task, &err);
         if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines"));
-        if (mapped) {  // the coordinates are checked as they are mapped
+        if (delimited) {  // the delimiters and coordinates are checked with the offsets
+            t.positions = map_positions(ext, stored, path, ds.bounds);
+            t.gap = 1;
+            ds.mapped = true;
+            ds.bounds = t.validate(path.string());
+        } else if (mapped) {  // the coordinates are checked as they are mapped
             t.positions = map_positions(ext, info.nb_vertices, path, ds.bounds);
             ds.mapped = true;
             t.validate_offsets(path.string());
@@ -327,6 +342,11 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
             ds.bounds = t.validate(path.string());
         }
         for (uint32_t i = 0; i < info.nb_arrays; ++i) t.arrays.push_back(read_extra_array(*l, g.r, i, path, task));
+        // Per-vertex data index the streamlines' vertices: no delimiters between them.
+        if (t.gap != 0 && std::any_of(t.arrays.begin(), t.arrays.end(), [](const DataArray &a) { return a.attach == HZ_ATTACH_VERTEX; })) {
+            t = t.compacted();
+            ds.mapped = false;
+        }
     } else if (info.kind == HZ_DATA_VOLUME || info.kind == HZ_DATA_IMAGE) {
         if (l->read_volume == nullptr) throw Error(path.string() + ": loader " + p.info.id + " has no read_volume");
         Volume &v = ds.volume;
@@ -422,8 +442,10 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
         view.mesh_nb_faces = ds.mesh.nb_faces();
         std::copy(ds.mesh.transform.begin(), ds.mesh.transform.end(), view.voxel_to_ras);
     }
+    // Writers take streamlines without delimiters (a mapped TCK's are removed in a copy).
+    const Tractogram compact = ds.kind == HZ_DATA_STREAMLINES ? ds.tractogram.compacted() : Tractogram{};
     if (ds.kind == HZ_DATA_STREAMLINES) {
-        view.streamlines = ds.tractogram.view();
+        view.streamlines = compact.view();
         std::copy(ds.tractogram.reference.begin(), ds.tractogram.reference.end(), view.voxel_to_ras);
         std::copy(ds.tractogram.reference_dims.begin(), ds.tractogram.reference_dims.end(), view.ref_dims);
     }

@@ -342,6 +342,7 @@ std::vector<PluginInfo> Module::plugins() const {
         p.description = d->description ? d->description : "";
         p.license = d->license ? d->license : "";
         p.kind = d->kind;
+        p.abi = d->abi;
         p.file = file_.string();
         for (const char *const *it = d->interfaces; *it != nullptr && p.interfaces.size() < 64; ++it) p.interfaces.emplace_back(*it);
         if (std::find(p.interfaces.begin(), p.interfaces.end(), ci) == p.interfaces.end())

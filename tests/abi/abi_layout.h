@@ -35,6 +35,7 @@ HZ_SA(offsetof(hz_streamlines_dst, flags) == 4, "streamlines_dst.flags (1.4, was
 HZ_SA(sizeof(hz_streamlines_dst) == 40, "hz_streamlines_dst");
 HZ_SA(offsetof(hz_positions_extent, offset) == 16, "positions_extent.offset");
 HZ_SA(sizeof(hz_positions_extent) == 32, "hz_positions_extent (1.4)");
+HZ_SA(offsetof(hz_positions_extent, accepts) == 28, "positions_extent.accepts (1.5, was reserved0)");
 HZ_SA(sizeof(hz_shade_point) == 136, "hz_shade_point");
 HZ_SA(offsetof(hz_shader, eval_reference) == 48, "shader.eval_reference (1.0 layout)");
 HZ_SA(sizeof(hz_shader) == 72, "hz_shader (1.2)");

@@ -79,6 +79,36 @@ class TckVariantsTest(TempDirTest):
         self.assertEqual(run("convert", f, out).returncode, 0)
         self.check_same(list(nib.streamlines.load(out).streamlines), sl, tol=0)
 
+    def test_aligned_data_are_mapped_with_their_delimiters(self):
+        """MRtrix starts the data on a multiple of 4 bytes, and so does our writer: such a
+        Float32LE file is mapped, not copied (ABI 1.5 delimited extent). An unaligned one
+        is copied. Both read as nibabel reads them."""
+        rng = np.random.default_rng(3)
+        sl = random_streamlines(300, rng, 1, 60) + [np.zeros((0, 3), np.float32)] + random_streamlines(4, rng, 1, 1)
+        mapped, copied = {}, {}
+        for pad in range(4):
+            f = self.path(f"pad{pad}.tck")
+            with open(f, "wb") as fh:
+                fh.write(tck_bytes(sl, pad=pad))
+            with open(f, "rb") as fh:
+                head = fh.read(4096)
+            offset = int(head[head.index(b"file: . ") + 8:].split(b"\n")[0])
+            info = run_json("info", f, "--json")
+            self.assertEqual(info["positions_mapped"], offset % 4 == 0, (pad, offset))
+            (mapped if offset % 4 == 0 else copied)[pad] = f
+            self.assertEqual(info["nb_vertices"], sum(len(s) for s in sl))
+            self.assertEqual(info["nb_empty_streamlines"], 1)
+            allp = np.concatenate(sl)
+            np.testing.assert_array_equal(info["bbox_ras_mm"]["min"], allp.min(0).astype(np.float64))
+            np.testing.assert_array_equal(info["bbox_ras_mm"]["max"], allp.max(0).astype(np.float64))
+            self.check_same(read_back(self, f), sl, tol=0)
+        self.assertEqual((len(mapped), len(copied)), (1, 3))
+        # Our writer aligns; what it writes is mapped again and nibabel reads it.
+        out = self.path("ours.tck")
+        self.assertEqual(run("convert", copied[min(copied)], out).returncode, 0)
+        self.assertTrue(run_json("info", out, "--json")["positions_mapped"])
+        self.check_same([s for s in nib.streamlines.load(out).streamlines], [s for s in sl if len(s)], tol=0)
+
     def test_nibabel_test_data(self):
         good = ["empty.tck", "simple.tck", "simple_big_endian.tck", "standard.tck", "matlab_nan.tck",
                 "multiline_header_field.tck"]

@@ -39,8 +39,13 @@ class ValidateTest(TempDirTest):
         # TRX offers locate_positions (ABI 1.4): the located bytes, CRC and offsets-only read are checked.
         rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_trx.so"))
         self.assertEqual(checks(rep)["loader-locate-positions"]["status"], "passed")
+        self.assertIn("maps the plain layout", checks(rep)["loader-locate-positions"]["reason"])
+        # TCK (ABI 1.5) maps only when the host accepts the delimited layout: each streamline's
+        # bytes and its all-NaN delimiter are checked against a copying read.
         rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_tck.so"))
-        self.assertEqual(checks(rep)["loader-locate-positions"]["status"], "skipped")
+        c = checks(rep)["loader-locate-positions"]
+        self.assertEqual(c["status"], "passed")
+        self.assertEqual(c["reason"], "declines the plain layout; maps the delimited layout")
 
     def test_templates_pass(self):
         for f in sorted(glob.glob(os.path.join(TEMPLATES, "*.so"))):

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <csignal>
 #include <fstream>
+#include <limits>
 #include <thread>
 
 namespace fs = std::filesystem;
@@ -130,7 +131,21 @@ TEST_CASE("read and write through the TCK plugin, selection by extension and by 
     CHECK(dropped.empty());
     const Dataset back = read_dataset(reg, d / "a.tck");
     REQUIRE(back.tractogram.nb_vertices() == ds.tractogram.nb_vertices());
-    CHECK(std::equal(back.tractogram.positions.begin(), back.tractogram.positions.end(), ds.tractogram.positions.begin()));
+    // Our writer aligns the data as MRtrix does: the positions are mapped,
+    // each streamline's NaN delimiter in place (gap 1).
+    CHECK(back.mapped);
+    CHECK(back.tractogram.gap == 1);
+    CHECK(back.tractogram.nb_stored() == ds.tractogram.nb_vertices() + ds.tractogram.nb_streamlines());
+    for (std::uint64_t s = 0; s < ds.tractogram.nb_streamlines(); ++s) {
+        REQUIRE(back.tractogram.size(s) == ds.tractogram.size(s));
+        CHECK(std::equal(back.tractogram.positions.data() + 3 * back.tractogram.begin(s),
+                         back.tractogram.positions.data() + 3 * back.tractogram.end(s),
+                         ds.tractogram.positions.data() + 3 * ds.tractogram.begin(s)));
+    }
+    const Tractogram flat = back.tractogram.compacted();
+    CHECK(flat.gap == 0);
+    CHECK(std::equal(flat.positions.begin(), flat.positions.end(), ds.tractogram.positions.begin(), ds.tractogram.positions.end()));
+    CHECK(std::equal(flat.offsets.begin(), flat.offsets.end(), ds.tractogram.offsets.begin(), ds.tractogram.offsets.end()));
     CHECK(back.format == "tck Float32LE");
 
     // A TCK file with a misleading name is still found by its content.
@@ -149,6 +164,46 @@ TEST_CASE("read and write through the TCK plugin, selection by extension and by 
     CHECK(files == 2);  // a.tck and misnamed.dat: no temporary left behind
     CHECK_THROWS_WITH(write_dataset(reg, ds, d / "x.unknownext", false, nullptr), Catch::Contains("no writer"));
     fs::remove_all(d);
+}
+
+TEST_CASE("delimited positions (a mapped TCK): bounds, delimiter and finiteness checks") {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    // Streamlines of 2, 0 and 1 points, each followed by a NaN triple.
+    std::vector<float> p = {1, 2, 3, -4, 5, 6, nan, nan, nan, nan, nan, nan, 7, -8, 9, nan, nan, nan};
+    const std::vector<std::uint64_t> off = {0, 3, 4, 6};
+    const Bounds b = delimited_bounds(p.data(), 6, off.data(), 3, "x.tck");
+    REQUIRE_FALSE(b.empty);
+    CHECK(b.min == std::array<double, 3>{-4, -8, 3});
+    CHECK(b.max == std::array<double, 3>{7, 5, 9});
+    auto bad = p;
+    bad[13] = INFINITY;
+    CHECK_THROWS_WITH(delimited_bounds(bad.data(), 6, off.data(), 3, "x.tck"),
+                      Catch::Equals("x.tck: non-finite coordinate in streamline 2 at point 0"));
+    bad = p;
+    bad[4] = nan;
+    CHECK_THROWS_WITH(delimited_bounds(bad.data(), 6, off.data(), 3, "x.tck"), Catch::Contains("streamline 0 at point 1"));
+    bad = p;
+    bad[16] = 0;
+    CHECK_THROWS_WITH(delimited_bounds(bad.data(), 6, off.data(), 3, "x.tck"),
+                      Catch::Equals("x.tck: the delimiter after streamline 2 is not a NaN triple"));
+    const std::vector<std::uint64_t> no_delim = {0, 3, 3, 6};
+    CHECK_THROWS_WITH(delimited_bounds(p.data(), 6, no_delim.data(), 3, "x.tck"), Catch::Contains("streamline 1 has no delimiter"));
+    // The same through a Tractogram: sizes, compaction, and bounds that skip NaN.
+    Tractogram t;
+    t.positions = Buffer<float>(p.size());
+    std::copy(p.begin(), p.end(), t.positions.begin());
+    t.offsets = Buffer<std::uint64_t>(off.size());
+    std::copy(off.begin(), off.end(), t.offsets.begin());
+    t.gap = 1;
+    CHECK(t.nb_vertices() == 3);
+    CHECK((t.size(0) == 2 && t.size(1) == 0 && t.size(2) == 1));
+    CHECK(t.validate("x.tck").max == b.max);
+    const Tractogram c = t.compacted();
+    CHECK(std::vector<float>(c.positions.begin(), c.positions.end()) == std::vector<float>{1, 2, 3, -4, 5, 6, 7, -8, 9});
+    CHECK(std::vector<std::uint64_t>(c.offsets.begin(), c.offsets.end()) == std::vector<std::uint64_t>{0, 2, 2, 3});
+    CHECK(bounds_of(t.positions.data(), t.nb_stored()).min == b.min);
+    const Tractogram sel = select_streamlines(t, {2, 0});
+    CHECK(std::vector<float>(sel.positions.begin(), sel.positions.end()) == std::vector<float>{7, -8, 9, 1, 2, 3, -4, 5, 6});
 }
 
 TEST_CASE("a pre-cancelled task stops a read") {

@@ -888,7 +888,7 @@ struct Renderer::Impl {
         std::vector<std::uint32_t> keep;
         const float *P = t.positions.data();
         for (std::uint64_t s = 0; s < N; ++s) {
-            const std::uint64_t b = t.offsets[s], e = t.offsets[s + 1], n = e - b;
+            const std::uint64_t b = t.begin(s), e = t.end(s), n = e - b;
             stats.points_total += n;
             if (n < 2) continue;
             decimate(P + b * 3, n, tol_mm, keep);
@@ -949,7 +949,7 @@ struct Renderer::Impl {
         glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, sizeof(V), reinterpret_cast<void *>(16));
         glEnableVertexAttribArray(3);
         glVertexAttribPointer(3, 1, GL_FLOAT, GL_FALSE, sizeof(V), reinterpret_cast<void *>(20));
-        g.bounds = bounds_of(t.positions.data(), t.nb_vertices());
+        g.bounds = bounds_of(t.positions.data(), t.nb_stored());
     }
 
     void upload_mesh(GpuObject &g, const Object &o) {
@@ -1493,7 +1493,7 @@ Bounds scene_bounds(const Scene &s) {
     };
     for (const Object &o : s.objects) {
         if (!o.visible) continue;
-        if (o.kind == HZ_DATA_STREAMLINES) add(bounds_of(o.data.tractogram.positions.data(), o.data.tractogram.nb_vertices()));
+        if (o.kind == HZ_DATA_STREAMLINES) add(bounds_of(o.data.tractogram.positions.data(), o.data.tractogram.nb_stored()));
         else if (o.kind == HZ_DATA_MESH) add(bounds_of(o.data.mesh.vertices.data(), o.data.mesh.nb_vertices()));
         else if (o.kind == HZ_DATA_VOLUME && o.data.volume.dims.size() >= 3) {
             const Volume &v = o.data.volume;

@@ -182,7 +182,7 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
             const std::uint64_t s1 = std::min(end, s0 + kBatch);
             bool fast = how == Resampling::Fast;
             for (std::uint64_t t = s0; t < s1; ++t) {
-                const std::uint64_t n = in.offsets[t + 1] > in.offsets[t] ? in.offsets[t + 1] - in.offsets[t] : 0;
+                const std::uint64_t n = in.size(t);
                 if (n == 0) {
                     errors[w] = "streamline " + std::to_string(t) + " has no points (remove empty streamlines before clustering)";
                     stop = true;
@@ -203,7 +203,7 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
                     for (std::uint64_t j = 0; j < cnt; ++j) {
                         const std::uint64_t t = s + j;
                         p[j] = in.positions + 3 * in.offsets[t];
-                        n[j] = in.offsets[t + 1] - in.offsets[t];
+                        n[j] = in.size(t);
                         fd[j] = &f.direct[t * P * 3];
                         if (exact_flip) fg[j] = &f.flipped[t * P * 3];
                     }
@@ -211,7 +211,7 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
                 }
             }
             for (std::uint64_t t = s0; t < s1 && !stop; ++t) {
-                const std::uint64_t n = in.offsets[t + 1] - in.offsets[t];
+                const std::uint64_t n = in.size(t);
                 const float *p = in.positions + 3 * in.offsets[t];
                 // A non-finite coordinate makes the length non-finite, so
                 // the coordinates are only searched then (or for a single point).
@@ -223,7 +223,7 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
                     for (std::uint64_t v = 0; v < 3 * n; ++v)
                         if (!std::isfinite(p[v])) {
                             errors[w] = "streamline " + std::to_string(t) + " has a non-finite coordinate at vertex " +
-                                        std::to_string(in.offsets[t] + v / 3);
+                                        std::to_string(in.offsets[t] - t * in.gap + v / 3);
                             stop = true;
                             break;
                         }

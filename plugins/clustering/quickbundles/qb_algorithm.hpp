@@ -20,6 +20,10 @@ struct Input {
     const float *positions = nullptr;    // V x 3
     const std::uint64_t *offsets = nullptr;  // N + 1
     std::uint64_t nb_streamlines = 0;
+    // Vertices after each streamline that belong to none (a mapped TCK's
+    // delimiters): streamline s is [offsets[s], offsets[s+1] - gap).
+    std::uint64_t gap = 0;
+    std::uint64_t size(std::uint64_t s) const { return offsets[s + 1] - offsets[s] >= gap ? offsets[s + 1] - offsets[s] - gap : 0; }
 };
 
 // Thrown for invalid input (non-finite coordinates, empty streamlines).

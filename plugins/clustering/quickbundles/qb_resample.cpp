@@ -143,7 +143,7 @@ void ResampleFast(const Input &in, std::uint64_t begin, std::uint64_t end, std::
     const std::size_t N = hn::Lanes(hn::ScalableTag<float>());
     float big = max_abs;
     for (std::uint64_t s = begin; s < end; ++s) {
-        const std::uint64_t n = in.offsets[s + 1] - in.offsets[s];
+        const std::uint64_t n = in.size(s);
         if (scratch.size() < n + 2 * N) scratch.resize(n + 2 * N);
         float *out = direct + s * P * 3;
         lengths[s - begin] = resample_one(in.positions + 3 * in.offsets[s], n, P, out, scratch.data());

@@ -232,7 +232,8 @@ struct Walk {
 // Float32LE, the common case. Chunks of a million triples are classified in
 // parallel: blocks of 16 triples are tested for NaN/Inf with integer masks
 // (the compiler vectorises the loop), and the index of every triple with a
-// NaN or Inf component is kept (8 bytes per such 12-byte triple at most).
+// NaN or Inf component is kept with its NaN and Inf counts (8 bytes per such
+// 12-byte triple at most).
 // Those triples then go through the walk in file order, the runs between
 // them counting as plain points; the walk records the delimiters, so
 // decode() copies the runs between them.
@@ -271,7 +272,16 @@ void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header
                 for (const std::uint64_t end = std::min(e, i + 16); i < end; ++i) {
                     std::uint32_t t[3];
                     std::memcpy(t, data + 12 * i, sizeof t);
-                    if (((t[0] & kExp) == kExp) | ((t[1] & kExp) == kExp) | ((t[2] & kExp) == kExp)) out.push_back(i);
+                    if (((t[0] & kExp) == kExp) | ((t[1] & kExp) == kExp) | ((t[2] & kExp) == kExp)) {
+                        // Classified here, so the walk below never reads the pages again.
+                        std::uint64_t nans = 0, infs = 0;
+                        for (std::uint32_t x : t) {
+                            const bool special = (x & kExp) == kExp;
+                            nans += special && (x & kMant) != 0;
+                            infs += special && (x & kMant) == 0;
+                        }
+                        out.push_back(i << 4 | nans << 2 | infs);
+                    }
                 }
             }
             if (release) release(h.data_offset + 12 * b, h.data_offset + 12 * e);
@@ -280,15 +290,9 @@ void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header
     if (!done) throw Cancelled{};
     std::uint64_t next = 0;  // first triple not yet walked
     for (auto &chunk : specials) {
-        for (const std::uint64_t i : chunk) {
-            std::uint32_t t[3];
-            std::memcpy(t, data + 12 * i, sizeof t);
-            int nans = 0, infs = 0;
-            for (std::uint32_t x : t) {
-                const bool e = (x & kExp) == kExp;
-                nans += e && (x & kMant) != 0;
-                infs += e && (x & kMant) == 0;
-            }
+        for (const std::uint64_t packed : chunk) {
+            const std::uint64_t i = packed >> 4;
+            const int nans = static_cast<int>(packed >> 2 & 3), infs = static_cast<int>(packed & 3);
             w.in_track += i - next;
             next = i + 1;
             if (!w.triple(nans, infs, i, h.data_offset + i * 12, 12)) return;
@@ -396,8 +400,11 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
     }
     head += "datatype: Float32LE\ncount: " + std::to_string(nb_streamlines) + "\n";
     // The offset is part of the header it points past: grow it until stable.
+    // Like MRtrix's writer, the data start on a multiple of 4 bytes, so a
+    // reader can map the floats in place.
     std::uint64_t offset = head.size() + 20;
     for (;;) {
+        offset = (offset + 3) / 4 * 4;
         const std::string tail = "file: . " + std::to_string(offset) + "\nEND\n";
         if (head.size() + tail.size() <= offset) {
             head += tail;

@@ -4,6 +4,7 @@
 
 #include <hz/cpp/plugin.hpp>
 
+#include <bit>
 #include <cstring>
 #include <memory>
 
@@ -19,6 +20,7 @@ struct Reader {
     std::unique_ptr<hzio::MappedFile> file;
     tck::Header header;
     tck::Layout layout;
+    bool mapped = false;  // locate_positions() answered HZ_OK
 };
 
 // Runs a TCK operation, turning format errors into "tck: <path>: <what>".
@@ -105,6 +107,19 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
                                   hz_error *err) {
     if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: read_streamlines: NULL");
     Reader &r = *as_reader(reader);
+    if ((dst->flags & HZ_STREAMLINES_OFFSETS_ONLY) != 0) {
+        // After locate_positions(): offsets into the mapped span, delimiters included.
+        if (!r.mapped || dst->offsets == nullptr)
+            return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: offsets-only read without locate_positions", r.path.c_str());
+        if (dst->offsets_capacity < r.layout.nb_streamlines + 1)
+            return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "tck: %s: destination holds %llu offsets, need %llu", r.path.c_str(),
+                                  (unsigned long long)dst->offsets_capacity, (unsigned long long)(r.layout.nb_streamlines + 1));
+        if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+        const auto &D = r.layout.delimiters;
+        dst->offsets[0] = 0;
+        for (std::uint64_t k = 0; k < r.layout.nb_streamlines; ++k) dst->offsets[k + 1] = D[k] + 1;
+        return HZ_OK;
+    }
     if ((dst->positions == nullptr && r.layout.nb_vertices > 0) || dst->offsets == nullptr)
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: read_streamlines: NULL destination", r.path.c_str());
     if (dst->positions_capacity < 3 * r.layout.nb_vertices || dst->offsets_capacity < r.layout.nb_streamlines + 1)
@@ -120,6 +135,25 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         hz::report(task, 1.0, nullptr);
         return HZ_OK;
     });
+}
+
+// Float32LE positions are already RAS+ mm float32 in the host's byte order:
+// the host maps them, the NaN delimiter after each streamline in place
+// (HZ_EXTENT_DELIMITED), when it accepts that layout.
+hz_status HZ_ABI locate_positions(hz_reader *reader, hz_positions_extent *out, hz_error *err) {
+    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_positions_extent))
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: locate_positions: bad arguments");
+    Reader &r = *as_reader(reader);
+    const bool delimited_ok = (out->accepts & HZ_EXTENT_DELIMITED) != 0;
+    if (!delimited_ok || r.header.datatype != tck::DataType::Float32LE || std::endian::native != std::endian::little ||
+        r.header.data_offset % 4 != 0 || r.layout.nb_streamlines == 0 || r.layout.delimiters.size() != r.layout.nb_streamlines)
+        return HZ_E_UNSUPPORTED;
+    out->path = r.path.c_str();
+    out->offset = r.header.data_offset;
+    out->flags = HZ_EXTENT_DELIMITED;
+    out->crc32 = 0;
+    r.mapped = true;
+    return HZ_OK;
 }
 
 void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
@@ -168,7 +202,7 @@ const hz_loader kLoader = {
     nullptr,  // read_mesh
     close,
     write,
-    nullptr,  // locate_positions: TCK interleaves a delimiter triple after each streamline
+    locate_positions,
 };
 
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};

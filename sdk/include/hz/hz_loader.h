@@ -248,14 +248,27 @@ typedef struct hz_write_request {
 /* Flags of hz_positions_extent. */
 typedef uint32_t hz_extent_flags;
 enum {
-    HZ_EXTENT_HAS_CRC32 = 1u << 0 /* crc32 holds the stored bytes' checksum */
+    HZ_EXTENT_HAS_CRC32 = 1u << 0, /* crc32 holds the stored bytes' checksum */
+    /*
+     * Since 1.5. Each streamline's vertices are followed in the file by one
+     * delimiter vertex that belongs to no streamline (MRtrix TCK's NaN
+     * triple). The extent then spans nb_vertices + nb_streamlines vertices,
+     * and read_streamlines() with HZ_STREAMLINES_OFFSETS_ONLY gives offsets
+     * into that span: streamline s is [offsets[s], offsets[s+1] - 1), its
+     * delimiter is vertex offsets[s+1] - 1, and offsets[nb_streamlines] is
+     * nb_vertices + nb_streamlines. A loader sets it only when the host
+     * listed it in hz_positions_extent.accepts.
+     */
+    HZ_EXTENT_DELIMITED = 1u << 1
 };
 
 /*
  * Since 1.4. Where a file stores the streamline positions exactly as the
  * host holds them: nb_vertices x 3 float32, little-endian, RAS+ mm (no
- * transform), contiguous, starting at byte `offset` (a multiple of 4) of the
- * file `path`. Output struct (caller zero-fills, sets struct_size).
+ * transform), contiguous (or, with HZ_EXTENT_DELIMITED, one delimiter
+ * vertex after each streamline), starting at byte `offset` (a multiple of
+ * 4) of the file `path`. Output struct (caller zero-fills, sets
+ * struct_size and `accepts`).
  */
 typedef struct hz_positions_extent {
     uint32_t struct_size;
@@ -268,7 +281,10 @@ typedef struct hz_positions_extent {
     uint32_t crc32;           /* zlib crc32 of the nb_vertices x 12 bytes, when
                                  flags has HZ_EXTENT_HAS_CRC32 (a zip entry):
                                  the host verifies it                           */
-    uint32_t reserved0;
+    /* Since 1.5 (zero before; was reserved0). INPUT, set by the host: the
+       layout flags it can map (HZ_EXTENT_DELIMITED). A loader answers with
+       no flag the host did not list. */
+    hz_extent_flags accepts;
 } hz_positions_extent;
 
 /* Callback of visit_metadata(); strings valid only during the callback. */
@@ -368,7 +384,10 @@ typedef struct hz_loader {
      * HZ_STREAMLINES_OFFSETS_ONLY. Otherwise (another dtype, a compressed
      * entry, a misaligned offset) returns HZ_E_UNSUPPORTED and the host
      * reads as before. The plugin has checked that the extent lies inside
-     * the file. [worker, serialized per reader]
+     * the file. With HZ_EXTENT_DELIMITED (1.5, only when out->accepts lists
+     * it) the host instead checks that every delimiter vertex is all-NaN and
+     * every other coordinate finite, and keeps the delimiters in place.
+     * [worker, serialized per reader]
      */
     hz_status(HZ_ABI *locate_positions)(hz_reader *reader, hz_positions_extent *out, hz_error *err);
 } hz_loader;

@@ -110,14 +110,22 @@ typedef struct hz_array_view {
 
 /*
  * Streamlines as positions + offsets with a sentinel (the TRX layout), in
- * RAS+ millimetres. Streamline s is positions[offsets[s] .. offsets[s+1]).
- * offsets has nb_streamlines + 1 entries, offsets[0] == 0, non-decreasing,
- * offsets[nb_streamlines] == nb_vertices. Equal consecutive offsets denote an
- * empty streamline. Owner and lifetime are stated wherever it is passed.
+ * RAS+ millimetres. Streamline s is positions[offsets[s] .. offsets[s+1] - gap).
+ * offsets has nb_streamlines + 1 entries, offsets[0] == 0,
+ * offsets[s+1] >= offsets[s] + gap, offsets[nb_streamlines] == nb_vertices.
+ * A streamline of gap vertices only is empty. Owner and lifetime are stated
+ * wherever it is passed.
+ *
+ * gap (since 1.5; reserved zero before): vertices after each streamline
+ * that belong to none, 0 or 1 (an MRtrix TCK file mapped as it is: its NaN
+ * delimiter triples stay in place, and nb_vertices counts them). The host
+ * passes gap 1 only to clustering plugins whose descriptor declares ABI
+ * 1.5 or later; older plugins, and every writer, receive gap 0 (a copy
+ * without delimiters when needed).
  */
 typedef struct hz_streamlines_view {
     uint32_t struct_size;
-    uint32_t reserved0;        /* zero                                  */
+    uint32_t gap;              /* since 1.5 (was reserved0): see above  */
     const float *positions;    /* nb_vertices x 3, xyz interleaved      */
     uint64_t nb_vertices;
     const uint64_t *offsets;   /* nb_streamlines + 1                    */

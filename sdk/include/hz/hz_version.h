@@ -25,6 +25,10 @@
  *          (appended); hz_streamlines_dst.reserved0 becomes flags
  *          (HZ_STREAMLINES_OFFSETS_ONLY): zero-copy reading of positions
  *          the host maps from the file (TRX stored zips and directories).
+ *   1.5.0  hz_positions_extent.reserved0 becomes `accepts`, and
+ *          HZ_EXTENT_DELIMITED: positions mapped with one delimiter vertex
+ *          after each streamline (MRtrix TCK Float32LE), offered by a loader
+ *          only to a host that accepts it.
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -35,7 +39,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 4
+#define HZ_ABI_VERSION_MINOR 5
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */

@@ -67,6 +67,8 @@ public:
     const T *begin() const { return ptr_; }
     const T *end() const { return ptr_ + size_; }
     std::span<const T> span() const { return {ptr_, size_}; }
+    // Another view of the same elements, keeping them alive.
+    Buffer shared() const { return Buffer(ptr_, size_, owner_); }
 
 private:
     T *ptr_ = nullptr;
@@ -74,7 +76,7 @@ private:
     std::shared_ptr<void> owner_;
 };
 
-// Axis-aligned bounds in RAS+ mm of a set of xyz triples; empty -> all zero.
+// Axis-aligned bounds in RAS+ mm of a set of xyz triples (NaN coordinates skipped); empty -> all zero.
 struct Bounds {
     std::array<double, 3> min{}, max{};
     bool empty = true;
@@ -87,6 +89,13 @@ void merge_bounds(Bounds &a, const Bounds &b);
 // there are millions. Throws Error "`what`: non-finite coordinate at vertex
 // K" (K counted from `first_vertex`) for the first such vertex.
 Bounds finite_bounds(const float *xyz, std::uint64_t nb_points, const std::string &what, std::uint64_t first_vertex = 0);
+// The same for streamlines with one delimiter vertex after each (a mapped
+// TCK): streamline s is xyz[offsets[s] .. offsets[s+1] - 1) and vertex
+// offsets[s+1] - 1 must be all NaN; every other coordinate must be finite.
+// offsets (N + 1 entries, non-decreasing, offsets[N] = nb_points) are
+// checked first. Throws Error naming `what`.
+Bounds delimited_bounds(const float *xyz, std::uint64_t nb_points, const std::uint64_t *offsets, std::uint64_t N,
+                        const std::string &what);
 // Runs fn(begin, end) over [0, n) split into contiguous ranges of at least
 // `grain` items, one per thread (the calling thread takes the first); the
 // first exception thrown by the lowest range is rethrown.
@@ -112,17 +121,34 @@ struct DataArray {
 // A one-component float32 array of `values`.
 DataArray f32_array(std::string name, hz_attach attach, const std::vector<float> &values);
 
-// Streamlines: positions (V x 3 float32, RAS+ mm) + offsets (N + 1, sentinel).
+// Streamlines: positions (float32 xyz, RAS+ mm) + offsets (N + 1, sentinel).
+// Streamline s is positions[offsets[s] .. offsets[s+1] - gap): `gap`
+// vertices after each streamline belong to none. gap is 0, except for an
+// MRtrix TCK file mapped without a copy (gap 1: its NaN delimiter triples
+// stay in place). A tractogram with a gap has no per-vertex arrays.
 struct Tractogram {
     Buffer<float> positions;
     Buffer<std::uint64_t> offsets{0};
+    std::uint32_t gap = 0;
     std::vector<DataArray> arrays;
     Affine reference = kIdentity;           // reference grid voxel -> RAS+ mm
     std::array<std::uint64_t, 3> reference_dims{};
 
     std::uint64_t nb_streamlines() const { return offsets.empty() ? 0 : offsets.size() - 1; }
-    std::uint64_t nb_vertices() const { return positions.size() / 3; }
+    // The streamlines' vertices (delimiters not counted).
+    std::uint64_t nb_vertices() const { return nb_stored() - std::uint64_t(gap) * nb_streamlines(); }
+    // The vertices `positions` holds, delimiters included.
+    std::uint64_t nb_stored() const { return positions.size() / 3; }
+    // Streamline s: vertices [begin(s), end(s)) of positions.
+    std::uint64_t begin(std::uint64_t s) const { return offsets[s]; }
+    std::uint64_t end(std::uint64_t s) const { return offsets[s + 1] - gap; }
+    std::uint64_t size(std::uint64_t s) const { return end(s) - begin(s); }
+    // The ABI view, gap included (a plugin of ABI < 1.5 must be given the
+    // view of compacted() instead: it would ignore the gap).
     hz_streamlines_view view() const;
+    // The same streamlines without delimiters: a copy when gap != 0,
+    // otherwise a shallow one (the buffers are shared).
+    Tractogram compacted() const;
     // Checks the invariants (offsets start at 0, non-decreasing, sentinel,
     // finite positions); throws Error naming `what`. Returns the bounds of
     // the positions (computed in the same pass).

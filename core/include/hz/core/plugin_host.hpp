@@ -61,6 +61,7 @@ ChildResult run_in_child(const std::function<std::string()> &fn, double timeout_
 // Descriptor data copied out of a plugin.
 struct PluginInfo {
     std::string id, name, version, vendor, description, license;
+    hz_abi_version abi{};  // the ABI its descriptor declares
     hz_plugin_kind kind = 0;
     std::vector<std::string> interfaces;
     std::string file;
@@ -100,6 +101,8 @@ struct LoadedPlugin {
     const hz_clustering *clustering() const {
         return info.kind == HZ_KIND_CLUSTERING ? static_cast<const hz_clustering *>(iface) : nullptr;
     }
+    // Whether hz_streamlines_view.gap may be non-zero for it (ABI 1.5).
+    bool takes_gap() const { return info.abi.major > 1 || info.abi.minor >= 5; }
 };
 
 struct Rejection {
