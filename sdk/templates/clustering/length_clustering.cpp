@@ -66,7 +66,9 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
             if (s >= n) throw hz::Error(HZ_E_INVALID_ARGUMENT, "ordering is not a permutation");
             double len = 0;
             std::array<double, 4> sum{};
-            for (uint64_t v = in->offsets[s]; v < in->offsets[s + 1]; ++v) {
+            // (in->gap: vertices after each streamline that belong to none; ABI 1.5.)
+            const uint64_t end = in->offsets[s + 1] - in->gap;
+            for (uint64_t v = in->offsets[s]; v < end; ++v) {
                 const float *p = in->positions + 3 * v;
                 if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
                     throw hz::Error(HZ_E_FORMAT, "streamline " + std::to_string(s) + " has a non-finite coordinate");
