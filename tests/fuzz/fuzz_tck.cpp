@@ -1,7 +1,9 @@
 // libFuzzer target: the TCK parser, scanner and decoder on arbitrary bytes.
 #include "tck_format.hpp"
 
+#include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size) {
@@ -13,6 +15,23 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
         std::vector<float> pos(3 * l.nb_vertices);
         std::vector<std::uint64_t> off(l.nb_streamlines + 1);
         tck::decode(data, h, l, pos.data(), off.data());
+        // What a mapped read (ABI 1.5 delimited extent) hands the host: every
+        // streamline's points, each followed by an all-NaN delimiter triple,
+        // the same points decode() copied.
+        if (h.datatype == tck::DataType::Float32LE && l.delimiters.size() == l.nb_streamlines) {
+            std::uint64_t start = 0;
+            for (std::uint64_t k = 0; k < l.nb_streamlines; ++k) {
+                const std::uint64_t d = l.delimiters[k];
+                if (d < start || off[k + 1] - off[k] != d - start) __builtin_trap();
+                float t[3];
+                std::memcpy(t, data + h.data_offset + 12 * d, 12);
+                if (!(std::isnan(t[0]) && std::isnan(t[1]) && std::isnan(t[2]))) __builtin_trap();
+                if (d > start && std::memcmp(data + h.data_offset + 12 * start, pos.data() + 3 * off[k], 12 * (d - start)) != 0)
+                    __builtin_trap();
+                start = d + 1;
+            }
+            if (start != l.nb_vertices + l.nb_streamlines) __builtin_trap();
+        }
     } catch (const tck::FormatError &) {
     }
     tck::probe(data, size);
