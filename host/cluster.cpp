@@ -89,12 +89,8 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     const auto t0 = std::chrono::steady_clock::now();
     const core::Dataset ds = core::read_dataset(reg, o.input);
     if (ds.kind != HZ_DATA_STREAMLINES) throw core::Error(o.input + ": not a tractogram");
-    // A plugin older than ABI 1.5 would not skip a mapped TCK's delimiters:
-    // it gets a copy without them (made here, while reading).
-    core::Tractogram compact;
-    const bool copy = ds.tractogram.gap != 0 && !plugin->takes_gap();
-    if (copy) compact = ds.tractogram.compacted();
-    const core::Tractogram &t = copy ? compact : ds.tractogram;
+    // (A plugin older than ABI 1.5 gets a mapped TCK without its delimiters: copied here, while reading.)
+    const core::Tractogram t = plugin->streamlines_for(ds.tractogram);
     const auto t1 = std::chrono::steady_clock::now();
 
     ClusterRun run;

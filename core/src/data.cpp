@@ -98,6 +98,21 @@ std::uint64_t minmax48_count(const float *q, std::uint64_t steps, float *mn, flo
     return n;
 }
 
+// Points [0, n) into the 48 lanes of minmax48_count (started at +/-inf),
+// the tail one point at a time; returns the count of values not finite.
+std::uint64_t minmax_nan(const float *xyz, std::uint64_t n, float *mn, float *mx) {
+    const std::uint64_t whole = n / 16 * 16;
+    std::uint64_t bad = minmax48_count(xyz, whole / 16, mn, mx);
+    for (std::uint64_t i = whole; i < n; ++i)
+        for (int d = 0; d < 3; ++d) {
+            const float v = xyz[3 * i + d];
+            bad += !std::isfinite(v);
+            mn[d] = v < mn[d] ? v : mn[d];
+            mx[d] = v > mx[d] ? v : mx[d];
+        }
+    return bad;
+}
+
 // The 48 lanes of minmax48_count folded into bounds (empty when no lane saw
 // a number).
 Bounds fold48_nan(const float *mn, const float *mx) {
@@ -163,24 +178,21 @@ Bounds delimited_bounds(const float *xyz, std::uint64_t n, const std::uint64_t *
             throw Error(what + ": streamline " + std::to_string(s) + " has no delimiter (offsets must increase)");
     if (offsets[N] != n) throw Error(what + ": final offset " + std::to_string(offsets[N]) + " != " + std::to_string(n) + " vertices");
     // Streamlines [s0, s1) per thread: their vertices must hold exactly
-    // 3 (s1 - s0) values that are not finite, all in the delimiters.
+    // 3 (s1 - s0) values that are not finite, all in the delimiters. Both
+    // are checked a block of streamlines at a time, while it is in cache.
     auto part = [&](std::uint64_t s0, std::uint64_t s1) {
-        const std::uint64_t b = offsets[s0], e = offsets[s1];
         float mn[48], mx[48];
         for (int k = 0; k < 48; ++k) mn[k] = HUGE_VALF, mx[k] = -HUGE_VALF;
-        const std::uint64_t whole = b + (e - b) / 16 * 16;
-        std::uint64_t bad = minmax48_count(xyz + 3 * b, (whole - b) / 16, mn, mx);
-        for (std::uint64_t i = whole; i < e; ++i)
-            for (int d = 0; d < 3; ++d) {
-                const float v = xyz[3 * i + d];
-                bad += !std::isfinite(v);
-                mn[d] = v < mn[d] ? v : mn[d];
-                mx[d] = v > mx[d] ? v : mx[d];
-            }
+        std::uint64_t bad = 0;
         bool delimiters_nan = true;
-        for (std::uint64_t s = s0; s < s1; ++s) {
-            const float *q = xyz + 3 * (offsets[s + 1] - 1);
-            delimiters_nan &= std::isnan(q[0]) & std::isnan(q[1]) & std::isnan(q[2]);
+        constexpr std::uint64_t kBlock = 256;  // streamlines
+        for (std::uint64_t c0 = s0; c0 < s1; c0 += kBlock) {
+            const std::uint64_t c1 = std::min(s1, c0 + kBlock);
+            bad += minmax_nan(xyz + 3 * offsets[c0], offsets[c1] - offsets[c0], mn, mx);
+            for (std::uint64_t s = c0; s < c1; ++s) {
+                const float *q = xyz + 3 * (offsets[s + 1] - 1);
+                delimiters_nan &= std::isnan(q[0]) & std::isnan(q[1]) & std::isnan(q[2]);
+            }
         }
         if (bad != 3 * (s1 - s0) || !delimiters_nan)
             for (std::uint64_t s = s0; s < s1; ++s) {  // (the first fault, for the message)
@@ -303,8 +315,11 @@ const char *space_name(hz_space s) {
     }
 }
 
-Tractogram Tractogram::compacted() const {
+Tractogram Tractogram::shared() const {
     Tractogram out;
+    out.positions = positions.shared();
+    out.offsets = offsets.shared();
+    out.gap = gap;
     out.reference = reference;
     out.reference_dims = reference_dims;
     for (const auto &a : arrays) {
@@ -313,11 +328,13 @@ Tractogram Tractogram::compacted() const {
         c.bytes = a.bytes.shared();
         out.arrays.push_back(std::move(c));
     }
-    if (gap == 0) {
-        out.positions = positions.shared();
-        out.offsets = offsets.shared();
-        return out;
-    }
+    return out;
+}
+
+Tractogram Tractogram::compacted() const {
+    Tractogram out = shared();
+    if (gap == 0) return out;
+    out.gap = 0;
     const std::uint64_t N = nb_streamlines();
     out.positions = Buffer<float>(3 * nb_vertices());
     out.offsets = Buffer<std::uint64_t>(N + 1);
@@ -397,14 +414,7 @@ Bounds bounds_of(const float *xyz, std::uint64_t n) {
     // delimiters) never enters the bounds.
     float mn[48], mx[48];
     for (int k = 0; k < 48; ++k) mn[k] = HUGE_VALF, mx[k] = -HUGE_VALF;
-    const std::uint64_t whole = n / 16 * 16;
-    minmax48_count(xyz, whole / 16, mn, mx);
-    for (std::uint64_t i = whole; i < n; ++i)
-        for (int d = 0; d < 3; ++d) {
-            const float v = xyz[3 * i + d];
-            mn[d] = v < mn[d] ? v : mn[d];
-            mx[d] = v > mx[d] ? v : mx[d];
-        }
+    minmax_nan(xyz, n, mn, mx);
     return fold48_nan(mn, mx);
 }
 

@@ -521,10 +521,8 @@ ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const Clust
     }
     const double fast = 1.0;
     c->set_param(obj, "mode", &fast, 1, &err);  // display only needs the fast mode
-    Tractogram compact;  // (for a plugin older than ABI 1.5, which would not skip delimiters)
-    const bool copy = t.gap != 0 && !plugin->takes_gap();
-    if (copy) compact = t.compacted();
-    const hz_streamlines_view view = (copy ? compact : t).view();
+    const Tractogram input = plugin->streamlines_for(t);
+    const hz_streamlines_view view = input.view();
     Task task;
     if (c->run(obj, &view, nullptr, task.get(), &err) != HZ_OK) throw Error(id + ": " + err.message);
     hz_cluster_tree_view v{};

@@ -146,8 +146,10 @@ struct Tractogram {
     // The ABI view, gap included (a plugin of ABI < 1.5 must be given the
     // view of compacted() instead: it would ignore the gap).
     hz_streamlines_view view() const;
+    // A shallow copy: the same buffers (positions, offsets, arrays), kept alive.
+    Tractogram shared() const;
     // The same streamlines without delimiters: a copy when gap != 0,
-    // otherwise a shallow one (the buffers are shared).
+    // otherwise shared().
     Tractogram compacted() const;
     // Checks the invariants (offsets start at 0, non-decreasing, sentinel,
     // finite positions); throws Error naming `what`. Returns the bounds of

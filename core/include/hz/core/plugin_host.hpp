@@ -10,6 +10,7 @@
 #pragma once
 
 #include <hz/hz.h>
+#include <hz/core/data.hpp>
 
 #include <filesystem>
 #include <functional>
@@ -103,6 +104,9 @@ struct LoadedPlugin {
     }
     // Whether hz_streamlines_view.gap may be non-zero for it (ABI 1.5).
     bool takes_gap() const { return info.abi.major > 1 || info.abi.minor >= 5; }
+    // `t` as this plugin takes it through hz_streamlines_view: the same
+    // buffers, or a copy without delimiters for a plugin older than ABI 1.5.
+    Tractogram streamlines_for(const Tractogram &t) const { return takes_gap() ? t.shared() : t.compacted(); }
 };
 
 struct Rejection {
