@@ -780,17 +780,35 @@ std::vector<Check> catalogue() {
                      hz_dataset_info info{};
                      info.struct_size = sizeof info;
                      if (l.get_info(r, &info, &err) != HZ_OK) return fail(std::string("get_info: ") + err.message);
-                     // Asked without, then with, the delimited layout (1.5): never a
-                     // layout the host did not accept; a delimited extent holds each
-                     // streamline's bytes followed by an all-NaN delimiter vertex.
+                     // Asked without, then with, the delimited layout (1.5), then also
+                     // offering to take vouched bounds (1.6), from a host of this size
+                     // and of the 1.4 size: never a layout the host did not accept; a
+                     // delimited extent holds each streamline's bytes followed by an
+                     // all-NaN delimiter vertex; vouched bounds are the exact bounds.
                      std::string how;
-                     for (const hz_extent_flags accepts : {hz_extent_flags(0), hz_extent_flags(HZ_EXTENT_DELIMITED)}) {
+                     const hz_extent_flags kDelimited = HZ_EXTENT_DELIMITED, kChecked = HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED;
+                     const std::pair<hz_extent_flags, std::uint32_t> asks[] = {
+                         {0, sizeof(hz_positions_extent)},
+                         {kDelimited, sizeof(hz_positions_extent)},
+                         {kChecked, HZ_POSITIONS_EXTENT_SIZE_1_4},
+                         {kChecked, sizeof(hz_positions_extent)}};
+                     for (const auto &[accepts, size] : asks) {
                          hz_positions_extent ext{};
-                         ext.struct_size = sizeof ext;
+                         ext.struct_size = size;
                          ext.accepts = accepts;
+                         constexpr double kUntouched = -12345.5;  // (past a 1.4-sized struct)
+                         for (int d = 0; d < 3; ++d) ext.bounds_min[d] = ext.bounds_max[d] = kUntouched;
                          const hz_status st = l.locate_positions(r, &ext, &err);
                          if (st == HZ_E_UNSUPPORTED) {
-                             how += accepts ? " declines the delimited layout too;" : " declines the plain layout;";
+                             if (accepts == 0) how += " declines the plain layout;";
+                             else if (accepts == kDelimited) how += " declines the delimited layout too;";
+                             continue;
+                         }
+                         if (st == HZ_OK && size < sizeof ext) {
+                             if (ext.flags & HZ_EXTENT_CHECKED) return fail("vouches for bounds to a host whose struct has no room for them");
+                             for (int d = 0; d < 3; ++d)
+                                 if (ext.bounds_min[d] != kUntouched || ext.bounds_max[d] != kUntouched)
+                                     return fail("writes past the struct_size the host gave");
                              continue;
                          }
                          if (st != HZ_OK) return fail("status " + std::to_string(st) + ": " + err.message);
@@ -822,7 +840,7 @@ std::vector<Check> catalogue() {
                                  return fail("the located bytes differ from read_streamlines' positions");
                              if (!std::equal(off.begin(), off.end(), full.offsets.begin()))
                                  return fail("offsets-only read gives other offsets");
-                             how += " maps the plain layout;";
+                             if (accepts == 0) how += " maps the plain layout;";
                              continue;
                          }
                          if (off[0] != 0 || off[info.nb_streamlines] != stored_vertices)
@@ -837,7 +855,20 @@ std::vector<Check> catalogue() {
                              if (!(std::isnan(d[0]) && std::isnan(d[1]) && std::isnan(d[2])))
                                  return fail("the delimiter after streamline " + std::to_string(k) + " is not all NaN");
                          }
-                         how += " maps the delimited layout;";
+                         if (accepts == kDelimited) how += " maps the delimited layout;";
+                         if (ext.flags & HZ_EXTENT_CHECKED) {
+                             // Every coordinate finite (the delimiters were checked above).
+                             core::Bounds b;
+                             try {
+                                 b = core::finite_bounds(full.positions.data(), full.nb_vertices(), "the sample");
+                             } catch (const std::exception &e) {
+                                 return fail(std::string("vouches for positions that are not all finite: ") + e.what());
+                             }
+                             for (int d = 0; d < 3; ++d)
+                                 if (b.empty || ext.bounds_min[d] != b.min[d] || ext.bounds_max[d] != b.max[d])
+                                     return fail("vouches for bounds other than its positions' (" + std::string("xyz").substr(d, 1) + ")");
+                             how += " vouches for exact bounds;";
+                         }
                      }
                      how.pop_back();
                      return pass(how.substr(1));

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <mutex>
@@ -54,6 +55,19 @@ std::vector<unsigned char> read_head(const fs::path &path, std::size_t n) {
     return buf;
 }
 
+// The bounds a loader vouched for with HZ_EXTENT_CHECKED: finite, ordered.
+Bounds vouched_bounds(const hz_positions_extent &ext, const fs::path &path, const std::string &loader) {
+    if (ext.struct_size < sizeof ext) throw Error(path.string() + ": loader " + loader + " vouched for bounds it had no room to give");
+    Bounds b;
+    b.empty = false;
+    for (int d = 0; d < 3; ++d) {
+        b.min[d] = ext.bounds_min[d];
+        b.max[d] = ext.bounds_max[d];
+        if (!(std::isfinite(b.min[d]) && std::isfinite(b.max[d]) && b.min[d] <= b.max[d]))
+            throw Error(path.string() + ": loader " + loader + " vouched for invalid bounds");
+    }
+    return b;
+}
 
 // Zero-copy positions (ABI 1.4 locate_positions): maps `nb_vertices` x 3
 // float32 at ext.offset of ext.path copy-on-write (the data model may edit
@@ -61,7 +75,8 @@ std::vector<unsigned char> read_head(const fs::path &path, std::size_t n) {
 // one and the finiteness of every coordinate, and returns the bounds. The
 // checksum and the scan share one pass over the pages, split over the cores.
 // With HZ_EXTENT_DELIMITED, nb_vertices counts the delimiters, and the
-// caller checks them and computes the bounds (Tractogram::validate).
+// caller checks them and computes the bounds (Tractogram::validate), or
+// takes the loader's word for them (HZ_EXTENT_CHECKED).
 Buffer<float> map_positions(const hz_positions_extent &ext, std::uint64_t nb_vertices, const fs::path &path, Bounds &bounds) {
     const std::string where = path.string();
     const std::string file = ext.path ? ext.path : "";
@@ -79,9 +94,11 @@ Buffer<float> map_positions(const hz_positions_extent &ext, std::uint64_t nb_ver
     }
     const std::uint64_t page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
     const std::uint64_t start = ext.offset / page * page, len = ext.offset - start + bytes;
-    // Populated read-only (a populate of a writable private mapping would
-    // copy every page), then made writable: a write copies only its page.
-    void *base = ::mmap(nullptr, len, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, static_cast<off_t>(start));
+    // Mapped read-only, then made writable: a write copies only its page.
+    // Extents the host reads at once (to check a CRC) are populated in one
+    // call (a populate of a writable private mapping would copy every page);
+    // delimited ones fault in as they are used, on every thread reading them.
+    void *base = ::mmap(nullptr, len, PROT_READ, MAP_PRIVATE | (delimited ? 0 : MAP_POPULATE), fd, static_cast<off_t>(start));
     const int map_errno = errno;
     ::close(fd);
     if (base == MAP_FAILED) throw Error(where + ": cannot map " + file + ": " + std::strerror(map_errno));
@@ -301,14 +318,14 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         // Zero-copy when the loader can say where float32 RAS+ mm positions lie.
         hz_positions_extent ext{};
         ext.struct_size = sizeof ext;
-        ext.accepts = HZ_EXTENT_DELIMITED;
+        ext.accepts = HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED;
         bool mapped = false;
         if (HZ_HAS_FIELD(l, hz_loader, locate_positions) && l->locate_positions != nullptr && info.nb_vertices > 0) {
             st = l->locate_positions(g.r, &ext, &err);
             if (st == HZ_OK) mapped = true;
             else if (st != HZ_E_UNSUPPORTED) throw Error(failure(err, st, path, "locate_positions"));
             err = make_error();
-            if (mapped && (ext.flags & ~(HZ_EXTENT_HAS_CRC32 | HZ_EXTENT_DELIMITED)) != 0)
+            if (mapped && (ext.flags & ~(HZ_EXTENT_HAS_CRC32 | HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED)) != 0)
                 throw Error(path.string() + ": loader located the positions with a layout flag the host does not know");
         }
         const bool delimited = mapped && (ext.flags & HZ_EXTENT_DELIMITED) != 0;
@@ -329,11 +346,26 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         dst.offsets_capacity = t.offsets.size();
         st = l->read_streamlines(g.r, &dst, task, &err);
         if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines"));
-        if (delimited) {  // the delimiters and coordinates are checked with the offsets
+        if (delimited) {
             t.positions = map_positions(ext, stored, path, ds.bounds);
             t.gap = 1;
             ds.mapped = true;
-            ds.bounds = t.validate(path.string());
+            if ((ext.flags & HZ_EXTENT_CHECKED) != 0) {
+                // The loader read every coordinate while opening the file and
+                // vouches for them (the ABI contract; `horizon validate`
+                // checks it): the extent stays unread until it is used.
+                t.validate_offsets(path.string());
+                ds.bounds = vouched_bounds(ext, path, p.info.id);
+#ifdef HZ_VERIFY_PLUGIN_CLAIMS
+                // (Debug and sanitizer builds check the claim all the same.)
+                const Bounds b = t.validate(path.string());
+                for (int d = 0; d < 3; ++d)
+                    if (b.empty || b.min[d] != ds.bounds.min[d] || b.max[d] != ds.bounds.max[d])
+                        throw Error(path.string() + ": loader " + p.info.id + " vouched for bounds its positions do not have");
+#endif
+            } else {  // the delimiters and coordinates are checked with the offsets
+                ds.bounds = t.validate(path.string());
+            }
         } else if (mapped) {  // the coordinates are checked as they are mapped
             t.positions = map_positions(ext, info.nb_vertices, path, ds.bounds);
             ds.mapped = true;

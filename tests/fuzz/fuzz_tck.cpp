@@ -1,6 +1,7 @@
 // libFuzzer target: the TCK parser, scanner and decoder on arbitrary bytes.
 #include "tck_format.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -31,6 +32,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
                 start = d + 1;
             }
             if (start != l.nb_vertices + l.nb_streamlines) __builtin_trap();
+        }
+        // The bounds the scan vouches for (ABI 1.6): exactly the decoded points'.
+        if (l.has_bounds != (h.datatype == tck::DataType::Float32LE && l.nb_vertices > 0)) __builtin_trap();
+        for (int d = 0; d < 3 && l.has_bounds; ++d) {
+            float lo = pos[d], hi = pos[d];
+            for (std::uint64_t i = d; i < pos.size(); i += 3) {
+                if (!std::isfinite(pos[i])) __builtin_trap();
+                lo = std::min(lo, pos[i]);
+                hi = std::max(hi, pos[i]);
+            }
+            if (l.lo[d] != lo || l.hi[d] != hi) __builtin_trap();
         }
     } catch (const tck::FormatError &) {
     }

@@ -45,7 +45,13 @@ class ValidateTest(TempDirTest):
         rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_tck.so"))
         c = checks(rep)["loader-locate-positions"]
         self.assertEqual(c["status"], "passed")
-        self.assertEqual(c["reason"], "declines the plain layout; maps the delimited layout")
+        self.assertEqual(c["reason"], "declines the plain layout; maps the delimited layout; vouches for exact bounds")
+        # (ABI 1.6) The same loader vouching for bounds 1 mm too wide fails exactly that check.
+        rc, rep = self.validate(os.path.join(FIXTURES, "fx_tck_lying_bounds.so"))
+        self.assertEqual(rc, 1)
+        failed = {c["check"]: c["reason"] for c in rep["checks"] if c["status"] == "failed"}
+        self.assertEqual(list(failed), ["loader-locate-positions"], failed)
+        self.assertIn("vouches for bounds other than its positions' (x)", failed["loader-locate-positions"])
 
     def test_templates_pass(self):
         for f in sorted(glob.glob(os.path.join(TEMPLATES, "*.so"))):

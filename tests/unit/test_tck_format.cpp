@@ -57,6 +57,17 @@ std::string header(const std::string &datatype, std::size_t offset_pad = 0) {
     return h;
 }
 
+// The Float32LE scan's bounds are the decoded points' bounds.
+void check_bounds(const Parsed &p) {
+    REQUIRE(p.l.has_bounds == !p.pos.empty());
+    for (std::size_t d = 0; d < 3 && !p.pos.empty(); ++d) {
+        float lo = p.pos[d], hi = p.pos[d];
+        for (std::size_t i = d; i < p.pos.size(); i += 3) lo = std::min(lo, p.pos[i]), hi = std::max(hi, p.pos[i]);
+        CHECK(p.l.lo[d] == lo);
+        CHECK(p.l.hi[d] == hi);
+    }
+}
+
 }  // namespace
 
 TEST_CASE("tck: Float32LE with an empty streamline and trailing spaces in the magic line") {
@@ -191,6 +202,23 @@ TEST_CASE("tck: the Float32LE block scan agrees with the generic walk on long st
     CHECK(a.off == b.off);
     CHECK(a.pos == b.pos);
     for (std::size_t s = 0; s < lengths.size(); ++s) CHECK(a.off[s + 1] - a.off[s] == lengths[s]);
+    check_bounds(a);
+    CHECK_FALSE(b.l.has_bounds);  // (only the Float32LE scan finds them)
+    // The extremes in every position of a block, data at any byte alignment,
+    // and points after the terminator (not data) left out of the bounds.
+    for (std::size_t pad : {0, 1, 2, 3})
+        for (std::size_t at = 0; at < 48; at += 5) {
+            std::vector<float> v = xs;
+            std::size_t i = 3 * 16 * 7 + at;
+            while (std::isnan(v[i])) ++i;
+            v[i] = i % 2 ? 1e30f : -1e30f;
+            for (float f : {7e30f, -7e30f, 1.0f}) v.push_back(f);
+            std::string file = header("Float32LE", pad);
+            for (float f : v) file += f32le({f});
+            const Parsed c = parse(file);
+            check_bounds(c);
+            CHECK(std::max(c.l.hi[i % 3], -c.l.lo[i % 3]) == 1e30f);
+        }
     // A partial NaN or an early Inf deep inside a long streamline is still found, with its byte offset.
     for (std::size_t at : {std::size_t(17 * 3 + 1), std::size_t(40 * 3 + 2), std::size_t(1000)}) {
         std::vector<float> bad = xs;
@@ -235,6 +263,16 @@ TEST_CASE("tck: the parallel Float32LE scan and copy span chunks like one sequen
     CHECK(a.off == b.off);
     CHECK(a.pos == b.pos);
     for (std::size_t s = 0; s < lengths.size(); s += 101) CHECK(a.off[s + 1] - a.off[s] == lengths[s]);
+    check_bounds(a);
+    // Points after the terminator, in its chunk and the next, are not data.
+    {
+        std::vector<float> v = xs;
+        for (std::size_t k = 0; k < 3 * (1u << 20); ++k) v.push_back(k % 2 ? 5e3f : -5e3f);
+        const Parsed c = parse(encode(v, false));
+        CHECK(c.l.nb_vertices == a.l.nb_vertices);
+        CHECK(c.l.trailing_bytes == 12 * (1u << 20));
+        check_bounds(c);
+    }
     // Two faults in different chunks: the first in file order is reported.
     std::vector<float> bad = xs;
     const std::size_t late = 3 * 3'000'000, early = 3 * 1'500'000 + 1;

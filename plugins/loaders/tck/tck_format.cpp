@@ -4,6 +4,7 @@
 #include "tck_format.hpp"
 
 #include "parallel.hpp"
+#include "tck_scan.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -229,77 +230,93 @@ struct Walk {
     }
 };
 
-// Float32LE, the common case. Chunks of a million triples are classified in
-// parallel: blocks of 16 triples are tested for NaN/Inf with integer masks
-// (the compiler vectorises the loop), and the index of every triple with a
-// NaN or Inf component is kept with its NaN and Inf counts (8 bytes per such
-// 12-byte triple at most).
-// Those triples then go through the walk in file order, the runs between
-// them counting as plain points; the walk records the delimiters, so
-// decode() copies the runs between them.
-// The first block of 16 triples in [i, e) (e - i a multiple of 16) that
-// holds a float with an all-ones exponent (NaN or Inf), or e.
-HZIO_SIMD_CLONES
-std::uint64_t next_special_block(const unsigned char *data, std::uint64_t i, std::uint64_t e) {
-    constexpr std::uint32_t kExp = 0x7F800000u;
-    for (; i < e; i += 16) {
-        std::uint32_t blk[48];
-        std::memcpy(blk, data + 12 * i, sizeof blk);
-        unsigned special = 0;
-        for (int k = 0; k < 48; ++k) special |= (blk[k] & kExp) == kExp;
-        if (special) return i;
+// Float32LE, the common case, in one pass over the data. Chunks of a
+// million triples are classified in parallel by detail::scan_chunk (SIMD
+// through Highway): the index of every triple with a NaN or Inf component
+// is kept with its NaN and Inf counts (8 bytes per such 12-byte triple at
+// most), and every other float is folded into the chunk's bounds. Those
+// triples then go through the walk in file order, the runs between them
+// counting as plain points; the walk records the delimiters, so decode()
+// copies the runs between them, and the chunks' bounds up to the
+// terminator are the file's.
+
+// The bounds of the points among triples [b, e) (NaN/Inf triples skipped),
+// into lo/hi (started at +/-inf by the caller).
+void fold_finite(const unsigned char *data, std::uint64_t b, std::uint64_t e, float *lo, float *hi) {
+    for (std::uint64_t i = b; i < e; ++i) {
+        float t[3];
+        std::memcpy(t, data + 12 * i, sizeof t);
+        if (!(std::isfinite(t[0]) && std::isfinite(t[1]) && std::isfinite(t[2]))) continue;
+        for (int d = 0; d < 3; ++d) {
+            lo[d] = std::min(lo[d], t[d]);
+            hi[d] = std::max(hi[d], t[d]);
+        }
     }
-    return e;
 }
 
 void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header &h, const Tick &cancelled, const Release &release,
                 Walk &w) {
-    constexpr std::uint32_t kExp = 0x7F800000u, kMant = 0x007FFFFFu;
     constexpr std::uint64_t kChunk = 1u << 20;
     const std::size_t nchunks = static_cast<std::size_t>((n_triples + kChunk - 1) / kChunk);
     std::vector<std::vector<std::uint64_t>> specials(nchunks);
+    struct Box {
+        float lo[3], hi[3];
+    };
+    std::vector<Box> boxes(nchunks);
     const bool done = hzio::parallel_chunks(
         nchunks,
         [&](std::size_t c) {
             const std::uint64_t b = c * kChunk, e = std::min(n_triples, b + kChunk);
-            const std::uint64_t whole = b + (e - b) / 16 * 16;
-            auto &out = specials[c];
-            for (std::uint64_t i = b; i < e;) {
-                if (i < whole) {
-                    i = next_special_block(data, i, whole);
-                    if (i == whole && whole == e) break;
-                }
-                for (const std::uint64_t end = std::min(e, i + 16); i < end; ++i) {
-                    std::uint32_t t[3];
-                    std::memcpy(t, data + 12 * i, sizeof t);
-                    if (((t[0] & kExp) == kExp) | ((t[1] & kExp) == kExp) | ((t[2] & kExp) == kExp)) {
-                        // Classified here, so the walk below never reads the pages again.
-                        std::uint64_t nans = 0, infs = 0;
-                        for (std::uint32_t x : t) {
-                            const bool special = (x & kExp) == kExp;
-                            nans += special && (x & kMant) != 0;
-                            infs += special && (x & kMant) == 0;
-                        }
-                        out.push_back(i << 4 | nans << 2 | infs);
-                    }
-                }
-            }
+            Box &box = boxes[c];
+            std::fill(box.lo, box.lo + 3, HUGE_VALF);
+            std::fill(box.hi, box.hi + 3, -HUGE_VALF);
+            detail::scan_chunk(data, b, e, specials[c], box.lo, box.hi);
             if (release) release(h.data_offset + 12 * b, h.data_offset + 12 * e);
         },
         [&] { return cancelled && cancelled(0); });
     if (!done) throw Cancelled{};
     std::uint64_t next = 0;  // first triple not yet walked
+    std::uint64_t stop = n_triples;  // the triple that ended the walk (the terminator)
     for (auto &chunk : specials) {
         for (const std::uint64_t packed : chunk) {
             const std::uint64_t i = packed >> 4;
             const int nans = static_cast<int>(packed >> 2 & 3), infs = static_cast<int>(packed & 3);
             w.in_track += i - next;
             next = i + 1;
-            if (!w.triple(nans, infs, i, h.data_offset + i * 12, 12)) return;
+            if (!w.triple(nans, infs, i, h.data_offset + i * 12, 12)) {
+                stop = i;
+                break;
+            }
         }
+        if (stop != n_triples) break;
         std::vector<std::uint64_t>().swap(chunk);
     }
-    w.in_track += n_triples - next;
+    if (stop == n_triples) w.in_track += n_triples - next;
+    if (!w.error.empty() || !w.terminated) return;  // (finish() reports it)
+    // The bounds of the chunks before the terminator's, and of that chunk up
+    // to the terminator (points after it are not data; usually there are
+    // none, and the chunk's box stands).
+    float lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
+    const std::size_t last = static_cast<std::size_t>(stop / kChunk);
+    for (std::size_t c = 0; c < last; ++c)
+        for (int d = 0; d < 3; ++d) {
+            lo[d] = std::min(lo[d], boxes[c].lo[d]);
+            hi[d] = std::max(hi[d], boxes[c].hi[d]);
+        }
+    if (stop + 1 == n_triples) {
+        for (int d = 0; d < 3; ++d) {
+            lo[d] = std::min(lo[d], boxes[last].lo[d]);
+            hi[d] = std::max(hi[d], boxes[last].hi[d]);
+        }
+    } else {
+        fold_finite(data, last * kChunk, stop, lo, hi);
+    }
+    Layout &L = w.L;
+    L.has_bounds = lo[0] <= hi[0];
+    for (int d = 0; d < 3 && L.has_bounds; ++d) {
+        L.lo[d] = lo[d];
+        L.hi[d] = hi[d];
+    }
 }
 
 }  // namespace

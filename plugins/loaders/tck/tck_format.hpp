@@ -51,9 +51,15 @@ struct Layout {
     // Float32LE files: the triple index of every NaN delimiter, so decode()
     // copies the runs between them without looking at the data again.
     std::vector<std::uint64_t> delimiters;
+    // Float32LE files: the bounds of every point (the delimiters and the
+    // terminator excluded), found in the same pass; has_bounds is false for
+    // the other datatypes and when there is no point.
+    bool has_bounds = false;
+    float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
 };
 
-// Walks the data once, checking every triple; throws FormatError on a partial
+// Walks the data once, checking every triple (and, for Float32LE, finding
+// the bounds in the same pass); throws FormatError on a partial
 // NaN/Inf triple, a missing terminator, a streamline not closed by NaN, or a
 // truncated triple. `cancelled` is polled periodically (may be empty).
 // Float32LE data is classified in parallel chunks (hzio::parallel_chunks;

@@ -10,7 +10,11 @@
 
 namespace {
 
+#ifndef TCK_FIXTURE_LYING_BOUNDS
 constexpr const char *kId = "org.horizon.loader.tck";
+#else  // tests/fixtures: the same loader vouching for bounds 1 mm too wide in x
+constexpr const char *kId = "org.horizon.test.tck-lying-bounds";
+#endif
 const hz_host *host();
 
 void log(hz_log_level lvl, const std::string &msg) { hz::log(host(), kId, lvl, msg); }
@@ -141,7 +145,7 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
 // the host maps them, the NaN delimiter after each streamline in place
 // (HZ_EXTENT_DELIMITED), when it accepts that layout.
 hz_status HZ_ABI locate_positions(hz_reader *reader, hz_positions_extent *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_positions_extent))
+    if (reader == nullptr || out == nullptr || out->struct_size < HZ_POSITIONS_EXTENT_SIZE_1_4)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: locate_positions: bad arguments");
     Reader &r = *as_reader(reader);
     const bool delimited_ok = (out->accepts & HZ_EXTENT_DELIMITED) != 0;
@@ -152,6 +156,18 @@ hz_status HZ_ABI locate_positions(hz_reader *reader, hz_positions_extent *out, h
     out->offset = r.header.data_offset;
     out->flags = HZ_EXTENT_DELIMITED;
     out->crc32 = 0;
+    // The scan read every coordinate: the walk rejected any NaN/Inf outside
+    // an all-NaN delimiter, and the bounds came with it.
+    if ((out->accepts & HZ_EXTENT_CHECKED) != 0 && out->struct_size >= sizeof(hz_positions_extent) && r.layout.has_bounds) {
+        out->flags |= HZ_EXTENT_CHECKED;
+        for (int d = 0; d < 3; ++d) {
+            out->bounds_min[d] = r.layout.lo[d];
+            out->bounds_max[d] = r.layout.hi[d];
+        }
+#ifdef TCK_FIXTURE_LYING_BOUNDS
+        out->bounds_max[0] += 1;
+#endif
+    }
     r.mapped = true;
     return HZ_OK;
 }

@@ -153,7 +153,7 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
 void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
 
 hz_status HZ_ABI locate_positions(hz_reader *reader, hz_positions_extent *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_positions_extent))
+    if (reader == nullptr || out == nullptr || out->struct_size < HZ_POSITIONS_EXTENT_SIZE_1_4)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: locate_positions: bad arguments");
     Reader &r = *as_reader(reader);
     return run(err, r.path, [&]() -> hz_status {

@@ -259,7 +259,23 @@ enum {
      * nb_vertices + nb_streamlines. A loader sets it only when the host
      * listed it in hz_positions_extent.accepts.
      */
-    HZ_EXTENT_DELIMITED = 1u << 1
+    HZ_EXTENT_DELIMITED = 1u << 1,
+    /*
+     * Since 1.6. The loader has already read every stored coordinate of the
+     * extent while opening the file (a TCK scan must, to find the
+     * delimiters) and vouches for what the host would otherwise check in a
+     * second pass over it: every coordinate of every streamline vertex is
+     * finite, every delimiter (with HZ_EXTENT_DELIMITED) is an all-NaN
+     * triple, and bounds_min/bounds_max are exactly the smallest and largest
+     * x, y, z over the streamline vertices. The host then maps the extent
+     * without reading it (it honours the flag on delimited extents; one
+     * with a CRC is read for the CRC anyway). `horizon validate` checks
+     * every claim against the host's own pass, and so does a host built
+     * with HZ_VERIFY_PLUGIN_CLAIMS (Debug and sanitizer builds). A loader
+     * sets it only when the host listed it in `accepts` and struct_size
+     * covers bounds_max.
+     */
+    HZ_EXTENT_CHECKED = 1u << 2
 };
 
 /*
@@ -285,7 +301,15 @@ typedef struct hz_positions_extent {
        layout flags it can map (HZ_EXTENT_DELIMITED). A loader answers with
        no flag the host did not list. */
     hz_extent_flags accepts;
+    /* ---- since 1.6 (check struct_size before writing) ---- */
+    /* OUTPUT with HZ_EXTENT_CHECKED (else left as the host set them): the
+       bounds of the streamline vertices' coordinates, x y z, in RAS+ mm. */
+    double bounds_min[3];
+    double bounds_max[3];
 } hz_positions_extent;
+
+/* The size of hz_positions_extent before 1.6: what a loader requires. */
+#define HZ_POSITIONS_EXTENT_SIZE_1_4 32u
 
 /* Callback of visit_metadata(); strings valid only during the callback. */
 typedef void(HZ_ABI *hz_metadata_visitor)(void *ctx, const char *key, const char *value);

@@ -29,6 +29,10 @@
  *          HZ_EXTENT_DELIMITED: positions mapped with one delimiter vertex
  *          after each streamline (MRtrix TCK Float32LE), offered by a loader
  *          only to a host that accepts it.
+ *   1.6.0  hz_positions_extent gains bounds_min/bounds_max (appended), and
+ *          HZ_EXTENT_CHECKED: a loader that has read every coordinate while
+ *          opening the file vouches for their finiteness and bounds, so the
+ *          host need not read the mapped extent again.
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -39,7 +43,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 5
+#define HZ_ABI_VERSION_MINOR 6
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */
