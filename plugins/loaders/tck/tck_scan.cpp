@@ -107,7 +107,7 @@ void ScanChunk(const unsigned char *HWY_RESTRICT data, std::uint64_t b, std::uin
                     hn::StoreMaskBits(du, flagged[j], m);
                     std::uint64_t w;
                     std::memcpy(&w, m, sizeof w);
-                    bits |= (N * (j + 1) < 64 ? w & ((std::uint64_t{1} << N) - 1) : w) << (j * N);
+                    bits |= (w & ((std::uint64_t{1} << N) - 1)) << (j * N);  // (N <= 21 here)
                 }
                 record(data, i, bits, *out);
             }
