@@ -240,20 +240,6 @@ struct Walk {
 // copies the runs between them, and the chunks' bounds up to the
 // terminator are the file's.
 
-// The bounds of the points among triples [b, e) (NaN/Inf triples skipped),
-// into lo/hi (started at +/-inf by the caller).
-void fold_finite(const unsigned char *data, std::uint64_t b, std::uint64_t e, float *lo, float *hi) {
-    for (std::uint64_t i = b; i < e; ++i) {
-        float t[3];
-        std::memcpy(t, data + 12 * i, sizeof t);
-        if (!(std::isfinite(t[0]) && std::isfinite(t[1]) && std::isfinite(t[2]))) continue;
-        for (int d = 0; d < 3; ++d) {
-            lo[d] = std::min(lo[d], t[d]);
-            hi[d] = std::max(hi[d], t[d]);
-        }
-    }
-}
-
 void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header &h, const Tick &cancelled, const Release &release,
                 Walk &w) {
     constexpr std::uint64_t kChunk = 1u << 20;
@@ -308,8 +294,9 @@ void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header
             lo[d] = std::min(lo[d], boxes[last].lo[d]);
             hi[d] = std::max(hi[d], boxes[last].hi[d]);
         }
-    } else {
-        fold_finite(data, last * kChunk, stop, lo, hi);
+    } else {  // (that chunk again, up to the terminator)
+        std::vector<std::uint64_t> again;
+        detail::scan_chunk(data, last * kChunk, stop, again, lo, hi);
     }
     Layout &L = w.L;
     L.has_bounds = lo[0] <= hi[0];
