@@ -874,6 +874,74 @@ std::vector<Check> catalogue() {
                      return pass(how.substr(1));
                  }});
 
+    c.push_back({"loader-vouched-positions", HZ_KIND_LOADER,
+                 "a vouch for the positions read_streamlines wrote (1.7), when given, is exact, and only given to a host with room for it",
+                 [](const Ctx &x) {
+                     const hz_loader &l = loader_of(x);
+                     if (!l.read_streamlines) return skip("no read_streamlines");
+                     std::string msg;
+                     const auto files = loader_samples(x, msg);
+                     if (files.empty()) return skip("no sample file");
+                     // Each ask on a fresh reader: a host of this size, a host of the
+                     // 1.6 size (whose struct ends before `check`: a loader must not
+                     // look there), and a check record too small to write into.
+                     enum Ask { kFull, kOldHost, kShortCheck };
+                     std::string how;
+                     for (const Ask ask : {kFull, kOldHost, kShortCheck}) {
+                         hz_error err = new_error();
+                         hz_reader *r = open_sample(l, files[0], err);
+                         if (r == nullptr) return fail(std::string("sample does not open: ") + err.message);
+                         struct Close {
+                             const hz_loader &l;
+                             hz_reader *r;
+                             ~Close() { l.close(r); }
+                         } closer{l, r};
+                         hz_dataset_info info{};
+                         info.struct_size = sizeof info;
+                         if (l.get_info(r, &info, &err) != HZ_OK) return fail(std::string("get_info: ") + err.message);
+                         if (info.kind != HZ_DATA_STREAMLINES) return skip("sample holds no streamlines");
+                         core::Tractogram t;
+                         t.positions = core::Buffer<float>(3 * info.nb_vertices);
+                         t.offsets = core::Buffer<std::uint64_t>(info.nb_streamlines + 1);
+                         constexpr double kUntouched = -12345.5;
+                         hz_positions_check check{};
+                         check.struct_size = ask == kShortCheck ? sizeof check - 8 : sizeof check;
+                         for (int d = 0; d < 3; ++d) check.bounds_min[d] = check.bounds_max[d] = kUntouched;
+                         hz_streamlines_dst dst{};
+                         dst.struct_size = ask == kOldHost ? HZ_STREAMLINES_DST_SIZE_1_4 : sizeof dst;
+                         dst.positions = t.positions.data();
+                         dst.positions_capacity = t.positions.size();
+                         dst.offsets = t.offsets.data();
+                         dst.offsets_capacity = t.offsets.size();
+                         dst.check = &check;  // (past the struct of a 1.6-sized host)
+                         if (l.read_streamlines(r, &dst, nullptr, &err) != HZ_OK) return skip(std::string("sample does not read: ") + err.message);
+                         bool touched = false;
+                         for (int d = 0; d < 3; ++d) touched |= check.bounds_min[d] != kUntouched || check.bounds_max[d] != kUntouched;
+                         if (ask != kFull) {
+                             if (check.vouched != 0 || touched)
+                                 return fail(ask == kOldHost ? "writes through `check` for a host whose struct ends before it"
+                                                             : "writes a check record whose struct_size has no room for it");
+                             continue;
+                         }
+                         if (check.vouched == 0) {
+                             if (touched) return fail("writes bounds without vouching for them");
+                             return pass("does not vouch; the host checks what it wrote");
+                         }
+                         if (info.nb_vertices == 0) return pass("vouches for an empty sample");
+                         core::Bounds b;
+                         try {
+                             b = core::finite_bounds(t.positions.data(), info.nb_vertices, "the sample");
+                         } catch (const std::exception &e) {
+                             return fail(std::string("vouches for positions that are not all finite: ") + e.what());
+                         }
+                         for (int d = 0; d < 3; ++d)
+                             if (b.empty || check.bounds_min[d] != b.min[d] || check.bounds_max[d] != b.max[d])
+                                 return fail("vouches for bounds other than the positions it wrote (" + std::string("xyz").substr(d, 1) + ")");
+                         how = "vouches for exact bounds";
+                     }
+                     return pass(how + "; nothing for a host without room");
+                 }});
+
     // Shaders.
     c.push_back({"shader-schema-wellformed", HZ_KIND_SHADER, "parameter names, types, ranges and defaults are sane", [](const Ctx &x) {
                      const hz_shader &s = shader_of(x);

@@ -46,12 +46,30 @@ class ValidateTest(TempDirTest):
         c = checks(rep)["loader-locate-positions"]
         self.assertEqual(c["status"], "passed")
         self.assertEqual(c["reason"], "declines the plain layout; maps the delimited layout; vouches for exact bounds")
+        # (ABI 1.7) TCK and TRK vouch for the positions they copy (exact bounds, checked
+        # against the validator's own pass); TRX leaves its decoded copies to the host.
+        for name, reason in (("tck", "vouches for exact bounds"), ("trk", "vouches for exact bounds"),
+                             ("trx", "does not vouch; the host checks what it wrote")):
+            rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_%s.so" % name))
+            c = checks(rep)["loader-vouched-positions"]
+            self.assertEqual(c["status"], "passed", (name, c))
+            self.assertTrue(c["reason"].startswith(reason), (name, c))
         # (ABI 1.6) The same loader vouching for bounds 1 mm too wide fails exactly that check.
         rc, rep = self.validate(os.path.join(FIXTURES, "fx_tck_lying_bounds.so"))
         self.assertEqual(rc, 1)
         failed = {c["check"]: c["reason"] for c in rep["checks"] if c["status"] == "failed"}
-        self.assertEqual(list(failed), ["loader-locate-positions"], failed)
+        self.assertEqual(sorted(failed), ["loader-locate-positions", "loader-vouched-positions"], failed)
         self.assertIn("vouches for bounds other than its positions' (x)", failed["loader-locate-positions"])
+        self.assertIn("vouches for bounds other than the positions it wrote (x)", failed["loader-vouched-positions"])
+
+    def test_vouch_past_struct_size_fails(self):
+        # ABI 1.7: a loader that writes through hz_streamlines_dst.check for a
+        # host whose struct ends before it (or into a check record too small).
+        rc, rep = self.validate(os.path.join(FIXTURES, "fx_tck_ignores_sizes.so"))
+        self.assertEqual(rc, 1)
+        failed = {c["check"]: c["reason"] for c in rep["checks"] if c["status"] == "failed"}
+        self.assertEqual(list(failed), ["loader-vouched-positions"], failed)
+        self.assertIn("writes through `check` for a host whose struct ends before it", failed["loader-vouched-positions"])
 
     def test_templates_pass(self):
         for f in sorted(glob.glob(os.path.join(TEMPLATES, "*.so"))):

@@ -5,6 +5,7 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -91,20 +92,51 @@ TEST_CASE("trk: the vector transform of scalar-free points equals the scalar for
     for (std::size_t i = 0; i < in.size(); ++i) in[i] = static_cast<float>(std::sin(double(i) * 12.9898) * 180.0);
     for (std::uint64_t n = 0; n <= 40; ++n) {
         std::fill(out.begin(), out.end(), -1.0f);
-        REQUIRE(trk::detail::transform_points(in.data() + 1, n, A, out.data()));
+        float lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
+        REQUIRE(trk::detail::transform_points(in.data() + 1, n, A, out.data(), lo, hi));
+        float want_lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, want_hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
         for (std::uint64_t i = 0; i < n; ++i)
             for (int r = 0; r < 3; ++r) {
                 const float *p = in.data() + 1 + 3 * i;
                 const float want = static_cast<float>(A[4 * r] * double(p[0]) + A[4 * r + 1] * double(p[1]) + A[4 * r + 2] * double(p[2]) +
                                                       A[4 * r + 3]);
                 REQUIRE(std::memcmp(&out[3 * i + r], &want, 4) == 0);
+                want_lo[r] = std::min(want_lo[r], want);
+                want_hi[r] = std::max(want_hi[r], want);
             }
         REQUIRE(out[3 * n] == -1.0f);  // nothing written past the n points
+        for (int r = 0; r < 3; ++r) {  // the bounds of what it wrote
+            REQUIRE(lo[r] == want_lo[r]);
+            REQUIRE(hi[r] == want_hi[r]);
+        }
     }
+    // The bounds with the extreme point at every position (vector lanes and
+    // tail), and merged with the bounds passed in.
+    for (std::uint64_t at = 0; at < 40; ++at)
+        for (const float big : {1e6f, -1e6f}) {
+            std::vector<float> v(in.begin() + 1, in.end());
+            v[3 * at] = v[3 * at + 1] = v[3 * at + 2] = big;
+            float lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
+            REQUIRE(trk::detail::transform_points(v.data(), 40, A, out.data(), lo, hi));
+            for (int r = 0; r < 3; ++r) {
+                const float e = out[3 * at + r];
+                REQUIRE((e == lo[r] || e == hi[r]));
+                float mn = HUGE_VALF, mx = -HUGE_VALF;
+                for (int i = 0; i < 40; ++i) {
+                    mn = std::min(mn, out[3 * i + r]);
+                    mx = std::max(mx, out[3 * i + r]);
+                }
+                REQUIRE((lo[r] == mn && hi[r] == mx));
+            }
+            float lo2[3] = {-1e30f, -1e30f, -1e30f}, hi2[3] = {1e30f, 1e30f, 1e30f};
+            REQUIRE(trk::detail::transform_points(v.data(), 40, A, out.data(), lo2, hi2));
+            for (int r = 0; r < 3; ++r) REQUIRE((lo2[r] == -1e30f && hi2[r] == 1e30f));
+        }
     for (const float bad : {NAN, INFINITY, -INFINITY})
         for (std::uint64_t at : {0, 3 * 17 + 2, 3 * 39 + 1}) {  // in the vector body and in the tail
             std::vector<float> v(in.begin() + 1, in.end());
             v[at] = bad;
-            REQUIRE_FALSE(trk::detail::transform_points(v.data(), 40, A, out.data()));
+            float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+            REQUIRE_FALSE(trk::detail::transform_points(v.data(), 40, A, out.data(), lo, hi));
         }
 }

@@ -256,7 +256,7 @@ namespace {
 // One chunk of records; Swap: the file's byte order is not the host's.
 template <bool Swap>
 void decode_chunk(const unsigned char *b, const Header &h, const Chunk &from, const Chunk &to, float *positions,
-                  std::uint64_t *offsets, float *scalars, float *properties) {
+                  std::uint64_t *offsets, float *scalars, float *properties, Box &box) {
     const Mat4 &A = h.to_rasmm;
     const std::uint32_t ns = h.n_scalars, np = h.n_properties;
     const std::uint64_t point_bytes = 4ull * (3 + ns);
@@ -270,15 +270,19 @@ void decode_chunk(const unsigned char *b, const Header &h, const Chunk &from, co
             unsigned bad = 0;
             float *out = positions + 3 * v;
             if (!Swap && ns == 0) {  // contiguous xyz triples: the vector kernel, same values
-                bad = !detail::transform_points(reinterpret_cast<const float *>(rec), n, A.data(), out);
+                bad = !detail::transform_points(reinterpret_cast<const float *>(rec), n, A.data(), out, box.lo, box.hi);
             } else
             for (std::uint64_t i = 0; i < n; ++i) {
                 const unsigned char *p = rec + i * point_bytes;
                 const float x = load<float>(p, Swap), y = load<float>(p + 4, Swap), z = load<float>(p + 8, Swap);
                 bad |= unsigned(!(std::fabs(x) <= 3.4028235e38f)) | unsigned(!(std::fabs(y) <= 3.4028235e38f)) |
                        unsigned(!(std::fabs(z) <= 3.4028235e38f));
-                for (int r = 0; r < 3; ++r)
-                    out[3 * i + r] = static_cast<float>(A[4 * r] * x + A[4 * r + 1] * y + A[4 * r + 2] * z + A[4 * r + 3]);
+                for (int r = 0; r < 3; ++r) {
+                    const float o = static_cast<float>(A[4 * r] * x + A[4 * r + 1] * y + A[4 * r + 2] * z + A[4 * r + 3]);
+                    out[3 * i + r] = o;
+                    box.lo[r] = std::min(box.lo[r], o);
+                    box.hi[r] = std::max(box.hi[r], o);
+                }
             }
             if (bad)
                 for (std::uint64_t i = 0; i < n; ++i)
@@ -300,20 +304,23 @@ void decode_chunk(const unsigned char *b, const Header &h, const Chunk &from, co
 }  // namespace
 
 void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout &l, float *positions, std::uint64_t *offsets,
-            float *scalars, float *properties, const Tick &cancelled, const Release &release) {
+            float *scalars, float *properties, const Tick &cancelled, const Release &release, Box *box) {
     if (offsets) offsets[0] = 0;
     if (l.chunks.size() < 2) return;
+    std::vector<Box> boxes(l.chunks.size() - 1);  // each chunk's, merged in the end
     const bool done = hzio::parallel_chunks(
         l.chunks.size() - 1,
         [&](std::size_t c) {
             const Chunk &from = l.chunks[c], &to = l.chunks[c + 1];
             if (positions) hzio::prefault_write(positions + 3 * from.vertex, 12 * (to.vertex - from.vertex));
-            if (h.swap) decode_chunk<true>(b, h, from, to, positions, offsets, scalars, properties);
-            else decode_chunk<false>(b, h, from, to, positions, offsets, scalars, properties);
+            if (h.swap) decode_chunk<true>(b, h, from, to, positions, offsets, scalars, properties, boxes[c]);
+            else decode_chunk<false>(b, h, from, to, positions, offsets, scalars, properties, boxes[c]);
             if (release) release(from.byte, to.byte);
         },
         [&] { return cancelled && cancelled(0); });
     if (!done) throw Cancelled{};
+    if (box != nullptr && positions != nullptr)
+        for (const Box &c : boxes) box->merge(c);
 }
 
 void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,

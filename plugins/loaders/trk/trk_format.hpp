@@ -5,6 +5,8 @@
 #pragma once
 
 #include <array>
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <stdexcept>
@@ -68,9 +70,22 @@ Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, con
 // `cancelled` is polled on the calling thread between chunks, and
 // `release(begin, end)` (may be empty) is called for each decoded chunk's
 // byte range, from any thread.
+// With `box` (and positions), also the smallest and largest x, y, z it wrote
+// to positions, in the same pass (lo > hi when it wrote none; a value that
+// overflowed float32 shows up as an infinite bound).
 using Release = std::function<void(std::uint64_t, std::uint64_t)>;
+struct Box {
+    float lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
+    void merge(const Box &o) {
+        for (int d = 0; d < 3; ++d) {
+            lo[d] = std::min(lo[d], o.lo[d]);
+            hi[d] = std::max(hi[d], o.hi[d]);
+        }
+    }
+};
 void decode(const unsigned char *bytes, std::uint64_t size, const Header &h, const Layout &l, float *positions,
-            std::uint64_t *offsets, float *scalars, float *properties, const Tick &cancelled = {}, const Release &release = {});
+            std::uint64_t *offsets, float *scalars, float *properties, const Tick &cancelled = {}, const Release &release = {},
+            Box *box = nullptr);
 
 // What write() needs beyond the streamlines.
 struct WriteSpec {

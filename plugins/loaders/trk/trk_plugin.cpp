@@ -5,6 +5,7 @@
 #include <hz/cpp/plugin.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <memory>
 
@@ -123,9 +124,24 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         // Scalars and properties come along in the same pass.
         r.scalars.resize(r.layout.nb_vertices * r.header.n_scalars);
         r.properties.resize(r.layout.nb_streamlines * r.header.n_properties);
+        trk::Box box;
         trk::decode(r.file->data(), r.file->size(), r.header, r.layout, dst->positions, dst->offsets,
-                    r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, *r.file), release(*r.file));
+                    r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, *r.file),
+                    release(*r.file), &box);
         r.extras_decoded = true;
+        // decode() rejected every non-finite input coordinate and found the
+        // bounds of what it wrote; the host need not read the copy again
+        // unless a transformed coordinate overflowed float32 (then it reports it).
+        hz_positions_check *check = HZ_HAS_FIELD(dst, hz_streamlines_dst, check) ? dst->check : nullptr;
+        bool finite = r.layout.nb_vertices > 0;
+        for (int d = 0; d < 3; ++d) finite = finite && std::isfinite(box.lo[d]) && std::isfinite(box.hi[d]) && box.lo[d] <= box.hi[d];
+        if (check != nullptr && check->struct_size >= sizeof(hz_positions_check) && finite) {
+            check->vouched = 1;
+            for (int d = 0; d < 3; ++d) {
+                check->bounds_min[d] = box.lo[d];
+                check->bounds_max[d] = box.hi[d];
+            }
+        }
         hz::report(task, 1.0);
         return HZ_OK;
     });

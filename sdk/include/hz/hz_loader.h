@@ -134,6 +134,24 @@ enum {
 };
 
 /*
+ * Since 1.7. What a loader may vouch for about the positions it has just
+ * written in read_streamlines(), so that the host does not read them all
+ * again to check them. HOST-owned, valid for the call; the host zero-fills
+ * it and sets struct_size. A loader writes it only when struct_size is at
+ * least sizeof(hz_positions_check), and only on the HZ_OK path.
+ */
+typedef struct hz_positions_check {
+    uint32_t struct_size;
+    /* OUTPUT: nonzero when the loader vouches that every coordinate it wrote
+       to dst->positions (all nb_vertices x 3 of them) is finite and that
+       bounds_min/bounds_max are exactly the smallest and largest x, y, z
+       among them; left zero otherwise (the host then checks them itself). */
+    uint32_t vouched;
+    double bounds_min[3];      /* OUTPUT with vouched, RAS+ mm              */
+    double bounds_max[3];
+} hz_positions_check;
+
+/*
  * Destination of read_streamlines(). HOST-owned buffers, valid for the call.
  * positions receives nb_vertices x 3 floats (RAS+ mm); offsets receives
  * nb_streamlines + 1 entries with offsets[0] = 0 and the final sentinel
@@ -146,7 +164,21 @@ typedef struct hz_streamlines_dst {
     uint64_t positions_capacity;
     uint64_t *offsets;
     uint64_t offsets_capacity;
+    /* ---- since 1.7 (check with HZ_HAS_FIELD) ---- */
+    /*
+     * NULL, or where the loader may vouch for the positions it writes (see
+     * hz_positions_check): a loader that looks at every coordinate while it
+     * decodes (a TRK transform, a TCK copy after its scan) fills it for
+     * free, and the host skips its own pass over the data. Never set with
+     * HZ_STREAMLINES_OFFSETS_ONLY. `horizon validate` checks every claim
+     * against the host's own pass, and so does a host built with
+     * HZ_VERIFY_PLUGIN_CLAIMS (Debug and sanitizer builds).
+     */
+    hz_positions_check *check;
 } hz_streamlines_dst;
+
+/* The size of hz_streamlines_dst before 1.7. */
+#define HZ_STREAMLINES_DST_SIZE_1_4 40u
 
 /*
  * Destination of read_mesh(). HOST-owned, valid for the call. vertices

@@ -33,6 +33,10 @@
  *          HZ_EXTENT_CHECKED: a loader that has read every coordinate while
  *          opening the file vouches for their finiteness and bounds, so the
  *          host need not read the mapped extent again.
+ *   1.7.0  hz_streamlines_dst gains `check` (appended) and
+ *          hz_positions_check: a loader that looks at every coordinate it
+ *          decodes into the host's buffer vouches for their finiteness and
+ *          bounds, so the host need not read the copy again.
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -43,7 +47,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 6
+#define HZ_ABI_VERSION_MINOR 7
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */
