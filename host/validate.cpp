@@ -80,6 +80,30 @@ hz_reader *open_sample(const hz_loader &l, const fs::path &file, hz_error &err) 
     return l.open(&req, &r, &err) == HZ_OK ? r : nullptr;
 }
 
+// A sample opened with `l` and its info read; closed when it goes. `error`
+// says what failed, if anything.
+struct OpenedSample {
+    const hz_loader &l;
+    hz_reader *r = nullptr;
+    hz_dataset_info info{};
+    std::string error;
+    OpenedSample(const hz_loader &loader, const fs::path &file) : l(loader) {
+        hz_error err = new_error();
+        r = open_sample(l, file, err);
+        if (r == nullptr) {
+            error = std::string("sample does not open: ") + err.message;
+            return;
+        }
+        info.struct_size = sizeof info;
+        if (l.get_info(r, &info, &err) != HZ_OK) error = std::string("get_info: ") + err.message;
+    }
+    ~OpenedSample() {
+        if (r != nullptr) l.close(r);
+    }
+    OpenedSample(const OpenedSample &) = delete;
+    OpenedSample &operator=(const OpenedSample &) = delete;
+};
+
 // A buffer whose last byte is followed by an inaccessible page: a write or
 // read past the end faults at once (the child reports "crashed").
 class GuardedBuffer {
@@ -769,17 +793,11 @@ std::vector<Check> catalogue() {
                      if (files.empty()) return skip("no sample file");
                      core::Tractogram full;
                      if (read_with(l, files[0], full, msg) != HZ_OK) return skip("sample does not read: " + msg);
+                     const OpenedSample sample(l, files[0]);
+                     if (!sample.error.empty()) return fail(sample.error);
+                     hz_reader *r = sample.r;
+                     const hz_dataset_info &info = sample.info;
                      hz_error err = new_error();
-                     hz_reader *r = open_sample(l, files[0], err);
-                     if (r == nullptr) return fail(std::string("sample does not open: ") + err.message);
-                     struct Close {
-                         const hz_loader &l;
-                         hz_reader *r;
-                         ~Close() { l.close(r); }
-                     } closer{l, r};
-                     hz_dataset_info info{};
-                     info.struct_size = sizeof info;
-                     if (l.get_info(r, &info, &err) != HZ_OK) return fail(std::string("get_info: ") + err.message);
                      // Asked without, then with, the delimited layout (1.5), then also
                      // offering to take vouched bounds (1.6), from a host of this size
                      // and of the 1.4 size: never a layout the host did not accept; a
@@ -888,17 +906,10 @@ std::vector<Check> catalogue() {
                      enum Ask { kFull, kOldHost, kShortCheck };
                      std::string how;
                      for (const Ask ask : {kFull, kOldHost, kShortCheck}) {
+                         const OpenedSample sample(l, files[0]);
+                         if (!sample.error.empty()) return fail(sample.error);
+                         const hz_dataset_info &info = sample.info;
                          hz_error err = new_error();
-                         hz_reader *r = open_sample(l, files[0], err);
-                         if (r == nullptr) return fail(std::string("sample does not open: ") + err.message);
-                         struct Close {
-                             const hz_loader &l;
-                             hz_reader *r;
-                             ~Close() { l.close(r); }
-                         } closer{l, r};
-                         hz_dataset_info info{};
-                         info.struct_size = sizeof info;
-                         if (l.get_info(r, &info, &err) != HZ_OK) return fail(std::string("get_info: ") + err.message);
                          if (info.kind != HZ_DATA_STREAMLINES) return skip("sample holds no streamlines");
                          core::Tractogram t;
                          t.positions = core::Buffer<float>(3 * info.nb_vertices);
@@ -914,7 +925,8 @@ std::vector<Check> catalogue() {
                          dst.offsets = t.offsets.data();
                          dst.offsets_capacity = t.offsets.size();
                          dst.check = &check;  // (past the struct of a 1.6-sized host)
-                         if (l.read_streamlines(r, &dst, nullptr, &err) != HZ_OK) return skip(std::string("sample does not read: ") + err.message);
+                         if (l.read_streamlines(sample.r, &dst, nullptr, &err) != HZ_OK)
+                             return skip(std::string("sample does not read: ") + err.message);
                          bool touched = false;
                          for (int d = 0; d < 3; ++d) touched |= check.bounds_min[d] != kUntouched || check.bounds_max[d] != kUntouched;
                          if (ask != kFull) {
