@@ -4,12 +4,31 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size) {
     try {
         const trk::Header h = trk::parse_header(data, size);
-        const trk::Layout l = trk::scan(data, size, h);
+        // The walk in many chains (from guessed record starts) must give the
+        // single walk's result and first error.
+        std::string many_error;
+        trk::Layout many;
+        try {
+            many = trk::scan(data, size, h, {}, {}, trk::ScanPlan{7, 1});
+        } catch (const trk::FormatError &e) {
+            many_error = e.what();
+        }
+        trk::Layout l;
+        try {
+            l = trk::scan(data, size, h, {}, {}, trk::ScanPlan{1, 1});
+        } catch (const trk::FormatError &e) {
+            if (many_error != e.what()) __builtin_trap();
+            throw;
+        }
+        if (!many_error.empty() || many.nb_streamlines != l.nb_streamlines || many.nb_vertices != l.nb_vertices ||
+            many.chunks.back().byte != l.chunks.back().byte)
+            __builtin_trap();
         if (l.nb_vertices > size) __builtin_trap();
         std::vector<float> pos(3 * l.nb_vertices), sc(l.nb_vertices * h.n_scalars), pr(l.nb_streamlines * h.n_properties);
         std::vector<std::uint64_t> off(l.nb_streamlines + 1);

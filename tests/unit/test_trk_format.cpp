@@ -140,3 +140,140 @@ TEST_CASE("trk: the vector transform of scalar-free points equals the scalar for
             REQUIRE_FALSE(trk::detail::transform_points(v.data(), 40, A, out.data(), lo, hi));
         }
 }
+
+TEST_CASE("trk: the record walk in many chains gives exactly the single walk's layout and first error") {
+    // Files of a few thousand records (0-39 points; exact zeros among the
+    // coordinates, so that guessed chains can walk runs of zeros as empty
+    // records and be wrong), with and without scalars and properties, then
+    // spoiled: n_count 0, short of the records, past them; trailing bytes;
+    // truncation; a negative or huge count. Every plan of chains and threads
+    // must give the single walk's streamlines, points and error, and every
+    // run start it gives must be a true record start.
+    std::uint64_t seed = 12345;
+    auto rnd = [&]() {
+        seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+        return static_cast<std::uint32_t>(seed >> 33);
+    };
+    for (const auto &[ns, np] : {std::pair{0, 0}, std::pair{2, 0}, std::pair{0, 1}, std::pair{1, 2}}) {
+        trk::WriteSpec spec;
+        spec.vox_to_ras = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+        spec.dims = {100, 100, 100};
+        std::vector<float> one_pos = {1, 2, 3}, one_s(static_cast<std::size_t>(ns), 0.0f), one_p(static_cast<std::size_t>(np), 0.0f);
+        std::vector<std::uint64_t> one_off = {0, 1};
+        if (ns) spec.scalars = {{"s", static_cast<std::uint32_t>(ns)}};
+        if (np) spec.properties = {{"p", static_cast<std::uint32_t>(np)}};
+        spec.scalar_data = one_s.data();
+        spec.property_data = one_p.data();
+        const std::string path = (std::filesystem::temp_directory_path() / "hz_unit_trk_chains.trk").string();
+        trk::write(path, one_pos.data(), 1, one_off.data(), 1, spec);
+        const std::string header = slurp(path).substr(0, 1000);
+        std::filesystem::remove(path);
+        // Records, and where each starts (with the records and points before it).
+        std::string body;
+        std::vector<trk::Chunk> starts;
+        std::uint64_t V = 0;
+        const std::uint64_t N = 3000 + rnd() % 2000;
+        for (std::uint64_t s = 0; s < N; ++s) {
+            starts.push_back({s, 1000 + body.size(), V});
+            const std::int32_t n = rnd() % 4 == 0 ? 0 : static_cast<std::int32_t>(rnd() % 40);
+            body.append(reinterpret_cast<const char *>(&n), 4);
+            for (std::int32_t i = 0; i < n * (3 + ns) + np; ++i) {
+                const float v = rnd() % 3 == 0 ? 0.0f : static_cast<float>(rnd() % 20000) * 0.01f - 100.0f;
+                body.append(reinterpret_cast<const char *>(&v), 4);
+            }
+            V += static_cast<std::uint64_t>(n);
+        }
+        starts.push_back({N, 1000 + body.size(), V});
+        auto with_count = [&](std::int32_t count, const std::string &b) {
+            std::string f = header + b;
+            std::memcpy(f.data() + 988, &count, 4);
+            return f;
+        };
+        std::vector<std::pair<std::string, std::string>> files = {
+            {"exact n_count", with_count(static_cast<std::int32_t>(N), body)},
+            {"n_count 0", with_count(0, body)},
+            {"n_count short", with_count(static_cast<std::int32_t>(N / 2), body)},
+            {"n_count past the records", with_count(static_cast<std::int32_t>(N + 5), body)},
+            {"trailing bytes, n_count 0", with_count(0, body + std::string(4097, '\x7f'))},
+            {"trailing bytes, exact n_count", with_count(static_cast<std::int32_t>(N), body + std::string(4097, '\x7f'))},
+        };
+        for (int k = 0; k < 4; ++k) {
+            const std::size_t cut = 1 + rnd() % (body.size() - 1);
+            files.push_back({"truncated at " + std::to_string(cut), with_count(0, body.substr(0, cut))});
+            const std::uint64_t r = rnd() % N;
+            std::string bad = body;
+            const std::int32_t v = k % 2 ? -7 : 1 << 30;
+            std::memcpy(bad.data() + (starts[r].byte - 1000), &v, 4);
+            files.push_back({"count " + std::to_string(v) + " at record " + std::to_string(r), with_count(0, bad)});
+            files.push_back({"count " + std::to_string(v) + " at record " + std::to_string(r) + " past n_count " + std::to_string(r),
+                             with_count(static_cast<std::int32_t>(std::max<std::uint64_t>(r, 1)), bad)});
+        }
+        for (const auto &[what, f] : files) {
+            INFO(what << " (scalars " << ns << ", properties " << np << ")");
+            const auto *b = reinterpret_cast<const unsigned char *>(f.data());
+            const trk::Header h = trk::parse_header(b, f.size());
+            auto walk = [&](trk::ScanPlan plan, trk::Layout &l) -> std::string {
+                try {
+                    l = trk::scan(b, f.size(), h, {}, {}, plan);
+                    return "";
+                } catch (const trk::FormatError &e) {
+                    return e.what();
+                }
+            };
+            // The single walk, spelled out here as the format defines it.
+            std::string want_error;
+            std::uint64_t want_n = 0, want_v = 0, pos = 1000;
+            const std::uint64_t point_bytes = 4u * (3 + ns), limit = h.n_count > 0 ? std::uint64_t(h.n_count) : UINT64_MAX;
+            while (want_n < limit && pos != f.size()) {
+                const std::string who = "streamline " + std::to_string(want_n);
+                if (f.size() - pos < 4) {
+                    want_error = who + ": point count cut off at byte " + std::to_string(pos);
+                    break;
+                }
+                std::int32_t n;
+                std::memcpy(&n, f.data() + pos, 4);
+                const std::uint64_t left = f.size() - pos - 4;
+                if (n < 0 || std::uint64_t(n) * point_bytes + 4u * np > left) {
+                    want_error = who + " declares " + std::to_string(n) + " points" +
+                                 (n < 0 ? "" : " but only " + std::to_string(left) + " bytes remain (file truncated?)");
+                    break;
+                }
+                pos += 4 + std::uint64_t(n) * point_bytes + 4u * np;
+                ++want_n;
+                want_v += std::uint64_t(n);
+            }
+            if (want_error.empty() && limit != UINT64_MAX && want_n < limit)
+                want_error = "header n_count is " + std::to_string(h.n_count) + " but the file holds " + std::to_string(want_n) +
+                             " streamlines (truncated?)";
+            trk::Layout ref;
+            const std::string ref_error = walk({1, 1}, ref);
+            REQUIRE(ref_error == want_error);
+            if (ref_error.empty()) {
+                REQUIRE(ref.nb_streamlines == want_n);
+                REQUIRE(ref.nb_vertices == want_v);
+                REQUIRE(ref.chunks.back().byte == pos);
+            }
+            for (const trk::ScanPlan plan : {trk::ScanPlan{2, 1}, trk::ScanPlan{3, 2}, trk::ScanPlan{8, 2}, trk::ScanPlan{16, 2},
+                                             trk::ScanPlan{61, 2}, trk::ScanPlan{200, 1}}) {
+                INFO(plan.chains << " chains on " << plan.threads << " threads");
+                trk::Layout l;
+                const std::string error = walk(plan, l);
+                REQUIRE(error == ref_error);
+                if (!error.empty()) continue;
+                REQUIRE(l.nb_streamlines == ref.nb_streamlines);
+                REQUIRE(l.nb_vertices == ref.nb_vertices);
+                REQUIRE(l.chunks.front().byte == 1000);
+                REQUIRE(l.chunks.back().streamline == l.nb_streamlines);
+                REQUIRE(l.chunks.back().vertex == l.nb_vertices);
+                REQUIRE(l.chunks.back().byte == ref.chunks.back().byte);
+                for (std::size_t c = 0; c < l.chunks.size(); ++c) {
+                    const trk::Chunk &k = l.chunks[c];
+                    if (c > 0) REQUIRE(k.byte > l.chunks[c - 1].byte);
+                    REQUIRE(k.streamline < starts.size());
+                    REQUIRE(k.byte == starts[k.streamline].byte);
+                    REQUIRE(k.vertex == starts[k.streamline].vertex);
+                }
+            }
+        }
+    }
+}

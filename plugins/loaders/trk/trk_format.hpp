@@ -47,8 +47,8 @@ struct Header {
 // Parses and validates the 1000-byte header of a file of `size` bytes.
 Header parse_header(const unsigned char *bytes, std::uint64_t size);
 
-// Called every 65536 streamlines with the byte offset reached; returns true
-// to cancel. The plugin also drops the mapped pages behind with it.
+// Polled now and then with a byte offset reached (or 0); returns true to
+// cancel. The plugin also drops the mapped pages before the offset with it.
 using Tick = std::function<bool(std::uint64_t)>;
 
 // Where a run of whole records starts: decode() splits the file at these.
@@ -60,8 +60,24 @@ struct Layout {
     // Starts of runs of about 16 MiB, then {N, end of the records, V}.
     std::vector<Chunk> chunks;
 };
-// Walks the records once, checking every count against the file size.
-Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled = {});
+// Called, from any thread, with byte ranges of the file a pass is done
+// with (the plugin drops those mapped pages).
+using Release = std::function<void(std::uint64_t, std::uint64_t)>;
+
+// How scan() splits its walk: `chains` walks at once (0: scan() chooses,
+// one below 64 MiB of records, else 8 per thread) over `threads` threads
+// (0: up to 2). Only tests set them; the result does not depend on them.
+struct ScanPlan {
+    unsigned chains = 0, threads = 0;
+};
+
+// Walks the records once, checking every count against the file size:
+// several chains of the walk at once from guessed record starts, assembled
+// into exactly the single walk's result and first error (see trk_format.cpp).
+// `cancelled` is polled on the calling thread (with offset 0); `release`
+// (may be empty) receives the byte ranges walked.
+Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled = {}, const Release &release = {},
+            ScanPlan plan = {});
 
 // Decodes into host buffers: positions (V x 3, RAS+ mm), offsets (N + 1),
 // scalars (V x n_scalars, may be null), properties (N x n_properties, may
@@ -73,7 +89,6 @@ Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, con
 // With `box` (and positions), also the smallest and largest x, y, z it wrote
 // to positions, in the same pass (lo > hi when it wrote none; a value that
 // overflowed float32 shows up as an infinite bound).
-using Release = std::function<void(std::uint64_t, std::uint64_t)>;
 struct Box {
     float lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
     void merge(const Box &o) {

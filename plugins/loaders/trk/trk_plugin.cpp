@@ -56,7 +56,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         r->path = req->path;
         r->file = std::make_unique<hzio::MappedFile>(r->path);
         r->header = trk::parse_header(r->file->data(), r->file->size());
-        r->layout = trk::scan(r->file->data(), r->file->size(), r->header, tick(nullptr, *r->file));
+        r->layout = trk::scan(r->file->data(), r->file->size(), r->header, tick(nullptr, *r->file), release(*r->file));
         for (const auto &w : r->header.warnings) log(HZ_LOG_WARN, r->path + ": " + w);
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
