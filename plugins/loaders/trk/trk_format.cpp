@@ -289,7 +289,16 @@ struct Chain {
     std::size_t next_hop = 0;  // the first of the target's prefix not yet passed
     std::size_t join_at = 0;  // Joined: where, in the target's prefix
     std::uint64_t released = 0;  // its pages before this are dropped
-    void publish() { prefix_done.store(true, std::memory_order_release); }
+    // Stops, publishing its prefix and dropping the pages it walked.
+    void stop(State st, const Release &release) {
+        state = st;
+        prefix_done.store(true, std::memory_order_release);
+        drop(release);
+    }
+    void drop(const Release &release) {  // (16 chains at once: each keeps few pages mapped)
+        if (release && pos > released) release(released, pos);
+        released = pos;
+    }
 };
 
 }  // namespace
@@ -324,8 +333,7 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                 }
                 if (!found) {  // no chain here: the one before passes it at once
                     ch.start = 0;
-                    ch.state = Chain::Ended;
-                    ch.publish();
+                    ch.stop(Chain::Ended, {});
                     continue;
                 }
                 g -= 4;
@@ -349,56 +357,45 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                     if (!nx.prefix_done.load(std::memory_order_acquire)) break;  // (not yet known: wait)
                     while (ch.next_hop < nx.prefix.size() && nx.prefix[ch.next_hop].pos < ch.pos) ++ch.next_hop;
                     if (ch.next_hop < nx.prefix.size() && nx.prefix[ch.next_hop].pos == ch.pos) {
-                        ch.state = Chain::Joined;
                         ch.join_at = ch.next_hop;
+                        ch.stop(Chain::Joined, release);
                         break;
                     }
                     if (ch.next_hop < nx.prefix.size()) break;  // not there yet
                     ++ch.target;  // passed them all: that chain's guess was wrong; aim at the next one
                     ch.next_hop = 0;
                 }
-                if (ch.state == Chain::Joined) {
-                    ch.publish();
-                    continue;
-                }
+                if (ch.state == Chain::Joined) continue;
                 if (ch.target < K && !chains[ch.target].prefix_done.load(std::memory_order_acquire) &&
                     (ch.pos >= chains[ch.target].start && chains[ch.target].start != 0))
                     continue;  // waiting for the next chain's prefix
                 moved = true;
                 if (ch.pos == size) {
-                    ch.state = Chain::Ended;
-                    ch.publish();
+                    ch.stop(Chain::Ended, release);
                     continue;
                 }
                 if (ch.prefix.size() < kPrefix) {
                     ch.prefix.push_back({ch.pos, ch.s, ch.v});
-                    if (ch.prefix.size() == kPrefix) ch.publish();
+                    if (ch.prefix.size() == kPrefix) ch.prefix_done.store(true, std::memory_order_release);
                 }
                 if (ch.pos - ch.chunks.back().byte >= kChunkBytes) ch.chunks.push_back({ch.s, ch.pos, ch.v});
                 std::int32_t n = 0;
                 const std::uint64_t at = ch.pos;
                 const Fault f = w.step(ch.pos, n);
                 if (f != Fault::None) {
-                    ch.state = Chain::Failed;
                     ch.fault = f;
                     ch.fault_n = n;
                     ch.pos = at;
-                    ch.publish();
+                    ch.stop(Chain::Failed, release);
                     continue;
                 }
                 ++ch.s;
                 ch.v += static_cast<std::uint64_t>(n);
-                if (release && ch.pos - ch.released > (64u << 20)) {  // drop the pages behind
-                    release(ch.released, ch.pos - (32u << 20));
-                    ch.released = ch.pos - (32u << 20);
-                }
+                if (ch.pos - ch.released >= (8u << 20)) ch.drop(release);
             }
             if (t == 0 && (++rounds & 0x3FFF) == 0 && cancelled && cancelled(0)) stop.store(true, std::memory_order_relaxed);
             if (active && !moved) std::this_thread::yield();
         }
-        // (A thread stopped by cancellation leaves its prefixes unpublished; nothing waits on them then.)
-        if (stop.load(std::memory_order_relaxed))
-            for (unsigned i = c0; i < c1; ++i) chains[i].publish();
     };
     {
         std::vector<std::thread> pool;
