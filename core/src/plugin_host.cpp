@@ -16,6 +16,7 @@
 #include <map>
 #include <mutex>
 #include <poll.h>
+#include <sys/syscall.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -129,73 +130,105 @@ std::string ChildResult::describe() const {
     return "ok";
 }
 
-ChildResult run_in_child(const std::function<std::string()> &fn, double timeout_s) {
-    ChildResult r;
+namespace {
+
+void write_all(int fd, const std::string &s) {
+    const char *p = s.data();
+    std::size_t left = s.size();
+    while (left > 0) {
+        const ssize_t w = ::write(fd, p, left);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) break;
+        p += w;
+        left -= static_cast<std::size_t>(w);
+    }
+}
+
+// Forks a child that runs body(fd), fd being the write end of a pipe whose
+// read end is returned with the pid. In the child, stdout goes to stderr
+// (the parent's stdout stays clean for JSON output) and a crash dies of
+// the real signal (sanitizer runtimes would turn it into an exit status),
+// so the parent can name it; it exits 0, or 3 when body throws.
+std::pair<pid_t, int> spawn(const std::function<void(int)> &body) {
     int fds[2];
     if (::pipe2(fds, O_CLOEXEC) != 0) throw Error(std::string("pipe: ") + std::strerror(errno));
     std::fflush(stdout);
     std::fflush(stderr);
     const pid_t pid = ::fork();
-    if (pid < 0) throw Error(std::string("fork: ") + std::strerror(errno));
+    if (pid < 0) {
+        const int e = errno;
+        ::close(fds[0]);
+        ::close(fds[1]);
+        throw Error(std::string("fork: ") + std::strerror(e));
+    }
     if (pid == 0) {
         ::close(fds[0]);
-        // Die of the real signal on a crash (sanitizer runtimes would turn it
-        // into an exit status), so the parent can name it.
         for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL}) std::signal(sig, SIG_DFL);
-        ::dup2(2, 1);  // keep the parent's stdout clean (JSON output)
-        std::string out;
+        ::dup2(2, 1);
+        int code = 0;
         try {
-            out = fn();
+            body(fds[1]);
         } catch (...) {
-            out = "";
-            std::fflush(nullptr);
-            ::_exit(3);
-        }
-        const char *p = out.data();
-        std::size_t left = out.size();
-        while (left > 0) {
-            const ssize_t w = ::write(fds[1], p, left);
-            if (w <= 0) break;
-            p += w;
-            left -= static_cast<std::size_t>(w);
+            code = 3;
         }
         std::fflush(nullptr);
-        ::_exit(0);
+        ::_exit(code);
     }
     ::close(fds[1]);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    char buf[65536];
+    return {pid, fds[0]};
+}
+
+// Reads what the child writes to `fd` into `buf` until EOF (returns 0), the
+// deadline (kills the child, sets r.timed_out, returns -1), or, with
+// `until_newline`, a complete line in buf (returns 1).
+int read_child(pid_t pid, int fd, std::chrono::steady_clock::time_point deadline, std::string &buf, bool until_newline,
+               ChildResult &r) {
+    char chunk[65536];
     for (;;) {
+        if (until_newline && buf.find('\n') != std::string::npos) return 1;
         const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
         if (left <= 0) {
             r.timed_out = true;
             ::kill(pid, SIGKILL);
-            break;
+            return -1;
         }
-        pollfd pfd{fds[0], POLLIN, 0};
+        pollfd pfd{fd, POLLIN, 0};
         const int pr = ::poll(&pfd, 1, static_cast<int>(std::min<long long>(left, 1000)));
         if (pr < 0 && errno == EINTR) continue;
         if (pr == 0) continue;
-        const ssize_t n = ::read(fds[0], buf, sizeof buf);
+        const ssize_t n = ::read(fd, chunk, sizeof chunk);
         if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) break;  // EOF: child done or died
-        r.output.append(buf, static_cast<std::size_t>(n));
+        if (n <= 0) return 0;  // EOF: the child is done or died
+        buf.append(chunk, static_cast<std::size_t>(n));
     }
-    ::close(fds[0]);
+}
+
+// Waits for the child (its pipe closed, or it was killed) and records how it
+// ended; one still running at the deadline is killed.
+void reap(pid_t pid, std::chrono::steady_clock::time_point deadline, ChildResult &r) {
     int status = 0;
     if (!r.timed_out) {
-        // The pipe closed; give the child the rest of the deadline to exit.
+        // Woken the moment it exits (a pidfd polls readable then, Linux 5.3;
+        // elsewhere, short sleeps).
+        const int pidfd = static_cast<int>(::syscall(SYS_pidfd_open, pid, 0));
         for (;;) {
             const pid_t w = ::waitpid(pid, &status, WNOHANG);
             if (w == pid) break;
-            if (std::chrono::steady_clock::now() > deadline) {
+            const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
+            if (left <= 0) {
                 r.timed_out = true;
                 ::kill(pid, SIGKILL);
                 ::waitpid(pid, &status, 0);
                 break;
             }
-            ::usleep(1000);
+            if (pidfd >= 0) {
+                pollfd pfd{pidfd, POLLIN, 0};
+                (void)::poll(&pfd, 1, static_cast<int>(std::min<long long>(left, 1000)));
+            } else {
+                ::usleep(200);
+            }
         }
+        if (pidfd >= 0) ::close(pidfd);
     } else {
         ::waitpid(pid, &status, 0);
     }
@@ -207,6 +240,18 @@ ChildResult run_in_child(const std::function<std::string()> &fn, double timeout_
             r.signal = WTERMSIG(status);
         }
     }
+}
+
+}  // namespace
+
+ChildResult run_in_child(const std::function<std::string()> &fn, double timeout_s) {
+    ChildResult r;
+    const auto [pid, fd] = spawn([&](int out) { write_all(out, fn()); });
+    const auto deadline = std::chrono::steady_clock::now() +
+                          std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(timeout_s));
+    read_child(pid, fd, deadline, r.output, false, r);
+    ::close(fd);
+    reap(pid, deadline, r);
     return r;
 }
 
@@ -392,51 +437,105 @@ std::vector<fs::path> plugin_search_path(const std::vector<fs::path> &cli_dirs) 
     return dirs;
 }
 
+namespace {
+
+// A trial load of `file`, as a one-line JSON report: {"ok": true, "count": N}
+// or {"ok": false, "reason": "..."}.
+std::string trial_report(const fs::path &file) {
+    try {
+        Module m(file);
+        auto ps = m.plugins();
+        m.deinit();
+        return nlohmann::json{{"ok", true}, {"count", ps.size()}}.dump();
+    } catch (const std::exception &e) {
+        return nlohmann::json{{"ok", false}, {"reason", e.what()}}.dump();
+    }
+}
+
+}  // namespace
+
 void Registry::scan(const std::vector<fs::path> &dirs) {
+    std::vector<fs::path> files;  // every candidate, in search order
     for (const auto &dir : dirs) {
         searched_.push_back(dir);
         std::error_code ec;
         if (!fs::is_directory(dir, ec)) continue;
-        std::vector<fs::path> files;
+        std::vector<fs::path> here;
         for (const auto &de : fs::directory_iterator(dir, fs::directory_options::skip_permission_denied, ec))
-            if (de.is_regular_file(ec) || de.is_symlink(ec)) files.push_back(de.path());
-        std::sort(files.begin(), files.end());
-        for (const auto &f : files) add_file(f);
+            if (de.is_regular_file(ec) || de.is_symlink(ec)) here.push_back(de.path());
+        std::sort(here.begin(), here.end());
+        for (auto &f : here) {
+            if (auto why = elf_precheck(f)) reject(f, *why);
+            else files.push_back(std::move(f));
+        }
+    }
+    if (!options_.isolate) {
+        for (const auto &f : files) load(f);
+        return;
+    }
+    // One child trial-loads the files in order and reports each as soon as
+    // it is done, so the host loads it for real while the child tries the
+    // next (a fork per file cost about 1 ms each, twice the loading). A file
+    // the child dies or hangs on is rejected, and a new child goes on after it.
+    std::size_t next = 0;
+    while (next < files.size()) {
+        const std::size_t from = next;
+        const auto [pid, fd] = spawn([&](int out) {
+            for (std::size_t i = from; i < files.size(); ++i) write_all(out, trial_report(files[i]) + "\n");
+        });
+        ChildResult r;
+        std::string buf;
+        const auto limit = std::chrono::duration<double>(options_.timeout_s);
+        auto deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(limit);
+        while (next < files.size()) {
+            if (read_child(pid, fd, deadline, buf, true, r) != 1) break;  // died or hung on files[next]
+            const std::size_t nl = buf.find('\n');
+            const nlohmann::json j = nlohmann::json::parse(buf.substr(0, nl), nullptr, false);
+            buf.erase(0, nl + 1);
+            if (j.is_discarded() || !j.contains("ok")) reject(files[next], "trial load gave a malformed report");
+            else if (!j["ok"].get<bool>()) reject(files[next], j["reason"].get<std::string>());
+            else load(files[next]);
+            ++next;
+            deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(limit);
+        }
+        ::close(fd);
+        reap(pid, deadline, r);
+        if (next < files.size()) {
+            reject(files[next], trial_failure(r));
+            ++next;
+        }
     }
 }
 
-void Registry::add_file(const fs::path &file) {
-    const std::string name = file.string();
-    auto reject = [&](const std::string &why) {
-        rejected_.push_back({name, why});
-        spdlog::debug("plugin {} rejected: {}", name, why);
-    };
-    if (auto why = elf_precheck(file)) return reject(*why);
+std::string Registry::trial_failure(const ChildResult &r) const {
+    if (r.timed_out) return "hung while loading or in init() (killed after " + std::to_string(int(options_.timeout_s)) + " s)";
+    if (r.signal != 0) return r.describe() + " while loading or in init()";
+    return "trial load " + r.describe() + " without a report";
+}
 
+void Registry::reject(const fs::path &file, const std::string &why) {
+    rejected_.push_back({file.string(), why});
+    spdlog::debug("plugin {} rejected: {}", file.string(), why);
+}
+
+void Registry::add_file(const fs::path &file) {
+    if (auto why = elf_precheck(file)) return reject(file, *why);
     if (options_.isolate) {
-        const ChildResult r = run_in_child(
-            [&]() -> std::string {
-                try {
-                    Module m(file);
-                    auto ps = m.plugins();
-                    m.deinit();
-                    return nlohmann::json{{"ok", true}, {"count", ps.size()}}.dump();
-                } catch (const std::exception &e) {
-                    return nlohmann::json{{"ok", false}, {"reason", e.what()}}.dump();
-                }
-            },
-            options_.timeout_s);
-        if (r.timed_out) return reject("hung while loading or in init() (killed after " + std::to_string(int(options_.timeout_s)) + " s)");
-        if (r.signal != 0) return reject(r.describe() + " while loading or in init()");
+        const ChildResult r = run_in_child([&] { return trial_report(file); }, options_.timeout_s);
+        if (r.timed_out || r.signal != 0) return reject(file, trial_failure(r));
         nlohmann::json j = nlohmann::json::parse(r.output, nullptr, false);
-        if (j.is_discarded() || !j.contains("ok")) return reject("trial load " + r.describe() + " without a report");
-        if (!j["ok"].get<bool>()) return reject(j["reason"].get<std::string>());
+        if (j.is_discarded() || !j.contains("ok")) return reject(file, trial_failure(r));
+        if (!j["ok"].get<bool>()) return reject(file, j["reason"].get<std::string>());
     }
+    load(file);
+}
+
+void Registry::load(const fs::path &file) {
     try {
         auto module = std::make_shared<Module>(file);
         for (auto &p : module->plugins()) {
             if (const LoadedPlugin *prev = find(p.id)) {
-                reject("duplicate plugin id '" + p.id + "' (already provided by " + prev->info.file + ")");
+                reject(file, "duplicate plugin id '" + p.id + "' (already provided by " + prev->info.file + ")");
                 continue;
             }
             LoadedPlugin lp;
@@ -446,7 +545,7 @@ void Registry::add_file(const fs::path &file) {
             plugins_.push_back(std::move(lp));
         }
     } catch (const std::exception &e) {
-        reject(e.what());
+        reject(file, e.what());
     }
 }
 

@@ -102,6 +102,10 @@ class PluginsTest(TempDirTest):
         shutil.copy(os.path.join(FIXTURES, "fx_init_hang.so"), d)
         j = run_json("--plugin-dir", d, "--plugin-timeout", "1", "plugins", "--json", timeout=30)
         self.assertIn("hung", j["rejected"][0]["reason"])
+        # The files after it (the bundled dir) are still tried and loaded: one
+        # child trial-loads them all in turn, and a new one goes on after a hang.
+        self.assertEqual(len(j["rejected"]), 1, j["rejected"])
+        self.assertTrue(BUNDLED_IDS <= {p["id"] for p in j["plugins"]})
 
 
 if __name__ == "__main__":

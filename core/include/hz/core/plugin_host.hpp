@@ -145,6 +145,10 @@ public:
     std::vector<const LoadedPlugin *> of_kind(hz_plugin_kind k) const;
 
 private:
+    void reject(const fs::path &file, const std::string &why);
+    void load(const fs::path &file);  // in this process, after its trial
+    std::string trial_failure(const ChildResult &r) const;  // why a trial load gave no report
+
     Options options_;
     std::vector<LoadedPlugin> plugins_;
     std::vector<Rejection> rejected_;
