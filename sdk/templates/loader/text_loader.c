@@ -184,12 +184,36 @@ static hz_status HZ_ABI visit_metadata(hz_reader *h, hz_metadata_visitor visit, 
 
 static hz_status HZ_ABI read_streamlines(hz_reader *h, const hz_streamlines_dst *dst, const hz_task *task, hz_error *err) {
     const reader *r = (const reader *)h;
+    uint64_t v;
     if (r == NULL || dst == NULL) return fail(err, HZ_E_INVALID_ARGUMENT, "?", "NULL argument");
     if (task != NULL && task->is_cancelled != NULL && task->is_cancelled(task)) return fail(err, HZ_E_CANCELLED, r->path, "cancelled");
     if (dst->positions_capacity < 3 * r->nb_vertices || dst->offsets_capacity < r->nb_streamlines + 1)
         return fail(err, HZ_E_BUFFER_TOO_SMALL, r->path, "destination too small");
     if (r->nb_vertices) memcpy(dst->positions, r->positions, sizeof(float) * 3 * r->nb_vertices);
     memcpy(dst->offsets, r->offsets, sizeof(uint64_t) * (r->nb_streamlines + 1));
+    /* ABI 1.7: a loader that has every coordinate at hand may vouch for them
+       (all finite, these exact bounds), and the host then does not read its
+       copy again. Only when the host's struct has the field and its check
+       record has room; left alone otherwise (the host checks for itself). */
+    if (HZ_HAS_FIELD(dst, hz_streamlines_dst, check) && dst->check != NULL &&
+        dst->check->struct_size >= sizeof(hz_positions_check) && r->nb_vertices > 0) {
+        double lo[3], hi[3];
+        int finite = 1, d;
+        for (d = 0; d < 3; ++d) lo[d] = hi[d] = r->positions[d];
+        for (v = 0; v < 3 * r->nb_vertices; ++v) {
+            const double x = r->positions[v];
+            finite &= isfinite(x) != 0;
+            if (x < lo[v % 3]) lo[v % 3] = x;
+            if (x > hi[v % 3]) hi[v % 3] = x;
+        }
+        if (finite) {
+            dst->check->vouched = 1;
+            for (d = 0; d < 3; ++d) {
+                dst->check->bounds_min[d] = lo[d];
+                dst->check->bounds_max[d] = hi[d];
+            }
+        }
+    }
     if (task != NULL && task->report != NULL) task->report(task, 1.0, NULL);
     return HZ_OK;
 }
