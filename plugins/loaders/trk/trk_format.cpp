@@ -278,7 +278,11 @@ struct Hop {
 
 struct Chain {
     enum State : std::uint8_t { Walking, Ended, Failed, Joined };
-    std::uint64_t start = 0, pos = 0, s = 0, v = 0;  // s, v: records and points walked from `start`
+    // Its first record: kUnplaced until its thread has found one, 0 when there
+    // is none (read by the chain before it, maybe on the other thread).
+    static constexpr std::uint64_t kUnplaced = UINT64_MAX;
+    std::atomic<std::uint64_t> start{kUnplaced};
+    std::uint64_t pos = 0, s = 0, v = 0;  // s, v: records and points walked from `start`
     State state = Walking;
     Fault fault = Fault::None;
     std::int32_t fault_n = 0;
@@ -332,15 +336,16 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                     found = k == kPlausible || pos == size;
                 }
                 if (!found) {  // no chain here: the one before passes it at once
-                    ch.start = 0;
                     ch.stop(Chain::Ended, {});
+                    ch.start.store(0, std::memory_order_release);
                     continue;
                 }
                 g -= 4;
             }
-            ch.start = ch.pos = ch.released = g;
+            ch.pos = ch.released = g;
             ch.chunks.push_back({0, g, 0});
             ch.prefix.reserve(kPrefix);
+            ch.start.store(g, std::memory_order_release);
         }
         std::uint64_t rounds = 0;
         for (bool active = true; active && !stop.load(std::memory_order_relaxed);) {
@@ -351,10 +356,14 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                 if (ch.state != Chain::Walking) continue;
                 active = true;
                 // Meeting the chain after it.
+                bool wait = false;
                 while (ch.target < K) {
                     Chain &nx = chains[ch.target];
-                    if (ch.pos < nx.start && nx.start != 0) break;
-                    if (!nx.prefix_done.load(std::memory_order_acquire)) break;  // (not yet known: wait)
+                    if (ch.pos < nx.start.load(std::memory_order_acquire)) break;  // (or not placed yet)
+                    if (!nx.prefix_done.load(std::memory_order_acquire)) {  // its prefix is not known yet: wait
+                        wait = true;
+                        break;
+                    }
                     while (ch.next_hop < nx.prefix.size() && nx.prefix[ch.next_hop].pos < ch.pos) ++ch.next_hop;
                     if (ch.next_hop < nx.prefix.size() && nx.prefix[ch.next_hop].pos == ch.pos) {
                         ch.join_at = ch.next_hop;
@@ -365,10 +374,7 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                     ++ch.target;  // passed them all: that chain's guess was wrong; aim at the next one
                     ch.next_hop = 0;
                 }
-                if (ch.state == Chain::Joined) continue;
-                if (ch.target < K && !chains[ch.target].prefix_done.load(std::memory_order_acquire) &&
-                    (ch.pos >= chains[ch.target].start && chains[ch.target].start != 0))
-                    continue;  // waiting for the next chain's prefix
+                if (ch.state == Chain::Joined || wait) continue;
                 moved = true;
                 if (ch.pos == size) {
                     ch.stop(Chain::Ended, release);
