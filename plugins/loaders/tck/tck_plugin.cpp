@@ -152,12 +152,11 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         // Float32LE data are copied as they are, and the scan read every
         // coordinate (finite outside the delimiters) and found their bounds.
 #ifndef TCK_FIXTURE_IGNORES_SIZES
-        hz_positions_check *check = HZ_HAS_FIELD(dst, hz_streamlines_dst, check) ? dst->check : nullptr;
-        if (check != nullptr && check->struct_size >= sizeof(hz_positions_check) && r.layout.has_bounds) {
+        hz_positions_check *check = hz::positions_check(dst);
 #else
         hz_positions_check *check = dst->check;
-        if (check != nullptr && r.layout.has_bounds) {
 #endif
+        if (check != nullptr && r.layout.has_bounds) {
             check->vouched = 1;
             vouch(r.layout, check->bounds_min, check->bounds_max);
         }

@@ -132,10 +132,10 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         // decode() rejected every non-finite input coordinate and found the
         // bounds of what it wrote; the host need not read the copy again
         // unless a transformed coordinate overflowed float32 (then it reports it).
-        hz_positions_check *check = HZ_HAS_FIELD(dst, hz_streamlines_dst, check) ? dst->check : nullptr;
+        hz_positions_check *check = hz::positions_check(dst);
         bool finite = r.layout.nb_vertices > 0;
         for (int d = 0; d < 3; ++d) finite = finite && std::isfinite(box.lo[d]) && std::isfinite(box.hi[d]) && box.lo[d] <= box.hi[d];
-        if (check != nullptr && check->struct_size >= sizeof(hz_positions_check) && finite) {
+        if (check != nullptr && finite) {
             check->vouched = 1;
             for (int d = 0; d < 3; ++d) {
                 check->bounds_min[d] = box.lo[d];

@@ -130,6 +130,14 @@ inline unsigned char *view_cell(const hz_array_view &v, uint64_t row, uint64_t c
     return static_cast<unsigned char *>(v.data) + off;
 }
 
+// ABI 1.7: where read_streamlines() may vouch for the positions it wrote
+// (hz_positions_check), or NULL when the host did not ask or one of the two
+// structs has no room for it (a host older than 1.7). [calling thread]
+inline hz_positions_check *positions_check(const hz_streamlines_dst *dst) noexcept {
+    if (dst == nullptr || !HZ_HAS_FIELD(dst, hz_streamlines_dst, check) || dst->check == nullptr) return nullptr;
+    return dst->check->struct_size >= sizeof(hz_positions_check) ? dst->check : nullptr;
+}
+
 // Convenience for polling a possibly-NULL task.
 inline bool cancelled(const hz_task *task) noexcept {
     return task != nullptr && task->is_cancelled != nullptr && task->is_cancelled(task);
