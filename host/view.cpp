@@ -8,6 +8,7 @@
 #include "commands.hpp"
 
 #include <hz/core/io.hpp>
+#include <hz/core/render/pick.hpp>
 #include <hz/core/render/renderer.hpp>
 
 #define GLFW_INCLUDE_NONE
@@ -26,6 +27,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 namespace hz::host {
@@ -83,6 +85,18 @@ struct App {
     double last_material_edit = -1e9;
     static constexpr double kBakeAfter = 0.75;
     bool force_moving = false;  // scripts: `moving on|off`
+    // A left press that is released within kClickPx of where it began is a
+    // click (picking) as well as a (tiny) orbit.
+    static constexpr double kClickPx = 3.0;
+    double press_x = 0, press_y = 0;
+    // The exploration's hooks (with --explore): a click at window
+    // coordinates, and keys it takes (returns true) before the camera's.
+    std::function<void(double, double)> on_click;
+    std::function<bool(int)> on_key;
+
+    void click(double x, double y) {
+        if (on_click) on_click(x, y);
+    }
 
     void drag_to(double x, double y) {
         const double dx = x - last_x, dy = y - last_y;
@@ -105,6 +119,7 @@ struct App {
         orbit.distance = std::clamp(orbit.distance * std::pow(0.9, dy), radius * 0.05, radius * 50);
     }
     void key(int k) {
+        if (on_key && on_key(k)) return;
         if (k == GLFW_KEY_S) pending_shot = (shot_dir / ("horizon-screenshot-" + std::to_string(++shots) + ".png")).string();
         else if (k == GLFW_KEY_R) orbit = home;
         else if (k == GLFW_KEY_Q || k == GLFW_KEY_ESCAPE) quit = true;
@@ -117,7 +132,9 @@ struct App {
 // "expand" replaces a centroid by its children at the next level, or by its
 // streamlines at the last; "hide" removes a cluster; "repeat" re-clusters
 // what is still shown. Two scene objects: the centroids and the expanded
-// streamlines.
+// streamlines. Clusters are picked in the window by clicking their centroid
+// (a toggle; selected ones are drawn lighter); E expands and H hides every
+// selected cluster, A selects all shown clusters or none, C clusters again.
 class Explorer {
 public:
     Explorer(const core::Registry &reg, core::Tractogram all, std::string name) : reg_(reg), all_(std::move(all)), name_(std::move(name)) {
@@ -130,12 +147,38 @@ public:
     std::string summary() const {
         std::string colours;
         for (std::uint64_t node : shown_) colours += (colours.empty() ? "" : " ") + std::to_string(colour_[node]);
+        std::string picked;
+        for (std::size_t k = 0; k < shown_.size(); ++k)
+            if (selected_.count(shown_[k])) picked += " #" + std::to_string(k);
         return std::to_string(shown_.size()) + " clusters, " + std::to_string(expanded_.size()) + " streamlines expanded, " +
-               std::to_string(rounds_) + " clustering round(s); colours " + colours;
+               std::to_string(rounds_) + " clustering round(s); selected" + (picked.empty() ? " none" : picked) + "; colours " + colours;
+    }
+    bool is_selected(std::size_t rank) const { return selected_.count(at(rank)) != 0; }
+    std::size_t nb_selected() const { return selected_.size(); }
+
+    // Selects the cluster shown at `rank` (streamline `rank` of
+    // centroids_object()), or unselects it when it was selected.
+    void toggle(std::size_t rank) {
+        const std::uint64_t node = at(rank);
+        if (!selected_.erase(node)) selected_.insert(node);
+    }
+    // Every shown cluster selected, or none when all were.
+    void select_all() {
+        if (selected_.size() == shown_.size()) selected_.clear();
+        else selected_ = std::set<std::uint64_t>(shown_.begin(), shown_.end());
+    }
+    void expand_selected() {
+        if (selected_.empty()) throw core::Error("no cluster selected (click a centroid)");
+        for (std::uint64_t node : std::exchange(selected_, {})) expand_node(node);
+    }
+    void hide_selected() {
+        if (selected_.empty()) throw core::Error("no cluster selected (click a centroid)");
+        for (std::uint64_t node : std::exchange(selected_, {})) std::erase(shown_, node);
     }
 
-    void expand(std::size_t rank) {
-        const std::uint64_t node = at(rank);
+    void expand(std::size_t rank) { expand_node(at(rank)); }
+    void expand_node(std::uint64_t node) {
+        selected_.erase(node);
         std::erase(shown_, node);
         if (tree_.level[node] < tree_.nb_levels) {
             // The largest child keeps the parent's colour, the others get new ones.
@@ -151,7 +194,11 @@ public:
         }
         sort();
     }
-    void hide(std::size_t rank) { std::erase(shown_, at(rank)); }
+    void hide(std::size_t rank) {
+        const std::uint64_t node = at(rank);
+        selected_.erase(node);
+        std::erase(shown_, node);
+    }
     void repeat() {
         std::vector<std::uint64_t> keep = expanded_;
         for (std::uint64_t node : shown_)
@@ -180,16 +227,18 @@ public:
         const std::uint64_t K = shown_.size(), P = tree_.nb_points;
         t.positions = core::Buffer<float>(K * P * 3);
         t.offsets = core::Buffer<std::uint64_t>(K + 1);
-        std::vector<float> sizes(K), ids(K);  // a cluster's colour id, stable while others change
+        std::vector<float> sizes(K), ids(K), picked(K);  // a cluster's colour id, stable while others change
         for (std::uint64_t i = 0; i < K; ++i) {
             std::copy_n(tree_.centroids.data() + shown_[i] * P * 3, P * 3, t.positions.data() + i * P * 3);
             t.offsets[i] = i * P;
             sizes[i] = float(size(shown_[i]));
             ids[i] = float(colour_[shown_[i]]);
+            picked[i] = selected_.count(shown_[i]) ? 1.0f : 0.0f;
         }
         t.offsets[K] = K * P;
         t.arrays.push_back(core::f32_array("cluster_size", HZ_ATTACH_STREAMLINE, sizes));
         t.arrays.push_back(core::f32_array("cluster_id", HZ_ATTACH_STREAMLINE, ids));
+        t.arrays.push_back(core::f32_array("highlight", HZ_ATTACH_STREAMLINE, picked));
         o.render = "tubes";
         o.radius_mm = 1.0;
         o.clustering = core::render::ClusterSpec{};
@@ -222,6 +271,7 @@ private:
         tree_ = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), core::render::ClusterSpec{});
         subset_ = std::move(subset);
         shown_.clear();
+        selected_.clear();
         expanded_.clear();
         for (std::uint64_t k = 0; k < tree_.level.size(); ++k)
             if (tree_.level[k] == 1) shown_.push_back(k);
@@ -250,6 +300,7 @@ private:
     std::string name_;
     core::render::ClusterTree tree_;
     std::vector<std::uint64_t> subset_, shown_, expanded_;
+    std::set<std::uint64_t> selected_;  // tree nodes, all shown
     std::vector<std::uint64_t> colour_;  // per tree node: its colour id (the palette entry)
     std::uint64_t next_colour_ = 0;
     int rounds_ = 0;
@@ -262,9 +313,12 @@ void cb_button(GLFWwindow *w, int button, int action, int mods) {
     App &a = *app_of(w);
     glfwGetCursorPos(w, &a.last_x, &a.last_y);
     const bool down = action == GLFW_PRESS;
-    if (button == GLFW_MOUSE_BUTTON_LEFT && !(mods & GLFW_MOD_SHIFT)) a.dragging = down;
+    const bool left = button == GLFW_MOUSE_BUTTON_LEFT && !(mods & GLFW_MOD_SHIFT);
+    if (left) a.dragging = down;
     else a.panning = down;
+    if (left && down) a.press_x = a.last_x, a.press_y = a.last_y;
     if (!down) a.dragging = a.panning = false;
+    if (left && !down && std::hypot(a.last_x - a.press_x, a.last_y - a.press_y) <= App::kClickPx) a.click(a.last_x, a.last_y);
 }
 void cb_cursor(GLFWwindow *w, double x, double y) { app_of(w)->drag_to(x, y); }
 void cb_scroll(GLFWwindow *w, double, double dy) {
@@ -460,6 +514,44 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             std::printf("explore: %s\n", ex->summary().c_str());
             std::fflush(stdout);
         };
+        if (ex) {
+            // Picking: the centroid under the cursor, on the CPU with the
+            // camera the frame is drawn with (cursor coordinates scaled to
+            // the framebuffer's pixels).
+            app.on_click = [&](double x, double y) {
+                int ww, wh, fw, fh;
+                glfwGetWindowSize(win, &ww, &wh);
+                glfwGetFramebufferSize(win, &fw, &fh);
+                if (ww <= 0 || wh <= 0 || fw <= 0 || fh <= 0) return;
+                const core::render::Object &cen = r.scene().objects[ci];
+                const auto hit = core::render::pick_streamline(cen.data.tractogram, core::render::tube_radii(cen), app.orbit.view(app.radius),
+                                                               fw, fh, x * fw / ww, y * fh / wh);
+                if (!hit) {
+                    std::printf("explore: no centroid under (%.0f, %.0f)\n", x, y);
+                    std::fflush(stdout);
+                    return;
+                }
+                const std::size_t k = hit->streamline;
+                ex->toggle(k);
+                std::printf("explore: %s #%zu (level %u, %llu streamlines)\n", ex->is_selected(k) ? "picked" : "unpicked", k,
+                            ex->level(ex->shown()[k]), (unsigned long long)ex->size(ex->shown()[k]));
+                explore_refresh(r);
+            };
+            app.on_key = [&](int k) {
+                try {
+                    if (k == GLFW_KEY_E) ex->expand_selected();
+                    else if (k == GLFW_KEY_H) ex->hide_selected();
+                    else if (k == GLFW_KEY_A) ex->select_all();
+                    else if (k == GLFW_KEY_C) ex->repeat();
+                    else return false;
+                } catch (const core::Error &e) {
+                    std::fprintf(stderr, "horizon: %s\n", e.what());
+                    return true;
+                }
+                explore_refresh(r);
+                return true;
+            };
+        }
         // Level of detail (paper section 3.4): a large tractogram is shown as
         // its QuickBundlesX centroids while the camera moves, in full when
         // it rests.
@@ -523,6 +615,11 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                         (op == "drag" ? app.dragging : app.panning) = true;
                         for (int s = 1; s <= 8; ++s) app.drag_to(x0 + (x1 - x0) * s / 8, y0 + (y1 - y0) * s / 8);
                         app.dragging = app.panning = false;
+                    } else if (op == "click") {  // as a left press and release at window point (x, y)
+                        double x, y;
+                        if (!(cmd >> x >> y)) throw core::Error("click needs x y");
+                        app.last_x = x, app.last_y = y;
+                        app.click(x, y);
                     } else if (op == "scroll") {
                         double d;
                         cmd >> d;
@@ -601,13 +698,22 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 ImGui::TextWrapped("%s", ex->summary().c_str());
                 bool changed = false;
                 try {
+                    ImGui::TextDisabled("click a centroid: select  E: expand  H: hide  A: all/none  C: cluster again");
                     if (ImGui::Button("Repeat: cluster what is shown")) ex->repeat(), changed = true;
                     ImGui::SameLine();
                     if (ImGui::Button("Reset")) ex->reset(), changed = true;
+                    if (ex->nb_selected() > 0) {
+                        if (ImGui::Button("Expand selected")) ex->expand_selected(), changed = true;
+                        ImGui::SameLine();
+                        if (!changed && ImGui::Button("Hide selected")) ex->hide_selected(), changed = true;
+                    }
                     const std::size_t n = std::min<std::size_t>(ex->shown().size(), 40);
                     for (std::size_t k = 0; k < n && !changed; ++k) {
                         const std::uint64_t node = ex->shown()[k];
                         ImGui::PushID(int(100000 + k));
+                        bool sel = ex->is_selected(k);
+                        if (ImGui::Checkbox("##sel", &sel)) ex->toggle(k), changed = true;
+                        ImGui::SameLine();
                         ImGui::Text("#%zu  level %u  %llu streamlines", k, ex->level(node), (unsigned long long)ex->size(node));
                         ImGui::SameLine();
                         if (ImGui::SmallButton("expand")) ex->expand(k), changed = true;
@@ -644,6 +750,9 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
             glfwSwapBuffers(win);
         }
+        app.on_click = nullptr;  // (they refer to r and ex, which end here)
+        app.on_key = nullptr;
+        app.r = nullptr;
     }
     ImGui_ImplOpenGL3_Shutdown();
     ImGui_ImplGlfw_Shutdown();

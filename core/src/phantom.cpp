@@ -115,10 +115,8 @@ Tractogram make_phantom(const PhantomOptions &o) {
         off.push_back(pos.size() / 3);
     }
     Tractogram t;
-    t.positions = Buffer<float>(pos.size());
-    std::copy(pos.begin(), pos.end(), t.positions.begin());
-    t.offsets = Buffer<std::uint64_t>(off.size());
-    std::copy(off.begin(), off.end(), t.offsets.begin());
+    t.positions = Buffer<float>::copy_of(pos);
+    t.offsets = Buffer<std::uint64_t>::copy_of(off);
     // A 1 mm reference grid covering the box, for formats that need one.
     t.reference = {1, 0, 0, -kHalfBox[0], 0, 1, 0, -kHalfBox[1], 0, 0, 1, -kHalfBox[2], 0, 0, 0, 1};
     t.reference_dims = {141, 171, 121};

@@ -3,6 +3,7 @@ EGL, no X server), `horizon shader-check` (GPU equals CPU), `horizon view`
 (the window, under Xvfb, with scripted input) and `horizon demo`."""
 import json
 import os
+import re
 import shutil
 import subprocess
 import unittest
@@ -391,6 +392,77 @@ class WindowTest(TempDirTest):
         shots = [load(self.path(f"e{i}.png")) for i in range(3)]
         self.assertGreater(np.mean(np.abs(shots[0] - shots[1])), 0.5)
         self.assertGreater(np.mean(np.abs(shots[1] - shots[2])), 0.5)
+
+    def test_explore_pick_hide_expand(self):
+        # Picking in the window: a click on a centroid selects its cluster
+        # (drawn lighter), H hides the selection, E expands it.
+        p = run("demo", "--out", self.path("d"), "--streamlines", "400", "--no-window", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+
+        def view(name, lines):
+            script = self.path(name + ".txt")
+            with open(script, "w") as f:
+                f.write("\n".join(lines + ["quit"]) + "\n")
+            p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), "--explore",
+                                "--size", "480x320", "--script", script], capture_output=True, text=True, timeout=300, env=env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            return [l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore:")]
+
+        def changed(a, b):
+            return np.abs(load(self.path(a)) - load(self.path(b))).sum(axis=-1) > 0.1
+
+        def inner_pixel(mask):
+            # A pixel of the mask whose 5x5 neighbourhood is all in it (the middle of a tube).
+            core = mask.copy()
+            for dy in range(-2, 3):
+                for dx in range(-2, 3):
+                    core &= np.roll(np.roll(mask, dy, axis=0), dx, axis=1)
+            ys, xs = np.nonzero(core)
+            self.assertGreater(len(xs), 0)
+            i = len(xs) // 2
+            return int(xs[i]), int(ys[i])
+
+        # A selects every cluster: the pixels that change are the centroids'.
+        states = view("all", ["wait 1", f"screenshot {self.path('a.png')}", "key a", "wait 1", f"screenshot {self.path('b.png')}"])
+        self.assertIn("selected none", states[0])
+        self.assertNotIn("selected none", states[-1])
+        centroids = changed("a.png", "b.png")
+        x, y = inner_pixel(centroids)
+        n0 = int(states[0].split()[0])
+
+        states = view("hide", ["wait 1", f"click {x} {y}", "wait 1", f"screenshot {self.path('c.png')}", "click 2 2", "key h", "wait 1",
+                               f"screenshot {self.path('d.png')}", "key h"])
+        picked = [l for l in states if l.startswith("picked #")]
+        self.assertEqual(len(picked), 1, states)
+        rank = picked[0].split()[1]
+        self.assertIn(f"selected {rank};", states[2], "exactly the clicked cluster is selected")
+        self.assertIn("no centroid under (2, 2)", states, "a click on the background picks nothing")
+        lit = changed("a.png", "c.png")
+        self.assertTrue(lit[y, x], "the clicked pixel is drawn lighter: the cluster picked is the one drawn there")
+        self.assertFalse((lit & ~centroids).any(), "only centroid pixels change")
+        self.assertLess(lit.sum(), centroids.sum(), "one cluster of several")
+        self.assertTrue(states[-1].startswith(f"{n0 - 1} clusters"), states[-1])
+        self.assertIn("selected none", states[-1])
+        gone = changed("a.png", "d.png")
+        # (Other tubes may change a little too: radii follow the median cluster size.)
+        self.assertGreater((lit & gone).sum(), 0.9 * lit.sum(), "H hides the cluster that was lit")
+
+        # E: the picked cluster is replaced by its children (or its streamlines).
+        x2, y2 = inner_pixel(centroids & ~lit)
+        states = view("expand", ["wait 1", f"click {x2} {y2}", "key e", "wait 1"])
+        picked = [l for l in states if l.startswith("picked #")]
+        self.assertEqual(len(picked), 1, states)
+        level = int(picked[0].split("level ")[1].split(",")[0])
+        size = int(picked[0].split(", ")[1].split()[0])
+        clusters, expanded = (int(v) for v in re.findall(r"(\d+) clusters, (\d+) streamlines expanded", states[-1])[0])
+        if level < 4:
+            self.assertGreaterEqual(clusters, n0, states[-1])
+        else:
+            self.assertEqual((clusters, expanded), (n0 - 1, size))
+        self.assertIn("selected none", states[-1])
 
     def test_no_display_points_to_render(self):
         p = run("view", "whatever.json", env=NO_DISPLAY)

@@ -1,6 +1,7 @@
 // The OpenGL renderer (see renderer.hpp).
 #include <hz/core/io.hpp>
 #include <hz/core/render/renderer.hpp>
+#include <hz/core/render/pick.hpp>
 
 #include "gl.hpp"
 #include "glsl.hpp"
@@ -260,6 +261,33 @@ const LoadedPlugin *find_shader(const Registry &reg, const std::string &name) {
             return p;
     }
     return nullptr;
+}
+
+std::array<double, 16> view_projection(const View &v, int width, int height) {
+    const glm::dmat4 view = glm::lookAt(to_dvec3(v.eye), to_dvec3(v.target), to_dvec3(v.up));
+    const glm::dmat4 proj = glm::perspective(glm::radians(v.fov_deg), double(width) / std::max(height, 1), v.near_mm, v.far_mm);
+    const glm::dmat4 vp = proj * view;
+    std::array<double, 16> out;
+    std::memcpy(out.data(), glm::value_ptr(vp), sizeof out);
+    return out;
+}
+
+std::vector<float> tube_radii(const Object &o) {
+    const Tractogram &t = o.data.tractogram;
+    const std::uint64_t N = t.nb_streamlines();
+    std::vector<float> radius(N, float(o.radius_mm));
+    if (o.clustering && o.clustering->width_by_size) {
+        for (const auto &x : t.arrays)
+            if (x.name == "cluster_size" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) {
+                std::vector<double> sz = array_values(x);
+                std::vector<double> sorted = sz;
+                std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+                const double med = sorted.empty() ? 1.0 : std::max(1.0, sorted[sorted.size() / 2]);
+                for (std::uint64_t i = 0; i < N; ++i)
+                    radius[i] = float(o.radius_mm * std::clamp(std::sqrt(std::max(sz[i], 1.0) / med), 0.35, 3.0));
+            }
+    }
+    return radius;
 }
 
 std::array<float, 3> colormap(const std::string &name, double t) {
@@ -862,18 +890,13 @@ struct Renderer::Impl {
         if (c.mode == "cluster")
             for (const auto &x : t.arrays)
                 if (x.name == "cluster_id" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) cluster_ids = array_values(x);
-        std::vector<float> radius(N, float(o.radius_mm));
-        if (o.clustering && o.clustering->width_by_size) {
-            for (const auto &x : t.arrays)
-                if (x.name == "cluster_size" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) {
-                    std::vector<double> sz = array_values(x);
-                    std::vector<double> sorted = sz;
-                    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-                    const double med = sorted.empty() ? 1.0 : std::max(1.0, sorted[sorted.size() / 2]);
-                    for (std::uint64_t i = 0; i < N; ++i)
-                        radius[i] = float(o.radius_mm * std::clamp(std::sqrt(std::max(sz[i], 1.0) / med), 0.35, 3.0));
-                }
-        }
+        const std::vector<float> radius = tube_radii(o);
+        // Highlighted streamlines (a per-streamline "highlight" array, e.g.
+        // the clusters selected in the window): their colour mixed towards
+        // white by the value, clamped to [0, 1].
+        std::vector<double> highlight;
+        for (const auto &x : t.arrays)
+            if (x.name == "highlight" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) highlight = array_values(x);
         struct V {
             float pos[3];
             std::uint32_t tangent;
@@ -930,6 +953,10 @@ struct Renderer::Impl {
                     const auto m = colormap(c.colormap, (val - range[0]) / (range[1] - range[0]));
                     col = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
                 } else col = rgba8(c.color[0], c.color[1], c.color[2]);
+                if (!highlight.empty() && highlight[s] > 0) {
+                    const double w = std::min(highlight[s], 1.0) * 0.75;
+                    for (int k = 0; k < 3; ++k) col[k] = std::uint8_t(std::lround(col[k] + (255 - col[k]) * w));
+                }
                 std::memcpy(v.rgba, col.data(), 4);
                 v.radius = radius[s];
                 verts.push_back(v);
@@ -1142,9 +1169,9 @@ struct Renderer::Impl {
         const glm::dvec3 eye = to_dvec3(v.eye), target = to_dvec3(v.target);
         glm::dvec3 up = to_dvec3(v.up);
         const glm::dmat4 view = glm::lookAt(eye, target, up);
-        const glm::dmat4 proj = glm::perspective(glm::radians(v.fov_deg), double(w) / std::max(h, 1), v.near_mm, v.far_mm);
-        m.view_proj = glm::mat4(proj * view);
-        m.inv_view_proj = glm::inverse(proj * view);
+        const glm::dmat4 vp = glm::make_mat4(view_projection(v, w, h).data());  // (what picking projects with)
+        m.view_proj = glm::mat4(vp);
+        m.inv_view_proj = glm::inverse(vp);
         m.right = glm::dvec3(view[0][0], view[1][0], view[2][0]);
         m.up = glm::dvec3(view[0][1], view[1][1], view[2][1]);
         m.back = glm::dvec3(view[0][2], view[1][2], view[2][2]);

@@ -43,6 +43,12 @@ public:
         owner_ = std::move(block);
     }
     Buffer(std::initializer_list<T> init) : Buffer(init.size()) { std::copy(init.begin(), init.end(), ptr_); }
+    // A new array holding a copy of `values`.
+    static Buffer copy_of(std::span<const T> values) {
+        Buffer b(values.size());
+        std::copy(values.begin(), values.end(), b.ptr_);
+        return b;
+    }
     // A view of `n` elements at `p`, alive as long as `owner`.
     Buffer(T *p, std::size_t n, std::shared_ptr<void> owner) : ptr_(n ? p : nullptr), size_(n), owner_(std::move(owner)) {}
     Buffer(const Buffer &) = delete;

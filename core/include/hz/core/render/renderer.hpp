@@ -130,6 +130,13 @@ View fit_view(const Scene &scene, const Camera &c, double aspect);
 // Axis-aligned RAS+ bounds of the visible objects.
 Bounds scene_bounds(const Scene &scene);
 
+// The radius (mm) each streamline of tractogram object `o` is drawn with as
+// a tube: o.radius_mm, times sqrt(cluster size / the median size) clamped to
+// [0.35, 3] when o.clustering asks for width by size and the tractogram has
+// a per-streamline "cluster_size" array. (A per-streamline "highlight" array
+// mixes a streamline's colour towards white by its value in [0, 1].)
+std::vector<float> tube_radii(const Object &o);
+
 // Looks up a shader plugin by id or by the last component of its id.
 const LoadedPlugin *find_shader(const Registry &reg, const std::string &name);
 

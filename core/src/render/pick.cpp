@@ -1,0 +1,72 @@
+#include <hz/core/render/pick.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace hz::core::render {
+
+namespace {
+
+struct Clip {
+    double x, y, z, w;
+};
+
+Clip project(const std::array<double, 16> &m, const float *p) {
+    const double x = p[0], y = p[1], z = p[2];
+    return {m[0] * x + m[4] * y + m[8] * z + m[12], m[1] * x + m[5] * y + m[9] * z + m[13],
+            m[2] * x + m[6] * y + m[10] * z + m[14], m[3] * x + m[7] * y + m[11] * z + m[15]};
+}
+
+Clip lerp(const Clip &a, const Clip &b, double t) {
+    return {a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t, a.z + (b.z - a.z) * t, a.w + (b.w - a.w) * t};
+}
+
+}  // namespace
+
+std::optional<PickHit> pick_streamline(const Tractogram &t, std::span<const float> radius_mm, const View &v, int width, int height,
+                                       double x, double y, double tolerance_px) {
+    if (width <= 0 || height <= 0 || !std::isfinite(x) || !std::isfinite(y)) return std::nullopt;
+    tolerance_px = std::max(tolerance_px, 0.0);
+    const std::array<double, 16> m = view_projection(v, width, height);
+    // Pixels per mm at a depth of 1 mm (the perspective's focal length).
+    const double focal = 0.5 * height / std::tan(0.5 * v.fov_deg * 3.14159265358979323846 / 180.0);
+    // For a perspective projection clip w is the depth along the view axis.
+    const double near = v.near_mm;
+    std::optional<PickHit> on_tube, beside;  // the point on a tube (nearest the eye); within the tolerance (closest axis)
+    double beside_gap = std::numeric_limits<double>::infinity();
+    auto segment = [&](std::uint64_t s, double r, Clip a, Clip b) {
+        if (a.w < near && b.w < near) return;  // behind the near plane
+        if (a.w < near) a = lerp(a, b, (near - a.w) / (b.w - a.w));
+        else if (b.w < near) b = lerp(b, a, (near - b.w) / (a.w - b.w));
+        const double ax = (a.x / a.w * 0.5 + 0.5) * width, ay = (0.5 - a.y / a.w * 0.5) * height;
+        const double bx = (b.x / b.w * 0.5 + 0.5) * width, by = (0.5 - b.y / b.w * 0.5) * height;
+        const double dx = bx - ax, dy = by - ay, len2 = dx * dx + dy * dy;
+        const double u = len2 > 0 ? std::clamp(((x - ax) * dx + (y - ay) * dy) / len2, 0.0, 1.0) : 0.0;
+        const double px = ax + u * dx - x, py = ay + u * dy - y, dist = std::sqrt(px * px + py * py);
+        const double depth = 1.0 / ((1.0 - u) / a.w + u / b.w);  // 1/w is linear on screen
+        const double r_px = r * focal / depth;
+        if (dist <= r_px) {
+            if (!on_tube || depth < on_tube->depth_mm) on_tube = PickHit{s, dist, depth};
+        } else if (dist <= r_px + tolerance_px && dist - r_px < beside_gap) {
+            beside_gap = dist - r_px;
+            beside = PickHit{s, dist, depth};
+        }
+    };
+    const float *P = t.positions.data();
+    for (std::uint64_t s = 0; s < t.nb_streamlines(); ++s) {
+        const std::uint64_t b = t.begin(s), e = t.end(s);
+        if (b == e) continue;
+        const double r = radius_mm.empty() ? 0.0 : double(radius_mm[s]);
+        Clip prev = project(m, P + 3 * b);
+        if (e - b == 1) segment(s, r, prev, prev);
+        for (std::uint64_t i = b + 1; i < e; ++i) {
+            const Clip cur = project(m, P + 3 * i);
+            segment(s, r, prev, cur);
+            prev = cur;
+        }
+    }
+    return on_tube ? on_tube : beside;
+}
+
+}  // namespace hz::core::render

@@ -1,0 +1,116 @@
+// Picking (core/render/pick.hpp): the streamline under a window point.
+#include <hz/core/render/pick.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <vector>
+
+using namespace hz::core;
+using render::pick_streamline;
+
+namespace {
+
+Tractogram polylines(const std::vector<std::vector<float>> &lines) {
+    std::vector<float> pos;
+    std::vector<std::uint64_t> off{0};
+    for (const auto &l : lines) {
+        pos.insert(pos.end(), l.begin(), l.end());
+        off.push_back(pos.size() / 3);
+    }
+    Tractogram t;
+    t.positions = Buffer<float>::copy_of(pos);
+    t.offsets = Buffer<std::uint64_t>::copy_of(off);
+    return t;
+}
+
+// Looking down -z at the origin from 100 mm, 200 x 100 pixels: the origin is
+// at pixel (100, 50); 1 mm at depth 100 mm is 50 / tan(15 deg) / 100 pixels.
+render::View down_z() {
+    render::View v;
+    v.eye = {0, 0, 100};
+    v.target = {0, 0, 0};
+    v.up = {0, 1, 0};
+    v.fov_deg = 30;
+    v.near_mm = 1;
+    v.far_mm = 1000;
+    return v;
+}
+const double kPxPerMm = 50.0 / std::tan(15.0 * M_PI / 180.0) / 100.0;  // 1.866
+
+}  // namespace
+
+TEST_CASE("view_projection puts the target at the centre and w at the depth", "[pick]") {
+    const auto m = render::view_projection(down_z(), 200, 100);
+    // The point (0, 0, -50): depth 150 along the view axis.
+    const double w = m[3] * 0 + m[7] * 0 + m[11] * -50 + m[15];
+    CHECK(w == Approx(150));
+    CHECK(m[12] / m[15] == Approx(0).margin(1e-12));  // target -> ndc x 0
+}
+
+TEST_CASE("pick_streamline finds the streamline under the point", "[pick]") {
+    const Tractogram t = polylines({{-10, 0, 0, 10, 0, 0}, {-10, 5, 0, 10, 5, 0}});
+    const auto v = down_z();
+    auto hit = pick_streamline(t, {}, v, 200, 100, 100, 50);
+    REQUIRE(hit);
+    CHECK(hit->streamline == 0);
+    CHECK(hit->pixels == Approx(0).margin(1e-9));
+    CHECK(hit->depth_mm == Approx(100));
+    // y = 5 mm is 9.33 pixels up the screen (y down): beyond 6 px of tolerance
+    // from the point below it, within 10.
+    const double up = 5 * kPxPerMm;
+    hit = pick_streamline(t, {}, v, 200, 100, 100, 50 - up + 0.5);
+    REQUIRE(hit);
+    CHECK(hit->streamline == 1);
+    CHECK(hit->pixels == Approx(0.5).epsilon(1e-6));
+    CHECK_FALSE(pick_streamline(t, {}, v, 200, 100, 100, 50 + 7));
+    hit = pick_streamline(t, {}, v, 200, 100, 100, 50 + 7, 10.0);
+    REQUIRE(hit);
+    CHECK(hit->streamline == 0);
+    // Beyond the ends, and off the window.
+    CHECK_FALSE(pick_streamline(t, {}, v, 200, 100, 100 + 10 * kPxPerMm + 7, 50));
+    CHECK_FALSE(pick_streamline(Tractogram{}, {}, v, 200, 100, 100, 50));
+    CHECK_FALSE(pick_streamline(t, {}, v, 0, 0, 100, 50));
+}
+
+TEST_CASE("pick_streamline: tubes nearer the eye win where the point is on both", "[pick]") {
+    // Two crossing tubes of radius 1 mm: streamline 0 at z = 0 (depth 100),
+    // streamline 1 at z = 20 (depth 80), listed after it.
+    const Tractogram t = polylines({{-10, 0, 0, 10, 0, 0}, {0, -10, 20, 0, 10, 20}});
+    const std::vector<float> radius{1.0f, 1.0f};
+    auto hit = pick_streamline(t, radius, down_z(), 200, 100, 100, 50);
+    REQUIRE(hit);
+    CHECK(hit->streamline == 1);
+    CHECK(hit->depth_mm == Approx(80));
+    // Off streamline 1's tube but on streamline 0's: streamline 0, although
+    // streamline 1's axis passes within the tolerance.
+    hit = pick_streamline(t, radius, down_z(), 200, 100, 100 + 4, 50);
+    REQUIRE(hit);
+    CHECK(hit->streamline == 0);
+    // The tube's projected radius counts: 3 mm wide at depth 100 is 5.6 px.
+    const std::vector<float> wide{3.0f, 0.0f};
+    hit = pick_streamline(t, wide, down_z(), 200, 100, 110, 50 + 3 * kPxPerMm + 5);
+    REQUIRE(hit);
+    CHECK(hit->streamline == 0);
+    CHECK_FALSE(pick_streamline(t, wide, down_z(), 200, 100, 110, 50 + 3 * kPxPerMm + 7));
+}
+
+TEST_CASE("pick_streamline clips at the near plane and takes single points", "[pick]") {
+    const auto v = down_z();
+    // From x = 5 mm at depth 100 to a point 99 mm behind the eye: drawn from
+    // 9.3 px right of the centre off to the right edge. Projected without
+    // clipping, its far end would land 9.4 px left of the centre, and the
+    // segment would cross the centre.
+    const Tractogram t = polylines({{5, 0, 0, 5, 0, 199}});
+    CHECK_FALSE(pick_streamline(t, {}, v, 200, 100, 95, 50, 1.0));
+    CHECK_FALSE(pick_streamline(t, {}, v, 200, 100, 100, 50, 1.0));
+    auto hit = pick_streamline(t, {}, v, 200, 100, 150, 50, 1.0);
+    REQUIRE(hit);
+    CHECK(hit->depth_mm < 100);
+    // Entirely behind the eye: nothing.
+    CHECK_FALSE(pick_streamline(polylines({{0, 0, 150, 1, 0, 150}}), {}, v, 200, 100, 100, 50, 50.0));
+    // One point at the origin.
+    hit = pick_streamline(polylines({{0, 0, 0}}), {}, v, 200, 100, 101, 50);
+    REQUIRE(hit);
+    CHECK(hit->pixels == Approx(1));
+}
