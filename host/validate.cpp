@@ -22,6 +22,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <optional>
@@ -151,11 +152,27 @@ core::Tractogram sample_tractogram(std::uint64_t seed) {
     pos.insert(pos.end(), {-123.25f, 45.5f, 1e-3f});
     off.push_back(pos.size() / 3);  // single point
     core::Tractogram t;
-    t.positions = core::Buffer<float>(pos.size());
-    std::copy(pos.begin(), pos.end(), t.positions.begin());
-    t.offsets = core::Buffer<std::uint64_t>(off.size());
-    std::copy(off.begin(), off.end(), t.offsets.begin());
+    t.positions = core::Buffer<float>::copy_of(pos);
+    t.offsets = core::Buffer<std::uint64_t>::copy_of(off);
     return t;
+}
+
+// `t` (gap 0) with one vertex holding `fill` after each streamline, as a
+// mapped TCK holds its NaN delimiters (gap 1).
+core::Tractogram with_gap(const core::Tractogram &t, float fill) {
+    std::vector<float> pos;
+    std::vector<std::uint64_t> off{0};
+    for (std::uint64_t s = 0; s < t.nb_streamlines(); ++s) {
+        pos.insert(pos.end(), t.positions.data() + 3 * t.begin(s), t.positions.data() + 3 * t.end(s));
+        pos.insert(pos.end(), {fill, fill, fill});
+        off.push_back(pos.size() / 3);
+    }
+    core::Tractogram g;
+    g.positions = core::Buffer<float>::copy_of(pos);
+    g.offsets = core::Buffer<std::uint64_t>::copy_of(off);
+    g.gap = 1;
+    g.reference = t.reference;
+    return g;
 }
 
 // Reads a streamline file through `l`; returns status, fills `t` and `msg`.
@@ -684,6 +701,23 @@ std::vector<Check> catalogue() {
                      if (read_with(l, p, back, msg) != HZ_OK) return fail("reading its own output failed: " + msg);
                      if (!same_tractogram(t, back, msg)) return fail(msg);
                      return pass(std::to_string(t.nb_streamlines()) + " streamlines");
+                 }});
+    c.push_back({"loader-writes-gap", HZ_KIND_LOADER,
+                 "a writer declaring HZ_LOADER_WRITES_GAP (1.8) skips the vertex after each streamline, NaN or not", [](const Ctx &x) {
+                     const hz_loader &l = loader_of(x);
+                     if (!(l.caps & HZ_LOADER_WRITES_GAP)) return skip("does not declare HZ_LOADER_WRITES_GAP");
+                     if (!writes_streamlines(l)) return fail("declares HZ_LOADER_WRITES_GAP without writing streamlines");
+                     const core::Tractogram t = sample_tractogram(x.opts.seed);
+                     for (const float fill : {std::numeric_limits<float>::quiet_NaN(), 1234.5f}) {
+                         const std::string what = std::isnan(fill) ? "NaN" : "finite";
+                         std::string msg;
+                         const fs::path p = write_sample(x, with_gap(t, fill), msg);
+                         if (p.empty()) return fail("with gap 1 (" + what + " gap vertices): " + msg);
+                         core::Tractogram back;
+                         if (read_with(l, p, back, msg) != HZ_OK) return fail("reading its own output failed: " + msg);
+                         if (!same_tractogram(t, back, msg)) return fail("written with gap 1 (" + what + " gap vertices), read back: " + msg);
+                     }
+                     return pass(std::to_string(t.nb_streamlines()) + " streamlines with NaN and with finite gap vertices");
                  }});
     c.push_back({"loader-malformed-survival", HZ_KIND_LOADER, "truncated and corrupted samples fail cleanly (no crash, message, valid output when accepted)", [](const Ctx &x) {
                      const hz_loader &l = loader_of(x);

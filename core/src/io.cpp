@@ -490,8 +490,13 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
         view.mesh_nb_faces = ds.mesh.nb_faces();
         std::copy(ds.mesh.transform.begin(), ds.mesh.transform.end(), view.voxel_to_ras);
     }
-    // Writers take streamlines without delimiters (a mapped TCK's are removed in a copy).
-    const Tractogram compact = ds.kind == HZ_DATA_STREAMLINES ? ds.tractogram.compacted() : Tractogram{};
+    // A mapped TCK keeps its delimiters (gap 1) for a writer that declares it
+    // takes them (ABI 1.8) and when no per-vertex array is indexed around
+    // them; other writers get a copy without them.
+    const bool pass_gap = ds.kind == HZ_DATA_STREAMLINES && (l->caps & HZ_LOADER_WRITES_GAP) &&
+                          std::none_of(ds.tractogram.arrays.begin(), ds.tractogram.arrays.end(),
+                                       [](const DataArray &a) { return a.attach == HZ_ATTACH_VERTEX; });
+    const Tractogram compact = ds.kind != HZ_DATA_STREAMLINES ? Tractogram{} : pass_gap ? ds.tractogram.shared() : ds.tractogram.compacted();
     if (ds.kind == HZ_DATA_STREAMLINES) {
         view.streamlines = compact.view();
         std::copy(ds.tractogram.reference.begin(), ds.tractogram.reference.end(), view.voxel_to_ras);

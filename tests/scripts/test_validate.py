@@ -71,6 +71,15 @@ class ValidateTest(TempDirTest):
         self.assertEqual(list(failed), ["loader-vouched-positions"], failed)
         self.assertIn("writes through `check` for a host whose struct ends before it", failed["loader-vouched-positions"])
 
+    def test_writer_ignoring_the_gap_fails(self):
+        # ABI 1.8: a loader that declares HZ_LOADER_WRITES_GAP but writes the
+        # vertex after each streamline as a point.
+        rc, rep = self.validate(os.path.join(FIXTURES, "fx_tck_ignores_gap.so"))
+        self.assertEqual(rc, 1)
+        failed = {c["check"]: c["reason"] for c in rep["checks"] if c["status"] == "failed"}
+        self.assertEqual(list(failed), ["loader-writes-gap"], failed)
+        self.assertIn("gap 1 (NaN gap vertices)", failed["loader-writes-gap"])
+
     def test_templates_pass(self):
         for f in sorted(glob.glob(os.path.join(TEMPLATES, "*.so"))):
             with self.subTest(plugin=os.path.basename(f)):

@@ -387,7 +387,7 @@ void decode(const unsigned char *bytes, const Header &h, const Layout &L, float 
 }
 
 void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
-           std::uint64_t nb_streamlines, const std::vector<std::pair<std::string, std::string>> &metadata) {
+           std::uint64_t nb_streamlines, const std::vector<std::pair<std::string, std::string>> &metadata, std::uint32_t gap) {
     std::string head = "mrtrix tracks\n";
     for (const auto &[k, v] : metadata) {
         if (k == "datatype" || k == "file" || k == "count") continue;
@@ -434,7 +434,7 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
         buf.clear();
     };
     for (std::uint64_t s = 0; s < nb_streamlines && ok; ++s) {
-        for (std::uint64_t v = offsets[s]; v < offsets[s + 1]; ++v) {
+        for (std::uint64_t v = offsets[s]; v < offsets[s + 1] - gap; ++v) {
             const float *p = positions + 3 * v;
             if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
                 std::fclose(f);

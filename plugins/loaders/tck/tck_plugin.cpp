@@ -14,6 +14,8 @@ namespace {
 constexpr const char *kId = "org.horizon.test.tck-lying-bounds";
 #elif defined(TCK_FIXTURE_IGNORES_SIZES)  // tests/fixtures: vouching through dst->check whatever the struct sizes
 constexpr const char *kId = "org.horizon.test.tck-ignores-sizes";
+#elif defined(TCK_FIXTURE_IGNORES_GAP)  // tests/fixtures: HZ_LOADER_WRITES_GAP declared, the gap written as points
+constexpr const char *kId = "org.horizon.test.tck-ignores-gap";
 #else
 constexpr const char *kId = "org.horizon.loader.tck";
 #endif
@@ -207,12 +209,18 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                                  " array '" + (a.name ? a.name : "") + "' (TCK stores positions only)";
         req->on_dropped(req->ctx, what.c_str());
     }
+    if (s.gap > 1) return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: streamlines with gap %u (0 or 1 expected)", req->path, s.gap);
+#ifdef TCK_FIXTURE_IGNORES_GAP
+    const std::uint32_t gap = 0;  // (declares HZ_LOADER_WRITES_GAP, then writes the delimiters as points)
+#else
+    const std::uint32_t gap = s.gap;  // (HZ_LOADER_WRITES_GAP: a mapped TCK's delimiters are skipped)
+#endif
     return run(err, req->path, [&]() -> hz_status {
         std::vector<std::pair<std::string, std::string>> meta;
         for (uint32_t i = 0; i < data->nb_metadata; ++i)
             if (data->metadata[i].key != nullptr && data->metadata[i].value != nullptr)
                 meta.emplace_back(data->metadata[i].key, data->metadata[i].value);
-        tck::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, meta);
+        tck::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, meta, gap);
         return HZ_OK;
     });
 }
@@ -222,7 +230,7 @@ const char *const kExtensions[] = {"tck", nullptr};
 const hz_loader kLoader = {
     sizeof(hz_loader),
     HZ_DATA_STREAMLINES,
-    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
     64,
     kExtensions,
     probe,

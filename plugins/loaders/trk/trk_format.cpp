@@ -606,13 +606,13 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
         buf.insert(buf.end(), tmp, tmp + 4);
     };
     for (std::uint64_t s = 0; s < nb_streamlines && ok; ++s) {
-        const std::uint64_t n = offsets[s + 1] - offsets[s];
+        const std::uint64_t end = offsets[s + 1] - spec.gap, n = end - offsets[s];
         if (n > static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max())) {
             std::fclose(fp);
             throw FormatError("streamline " + std::to_string(s) + " has too many points for TRK");
         }
         put(static_cast<std::int32_t>(n));
-        for (std::uint64_t v = offsets[s]; v < offsets[s + 1]; ++v) {
+        for (std::uint64_t v = offsets[s]; v < end; ++v) {
             const float *p = positions + 3 * v;
             if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
                 std::fclose(fp);

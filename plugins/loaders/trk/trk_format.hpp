@@ -109,6 +109,10 @@ struct WriteSpec {
     std::vector<Column> scalars, properties;  // names and widths, <= 10 each, names <= 20 bytes incl. count
     const float *scalar_data = nullptr;       // V x sum(scalars.count)
     const float *property_data = nullptr;     // N x sum(properties.count)
+    // Vertices after each streamline that belong to none (0, or 1 for a
+    // mapped TCK's delimiters): streamline s is [offsets[s], offsets[s+1] -
+    // gap); scalar rows are indexed like the positions.
+    std::uint32_t gap = 0;
 };
 void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
            std::uint64_t nb_streamlines, const WriteSpec &spec);

@@ -209,9 +209,12 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
     if (req == nullptr || req->path == nullptr || data == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trk: write: NULL request or data");
     if (data->kind != HZ_DATA_STREAMLINES) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "trk: %s: TRK holds streamlines only", req->path);
+    if (data->streamlines.gap > 1)
+        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "trk: %s: streamlines with gap %u (0 or 1 expected)", req->path, data->streamlines.gap);
     return run(err, req->path, [&]() -> hz_status {
         const hz_streamlines_view &s = data->streamlines;
         trk::WriteSpec spec;
+        spec.gap = s.gap;  // (HZ_LOADER_WRITES_GAP: a mapped TCK's delimiters are skipped)
         std::copy(data->voxel_to_ras, data->voxel_to_ras + 16, spec.vox_to_ras.begin());
         if (spec.vox_to_ras[15] == 0) spec.vox_to_ras = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
         std::copy(data->ref_dims, data->ref_dims + 3, spec.dims.begin());
@@ -264,7 +267,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 
 const char *const kExtensions[] = {"trk", nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 1000, kExtensions, probe, open, get_info,
+    sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP, 1000, kExtensions, probe, open, get_info,
     get_array_info, visit_metadata, read_streamlines, read_array, nullptr, nullptr, close, write, nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};

@@ -42,7 +42,15 @@ enum {
 typedef uint32_t hz_loader_caps;
 enum {
     HZ_LOADER_CAN_READ = 1u << 0,  /* open/get_info/read_* are non-NULL */
-    HZ_LOADER_CAN_WRITE = 1u << 1  /* write is non-NULL                 */
+    HZ_LOADER_CAN_WRITE = 1u << 1, /* write is non-NULL                 */
+    /* Since 1.8: write() takes streamlines with gap 1 (hz_streamlines_view):
+       it writes streamline s from positions[offsets[s] .. offsets[s+1] - 1)
+       and never reads the gap vertices, whatever they hold (a mapped TCK's
+       are NaN). The host then passes a mapped TCK as it is, instead of a
+       copy without its delimiters (1.2 GB for 1M streamlines of 100
+       points); it does so only when the dataset has no per-vertex arrays.
+       A loader without this bit always receives gap 0. */
+    HZ_LOADER_WRITES_GAP = 1u << 2
 };
 
 /* Coordinate space the file stores its geometry in (informative). */
@@ -425,7 +433,9 @@ typedef struct hz_loader {
     /*
      * Writes `data` to `req->path` in this loader's format. Reports every part
      * it cannot store through req->on_dropped. On failure the file at
-     * req->path may be partial: the host deletes it. [worker]
+     * req->path may be partial: the host deletes it. data->streamlines.gap
+     * is 0 unless caps has HZ_LOADER_WRITES_GAP (since 1.8; then 0 or 1).
+     * [worker]
      */
     hz_status(HZ_ABI *write)(const hz_write_request *req, const hz_dataset_view *data,
                              const hz_task *task, hz_error *err);

@@ -120,8 +120,9 @@ typedef struct hz_array_view {
  * that belong to none, 0 or 1 (an MRtrix TCK file mapped as it is: its NaN
  * delimiter triples stay in place, and nb_vertices counts them). The host
  * passes gap 1 only to clustering plugins whose descriptor declares ABI
- * 1.5 or later; older plugins, and every writer, receive gap 0 (a copy
- * without delimiters when needed).
+ * 1.5 or later and (since 1.8) to writers whose loader declares
+ * HZ_LOADER_WRITES_GAP; other plugins receive gap 0 (a copy without
+ * delimiters when needed).
  */
 typedef struct hz_streamlines_view {
     uint32_t struct_size;

@@ -37,6 +37,9 @@
  *          hz_positions_check: a loader that looks at every coordinate it
  *          decodes into the host's buffer vouches for their finiteness and
  *          bounds, so the host need not read the copy again.
+ *   1.8.0  hz_loader_caps gains HZ_LOADER_WRITES_GAP: a writer that takes
+ *          streamlines with gap 1, so the host writes a mapped TCK without
+ *          first copying it without its delimiters.
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -47,7 +50,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 7
+#define HZ_ABI_VERSION_MINOR 8
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */

@@ -8,7 +8,8 @@
  *
  * It shows the whole contract: a pure probe, sizes checked against the file
  * before allocating, errors that name the file, cancellation, bounded
- * destinations and a writer that reports what it drops.
+ * destinations and a writer that reports what it drops and skips the
+ * delimiter after each streamline of a mapped TCK (HZ_LOADER_WRITES_GAP).
  */
 #include <hz/hz.h>
 
@@ -222,7 +223,7 @@ static void HZ_ABI close_reader(hz_reader *h) { free_reader((reader *)h); }
 
 static hz_status HZ_ABI write_file(const hz_write_request *req, const hz_dataset_view *data, const hz_task *task, hz_error *err) {
     FILE *f;
-    uint64_t s, v;
+    uint64_t s, v, end;
     uint32_t i;
     const hz_streamlines_view *sv;
     (void)task;
@@ -230,12 +231,16 @@ static hz_status HZ_ABI write_file(const hz_write_request *req, const hz_dataset
     if (data->kind != HZ_DATA_STREAMLINES) return fail(err, HZ_E_UNSUPPORTED, req->path, "streamlines only");
     for (i = 0; i < data->nb_arrays && req->on_dropped != NULL; ++i) req->on_dropped(req->ctx, data->arrays[i].name);
     sv = &data->streamlines;
+    /* HZ_LOADER_WRITES_GAP (1.8): streamline s ends `gap` vertices before
+       offsets[s + 1] (a mapped TCK's NaN delimiter), never read here. */
+    if (sv->gap > 1) return fail(err, HZ_E_INVALID_ARGUMENT, req->path, "streamlines with a gap other than 0 or 1");
     f = fopen(req->path, "wb");
     if (f == NULL) return fail(err, HZ_E_IO, req->path, strerror(errno));
     fprintf(f, "hzt 1\n");
     for (s = 0; s < sv->nb_streamlines; ++s) {
-        fprintf(f, "%llu\n", (unsigned long long)(sv->offsets[s + 1] - sv->offsets[s]));
-        for (v = sv->offsets[s]; v < sv->offsets[s + 1]; ++v)
+        end = sv->offsets[s + 1] - sv->gap;
+        fprintf(f, "%llu\n", (unsigned long long)(end - sv->offsets[s]));
+        for (v = sv->offsets[s]; v < end; ++v)
             fprintf(f, "%.9g %.9g %.9g\n", sv->positions[3 * v], sv->positions[3 * v + 1], sv->positions[3 * v + 2]);
     }
     if (ferror(f) | fclose(f)) return fail(err, HZ_E_IO, req->path, "write error");
@@ -244,7 +249,7 @@ static hz_status HZ_ABI write_file(const hz_write_request *req, const hz_dataset
 
 static const char *const k_extensions[] = {"hzt", NULL};
 static const hz_loader k_loader = {
-    sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 8, k_extensions,
+    sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP, 8, k_extensions,
     probe, open_file, get_info, get_array_info, visit_metadata, read_streamlines, NULL, NULL, NULL,
     close_reader, write_file, NULL /* locate_positions (1.4): no zero-copy here */,
 };
