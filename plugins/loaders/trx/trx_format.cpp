@@ -507,11 +507,86 @@ void read_array(const File &f, const Array &a, void *out) {
     }
 }
 
-void write(const std::string &path, const float *positions, std::uint64_t V, const std::uint64_t *offsets, std::uint64_t N,
+namespace {
+
+// A libzip source yielding the positions of streamlines 0..N-1 without the
+// `gap` vertices after each: one run of bytes per streamline, read where
+// they lie (no copy of the whole array).
+class GapSource {
+public:
+    GapSource(const float *p, const std::uint64_t *off, std::uint64_t N, std::uint32_t gap) : p_(p), off_(off), N_(N), gap_(gap) {
+        zip_error_init(&error_);
+    }
+    ~GapSource() { zip_error_fini(&error_); }
+    std::uint64_t bytes() const { return 12 * (off_[N_] - std::uint64_t(gap_) * N_); }
+
+    static zip_int64_t callback(void *ud, void *data, zip_uint64_t len, zip_source_cmd_t cmd) {
+        auto *g = static_cast<GapSource *>(ud);
+        switch (cmd) {
+        case ZIP_SOURCE_OPEN:
+            g->s_ = 0;
+            g->b_ = 0;
+            return 0;
+        case ZIP_SOURCE_READ: {
+            auto *out = static_cast<unsigned char *>(data);
+            zip_uint64_t done = 0;
+            while (done < len && g->s_ < g->N_) {
+                const std::uint64_t run = 12 * (g->off_[g->s_ + 1] - g->gap_ - g->off_[g->s_]);
+                const std::uint64_t take = std::min<std::uint64_t>(len - done, run - g->b_);
+                std::memcpy(out + done, reinterpret_cast<const unsigned char *>(g->p_ + 3 * g->off_[g->s_]) + g->b_, take);
+                done += take;
+                g->b_ += take;
+                if (g->b_ == run) ++g->s_, g->b_ = 0;
+            }
+            return static_cast<zip_int64_t>(done);
+        }
+        case ZIP_SOURCE_CLOSE: return 0;
+        case ZIP_SOURCE_STAT: {
+            auto *st = static_cast<zip_stat_t *>(data);
+            zip_stat_init(st);
+            st->size = g->bytes();
+            st->valid |= ZIP_STAT_SIZE;
+            return sizeof(*st);
+        }
+        case ZIP_SOURCE_ERROR: return zip_error_to_data(&g->error_, data, len);
+        case ZIP_SOURCE_FREE: delete g; return 0;
+        case ZIP_SOURCE_SUPPORTS:
+            return zip_source_make_command_bitmap(ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_STAT, ZIP_SOURCE_ERROR,
+                                                  ZIP_SOURCE_FREE, -1);
+        default:
+            zip_error_set(&g->error_, ZIP_ER_OPNOTSUPP, 0);
+            return -1;
+        }
+    }
+
+private:
+    const float *p_;
+    const std::uint64_t *off_;
+    std::uint64_t N_;
+    std::uint32_t gap_;
+    std::uint64_t s_ = 0, b_ = 0;  // the streamline being read, and the bytes of it already given
+    zip_error_t error_;
+};
+
+}  // namespace
+
+void write(const std::string &path, const float *positions, std::uint64_t V_stored, const std::uint64_t *offsets, std::uint64_t N,
            const std::array<double, 16> &aff, const std::array<std::uint64_t, 3> &dims, const std::vector<WriteArray> &arrays,
-           const std::vector<std::pair<std::string, std::string>> &header_extra) {
-    for (std::uint64_t i = 0; i < 3 * V; ++i)
-        if (!std::isfinite(positions[i])) throw FormatError("non-finite coordinate at vertex " + std::to_string(i / 3));
+           const std::vector<std::pair<std::string, std::string>> &header_extra, std::uint32_t gap) {
+    if (gap > 1) throw FormatError("streamlines with gap " + std::to_string(gap) + " (0 or 1 expected)");
+    for (const auto &a : arrays)
+        if (gap != 0 && a.kind == Kind::Dpv) throw FormatError("per-vertex array '" + a.name + "' with delimited streamlines");
+    const std::uint64_t V = V_stored - std::uint64_t(gap) * N;  // the vertices written
+    for (std::uint64_t s = 0; s < N; ++s)
+        for (std::uint64_t i = 3 * offsets[s]; i < 3 * (offsets[s + 1] - gap); ++i)
+            if (!std::isfinite(positions[i])) throw FormatError("non-finite coordinate at vertex " + std::to_string(i / 3 - s * gap));
+    const std::uint64_t *stored = offsets;  // (into positions, gaps included)
+    std::vector<std::uint64_t> shifted;  // gap 1: offsets[s] - s, as written
+    if (gap != 0) {
+        shifted.resize(N + 1);
+        for (std::uint64_t s = 0; s <= N; ++s) shifted[s] = offsets[s] - s * gap;
+        offsets = shifted.data();
+    }
     nlohmann::json h = nlohmann::json::object();
     for (const auto &[k, v] : header_extra) {  // other formats' header entries, as extra keys (allowed by the spec)
         const nlohmann::json parsed = nlohmann::json::parse(v, nullptr, false);
@@ -526,8 +601,7 @@ void write(const std::string &path, const float *positions, std::uint64_t V, con
     int code = 0;
     zip_t *za = zip_open(path.c_str(), ZIP_CREATE | ZIP_TRUNCATE, &code);
     if (za == nullptr) throw FormatError("cannot create the zip archive");
-    auto add = [&](const std::string &name, const void *data, std::uint64_t bytes) {
-        zip_source_t *src = zip_source_buffer(za, data, bytes, 0);
+    auto add_source = [&](const std::string &name, zip_source_t *src) {
         if (src == nullptr) throw FormatError(std::string("zip: ") + zip_strerror(za));
         const zip_int64_t idx = zip_file_add(za, name.c_str(), src, ZIP_FL_ENC_UTF_8 | ZIP_FL_OVERWRITE);
         if (idx < 0) {
@@ -536,13 +610,21 @@ void write(const std::string &path, const float *positions, std::uint64_t V, con
         }
         zip_set_file_compression(za, static_cast<zip_uint64_t>(idx), ZIP_CM_STORE, 0);  // stored: readers can map it
     };
+    auto add = [&](const std::string &name, const void *data, std::uint64_t bytes) { add_source(name, zip_source_buffer(za, data, bytes, 0)); };
     try {
         // Positions first, their data at byte 64 of the file: a padding extra
         // field in the local header (id 0xD935, the one Android's zipalign
         // uses) makes 30 + 19 (name) + 4 + 11 = 64, so readers can map the
         // floats aligned. (A Zip64 local extra, 20 bytes, keeps the alignment.)
         const std::uint64_t pidx = static_cast<std::uint64_t>(zip_get_num_entries(za, 0));
-        add("positions.3.float32", positions, 3 * V * sizeof(float));
+        if (gap == 0) {
+            add("positions.3.float32", positions, 3 * V * sizeof(float));
+        } else {
+            auto *g = new GapSource(positions, stored, N, gap);
+            zip_source_t *src = zip_source_function(za, &GapSource::callback, g);
+            if (src == nullptr) delete g;  // (otherwise the source owns it: ZIP_SOURCE_FREE)
+            add_source("positions.3.float32", src);
+        }
         static const zip_uint8_t pad[11] = {};
         if (zip_file_extra_field_set(za, pidx, 0xD935, ZIP_EXTRA_FIELD_NEW, pad, sizeof pad, ZIP_FL_LOCAL) != 0)
             throw FormatError(std::string("zip: ") + zip_strerror(za));

@@ -91,9 +91,14 @@ struct WriteArray {
     const void *data = nullptr;
 };
 // Writes a stored (uncompressed) zip with the sentinel in offsets.
+// Streamline s is positions[offsets[s] .. offsets[s+1] - gap): with gap 1
+// (a mapped TCK's delimiters) the positions entry is streamed into the zip
+// without the gap vertices, never read, and the offsets are shifted; no
+// per-vertex array may come with it.
 void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
            std::uint64_t nb_streamlines, const std::array<double, 16> &voxel_to_rasmm, const std::array<std::uint64_t, 3> &dims,
-           const std::vector<WriteArray> &arrays, const std::vector<std::pair<std::string, std::string>> &header_extra);
+           const std::vector<WriteArray> &arrays, const std::vector<std::pair<std::string, std::string>> &header_extra,
+           std::uint32_t gap = 0);
 
 int probe(const unsigned char *head, std::uint64_t size);
 

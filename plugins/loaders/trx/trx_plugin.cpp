@@ -225,14 +225,14 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                     extra.emplace_back(k, data->metadata[i].value);
                 }
             }
-        trx::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, aff, dims, arrays, extra);
+        trx::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, aff, dims, arrays, extra, s.gap);
         return HZ_OK;
     });
 }
 
 const char *const kExtensions[] = {"trx", nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 4096, kExtensions, probe, open, get_info,
+    sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP, 4096, kExtensions, probe, open, get_info,
     get_array_info, visit_metadata, read_streamlines, read_array, nullptr, nullptr, close, write, locate_positions,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
