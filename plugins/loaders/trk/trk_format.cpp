@@ -598,12 +598,19 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
     std::FILE *fp = std::fopen(path.c_str(), "wb");
     if (fp == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
     bool ok = std::fwrite(hdr, 1, sizeof hdr, fp) == sizeof hdr;
-    std::vector<unsigned char> buf;
-    buf.reserve(1 << 20);
+    // Records go through a 1 MiB buffer, written out whenever the next
+    // field group (a count, a point, the properties) would not fit.
+    std::vector<unsigned char> buf(1 << 20);
+    std::size_t used = 0;
+    auto room = [&](std::size_t bytes) {
+        if (used + bytes > buf.size()) {
+            ok = ok && std::fwrite(buf.data(), 1, used, fp) == used;
+            used = 0;
+        }
+    };
     auto put = [&](auto v) {
-        unsigned char tmp[4];
-        store(tmp, v);
-        buf.insert(buf.end(), tmp, tmp + 4);
+        store(buf.data() + used, v);
+        used += 4;
     };
     for (std::uint64_t s = 0; s < nb_streamlines && ok; ++s) {
         const std::uint64_t end = offsets[s + 1] - spec.gap, n = end - offsets[s];
@@ -611,8 +618,10 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
             std::fclose(fp);
             throw FormatError("streamline " + std::to_string(s) + " has too many points for TRK");
         }
+        room(4);
         put(static_cast<std::int32_t>(n));
         for (std::uint64_t v = offsets[s]; v < end; ++v) {
+            room(4 * (3 + std::size_t(ns)));
             const float *p = positions + 3 * v;
             if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
                 std::fclose(fp);
@@ -624,13 +633,10 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
             }
             for (std::uint32_t k = 0; k < ns; ++k) put(spec.scalar_data[v * ns + k]);
         }
+        room(4 * std::size_t(np));
         for (std::uint32_t k = 0; k < np; ++k) put(spec.property_data[s * np + k]);
-        if (buf.size() > (1 << 20) - 4096) {
-            ok = std::fwrite(buf.data(), 1, buf.size(), fp) == buf.size();
-            buf.clear();
-        }
     }
-    if (ok && !buf.empty()) ok = std::fwrite(buf.data(), 1, buf.size(), fp) == buf.size();
+    if (ok && used != 0) ok = std::fwrite(buf.data(), 1, used, fp) == used;
     (void)nb_vertices;
     (void)kBigHost;
     if (std::fclose(fp) != 0) ok = false;

@@ -257,7 +257,8 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         spec.property_data = prop.data();
         for (uint32_t i = 0; i < data->nb_metadata && req->on_dropped; ++i) {
             const std::string k = data->metadata[i].key ? data->metadata[i].key : "";
-            static const char *own[] = {"version", "dimensions", "voxel_sizes", "voxel_order", "n_count", "byte_order"};
+            // TRK's own fields, and TCK's structural keys (meaningless once read, as the TRX writer treats them).
+            static const char *own[] = {"version", "dimensions", "voxel_sizes", "voxel_order", "n_count", "byte_order", "count", "datatype", "file"};
             if (std::find(std::begin(own), std::end(own), k) == std::end(own)) req->on_dropped(req->ctx, ("header entry '" + k + "'").c_str());
         }
         trk::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, spec);
