@@ -107,6 +107,35 @@ class GiftiTest(TempDirTest):
             fh.write(ext)
         self.check_roundtrip(self.path("ext.gii"), v, f)
 
+    def test_label_without_colour(self):
+        # nibabel writes a label it has no colour for without Red/Green/Blue/
+        # Alpha: it reads as a label without a colour (header "- - - -"), is
+        # written back without them, and gets a generated opaque colour where
+        # one is needed (an annotation), not black.
+        lt = nib.gifti.GiftiLabelTable()
+        red = nib.gifti.GiftiLabel(key=0, red=1, green=0, blue=0, alpha=1)
+        red.label = "red"
+        plain = nib.gifti.GiftiLabel(key=1)
+        plain.label = "plain"
+        lt.labels = [red, plain]
+        img = nib.gifti.GiftiImage(labeltable=lt, darrays=[nib.gifti.GiftiDataArray(np.array([0, 1, 1, 0], np.int32),
+                                                                                    intent="NIFTI_INTENT_LABEL")])
+        nib.save(img, self.path("lab.gii"))
+        header = dict(run_json("info", self.path("lab.gii"), "--json")["header"])
+        self.assertEqual(header["label 0"], "red 255 0 0 0")
+        self.assertEqual(header["label 1"], "plain - - - -")
+        self.assertEqual(run("convert", self.path("lab.gii"), self.path("back.gii")).returncode, 0)
+        back = {l.key: l for l in nib.load(self.path("back.gii")).labeltable.labels}
+        self.assertEqual((back[1].label, back[1].red, back[1].alpha), ("plain", None, None))
+        self.assertEqual((back[0].red, back[0].green, back[0].blue, back[0].alpha), (1, 0, 0, 1))
+        self.assertEqual(run("convert", self.path("lab.gii"), self.path("lab.annot")).returncode, 0)
+        labels, ctab, names = nib.freesurfer.read_annot(self.path("lab.annot"))
+        self.assertEqual(names, [b"red", b"plain"])
+        np.testing.assert_array_equal(labels, [0, 1, 1, 0])
+        self.assertEqual(list(ctab[0, :4]), [255, 0, 0, 0])
+        self.assertGreater(ctab[1, :3].sum(), 200, "a generated colour, not black")
+        self.assertEqual(ctab[1, 3], 0, "opaque")
+
     def test_nibabel_test_data(self):
         for name in ("ascii.gii", "external.gii"):
             with self.subTest(file=name):

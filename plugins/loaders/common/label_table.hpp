@@ -3,13 +3,20 @@
 //
 //   key   "label <index>"            e.g. "label 3"
 //   value "<name> <r> <g> <b> <t>"   e.g. "cuneus 220 180 140 0"
+//         "<name> - - - -"           a label without a colour (a GIFTI Label
+//                                    with no Red/Green/Blue/Alpha, as nibabel
+//                                    writes one it was given no colour for)
 //
 // r, g, b are 0..255 sRGB, t is FreeSurfer's transparency (255 - alpha).
 // The name may contain spaces: the last four fields are the numbers.
+// A label without a colour is drawn, and written to formats that need one
+// (FreeSurfer annotations), in a colour generated from its index: hues
+// spaced by the golden ratio, opaque.
 // Header-only, no SDK types.
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <array>
 #include <cstdint>
 #include <cstdlib>
@@ -21,13 +28,37 @@
 
 namespace hzlabel {
 
+// The colour a label without one is given: hue (index x golden ratio) mod 1
+// at saturation 0.6 and value 0.9, 0..255 sRGB.
+inline std::array<std::int32_t, 3> generated_rgb(std::int32_t index) {
+    double h = std::fmod(static_cast<double>(index) * 0.618033988749895, 1.0);
+    if (h < 0) h += 1.0;
+    const double v = 0.9, s = 0.6, c = v * s, h6 = h * 6.0, x = c * (1.0 - std::fabs(std::fmod(h6, 2.0) - 1.0)), m = v - c;
+    double r = 0, g = 0, b = 0;
+    switch (static_cast<int>(h6)) {
+    case 0: r = c, g = x; break;
+    case 1: r = x, g = c; break;
+    case 2: g = c, b = x; break;
+    case 3: g = x, b = c; break;
+    case 4: r = x, b = c; break;
+    default: r = c, b = x; break;
+    }
+    auto q = [&](double u) { return static_cast<std::int32_t>(std::lround((u + m) * 255.0)); };
+    return {q(r), q(g), q(b)};
+}
+
 struct Entry {
     std::int32_t index = 0;
     std::string name;
     std::int32_t r = 0, g = 0, b = 0, t = 0;
-    std::uint8_t alpha() const { return static_cast<std::uint8_t>(255 - t); }
+    bool coloured = true;  // false: no colour given (r, g, b, t unused)
+    std::array<std::int32_t, 3> rgb() const { return coloured ? std::array<std::int32_t, 3>{r, g, b} : generated_rgb(index); }
+    std::uint8_t alpha() const { return coloured ? static_cast<std::uint8_t>(255 - t) : 255; }
     // FreeSurfer's per-vertex annotation value: r + g*256 + b*65536.
-    std::uint32_t packed() const { return std::uint32_t(r) + std::uint32_t(g) * 256u + std::uint32_t(b) * 65536u; }
+    std::uint32_t packed() const {
+        const auto c = rgb();
+        return std::uint32_t(c[0]) + std::uint32_t(c[1]) * 256u + std::uint32_t(c[2]) * 65536u;
+    }
 };
 
 // The RGBA colour of each label index, for the "<labels> rgba" arrays that
@@ -37,8 +68,10 @@ struct Entry {
 class Colours {
 public:
     explicit Colours(const std::vector<Entry> &table) {
-        for (const Entry &e : table)
-            by_index_.push_back({e.index, {std::uint8_t(e.r), std::uint8_t(e.g), std::uint8_t(e.b), e.alpha()}});
+        for (const Entry &e : table) {
+            const auto c = e.rgb();
+            by_index_.push_back({e.index, {std::uint8_t(c[0]), std::uint8_t(c[1]), std::uint8_t(c[2]), e.alpha()}});
+        }
         std::stable_sort(by_index_.begin(), by_index_.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
     }
     std::array<std::uint8_t, 4> operator()(std::int32_t index) const {
@@ -53,11 +86,12 @@ private:
 inline std::string key(std::int32_t index) { return "label " + std::to_string(index); }
 
 inline std::string value(const Entry &e) {
+    if (!e.coloured) return e.name + " - - - -";
     return e.name + " " + std::to_string(e.r) + " " + std::to_string(e.g) + " " + std::to_string(e.b) + " " + std::to_string(e.t);
 }
 
 // Parses one header entry; nullopt when `k` is not "label <int32>" or the
-// value does not end in four integers in 0..255.
+// value does not end in four integers in 0..255 or in four dashes.
 inline std::optional<Entry> parse(std::string_view k, std::string_view v) {
     constexpr std::string_view prefix = "label ";
     if (k.substr(0, prefix.size()) != prefix || k.size() == prefix.size() || k.size() > prefix.size() + 11) return std::nullopt;
@@ -67,6 +101,14 @@ inline std::optional<Entry> parse(std::string_view k, std::string_view v) {
     if (*end != '\0' || index < INT32_MIN || index > INT32_MAX) return std::nullopt;
     Entry e;
     e.index = static_cast<std::int32_t>(index);
+    constexpr std::string_view dashes = " - - - -";
+    if (v.size() >= dashes.size() && v.substr(v.size() - dashes.size()) == dashes) {
+        e.coloured = false;
+        std::size_t stop = v.size() - dashes.size();
+        while (stop > 0 && v[stop - 1] == ' ') --stop;
+        e.name = std::string(v.substr(0, stop));
+        return e;
+    }
     std::int32_t *fields[4] = {&e.t, &e.b, &e.g, &e.r};
     std::size_t stop = v.size();
     for (std::int32_t *f : fields) {

@@ -302,7 +302,8 @@ hz_status write_annot(const hz_write_request *req, const hz_dataset_view *data) 
     for (const auto &e : table) {
         put(static_cast<std::uint32_t>(e.index));
         put_text(e.name);
-        put(std::uint32_t(e.r)), put(std::uint32_t(e.g)), put(std::uint32_t(e.b)), put(std::uint32_t(e.t));
+        const auto c = e.rgb();  // (a label without a colour: the generated one, also in the packed vertex values)
+        put(std::uint32_t(c[0])), put(std::uint32_t(c[1])), put(std::uint32_t(c[2])), put(std::uint32_t(e.coloured ? e.t : 0));
     }
     if (data->mesh_nb_vertices > 0 && req->on_dropped) req->on_dropped(req->ctx, "the surface geometry (an annotation holds labels only)");
     save(req->path, out);

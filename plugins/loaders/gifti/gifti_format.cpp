@@ -273,8 +273,12 @@ Surface read(const std::string &path) {
             throw FormatError("LabelTable entry " + std::to_string(s.labels.size()) + ": Key '" + key + "' is not an int32");
         l.key = static_cast<std::int32_t>(k);
         l.name = lab.child_value();
-        // Missing colour attributes (nibabel writes none for a colourless
-        // label) read as opaque black; components are clamped to [0, 1].
+        // A label with none of the colour attributes (nibabel writes none for
+        // a label it has no colour for) has no colour: it is drawn in one
+        // generated from its key (label_table.hpp) and written back without
+        // them. One with some of them takes 0 for a missing Red, Green or
+        // Blue and 1 for Alpha. Components are clamped to [0, 1].
+        l.coloured = lab.attribute("Red") || lab.attribute("Green") || lab.attribute("Blue") || lab.attribute("Alpha");
         for (auto [attr, dst, def] : {std::tuple{"Red", &l.red, 0.0}, {"Green", &l.green, 0.0}, {"Blue", &l.blue, 0.0}, {"Alpha", &l.alpha, 1.0}}) {
             const pugi::xml_attribute a = lab.attribute(attr);
             if (!a) { *dst = def; continue; }
@@ -382,6 +386,7 @@ void write(const std::string &path, const Surface &s, bool gz) {
         pugi::xml_node lab = table.append_child("Label");
         lab.append_attribute("Key") = l.key;
         for (auto [attr, x] : {std::pair{"Red", l.red}, {"Green", l.green}, {"Blue", l.blue}, {"Alpha", l.alpha}}) {
+            if (!l.coloured) break;
             char buf[32];
             std::snprintf(buf, sizeof buf, "%.9g", x);
             lab.append_attribute(attr) = buf;

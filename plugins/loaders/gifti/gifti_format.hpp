@@ -32,6 +32,7 @@ struct Label {
     std::int32_t key = 0;
     std::string name;
     double red = 0, green = 0, blue = 0, alpha = 1;
+    bool coloured = true;  // false: no Red, Green, Blue or Alpha attribute (written without them)
 };
 
 struct Surface {

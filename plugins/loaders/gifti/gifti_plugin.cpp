@@ -53,6 +53,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
             e.name = l.name;
             e.r = static_cast<std::int32_t>(std::lround(l.red * 255)), e.g = static_cast<std::int32_t>(std::lround(l.green * 255));
             e.b = static_cast<std::int32_t>(std::lround(l.blue * 255)), e.t = 255 - static_cast<std::int32_t>(std::lround(l.alpha * 255));
+            e.coloured = l.coloured;
             r->labels.push_back(std::move(e));
         }
         for (std::size_t i = 0; i < r->s.overlays.size() && !r->s.labels.empty(); ++i) {
@@ -184,7 +185,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             else if (k == "TransformedSpace") s.transformed_space = v;
             else if (auto e = hzlabel::parse(k, v)) {
                 // a label table entry (an annotation's, or a GIFTI LabelTable's) goes in the LabelTable
-                s.labels.push_back({e->index, e->name, e->r / 255.0, e->g / 255.0, e->b / 255.0, e->alpha() / 255.0});
+                s.labels.push_back({e->index, e->name, e->r / 255.0, e->g / 255.0, e->b / 255.0, e->alpha() / 255.0, e->coloured});
             } else s.metadata.emplace_back(k, v);
         }
         // No geometry: an overlay-only file, its rows set by the first per-vertex array.
