@@ -85,10 +85,12 @@ struct App {
     double last_material_edit = -1e9;
     static constexpr double kBakeAfter = 0.75;
     bool force_moving = false;  // scripts: `moving on|off`
-    // A left press that is released within kClickPx of where it began is a
-    // click (picking) as well as a (tiny) orbit.
+    // A left press released within kClickPx of where it began is a click
+    // (picking); the orbit starts only once the cursor has left that circle,
+    // so a click does not turn the view under the point it picks.
     static constexpr double kClickPx = 3.0;
     double press_x = 0, press_y = 0;
+    bool orbit_started = false;
     // The exploration's hooks (with --explore): a click at window
     // coordinates, and keys it takes (returns true) before the camera's.
     std::function<void(double, double)> on_click;
@@ -99,6 +101,10 @@ struct App {
     }
 
     void drag_to(double x, double y) {
+        if (dragging && !orbit_started) {
+            if (std::hypot(x - press_x, y - press_y) <= kClickPx) return;
+            orbit_started = true;
+        }
         const double dx = x - last_x, dy = y - last_y;
         if (dragging || panning) last_motion = glfwGetTime();
         last_x = x, last_y = y;
@@ -316,7 +322,7 @@ void cb_button(GLFWwindow *w, int button, int action, int mods) {
     const bool left = button == GLFW_MOUSE_BUTTON_LEFT && !(mods & GLFW_MOD_SHIFT);
     if (left) a.dragging = down;
     else a.panning = down;
-    if (left && down) a.press_x = a.last_x, a.press_y = a.last_y;
+    if (left && down) a.press_x = a.last_x, a.press_y = a.last_y, a.orbit_started = false;
     if (!down) a.dragging = a.panning = false;
     if (left && !down && std::hypot(a.last_x - a.press_x, a.last_y - a.press_y) <= App::kClickPx) a.click(a.last_x, a.last_y);
 }
@@ -611,7 +617,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                     else if (op == "drag" || op == "pan") {
                         double x0, y0, x1, y1;
                         cmd >> x0 >> y0 >> x1 >> y1;
-                        app.last_x = x0, app.last_y = y0;
+                        app.last_x = app.press_x = x0, app.last_y = app.press_y = y0;
+                        app.orbit_started = false;
                         (op == "drag" ? app.dragging : app.panning) = true;
                         for (int s = 1; s <= 8; ++s) app.drag_to(x0 + (x1 - x0) * s / 8, y0 + (y1 - y0) * s / 8);
                         app.dragging = app.panning = false;
