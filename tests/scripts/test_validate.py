@@ -62,23 +62,24 @@ class ValidateTest(TempDirTest):
         self.assertIn("vouches for bounds other than its positions' (x)", failed["loader-locate-positions"])
         self.assertIn("vouches for bounds other than the positions it wrote (x)", failed["loader-vouched-positions"])
 
+    def assert_fails_only(self, fixture, check, reason):
+        """The validator fails `fixture` on `check` alone, with `reason` in its message."""
+        rc, rep = self.validate(os.path.join(FIXTURES, fixture))
+        self.assertEqual(rc, 1)
+        failed = {c["check"]: c["reason"] for c in rep["checks"] if c["status"] == "failed"}
+        self.assertEqual(list(failed), [check], failed)
+        self.assertIn(reason, failed[check])
+
     def test_vouch_past_struct_size_fails(self):
         # ABI 1.7: a loader that writes through hz_streamlines_dst.check for a
         # host whose struct ends before it (or into a check record too small).
-        rc, rep = self.validate(os.path.join(FIXTURES, "fx_tck_ignores_sizes.so"))
-        self.assertEqual(rc, 1)
-        failed = {c["check"]: c["reason"] for c in rep["checks"] if c["status"] == "failed"}
-        self.assertEqual(list(failed), ["loader-vouched-positions"], failed)
-        self.assertIn("writes through `check` for a host whose struct ends before it", failed["loader-vouched-positions"])
+        self.assert_fails_only("fx_tck_ignores_sizes.so", "loader-vouched-positions",
+                               "writes through `check` for a host whose struct ends before it")
 
     def test_writer_ignoring_the_gap_fails(self):
         # ABI 1.8: a loader that declares HZ_LOADER_WRITES_GAP but writes the
         # vertex after each streamline as a point.
-        rc, rep = self.validate(os.path.join(FIXTURES, "fx_tck_ignores_gap.so"))
-        self.assertEqual(rc, 1)
-        failed = {c["check"]: c["reason"] for c in rep["checks"] if c["status"] == "failed"}
-        self.assertEqual(list(failed), ["loader-writes-gap"], failed)
-        self.assertIn("gap 1 (NaN gap vertices)", failed["loader-writes-gap"])
+        self.assert_fails_only("fx_tck_ignores_gap.so", "loader-writes-gap", "gap 1 (NaN gap vertices)")
 
     def test_templates_pass(self):
         for f in sorted(glob.glob(os.path.join(TEMPLATES, "*.so"))):
