@@ -490,11 +490,8 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
         while (next < files.size()) {
             if (read_child(pid, fd, deadline, buf, true, r) != 1) break;  // died or hung on files[next]
             const std::size_t nl = buf.find('\n');
-            const nlohmann::json j = nlohmann::json::parse(buf.substr(0, nl), nullptr, false);
+            take_report(files[next], buf.substr(0, nl), "trial load gave a malformed report");
             buf.erase(0, nl + 1);
-            if (j.is_discarded() || !j.contains("ok")) reject(files[next], "trial load gave a malformed report");
-            else if (!j["ok"].get<bool>()) reject(files[next], j["reason"].get<std::string>());
-            else load(files[next]);
             ++next;
             deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(limit);
         }
@@ -513,6 +510,13 @@ std::string Registry::trial_failure(const ChildResult &r) const {
     return "trial load " + r.describe() + " without a report";
 }
 
+void Registry::take_report(const fs::path &file, const std::string &report, const std::string &if_malformed) {
+    const nlohmann::json j = nlohmann::json::parse(report, nullptr, false);
+    if (j.is_discarded() || !j.contains("ok")) return reject(file, if_malformed);
+    if (!j["ok"].get<bool>()) return reject(file, j["reason"].get<std::string>());
+    load(file);
+}
+
 void Registry::reject(const fs::path &file, const std::string &why) {
     rejected_.push_back({file.string(), why});
     spdlog::debug("plugin {} rejected: {}", file.string(), why);
@@ -523,9 +527,7 @@ void Registry::add_file(const fs::path &file) {
     if (options_.isolate) {
         const ChildResult r = run_in_child([&] { return trial_report(file); }, options_.timeout_s);
         if (r.timed_out || r.signal != 0) return reject(file, trial_failure(r));
-        nlohmann::json j = nlohmann::json::parse(r.output, nullptr, false);
-        if (j.is_discarded() || !j.contains("ok")) return reject(file, trial_failure(r));
-        if (!j["ok"].get<bool>()) return reject(file, j["reason"].get<std::string>());
+        return take_report(file, r.output, trial_failure(r));
     }
     load(file);
 }

@@ -147,6 +147,9 @@ public:
 private:
     void reject(const fs::path &file, const std::string &why);
     void load(const fs::path &file);  // in this process, after its trial
+    // Acts on a trial load's JSON report: loads the file, or rejects it with
+    // the plugin's reason, or with `if_malformed` when the report is not one.
+    void take_report(const fs::path &file, const std::string &report, const std::string &if_malformed);
     std::string trial_failure(const ChildResult &r) const;  // why a trial load gave no report
 
     Options options_;
