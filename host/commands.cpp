@@ -97,6 +97,8 @@ json describe(const core::Dataset &ds) {
         const auto b = !ds.bounds.empty || t.nb_vertices() == 0 ? ds.bounds : core::bounds_of(t.positions.data(), t.nb_stored());
         j["bbox_ras_mm"] = b.empty ? json(nullptr) : json{{"min", b.min}, {"max", b.max}};
         j["positions_mapped"] = ds.mapped;
+        // (Mapped at an offset float32 cannot be read at: copied when first used.)
+        j["positions_copied_on_use"] = ds.mapped && t.positions.pending();
         j["affine"] = affine_json(t.reference);
         j["reference_dims"] = t.reference_dims;
         j["arrays"] = json::array();
@@ -174,7 +176,9 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json) {
         std::printf("vertices:      %llu (per streamline %llu..%llu)\n", (unsigned long long)j["nb_vertices"].get<std::uint64_t>(),
                     (unsigned long long)j["points_per_streamline"]["min"].get<std::uint64_t>(),
                     (unsigned long long)j["points_per_streamline"]["max"].get<std::uint64_t>());
-        if (ds.mapped) std::printf("positions:     mapped from the file (no copy)\n");
+        if (j["positions_copied_on_use"].get<bool>())
+            std::printf("positions:     mapped from the file at an offset that is not a multiple of 4 (copied when first used)\n");
+        else if (ds.mapped) std::printf("positions:     mapped from the file (no copy)\n");
         if (!j["bbox_ras_mm"].is_null()) {
             const auto &mn = j["bbox_ras_mm"]["min"];
             const auto &mx = j["bbox_ras_mm"]["max"];

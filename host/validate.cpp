@@ -838,12 +838,14 @@ std::vector<Check> catalogue() {
                      // delimited extent holds each streamline's bytes followed by an
                      // all-NaN delimiter vertex; vouched bounds are the exact bounds.
                      std::string how;
+                     // Last, a host of 1.9 that also maps unaligned offsets.
                      const hz_extent_flags kDelimited = HZ_EXTENT_DELIMITED, kChecked = HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED;
                      const std::pair<hz_extent_flags, std::uint32_t> asks[] = {
                          {0, sizeof(hz_positions_extent)},
                          {kDelimited, sizeof(hz_positions_extent)},
                          {kChecked, HZ_POSITIONS_EXTENT_SIZE_1_4},
-                         {kChecked, sizeof(hz_positions_extent)}};
+                         {kChecked, sizeof(hz_positions_extent)},
+                         {kChecked | HZ_EXTENT_UNALIGNED, sizeof(hz_positions_extent)}};
                      for (const auto &[accepts, size] : asks) {
                          hz_positions_extent ext{};
                          ext.struct_size = size;
@@ -867,7 +869,12 @@ std::vector<Check> catalogue() {
                          if ((ext.flags & ~accepts & ~hz_extent_flags(HZ_EXTENT_HAS_CRC32)) != 0)
                              return fail("answers with a layout flag the host did not accept");
                          if (ext.path == nullptr) return fail("HZ_OK with a NULL path");
-                         if (ext.offset % 4 != 0) return fail("offset " + std::to_string(ext.offset) + " is not a multiple of 4");
+                         const bool unaligned = (ext.flags & HZ_EXTENT_UNALIGNED) != 0;
+                         if (ext.offset % 4 != 0 && !unaligned)
+                             return fail("offset " + std::to_string(ext.offset) + " is not a multiple of 4 (and HZ_EXTENT_UNALIGNED not set)");
+                         if (ext.offset % 4 == 0 && unaligned)
+                             return fail("HZ_EXTENT_UNALIGNED set for offset " + std::to_string(ext.offset) + ", a multiple of 4");
+                         if (unaligned) how += " maps an unaligned extent;";
                          const bool delimited = (ext.flags & HZ_EXTENT_DELIMITED) != 0;
                          const std::uint64_t stored_vertices = info.nb_vertices + (delimited ? info.nb_streamlines : 0);
                          const std::uint64_t bytes = stored_vertices * 12;
@@ -919,7 +926,7 @@ std::vector<Check> catalogue() {
                              for (int d = 0; d < 3; ++d)
                                  if (b.empty || ext.bounds_min[d] != b.min[d] || ext.bounds_max[d] != b.max[d])
                                      return fail("vouches for bounds other than its positions' (" + std::string("xyz").substr(d, 1) + ")");
-                             how += " vouches for exact bounds;";
+                             if (how.find(" vouches for exact bounds;") == std::string::npos) how += " vouches for exact bounds;";
                          }
                      }
                      how.pop_back();

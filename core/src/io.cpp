@@ -96,7 +96,9 @@ Buffer<float> map_positions(const hz_positions_extent &ext, std::uint64_t nb_ver
     if (file.empty()) throw Error(where + ": loader located the positions in no file");
     const bool delimited = (ext.flags & HZ_EXTENT_DELIMITED) != 0;
     const std::uint64_t bytes = nb_vertices * 12;
-    if (ext.offset % 4 != 0) throw Error(where + ": loader located the positions at a misaligned offset");
+    const bool unaligned = ext.offset % 4 != 0;
+    if (unaligned && (ext.flags & HZ_EXTENT_UNALIGNED) == 0)
+        throw Error(where + ": loader located the positions at a misaligned offset without HZ_EXTENT_UNALIGNED");
     const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) throw Error(where + ": cannot open " + file + ": " + std::strerror(errno));
     struct stat st {};
@@ -121,8 +123,35 @@ Buffer<float> map_positions(const hz_positions_extent &ext, std::uint64_t nb_ver
         throw Error(where + ": cannot map " + file + " copy-on-write: " + std::strerror(e));
     }
     std::shared_ptr<void> owner(base, [len](void *q) { ::munmap(q, len); });
-    auto *xyz = reinterpret_cast<float *>(static_cast<unsigned char *>(base) + (ext.offset - start));
-    if (delimited) return Buffer<float>(xyz, 3 * nb_vertices, std::move(owner));
+    unsigned char *first = static_cast<unsigned char *>(base) + (ext.offset - start);
+    Buffer<float> mapped;
+    if (unaligned) {
+        // float32 may not be read at this address (a TCK written by nibabel
+        // has its data at byte 67): the floats are copied to aligned memory
+        // on their first use, by whoever needs them, on every core, each
+        // mapped page dropped once copied. Until then the mapping is the
+        // only copy, and a loader that vouched for the extent's content
+        // (HZ_EXTENT_CHECKED) spares the host from reading it at all.
+        mapped = Buffer<float>::deferred(3 * nb_vertices, [first, bytes, owner](float *dst) {
+            auto *out = reinterpret_cast<unsigned char *>(dst);
+            const std::uint64_t page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+            parallel_ranges(bytes, 64u << 20, [&](std::uint64_t b, std::uint64_t e) {
+                constexpr std::uint64_t kChunk = 8u << 20;
+                for (std::uint64_t s = b; s < e; s += kChunk) {
+                    const std::uint64_t n = std::min(e, s + kChunk) - s;
+                    std::memcpy(out + s, first + s, n);
+                    // (The whole pages of the chunk: the file keeps them cached.)
+                    const auto lo = (reinterpret_cast<std::uintptr_t>(first + s) + page - 1) / page * page;
+                    const auto hi = reinterpret_cast<std::uintptr_t>(first + s + n) / page * page;
+                    if (hi > lo) ::madvise(reinterpret_cast<void *>(lo), hi - lo, MADV_DONTNEED);
+                }
+            });
+        });
+    } else {
+        mapped = Buffer<float>(reinterpret_cast<float *>(first), 3 * nb_vertices, std::move(owner));
+    }
+    if (delimited) return mapped;
+    const float *xyz = mapped.data();
 
     const bool check_crc = (ext.flags & HZ_EXTENT_HAS_CRC32) != 0;
     struct Part {
@@ -153,7 +182,7 @@ Buffer<float> map_positions(const hz_positions_extent &ext, std::uint64_t nb_ver
     }
     if (check_crc && crc != ext.crc32)
         throw Error(where + ": the positions fail their zip CRC-32 check (the archive is corrupt)");
-    return Buffer<float>(xyz, 3 * nb_vertices, std::move(owner));
+    return mapped;
 }
 
 // Reads extra array `i` of an open reader into the data model.
@@ -331,14 +360,14 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         // Zero-copy when the loader can say where float32 RAS+ mm positions lie.
         hz_positions_extent ext{};
         ext.struct_size = sizeof ext;
-        ext.accepts = HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED;
+        ext.accepts = HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED | HZ_EXTENT_UNALIGNED;
         bool mapped = false;
         if (HZ_HAS_FIELD(l, hz_loader, locate_positions) && l->locate_positions != nullptr && info.nb_vertices > 0) {
             st = l->locate_positions(g.r, &ext, &err);
             if (st == HZ_OK) mapped = true;
             else if (st != HZ_E_UNSUPPORTED) throw Error(failure(err, st, path, "locate_positions"));
             err = make_error();
-            if (mapped && (ext.flags & ~(HZ_EXTENT_HAS_CRC32 | HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED)) != 0)
+            if (mapped && (ext.flags & ~(HZ_EXTENT_HAS_CRC32 | HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED | HZ_EXTENT_UNALIGNED)) != 0)
                 throw Error(path.string() + ": loader located the positions with a layout flag the host does not know");
         }
         const bool delimited = mapped && (ext.flags & HZ_EXTENT_DELIMITED) != 0;

@@ -175,12 +175,15 @@ hz_status HZ_ABI locate_positions(hz_reader *reader, hz_positions_extent *out, h
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: locate_positions: bad arguments");
     Reader &r = *as_reader(reader);
     const bool delimited_ok = (out->accepts & HZ_EXTENT_DELIMITED) != 0;
+    // (nibabel and DIPY write the data at byte 67: a host of ABI 1.9 maps it anyway.)
+    const bool unaligned = r.header.data_offset % 4 != 0;
     if (!delimited_ok || r.header.datatype != tck::DataType::Float32LE || std::endian::native != std::endian::little ||
-        r.header.data_offset % 4 != 0 || r.layout.nb_streamlines == 0 || r.layout.delimiters.size() != r.layout.nb_streamlines)
+        (unaligned && (out->accepts & HZ_EXTENT_UNALIGNED) == 0) || r.layout.nb_streamlines == 0 ||
+        r.layout.delimiters.size() != r.layout.nb_streamlines)
         return HZ_E_UNSUPPORTED;
     out->path = r.path.c_str();
     out->offset = r.header.data_offset;
-    out->flags = HZ_EXTENT_DELIMITED;
+    out->flags = HZ_EXTENT_DELIMITED | (unaligned ? hz_extent_flags(HZ_EXTENT_UNALIGNED) : 0u);
     out->crc32 = 0;
     // The scan read every coordinate: the walk rejected any NaN/Inf outside
     // an all-NaN delimiter, and the bounds came with it.

@@ -315,7 +315,17 @@ enum {
      * sets it only when the host listed it in `accepts` and struct_size
      * covers bounds_max.
      */
-    HZ_EXTENT_CHECKED = 1u << 2
+    HZ_EXTENT_CHECKED = 1u << 2,
+    /*
+     * Since 1.9. `offset` is not a multiple of 4 (a TCK file written by
+     * nibabel or DIPY stores its data at byte 67): the host maps the extent
+     * all the same and copies the floats to aligned memory when they are
+     * first used, which HZ_EXTENT_CHECKED can put off for good (`horizon
+     * info` never reads them). A loader sets it only when the host listed it
+     * in `accepts`, and only for an offset that needs it; without it, an
+     * unaligned offset is an error.
+     */
+    HZ_EXTENT_UNALIGNED = 1u << 3
 };
 
 /*
@@ -323,7 +333,7 @@ enum {
  * host holds them: nb_vertices x 3 float32, little-endian, RAS+ mm (no
  * transform), contiguous (or, with HZ_EXTENT_DELIMITED, one delimiter
  * vertex after each streamline), starting at byte `offset` (a multiple of
- * 4) of the file `path`. Output struct (caller zero-fills, sets
+ * 4, unless HZ_EXTENT_UNALIGNED) of the file `path`. Output struct (caller zero-fills, sets
  * struct_size and `accepts`).
  */
 typedef struct hz_positions_extent {

@@ -40,6 +40,10 @@
  *   1.8.0  hz_loader_caps gains HZ_LOADER_WRITES_GAP: a writer that takes
  *          streamlines with gap 1, so the host writes a mapped TCK without
  *          first copying it without its delimiters.
+ *   1.9.0  hz_extent_flags gains HZ_EXTENT_UNALIGNED: positions located at
+ *          an offset that is not a multiple of 4 (a TCK written by nibabel),
+ *          offered by a loader only to a host that accepts it; the host
+ *          copies them to aligned memory when they are first used.
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -50,7 +54,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 8
+#define HZ_ABI_VERSION_MINOR 9
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */

@@ -5,11 +5,13 @@
 #include <hz/hz.h>
 
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <type_traits>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -29,12 +31,23 @@ std::shared_ptr<void> allocate_uninitialised(std::size_t bytes);
 // An array that is not zero-filled on creation (decoders overwrite it), so
 // that reading 1 GB of positions does not first write 1 GB of zeros. A Buffer
 // may also view memory owned by someone else (a file mapping the host made
-// for a zero-copy read): `owner` keeps it alive. Move-only.
+// for a zero-copy read): `owner` keeps it alive. Or it may be deferred: its
+// elements are written by a `fill` function into fresh memory on the first
+// access to them (data(), begin(), operator[], span()), once, whichever
+// thread gets there first (std::call_once), and shared with every
+// shared() view. The host defers the copy of positions a file stores at an
+// offset float32 may not be read at (a TCK written by nibabel): whoever
+// needs them as floats pays for the copy; `horizon info` does not.
+// Move-only.
 template <class T>
 class Buffer {
     static_assert(std::is_trivially_copyable_v<T>);
 
 public:
+    // What fills a deferred buffer: writes all size() elements to dst.
+    // Called at most once; released (with what it holds) after the call.
+    using Fill = std::function<void(T *dst)>;
+
     Buffer() = default;
     explicit Buffer(std::size_t n) : size_(n) {
         if (n == 0) return;
@@ -49,37 +62,79 @@ public:
         std::copy(values.begin(), values.end(), b.ptr_);
         return b;
     }
+    // `n` elements written by `fill` on first access (see above).
+    static Buffer deferred(std::size_t n, Fill fill) {
+        Buffer b;
+        if (n == 0) return b;
+        b.size_ = n;
+        b.deferred_ = std::make_shared<Deferred>();
+        b.deferred_->fill = std::move(fill);
+        return b;
+    }
     // A view of `n` elements at `p`, alive as long as `owner`.
     Buffer(T *p, std::size_t n, std::shared_ptr<void> owner) : ptr_(n ? p : nullptr), size_(n), owner_(std::move(owner)) {}
     Buffer(const Buffer &) = delete;
     Buffer &operator=(const Buffer &) = delete;
-    Buffer(Buffer &&o) noexcept : ptr_(std::exchange(o.ptr_, nullptr)), size_(std::exchange(o.size_, 0)), owner_(std::move(o.owner_)) {}
+    Buffer(Buffer &&o) noexcept
+        : ptr_(std::exchange(o.ptr_, nullptr)), size_(std::exchange(o.size_, 0)), owner_(std::move(o.owner_)),
+          deferred_(std::move(o.deferred_)) {}
     Buffer &operator=(Buffer &&o) noexcept {
         if (this != &o) {
             ptr_ = std::exchange(o.ptr_, nullptr);
             size_ = std::exchange(o.size_, 0);
             owner_ = std::move(o.owner_);
+            deferred_ = std::move(o.deferred_);
         }
         return *this;
     }
-    T *data() { return ptr_; }
-    const T *data() const { return ptr_; }
+    T *data() { return ptr_ ? ptr_ : resolve(); }
+    const T *data() const { return ptr_ ? ptr_ : resolve(); }
     std::size_t size() const { return size_; }
     bool empty() const { return size_ == 0; }
-    T &operator[](std::size_t i) { return ptr_[i]; }
-    const T &operator[](std::size_t i) const { return ptr_[i]; }
-    T *begin() { return ptr_; }
-    T *end() { return ptr_ + size_; }
-    const T *begin() const { return ptr_; }
-    const T *end() const { return ptr_ + size_; }
-    std::span<const T> span() const { return {ptr_, size_}; }
-    // Another view of the same elements, keeping them alive.
-    Buffer shared() const { return Buffer(ptr_, size_, owner_); }
+    T &operator[](std::size_t i) { return data()[i]; }
+    const T &operator[](std::size_t i) const { return data()[i]; }
+    T *begin() { return data(); }
+    T *end() { return data() + size_; }
+    const T *begin() const { return data(); }
+    const T *end() const { return data() + size_; }
+    std::span<const T> span() const { return {data(), size_}; }
+    // Another view of the same elements, keeping them alive (a deferred
+    // buffer's views share its one fill).
+    Buffer shared() const {
+        Buffer b(ptr_, size_, owner_);
+        b.deferred_ = deferred_;
+        return b;
+    }
+    // Whether the elements are still to be written (a deferred buffer not
+    // yet accessed).
+    bool pending() const { return deferred_ != nullptr && !deferred_->done.load(std::memory_order_acquire); }
 
 private:
+    struct Deferred {
+        std::once_flag once;
+        Fill fill;
+        std::shared_ptr<void> block;
+        T *ptr = nullptr;
+        std::atomic<bool> done{false};
+    };
+    T *resolve() const {
+        if (!deferred_) return nullptr;
+        Deferred &d = *deferred_;
+        std::call_once(d.once, [&d, n = size_] {
+            std::shared_ptr<void> block = allocate_uninitialised(n * sizeof(T));
+            d.fill(static_cast<T *>(block.get()));
+            d.ptr = static_cast<T *>(block.get());
+            d.block = std::move(block);
+            d.fill = nullptr;  // (drops what it held: the file mapping)
+            d.done.store(true, std::memory_order_release);
+        });
+        return d.ptr;
+    }
+
     T *ptr_ = nullptr;
     std::size_t size_ = 0;
     std::shared_ptr<void> owner_;
+    std::shared_ptr<Deferred> deferred_;
 };
 
 // Axis-aligned bounds in RAS+ mm of a set of xyz triples (NaN coordinates skipped); empty -> all zero.
