@@ -156,10 +156,19 @@ json describe(const core::Dataset &ds) {
 
 }  // namespace
 
-int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json) {
+int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json, bool verify) {
     const core::Registry reg = load_registry(g);
     const core::Dataset ds = core::read_dataset(reg, file);
-    const json j = describe(ds);
+    json j = describe(ds);
+    if (verify && ds.kind == HZ_DATA_STREAMLINES) {
+        // The host's own pass over every coordinate (and delimiter), instead
+        // of the loader's word for them: the floats of a deferred copy are
+        // copied here.
+        const core::Bounds b = ds.tractogram.validate(file);
+        if (b.empty != ds.bounds.empty || (!b.empty && (b.min != ds.bounds.min || b.max != ds.bounds.max)))
+            throw core::Error(file + ": loader " + ds.loader_id + " reported bounds its positions do not have");
+        j["verified"] = true;
+    }
     if (as_json) {
         json out = j;
         out["file"] = file;
@@ -176,6 +185,7 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json) {
         std::printf("vertices:      %llu (per streamline %llu..%llu)\n", (unsigned long long)j["nb_vertices"].get<std::uint64_t>(),
                     (unsigned long long)j["points_per_streamline"]["min"].get<std::uint64_t>(),
                     (unsigned long long)j["points_per_streamline"]["max"].get<std::uint64_t>());
+        if (j.contains("verified")) std::printf("verified:      every coordinate read again: finite, bounds as reported\n");
         if (j["positions_copied_on_use"].get<bool>())
             std::printf("positions:     mapped from the file at an offset that is not a multiple of 4 (copied when first used)\n");
         else if (ds.mapped) std::printf("positions:     mapped from the file (no copy)\n");
@@ -274,7 +284,7 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     core::write_dataset(reg, ds, path, /*force=*/true, nullptr);
     std::printf("Wrote the demo phantom (%llu streamlines, %u bundles) to %s\n\n", (unsigned long long)po.nb_streamlines,
                 po.nb_bundles, path.c_str());
-    const int rc = cmd_info(g, path.string(), false);
+    const int rc = cmd_info(g, path.string(), false, false);
     if (rc != 0 || reg.find("org.horizon.clustering.qbx") == nullptr) return rc;
     // The paper's level of detail: QuickBundlesX centroids before streamlines.
     std::printf("\n");

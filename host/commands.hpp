@@ -80,7 +80,7 @@ core::Registry load_registry(const GlobalOptions &g);
 
 int cmd_plugins(const GlobalOptions &g, bool json);
 int cmd_validate(const GlobalOptions &g, const ValidateOptions &o);
-int cmd_info(const GlobalOptions &g, const std::string &file, bool json);
+int cmd_info(const GlobalOptions &g, const std::string &file, bool json, bool verify);
 int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string &out, bool force);
 int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o);
 int cmd_brdf(const GlobalOptions &g, const std::string &shader_id);

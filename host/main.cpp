@@ -59,6 +59,9 @@ int main(int argc, char **argv) {
     auto *info = app.add_subcommand("info", "describe a data file");
     info->add_option("file", info_file, "input file")->required();
     info->add_flag("--json", json, "machine-readable output");
+    bool info_verify = false;
+    info->add_flag("--verify", info_verify,
+                   "streamlines: read every coordinate again on the host (finite, bounds as reported) instead of taking the loader's word");
 
     std::string conv_in, conv_out;
     bool force = false;
@@ -145,7 +148,7 @@ int main(int argc, char **argv) {
     try {
         if (*plugins) return cmd_plugins(g, json);
         if (*validate) return cmd_validate(g, vo);
-        if (*info) return cmd_info(g, info_file, json);
+        if (*info) return cmd_info(g, info_file, json, info_verify);
         if (*convert) return cmd_convert(g, conv_in, conv_out, force);
         if (*demo) {
             demo_opts.window = !no_window;

@@ -3,13 +3,14 @@ nibabel (the independent reference) and against the generating arrays."""
 import glob
 import json
 import os
+import shutil
 import time
 import unittest
 
 import nibabel as nib
 import numpy as np
 
-from hztest import TempDirTest, random_streamlines, run, run_json, tck_bytes
+from hztest import FIXTURES, TempDirTest, random_streamlines, run, run_json, tck_bytes
 
 NIB_DATA = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
 
@@ -77,6 +78,14 @@ class TckVariantsTest(TempDirTest):
         self.assertNotEqual(int(head[head.index(b"file: . ") + 8:].split(b"\n")[0]) % 4, 0)
         self.assertTrue(info["positions_mapped"])
         self.assertTrue(info["positions_copied_on_use"])
+        # --verify: the host copies them and reads every coordinate itself.
+        self.assertTrue(run_json("info", f, "--json", "--verify")["verified"])
+        # ... and catches a loader that vouches for bounds 1 mm too wide.
+        lying = self.path("lying")
+        os.makedirs(lying)
+        shutil.copy(os.path.join(FIXTURES, "fx_tck_lying_bounds.so"), lying)
+        self.assertEqual(run("--plugin-dir", lying, "info", f).returncode, 0)
+        self.assert_clean_error(run("--plugin-dir", lying, "info", "--verify", f), f)
         allp = np.concatenate(sl)
         np.testing.assert_allclose(info["bbox_ras_mm"]["min"], allp.min(0), atol=1e-4)
         np.testing.assert_allclose(info["bbox_ras_mm"]["max"], allp.max(0), atol=1e-4)
