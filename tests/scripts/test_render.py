@@ -195,6 +195,25 @@ class RenderTest(TempDirTest):
         diff = np.abs(blocks(load(full)) - blocks(load(lod)))
         self.assertLess(np.mean(diff), 2.0)
 
+    def test_unaligned_tck_renders_as_its_aligned_copy(self):
+        """A TCK as nibabel writes it (data at byte 67: mapped, its floats copied to
+        aligned memory when the renderer first reads them) draws the same picture as
+        the same streamlines in Horizon's aligned layout."""
+        import nibabel as nib
+        rng = np.random.default_rng(5)
+        sl = [(np.cumsum(rng.normal(size=(int(rng.integers(2, 40)), 3)), 0) * 3).astype(np.float32) for _ in range(300)]
+        nib_tck, ours = self.path("nib.tck"), self.path("ours.tck")
+        nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), nib_tck)
+        self.assertTrue(run_json("info", nib_tck, "--json")["positions_copied_on_use"])
+        self.assertEqual(run("convert", nib_tck, ours).returncode, 0)
+        self.assertFalse(run_json("info", ours, "--json")["positions_copied_on_use"])
+        pictures = []
+        for f in (nib_tck, ours):
+            scene = {"objects": [{"type": "streamlines", "file": f, "render": "tubes"}]}
+            pictures.append(load(render_scene(self, scene, os.path.basename(f))[0]))
+        self.assertGreater(pictures[0].std(), 1.0)  # (something was drawn)
+        np.testing.assert_array_equal(pictures[0], pictures[1])
+
     def test_bad_scenes_fail_cleanly(self):
         cases = {
             "syntax.json": ("{ not json", "not valid JSON"),
