@@ -136,6 +136,42 @@ class GiftiTest(TempDirTest):
         self.assertGreater(ctab[1, :3].sum(), 200, "a generated colour, not black")
         self.assertEqual(ctab[1, 3], 0, "opaque")
 
+    def test_generated_label_colour_never_merges_labels(self):
+        # An annotation identifies a vertex's label by its colour: the colour
+        # generated for a label without one must not be another label's.
+        def gifti(name, labels):
+            lt = nib.gifti.GiftiLabelTable()
+            lt.labels = labels
+            img = nib.gifti.GiftiImage(labeltable=lt, darrays=[nib.gifti.GiftiDataArray(np.array([0, 1, 1, 0], np.int32),
+                                                                                        intent="NIFTI_INTENT_LABEL")])
+            nib.save(img, self.path(name + ".gii"))
+            return self.path(name + ".gii")
+
+        def label(key, name, rgb=None):
+            if rgb is None:
+                lab = nib.gifti.GiftiLabel(key=key)
+            else:
+                lab = nib.gifti.GiftiLabel(key=key, red=rgb[0] / 255, green=rgb[1] / 255, blue=rgb[2] / 255, alpha=1)
+            lab.label = name
+            return lab
+
+        # The colour label 1 is generated when it is alone without one ...
+        src = gifti("alone", [label(0, "grey", (10, 10, 10)), label(1, "plain")])
+        self.assertEqual(run("convert", src, self.path("alone.annot")).returncode, 0)
+        generated = [int(v) for v in nib.freesurfer.read_annot(self.path("alone.annot"))[1][1, :3]]
+        # ... is taken by label 0: label 1 gets another, and both survive.
+        src = gifti("clash", [label(0, "taken", generated), label(1, "plain")])
+        self.assertEqual(run("convert", src, self.path("clash.annot")).returncode, 0)
+        labels, ctab, names = nib.freesurfer.read_annot(self.path("clash.annot"))
+        self.assertEqual(names, [b"taken", b"plain"])
+        self.assertEqual([int(v) for v in ctab[0, :3]], generated)
+        self.assertNotEqual([int(v) for v in ctab[1, :3]], generated)
+        np.testing.assert_array_equal(labels, [0, 1, 1, 0])
+        # Two labels the data gives one colour cannot be told apart in an annotation.
+        src = gifti("same", [label(0, "a", (200, 10, 10)), label(1, "b", (200, 10, 10))])
+        self.assert_clean_error(run("convert", src, self.path("same.annot")), "same.annot")
+        self.assertFalse(os.path.exists(self.path("same.annot")))
+
     def test_nibabel_test_data(self):
         for name in ("ascii.gii", "external.gii"):
             with self.subTest(file=name):

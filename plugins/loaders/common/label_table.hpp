@@ -10,8 +10,9 @@
 // r, g, b are 0..255 sRGB, t is FreeSurfer's transparency (255 - alpha).
 // The name may contain spaces: the last four fields are the numbers.
 // A label without a colour is drawn, and written to formats that need one
-// (FreeSurfer annotations), in a colour generated from its index: hues
-// spaced by the golden ratio, opaque.
+// (FreeSurfer annotations), in a colour generated from its index (hues
+// spaced by the golden ratio, opaque), unless another label of the table
+// has that colour (assign_colours()).
 // Header-only, no SDK types.
 #pragma once
 
@@ -51,8 +52,11 @@ struct Entry {
     std::int32_t index = 0;
     std::string name;
     std::int32_t r = 0, g = 0, b = 0, t = 0;
-    bool coloured = true;  // false: no colour given (r, g, b, t unused)
-    std::array<std::int32_t, 3> rgb() const { return coloured ? std::array<std::int32_t, 3>{r, g, b} : generated_rgb(index); }
+    bool coloured = true;  // false: no colour given (r, g, b, t unused until assign_colours())
+    bool assigned = false;  // (not coloured) r, g, b hold the colour assign_colours() chose
+    std::array<std::int32_t, 3> rgb() const {
+        return coloured || assigned ? std::array<std::int32_t, 3>{r, g, b} : generated_rgb(index);
+    }
     std::uint8_t alpha() const { return coloured ? static_cast<std::uint8_t>(255 - t) : 255; }
     // FreeSurfer's per-vertex annotation value: r + g*256 + b*65536.
     std::uint32_t packed() const {
@@ -61,13 +65,40 @@ struct Entry {
     }
 };
 
+// Gives every label without a colour one that no other label of the table
+// has: its generated colour, or else the generated colour of index + k P
+// for the smallest k >= 1 that is free (P a large prime, so the hues probed
+// spread over the circle). An annotation identifies labels by colour, so a
+// generated colour equal to another label's would merge the two. Labels in
+// table order; deterministic. Labels given the same colour by the data are
+// left as they are (a FreeSurfer writer rejects them).
+inline void assign_colours(std::vector<Entry> &table) {
+    auto pack = [](const std::array<std::int32_t, 3> &c) { return std::uint32_t(c[0]) | std::uint32_t(c[1]) << 8 | std::uint32_t(c[2]) << 16; };
+    std::vector<std::uint32_t> used;
+    for (const Entry &e : table)
+        if (e.coloured || e.assigned) used.push_back(pack(e.rgb()));
+    std::sort(used.begin(), used.end());
+    for (Entry &e : table) {
+        if (e.coloured || e.assigned) continue;
+        constexpr std::int64_t kStep = 1000003;
+        std::array<std::int32_t, 3> c = generated_rgb(e.index);
+        // (At most 2^24 colours: the probe ends long before, for any table a file can hold.)
+        for (std::int64_t k = 1; std::binary_search(used.begin(), used.end(), pack(c)) && k < (1 << 24); ++k)
+            c = generated_rgb(static_cast<std::int32_t>((std::int64_t(e.index) + k * kStep) % 2147483647));
+        e.r = c[0], e.g = c[1], e.b = c[2];
+        e.assigned = true;
+        used.insert(std::upper_bound(used.begin(), used.end(), pack(c)), pack(c));
+    }
+}
+
 // The RGBA colour of each label index, for the "<labels> rgba" arrays that
 // annotations and label GIFTIs are read with: an index the table does not
 // define (and -1, unlabeled) is grey with alpha 0. The first entry wins
 // when an index is listed twice.
 class Colours {
 public:
-    explicit Colours(const std::vector<Entry> &table) {
+    explicit Colours(std::vector<Entry> table) {
+        assign_colours(table);
         for (const Entry &e : table) {
             const auto c = e.rgb();
             by_index_.push_back({e.index, {std::uint8_t(c[0]), std::uint8_t(c[1]), std::uint8_t(c[2]), e.alpha()}});

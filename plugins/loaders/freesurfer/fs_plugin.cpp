@@ -262,6 +262,7 @@ hz_status write_annot(const hz_write_request *req, const hz_dataset_view *data) 
         else if (std::string(k) == "orig_table") orig_table = v;
     }
     if (table.empty()) throw FormatError("an annotation needs a colour table (header entries 'label <index>' = '<name> r g b t'); this data has none");
+    hzlabel::assign_colours(table);  // (labels without a colour: one no other label has)
     // index -> packed colour, the value stored per vertex
     std::vector<std::pair<std::int32_t, std::uint32_t>> packed;
     for (const auto &e : table) {
@@ -271,6 +272,16 @@ hz_status write_annot(const hz_write_request *req, const hz_dataset_view *data) 
     std::sort(packed.begin(), packed.end());
     for (std::size_t i = 1; i < packed.size(); ++i)
         if (packed[i].first == packed[i - 1].first) throw FormatError("the colour table lists a label index twice");
+    // An annotation stores each vertex's label as its colour: two labels of one colour would merge.
+    {
+        std::vector<std::pair<std::uint32_t, std::int32_t>> by_colour;
+        for (const auto &[index, colour] : packed) by_colour.emplace_back(colour, index);
+        std::sort(by_colour.begin(), by_colour.end());
+        for (std::size_t i = 1; i < by_colour.size(); ++i)
+            if (by_colour[i].first == by_colour[i - 1].first)
+                throw FormatError("labels " + std::to_string(by_colour[i - 1].second) + " and " + std::to_string(by_colour[i].second) +
+                                  " have the same colour (an annotation identifies labels by their colour)");
+    }
     const std::int32_t max_index = packed.back().first;
     const auto *labels = static_cast<const std::int32_t *>(pick->data);
     std::vector<unsigned char> out;
@@ -302,7 +313,7 @@ hz_status write_annot(const hz_write_request *req, const hz_dataset_view *data) 
     for (const auto &e : table) {
         put(static_cast<std::uint32_t>(e.index));
         put_text(e.name);
-        const auto c = e.rgb();  // (a label without a colour: the generated one, also in the packed vertex values)
+        const auto c = e.rgb();  // (a label without a colour: the assigned one, also in the packed vertex values)
         put(std::uint32_t(c[0])), put(std::uint32_t(c[1])), put(std::uint32_t(c[2])), put(std::uint32_t(e.coloured ? e.t : 0));
     }
     if (data->mesh_nb_vertices > 0 && req->on_dropped) req->on_dropped(req->ctx, "the surface geometry (an annotation holds labels only)");
