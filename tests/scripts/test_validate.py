@@ -46,6 +46,19 @@ class ValidateTest(TempDirTest):
         c = checks(rep)["loader-locate-positions"]
         self.assertEqual(c["status"], "passed")
         self.assertEqual(c["reason"], "declines the plain layout; maps the delimited layout; vouches for exact bounds")
+        # (ABI 1.9) Given a TCK as nibabel writes it (data at byte 67), the loader offers
+        # the extent only to a host that accepts unaligned offsets, and flags it.
+        import nibabel as nib
+        import numpy as np
+        rng = np.random.default_rng(2)
+        nib_tck = self.path("nib.tck")
+        nib.streamlines.save(nib.streamlines.Tractogram([rng.normal(size=(int(rng.integers(2, 30)), 3)).astype(np.float32)
+                                                         for _ in range(50)], affine_to_rasmm=np.eye(4)), nib_tck)
+        rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_tck.so"), "--data", nib_tck)
+        c = checks(rep)["loader-locate-positions"]
+        self.assertEqual(c["status"], "passed", c)
+        self.assertEqual(c["reason"], "declines the plain layout; declines the delimited layout too; maps an unaligned extent; "
+                                      "vouches for exact bounds")
         # (ABI 1.7) TCK and TRK vouch for the positions they copy (exact bounds, checked
         # against the validator's own pass); TRX leaves its decoded copies to the host.
         for name, reason in (("tck", "vouches for exact bounds"), ("trk", "vouches for exact bounds"),
