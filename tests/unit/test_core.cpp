@@ -4,6 +4,8 @@
 #include <hz/core/phantom.hpp>
 #include <hz/core/plugin_host.hpp>
 
+#include "label_table.hpp"  // (plugins/loaders/common)
+
 #include <catch2/catch.hpp>
 
 #include <atomic>
@@ -12,6 +14,7 @@
 #include <csignal>
 #include <fstream>
 #include <limits>
+#include <set>
 #include <thread>
 
 namespace fs = std::filesystem;
@@ -312,4 +315,33 @@ TEST_CASE("a TCK whose data start at an unaligned offset is mapped, and copied o
     CHECK(std::equal(c.positions.begin(), c.positions.end(), ds.tractogram.positions.begin()));
     CHECK(slurp(d / "u.tck").size() == s.size() + 1);
     fs::remove_all(d);
+}
+
+TEST_CASE("labels without a colour get distinct colours no other label has, even past the generated hues") {
+    // 3000 labels, a third with colours of their own (which stay), the rest
+    // without: more than the few hundred distinct generated hues.
+    std::vector<hzlabel::Entry> table;
+    for (std::int32_t i = 0; i < 3000; ++i) {
+        hzlabel::Entry e;
+        e.index = i;
+        e.name = "label";  // (one name for all: an annotation tells labels apart by colour)
+        e.coloured = i % 3 == 0;
+        e.r = i % 256, e.g = i / 256 % 256, e.b = 7;
+        table.push_back(e);
+    }
+    // One given colour is exactly what label 1 would be generated.
+    const auto g1 = hzlabel::generated_rgb(1);
+    table[3].r = g1[0], table[3].g = g1[1], table[3].b = g1[2];
+    std::vector<hzlabel::Entry> again = table;
+    hzlabel::assign_colours(table);
+    hzlabel::assign_colours(again);
+    std::set<std::uint32_t> seen;
+    for (std::size_t i = 0; i < table.size(); ++i) {
+        CHECK(table[i].rgb() == again[i].rgb());  // deterministic
+        if (table[i].coloured) CHECK(table[i].rgb() == std::array<std::int32_t, 3>{table[i].r, table[i].g, table[i].b});
+        seen.insert(table[i].packed());
+    }
+    CHECK(seen.size() == table.size());
+    CHECK(table[1].rgb() != g1);
+    CHECK(table[2].rgb() == hzlabel::generated_rgb(2));  // free: its own generated colour
 }

@@ -81,10 +81,17 @@ inline void assign_colours(std::vector<Entry> &table) {
     for (Entry &e : table) {
         if (e.coloured || e.assigned) continue;
         constexpr std::int64_t kStep = 1000003;
+        auto taken = [&](const std::array<std::int32_t, 3> &x) { return std::binary_search(used.begin(), used.end(), pack(x)); };
         std::array<std::int32_t, 3> c = generated_rgb(e.index);
-        // (At most 2^24 colours: the probe ends long before, for any table a file can hold.)
-        for (std::int64_t k = 1; std::binary_search(used.begin(), used.end(), pack(c)) && k < (1 << 24); ++k)
+        for (std::int64_t k = 1; taken(c) && k <= 256; ++k)
             c = generated_rgb(static_cast<std::int32_t>((std::int64_t(e.index) + k * kStep) % 2147483647));
+        // The generated hues are a few hundred distinct colours: a table with
+        // more labels without one than that takes the next free 24-bit
+        // colour after the generated one (found within table.size() steps).
+        for (std::uint32_t v = pack(c); taken(c);) {
+            v = (v + 1) & 0xFFFFFFu;
+            c = {std::int32_t(v & 0xFF), std::int32_t(v >> 8 & 0xFF), std::int32_t(v >> 16)};
+        }
         e.r = c[0], e.g = c[1], e.b = c[2];
         e.assigned = true;
         used.insert(std::upper_bound(used.begin(), used.end(), pack(c)), pack(c));
