@@ -98,7 +98,7 @@ json describe(const core::Dataset &ds) {
         j["bbox_ras_mm"] = b.empty ? json(nullptr) : json{{"min", b.min}, {"max", b.max}};
         j["positions_mapped"] = ds.mapped;
         // (Mapped at an offset float32 cannot be read at: copied when first used.)
-        j["positions_copied_on_use"] = ds.mapped && t.positions.pending();
+        j["positions_copied_on_use"] = ds.mapped && ds.unaligned;
         j["affine"] = affine_json(t.reference);
         j["reference_dims"] = t.reference_dims;
         j["arrays"] = json::array();

@@ -395,6 +395,7 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
             t.positions = map_positions(ext, stored, path, ds.bounds);
             t.gap = 1;
             ds.mapped = true;
+            ds.unaligned = ext.offset % 4 != 0;
             if ((ext.flags & HZ_EXTENT_CHECKED) != 0) {
                 // The loader read every coordinate while opening the file and
                 // vouches for them (the ABI contract; `horizon validate`
@@ -408,6 +409,7 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         } else if (mapped) {  // the coordinates are checked as they are mapped
             t.positions = map_positions(ext, info.nb_vertices, path, ds.bounds);
             ds.mapped = true;
+            ds.unaligned = ext.offset % 4 != 0;
             t.validate_offsets(path.string());
         } else if (check.vouched != 0 && info.nb_vertices > 0) {
             // The loader looked at every coordinate as it decoded them and
@@ -423,6 +425,7 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         if (t.gap != 0 && std::any_of(t.arrays.begin(), t.arrays.end(), [](const DataArray &a) { return a.attach == HZ_ATTACH_VERTEX; })) {
             t = t.compacted();
             ds.mapped = false;
+            ds.unaligned = false;
         }
     } else if (info.kind == HZ_DATA_VOLUME || info.kind == HZ_DATA_IMAGE) {
         if (l->read_volume == nullptr) throw Error(path.string() + ": loader " + p.info.id + " has no read_volume");

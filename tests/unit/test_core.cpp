@@ -303,9 +303,14 @@ TEST_CASE("a TCK whose data start at an unaligned offset is mapped, and copied o
 
     Dataset back = read_dataset(reg, d / "u.tck");
     CHECK(back.mapped);
+    CHECK(back.unaligned);
     const Tractogram &t = back.tractogram;
     CHECK(t.gap == 1);
-    CHECK(t.positions.pending());  // nothing has read the floats yet
+    // Nothing has read the floats yet (except where the host checks every
+    // loader's claims itself: Debug and sanitizer builds, HZ_VERIFY_PLUGIN_CLAIMS).
+#ifndef HZ_VERIFY_PLUGIN_CLAIMS
+    CHECK(t.positions.pending());
+#endif
     const Bounds b = bounds_of(ds.tractogram.positions.data(), ds.tractogram.nb_vertices());
     CHECK(back.bounds.min == b.min);  // (vouched for by the loader's scan)
     CHECK(back.bounds.max == b.max);

@@ -258,6 +258,10 @@ struct Dataset {
     // True when the positions view a copy-on-write mapping of the file (a
     // zero-copy read) rather than a decoded copy.
     bool mapped = false;
+    // True when they were mapped at an offset float32 cannot be read at (a
+    // TCK written by nibabel): the floats are copied to aligned memory when
+    // first used (Buffer::deferred).
+    bool unaligned = false;
 };
 
 // A per-vertex overlay without geometry (a FreeSurfer curv file, an
