@@ -164,9 +164,7 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json, bool
         // The host's own pass over every coordinate (and delimiter), instead
         // of the loader's word for them: the floats of a deferred copy are
         // copied here.
-        const core::Bounds b = ds.tractogram.validate(file);
-        if (b.empty != ds.bounds.empty || (!b.empty && (b.min != ds.bounds.min || b.max != ds.bounds.max)))
-            throw core::Error(file + ": loader " + ds.loader_id + " reported bounds its positions do not have");
+        core::check_reported_bounds(ds.tractogram, ds.bounds, file, ds.loader_id);
         j["verified"] = true;
     }
     if (as_json) {

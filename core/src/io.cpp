@@ -75,10 +75,7 @@ Bounds vouched_bounds(const double (&lo)[3], const double (&hi)[3], const fs::pa
 void verify_claim([[maybe_unused]] const Tractogram &t, [[maybe_unused]] const Bounds &vouched, [[maybe_unused]] const fs::path &path,
                   [[maybe_unused]] const std::string &loader) {
 #ifdef HZ_VERIFY_PLUGIN_CLAIMS
-    const Bounds b = t.validate(path.string());
-    for (int d = 0; d < 3; ++d)
-        if (b.empty || b.min[d] != vouched.min[d] || b.max[d] != vouched.max[d])
-            throw Error(path.string() + ": loader " + loader + " vouched for bounds its positions do not have");
+    check_reported_bounds(t, vouched, path, loader);
 #endif
 }
 
@@ -217,6 +214,12 @@ DataArray read_extra_array(const hz_loader &l, hz_reader *r, uint32_t i, const f
 }
 
 }  // namespace
+
+void check_reported_bounds(const Tractogram &t, const Bounds &reported, const fs::path &path, const std::string &loader) {
+    const Bounds b = t.validate(path.string());
+    if (b.empty != reported.empty || (!b.empty && (b.min != reported.min || b.max != reported.max)))
+        throw Error(path.string() + ": loader " + loader + " vouched for bounds its positions do not have");
+}
 
 hz_array_view volume_view(const Volume &v) {
     // Contiguous, x fastest; axes beyond the view's 4 merged into the last.

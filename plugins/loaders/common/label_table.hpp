@@ -59,8 +59,8 @@ struct Entry {
     }
     std::uint8_t alpha() const { return coloured ? static_cast<std::uint8_t>(255 - t) : 255; }
     // FreeSurfer's per-vertex annotation value: r + g*256 + b*65536.
-    std::uint32_t packed() const {
-        const auto c = rgb();
+    std::uint32_t packed() const { return pack(rgb()); }
+    static std::uint32_t pack(const std::array<std::int32_t, 3> &c) {
         return std::uint32_t(c[0]) + std::uint32_t(c[1]) * 256u + std::uint32_t(c[2]) * 65536u;
     }
 };
@@ -73,28 +73,27 @@ struct Entry {
 // table order; deterministic. Labels given the same colour by the data are
 // left as they are (a FreeSurfer writer rejects them).
 inline void assign_colours(std::vector<Entry> &table) {
-    auto pack = [](const std::array<std::int32_t, 3> &c) { return std::uint32_t(c[0]) | std::uint32_t(c[1]) << 8 | std::uint32_t(c[2]) << 16; };
     std::vector<std::uint32_t> used;
     for (const Entry &e : table)
-        if (e.coloured || e.assigned) used.push_back(pack(e.rgb()));
+        if (e.coloured || e.assigned) used.push_back(e.packed());
     std::sort(used.begin(), used.end());
     for (Entry &e : table) {
         if (e.coloured || e.assigned) continue;
         constexpr std::int64_t kStep = 1000003;
-        auto taken = [&](const std::array<std::int32_t, 3> &x) { return std::binary_search(used.begin(), used.end(), pack(x)); };
+        auto taken = [&](const std::array<std::int32_t, 3> &x) { return std::binary_search(used.begin(), used.end(), Entry::pack(x)); };
         std::array<std::int32_t, 3> c = generated_rgb(e.index);
         for (std::int64_t k = 1; taken(c) && k <= 256; ++k)
             c = generated_rgb(static_cast<std::int32_t>((std::int64_t(e.index) + k * kStep) % 2147483647));
         // The generated hues are a few hundred distinct colours: a table with
         // more labels without one than that takes the next free 24-bit
         // colour after the generated one (found within table.size() steps).
-        for (std::uint32_t v = pack(c); taken(c);) {
+        for (std::uint32_t v = Entry::pack(c); taken(c);) {
             v = (v + 1) & 0xFFFFFFu;
             c = {std::int32_t(v & 0xFF), std::int32_t(v >> 8 & 0xFF), std::int32_t(v >> 16)};
         }
         e.r = c[0], e.g = c[1], e.b = c[2];
         e.assigned = true;
-        used.insert(std::upper_bound(used.begin(), used.end(), pack(c)), pack(c));
+        used.insert(std::upper_bound(used.begin(), used.end(), Entry::pack(c)), Entry::pack(c));
     }
 }
 

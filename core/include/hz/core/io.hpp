@@ -32,6 +32,11 @@ hz_array_view volume_view(const Volume &v);
 
 // Reads a whole file into the data model. Throws Error with a one-line message.
 Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *task = nullptr);
+// The host's own pass over a dataset's streamlines (Tractogram::validate:
+// every coordinate finite, delimiters all NaN), whose bounds must be the
+// `reported` ones (what the loader vouched for); throws Error naming `path`
+// and `loader` otherwise. A deferred copy of the positions is made first.
+void check_reported_bounds(const Tractogram &t, const Bounds &reported, const fs::path &path, const std::string &loader);
 
 // Writes `ds` to `path` atomically: into a temporary file in the same
 // directory, renamed over `path` on success, deleted on failure. Refuses to
