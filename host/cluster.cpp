@@ -91,6 +91,9 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     if (ds.kind != HZ_DATA_STREAMLINES) throw core::Error(o.input + ": not a tractogram");
     // (A plugin older than ABI 1.5 gets a mapped TCK without its delimiters: copied here, while reading.)
     const core::Tractogram t = plugin->streamlines_for(ds.tractogram);
+    // Taking the view makes the positions of an unaligned TCK (nibabel's
+    // layout) aligned now: that copy is part of reading, not of clustering.
+    const hz_streamlines_view view = t.view();
     const auto t1 = std::chrono::steady_clock::now();
 
     ClusterRun run;
@@ -118,7 +121,6 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
         if (order.size() != t.nb_streamlines())
             throw core::Error(o.order + ": holds " + std::to_string(order.size()) + " indices for " + std::to_string(t.nb_streamlines()) + " streamlines");
     }
-    const hz_streamlines_view view = t.view();
     core::Task task;
     const hz_status st = run.table->run(run.obj, &view, order.empty() ? nullptr : order.data(), task.get(), &err);
     if (st != HZ_OK) throw core::Error(o.input + ": " + id + ": " + err.message);

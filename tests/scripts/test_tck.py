@@ -168,6 +168,26 @@ class TckVariantsTest(TempDirTest):
             fh.write(tck_bytes(sl).replace(b"count: 2\n", b"xount: 2\n"))
         self.check_same(read_back(self, f), sl, tol=0)
 
+    def test_count_disagreeing_with_the_data_is_reported(self):
+        # The data decide how many streamlines there are (an interrupted
+        # mrtrix write leaves count 0); a disagreeing count is named once.
+        sl = [np.arange(9, dtype=np.float32).reshape(3, 3), np.ones((2, 3), np.float32)]
+        for name, count, warned in [("more", "615000", True), ("zero", "0000000000", True), ("same", "2", False),
+                                    ("padded", "0000000002", False), ("not_a_number", "many", False)]:
+            with self.subTest(case=name):
+                f = self.path(name + ".tck")
+                with open(f, "wb") as fh:
+                    fh.write(tck_bytes(sl, count=count))
+                p = run("info", f, "--json")
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertEqual(json.loads(p.stdout)["nb_streamlines"], 2)
+                msg = f"{f}: the header says count {int(count) if warned else ''} but the data hold 2 streamlines"
+                if warned:
+                    self.assertIn(msg, p.stderr)
+                    self.assertEqual(p.stderr.count("the header says count"), 1, p.stderr)
+                else:
+                    self.assertNotIn("the header says count", p.stderr)
+
 
 class TckMalformedTest(TempDirTest):
     def write(self, name, data):

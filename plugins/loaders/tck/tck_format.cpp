@@ -180,6 +180,16 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size) {
     return h;
 }
 
+std::optional<std::uint64_t> declared_count(const Header &h) {
+    for (auto it = h.entries.rbegin(); it != h.entries.rend(); ++it) {
+        if (it->first != "count") continue;
+        std::uint64_t v = 0;
+        if (!parse_u64(it->second, v)) return std::nullopt;  // (values are stored trimmed)
+        return v;
+    }
+    return std::nullopt;
+}
+
 namespace {
 
 // The validating walk over the data section, one classified triple at a

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -34,6 +35,12 @@ struct Header {
 
 // Parses the text header of `bytes[0..size)`. Throws FormatError.
 Header parse_header(const unsigned char *bytes, std::uint64_t size);
+
+// The streamline count the header declares (its last `count` field, a
+// decimal integer; blanks around it allowed), or nothing when it has none
+// or it is not such an integer. Readers never size anything from it: the
+// data decide (an interrupted mrtrix write leaves `count: 0000000000`).
+std::optional<std::uint64_t> declared_count(const Header &h);
 
 // Called about every million points with the byte offset reached; returns
 // true to cancel. The plugin also uses it to drop the mapped pages behind.

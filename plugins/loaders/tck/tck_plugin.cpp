@@ -77,6 +77,10 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         if (r->layout.trailing_bytes != 0)
             log(HZ_LOG_WARN, r->path + ": " + std::to_string(r->layout.trailing_bytes) +
                                  " bytes after the Inf terminator ignored");
+        if (const auto count = tck::declared_count(r->header); count && *count != r->layout.nb_streamlines)
+            log(HZ_LOG_WARN, r->path + ": the header says count " + std::to_string(*count) + " but the data hold " +
+                                 std::to_string(r->layout.nb_streamlines) +
+                                 (r->layout.nb_streamlines == 1 ? " streamline" : " streamlines") + "; reading what the data hold");
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
     });
