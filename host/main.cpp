@@ -110,7 +110,7 @@ int main(int argc, char **argv) {
     view->add_option("inputs", vwo.inputs, "data files (tractograms, surfaces, volumes) or one scene .json")->required();
     view->add_option("--size", vwo.size, "window size WIDTHxHEIGHT")->capture_default_str();
     view->add_option("--samples", vwo.samples, "MSAA samples")->capture_default_str();
-    view->add_option("--script", vwo.script, "drive the window from a script (wait N, drag, pan, scroll, key, set, shader, moving on|off, expand K, hide K, repeat, reset, screenshot, quit)");
+    view->add_option("--script", vwo.script, "drive the window from a script (wait N, drag, pan, scroll, key, set, shader, moving on|off, expand K, hide K, repeat, reset, press LABEL, screenshot, quit)");
     view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")->capture_default_str();
     view->add_flag("--explore", vwo.explore, "explore the first tractogram as QuickBundlesX clusters: expand, hide, repeat (paper Fig. 5)");
     view->add_option("--lod-streamlines", vwo.lod_streamlines,

@@ -18,6 +18,7 @@
 #include <imgui_impl_opengl3.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <unordered_map>
@@ -85,6 +86,12 @@ struct App {
     double last_material_edit = -1e9;
     static constexpr double kBakeAfter = 0.75;
     bool force_moving = false;  // scripts: `moving on|off`
+    // Scripts: `press LABEL` clicks a panel button through Dear ImGui's own
+    // input (the mouse moved over it, pressed, released: one frame each).
+    // The buttons drawn in the last frame, by label: their rectangles.
+    std::map<std::string, std::array<float, 4>> ui_buttons;
+    float press_at[2] = {0, 0};
+    int press_stage = -1;  // the frame of the press in progress (0..2), -1 when none
     // A left press released within kClickPx of where it began is a click
     // (picking); the orbit starts only once the cursor has left that circle,
     // so a click does not turn the view under the point it picks.
@@ -608,7 +615,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             glfwPollEvents();
             // One script command per frame (wait N: N frames).
             if (wait > 0) --wait;
-            else if (pc < script.size()) {
+            else if (app.press_stage >= 0) {  // a panel press takes its three frames
+            } else if (pc < script.size()) {
                 std::istringstream cmd(script[pc++]);
                 std::string op;
                 cmd >> op;
@@ -663,6 +671,14 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                         else if (op == "repeat") ex->repeat();
                         else ex->reset();
                         explore_refresh(r);
+                    } else if (op == "press") {
+                        std::string label;
+                        std::getline(cmd >> std::ws, label);
+                        const auto b = app.ui_buttons.find(label);
+                        if (b == app.ui_buttons.end()) throw core::Error("no button '" + label + "' on the panel");
+                        app.press_at[0] = (b->second[0] + b->second[2]) / 2;
+                        app.press_at[1] = (b->second[1] + b->second[3]) / 2;
+                        app.press_stage = 0;
                     } else if (op == "moving") {
                         std::string v;
                         cmd >> v;
@@ -693,7 +709,21 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
 
             ImGui_ImplOpenGL3_NewFrame();
             ImGui_ImplGlfw_NewFrame();
+            if (app.press_stage >= 0) {  // (after the backend, which sets the real pointer's state)
+                ImGuiIO &io = ImGui::GetIO();
+                io.MousePos = ImVec2(app.press_at[0], app.press_at[1]);
+                io.MouseDown[0] = app.press_stage == 1;
+                if (++app.press_stage > 2) app.press_stage = -1;
+            }
             ImGui::NewFrame();
+            app.ui_buttons.clear();
+            // A panel button that a script can press.
+            auto button = [&](const char *label) {
+                const bool pressed = ImGui::Button(label);
+                const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+                app.ui_buttons[label] = {lo.x, lo.y, hi.x, hi.y};
+                return pressed;
+            };
             ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
             ImGui::SetNextWindowSize(ImVec2(340, 0), ImGuiCond_FirstUseEver);
             ImGui::Begin("Horizon");
@@ -706,13 +736,13 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 bool changed = false;
                 try {
                     ImGui::TextDisabled("click a centroid: select  E: expand  H: hide  A: all/none  C: cluster again");
-                    if (ImGui::Button("Repeat: cluster what is shown")) ex->repeat(), changed = true;
+                    if (button("Repeat: cluster what is shown")) ex->repeat(), changed = true;
                     ImGui::SameLine();
-                    if (ImGui::Button("Reset")) ex->reset(), changed = true;
+                    if (button("Reset")) ex->reset(), changed = true;
                     if (ex->nb_selected() > 0) {
-                        if (ImGui::Button("Expand selected")) ex->expand_selected(), changed = true;
+                        if (button("Expand selected")) ex->expand_selected(), changed = true;
                         ImGui::SameLine();
-                        if (!changed && ImGui::Button("Hide selected")) ex->hide_selected(), changed = true;
+                        if (!changed && button("Hide selected")) ex->hide_selected(), changed = true;
                     }
                     const std::size_t n = std::min<std::size_t>(ex->shown().size(), 40);
                     for (std::size_t k = 0; k < n && !changed; ++k) {

@@ -412,6 +412,46 @@ class WindowTest(TempDirTest):
         self.assertGreater(np.mean(np.abs(shots[0] - shots[1])), 0.5)
         self.assertGreater(np.mean(np.abs(shots[1] - shots[2])), 0.5)
 
+    def test_explore_panel_buttons(self):
+        # The panel's buttons, clicked through Dear ImGui's input (`press`):
+        # A selects every cluster, "Expand selected" replaces each by its
+        # children, "Hide selected" hides them all, "Repeat" on an empty view
+        # says why it cannot, "Reset" goes back to the first clustering.
+        p = run("demo", "--out", self.path("d"), "--streamlines", "400", "--no-window", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+
+        def view(name, lines):
+            script = self.path(name + ".txt")
+            with open(script, "w") as f:
+                f.write("\n".join(lines) + "\n")
+            p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), "--explore",
+                                "--size", "480x320", "--script", script], capture_output=True, text=True, timeout=300, env=env)
+            return p, [l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore:")]
+
+        p, states = view("buttons", ["wait 1", "key a", "wait 1", "press Expand selected", "wait 1", "key a", "wait 1",
+                                     "press Hide selected", "wait 1", f"screenshot {self.path('empty.png')}",
+                                     "press Repeat: cluster what is shown", "wait 1", "press Reset", "wait 1", "quit"])
+        self.assertEqual(p.returncode, 0, p.stderr)
+        import re
+        counts = [int(re.match(r"(\d+) clusters", st).group(1)) for st in states]
+        n0 = counts[0]
+        self.assertEqual(len(states), 6, states)
+        self.assertIn("selected none", states[0])
+        self.assertEqual(states[1].count("#"), n0, "A selects every cluster")
+        self.assertGreater(counts[2], n0, "Expand selected: every selected cluster replaced by its children")
+        self.assertIn("selected none", states[2])
+        self.assertEqual(counts[4], 0, "Hide selected: every selected cluster hidden")
+        self.assertIn("nothing is shown to cluster again", p.stderr)
+        self.assertEqual(counts[5], n0, "Reset: the first clustering again")
+        self.assertTrue(os.path.getsize(self.path("empty.png")) > 0, "an empty view still draws")
+        # A button that is not on the panel (nothing selected): the script's line is named.
+        p, _ = view("absent", ["wait 1", "press Hide selected", "quit"])
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("line 2: no button 'Hide selected' on the panel", p.stderr)
+
     def test_explore_pick_hide_expand(self):
         # Picking in the window: a click on a centroid selects its cluster
         # (drawn lighter), H hides the selection, E expands it.
