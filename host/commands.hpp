@@ -47,7 +47,9 @@ struct ClusterOptions {
 };
 
 struct RenderOptions {
-    std::string scene;
+    std::vector<std::string> inputs;  // data files, or one scene file (.json)
+    std::string scene;                // the scene file, when one was given (named in errors)
+    std::string view;                 // a named camera view fitted to the scene (empty: the scene's own)
     std::string out = "horizon.png";
     std::string size = "1280x720";
     int samples = 0;          // 0: automatic (RenderSettings)
@@ -103,6 +105,10 @@ ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPl
 
 // Renders `scene` headlessly to o.out (PNG through the images plugin).
 int render_scene(const core::Registry &reg, core::render::Scene scene, const RenderOptions &o);
+// A scene from data files: tractograms as direction-coloured tubes (lines
+// above 20,000 streamlines), meshes as principled surfaces, volumes as three
+// slices; per-vertex overlays go onto the surface named before them.
+core::render::Scene scene_from_files(const core::Registry &reg, const std::vector<std::string> &files);
 void write_image(const core::Registry &reg, const core::render::Image &im, const std::filesystem::path &path);
 
 }  // namespace hz::host

@@ -95,8 +95,11 @@ int main(int argc, char **argv) {
     brdf->add_option("--shader", brdf_shader, "only this shader plugin id (default: route each case by its model)");
 
     RenderOptions ro;
-    auto *render = app.add_subcommand("render", "render a scene file to a PNG, headless (no display needed)");
-    render->add_option("scene", ro.scene, "scene file (JSON; see docs/scene-format.md)")->required();
+    auto *render = app.add_subcommand("render", "render data files or a scene file to a PNG, headless (no display needed)");
+    render->add_option("inputs", ro.inputs, "data files (tractograms, surfaces, volumes) or one scene file (JSON; see docs/scene-format.md)")
+        ->required();
+    render->add_option("--view", ro.view, "camera view fitted to the scene (replaces a scene file's camera placement)")
+        ->check(CLI::IsMember({"left", "right", "anterior", "posterior", "superior", "inferior"}));
     render->add_option("-o,--out", ro.out, "output image (.png, .exr, .jpg, .tif)")->capture_default_str();
     render->add_option("--size", ro.size, "WIDTHxHEIGHT")->capture_default_str();
     render->add_option("--samples", ro.samples, "MSAA samples (1 = off; 0 = 4, or 1 above 200k streamline segments)")->capture_default_str();

@@ -1,5 +1,5 @@
-// `horizon render`: draws a scene file headlessly (EGL, no X server) into a
-// PNG; also the picture of `horizon demo`.
+// `horizon render`: draws data files, or a scene file, headlessly (EGL, no X
+// server) into a PNG; also the picture of `horizon demo`.
 #include "commands.hpp"
 
 #include <hz/core/io.hpp>
@@ -114,8 +114,27 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
 int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     const core::Registry reg = load_registry(g);
     core::loader_for_write(reg, o.out, HZ_DATA_IMAGE);  // fail on an unwritable target before the work
-    core::render::Scene scene = core::render::load_scene(reg, o.scene);
-    return render_scene(reg, std::move(scene), o);
+    if (o.inputs.empty()) throw core::Error("render: give data files or a scene file (.json)");
+    RenderOptions opts = o;
+    core::render::Scene scene;
+    if (o.inputs.size() == 1 && fs::path(o.inputs[0]).extension() == ".json") {
+        opts.scene = o.inputs[0];
+        scene = core::render::load_scene(reg, opts.scene);
+    } else {
+        scene = scene_from_files(reg, o.inputs);
+    }
+    if (!o.view.empty()) {  // a named view, fitted: it replaces the scene's camera placement
+        scene.camera.view = o.view;
+        scene.camera.position.reset();
+        scene.camera.target.reset();
+        scene.camera.up = {0, 0, 1};
+    }
+    try {
+        return render_scene(reg, std::move(scene), opts);
+    } catch (const core::Error &e) {
+        if (opts.scene.empty() && o.inputs.size() == 1) throw core::Error(o.inputs[0] + ": " + e.what());
+        throw;
+    }
 }
 
 }  // namespace hz::host

@@ -341,41 +341,6 @@ void cb_key(GLFWwindow *w, int key, int, int action, int) {
     if (action == GLFW_PRESS && !ImGui::GetIO().WantCaptureKeyboard) app_of(w)->key(key);
 }
 
-// A scene from data files: tractograms as direction-coloured tubes or lines,
-// meshes as principled surfaces, volumes as three slices.
-core::render::Scene scene_from_files(const core::Registry &reg, const std::vector<std::string> &files) {
-    core::render::Scene s;
-    for (const auto &f : files) {
-        core::render::Object o;
-        core::Dataset data = core::read_dataset(reg, f);
-        if (core::is_overlay(data)) {
-            // Per-vertex values (lh.thickness, overlay-only GIFTI): onto the
-            // last surface named before it, which is then coloured by them.
-            auto last = std::find_if(s.objects.rbegin(), s.objects.rend(), [](const core::render::Object &x) { return x.kind == HZ_DATA_MESH; });
-            if (last == s.objects.rend()) throw core::Error(f + ": per-vertex values need their surface named before them (view lh.white lh.thickness)");
-            core::render::colour_by_overlay(*last, core::attach_overlay(last->data.mesh, data, f));
-            continue;
-        }
-        o.name = fs::path(f).filename().string();
-        o.data = std::move(data);
-        o.kind = o.data.kind;
-        if (o.kind == HZ_DATA_STREAMLINES) {
-            o.coloring.mode = "direction";
-            o.render = o.data.tractogram.nb_streamlines() <= 20000 ? "tubes" : "lines";
-            o.radius_mm = 0.3;
-        } else if (o.kind == HZ_DATA_MESH) {
-            o.coloring.color = {0.85, 0.72, 0.68};
-            core::render::apply_file_material(o, false, false);
-        } else if (o.kind == HZ_DATA_VOLUME) {
-            o.slice_x = o.slice_y = o.slice_z = std::nan("");
-        } else {
-            throw core::Error(f + ": " + core::kind_name(o.kind) + " data cannot be shown in the 3D view");
-        }
-        s.objects.push_back(std::move(o));
-    }
-    return s;
-}
-
 // The material panel: one control per schema parameter.
 bool material_controls(const core::Registry &reg, const core::render::Object &o, core::render::Material &m) {
     bool changed = false;

@@ -162,6 +162,44 @@ class RenderTest(TempDirTest):
         self.assert_clean_error(p, "alone.json")
         self.assertIn("per-vertex values only", p.stderr)
 
+    def test_render_data_files_without_a_scene_file(self):
+        """`horizon render FILES`: the scene `view` builds from data files, drawn headlessly."""
+        p = run("demo", "--out", self.path("demo"), "--streamlines", "300", "--no-window", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+
+        def render(*args):
+            out = self.path("r%d.png" % len(os.listdir(self.tmp)))
+            p = run("render", *args, "-o", out, "--size", "200x150", env=NO_DISPLAY, timeout=120)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            return load(out)
+
+        # A tractogram alone draws what the equivalent scene file draws.
+        tck = self.path("demo/phantom.tck")
+        with open(self.path("same.json"), "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "file": tck, "render": "tubes", "radius": 0.3, "color": "direction"}]}, f)
+        direct = render(tck)
+        np.testing.assert_array_equal(direct, render(self.path("same.json")))
+        self.assertGreater(direct.std(), 5.0)
+        # --view fits another named view, for data files and scene files alike.
+        top = render(tck, "--view", "superior")
+        self.assertGreater(np.mean(np.abs(top - direct)), 0.5)
+        np.testing.assert_array_equal(top, render(self.path("same.json"), "--view", "superior"))
+        # A surface and its overlay file: the overlay colours the surface named before it.
+        self.make_surface_with_thickness()
+        plain, coloured = render(self.path("lh.white")), render(self.path("lh.white"), self.path("lh.thickness"))
+        self.assertGreater(np.mean(np.abs(plain - coloured)), 5.0)
+        # Bad input: one line naming the file, no picture.
+        for args, name, why in [((self.path("lh.thickness"),), "lh.thickness", "need their surface"),
+                                ((self.path("missing.tck"),), "missing.tck", "no such file")]:
+            out = self.path("bad.png")
+            p = run("render", *args, "-o", out, env=NO_DISPLAY)
+            self.assert_clean_error(p, name)
+            self.assertIn(why, p.stderr)
+            self.assertFalse(os.path.exists(out))
+        p = run("render", tck, "--view", "sideways", "-o", self.path("bad.png"), env=NO_DISPLAY)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("sideways", p.stderr)
+
     def test_surface_annotation_colours(self):
         """An annotation (lh.aparc.annot) colours the surface by its labels' colours: the upper half red, the lower
         half blue, unlabeled vertices the surface's own grey."""
