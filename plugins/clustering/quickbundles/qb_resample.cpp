@@ -24,6 +24,7 @@
 #include <hwy/highway.h>
 
 #include "qb_internal.hpp"
+#include "qb_reduce-inl.h"
 
 #include <algorithm>
 #include <cmath>
@@ -142,6 +143,16 @@ double resample_one(const float *HWY_RESTRICT p, std::uint64_t n, std::uint32_t 
 // the block is still in L1.
 HWY_INLINE float geom_of(const float *HWY_RESTRICT x, std::uint32_t P, float *HWY_RESTRICT g) {
     const hn::ScalableTag<float> d;
+    if (float lo[3], hi[3], sum[3]; P == 12 && axes_min_max_sum_12(d, x, lo, hi, sum)) {  // (all three axes at once)
+        float big = 0.0f;
+        for (int a = 0; a < 3; ++a) {
+            g[3 + a] = (hi[a] - lo[a]) / 2.0f;
+            g[a] = lo[a] + g[3 + a];
+            g[6 + a] = g[9 + a] = sum[a] / 12.0f;
+            big = std::max({big, std::fabs(lo[a]), std::fabs(hi[a])});
+        }
+        return big;
+    }
     const std::size_t N = hn::Lanes(d);
     const auto inf = hn::Set(d, HUGE_VALF), ninf = hn::Neg(inf);
     auto big = hn::Zero(d);

@@ -14,6 +14,7 @@
 #include <hwy/highway.h>
 
 #include "qb_internal.hpp"
+#include "qb_reduce-inl.h"
 
 #include <algorithm>
 #include <atomic>
@@ -111,8 +112,17 @@ HWY_INLINE void mdf_pair(const float *HWY_RESTRICT c, const float *HWY_RESTRICT 
 // and its mean point, summed in float32 (LowerBound's slack covers that
 // rounding): what update() refreshes after every change, one vector per
 // axis at a time.
+// (P = 12 on 16-lane targets: all three axes at once, qb_reduce-inl.h.)
 HWY_INLINE void box_and_mean(const float *HWY_RESTRICT x, std::uint32_t P, float c[3], float r[3], float mean[3]) {
     const hn::ScalableTag<float> d;
+    if (float lo[3], hi[3], sum[3]; P == 12 && axes_min_max_sum_12(d, x, lo, hi, sum)) {
+        for (int a = 0; a < 3; ++a) {
+            r[a] = (hi[a] - lo[a]) / 2.0f;
+            c[a] = lo[a] + r[a];
+            mean[a] = sum[a] / 12.0f;
+        }
+        return;
+    }
     const std::size_t N = hn::Lanes(d);
     const auto inf = hn::Set(d, std::numeric_limits<float>::infinity()), ninf = hn::Neg(inf);
     for (int a = 0; a < 3; ++a) {
