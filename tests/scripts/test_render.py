@@ -308,6 +308,24 @@ class ShaderCheckTest(unittest.TestCase):
 
 @unittest.skipUnless(shutil.which("xvfb-run"), "xvfb-run is not installed")
 class WindowTest(TempDirTest):
+    def demo_400(self):
+        """The 400-streamline phantom the exploration tests open (in d/)."""
+        p = run("demo", "--out", self.path("d"), "--streamlines", "400", "--no-window", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+
+    def explore(self, name, lines):
+        """`horizon view d/phantom.tck --explore` under Xvfb, driven by a script of `lines`:
+        the process and the states it printed (the `explore: ` lines, without that prefix)."""
+        script = self.path(name + ".txt")
+        with open(script, "w") as f:
+            f.write("\n".join(lines) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), "--explore",
+                            "--size", "480x320", "--script", script], capture_output=True, text=True, timeout=300, env=env)
+        return p, [l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore:")]
+
     def test_window_under_xvfb_with_scripted_input(self):
         scene = self.path("scene.json")
         with open(scene, "w") as f:
@@ -418,20 +436,11 @@ class WindowTest(TempDirTest):
     def test_explore_expand_hide_repeat(self):
         # Paper Fig. 5: QuickBundlesX centroids; expand the largest cluster
         # down to its streamlines, hide one, cluster again what is shown.
-        p = run("demo", "--out", self.path("d"), "--streamlines", "400", "--no-window", env=NO_DISPLAY, timeout=180)
-        self.assertEqual(p.returncode, 0, p.stderr)
-        script = self.path("ex.txt")
+        self.demo_400()
         lines = ["wait 1", f"screenshot {self.path('e0.png')}"] + ["expand 0"] * 40 + \
                 ["wait 1", f"screenshot {self.path('e1.png')}", "hide 0", "repeat", "wait 1", f"screenshot {self.path('e2.png')}", "quit"]
-        with open(script, "w") as f:
-            f.write("\n".join(lines) + "\n")
-        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
-        if "ASAN_OPTIONS" in env:
-            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
-        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), "--explore",
-                            "--size", "480x320", "--script", script], capture_output=True, text=True, timeout=300, env=env)
+        p, states = self.explore("ex", lines)
         self.assertEqual(p.returncode, 0, p.stderr)
-        states = [l for l in p.stdout.splitlines() if l.startswith("explore:")]
         import re
         parsed = [tuple(map(int, re.findall(r"(\d+) clusters, (\d+) streamlines expanded, (\d+) clustering", l)[0])) for l in states]
         colours = [l.split("colours", 1)[1].split() for l in states]
@@ -455,21 +464,8 @@ class WindowTest(TempDirTest):
         # A selects every cluster, "Expand selected" replaces each by its
         # children, "Hide selected" hides them all, "Repeat" on an empty view
         # says why it cannot, "Reset" goes back to the first clustering.
-        p = run("demo", "--out", self.path("d"), "--streamlines", "400", "--no-window", env=NO_DISPLAY, timeout=180)
-        self.assertEqual(p.returncode, 0, p.stderr)
-        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
-        if "ASAN_OPTIONS" in env:
-            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
-
-        def view(name, lines):
-            script = self.path(name + ".txt")
-            with open(script, "w") as f:
-                f.write("\n".join(lines) + "\n")
-            p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), "--explore",
-                                "--size", "480x320", "--script", script], capture_output=True, text=True, timeout=300, env=env)
-            return p, [l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore:")]
-
-        p, states = view("buttons", ["wait 1", "key a", "wait 1", "press Expand selected", "wait 1", "key a", "wait 1",
+        self.demo_400()
+        p, states = self.explore("buttons", ["wait 1", "key a", "wait 1", "press Expand selected", "wait 1", "key a", "wait 1",
                                      "press Hide selected", "wait 1", f"screenshot {self.path('empty.png')}",
                                      "press Repeat: cluster what is shown", "wait 1", "press Reset", "wait 1", "quit"])
         self.assertEqual(p.returncode, 0, p.stderr)
@@ -486,27 +482,19 @@ class WindowTest(TempDirTest):
         self.assertEqual(counts[5], n0, "Reset: the first clustering again")
         self.assertTrue(os.path.getsize(self.path("empty.png")) > 0, "an empty view still draws")
         # A button that is not on the panel (nothing selected): the script's line is named.
-        p, _ = view("absent", ["wait 1", "press Hide selected", "quit"])
+        p, _ = self.explore("absent", ["wait 1", "press Hide selected", "quit"])
         self.assertEqual(p.returncode, 1)
         self.assertIn("line 2: no button 'Hide selected' on the panel", p.stderr)
 
     def test_explore_pick_hide_expand(self):
         # Picking in the window: a click on a centroid selects its cluster
         # (drawn lighter), H hides the selection, E expands it.
-        p = run("demo", "--out", self.path("d"), "--streamlines", "400", "--no-window", env=NO_DISPLAY, timeout=180)
-        self.assertEqual(p.returncode, 0, p.stderr)
-        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
-        if "ASAN_OPTIONS" in env:
-            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+        self.demo_400()
 
         def view(name, lines):
-            script = self.path(name + ".txt")
-            with open(script, "w") as f:
-                f.write("\n".join(lines + ["quit"]) + "\n")
-            p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), "--explore",
-                                "--size", "480x320", "--script", script], capture_output=True, text=True, timeout=300, env=env)
+            p, states = self.explore(name, lines + ["quit"])
             self.assertEqual(p.returncode, 0, p.stderr)
-            return [l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore:")]
+            return states
 
         def changed(a, b):
             return np.abs(load(self.path(a)) - load(self.path(b))).sum(axis=-1) > 0.1
