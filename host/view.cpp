@@ -416,19 +416,29 @@ bool have_display() {
     return display != nullptr && *display != '\0';
 }
 
-void require_display() {
-    if (!have_display())
-        throw core::Error("no display (DISPLAY is not set): the window needs an X server; render headless instead with "
-                          "`horizon render SCENE.json -o out.png`");
+namespace {
+
+// `horizon render` with the inputs `view` was given: what to run without a display.
+std::string render_instead(const std::vector<std::string> &inputs) {
+    std::string cmd = "horizon render";
+    for (const auto &f : inputs) cmd += " " + f;
+    return "render headless instead: `" + cmd + " -o out.png`";
 }
 
+void require_display(const std::vector<std::string> &inputs) {
+    if (!have_display())
+        throw core::Error("no display (DISPLAY is not set): the window needs an X server; " + render_instead(inputs));
+}
+
+}  // namespace
+
 int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o) {
-    require_display();
+    require_display(o.inputs);
     const char *display = std::getenv("DISPLAY");
     glfwSetErrorCallback(on_glfw_error);
     if (!glfwInit())
         throw core::Error("cannot open the display " + std::string(display) + " (" + glfw_error +
-                          "); render headless instead with `horizon render SCENE.json -o out.png`");
+                          "); " + render_instead(o.inputs));
     struct GlfwGuard {
         ~GlfwGuard() { glfwTerminate(); }
     } glfw_guard;
@@ -764,7 +774,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
 }
 
 int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
-    require_display();
+    require_display(o.inputs);
     const core::Registry reg = load_registry(g);
     if (o.inputs.empty()) throw core::Error("view: give data files or a scene file (.json)");
     core::render::Scene scene;

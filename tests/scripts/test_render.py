@@ -550,9 +550,13 @@ class WindowTest(TempDirTest):
         self.assertIn("selected none", states[-1])
 
     def test_no_display_points_to_render(self):
+        # Without a display, `view` names the `render` command for the same inputs.
         p = run("view", "whatever.json", env=NO_DISPLAY)
         self.assertNotEqual(p.returncode, 0)
-        self.assertIn("horizon render", p.stderr)
+        self.assertIn("`horizon render whatever.json -o out.png`", p.stderr)
+        p = run("view", "a.tck", "lh.white", env=NO_DISPLAY)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("`horizon render a.tck lh.white -o out.png`", p.stderr)
 
 
 if __name__ == "__main__":
