@@ -76,6 +76,7 @@ struct ViewOptions {
     std::string screenshot_dir = ".";
     std::uint64_t lod_streamlines = 20000;  // tractograms above this get a centroid proxy while moving
     bool explore = false;                   // Fig. 5: QuickBundlesX centroids, expand / hide / repeat
+    std::string view;                       // a named camera view fitted to the scene (empty: the scene's own)
 };
 
 core::Registry load_registry(const GlobalOptions &g);
@@ -109,6 +110,12 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
 // above 20,000 streamlines), meshes as principled surfaces, volumes as three
 // slices; per-vertex overlays go onto the surface named before them.
 core::render::Scene scene_from_files(const core::Registry &reg, const std::vector<std::string> &files);
+// Places the camera at a named view (left, right, anterior, posterior,
+// superior, inferior) fitted to the scene, replacing any explicit position,
+// target and up; an empty name leaves the camera as it is.
+void apply_named_view(core::render::Scene &scene, const std::string &view);
+// The names apply_named_view accepts (for the command line's check).
+const std::vector<std::string> &named_views();
 void write_image(const core::Registry &reg, const core::render::Image &im, const std::filesystem::path &path);
 
 }  // namespace hz::host

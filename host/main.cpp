@@ -99,7 +99,7 @@ int main(int argc, char **argv) {
     render->add_option("inputs", ro.inputs, "data files (tractograms, surfaces, volumes) or one scene file (JSON; see docs/scene-format.md)")
         ->required();
     render->add_option("--view", ro.view, "camera view fitted to the scene (replaces a scene file's camera placement)")
-        ->check(CLI::IsMember({"left", "right", "anterior", "posterior", "superior", "inferior"}));
+        ->check(CLI::IsMember(named_views()));
     render->add_option("-o,--out", ro.out, "output image (.png, .exr, .jpg, .tif)")->capture_default_str();
     render->add_option("--size", ro.size, "WIDTHxHEIGHT")->capture_default_str();
     render->add_option("--samples", ro.samples, "MSAA samples (1 = off; 0 = 4, or 1 above 200k streamline segments)")->capture_default_str();
@@ -115,6 +115,7 @@ int main(int argc, char **argv) {
     view->add_option("--samples", vwo.samples, "MSAA samples")->capture_default_str();
     view->add_option("--script", vwo.script, "drive the window from a script (wait N, drag, pan, scroll, key, set, shader, moving on|off, expand K, hide K, repeat, reset, press LABEL, screenshot, quit)");
     view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")->capture_default_str();
+    view->add_option("--view", vwo.view, "initial camera view fitted to the scene (R returns to it)")->check(CLI::IsMember(named_views()));
     view->add_flag("--explore", vwo.explore, "explore the first tractogram as QuickBundlesX clusters: expand, hide, repeat (paper Fig. 5)");
     view->add_option("--lod-streamlines", vwo.lod_streamlines,
                      "tractograms with more streamlines show QuickBundlesX centroids while the camera moves")->capture_default_str();

@@ -123,12 +123,7 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     } else {
         scene = scene_from_files(reg, o.inputs);
     }
-    if (!o.view.empty()) {  // a named view, fitted: it replaces the scene's camera placement
-        scene.camera.view = o.view;
-        scene.camera.position.reset();
-        scene.camera.target.reset();
-        scene.camera.up = {0, 0, 1};
-    }
+    apply_named_view(scene, o.view);
     try {
         return render_scene(reg, std::move(scene), opts);
     } catch (const core::Error &e) {

@@ -48,4 +48,19 @@ core::render::Scene scene_from_files(const core::Registry &reg, const std::vecto
     return s;
 }
 
+const std::vector<std::string> &named_views() {
+    static const std::vector<std::string> names = {"left", "right", "anterior", "posterior", "superior", "inferior"};
+    return names;
+}
+
+void apply_named_view(core::render::Scene &scene, const std::string &view) {
+    if (view.empty()) return;
+    if (std::find(named_views().begin(), named_views().end(), view) == named_views().end())
+        throw core::Error("unknown view '" + view + "' (left, right, anterior, posterior, superior, inferior)");
+    scene.camera.view = view;
+    scene.camera.position.reset();
+    scene.camera.target.reset();
+    scene.camera.up = {0, 0, 1};
+}
+
 }  // namespace hz::host

@@ -52,6 +52,16 @@ struct Orbit {
         distance = std::sqrt(dx * dx + dy * dy + dz * dz);
         yaw = std::atan2(dy, dx);
         pitch = std::asin(std::clamp(dz / std::max(distance, 1e-9), -1.0, 1.0));
+        if (std::hypot(dx, dy) <= 1e-9 * distance) {
+            // Straight down (superior) or up (inferior): no yaw in the eye's
+            // position, so take it from the view's up vector, which the
+            // screen's up then follows (looking down, screen up is minus the
+            // eye's horizontal direction; looking up, plus it), and stay just
+            // short of the pole so that the z-up orbit keeps a defined roll.
+            const double sgn = dz > 0 ? -1.0 : 1.0;
+            yaw = std::atan2(sgn * v.up[1], sgn * v.up[0]);
+            pitch = (dz > 0 ? 1.0 : -1.0) * (M_PI / 2 - 1e-6);
+        }
         fov = v.fov_deg;
     }
     core::render::View view(double radius) const {
@@ -780,6 +790,7 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
     core::render::Scene scene;
     if (o.inputs.size() == 1 && fs::path(o.inputs[0]).extension() == ".json") scene = core::render::load_scene(reg, o.inputs[0]);
     else scene = scene_from_files(reg, o.inputs);
+    apply_named_view(scene, o.view);
     try {
         return view_scene(reg, std::move(scene), o);
     } catch (const core::Error &e) {

@@ -433,6 +433,32 @@ class WindowTest(TempDirTest):
         self.assertGreater(np.mean(np.abs(rest - moving)), 0.5, "the proxy is drawn while moving")
         np.testing.assert_array_equal(rest, rest2)
 
+    def test_view_starts_at_a_named_view(self):
+        # `view --view V` opens at the view `render --view V` draws, the
+        # views looking straight down or up included (the window's z-up orbit
+        # takes its roll from the fitted view's up vector there).
+        self.demo_400()
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+        shots = {}
+        for v in ("superior", "inferior", "left"):
+            script = self.path(v + ".txt")
+            with open(script, "w") as f:
+                f.write(f"wait 1\nscreenshot {self.path('w_' + v + '.png')}\nquit\n")
+            p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), "--view", v,
+                                "--size", "320x240", "--script", script], capture_output=True, text=True, timeout=300, env=env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            p = run("render", self.path("d/phantom.tck"), "--view", v, "--size", "320x240", "-o", self.path("r_" + v + ".png"),
+                    env=NO_DISPLAY, timeout=120)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            window, headless = load(self.path("w_" + v + ".png")), load(self.path("r_" + v + ".png"))
+            differ = np.abs(window - headless).sum(axis=-1) > 30
+            self.assertLess(differ.mean(), 0.005, f"{v}: the window shows the view render draws")
+            shots[v] = window
+        self.assertGreater(np.mean(np.abs(shots["superior"] - shots["left"])), 1.0)
+        self.assertGreater(np.mean(np.abs(shots["superior"] - shots["inferior"])), 1.0)
+
     def test_explore_expand_hide_repeat(self):
         # Paper Fig. 5: QuickBundlesX centroids; expand the largest cluster
         # down to its streamlines, hide one, cluster again what is shown.
