@@ -110,11 +110,16 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
 // above 20,000 streamlines), meshes as principled surfaces, volumes as three
 // slices; per-vertex overlays go onto the surface named before them.
 core::render::Scene scene_from_files(const core::Registry &reg, const std::vector<std::string> &files);
-// Places the camera at a named view (left, right, anterior, posterior,
-// superior, inferior) fitted to the scene, replacing any explicit position,
-// target and up; an empty name leaves the camera as it is.
-void apply_named_view(core::render::Scene &scene, const std::string &view);
-// The names apply_named_view accepts (for the command line's check).
+// Whether `view`/`render` inputs are one scene file (.json) rather than data files.
+bool is_scene_file(const std::vector<std::string> &inputs);
+// The scene of `view`/`render` inputs (`command` names the command in the
+// error for none): a scene file's, or scene_from_files'; then, when `view`
+// is not empty, the camera placed at that named view (left, right, anterior,
+// posterior, superior, inferior) fitted to the scene, replacing any explicit
+// position, target and up.
+core::render::Scene scene_from_inputs(const core::Registry &reg, const std::vector<std::string> &inputs, const std::string &view,
+                                      const char *command);
+// The named views (for the command line's check).
 const std::vector<std::string> &named_views();
 void write_image(const core::Registry &reg, const core::render::Image &im, const std::filesystem::path &path);
 

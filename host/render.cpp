@@ -114,16 +114,9 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
 int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     const core::Registry reg = load_registry(g);
     core::loader_for_write(reg, o.out, HZ_DATA_IMAGE);  // fail on an unwritable target before the work
-    if (o.inputs.empty()) throw core::Error("render: give data files or a scene file (.json)");
     RenderOptions opts = o;
-    core::render::Scene scene;
-    if (o.inputs.size() == 1 && fs::path(o.inputs[0]).extension() == ".json") {
-        opts.scene = o.inputs[0];
-        scene = core::render::load_scene(reg, opts.scene);
-    } else {
-        scene = scene_from_files(reg, o.inputs);
-    }
-    apply_named_view(scene, o.view);
+    if (is_scene_file(o.inputs)) opts.scene = o.inputs[0];
+    core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");
     try {
         return render_scene(reg, std::move(scene), opts);
     } catch (const core::Error &e) {

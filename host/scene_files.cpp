@@ -53,14 +53,23 @@ const std::vector<std::string> &named_views() {
     return names;
 }
 
-void apply_named_view(core::render::Scene &scene, const std::string &view) {
-    if (view.empty()) return;
-    if (std::find(named_views().begin(), named_views().end(), view) == named_views().end())
-        throw core::Error("unknown view '" + view + "' (left, right, anterior, posterior, superior, inferior)");
-    scene.camera.view = view;
-    scene.camera.position.reset();
-    scene.camera.target.reset();
-    scene.camera.up = {0, 0, 1};
+bool is_scene_file(const std::vector<std::string> &inputs) {
+    return inputs.size() == 1 && fs::path(inputs[0]).extension() == ".json";
+}
+
+core::render::Scene scene_from_inputs(const core::Registry &reg, const std::vector<std::string> &inputs, const std::string &view,
+                                      const char *command) {
+    if (inputs.empty()) throw core::Error(std::string(command) + ": give data files or a scene file (.json)");
+    core::render::Scene scene = is_scene_file(inputs) ? core::render::load_scene(reg, inputs[0]) : scene_from_files(reg, inputs);
+    if (!view.empty()) {
+        if (std::find(named_views().begin(), named_views().end(), view) == named_views().end())
+            throw core::Error("unknown view '" + view + "' (left, right, anterior, posterior, superior, inferior)");
+        scene.camera.view = view;
+        scene.camera.position.reset();
+        scene.camera.target.reset();
+        scene.camera.up = {0, 0, 1};
+    }
+    return scene;
 }
 
 }  // namespace hz::host

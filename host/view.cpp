@@ -786,11 +786,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
 int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
     require_display(o.inputs);
     const core::Registry reg = load_registry(g);
-    if (o.inputs.empty()) throw core::Error("view: give data files or a scene file (.json)");
-    core::render::Scene scene;
-    if (o.inputs.size() == 1 && fs::path(o.inputs[0]).extension() == ".json") scene = core::render::load_scene(reg, o.inputs[0]);
-    else scene = scene_from_files(reg, o.inputs);
-    apply_named_view(scene, o.view);
+    core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "view");
     try {
         return view_scene(reg, std::move(scene), o);
     } catch (const core::Error &e) {

@@ -313,17 +313,20 @@ class WindowTest(TempDirTest):
         p = run("demo", "--out", self.path("d"), "--streamlines", "400", "--no-window", env=NO_DISPLAY, timeout=180)
         self.assertEqual(p.returncode, 0, p.stderr)
 
-    def explore(self, name, lines):
-        """`horizon view d/phantom.tck --explore` under Xvfb, driven by a script of `lines`:
-        the process and the states it printed (the `explore: ` lines, without that prefix)."""
+    def window(self, name, lines, *args, size="480x320"):
+        """`horizon view d/phantom.tck ARGS` under Xvfb, driven by a script of `lines`: the process."""
         script = self.path(name + ".txt")
         with open(script, "w") as f:
             f.write("\n".join(lines) + "\n")
         env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
-        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), "--explore",
-                            "--size", "480x320", "--script", script], capture_output=True, text=True, timeout=300, env=env)
+        return subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), *args,
+                               "--size", size, "--script", script], capture_output=True, text=True, timeout=300, env=env)
+
+    def explore(self, name, lines):
+        """The window with --explore: the process and the states it printed (the `explore: ` lines, without that prefix)."""
+        p = self.window(name, lines, "--explore")
         return p, [l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore:")]
 
     def test_window_under_xvfb_with_scripted_input(self):
@@ -438,16 +441,9 @@ class WindowTest(TempDirTest):
         # views looking straight down or up included (the window's z-up orbit
         # takes its roll from the fitted view's up vector there).
         self.demo_400()
-        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
-        if "ASAN_OPTIONS" in env:
-            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
         shots = {}
         for v in ("superior", "inferior", "left"):
-            script = self.path(v + ".txt")
-            with open(script, "w") as f:
-                f.write(f"wait 1\nscreenshot {self.path('w_' + v + '.png')}\nquit\n")
-            p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.path("d/phantom.tck"), "--view", v,
-                                "--size", "320x240", "--script", script], capture_output=True, text=True, timeout=300, env=env)
+            p = self.window(v, ["wait 1", f"screenshot {self.path('w_' + v + '.png')}", "quit"], "--view", v, size="320x240")
             self.assertEqual(p.returncode, 0, p.stderr)
             p = run("render", self.path("d/phantom.tck"), "--view", v, "--size", "320x240", "-o", self.path("r_" + v + ".png"),
                     env=NO_DISPLAY, timeout=120)
