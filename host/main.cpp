@@ -82,7 +82,7 @@ int main(int argc, char **argv) {
     cluster->add_option("--seed", co.seed, "seed of --order shuffle")->capture_default_str();
     cluster->add_option("--mode", co.mode, "exact: DIPY's answers bit for bit; fast: float32 distances")
         ->check(CLI::IsMember({"exact", "fast"}))->capture_default_str();
-    cluster->add_option("--threads", co.threads, "resampling threads (0: all cores)");
+    cluster->add_option("--threads", co.threads, "threads (0: all cores; QuickBundlesX searches on up to 2, 1: on one); the result does not depend on it");
     cluster->add_option("--labels", co.labels, "CSV: one row per streamline, one column per level");
     cluster->add_option("--centroids", co.centroids, "write one level's centroids as streamlines");
     cluster->add_option("--level", co.level, "level for --centroids (1 = coarsest; default the finest)");

@@ -150,6 +150,77 @@ float fill_geom(const float *fd, const float *fg, std::uint32_t P, float *g) {
 
 }  // namespace
 
+namespace detail {
+
+bool extract_block(const Input &in, const std::uint64_t *idx, std::uint64_t begin, std::uint64_t end, std::uint32_t P, Resampling how,
+                   float *direct, float *flipped, float *geom, BlockScratch &scratch, float &max_abs, std::string &error) {
+    const bool exact_flip = how == Resampling::Dipy;
+    const std::size_t B = std::size_t(P) * 3;
+    constexpr std::uint64_t kBatch = 64;  // streamlines per step (even: resample_pair takes two)
+    double L[kBatch];
+    for (std::uint64_t s0 = begin; s0 < end; s0 += kBatch) {
+        const std::uint64_t s1 = std::min(end, s0 + kBatch);
+        auto id = [&](std::uint64_t t) { return idx ? idx[t] : t; };
+        auto fd_of = [&](std::uint64_t t) { return direct + (t - begin) * B; };
+        bool fast = how == Resampling::Fast;
+        for (std::uint64_t t = s0; t < s1; ++t) {
+            const std::uint64_t n = in.size(id(t));
+            if (n == 0) {
+                error = "streamline " + std::to_string(id(t)) + " has no points (remove empty streamlines before clustering)";
+                return false;
+            }
+            if (n >= (std::uint64_t{1} << 29)) fast = false;  // beyond resample_fast's 32-bit gathers
+        }
+        if (fast) {
+            resample_fast(in, idx, s0, s1, P, fd_of(s0), geom + (s0 - begin) * Features::kGeom, scratch.points, L, max_abs);
+        } else {
+            // DIPY resamples the reversed polyline for the flipped features.
+            for (std::uint64_t s = s0; s < s1; s += 2) {
+                const std::uint64_t cnt = std::min<std::uint64_t>(2, s1 - s);
+                const float *p[2] = {nullptr, nullptr};
+                std::uint64_t n[2] = {0, 0};
+                float *fd[2] = {nullptr, nullptr}, *fg[2] = {nullptr, nullptr};
+                for (std::uint64_t j = 0; j < cnt; ++j) {
+                    const std::uint64_t t = s + j;
+                    p[j] = in.positions + 3 * in.offsets[id(t)];
+                    n[j] = in.size(id(t));
+                    fd[j] = fd_of(t);
+                    if (exact_flip) fg[j] = flipped + (t - begin) * B;
+                }
+                resample_pair(p[0], n[0], fd[0], fg[0], p[1], n[1], fd[1], fg[1], P, scratch.seg, &L[s - s0]);
+            }
+        }
+        for (std::uint64_t t = s0; t < s1; ++t) {
+            const std::uint64_t s = id(t), n = in.size(s);
+            const float *p = in.positions + 3 * in.offsets[s];
+            // A non-finite coordinate makes the length non-finite, so
+            // the coordinates are only searched then (or for a single point).
+            // Fast mode's float32 squares overflow beyond ~1e19 mm and
+            // underflow below ~1e-19 mm: such streamlines (and any shorter
+            // than 1e-6 mm) are resampled with DIPY's double arithmetic.
+            const bool redo = fast && n > 1 && !(L[t - s0] >= 1e-6 && L[t - s0] <= DBL_MAX);
+            if (!std::isfinite(L[t - s0]) || n == 1 || redo) {
+                for (std::uint64_t v = 0; v < 3 * n; ++v)
+                    if (!std::isfinite(p[v])) {
+                        error = "streamline " + std::to_string(s) + " has a non-finite coordinate at vertex " +
+                                std::to_string(in.offsets[s] - s * in.gap + v / 3);
+                        return false;
+                    }
+                if (redo) {
+                    double len[2];
+                    resample_pair(p, n, fd_of(t), nullptr, nullptr, 0, nullptr, nullptr, P, scratch.seg, len);
+                }
+            }
+            if (fast && !redo) continue;  // (resample_fast filled its geom)
+            max_abs = std::max(max_abs, fill_geom(fd_of(t), exact_flip ? flipped + (t - begin) * B : nullptr, P,
+                                                  geom + (t - begin) * Features::kGeom));
+        }
+    }
+    return true;
+}
+
+}  // namespace detail
+
 Features extract_features(const Input &in, std::uint32_t P, unsigned threads, const CancelFn &cancel, Resampling how) {
     Features f;
     f.nb_points = P;
@@ -173,70 +244,14 @@ Features extract_features(const Input &in, std::uint32_t P, unsigned threads, co
         hzio::prefault_write(f.direct.data() + begin * P * 3, (end - begin) * P * 3 * sizeof(float));
         if (exact_flip) hzio::prefault_write(f.flipped.data() + begin * P * 3, (end - begin) * P * 3 * sizeof(float));
         hzio::prefault_write(f.geom.data() + begin * Features::kGeom, (end - begin) * Features::kGeom * sizeof(float));
-        std::vector<double> seg;  // segment lengths, reused across streamlines
-        std::vector<float> scratch;  // resample_fast's
-        constexpr std::uint64_t kBatch = 64;  // streamlines per step (even: resample_pair takes two)
-        double L[kBatch];
-        for (std::uint64_t s0 = begin; s0 < end && !stop; s0 += kBatch) {
+        detail::BlockScratch scratch;
+        constexpr std::uint64_t kStep = 256;  // streamlines between cancellation polls (thread 0)
+        for (std::uint64_t s0 = begin; s0 < end && !stop; s0 += kStep) {
             if (w == 0 && (s0 - begin) % 4096 == 0 && cancel && cancel()) stop = true;
-            const std::uint64_t s1 = std::min(end, s0 + kBatch);
-            bool fast = how == Resampling::Fast;
-            for (std::uint64_t t = s0; t < s1; ++t) {
-                const std::uint64_t n = in.size(t);
-                if (n == 0) {
-                    errors[w] = "streamline " + std::to_string(t) + " has no points (remove empty streamlines before clustering)";
-                    stop = true;
-                    break;
-                }
-                if (n >= (std::uint64_t{1} << 29)) fast = false;  // beyond resample_fast's 32-bit gathers
-            }
-            if (stop) break;
-            if (fast) {
-                detail::resample_fast(in, s0, s1, P, f.direct.data(), f.geom.data(), scratch, L, max_abs[w]);
-            } else {
-                // DIPY resamples the reversed polyline for the flipped features.
-                for (std::uint64_t s = s0; s < s1; s += 2) {
-                    const std::uint64_t cnt = std::min<std::uint64_t>(2, s1 - s);
-                    const float *p[2] = {nullptr, nullptr};
-                    std::uint64_t n[2] = {0, 0};
-                    float *fd[2] = {nullptr, nullptr}, *fg[2] = {nullptr, nullptr};
-                    for (std::uint64_t j = 0; j < cnt; ++j) {
-                        const std::uint64_t t = s + j;
-                        p[j] = in.positions + 3 * in.offsets[t];
-                        n[j] = in.size(t);
-                        fd[j] = &f.direct[t * P * 3];
-                        if (exact_flip) fg[j] = &f.flipped[t * P * 3];
-                    }
-                    resample_pair(p[0], n[0], fd[0], fg[0], p[1], n[1], fd[1], fg[1], P, seg, &L[s - s0]);
-                }
-            }
-            for (std::uint64_t t = s0; t < s1 && !stop; ++t) {
-                const std::uint64_t n = in.size(t);
-                const float *p = in.positions + 3 * in.offsets[t];
-                // A non-finite coordinate makes the length non-finite, so
-                // the coordinates are only searched then (or for a single point).
-                // Fast mode's float32 squares overflow beyond ~1e19 mm and
-                // underflow below ~1e-19 mm: such streamlines (and any shorter
-                // than 1e-6 mm) are resampled with DIPY's double arithmetic.
-                const bool redo = fast && n > 1 && !(L[t - s0] >= 1e-6 && L[t - s0] <= DBL_MAX);
-                if (!std::isfinite(L[t - s0]) || n == 1 || redo) {
-                    for (std::uint64_t v = 0; v < 3 * n; ++v)
-                        if (!std::isfinite(p[v])) {
-                            errors[w] = "streamline " + std::to_string(t) + " has a non-finite coordinate at vertex " +
-                                        std::to_string(in.offsets[t] - t * in.gap + v / 3);
-                            stop = true;
-                            break;
-                        }
-                    if (!stop && redo) {
-                        double len[2];
-                        resample_pair(p, n, &f.direct[t * P * 3], nullptr, nullptr, 0, nullptr, nullptr, P, seg, len);
-                    }
-                }
-                if (stop) break;
-                if (fast && !redo) continue;  // (resample_fast filled its geom)
-                float *fd = &f.direct[t * P * 3];
-                max_abs[w] = std::max(max_abs[w], fill_geom(fd, exact_flip ? &f.flipped[t * P * 3] : nullptr, P, &f.geom[t * Features::kGeom]));
-            }
+            const std::uint64_t s1 = std::min(end, s0 + kStep);
+            if (!detail::extract_block(in, nullptr, s0, s1, P, how, &f.direct[s0 * P * 3], exact_flip ? &f.flipped[s0 * P * 3] : nullptr,
+                                       &f.geom[s0 * Features::kGeom], scratch, max_abs[w], errors[w]))
+                stop = true;
         }
     };
     const std::uint64_t chunk = (N + threads - 1) / threads;
@@ -346,8 +361,14 @@ Tree quickbundles(const Features &f, double T, const std::vector<std::uint64_t> 
 }
 
 Tree quickbundlesx(const Features &f, const std::vector<double> &t, const std::vector<std::uint64_t> &order, Mode mode,
-                   const CancelFn &cancel, const ProgressFn &progress) {
-    return detail::run_qbx(f, t, order, mode, cancel, progress);
+                   const CancelFn &cancel, const ProgressFn &progress, unsigned threads) {
+    return detail::run_qbx(f, t, order, mode, threads, cancel, progress);
+}
+
+Tree quickbundlesx(const Input &in, std::uint32_t P, const std::vector<double> &t, const std::vector<std::uint64_t> &order, Mode mode,
+                   unsigned threads, const CancelFn &cancel, const ProgressFn &progress) {
+    if (mode == Mode::Fast) return detail::run_qbx_streamed(in, P, t, order, threads, cancel, progress);
+    return quickbundlesx(extract_features(in, P, threads, cancel, Resampling::Dipy), t, order, mode, cancel, progress, threads);
 }
 
 Tree qbx_and_merge(const Input &in, const std::vector<double> &thresholds, std::uint32_t P, const std::vector<std::uint64_t> &order,
@@ -356,8 +377,9 @@ Tree qbx_and_merge(const Input &in, const std::vector<double> &thresholds, std::
     if (thresholds.empty()) throw InputError("qbx_and_merge needs at least one threshold");
     // set_number_of_points(streamlines, P), then identity features: the
     // resampled points themselves, flipped by reversal.
-    const Features f = extract_features(in, P, threads, cancel, mode == Mode::Exact ? Resampling::DipyDirect : Resampling::Fast);
-    const Tree qbx = quickbundlesx(f, thresholds, order, mode, cancel, progress);
+    const Tree qbx = mode == Mode::Fast ? detail::run_qbx_streamed(in, P, thresholds, order, threads, cancel, progress)
+                                        : quickbundlesx(extract_features(in, P, threads, cancel, Resampling::DipyDirect), thresholds,
+                                                        order, mode, cancel, progress, threads);
     const std::uint32_t L = static_cast<std::uint32_t>(thresholds.size());
     std::vector<std::uint64_t> leaves;  // node ids of the last level, DFS order
     for (std::uint64_t k = 0; k < qbx.nb_nodes(); ++k)

@@ -120,8 +120,20 @@ Tree quickbundles(const Features &f, double threshold, const std::vector<std::ui
                   const ProgressFn &progress);
 
 // QuickBundlesX with thresholds t[0..L-1]: L levels below the root.
+// threads: 1 runs it on the calling thread alone; more lets it use a second
+// one (for at least 20 000 streamlines and two levels). The tree is the same.
 Tree quickbundlesx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order, Mode mode,
-                   const CancelFn &cancel, const ProgressFn &progress);
+                   const CancelFn &cancel, const ProgressFn &progress, unsigned threads = 2);
+
+// QuickBundlesX from the streamlines themselves, what the plugin runs:
+// exact mode resamples them all first (Resampling::Dipy, on `threads`
+// threads; the search, as above); fast mode computes each streamline's features as the search
+// reaches it (the same tree as quickbundlesx(extract_features(in,
+// nb_points, .., Resampling::Fast), .., Mode::Fast, ..), with no array of
+// all the features).
+Tree quickbundlesx(const Input &in, std::uint32_t nb_points, const std::vector<double> &thresholds,
+                   const std::vector<std::uint64_t> &order, Mode mode, unsigned threads, const CancelFn &cancel,
+                   const ProgressFn &progress);
 
 // Horizon's qbx_and_merge: resample to nb_points, QBX, then a one-threshold
 // QBX over the last level's centroids in `merge_order` (empty = identity);

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <string>
 #include <vector>
 
 namespace qb::detail {
@@ -97,18 +98,50 @@ void check_order(const std::vector<std::uint64_t> &order, std::uint64_t N);
 // CPU they run on.
 Tree run_qb(const Features &f, double threshold, const std::vector<std::uint64_t> &order, Mode mode, const CancelFn &cancel,
             const ProgressFn &progress);
+// threads: 1 runs QBX on the calling thread alone; more (the default)
+// lets it use a second one (for at least 20 000 streamlines and 2 levels).
 Tree run_qbx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order, Mode mode,
-             const CancelFn &cancel, const ProgressFn &progress);
+             unsigned threads, const CancelFn &cancel, const ProgressFn &progress);
 
 // Fast mode's resampling (qb_resample.cpp, also dispatched per SIMD
-// target): streamlines [begin, end) of `in` (each with 1 to 2^29 - 1 points)
-// to P >= 2 points in float32, into direct + s * P * 3 (per axis), and their
-// Features::geom into geom + s * kGeom (mean points summed in float32);
-// their lengths, summed in double, into lengths[0..end - begin); max_abs
-// raised to their largest |coordinate|. A streamline of zero or non-finite
-// length gets P copies of its last point. `scratch` is the caller's, reused
-// across calls (one per thread).
-void resample_fast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, float *geom,
-                   std::vector<float> &scratch, double *lengths, float &max_abs);
+// target): for t in [begin, end), streamline s = idx[t] (idx NULL: s = t,
+// each with 1 to 2^29 - 1 points) to P >= 2 points in float32, into
+// direct + (t - begin) * P * 3 (per axis), and its Features::geom into
+// geom + (t - begin) * kGeom (mean points summed in float32); its length,
+// summed in double, into lengths[t - begin]; max_abs raised to the largest
+// |coordinate| of the features. A streamline of zero or non-finite length
+// gets P copies of its last point. `scratch` is the caller's, reused across
+// calls (one per thread).
+void resample_fast(const Input &in, const std::uint64_t *idx, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct,
+                   float *geom, std::vector<float> &scratch, double *lengths, float &max_abs);
+
+// One thread's buffers for extract_block, reused across calls.
+struct BlockScratch {
+    std::vector<double> seg;
+    std::vector<float> points;
+};
+
+// The features of a block of streamlines, what extract_features does for
+// all of them: for t in [begin, end), streamline s = idx[t] (idx NULL:
+// s = t) resampled as `how` says into direct + (t - begin) * P * 3 (and its
+// resampled reversal into flipped + (t - begin) * P * 3 for
+// Resampling::Dipy; `flipped` is NULL otherwise), its Features::geom into
+// geom + (t - begin) * kGeom; max_abs raised to the largest |coordinate|.
+// Validates as it goes: returns false, with a one-line `error` naming the
+// streamline (s), at the first one that is empty or has a non-finite
+// coordinate; the features of the block are then incomplete.
+bool extract_block(const Input &in, const std::uint64_t *idx, std::uint64_t begin, std::uint64_t end, std::uint32_t P, Resampling how,
+                   float *direct, float *flipped, float *geom, BlockScratch &scratch, float &max_abs, std::string &error);
+
+// Fast-mode QuickBundlesX straight from the streamlines: each one's
+// features are computed when the search reaches it, into a ring of a few
+// thousand streamlines that both search threads share, instead of an array
+// of all of them (which a fresh process has to be given page by page, and
+// which leaves the caches before the search reads it back). The same tree
+// as quickbundlesx(extract_features(in, P, .., Resampling::Fast), ..,
+// Mode::Fast, ..). InputError for an empty streamline or a non-finite
+// coordinate (the first in processing order).
+Tree run_qbx_streamed(const Input &in, std::uint32_t P, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order,
+                      unsigned threads, const CancelFn &cancel, const ProgressFn &progress);
 
 }  // namespace qb::detail

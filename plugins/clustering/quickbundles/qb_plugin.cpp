@@ -36,7 +36,10 @@ const hz_param_info kModeParam = {sizeof(hz_param_info), HZ_PARAM_ENUM, "mode", 
                                   "exact: DIPY's answers bit for bit; fast: float32 distances", 0, 1, {0, 0, 0, 0}, {1, 0, 0, 0},
                                   {0, 0, 0, 0}, kModeLabels, 0, nullptr};
 const hz_param_info kThreadsParam =
-    param_int("threads", "Threads", "", "worker threads for resampling (0 = all cores); results do not depend on it", 0, 256, 0);
+    param_int("threads", "Threads", "",
+              "threads (0 = all cores): resampling uses them all, the QuickBundlesX search up to 2 (1: the calling thread alone); "
+              "results do not depend on it",
+              0, 256, 0);
 
 const hz_param_info kQbParams[] = {
     param_float("threshold", "Threshold", "MDF distance below which a streamline joins a cluster", 0, 1e6, 15),
@@ -162,11 +165,12 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
             if (hz::cancelled(task)) throw qb::Cancelled{};
             if (c.algo == Algo::Merge) {
                 c.tree = qb::qbx_and_merge(input, c.thresholds, c.nb_points, order, {}, c.mode, threads, cancel, progress);
+            } else if (c.algo == Algo::QBX) {
+                c.tree = qb::quickbundlesx(input, c.nb_points, c.thresholds, order, c.mode, threads, cancel, progress);
             } else {
                 const qb::Features f = qb::extract_features(input, c.nb_points, threads, cancel,
                                                                c.mode == qb::Mode::Exact ? qb::Resampling::Dipy : qb::Resampling::Fast);
-                c.tree = c.algo == Algo::QB ? qb::quickbundles(f, c.thresholds[0], order, c.mode, cancel, progress)
-                                            : qb::quickbundlesx(f, c.thresholds, order, c.mode, cancel, progress);
+                c.tree = qb::quickbundles(f, c.thresholds[0], order, c.mode, cancel, progress);
             }
             c.has_result = true;
             return HZ_OK;

@@ -177,16 +177,16 @@ HWY_INLINE float geom_of(const float *HWY_RESTRICT x, std::uint32_t P, float *HW
 
 }  // namespace
 
-void ResampleFast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, float *geom,
-                  std::vector<float> &scratch, double *lengths, float &max_abs) {
+void ResampleFast(const Input &in, const std::uint64_t *idx, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct,
+                  float *geom, std::vector<float> &scratch, double *lengths, float &max_abs) {
     const std::size_t N = hn::Lanes(hn::ScalableTag<float>());
     float big = max_abs;
-    for (std::uint64_t s = begin; s < end; ++s) {
-        const std::uint64_t n = in.size(s);
+    for (std::uint64_t t = begin; t < end; ++t) {
+        const std::uint64_t s = idx ? idx[t] : t, n = in.size(s);
         if (scratch.size() < 4 * (n + 2 * N)) scratch.resize(4 * (n + 2 * N));
-        float *out = direct + s * P * 3;
-        lengths[s - begin] = resample_one(in.positions + 3 * in.offsets[s], n, P, out, scratch.data());
-        big = std::max(big, geom_of(out, P, geom + s * Features::kGeom));
+        float *out = direct + (t - begin) * P * 3;
+        lengths[t - begin] = resample_one(in.positions + 3 * in.offsets[s], n, P, out, scratch.data());
+        big = std::max(big, geom_of(out, P, geom + (t - begin) * Features::kGeom));
     }
     max_abs = big;
 }
@@ -200,9 +200,9 @@ namespace qb::detail {
 
 HWY_EXPORT(ResampleFast);
 
-void resample_fast(const Input &in, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct, float *geom,
-                   std::vector<float> &scratch, double *lengths, float &max_abs) {
-    HWY_DYNAMIC_DISPATCH(ResampleFast)(in, begin, end, P, direct, geom, scratch, lengths, max_abs);
+void resample_fast(const Input &in, const std::uint64_t *idx, std::uint64_t begin, std::uint64_t end, std::uint32_t P, float *direct,
+                   float *geom, std::vector<float> &scratch, double *lengths, float &max_abs) {
+    HWY_DYNAMIC_DISPATCH(ResampleFast)(in, idx, begin, end, P, direct, geom, scratch, lengths, max_abs);
 }
 
 }  // namespace qb::detail

@@ -21,7 +21,11 @@
 #include <cmath>
 #include <cstring>
 #include <deque>
+#include <exception>
 #include <limits>
+#include <memory>
+#include <mutex>
+#include <string>
 #include <thread>
 #include <type_traits>
 
@@ -207,15 +211,17 @@ inline void update_centroid_as(float *c, std::uint64_t size, const float *e, std
 struct LowerBound {
     double slack = 0;
     double factor = 1.0 - 1e-7;
-    void prepare(const Features &f) {
-        const float m = f.max_abs;
-        const double P = std::max<std::uint32_t>(f.nb_points, 1);
+    // m: at least the largest |coordinate| of every feature and centroid
+    // the bound is applied to.
+    void prepare(float m, std::uint32_t nb_points, bool float_means) {
+        const double P = std::max<std::uint32_t>(nb_points, 1);
         slack = 4e-12 * double(m) * P + 0x1p-21 * double(m) + 2.0 * P * 0x1p-24 * double(m) + 1e-300;
         // A streamline's mean point summed in float32 (Features::float_means)
         // is within P 2^-24 m per axis instead of 2^-24 m: sqrt(3) (2P) 2^-24 m
         // in length with the centroid's, which 4 P 2^-24 m + 2^-21 m covers.
-        if (f.float_means) slack += 2.0 * P * 0x1p-24 * double(m);
+        if (float_means) slack += 2.0 * P * 0x1p-24 * double(m);
     }
+    void prepare(const Features &f) { prepare(f.max_abs, f.nb_points, f.float_means); }
     // Squared form, without a square root per candidate: hopeless when
     // q >= limit2(bound) = ((bound / factor) + slack)^2 (1 + 2^-20), rounded
     // up to float32.
@@ -552,7 +558,6 @@ template <class Metric>
 struct QbxOps {
     std::uint32_t P, L;
     const std::vector<double> &t;
-    const LowerBound &lbound;
 
     // n.C = ((n.C * size) + e) / (size + 1); refresh n's record in its parent.
     void update(Node &n, const float *e) const {
@@ -573,9 +578,9 @@ struct QbxOps {
     // (child 0 direct, child 0 flipped, child 1 direct, ...); a candidate
     // takes part only when its box overlaps the streamline's, as in DIPY.
     // `geom`: the streamline's Features::geom (box centre, half-size, mean
-    // points of both orientations).
-    Node *search(Node &n, const float *fd, const float *fg, const float *geom, bool &flip_out, std::deque<Node> &store,
-                 std::uint32_t tag, std::vector<float> &scratch) const {
+    // points of both orientations); `lbound`: the calling thread's bound.
+    Node *search(Node &n, const float *fd, const float *fg, const float *geom, const LowerBound &lbound, bool &flip_out,
+                 std::deque<Node> &store, std::uint32_t tag, std::vector<float> &scratch) const {
         const float *bc = geom, *br = geom + 3, *mf = geom + 6, *mg = geom + 9;
         const std::size_t K = n.kids.size();
         const float pad = static_cast<float>(n.threshold);
@@ -646,13 +651,37 @@ struct QbxOps {
 // takes subtrees while the worker lags behind and gives them back once it
 // has caught up, so both stay busy. The one coupling across streamlines,
 // DIPY's orientation of the root update by the previous streamline's leaf
-// flip, touches only the root centroid, which no search reads: the main
-// thread replays it in order, as far as the leaf flips are known.
+// flip, touches only the root centroid, which no search reads: the worker
+// replays it in order as it goes (the leaf flips before `done` are known).
+// Streamed features (fast mode) are computed a block at a time into a ring
+// (see Source): by the worker ahead of the main thread while it keeps up,
+// by the main thread when it reaches a block nobody has computed; with one
+// thread, in turn with the search. The tree does not depend on which thread
+// computed what, nor on whether there are two.
+// Where the searches find a streamline's features: in an array of all of
+// them, by streamline (`f`), or streamed from the streamlines (`in`, fast
+// mode): computed by the main thread as it reaches them, into a ring by
+// processing step that the worker reads too.
+struct Source {
+    const Features *f = nullptr;
+    const Input *in = nullptr;
+    std::uint32_t P = 0;
+    std::uint64_t N = 0;
+    unsigned threads = 2;  // 1: the calling thread only
+};
+
+// Streamed features: the ring holds this many steps (at most; a power of
+// two: 768 KiB at 12 points), computed this many at a time. The worker
+// computes blocks ahead only while it lags the main thread by at most
+// kProduceLag steps; further behind, it leaves them to the main thread,
+// which shares the work that way.
+constexpr std::uint64_t kRingSteps = 4096, kRingBlock = 256, kProduceLag = 512;
+
 template <class Metric>
-Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector<std::uint64_t> &order, const CancelFn &cancel,
+Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector<std::uint64_t> &order, const CancelFn &cancel,
               const ProgressFn &progress) {
-    const std::uint32_t P = f.nb_points;
-    const std::uint64_t N = f.count;
+    const std::uint32_t P = src.P;
+    const std::uint64_t N = src.N;
     const std::uint32_t L = static_cast<std::uint32_t>(t.size());
     if (L == 0) throw InputError("QuickBundlesX needs at least one threshold");
     check_order(order, N);
@@ -660,10 +689,41 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
     Node &root = store_a.emplace_back();
     root.threshold = t[0];
     root.c.assign(P * 3 + kTail, 0.0f);
-    LowerBound lbound;
-    lbound.prepare(f);
-    lbound.factor = Metric::kBoundFactor;
-    const QbxOps<Metric> ops{P, L, t, lbound};
+    const QbxOps<Metric> ops{P, L, t};
+
+    // The features: by streamline (rows order[it]), or the ring (rows
+    // it & (R - 1)). Ring rows are written only by the main thread, B steps
+    // at a time, once both threads are done with the steps they held.
+    const bool streamed = src.in != nullptr;
+    std::uint64_t R = kRingBlock;
+    FloatArray ring_direct, ring_geom;
+    if (streamed) {
+        while (R < kRingSteps && R < N) R <<= 1;
+        ring_direct.resize(R * P * 3 + kTail);
+        std::fill(ring_direct.end() - kTail, ring_direct.end(), 0.0f);
+        ring_geom.resize(R * Features::kGeom);
+    }
+    const float *direct = streamed ? ring_direct.data() : src.f->direct.data();
+    const float *flipped = streamed || src.f->flipped.empty() ? nullptr : src.f->flipped.data();
+    const float *geom = streamed ? ring_geom.data() : src.f->geom.data();
+    auto row = [&](std::uint64_t it) { return streamed ? (it & (R - 1)) : order[it]; };
+    // The flipped features of row r: stored (exact mode), or the reversal
+    // of the direct ones into `buf`.
+    auto flipped_row = [&](std::uint64_t r, float *buf) -> const float * {
+        if (flipped) return flipped + r * P * 3;
+        reverse_block(direct + r * P * 3, P, buf);
+        return buf;
+    };
+    // The lower bounds' slack follows the largest |coordinate| of the
+    // features: of all of them, or (streamed) of those computed so far, which
+    // covers every streamline and centroid a search up to there involves.
+    auto bound = [&](float max_abs) {
+        LowerBound b;
+        if (streamed) b.prepare(max_abs, P, true);
+        else b.prepare(*src.f);
+        b.factor = Metric::kBoundFactor;
+        return b;
+    };
 
     struct Handoff {
         Node *node;  // the level-1 node, or null when the main thread went on below it
@@ -677,27 +737,31 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
     alignas(64) std::atomic<std::uint64_t> published{0};  // main -> worker: handoff[0..published) is set
     alignas(64) std::atomic<std::uint64_t> done{0};  // worker -> main: it has continued every streamline below this
     alignas(64) std::atomic<bool> stop{false};
+    std::atomic<float> published_max{0.0f};  // main -> worker (streamed): the bound's coordinate up to `published`
 
     // One thread's view of a streamline: its features in both orientations
-    // and its Features::geom; and its buffers. (Cache-line aligned: the
-    // worker's lives on its own stack, and the two are written per streamline.)
+    // and its Features::geom; its lower bound; and its buffers. (Cache-line
+    // aligned: the worker's lives on its own stack, and the two are written
+    // per streamline.)
     struct alignas(64) Lane {
         std::vector<float> fg, scratch;
         const float *fd = nullptr, *g = nullptr, *geom = nullptr;
+        LowerBound lb;
     };
     Lane main_lane;
     main_lane.fg.resize(3 * P + kTail);
+    main_lane.lb = bound(0.0f);
     auto load = [&](Lane &ln, std::uint64_t it) {
-        const std::uint64_t idx = order[it];
-        ln.fd = &f.direct[idx * P * 3];
-        ln.g = flipped_of(f, idx, ln.fg.data(), P);
-        ln.geom = &f.geom[idx * Features::kGeom];
+        const std::uint64_t r = row(it);
+        ln.fd = direct + r * P * 3;
+        ln.g = flipped_row(r, ln.fg.data());
+        ln.geom = geom + r * Features::kGeom;
     };
     // Levels 2..L of streamline `it`, from its level-1 node.
     auto below = [&](Lane &ln, std::uint64_t it, Node *node, bool flip, std::deque<Node> &store, std::uint32_t tag) {
         while (node->level < L) {
             bool next_flip = false;
-            Node *child = ops.search(*node, ln.fd, ln.g, ln.geom, next_flip, store, tag, ln.scratch);
+            Node *child = ops.search(*node, ln.fd, ln.g, ln.geom, ln.lb, next_flip, store, tag, ln.scratch);
             ops.update(*child, next_flip ? ln.g : ln.fd);
             path[it * L + child->level - 1] = child->uid;
             node = child;
@@ -706,86 +770,159 @@ Tree qbx_impl(const Features &f, const std::vector<double> &t, const std::vector
         leaf_flip[it] = flip;
     };
 
-    const bool threaded = L >= 2 && N >= 20000;
+    // The root, replayed in order up to `end`: every streamline, oriented by
+    // the previous one's leaf flip (by the worker as it goes when there is
+    // one, else by the main thread).
+    std::uint64_t replayed = 0;
+    bool use_flip = false;
+    auto replay = [&](std::uint64_t end, float *buf) {
+        for (; replayed < end; ++replayed) {
+            const std::uint64_t r = row(replayed);
+            update_centroid(root.c.data(), root.size, use_flip ? flipped_row(r, buf) : direct + r * P * 3, P);
+            ++root.size;
+            use_flip = leaf_flip[replayed];
+        }
+    };
+    // Streamed: the ring's rows hold R steps, B to a block. Block [b0, b0 + B)
+    // goes into the rows that steps R earlier held, once both threads are
+    // done with those (and the root has been replayed past them). Either
+    // thread computes a block: the worker ahead of the main thread while it
+    // has room, the main thread when it would otherwise wait. A block is
+    // claimed first (`next_block`), then published in its slot.
+    const std::uint64_t nb_slots = R / kRingBlock;
+    std::unique_ptr<std::atomic<std::uint64_t>[]> slot_holds(new std::atomic<std::uint64_t>[nb_slots]);  // 1 + its block's b0; 0: none
+    for (std::uint64_t k = 0; k < nb_slots; ++k) slot_holds[k].store(0, std::memory_order_relaxed);
+    alignas(64) std::atomic<std::uint64_t> next_block{0};  // b0 of the first block nobody has claimed
+    std::atomic<float> feature_max{0.0f};  // the largest |coordinate| of the blocks published so far
+    constexpr std::uint64_t kNone = std::numeric_limits<std::uint64_t>::max();
+    std::atomic<std::uint64_t> failed_at{kNone};  // b0 of the first block found invalid
+    std::mutex error_mutex;
+    std::string error;  // (its message)
+    auto claim = [&](std::uint64_t b0) { return next_block.compare_exchange_strong(b0, b0 + kRingBlock, std::memory_order_relaxed); };
+    auto produce = [&](std::uint64_t b0, BlockScratch &scratch) {
+        const std::uint64_t end = std::min(N, b0 + kRingBlock), r0 = b0 & (R - 1);
+        float m = 0.0f;
+        std::string bad;
+        if (!extract_block(*src.in, order.data(), b0, end, P, Resampling::Fast, ring_direct.data() + r0 * P * 3, nullptr,
+                           ring_geom.data() + r0 * Features::kGeom, scratch, m, bad)) {
+            const std::lock_guard<std::mutex> lock(error_mutex);
+            if (b0 < failed_at.load(std::memory_order_relaxed)) {
+                error = bad;
+                failed_at.store(b0, std::memory_order_release);
+            }
+            return false;
+        }
+        float cur = feature_max.load(std::memory_order_relaxed);
+        while (m > cur && !feature_max.compare_exchange_weak(cur, m, std::memory_order_relaxed)) {
+        }
+        slot_holds[(b0 / kRingBlock) % nb_slots].store(b0 + 1, std::memory_order_release);
+        return true;
+    };
+
+    const bool threaded = src.threads >= 2 && L >= 2 && N >= 20000;
     std::thread worker;
     if (threaded) {
         worker = std::thread([&] {
             Lane worker_lane;
             worker_lane.fg.resize(3 * P + kTail);
+            worker_lane.lb = main_lane.lb;
+            BlockScratch block_scratch;
             std::uint64_t it = 0;
             while (it < N) {
+                // Blocks ahead, into rows of steps before `it` (which the
+                // main thread has passed too).
+                while (streamed && !stop.load(std::memory_order_relaxed) && failed_at.load(std::memory_order_relaxed) == kNone) {
+                    const std::uint64_t b0 = next_block.load(std::memory_order_relaxed);
+                    if (b0 >= N || b0 + kRingBlock > it + R || published.load(std::memory_order_relaxed) > it + kProduceLag) break;
+                    if (claim(b0) && !produce(b0, block_scratch)) break;
+                }
                 const std::uint64_t avail = published.load(std::memory_order_acquire);
                 if (avail == it) {
                     if (stop.load(std::memory_order_acquire) && published.load(std::memory_order_acquire) == it) return;
                     std::this_thread::yield();
                     continue;
                 }
-                for (; it < avail; ++it) {
+                if (streamed) worker_lane.lb = bound(feature_max.load(std::memory_order_relaxed));
+                // (At most a block at a time while blocks remain to be
+                // computed, so that the worker computes them ahead.)
+                const std::uint64_t until =
+                    streamed && next_block.load(std::memory_order_relaxed) < N ? std::min(avail, it + kRingBlock) : avail;
+                for (; it < until; ++it) {
                     const Handoff h = handoff[it];
                     if (h.node == nullptr) continue;
                     load(worker_lane, it);
                     below(worker_lane, it, h.node, h.flip, store_b, kStageB);
                 }
+                replay(it, worker_lane.fg.data());
                 done.store(it, std::memory_order_release);
             }
         });
     }
-    // The root, replayed in order up to `end`: every streamline, oriented by
-    // the previous one's leaf flip.
-    std::uint64_t replayed = 0;
-    bool use_flip = false;
-    auto replay = [&](std::uint64_t end) {
-        for (; replayed < end; ++replayed) {
-            const std::uint64_t idx = order[replayed];
-            update_centroid(root.c.data(), root.size, use_flip ? flipped_of(f, idx, main_lane.fg.data(), P) : &f.direct[idx * P * 3], P);
-            ++root.size;
-            use_flip = leaf_flip[replayed];
-        }
-    };
     // The worker's lag (streamlines published but not yet continued) above
     // which the main thread takes subtrees over, and below which it gives
     // them back.
     constexpr std::uint64_t kTakeLag = 1024, kGiveLag = 128;
-    bool cancelled = false;
     std::uint64_t worker_done = 0;  // `done`, as last read
-    for (std::uint64_t it = 0; it < N; ++it) {
-        if ((it & 1023) == 0) {
-            if (cancel && cancel()) {
-                cancelled = true;
-                break;
+    BlockScratch block_scratch;
+    bool cancelled = false;
+    std::exception_ptr failed;
+    try {
+        for (std::uint64_t it = 0; it < N; ++it) {
+            if ((it & 1023) == 0) {
+                if (cancel && cancel()) {
+                    cancelled = true;
+                    break;
+                }
+                if (progress) progress(double(it) / double(N));
             }
-            if (progress) progress(double(it) / double(N));
-            if (threaded) replay(done.load(std::memory_order_acquire));
+            if (streamed && it % kRingBlock == 0) {  // this block's features: published, or computed here
+                if (threaded) published.store(it, std::memory_order_release);  // (every step before `it` is handed off)
+                else replay(it, main_lane.fg.data());  // (every step before `it` is finished)
+                std::atomic<std::uint64_t> &slot = slot_holds[(it / kRingBlock) % nb_slots];
+                while (slot.load(std::memory_order_acquire) != it + 1) {
+                    if (failed_at.load(std::memory_order_acquire) == it) {
+                        const std::lock_guard<std::mutex> lock(error_mutex);
+                        throw InputError(error);
+                    }
+                    const bool room = !threaded || it + kRingBlock <= R || done.load(std::memory_order_acquire) + R >= it + kRingBlock;
+                    if (!(room && next_block.load(std::memory_order_relaxed) == it && claim(it) && produce(it, block_scratch)))
+                        std::this_thread::yield();
+                }
+                main_lane.lb = bound(feature_max.load(std::memory_order_relaxed));
+            }
+            if ((it & 63) == 0 && threaded) worker_done = done.load(std::memory_order_acquire);
+            load(main_lane, it);
+            bool flip = false;
+            Node *n1 = ops.search(root, main_lane.fd, main_lane.g, main_lane.geom, main_lane.lb, flip, store_a, 0, main_lane.scratch);
+            ops.update(*n1, flip ? main_lane.g : main_lane.fd);
+            path[it * L] = n1->uid;
+            if (!threaded) {
+                below(main_lane, it, n1, flip, store_a, 0);
+                continue;
+            }
+            const std::uint64_t lag = it - worker_done;
+            if (!n1->deep_main && lag > kTakeLag && worker_done >= n1->last_sent) n1->deep_main = true;
+            else if (n1->deep_main && lag < kGiveLag) n1->deep_main = false;
+            if (n1->deep_main) {
+                below(main_lane, it, n1, flip, store_a, 0);
+                handoff[it] = {nullptr, flip};
+            } else {
+                handoff[it] = {n1, flip};
+                n1->last_sent = it + 1;
+            }
+            if ((it & 63) == 63) published.store(it + 1, std::memory_order_release);
         }
-        if ((it & 63) == 0 && threaded) worker_done = done.load(std::memory_order_acquire);
-        load(main_lane, it);
-        bool flip = false;
-        Node *n1 = ops.search(root, main_lane.fd, main_lane.g, main_lane.geom, flip, store_a, 0, main_lane.scratch);
-        ops.update(*n1, flip ? main_lane.g : main_lane.fd);
-        path[it * L] = n1->uid;
-        if (!threaded) {
-            below(main_lane, it, n1, flip, store_a, 0);
-            continue;
-        }
-        const std::uint64_t lag = it - worker_done;
-        if (!n1->deep_main && lag > kTakeLag && worker_done >= n1->last_sent) n1->deep_main = true;
-        else if (n1->deep_main && lag < kGiveLag) n1->deep_main = false;
-        if (n1->deep_main) {
-            below(main_lane, it, n1, flip, store_a, 0);
-            handoff[it] = {nullptr, flip};
-        } else {
-            handoff[it] = {n1, flip};
-            n1->last_sent = it + 1;
-        }
-        if ((it & 63) == 63) published.store(it + 1, std::memory_order_release);
+    } catch (...) {  // (an invalid streamline, found as its features were computed)
+        failed = std::current_exception();
     }
     if (threaded) {
-        if (!cancelled) published.store(N, std::memory_order_release);
+        if (!cancelled && !failed) published.store(N, std::memory_order_release);
         stop.store(true, std::memory_order_release);
         worker.join();
     }
+    if (failed) std::rethrow_exception(failed);
     if (cancelled) throw Cancelled{};
-    replay(N);
+    replay(N, main_lane.fg.data());
     if (progress) progress(1.0);
     const Paths paths{path, L, order, store_a, store_b};
     return flatten(root, L, t, P, &paths);
@@ -797,10 +934,16 @@ Tree RunQb(const Features &f, double T, const std::vector<std::uint64_t> &order,
                                : qb_impl<FastMetric>(f, T, order, cancel, progress);
 }
 
-Tree RunQbx(const Features &f, const std::vector<double> &t, const std::vector<std::uint64_t> &order, Mode mode,
+Tree RunQbx(const Features &f, const std::vector<double> &t, const std::vector<std::uint64_t> &order, Mode mode, unsigned threads,
             const CancelFn &cancel, const ProgressFn &progress) {
-    return mode == Mode::Exact ? qbx_impl<ExactMetric>(f, t, order, cancel, progress)
-                               : qbx_impl<FastMetric>(f, t, order, cancel, progress);
+    const Source src{&f, nullptr, f.nb_points, f.count, threads};
+    return mode == Mode::Exact ? qbx_impl<ExactMetric>(src, t, order, cancel, progress)
+                               : qbx_impl<FastMetric>(src, t, order, cancel, progress);
+}
+
+Tree RunQbxStreamed(const Input &in, std::uint32_t P, const std::vector<double> &t, const std::vector<std::uint64_t> &order,
+                    unsigned threads, const CancelFn &cancel, const ProgressFn &progress) {
+    return qbx_impl<FastMetric>(Source{nullptr, &in, P, in.nb_streamlines, threads}, t, order, cancel, progress);
 }
 
 }  // namespace HWY_NAMESPACE
@@ -812,6 +955,7 @@ namespace qb::detail {
 
 HWY_EXPORT(RunQb);
 HWY_EXPORT(RunQbx);
+HWY_EXPORT(RunQbxStreamed);
 
 Tree run_qb(const Features &f, double threshold, const std::vector<std::uint64_t> &order, Mode mode, const CancelFn &cancel,
             const ProgressFn &progress) {
@@ -819,8 +963,13 @@ Tree run_qb(const Features &f, double threshold, const std::vector<std::uint64_t
 }
 
 Tree run_qbx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order, Mode mode,
-             const CancelFn &cancel, const ProgressFn &progress) {
-    return HWY_DYNAMIC_DISPATCH(RunQbx)(f, thresholds, order, mode, cancel, progress);
+             unsigned threads, const CancelFn &cancel, const ProgressFn &progress) {
+    return HWY_DYNAMIC_DISPATCH(RunQbx)(f, thresholds, order, mode, threads, cancel, progress);
+}
+
+Tree run_qbx_streamed(const Input &in, std::uint32_t P, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order,
+                      unsigned threads, const CancelFn &cancel, const ProgressFn &progress) {
+    return HWY_DYNAMIC_DISPATCH(RunQbxStreamed)(in, P, thresholds, order, threads, cancel, progress);
 }
 
 }  // namespace qb::detail
