@@ -9,7 +9,7 @@ DIPY's labels, and writes the speed-against-accuracy chart
 (docs/cluster_chart.png) and the table (bench/results/cluster.md).
 Times are wall-clock seconds of the clustering call only (file reading
 excluded on both sides), the best of --repeat runs (3) for DIPY and Horizon
-alike, since this shared machine's speed drifts by 10-30 % between runs;
+alike, run in turn (DIPY, exact, fast, then again), since this shared machine's speed drifts by 10-30 % between runs;
 DIPY runs single-threaded, Horizon uses both cores. The machine load is printed with every run.
 """
 import argparse
@@ -38,25 +38,30 @@ def horizon(build, *args):
     return p.stdout
 
 
-def ours(build, tck, algo, mode, labels, thresholds=None, nb_points=None, repeat=1):
-    """Best of `repeat` runs (each a fresh process; the labels of the last)."""
+def ours(build, tck, algo, mode, labels, thresholds=None, nb_points=None):
+    """One `horizon cluster` process: (its clustering seconds, its labels)."""
     args = ["cluster", tck, "--algorithm", algo, "--mode", mode, "--labels", labels, "--force", "--json"]
     if thresholds:
         args += ["--thresholds", ",".join(map(str, thresholds))]
     if nb_points:
         args += ["--nb-points", nb_points]
-    best = min(json.loads(horizon(build, *args))["cluster_s"] for _ in range(repeat))
+    secs = json.loads(horizon(build, *args))["cluster_s"]
     lab = np.loadtxt(labels, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
-    return best, lab
+    return secs, lab
 
 
-def best_of(repeat, fn):
-    """fn() run `repeat` times: (the shortest wall time, the last result)."""
-    best, out = float("inf"), None
+def interleaved(repeat, fns):
+    """Each fn() once per round, `repeat` rounds, in turn: (the shortest time
+    of each, the last result of each). A fn returns (seconds or None to time
+    it here, result). Alternating keeps a slow spell of this shared VM from
+    landing on one side only (running one side's repeats back to back let
+    a spell decide a ratio)."""
+    best, out = [float("inf")] * len(fns), [None] * len(fns)
     for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
+        for i, fn in enumerate(fns):
+            t0 = time.perf_counter()
+            s, out[i] = fn()
+            best[i] = min(best[i], s if s is not None else time.perf_counter() - t0)
     return best, out
 
 
@@ -177,9 +182,10 @@ def main():
         if n > 2_000_000:
             continue
         sl = nib.streamlines.load(tck).streamlines
-        dipy_s, ref = best_of(R, lambda: QuickBundlesX(T).cluster(sl))
-        exact_s, le = ours(args.build, tck, "qbx", "exact", lab, repeat=R)
-        fast_s, lf = ours(args.build, tck, "qbx", "fast", lab, repeat=R)
+        (dipy_s, exact_s, fast_s), (ref, le, lf) = interleaved(R, [
+            lambda: (None, QuickBundlesX(T).cluster(sl)),
+            lambda: ours(args.build, tck, "qbx", "exact", lab),
+            lambda: ours(args.build, tck, "qbx", "fast", lab)])
         same = all(np.array_equal(le[:, l], dipy_labels(ref.get_clusters(l), n)) for l in range(1, 5))
         row(name, n, "QBX", dipy_s, exact_s, fast_s, f"exact==DIPY at all levels: {same}; {fast_agreement(le, lf, range(1, 5))}")
         del sl, ref
@@ -187,9 +193,10 @@ def main():
     # 2. QB at 15 mm: DIPY on the smallest synthetic set only (it is O(N K)).
     name, (tck, n) = next(iter(files.items()))
     sl = nib.streamlines.load(tck).streamlines
-    dipy_s, ref = best_of(R, lambda: QuickBundles(15.0).cluster(sl))
-    exact_s, le = ours(args.build, tck, "qb", "exact", lab, thresholds=[15], repeat=R)
-    fast_s, lf = ours(args.build, tck, "qb", "fast", lab, thresholds=[15], repeat=R)
+    (dipy_s, exact_s, fast_s), (ref, le, lf) = interleaved(R, [
+        lambda: (None, QuickBundles(15.0).cluster(sl)),
+        lambda: ours(args.build, tck, "qb", "exact", lab, thresholds=[15]),
+        lambda: ours(args.build, tck, "qb", "fast", lab, thresholds=[15])])
     row(name, n, "QB 15 mm", dipy_s, exact_s, fast_s,
         f"exact==DIPY: {np.array_equal(le[:, 1], dipy_labels(ref, n))}; {fast_agreement(le, lf, [1])}")
     del sl, ref
@@ -209,8 +216,8 @@ def main():
     # 3. 5M streamlines, Horizon only.
     if "synthetic 5000k" in files:
         tck, n = files["synthetic 5000k"]
-        exact_s, _ = ours(args.build, tck, "qbx", "exact", lab, repeat=R)
-        fast_s, _ = ours(args.build, tck, "qbx", "fast", lab, repeat=R)
+        (exact_s, fast_s), _ = interleaved(R, [lambda: ours(args.build, tck, "qbx", "exact", lab),
+                                               lambda: ours(args.build, tck, "qbx", "fast", lab)])
         row("synthetic 5000k", n, "QBX", None, exact_s, fast_s, "Horizon only")
 
     # 4. The chart: time against agreement with a 64-point exact clustering.
@@ -240,7 +247,7 @@ def main():
     # Outputs.
     os.makedirs(os.path.join(ROOT, "bench", "results"), exist_ok=True)
     with open(os.path.join(ROOT, "bench", "results", "cluster.md"), "w") as f:
-        f.write(f"Best of {R} runs per time (DIPY and Horizon alike).\n\n")
+        f.write(f"Best of {R} runs per time (DIPY and Horizon alike, run in turn: DIPY, exact, fast, then again).\n\n")
         f.write("| data | streamlines | algorithm | DIPY 1.6 (s) | Horizon exact (s) | ratio | Horizon fast (s) | ratio | check | load |\n")
         f.write("|---|---:|---|---:|---:|---:|---:|---:|---|---:|\n")
         for name, n, what, d, e, fa, agree, note, la in rows:

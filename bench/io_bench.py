@@ -15,6 +15,9 @@ mapped at an unaligned offset, that includes copying them to aligned
 memory, which a plain load defers to the first use). Peak memory is the
 process's maximum RSS against the decoded data (positions + offsets).
 The unaligned TCK is the aligned one as nibabel saves it (data at byte 67).
+Each time is the best of --repeat runs, the tools run in turn (cat, horizon,
+horizon --verify, nibabel, then again), so that a slow spell of the machine
+does not fall on one side only.
 Prints a Markdown table and writes bench/results/io.md.
 """
 import argparse
@@ -41,8 +44,18 @@ def timed(cmd, env=None):
 
 
 def best_of(n, cmd):
-    runs = [timed(cmd) for _ in range(n)]
-    return min(r[0] for r in runs), min(r[1] for r in runs), max(r[2] for r in runs)
+    return best_in_turn(n, [cmd])[0]
+
+
+def best_in_turn(n, cmds):
+    """Each command once per round, n rounds, in turn: per command (the
+    shortest wall s, the smallest cpu s, the largest max rss). Alternating
+    keeps a slow spell of this shared VM from landing on one side only."""
+    runs = [[] for _ in cmds]
+    for _ in range(n):
+        for i, cmd in enumerate(cmds):
+            runs[i].append(timed(cmd))
+    return [(min(r[0] for r in rs), min(r[1] for r in rs), max(r[2] for r in rs)) for rs in runs]
 
 
 def write_tck(path, n, p, seed=0):
@@ -97,14 +110,12 @@ def main():
     for ext, path in files.items():
         size_mib = os.path.getsize(path) / 2**20
         subprocess.run(["cat", path], stdout=subprocess.DEVNULL)  # warm the page cache
-        cat_s, _, _ = best_of(args.repeat, ["cat", path])
-        hz_s, hz_cpu, hz_rss = best_of(args.repeat, [horizon, "info", path])
-        ver_s, _, ver_rss = best_of(args.repeat, [horizon, "info", "--verify", path])
-        if ext != "trx":
-            _, nib_cpu, _ = best_of(args.repeat, ["/usr/bin/python3", "-c", nib_script, path])
-            nib_cpu -= py_start
-        else:
-            nib_cpu = None  # nibabel 5.0 has no TRX reader
+        cmds = [["cat", path], [horizon, "info", path], [horizon, "info", "--verify", path]]
+        if ext != "trx":  # (nibabel 5.0 has no TRX reader)
+            cmds.append(["/usr/bin/python3", "-c", nib_script, path])
+        res = best_in_turn(args.repeat, cmds)
+        (cat_s, _, _), (hz_s, hz_cpu, hz_rss), (ver_s, _, ver_rss) = res[:3]
+        nib_cpu = res[3][1] - py_start if ext != "trx" else None
         rows.append((ext, size_mib, cat_s, nib_cpu, hz_s, hz_cpu, hz_rss, ver_s, ver_rss, os.getloadavg()[0]))
         nib_txt = f"{nib_cpu:7.2f}" if nib_cpu else "      -"
         print(f"{ext}: {size_mib:7.0f} MiB  cat {cat_s:5.2f} s  nibabel {nib_txt} s  horizon {hz_s:5.2f} s "
@@ -112,7 +123,7 @@ def main():
               f"rss {ver_rss:6.0f} MiB", flush=True)
     os.makedirs(os.path.join(ROOT, "bench", "results"), exist_ok=True)
     with open(os.path.join(ROOT, "bench", "results", "io.md"), "w") as f:
-        f.write(f"{n:,} streamlines x {p} points, decoded {decoded_mib:.0f} MiB; warm page cache; best of {args.repeat}.\n"
+        f.write(f"{n:,} streamlines x {p} points, decoded {decoded_mib:.0f} MiB; warm page cache; best of {args.repeat}, the tools run in turn.\n"
                 "tck: data at a multiple of 4 bytes, as MRtrix writes them (mapped in place); tck (nibabel-written): the "
                 "same streamlines saved by nibabel, data at byte 67 (mapped; the floats are copied to aligned memory on "
                 "first use). `--verify`: the load, then the host reads every coordinate again (for the nibabel-written "

@@ -660,8 +660,8 @@ struct QbxOps {
 // computed what, nor on whether there are two.
 // Where the searches find a streamline's features: in an array of all of
 // them, by streamline (`f`), or streamed from the streamlines (`in`, fast
-// mode): computed by the main thread as it reaches them, into a ring by
-// processing step that the worker reads too.
+// mode): computed a block at a time into a ring indexed by processing step,
+// which both threads read.
 struct Source {
     const Features *f = nullptr;
     const Input *in = nullptr;
