@@ -28,8 +28,50 @@ HWY_BEFORE_NAMESPACE();
 namespace qb::detail {
 namespace HWY_NAMESPACE {
 
-// Returns false (and writes nothing) on targets without 16 float lanes;
-// x[0..36) must be readable.
+// The block's floats held in registers: v0 = floats 0..15, v1 = 16..31,
+// t = 32..35 in lanes 0..3 (its other lanes are ignored); 16-lane targets
+// only. For a block just computed (a centroid update), whose box is then not
+// read back from stores still in flight.
+template <class D, class V = hwy::HWY_NAMESPACE::Vec<D>>
+HWY_INLINE void axes_min_max_sum_12_regs(D d, V v0, V v1, V t, float lo[3], float hi[3], float sum[3]) {
+    namespace hn = hwy::HWY_NAMESPACE;
+    static_assert(hn::MaxLanes(D()) == 16);
+    const hn::RebindToSigned<D> di;
+    // v0 = x0..3 x4..7 x8..11 y0..3; v1 = y4..7 y8..11 z0..3 z4..7; t = z8..11.
+    alignas(64) static constexpr std::int32_t ia0[16] = {0, 1, 2, 3, 12, 13, 14, 15, 0, 0, 0, 0, 0, 0, 0, 0};
+    alignas(64) static constexpr std::int32_t ia1[16] = {0, 0, 0, 0, 0, 0, 0, 0, 8, 9, 10, 11, 8, 9, 10, 11};
+    alignas(64) static constexpr std::int32_t ib0[16] = {4, 5, 6, 7, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    alignas(64) static constexpr std::int32_t ib1[16] = {0, 0, 0, 0, 0, 1, 2, 3, 12, 13, 14, 15, 12, 13, 14, 15};
+    alignas(64) static constexpr std::int32_t ie0[16] = {8, 9, 10, 11, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    alignas(64) static constexpr std::int32_t ie1[16] = {0, 0, 0, 0, 4, 5, 6, 7, 0, 0, 0, 0, 0, 0, 0, 0};
+    alignas(64) static constexpr std::int32_t ie2[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3, 0, 1, 2, 3};
+    const auto lane = hn::Iota(di, 0);
+    const auto first8 = hn::RebindMask(d, hn::Lt(lane, hn::Set(di, 8))), first4 = hn::RebindMask(d, hn::Lt(lane, hn::Set(di, 4)));
+    const V a = hn::IfThenElse(first8, hn::TableLookupLanes(v0, hn::SetTableIndices(d, ia0)),
+                               hn::TableLookupLanes(v1, hn::SetTableIndices(d, ia1)));
+    const V b = hn::IfThenElse(first4, hn::TableLookupLanes(v0, hn::SetTableIndices(d, ib0)),
+                               hn::TableLookupLanes(v1, hn::SetTableIndices(d, ib1)));
+    const V e = hn::IfThenElse(first4, hn::TableLookupLanes(v0, hn::SetTableIndices(d, ie0)),
+                               hn::IfThenElse(first8, hn::TableLookupLanes(v1, hn::SetTableIndices(d, ie1)),
+                                              hn::TableLookupLanes(t, hn::SetTableIndices(d, ie2))));
+    V mn = hn::Min(hn::Min(a, b), e), mx = hn::Max(hn::Max(a, b), e), sm = hn::Add(hn::Add(a, b), e);
+    // (Unqualified: found by argument-dependent lookup when instantiated,
+    // which only the 16-lane targets do.)
+    mn = hn::Min(mn, Shuffle2301(mn));
+    mn = hn::Min(mn, Shuffle1032(mn));
+    mx = hn::Max(mx, Shuffle2301(mx));
+    mx = hn::Max(mx, Shuffle1032(mx));
+    sm = hn::Add(sm, Shuffle2301(sm));
+    sm = hn::Add(sm, Shuffle1032(sm));
+    alignas(64) float l[16], h[16], s[16];
+    hn::Store(mn, d, l);
+    hn::Store(mx, d, h);
+    hn::Store(sm, d, s);
+    for (int k = 0; k < 3; ++k) lo[k] = l[4 * k], hi[k] = h[4 * k], sum[k] = s[4 * k];
+}
+
+// The block read from x[0..36); returns false (and writes nothing) on
+// targets without 16 float lanes.
 template <class D>
 HWY_INLINE bool axes_min_max_sum_12(D d, const float *HWY_RESTRICT x, float lo[3], float hi[3], float sum[3]) {
     namespace hn = hwy::HWY_NAMESPACE;
@@ -37,39 +79,7 @@ HWY_INLINE bool axes_min_max_sum_12(D d, const float *HWY_RESTRICT x, float lo[3
         (void)d, (void)x, (void)lo, (void)hi, (void)sum;
         return false;
     } else {
-        using V = hn::Vec<D>;
-        const hn::RebindToSigned<D> di;
-        // v0 = x0..3 x4..7 x8..11 y0..3; v1 = y4..7 y8..11 z0..3 z4..7; v2 = y8..11 z0..3 z4..7 z8..11.
-        const V v0 = hn::LoadU(d, x), v1 = hn::LoadU(d, x + 16), v2 = hn::LoadU(d, x + 20);
-        // Blocks 0..2 of a, b, e: (x0..3, y0..3, z0..3), (x4..7, y4..7, z4..7), (x8..11, y8..11, z8..11).
-        alignas(64) static constexpr std::int32_t ia0[16] = {0, 1, 2, 3, 12, 13, 14, 15, 0, 0, 0, 0, 0, 0, 0, 0};
-        alignas(64) static constexpr std::int32_t ia1[16] = {0, 0, 0, 0, 0, 0, 0, 0, 8, 9, 10, 11, 8, 9, 10, 11};
-        alignas(64) static constexpr std::int32_t ib0[16] = {4, 5, 6, 7, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
-        alignas(64) static constexpr std::int32_t ib1[16] = {0, 0, 0, 0, 0, 1, 2, 3, 12, 13, 14, 15, 12, 13, 14, 15};
-        alignas(64) static constexpr std::int32_t ie0[16] = {8, 9, 10, 11, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
-        alignas(64) static constexpr std::int32_t ie2[16] = {0, 0, 0, 0, 0, 1, 2, 3, 12, 13, 14, 15, 12, 13, 14, 15};
-        const auto lane = hn::Iota(di, 0);
-        const auto first8 = hn::RebindMask(d, hn::Lt(lane, hn::Set(di, 8))), first4 = hn::RebindMask(d, hn::Lt(lane, hn::Set(di, 4)));
-        const V a = hn::IfThenElse(first8, hn::TableLookupLanes(v0, hn::SetTableIndices(d, ia0)),
-                                   hn::TableLookupLanes(v1, hn::SetTableIndices(d, ia1)));
-        const V b = hn::IfThenElse(first4, hn::TableLookupLanes(v0, hn::SetTableIndices(d, ib0)),
-                                   hn::TableLookupLanes(v1, hn::SetTableIndices(d, ib1)));
-        const V e = hn::IfThenElse(first4, hn::TableLookupLanes(v0, hn::SetTableIndices(d, ie0)),
-                                   hn::TableLookupLanes(v2, hn::SetTableIndices(d, ie2)));
-        V mn = hn::Min(hn::Min(a, b), e), mx = hn::Max(hn::Max(a, b), e), sm = hn::Add(hn::Add(a, b), e);
-        // (Unqualified: found by argument-dependent lookup, so the 16-lane
-        // targets alone need them.)
-        mn = hn::Min(mn, Shuffle2301(mn));
-        mn = hn::Min(mn, Shuffle1032(mn));
-        mx = hn::Max(mx, Shuffle2301(mx));
-        mx = hn::Max(mx, Shuffle1032(mx));
-        sm = hn::Add(sm, Shuffle2301(sm));
-        sm = hn::Add(sm, Shuffle1032(sm));
-        alignas(64) float l[16], h[16], s[16];
-        hn::Store(mn, d, l);
-        hn::Store(mx, d, h);
-        hn::Store(sm, d, s);
-        for (int k = 0; k < 3; ++k) lo[k] = l[4 * k], hi[k] = h[4 * k], sum[k] = s[4 * k];
+        axes_min_max_sum_12_regs(d, hn::LoadU(d, x), hn::LoadU(d, x + 16), hn::MaskedLoad(hn::FirstN(d, 4), d, x + 32), lo, hi, sum);
         return true;
     }
 }

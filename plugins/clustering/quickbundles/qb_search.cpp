@@ -194,6 +194,37 @@ inline void update_centroid_as(float *c, std::uint64_t size, const float *e, std
     if constexpr (kFast<Metric>) update_centroid_fast(c, size, e, P);
     else update_centroid(c, size, e, P);
 }
+// Fast mode, 12 points, 16-lane targets: update_centroid_fast and then
+// box_and_mean's results, computed from the registers the update leaves
+// instead of reading the centroid back while its stores are in flight (a
+// load that spans two of them cannot be forwarded and waits). The same
+// floats bit for bit. Returns false (and does nothing) elsewhere.
+template <class Metric, class D>
+HWY_INLINE bool update_with_box_12(D d, float *HWY_RESTRICT c, std::uint64_t size, const float *HWY_RESTRICT e, std::uint32_t P,
+                                   float bc[3], float br[3], float mean[3]) {
+    if constexpr (!kFast<Metric> || hn::MaxLanes(D()) != 16) {
+        (void)d, (void)c, (void)size, (void)e, (void)P, (void)bc, (void)br, (void)mean;
+        return false;
+    } else {
+        if (P != 12) return false;
+        const auto fs = hn::Set(d, static_cast<float>(size)), inv = hn::Set(d, 1.0f / static_cast<float>(size + 1));
+        const auto first4 = hn::FirstN(d, 4);
+        auto up = [&](hn::Vec<D> cv, hn::Vec<D> ev) { return hn::Mul(hn::Add(hn::Mul(cv, fs), ev), inv); };
+        const auto v0 = up(hn::LoadU(d, c), hn::LoadU(d, e)), v1 = up(hn::LoadU(d, c + 16), hn::LoadU(d, e + 16));
+        const auto t = up(hn::MaskedLoad(first4, d, c + 32), hn::MaskedLoad(first4, d, e + 32));
+        hn::StoreU(v0, d, c);
+        hn::StoreU(v1, d, c + 16);
+        hn::BlendedStore(t, first4, d, c + 32);
+        float lo[3], hi[3], sum[3];
+        axes_min_max_sum_12_regs(d, v0, v1, t, lo, hi, sum);
+        for (int a = 0; a < 3; ++a) {
+            br[a] = (hi[a] - lo[a]) / 2.0f;
+            bc[a] = lo[a] + br[a];
+            mean[a] = sum[a] / 12.0f;
+        }
+        return true;
+    }
+}
 
 
 // A rigorous lower bound on the distance DIPY computes, from mean points.
@@ -564,8 +595,10 @@ struct QbxOps {
         Node::Kid &me = n.parent->kids[n.slot];
         float m[3];
         float *c = n.parent->kid_c.data() + std::size_t(n.slot) * 3 * P;
-        update_centroid_as<Metric>(c, n.size, e, P);
-        box_and_mean(c, P, me.box_c, me.box_r, m);
+        if (!update_with_box_12<Metric>(hn::ScalableTag<float>(), c, n.size, e, P, me.box_c, me.box_r, m)) {
+            update_centroid_as<Metric>(c, n.size, e, P);
+            box_and_mean(c, P, me.box_c, me.box_r, m);
+        }
         ++n.size;
         n.parent->mx[n.slot] = m[0];
         n.parent->my[n.slot] = m[1];
