@@ -51,10 +51,52 @@ HWY_INLINE V prefix_sum(D d, V v) {
     return v;
 }
 
+HWY_INLINE float geom_of(const float *HWY_RESTRICT x, std::uint32_t P, float *HWY_RESTRICT g);
+HWY_INLINE float geom_from_12(float lo[3], float hi[3], float sum[3], float *HWY_RESTRICT g);
+
+// A 12-point block from its three axis vectors (lanes 0..11 resampled; lane
+// 11 becomes the last point, as it does below): stored into out[0..36), and its geom
+// computed from the same registers rather than read back from the stores
+// (a load spanning two of them would wait for both). 16-lane targets only
+// (returns false elsewhere, having done nothing).
+template <class D, class V>
+HWY_INLINE bool store_12_with_geom(D d, V (&res)[3], const float *last, float *HWY_RESTRICT out, float *HWY_RESTRICT g, float &big) {
+    if constexpr (hn::MaxLanes(D()) != 16) {
+        (void)d, (void)res, (void)last, (void)out, (void)g, (void)big;
+        return false;
+    } else {
+        const hn::RebindToSigned<D> di;
+        const auto lane = hn::Iota(di, 0);
+        const auto at11 = hn::RebindMask(d, hn::Eq(lane, hn::Set(di, 11)));
+        V r[3];
+        for (int a = 0; a < 3; ++a) r[a] = hn::IfThenElse(at11, hn::Set(d, last[a]), res[a]);
+        // v0 = x0..11 y0..3; v1 = y4..11 z0..7; t = z8..11.
+        alignas(64) static constexpr std::int32_t iy0[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3};
+        alignas(64) static constexpr std::int32_t iy1[16] = {4, 5, 6, 7, 8, 9, 10, 11, 0, 0, 0, 0, 0, 0, 0, 0};
+        alignas(64) static constexpr std::int32_t iz1[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7};
+        alignas(64) static constexpr std::int32_t iz2[16] = {8, 9, 10, 11, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+        const auto first12 = hn::RebindMask(d, hn::Lt(lane, hn::Set(di, 12)));
+        const auto first8 = hn::RebindMask(d, hn::Lt(lane, hn::Set(di, 8)));
+        const V v0 = hn::IfThenElse(first12, r[0], hn::TableLookupLanes(r[1], hn::SetTableIndices(d, iy0)));
+        const V v1 = hn::IfThenElse(first8, hn::TableLookupLanes(r[1], hn::SetTableIndices(d, iy1)),
+                                    hn::TableLookupLanes(r[2], hn::SetTableIndices(d, iz1)));
+        const V t = hn::TableLookupLanes(r[2], hn::SetTableIndices(d, iz2));
+        hn::StoreU(v0, d, out);
+        hn::StoreU(v1, d, out + 16);
+        hn::BlendedStore(t, hn::FirstN(d, 4), d, out + 32);
+        float lo[3], hi[3], sum[3];
+        axes_min_max_sum_12_regs(d, v0, v1, t, lo, hi, sum);
+        big = std::max(big, geom_from_12(lo, hi, sum, g));
+        return true;
+    }
+}
+
 // One streamline p[0..n) (n >= 1, n < 2^29) into out (x[0..P), y[0..P),
-// z[0..P)). Returns its length, summed in double (non-finite when a
-// coordinate is). work: scratch of at least 4 (n + 2 N) floats.
-double resample_one(const float *HWY_RESTRICT p, std::uint64_t n, std::uint32_t P, float *HWY_RESTRICT out, float *HWY_RESTRICT work) {
+// z[0..P)), and its Features::geom into g. Returns its length, summed in
+// double (non-finite when a coordinate is); big: raised to the largest
+// |coordinate| of out. work: scratch of at least 4 (n + 2 N) floats.
+double resample_one(const float *HWY_RESTRICT p, std::uint64_t n, std::uint32_t P, float *HWY_RESTRICT out, float *HWY_RESTRICT g,
+                    float &big, float *HWY_RESTRICT work) {
     const hn::ScalableTag<float> d;
     const hn::RebindToSigned<decltype(d)> di;
     using V = hn::Vec<decltype(d)>;
@@ -100,6 +142,7 @@ double resample_one(const float *HWY_RESTRICT p, std::uint64_t n, std::uint32_t 
     if (!(length > 0.0) || !(length < HUGE_VAL)) {  // one point, zero length, or non-finite: copies of the last point
         for (std::uint32_t j = 0; j < P; ++j)
             for (int a = 0; a < 3; ++a) out[a * P + j] = last[a];
+        big = std::max(big, geom_of(out, P, g));
         return length;
     }
     // 3-4. Target j at j * step; the segment [k-1, k] it falls in has
@@ -128,13 +171,30 @@ double resample_one(const float *HWY_RESTRICT p, std::uint64_t n, std::uint32_t 
         r = hn::IfThenElseZero(ok, hn::Min(hn::Max(r, hn::Zero(d)), hn::Set(d, 1.0f)));
         const auto keep = hn::FirstN(d, P - j0);
         const float *axes[3] = {xs, ys, zs};
+        V res[3];
         for (int ax = 0; ax < 3; ++ax) {
             const V pa = hn::GatherIndex(d, axes[ax], k1), pb = hn::GatherIndex(d, axes[ax], k);
-            hn::BlendedStore(hn::MulAdd(r, hn::Sub(pb, pa), pa), keep, d, out + ax * P + j0);
+            res[ax] = hn::MulAdd(r, hn::Sub(pb, pa), pa);
         }
+        if (P == 12 && store_12_with_geom(d, res, last, out, g, big)) return length;
+        for (int ax = 0; ax < 3; ++ax) hn::BlendedStore(res[ax], keep, d, out + ax * P + j0);
     }
     for (int a = 0; a < 3; ++a) out[a * P + (P - 1)] = last[a];
+    big = std::max(big, geom_of(out, P, g));
     return length;
+}
+
+// Features::geom of a 12-point block from its per-axis minimum, maximum and
+// sum (axes_min_max_sum_12); returns its largest |coordinate|.
+HWY_INLINE float geom_from_12(float lo[3], float hi[3], float sum[3], float *HWY_RESTRICT g) {
+    float big = 0.0f;
+    for (int a = 0; a < 3; ++a) {
+        g[3 + a] = (hi[a] - lo[a]) / 2.0f;
+        g[a] = lo[a] + g[3 + a];
+        g[6 + a] = g[9 + a] = sum[a] / 12.0f;
+        big = std::max({big, std::fabs(lo[a]), std::fabs(hi[a])});
+    }
+    return big;
 }
 
 // A feature block's Features::geom (AABB centre and half-size as
@@ -143,16 +203,8 @@ double resample_one(const float *HWY_RESTRICT p, std::uint64_t n, std::uint32_t 
 // the block is still in L1.
 HWY_INLINE float geom_of(const float *HWY_RESTRICT x, std::uint32_t P, float *HWY_RESTRICT g) {
     const hn::ScalableTag<float> d;
-    if (float lo[3], hi[3], sum[3]; P == 12 && axes_min_max_sum_12(d, x, lo, hi, sum)) {  // (all three axes at once)
-        float big = 0.0f;
-        for (int a = 0; a < 3; ++a) {
-            g[3 + a] = (hi[a] - lo[a]) / 2.0f;
-            g[a] = lo[a] + g[3 + a];
-            g[6 + a] = g[9 + a] = sum[a] / 12.0f;
-            big = std::max({big, std::fabs(lo[a]), std::fabs(hi[a])});
-        }
-        return big;
-    }
+    if (float lo[3], hi[3], sum[3]; P == 12 && axes_min_max_sum_12(d, x, lo, hi, sum))  // (all three axes at once)
+        return geom_from_12(lo, hi, sum, g);
     const std::size_t N = hn::Lanes(d);
     const auto inf = hn::Set(d, HUGE_VALF), ninf = hn::Neg(inf);
     auto big = hn::Zero(d);
@@ -184,9 +236,8 @@ void ResampleFast(const Input &in, const std::uint64_t *idx, std::uint64_t begin
     for (std::uint64_t t = begin; t < end; ++t) {
         const std::uint64_t s = idx ? idx[t] : t, n = in.size(s);
         if (scratch.size() < 4 * (n + 2 * N)) scratch.resize(4 * (n + 2 * N));
-        float *out = direct + (t - begin) * P * 3;
-        lengths[t - begin] = resample_one(in.positions + 3 * in.offsets[s], n, P, out, scratch.data());
-        big = std::max(big, geom_of(out, P, geom + (t - begin) * Features::kGeom));
+        lengths[t - begin] = resample_one(in.positions + 3 * in.offsets[s], n, P, direct + (t - begin) * P * 3,
+                                          geom + (t - begin) * Features::kGeom, big, scratch.data());
     }
     max_abs = big;
 }

@@ -725,23 +725,30 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
     const QbxOps<Metric> ops{P, L, t};
 
     // The features: by streamline (rows order[it]), or the ring (rows
-    // it & (R - 1)). Ring rows are written only by the main thread, B steps
-    // at a time, once both threads are done with the steps they held.
+    // it & (R - 1)). Ring rows are written by either thread, a block of B
+    // steps at a time, once both threads are done with the steps they held.
+    // The ring holds the flipped features too (the reversal of the direct
+    // ones), computed with the block, once per streamline and ahead of the
+    // searches, rather than by each search thread as it reaches the
+    // streamline (whose vector loads would then wait for the reversal's
+    // scalar stores).
     const bool streamed = src.in != nullptr;
     std::uint64_t R = kRingBlock;
-    FloatArray ring_direct, ring_geom;
+    FloatArray ring_direct, ring_flipped, ring_geom;
     if (streamed) {
         while (R < kRingSteps && R < N) R <<= 1;
-        ring_direct.resize(R * P * 3 + kTail);
-        std::fill(ring_direct.end() - kTail, ring_direct.end(), 0.0f);
+        for (FloatArray *a : {&ring_direct, &ring_flipped}) {
+            a->resize(R * P * 3 + kTail);
+            std::fill(a->end() - kTail, a->end(), 0.0f);
+        }
         ring_geom.resize(R * Features::kGeom);
     }
     const float *direct = streamed ? ring_direct.data() : src.f->direct.data();
-    const float *flipped = streamed || src.f->flipped.empty() ? nullptr : src.f->flipped.data();
+    const float *flipped = streamed ? ring_flipped.data() : src.f->flipped.empty() ? nullptr : src.f->flipped.data();
     const float *geom = streamed ? ring_geom.data() : src.f->geom.data();
     auto row = [&](std::uint64_t it) { return streamed ? (it & (R - 1)) : order[it]; };
-    // The flipped features of row r: stored (exact mode), or the reversal
-    // of the direct ones into `buf`.
+    // The flipped features of row r: stored (exact mode, the ring), or the
+    // reversal of the direct ones into `buf`.
     auto flipped_row = [&](std::uint64_t r, float *buf) -> const float * {
         if (flipped) return flipped + r * P * 3;
         reverse_block(direct + r * P * 3, P, buf);
@@ -845,6 +852,7 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
             }
             return false;
         }
+        for (std::uint64_t r = r0; r < r0 + (end - b0); ++r) reverse_block(ring_direct.data() + r * P * 3, P, ring_flipped.data() + r * P * 3);
         float cur = feature_max.load(std::memory_order_relaxed);
         while (m > cur && !feature_max.compare_exchange_weak(cur, m, std::memory_order_relaxed)) {
         }
