@@ -327,7 +327,7 @@ Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &
     } else {
         // Every node's members in processing order, scattered level by
         // level (the levels' ranges are disjoint: one thread each, two at once).
-        t.members.resize(t.member_offsets.back());
+        hzio::resize_prefaulted(t.members, t.member_offsets.back());
         std::copy(paths->order.begin(), paths->order.end(), t.members.begin());  // the root
         const std::uint64_t N = paths->order.size();
         const std::uint32_t L = paths->L;

@@ -1,5 +1,6 @@
 // hz.clustering/1 adapter: QuickBundles, QuickBundlesX and Horizon's
 // qbx_and_merge in one library (qb_algorithm.hpp holds the algorithms).
+#include "parallel.hpp"  // hzio::resize_prefaulted (plugins/loaders/common)
 #include "qb_algorithm.hpp"
 
 #include <hz/cpp/plugin.hpp>
@@ -157,7 +158,8 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
             // (gap: ABI 1.5, zero from older hosts.)
             if (in->gap > 1) return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "run: gap %u (0 or 1 supported)", in->gap);
             const qb::Input input{in->positions, in->offsets, in->nb_streamlines, in->gap};
-            std::vector<std::uint64_t> order(in->nb_streamlines);
+            std::vector<std::uint64_t> order;
+            hzio::resize_prefaulted(order, in->nb_streamlines);
             for (std::uint64_t i = 0; i < order.size(); ++i) order[i] = ordering ? ordering[i] : i;
             const unsigned threads = c.threads ? c.threads : std::max(1u, std::thread::hardware_concurrency());
             const qb::CancelFn cancel = [task] { return hz::cancelled(task); };

@@ -769,9 +769,12 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
         Node *node;  // the level-1 node, or null when the main thread went on below it
         bool flip;
     };
-    std::vector<Handoff> handoff(N);
-    std::vector<std::uint8_t> leaf_flip(N, 0);
-    std::vector<std::uint32_t> path(N * L);  // each step's node per level
+    std::vector<Handoff> handoff;
+    std::vector<std::uint8_t> leaf_flip;
+    std::vector<std::uint32_t> path;  // each step's node per level
+    hzio::resize_prefaulted(handoff, N);
+    hzio::resize_prefaulted(leaf_flip, N);
+    hzio::resize_prefaulted(path, N * L);
     constexpr std::uint32_t kStageB = Paths::kStageB;  // uid tag of the worker's nodes
     // (Each on a cache line of its own: they are written by different threads.)
     alignas(64) std::atomic<std::uint64_t> published{0};  // main -> worker: handoff[0..published) is set

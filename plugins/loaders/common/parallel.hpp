@@ -41,6 +41,18 @@ inline void prefault_write(void *p, std::size_t bytes) noexcept {
 #endif
 }
 
+// v.resize(n) (new elements value-initialised) for a large array, with its
+// whole new pages mapped first in one call (prefault_write) rather than
+// faulted in one by one as the initialisation reaches them (the clustering's
+// per-streamline records and member lists: tens of MB at a million
+// streamlines, fresh in every process).
+template <class Vec>
+void resize_prefaulted(Vec &v, std::size_t n) {
+    v.reserve(n);
+    if (n > v.size()) prefault_write(v.data() + v.size(), (n - v.size()) * sizeof(typename Vec::value_type));
+    v.resize(n);
+}
+
 // Runs body(c) for every chunk c in [0, n) on up to min(n, cores, 8)
 // threads, the calling thread being one of them; chunks are taken in order
 // from a shared counter. `poll` (may be empty) runs on the calling thread
