@@ -70,6 +70,29 @@ HWY_INLINE void axes_min_max_sum_12_regs(D d, V v0, V v1, V t, float lo[3], floa
     for (int k = 0; k < 3; ++k) lo[k] = l[4 * k], hi[k] = h[4 * k], sum[k] = s[4 * k];
 }
 
+// Stores the block (v0, v1, t as above) into x[0..36) (two full stores and
+// one of 4 lanes) and takes its minima, maxima and sums from the same
+// registers, not from x: a load spanning two of those stores would wait for
+// both to complete. 16-lane targets only.
+template <class D, class V = hwy::HWY_NAMESPACE::Vec<D>>
+HWY_INLINE void store_12_min_max_sum(D d, V v0, V v1, V t, float *HWY_RESTRICT x, float lo[3], float hi[3], float sum[3]) {
+    namespace hn = hwy::HWY_NAMESPACE;
+    hn::StoreU(v0, d, x);
+    hn::StoreU(v1, d, x + 16);
+    hn::BlendedStore(t, hn::FirstN(d, 4), d, x + 32);
+    axes_min_max_sum_12_regs(d, v0, v1, t, lo, hi, sum);
+}
+
+// A 12-point block's box (centre c, half-size r, as feature_box computes
+// them) and mean point from its per-axis minima, maxima and sums.
+inline void box_mean_12(const float lo[3], const float hi[3], const float sum[3], float c[3], float r[3], float mean[3]) {
+    for (int a = 0; a < 3; ++a) {
+        r[a] = (hi[a] - lo[a]) / 2.0f;
+        c[a] = lo[a] + r[a];
+        mean[a] = sum[a] / 12.0f;
+    }
+}
+
 // The block read from x[0..36); returns false (and writes nothing) on
 // targets without 16 float lanes.
 template <class D>

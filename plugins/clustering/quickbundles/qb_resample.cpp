@@ -51,14 +51,52 @@ HWY_INLINE V prefix_sum(D d, V v) {
     return v;
 }
 
-HWY_INLINE float geom_of(const float *HWY_RESTRICT x, std::uint32_t P, float *HWY_RESTRICT g);
-HWY_INLINE float geom_from_12(float lo[3], float hi[3], float sum[3], float *HWY_RESTRICT g);
+// Features::geom of a 12-point block from its per-axis minima, maxima and
+// sums (axes_min_max_sum_12); returns its largest |coordinate|.
+HWY_INLINE float geom_from_12(const float lo[3], const float hi[3], const float sum[3], float *HWY_RESTRICT g) {
+    box_mean_12(lo, hi, sum, g, g + 3, g + 6);
+    float big = 0.0f;
+    for (int a = 0; a < 3; ++a) {
+        g[9 + a] = g[6 + a];
+        big = std::max({big, std::fabs(lo[a]), std::fabs(hi[a])});
+    }
+    return big;
+}
+
+// A feature block's Features::geom (AABB centre and half-size as
+// feature_box computes them, bit for bit; the mean point, summed in
+// float32, for both orientations) and its largest |coordinate|, one vector per axis at a time, while
+// the block is still in L1.
+HWY_INLINE float geom_of(const float *HWY_RESTRICT x, std::uint32_t P, float *HWY_RESTRICT g) {
+    const hn::ScalableTag<float> d;
+    if (float lo[3], hi[3], sum[3]; P == 12 && axes_min_max_sum_12(d, x, lo, hi, sum))  // (all three axes at once)
+        return geom_from_12(lo, hi, sum, g);
+    const std::size_t N = hn::Lanes(d);
+    const auto inf = hn::Set(d, HUGE_VALF), ninf = hn::Neg(inf);
+    auto big = hn::Zero(d);
+    for (int a = 0; a < 3; ++a) {
+        const float *p = x + a * P;
+        auto mn = inf, mx = ninf, sum = hn::Zero(d);
+        for (std::size_t i = 0; i < P; i += N) {
+            const auto m = hn::FirstN(d, P - i);
+            const auto v = hn::MaskedLoad(m, d, p + i);  // (zeros in the lanes past P)
+            mn = hn::Min(mn, hn::IfThenElse(m, v, inf));
+            mx = hn::Max(mx, hn::IfThenElse(m, v, ninf));
+            sum = hn::Add(sum, v);
+            big = hn::Max(big, hn::Abs(v));
+        }
+        const float lo = hn::GetLane(hn::MinOfLanes(d, mn)), hi = hn::GetLane(hn::MaxOfLanes(d, mx));
+        g[3 + a] = (hi - lo) / 2.0f;
+        g[a] = lo + g[3 + a];
+        g[6 + a] = g[9 + a] = hn::GetLane(hn::SumOfLanes(d, sum)) / static_cast<float>(P);
+    }
+    return hn::GetLane(hn::MaxOfLanes(d, big));
+}
 
 // A 12-point block from its three axis vectors (lanes 0..11 resampled; lane
-// 11 becomes the last point, as it does below): stored into out[0..36), and its geom
-// computed from the same registers rather than read back from the stores
-// (a load spanning two of them would wait for both). 16-lane targets only
-// (returns false elsewhere, having done nothing).
+// 11 becomes the last point, as it does below): stored into out[0..36), its
+// geom into g from the same registers (store_12_min_max_sum). 16-lane
+// targets only (returns false elsewhere, having done nothing).
 template <class D, class V>
 HWY_INLINE bool store_12_with_geom(D d, V (&res)[3], const float *last, float *HWY_RESTRICT out, float *HWY_RESTRICT g, float &big) {
     if constexpr (hn::MaxLanes(D()) != 16) {
@@ -81,11 +119,8 @@ HWY_INLINE bool store_12_with_geom(D d, V (&res)[3], const float *last, float *H
         const V v1 = hn::IfThenElse(first8, hn::TableLookupLanes(r[1], hn::SetTableIndices(d, iy1)),
                                     hn::TableLookupLanes(r[2], hn::SetTableIndices(d, iz1)));
         const V t = hn::TableLookupLanes(r[2], hn::SetTableIndices(d, iz2));
-        hn::StoreU(v0, d, out);
-        hn::StoreU(v1, d, out + 16);
-        hn::BlendedStore(t, hn::FirstN(d, 4), d, out + 32);
         float lo[3], hi[3], sum[3];
-        axes_min_max_sum_12_regs(d, v0, v1, t, lo, hi, sum);
+        store_12_min_max_sum(d, v0, v1, t, out, lo, hi, sum);
         big = std::max(big, geom_from_12(lo, hi, sum, g));
         return true;
     }
@@ -182,49 +217,6 @@ double resample_one(const float *HWY_RESTRICT p, std::uint64_t n, std::uint32_t 
     for (int a = 0; a < 3; ++a) out[a * P + (P - 1)] = last[a];
     big = std::max(big, geom_of(out, P, g));
     return length;
-}
-
-// Features::geom of a 12-point block from its per-axis minimum, maximum and
-// sum (axes_min_max_sum_12); returns its largest |coordinate|.
-HWY_INLINE float geom_from_12(float lo[3], float hi[3], float sum[3], float *HWY_RESTRICT g) {
-    float big = 0.0f;
-    for (int a = 0; a < 3; ++a) {
-        g[3 + a] = (hi[a] - lo[a]) / 2.0f;
-        g[a] = lo[a] + g[3 + a];
-        g[6 + a] = g[9 + a] = sum[a] / 12.0f;
-        big = std::max({big, std::fabs(lo[a]), std::fabs(hi[a])});
-    }
-    return big;
-}
-
-// A feature block's Features::geom (AABB centre and half-size as
-// feature_box computes them, bit for bit; the mean point, summed in
-// float32, for both orientations) and its largest |coordinate|, one vector per axis at a time, while
-// the block is still in L1.
-HWY_INLINE float geom_of(const float *HWY_RESTRICT x, std::uint32_t P, float *HWY_RESTRICT g) {
-    const hn::ScalableTag<float> d;
-    if (float lo[3], hi[3], sum[3]; P == 12 && axes_min_max_sum_12(d, x, lo, hi, sum))  // (all three axes at once)
-        return geom_from_12(lo, hi, sum, g);
-    const std::size_t N = hn::Lanes(d);
-    const auto inf = hn::Set(d, HUGE_VALF), ninf = hn::Neg(inf);
-    auto big = hn::Zero(d);
-    for (int a = 0; a < 3; ++a) {
-        const float *p = x + a * P;
-        auto mn = inf, mx = ninf, sum = hn::Zero(d);
-        for (std::size_t i = 0; i < P; i += N) {
-            const auto m = hn::FirstN(d, P - i);
-            const auto v = hn::MaskedLoad(m, d, p + i);  // (zeros in the lanes past P)
-            mn = hn::Min(mn, hn::IfThenElse(m, v, inf));
-            mx = hn::Max(mx, hn::IfThenElse(m, v, ninf));
-            sum = hn::Add(sum, v);
-            big = hn::Max(big, hn::Abs(v));
-        }
-        const float lo = hn::GetLane(hn::MinOfLanes(d, mn)), hi = hn::GetLane(hn::MaxOfLanes(d, mx));
-        g[3 + a] = (hi - lo) / 2.0f;
-        g[a] = lo + g[3 + a];
-        g[6 + a] = g[9 + a] = hn::GetLane(hn::SumOfLanes(d, sum)) / static_cast<float>(P);
-    }
-    return hn::GetLane(hn::MaxOfLanes(d, big));
 }
 
 }  // namespace

@@ -120,11 +120,7 @@ HWY_INLINE void mdf_pair(const float *HWY_RESTRICT c, const float *HWY_RESTRICT 
 HWY_INLINE void box_and_mean(const float *HWY_RESTRICT x, std::uint32_t P, float c[3], float r[3], float mean[3]) {
     const hn::ScalableTag<float> d;
     if (float lo[3], hi[3], sum[3]; P == 12 && axes_min_max_sum_12(d, x, lo, hi, sum)) {
-        for (int a = 0; a < 3; ++a) {
-            r[a] = (hi[a] - lo[a]) / 2.0f;
-            c[a] = lo[a] + r[a];
-            mean[a] = sum[a] / 12.0f;
-        }
+        box_mean_12(lo, hi, sum, c, r, mean);
         return;
     }
     const std::size_t N = hn::Lanes(d);
@@ -212,16 +208,9 @@ HWY_INLINE bool update_with_box_12(D d, float *HWY_RESTRICT c, std::uint64_t siz
         auto up = [&](hn::Vec<D> cv, hn::Vec<D> ev) { return hn::Mul(hn::Add(hn::Mul(cv, fs), ev), inv); };
         const auto v0 = up(hn::LoadU(d, c), hn::LoadU(d, e)), v1 = up(hn::LoadU(d, c + 16), hn::LoadU(d, e + 16));
         const auto t = up(hn::MaskedLoad(first4, d, c + 32), hn::MaskedLoad(first4, d, e + 32));
-        hn::StoreU(v0, d, c);
-        hn::StoreU(v1, d, c + 16);
-        hn::BlendedStore(t, first4, d, c + 32);
         float lo[3], hi[3], sum[3];
-        axes_min_max_sum_12_regs(d, v0, v1, t, lo, hi, sum);
-        for (int a = 0; a < 3; ++a) {
-            br[a] = (hi[a] - lo[a]) / 2.0f;
-            bc[a] = lo[a] + br[a];
-            mean[a] = sum[a] / 12.0f;
-        }
+        store_12_min_max_sum(d, v0, v1, t, c, lo, hi, sum);
+        box_mean_12(lo, hi, sum, bc, br, mean);
         return true;
     }
 }
