@@ -8,6 +8,8 @@
 
 #include <catch2/catch.hpp>
 
+#include "simd_targets.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -131,4 +133,89 @@ TEST_CASE("QuickBundlesX cancelled halfway through on two threads stops cleanly"
         // The clusterer is still usable afterwards, with the same answer as ever.
         CHECK(cluster(c, t, mode, 2).members == cluster(c, t, mode, 1).members);
     }
+}
+
+namespace {
+
+// Per level 1..L, each streamline's node (-1 where none holds it).
+std::vector<std::vector<std::int64_t>> labels_by_level(const Result &r, std::uint64_t n) {
+    const std::uint32_t L = r.level.empty() ? 0 : *std::max_element(r.level.begin(), r.level.end());
+    std::vector<std::vector<std::int64_t>> out(L, std::vector<std::int64_t>(n, -1));
+    for (std::size_t k = 0; k < r.parent.size(); ++k)
+        if (r.level[k] >= 1)
+            for (std::uint64_t m = r.offsets[k]; m < r.offsets[k + 1]; ++m) out[r.level[k] - 1][r.members[m]] = std::int64_t(k);
+    return out;
+}
+
+// The fraction of streamlines whose cluster in `a` maps to their cluster in
+// `b` when each a-cluster maps to the b-cluster holding most of its members
+// (bench/cluster_bench.py's matched_fraction).
+double matched_fraction(const std::vector<std::int64_t> &a, const std::vector<std::int64_t> &b) {
+    std::vector<std::pair<std::int64_t, std::int64_t>> pairs(a.size());
+    for (std::size_t i = 0; i < a.size(); ++i) pairs[i] = {a[i], b[i]};
+    std::sort(pairs.begin(), pairs.end());
+    std::uint64_t matched = 0;
+    for (std::size_t i = 0; i < pairs.size();) {  // per a-cluster, its largest run of one b-cluster
+        std::uint64_t best = 0;
+        const std::int64_t ca = pairs[i].first;
+        while (i < pairs.size() && pairs[i].first == ca) {
+            std::size_t j = i;
+            while (j < pairs.size() && pairs[j] == pairs[i]) ++j;
+            best = std::max<std::uint64_t>(best, j - i);
+            i = j;
+        }
+        matched += best;
+    }
+    return a.empty() ? 1.0 : double(matched) / double(a.size());
+}
+
+}  // namespace
+
+// Highway dispatches the plugin's kernels to the best target the CPU runs
+// (AVX-512 on this project's machines); most users' CPUs take another
+// (AVX2, SSE4). Each target this CPU can run is forced in turn (the test and
+// the plugin share libhwy's choice): exact mode must give the same tree bit
+// for bit at every one (its arithmetic does not follow the vector width),
+// fast mode the same tree on one thread and two, with >= 99.9 % of the
+// streamlines in exact mode's clusters at every level.
+TEST_CASE("QuickBundlesX at every SIMD target the CPU runs: exact mode the same tree, fast mode within 0.1 % of it") {
+    Registry reg;
+    reg.scan({HZ_TEST_PLUGIN_DIR});
+    const hz_clustering &c = qbx(reg);
+    const Tractogram t = phantom(30000);
+    const std::uint64_t n = t.nb_streamlines();
+    const Result exact = cluster(c, t, 0, 2);
+    REQUIRE(exact.status == HZ_OK);
+    const auto exact_labels = labels_by_level(exact, n);
+    REQUIRE(exact_labels.size() == 4);
+    const std::size_t nb_targets = hz::test::simd_targets().size();
+#if defined(__x86_64__)
+    CHECK(nb_targets >= 2);  // (SSE4 and AVX2 at least, on any x86-64 CPU of the last decade)
+#endif
+    std::vector<float> first_fast;
+    bool widths_differ = false;
+    hz::test::for_each_simd_target([&](const char *) {
+        const Result e = cluster(c, t, 0, 2);
+        REQUIRE(e.status == HZ_OK);
+        CHECK(e.parent == exact.parent);
+        CHECK(e.members == exact.members);
+        CHECK(std::memcmp(e.centroids.data(), exact.centroids.data(), exact.centroids.size() * sizeof(float)) == 0);
+        const Result one = cluster(c, t, 1, 1), two = cluster(c, t, 1, 2);
+        REQUIRE(one.status == HZ_OK);
+        REQUIRE(two.status == HZ_OK);
+        CHECK(one.parent == two.parent);
+        CHECK(one.members == two.members);
+        CHECK(one.centroids == two.centroids);
+        const auto fast_labels = labels_by_level(two, n);
+        REQUIRE(fast_labels.size() == exact_labels.size());
+        for (std::size_t l = 0; l < exact_labels.size(); ++l) {
+            CAPTURE(l + 1);
+            CHECK(matched_fraction(fast_labels[l], exact_labels[l]) >= 0.999);
+        }
+        if (first_fast.empty()) first_fast = two.centroids;
+        else widths_differ = widths_differ || two.centroids != first_fast;
+    });
+    // The forcing reached the plugin: fast mode's float32 sums follow the
+    // vector width, so its centroids are not the same at every width.
+    if (nb_targets >= 2) CHECK(widths_differ);
 }

@@ -3,6 +3,8 @@
 
 #include <catch2/catch.hpp>
 
+#include "simd_targets.hpp"
+
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -177,112 +179,116 @@ TEST_CASE("tck: probe") {
     CHECK(score("") == 0);
 }
 
-TEST_CASE("tck: the Float32LE block scan agrees with the generic walk on long streamlines") {
-    // Streamlines of 0..70 points put delimiters at every position inside the
-    // 16-triple blocks; the same data as Float64BE takes the generic walk.
-    std::vector<float> xs;
-    std::vector<double> xd;
-    std::vector<std::uint64_t> lengths;
-    for (int s = 0; s < 60; ++s) {
-        const int n = (s * 37) % 71;
-        lengths.push_back(static_cast<std::uint64_t>(n));
-        for (int i = 0; i < 3 * n; ++i) {
-            const float v = static_cast<float>(s * 1000 + i) * 0.25f - 300.0f;
-            xs.push_back(v), xd.push_back(v);
+TEST_CASE("tck: at every SIMD target, the Float32LE block scan agrees with the generic walk on long streamlines") {
+    hz::test::for_each_simd_target([&](const char *) {
+        // Streamlines of 0..70 points put delimiters at every position inside the
+        // 16-triple blocks; the same data as Float64BE takes the generic walk.
+        std::vector<float> xs;
+        std::vector<double> xd;
+        std::vector<std::uint64_t> lengths;
+        for (int s = 0; s < 60; ++s) {
+            const int n = (s * 37) % 71;
+            lengths.push_back(static_cast<std::uint64_t>(n));
+            for (int i = 0; i < 3 * n; ++i) {
+                const float v = static_cast<float>(s * 1000 + i) * 0.25f - 300.0f;
+                xs.push_back(v), xd.push_back(v);
+            }
+            for (int k = 0; k < 3; ++k) xs.push_back(NaN), xd.push_back(NaN);
         }
-        for (int k = 0; k < 3; ++k) xs.push_back(NaN), xd.push_back(NaN);
-    }
-    for (int k = 0; k < 3; ++k) xs.push_back(Inf), xd.push_back(Inf);
-    std::string f32, f64;
-    for (float f : xs) f32 += f32le({f});
-    for (double d : xd) f64 += f64be({d});
-    const Parsed a = parse(header("Float32LE") + f32), b = parse(header("Float64BE") + f64);
-    REQUIRE(a.l.nb_streamlines == 60);
-    CHECK(a.l.nb_vertices == b.l.nb_vertices);
-    CHECK(a.off == b.off);
-    CHECK(a.pos == b.pos);
-    for (std::size_t s = 0; s < lengths.size(); ++s) CHECK(a.off[s + 1] - a.off[s] == lengths[s]);
-    check_bounds(a);
-    CHECK_FALSE(b.l.has_bounds);  // (only the Float32LE scan finds them)
-    // The extremes in every position of a block, data at any byte alignment,
-    // and points after the terminator (not data) left out of the bounds.
-    for (std::size_t pad : {0, 1, 2, 3})
-        for (std::size_t at = 0; at < 48; at += 5) {
-            std::vector<float> v = xs;
-            std::size_t i = 3 * 16 * 7 + at;
-            while (std::isnan(v[i])) ++i;
-            v[i] = i % 2 ? 1e30f : -1e30f;
-            for (float f : {7e30f, -7e30f, 1.0f}) v.push_back(f);
-            std::string file = header("Float32LE", pad);
-            for (float f : v) file += f32le({f});
-            const Parsed c = parse(file);
-            check_bounds(c);
-            CHECK(std::max(c.l.hi[i % 3], -c.l.lo[i % 3]) == 1e30f);
+        for (int k = 0; k < 3; ++k) xs.push_back(Inf), xd.push_back(Inf);
+        std::string f32, f64;
+        for (float f : xs) f32 += f32le({f});
+        for (double d : xd) f64 += f64be({d});
+        const Parsed a = parse(header("Float32LE") + f32), b = parse(header("Float64BE") + f64);
+        REQUIRE(a.l.nb_streamlines == 60);
+        CHECK(a.l.nb_vertices == b.l.nb_vertices);
+        CHECK(a.off == b.off);
+        CHECK(a.pos == b.pos);
+        for (std::size_t s = 0; s < lengths.size(); ++s) CHECK(a.off[s + 1] - a.off[s] == lengths[s]);
+        check_bounds(a);
+        CHECK_FALSE(b.l.has_bounds);  // (only the Float32LE scan finds them)
+        // The extremes in every position of a block, data at any byte alignment,
+        // and points after the terminator (not data) left out of the bounds.
+        for (std::size_t pad : {0, 1, 2, 3})
+            for (std::size_t at = 0; at < 48; at += 5) {
+                std::vector<float> v = xs;
+                std::size_t i = 3 * 16 * 7 + at;
+                while (std::isnan(v[i])) ++i;
+                v[i] = i % 2 ? 1e30f : -1e30f;
+                for (float f : {7e30f, -7e30f, 1.0f}) v.push_back(f);
+                std::string file = header("Float32LE", pad);
+                for (float f : v) file += f32le({f});
+                const Parsed c = parse(file);
+                check_bounds(c);
+                CHECK(std::max(c.l.hi[i % 3], -c.l.lo[i % 3]) == 1e30f);
+            }
+        // A partial NaN or an early Inf deep inside a long streamline is still found, with its byte offset.
+        for (std::size_t at : {std::size_t(17 * 3 + 1), std::size_t(40 * 3 + 2), std::size_t(1000)}) {
+            std::vector<float> bad = xs;
+            while (std::isnan(bad[at]) || std::isinf(bad[at])) ++at;
+            bad[at] = at % 2 ? NaN : Inf;
+            std::string file = header("Float32LE");
+            for (float f : bad) file += f32le({f});
+            try {
+                parse(file);
+                FAIL("accepted a partial NaN/Inf triple at value " << at);
+            } catch (const tck::FormatError &e) {
+                const std::size_t byte = header("Float32LE").size() + 12 * (at / 3);
+                CHECK_THAT(e.what(), Catch::Contains("partial NaN/Inf triple at byte " + std::to_string(byte)));
+            }
         }
-    // A partial NaN or an early Inf deep inside a long streamline is still found, with its byte offset.
-    for (std::size_t at : {std::size_t(17 * 3 + 1), std::size_t(40 * 3 + 2), std::size_t(1000)}) {
-        std::vector<float> bad = xs;
-        while (std::isnan(bad[at]) || std::isinf(bad[at])) ++at;
-        bad[at] = at % 2 ? NaN : Inf;
-        std::string file = header("Float32LE");
-        for (float f : bad) file += f32le({f});
-        try {
-            parse(file);
-            FAIL("accepted a partial NaN/Inf triple at value " << at);
-        } catch (const tck::FormatError &e) {
-            const std::size_t byte = header("Float32LE").size() + 12 * (at / 3);
-            CHECK_THAT(e.what(), Catch::Contains("partial NaN/Inf triple at byte " + std::to_string(byte)));
-        }
-    }
+    });
 }
 
-TEST_CASE("tck: the parallel Float32LE scan and copy span chunks like one sequential walk") {
-    // 3.2 million triples: four scan chunks of 2^20 triples, several copy
-    // chunks, streamlines crossing every chunk boundary. The same data as
-    // Float64BE takes the sequential generic walk.
-    std::vector<float> xs;
-    std::vector<std::uint64_t> lengths;
-    std::uint64_t triples = 0;
-    for (int s = 0; triples < 3'200'000; ++s) {
-        const std::uint64_t n = s % 997 == 0 ? 0 : 1 + (static_cast<std::uint64_t>(s) * 7919) % 4000;
-        lengths.push_back(n);
-        for (std::uint64_t i = 0; i < 3 * n; ++i) xs.push_back(static_cast<float>((s * 31 + i) % 20011) * 0.01f - 100.0f);
-        for (int k = 0; k < 3; ++k) xs.push_back(NaN);
-        triples += n + 1;
-    }
-    for (int k = 0; k < 3; ++k) xs.push_back(Inf);
-    auto encode = [](const std::vector<float> &v, bool f64) {
-        std::string out = header(f64 ? "Float64BE" : "Float32LE");
-        out.reserve(out.size() + v.size() * (f64 ? 8 : 4));
-        for (float f : v) out += f64 ? f64be({f}) : f32le({f});
-        return out;
-    };
-    const Parsed a = parse(encode(xs, false)), b = parse(encode(xs, true));
-    REQUIRE(a.l.nb_streamlines == lengths.size());
-    CHECK(a.l.nb_vertices == b.l.nb_vertices);
-    CHECK(a.off == b.off);
-    CHECK(a.pos == b.pos);
-    for (std::size_t s = 0; s < lengths.size(); s += 101) CHECK(a.off[s + 1] - a.off[s] == lengths[s]);
-    check_bounds(a);
-    // Points after the terminator, in its chunk and the next, are not data.
-    {
-        std::vector<float> v = xs;
-        for (std::size_t k = 0; k < 3 * (1u << 20); ++k) v.push_back(k % 2 ? 5e3f : -5e3f);
-        const Parsed c = parse(encode(v, false));
-        CHECK(c.l.nb_vertices == a.l.nb_vertices);
-        CHECK(c.l.trailing_bytes == 12 * (1u << 20));
-        check_bounds(c);
-    }
-    // Two faults in different chunks: the first in file order is reported.
-    std::vector<float> bad = xs;
-    const std::size_t late = 3 * 3'000'000, early = 3 * 1'500'000 + 1;
-    for (std::size_t at : {late, early}) {
-        std::size_t i = at;
-        while (std::isnan(bad[i]) || std::isinf(bad[i])) ++i;
-        bad[i] = NaN;
-        if (at == early) {
-            const std::size_t byte = header("Float32LE").size() + 12 * (i / 3);
-            CHECK_THROWS_WITH(parse(encode(bad, false)), Catch::Contains("partial NaN/Inf triple at byte " + std::to_string(byte)));
+TEST_CASE("tck: at every SIMD target, the parallel Float32LE scan and copy span chunks like one sequential walk") {
+    hz::test::for_each_simd_target([&](const char *) {
+        // 3.2 million triples: four scan chunks of 2^20 triples, several copy
+        // chunks, streamlines crossing every chunk boundary. The same data as
+        // Float64BE takes the sequential generic walk.
+        std::vector<float> xs;
+        std::vector<std::uint64_t> lengths;
+        std::uint64_t triples = 0;
+        for (int s = 0; triples < 3'200'000; ++s) {
+            const std::uint64_t n = s % 997 == 0 ? 0 : 1 + (static_cast<std::uint64_t>(s) * 7919) % 4000;
+            lengths.push_back(n);
+            for (std::uint64_t i = 0; i < 3 * n; ++i) xs.push_back(static_cast<float>((s * 31 + i) % 20011) * 0.01f - 100.0f);
+            for (int k = 0; k < 3; ++k) xs.push_back(NaN);
+            triples += n + 1;
         }
-    }
+        for (int k = 0; k < 3; ++k) xs.push_back(Inf);
+        auto encode = [](const std::vector<float> &v, bool f64) {
+            std::string out = header(f64 ? "Float64BE" : "Float32LE");
+            out.reserve(out.size() + v.size() * (f64 ? 8 : 4));
+            for (float f : v) out += f64 ? f64be({f}) : f32le({f});
+            return out;
+        };
+        const Parsed a = parse(encode(xs, false)), b = parse(encode(xs, true));
+        REQUIRE(a.l.nb_streamlines == lengths.size());
+        CHECK(a.l.nb_vertices == b.l.nb_vertices);
+        CHECK(a.off == b.off);
+        CHECK(a.pos == b.pos);
+        for (std::size_t s = 0; s < lengths.size(); s += 101) CHECK(a.off[s + 1] - a.off[s] == lengths[s]);
+        check_bounds(a);
+        // Points after the terminator, in its chunk and the next, are not data.
+        {
+            std::vector<float> v = xs;
+            for (std::size_t k = 0; k < 3 * (1u << 20); ++k) v.push_back(k % 2 ? 5e3f : -5e3f);
+            const Parsed c = parse(encode(v, false));
+            CHECK(c.l.nb_vertices == a.l.nb_vertices);
+            CHECK(c.l.trailing_bytes == 12 * (1u << 20));
+            check_bounds(c);
+        }
+        // Two faults in different chunks: the first in file order is reported.
+        std::vector<float> bad = xs;
+        const std::size_t late = 3 * 3'000'000, early = 3 * 1'500'000 + 1;
+        for (std::size_t at : {late, early}) {
+            std::size_t i = at;
+            while (std::isnan(bad[i]) || std::isinf(bad[i])) ++i;
+            bad[i] = NaN;
+            if (at == early) {
+                const std::size_t byte = header("Float32LE").size() + 12 * (i / 3);
+                CHECK_THROWS_WITH(parse(encode(bad, false)), Catch::Contains("partial NaN/Inf triple at byte " + std::to_string(byte)));
+            }
+        }
+    });
 }

@@ -5,6 +5,8 @@
 
 #include <catch2/catch.hpp>
 
+#include "simd_targets.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -22,123 +24,127 @@ std::string slurp(const std::string &p) {
 
 }  // namespace
 
-TEST_CASE("trk: the parallel chunked decode equals one sequential chunk; the first bad point in file order is named") {
-    // About 40 MB of records: three chunks of 16 MiB, with one scalar column
-    // and one property so records are not plain points.
-    std::vector<float> pos, scal, prop;
-    std::vector<std::uint64_t> off{0};
-    for (int s = 0; off.back() < 3'200'000; ++s) {
-        const std::uint64_t n = 1 + (static_cast<std::uint64_t>(s) * 7919) % 300;
-        for (std::uint64_t i = 0; i < n; ++i) {
-            for (int c = 0; c < 3; ++c) pos.push_back(static_cast<float>((s * 13 + i * 3 + c) % 1999) * 0.05f - 50.0f);
-            scal.push_back(static_cast<float>(i));
+TEST_CASE("trk: at every SIMD target, the parallel chunked decode equals one sequential chunk; the first bad point in file order is named") {
+    hz::test::for_each_simd_target([&](const char *) {
+        // About 40 MB of records: three chunks of 16 MiB, with one scalar column
+        // and one property so records are not plain points.
+        std::vector<float> pos, scal, prop;
+        std::vector<std::uint64_t> off{0};
+        for (int s = 0; off.back() < 3'200'000; ++s) {
+            const std::uint64_t n = 1 + (static_cast<std::uint64_t>(s) * 7919) % 300;
+            for (std::uint64_t i = 0; i < n; ++i) {
+                for (int c = 0; c < 3; ++c) pos.push_back(static_cast<float>((s * 13 + i * 3 + c) % 1999) * 0.05f - 50.0f);
+                scal.push_back(static_cast<float>(i));
+            }
+            prop.push_back(static_cast<float>(s));
+            off.push_back(off.back() + n);
         }
-        prop.push_back(static_cast<float>(s));
-        off.push_back(off.back() + n);
-    }
-    const std::uint64_t N = off.size() - 1, V = off.back();
-    trk::WriteSpec spec;
-    spec.vox_to_ras = {-2, 0, 0, 90, 0, 2, 0, -126, 0, 0, 2, -72, 0, 0, 0, 1};  // LAS, 2 mm
-    spec.dims = {91, 109, 91};
-    spec.scalars = {{"index", 1}};
-    spec.properties = {{"id", 1}};
-    spec.scalar_data = scal.data();
-    spec.property_data = prop.data();
-    const std::string path = (std::filesystem::temp_directory_path() / "hz_unit_trk_chunks.trk").string();
-    trk::write(path, pos.data(), V, off.data(), N, spec);
-    std::string file = slurp(path);
-    std::filesystem::remove(path);
+        const std::uint64_t N = off.size() - 1, V = off.back();
+        trk::WriteSpec spec;
+        spec.vox_to_ras = {-2, 0, 0, 90, 0, 2, 0, -126, 0, 0, 2, -72, 0, 0, 0, 1};  // LAS, 2 mm
+        spec.dims = {91, 109, 91};
+        spec.scalars = {{"index", 1}};
+        spec.properties = {{"id", 1}};
+        spec.scalar_data = scal.data();
+        spec.property_data = prop.data();
+        const std::string path = (std::filesystem::temp_directory_path() / "hz_unit_trk_chunks.trk").string();
+        trk::write(path, pos.data(), V, off.data(), N, spec);
+        std::string file = slurp(path);
+        std::filesystem::remove(path);
 
-    auto decode = [](const std::string &f, bool one_chunk) {
-        const auto *b = reinterpret_cast<const unsigned char *>(f.data());
-        const trk::Header h = trk::parse_header(b, f.size());
-        trk::Layout l = trk::scan(b, f.size(), h);
-        if (one_chunk) l.chunks = {l.chunks.front(), l.chunks.back()};
-        std::vector<float> p(3 * l.nb_vertices), sc(l.nb_vertices), pr(l.nb_streamlines);
-        std::vector<std::uint64_t> o(l.nb_streamlines + 1);
-        trk::decode(b, f.size(), h, l, p.data(), o.data(), sc.data(), pr.data());
-        return std::make_tuple(l.chunks.size(), p, o, sc, pr);
-    };
-    const auto [chunks, p, o, sc, pr] = decode(file, false);
-    const auto [chunks1, p1, o1, sc1, pr1] = decode(file, true);
-    CHECK(chunks >= 4);  // at least three chunks and the end marker
-    CHECK(chunks1 == 2);
-    CHECK(o == off);
-    CHECK(o1 == off);
-    CHECK(p == p1);
-    CHECK(sc == scal);
-    CHECK(pr == prop);
-    for (std::size_t i = 0; i < pos.size(); i += 9973) CHECK(std::fabs(p[i] - pos[i]) < 1e-4f);
+        auto decode = [](const std::string &f, bool one_chunk) {
+            const auto *b = reinterpret_cast<const unsigned char *>(f.data());
+            const trk::Header h = trk::parse_header(b, f.size());
+            trk::Layout l = trk::scan(b, f.size(), h);
+            if (one_chunk) l.chunks = {l.chunks.front(), l.chunks.back()};
+            std::vector<float> p(3 * l.nb_vertices), sc(l.nb_vertices), pr(l.nb_streamlines);
+            std::vector<std::uint64_t> o(l.nb_streamlines + 1);
+            trk::decode(b, f.size(), h, l, p.data(), o.data(), sc.data(), pr.data());
+            return std::make_tuple(l.chunks.size(), p, o, sc, pr);
+        };
+        const auto [chunks, p, o, sc, pr] = decode(file, false);
+        const auto [chunks1, p1, o1, sc1, pr1] = decode(file, true);
+        CHECK(chunks >= 4);  // at least three chunks and the end marker
+        CHECK(chunks1 == 2);
+        CHECK(o == off);
+        CHECK(o1 == off);
+        CHECK(p == p1);
+        CHECK(sc == scal);
+        CHECK(pr == prop);
+        for (std::size_t i = 0; i < pos.size(); i += 9973) CHECK(std::fabs(p[i] - pos[i]) < 1e-4f);
 
-    // Non-finite values in the third and the second chunk: the second's is reported.
-    auto poison = [&](std::uint64_t streamline) {
-        // Record layout: count, then per point x y z + 1 scalar, then 1 property.
-        std::uint64_t at = 1000;
-        for (std::uint64_t s = 0; s < streamline; ++s) at += 4 + (off[s + 1] - off[s]) * 16 + 4;
-        const float nan = NAN;
-        std::memcpy(file.data() + at + 4 + 16 + 4, &nan, 4);  // point 1, y
-    };
-    const std::uint64_t late = N * 9 / 10, early = N / 2;
-    poison(late);
-    poison(early);
-    CHECK_THROWS_WITH(decode(file, false), Catch::Contains("streamline " + std::to_string(early) + " point 1 has a non-finite"));
+        // Non-finite values in the third and the second chunk: the second's is reported.
+        auto poison = [&](std::uint64_t streamline) {
+            // Record layout: count, then per point x y z + 1 scalar, then 1 property.
+            std::uint64_t at = 1000;
+            for (std::uint64_t s = 0; s < streamline; ++s) at += 4 + (off[s + 1] - off[s]) * 16 + 4;
+            const float nan = NAN;
+            std::memcpy(file.data() + at + 4 + 16 + 4, &nan, 4);  // point 1, y
+        };
+        const std::uint64_t late = N * 9 / 10, early = N / 2;
+        poison(late);
+        poison(early);
+        CHECK_THROWS_WITH(decode(file, false), Catch::Contains("streamline " + std::to_string(early) + " point 1 has a non-finite"));
+    });
 }
 
-TEST_CASE("trk: the vector transform of scalar-free points equals the scalar formula bit for bit; non-finite input is flagged") {
-    // An oblique affine with a translation, every length 0..40 (vector body
-    // and scalar tail), points at an offset of one float (unaligned vectors).
-    const double A[16] = {0.9, -0.31, 0.2, -90.25, 0.27, 1.1, -0.05, 126.5, -0.12, 0.08, 2.03, -72.125, 0, 0, 0, 1};
-    std::vector<float> in(1 + 3 * 40), out(3 * 40 + 1);
-    for (std::size_t i = 0; i < in.size(); ++i) in[i] = static_cast<float>(std::sin(double(i) * 12.9898) * 180.0);
-    for (std::uint64_t n = 0; n <= 40; ++n) {
-        std::fill(out.begin(), out.end(), -1.0f);
-        float lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
-        REQUIRE(trk::detail::transform_points(in.data() + 1, n, A, out.data(), lo, hi));
-        float want_lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, want_hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
-        for (std::uint64_t i = 0; i < n; ++i)
-            for (int r = 0; r < 3; ++r) {
-                const float *p = in.data() + 1 + 3 * i;
-                const float want = static_cast<float>(A[4 * r] * double(p[0]) + A[4 * r + 1] * double(p[1]) + A[4 * r + 2] * double(p[2]) +
-                                                      A[4 * r + 3]);
-                REQUIRE(std::memcmp(&out[3 * i + r], &want, 4) == 0);
-                want_lo[r] = std::min(want_lo[r], want);
-                want_hi[r] = std::max(want_hi[r], want);
-            }
-        REQUIRE(out[3 * n] == -1.0f);  // nothing written past the n points
-        for (int r = 0; r < 3; ++r) {  // the bounds of what it wrote
-            REQUIRE(lo[r] == want_lo[r]);
-            REQUIRE(hi[r] == want_hi[r]);
-        }
-    }
-    // The bounds with the extreme point at every position (vector lanes and
-    // tail), and merged with the bounds passed in.
-    for (std::uint64_t at = 0; at < 40; ++at)
-        for (const float big : {1e6f, -1e6f}) {
-            std::vector<float> v(in.begin() + 1, in.end());
-            v[3 * at] = v[3 * at + 1] = v[3 * at + 2] = big;
+TEST_CASE("trk: at every SIMD target, the vector transform of scalar-free points equals the scalar formula bit for bit; non-finite input is flagged") {
+    hz::test::for_each_simd_target([&](const char *) {
+        // An oblique affine with a translation, every length 0..40 (vector body
+        // and scalar tail), points at an offset of one float (unaligned vectors).
+        const double A[16] = {0.9, -0.31, 0.2, -90.25, 0.27, 1.1, -0.05, 126.5, -0.12, 0.08, 2.03, -72.125, 0, 0, 0, 1};
+        std::vector<float> in(1 + 3 * 40), out(3 * 40 + 1);
+        for (std::size_t i = 0; i < in.size(); ++i) in[i] = static_cast<float>(std::sin(double(i) * 12.9898) * 180.0);
+        for (std::uint64_t n = 0; n <= 40; ++n) {
+            std::fill(out.begin(), out.end(), -1.0f);
             float lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
-            REQUIRE(trk::detail::transform_points(v.data(), 40, A, out.data(), lo, hi));
-            for (int r = 0; r < 3; ++r) {
-                const float e = out[3 * at + r];
-                REQUIRE((e == lo[r] || e == hi[r]));
-                float mn = HUGE_VALF, mx = -HUGE_VALF;
-                for (int i = 0; i < 40; ++i) {
-                    mn = std::min(mn, out[3 * i + r]);
-                    mx = std::max(mx, out[3 * i + r]);
+            REQUIRE(trk::detail::transform_points(in.data() + 1, n, A, out.data(), lo, hi));
+            float want_lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, want_hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
+            for (std::uint64_t i = 0; i < n; ++i)
+                for (int r = 0; r < 3; ++r) {
+                    const float *p = in.data() + 1 + 3 * i;
+                    const float want = static_cast<float>(A[4 * r] * double(p[0]) + A[4 * r + 1] * double(p[1]) + A[4 * r + 2] * double(p[2]) +
+                                                          A[4 * r + 3]);
+                    REQUIRE(std::memcmp(&out[3 * i + r], &want, 4) == 0);
+                    want_lo[r] = std::min(want_lo[r], want);
+                    want_hi[r] = std::max(want_hi[r], want);
                 }
-                REQUIRE((lo[r] == mn && hi[r] == mx));
+            REQUIRE(out[3 * n] == -1.0f);  // nothing written past the n points
+            for (int r = 0; r < 3; ++r) {  // the bounds of what it wrote
+                REQUIRE(lo[r] == want_lo[r]);
+                REQUIRE(hi[r] == want_hi[r]);
             }
-            float lo2[3] = {-1e30f, -1e30f, -1e30f}, hi2[3] = {1e30f, 1e30f, 1e30f};
-            REQUIRE(trk::detail::transform_points(v.data(), 40, A, out.data(), lo2, hi2));
-            for (int r = 0; r < 3; ++r) REQUIRE((lo2[r] == -1e30f && hi2[r] == 1e30f));
         }
-    for (const float bad : {NAN, INFINITY, -INFINITY})
-        for (std::uint64_t at : {0, 3 * 17 + 2, 3 * 39 + 1}) {  // in the vector body and in the tail
-            std::vector<float> v(in.begin() + 1, in.end());
-            v[at] = bad;
-            float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
-            REQUIRE_FALSE(trk::detail::transform_points(v.data(), 40, A, out.data(), lo, hi));
-        }
+        // The bounds with the extreme point at every position (vector lanes and
+        // tail), and merged with the bounds passed in.
+        for (std::uint64_t at = 0; at < 40; ++at)
+            for (const float big : {1e6f, -1e6f}) {
+                std::vector<float> v(in.begin() + 1, in.end());
+                v[3 * at] = v[3 * at + 1] = v[3 * at + 2] = big;
+                float lo[3] = {HUGE_VALF, HUGE_VALF, HUGE_VALF}, hi[3] = {-HUGE_VALF, -HUGE_VALF, -HUGE_VALF};
+                REQUIRE(trk::detail::transform_points(v.data(), 40, A, out.data(), lo, hi));
+                for (int r = 0; r < 3; ++r) {
+                    const float e = out[3 * at + r];
+                    REQUIRE((e == lo[r] || e == hi[r]));
+                    float mn = HUGE_VALF, mx = -HUGE_VALF;
+                    for (int i = 0; i < 40; ++i) {
+                        mn = std::min(mn, out[3 * i + r]);
+                        mx = std::max(mx, out[3 * i + r]);
+                    }
+                    REQUIRE((lo[r] == mn && hi[r] == mx));
+                }
+                float lo2[3] = {-1e30f, -1e30f, -1e30f}, hi2[3] = {1e30f, 1e30f, 1e30f};
+                REQUIRE(trk::detail::transform_points(v.data(), 40, A, out.data(), lo2, hi2));
+                for (int r = 0; r < 3; ++r) REQUIRE((lo2[r] == -1e30f && hi2[r] == 1e30f));
+            }
+        for (const float bad : {NAN, INFINITY, -INFINITY})
+            for (std::uint64_t at : {0, 3 * 17 + 2, 3 * 39 + 1}) {  // in the vector body and in the tail
+                std::vector<float> v(in.begin() + 1, in.end());
+                v[at] = bad;
+                float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+                REQUIRE_FALSE(trk::detail::transform_points(v.data(), 40, A, out.data(), lo, hi));
+            }
+    });
 }
 
 TEST_CASE("trk: the record walk in many chains gives exactly the single walk's layout and first error") {
