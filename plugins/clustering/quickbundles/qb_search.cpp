@@ -259,24 +259,39 @@ struct LowerBound {
 };
 
 // Squared float32 distances from the mean points (mx, my, mz)[0..K) to `a`:
-// every candidate's lower bound at once, a plain loop the compiler
-// vectorises at the width of this file's target. Returns the smallest of
-// them (the bit patterns of non-negative floats order as integers, which
-// keeps the reduction vectorisable).
+// every candidate's lower bound at once, a vector of candidates at a time at
+// the full width of this file's target (QB's thousands of clusters; the
+// file's compiler-vectorised loops are held to 128 bits, CMakeLists.txt).
+// Returns the smallest of them. ((dx dx + dy dy) + dz dz, no fused
+// multiply-add: the same values as the scalar form.)
 float screen1(std::size_t K, const float *mx, const float *my, const float *mz, const float a[3], float *q) {
-    std::int32_t mn = 0x7f800000;  // +inf
-    const float ax = a[0], ay = a[1], az = a[2];
-    for (std::size_t k = 0; k < K; ++k) {
-        const float dx = mx[k] - ax, dy = my[k] - ay, dz = mz[k] - az;
-        const float v = dx * dx + dy * dy + dz * dz;
-        q[k] = v;
-        std::int32_t iv;
-        std::memcpy(&iv, &v, 4);
-        mn = std::min(mn, iv);
+    const hn::ScalableTag<float> d;
+    const hn::RebindToSigned<decltype(d)> di;
+    const std::size_t N = hn::Lanes(d);
+    const auto ax = hn::Set(d, a[0]), ay = hn::Set(d, a[1]), az = hn::Set(d, a[2]);
+    auto sq = [&](auto x, auto y, auto z) {
+        const auto dx = hn::Sub(x, ax), dy = hn::Sub(y, ay), dz = hn::Sub(z, az);
+        return hn::Add(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Mul(dz, dz));
+    };
+    // (The minimum of the bit patterns, which order as the non-negative
+    // floats do: a one-cycle integer minimum carries the loop.)
+    auto mn = hn::Set(di, 0x7f800000);  // +inf
+    std::size_t k = 0;
+    for (; k + N <= K; k += N) {
+        const auto v = sq(hn::LoadU(d, mx + k), hn::LoadU(d, my + k), hn::LoadU(d, mz + k));
+        hn::StoreU(v, d, q + k);
+        mn = hn::Min(mn, hn::BitCast(di, v));
     }
-    float r;
-    std::memcpy(&r, &mn, 4);
-    return r;
+    if (k < K) {
+        const auto m = hn::FirstN(d, K - k);
+        const auto v = sq(hn::MaskedLoad(m, d, mx + k), hn::MaskedLoad(m, d, my + k), hn::MaskedLoad(m, d, mz + k));
+        hn::BlendedStore(v, m, d, q + k);
+        mn = hn::Min(mn, hn::IfThenElse(hn::RebindMask(di, m), hn::BitCast(di, v), mn));
+    }
+    const std::int32_t r = hn::GetLane(hn::MinOfLanes(di, mn));
+    float f;
+    std::memcpy(&f, &r, 4);
+    return f;
 }
 
 // Both orientations' bounds (exact mode: the flipped features have their own
@@ -538,9 +553,11 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
             sizes.push_back(0);
             indices.emplace_back();
         }
-        update_centroid_as<Metric>(&C[k * P * 3], sizes[k], e, P);
         float m[3], unused[6];
-        box_and_mean(&C[k * P * 3], P, unused, unused + 3, m);
+        if (!update_with_box_12<Metric>(hn::ScalableTag<float>(), &C[k * P * 3], sizes[k], e, P, unused, unused + 3, m)) {
+            update_centroid_as<Metric>(&C[k * P * 3], sizes[k], e, P);
+            box_and_mean(&C[k * P * 3], P, unused, unused + 3, m);
+        }
         mx[k] = m[0];
         my[k] = m[1];
         mz[k] = m[2];
@@ -769,7 +786,6 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
     alignas(64) std::atomic<std::uint64_t> published{0};  // main -> worker: handoff[0..published) is set
     alignas(64) std::atomic<std::uint64_t> done{0};  // worker -> main: it has continued every streamline below this
     alignas(64) std::atomic<bool> stop{false};
-    std::atomic<float> published_max{0.0f};  // main -> worker (streamed): the bound's coordinate up to `published`
 
     // One thread's view of a streamline: its features in both orientations
     // and its Features::geom; its lower bound; and its buffers. (Cache-line
