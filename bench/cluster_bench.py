@@ -7,7 +7,8 @@ against DIPY (Debian's python3-dipy), on the same files, in one run.
 Prints a Markdown table of times and ratios, checks that exact mode gives
 DIPY's labels, and writes the speed-against-accuracy chart
 (docs/cluster_chart.png) and the table (bench/results/cluster.md).
-Times are wall-clock seconds of the clustering call only (file reading
+Times are wall-clock seconds of the clustering call only (file reading, which
+for horizon includes making a mapped input resident,
 excluded on both sides), the best of --repeat runs (3) for DIPY and Horizon
 alike, run in turn (DIPY, exact, fast, then again), since this shared machine's speed drifts by 10-30 % between runs;
 DIPY runs single-threaded, Horizon uses both cores. The machine load is printed with every run.

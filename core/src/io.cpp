@@ -324,6 +324,22 @@ const LoadedPlugin &loader_for_write(const Registry &reg, const fs::path &path, 
     return *best;
 }
 
+void make_resident(const void *p, std::size_t bytes) {
+#ifdef MADV_POPULATE_READ
+    const std::uint64_t page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+    const std::uintptr_t b = reinterpret_cast<std::uintptr_t>(p) / page * page;
+    const std::uintptr_t e = reinterpret_cast<std::uintptr_t>(p) + bytes;
+    if (bytes == 0 || e <= b) return;
+    const std::uint64_t pages = (e - b + page - 1) / page;
+    parallel_ranges(pages, 4096, [&](std::uint64_t lo, std::uint64_t hi) {
+        (void)::madvise(reinterpret_cast<void *>(b + lo * page), (hi - lo) * page, MADV_POPULATE_READ);
+    });
+#else
+    (void)p;
+    (void)bytes;
+#endif
+}
+
 Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *task) {
     const LoadedPlugin &p = loader_for_read(reg, path);
     const hz_loader *l = p.loader();

@@ -8,7 +8,12 @@
 
 #include <catch2/catch.hpp>
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
 #include <atomic>
+#include <cstring>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -349,4 +354,30 @@ TEST_CASE("labels without a colour get distinct colours no other label has, even
     CHECK(seen.size() == table.size());
     CHECK(table[1].rgb() != g1);
     CHECK(table[2].rgb() == hzlabel::generated_rgb(2));  // free: its own generated colour
+}
+
+TEST_CASE("make_resident maps a file's pages without changing them, at any offset and size") {
+    // 40 MiB: more than one part of the parallel populate; read back through
+    // a private mapping of the file at unaligned offsets and lengths.
+    const fs::path file = fs::temp_directory_path() / ("hz_resident_" + std::to_string(::getpid()) + ".bin");
+    std::vector<std::uint32_t> values(10u << 20);
+    for (std::size_t i = 0; i < values.size(); ++i) values[i] = static_cast<std::uint32_t>(i * 2654435761u);
+    {
+        std::ofstream out(file, std::ios::binary);
+        out.write(reinterpret_cast<const char *>(values.data()), std::streamsize(values.size() * 4));
+    }
+    const int fd = ::open(file.c_str(), O_RDONLY);
+    REQUIRE(fd >= 0);
+    const std::size_t bytes = values.size() * 4;
+    void *base = ::mmap(nullptr, bytes, PROT_READ, MAP_PRIVATE, fd, 0);
+    ::close(fd);
+    REQUIRE(base != MAP_FAILED);
+    const auto *p = static_cast<const unsigned char *>(base);
+    make_resident(nullptr, 0);
+    make_resident(p + 3, 0);
+    make_resident(p + 4093, 7);  // (across a page boundary)
+    make_resident(p + 1, bytes - 1);
+    CHECK(std::memcmp(base, values.data(), bytes) == 0);
+    ::munmap(base, bytes);
+    fs::remove(file);
 }

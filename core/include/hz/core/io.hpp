@@ -38,6 +38,15 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
 // and `loader` otherwise. A deferred copy of the positions is made first.
 void check_reported_bounds(const Tractogram &t, const Bounds &reported, const fs::path &path, const std::string &loader);
 
+// Makes every page of [p, p + bytes) resident and mapped now, on both
+// cores, in a few calls (MADV_POPULATE_READ) instead of a page fault per 16
+// pages as they are first read: for a consumer about to read all of a mapped
+// file's positions (a TCK read in place), so that mapping them is part of
+// reading it. Memory that is already resident costs a walk of its pages.
+// Nothing is written; where the kernel cannot (before Linux 5.14) the pages
+// fault in as before.
+void make_resident(const void *p, std::size_t bytes);
+
 // Writes `ds` to `path` atomically: into a temporary file in the same
 // directory, renamed over `path` on success, deleted on failure. Refuses to
 // overwrite an existing file unless `force`, and never overwrites `protect`
