@@ -42,17 +42,23 @@ inline void feature_mean(const float *x, std::uint32_t P, float out[3]) {
 // parent's `kid_c` (the root's in `c`), so that a search reads one
 // contiguous array of its candidates.
 struct Node {
-    // Written by the stage that updates this node (the one that searched
-    // its parent's children) ...
+    // Set when the node is created, then only read (by both threads: the
+    // worker reads a level-1 node's level and threshold for every streamline
+    // it continues below it) ...
     Node *parent = nullptr;
     std::uint32_t level = 0;
     std::uint32_t slot = 0;  // this node's index in its parent's children
     double threshold = 0;  // used to split its children
     std::vector<float> c;  // the root's centroid (SoA, 3P + kTail floats)
-    std::uint64_t size = 0;
-    std::vector<std::uint64_t> indices;  // QB's members (QBX records paths instead)
     std::uint32_t uid = 0;  // QBX: which stage's store holds it, and where
-    std::uint64_t out = 0;  // its position in the flattened tree
+    std::uint64_t out = 0;  // its position in the flattened tree (set by flatten)
+    // ... written by the stage that updates this node (the one that searched
+    // its parent's children), on a cache line of its own: for a level-1 node
+    // that is the main thread, for every streamline joining it, while the
+    // worker reads the fields above (they shared a line until 2026-11-25,
+    // and each of those reads then missed) ...
+    alignas(64) std::uint64_t size = 0;
+    std::vector<std::uint64_t> indices;  // QB's members (QBX records paths instead)
     // QBX, level-1 nodes, main thread only: whether the main thread
     // continues below this node itself, and 1 + the last streamline it sent
     // the worker to continue below it.
