@@ -282,13 +282,17 @@ float screen1(std::size_t K, const float *mx, const float *my, const float *mz, 
         hn::StoreU(v, d, q + k);
         mn = hn::Min(mn, hn::BitCast(di, v));
     }
-    if (k < K) {
-        const auto m = hn::FirstN(d, K - k);
-        const auto v = sq(hn::MaskedLoad(m, d, mx + k), hn::MaskedLoad(m, d, my + k), hn::MaskedLoad(m, d, mz + k));
-        hn::BlendedStore(v, m, d, q + k);
-        mn = hn::Min(mn, hn::IfThenElse(hn::RebindMask(di, m), hn::BitCast(di, v), mn));
+    std::int32_t r = hn::GetLane(hn::MinOfLanes(di, mn));
+    // The rest one at a time: the arrays end at K (a masked load is a full
+    // load on targets before AVX-512, which would read past them).
+    for (; k < K; ++k) {
+        const float dx = mx[k] - a[0], dy = my[k] - a[1], dz = mz[k] - a[2];
+        const float v = dx * dx + dy * dy + dz * dz;
+        q[k] = v;
+        std::int32_t iv;
+        std::memcpy(&iv, &v, 4);
+        r = std::min(r, iv);
     }
-    const std::int32_t r = hn::GetLane(hn::MinOfLanes(di, mn));
     float f;
     std::memcpy(&f, &r, 4);
     return f;
