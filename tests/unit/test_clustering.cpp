@@ -32,7 +32,14 @@ struct Result {
     std::vector<std::uint64_t> offsets, members;
 };
 
-const hz_clustering &qbx(const Registry &reg) {
+// The bundled QBX plugin's table, from the plugin dir scanned once for all
+// the tests here.
+const hz_clustering &qbx() {
+    static const Registry reg = [] {
+        Registry r;
+        r.scan({HZ_TEST_PLUGIN_DIR});
+        return r;
+    }();
     const LoadedPlugin *p = reg.find("org.horizon.clustering.qbx");
     REQUIRE(p != nullptr);
     REQUIRE(p->clustering() != nullptr);
@@ -72,9 +79,7 @@ Tractogram phantom(std::uint64_t n) { return make_phantom({.nb_streamlines = n, 
 }  // namespace
 
 TEST_CASE("QuickBundlesX on two threads builds the one-thread tree, bit for bit") {
-    Registry reg;
-    reg.scan({HZ_TEST_PLUGIN_DIR});
-    const hz_clustering &c = qbx(reg);
+    const hz_clustering &c = qbx();
     const Tractogram t = phantom(30000);
     std::vector<std::uint64_t> shuffled(t.nb_streamlines());
     std::iota(shuffled.begin(), shuffled.end(), 0);
@@ -95,9 +100,7 @@ TEST_CASE("QuickBundlesX on two threads builds the one-thread tree, bit for bit"
 }
 
 TEST_CASE("an invalid streamline stops QuickBundlesX with its index, on one thread or two") {
-    Registry reg;
-    reg.scan({HZ_TEST_PLUGIN_DIR});
-    const hz_clustering &c = qbx(reg);
+    const hz_clustering &c = qbx();
     // Early (the first block of features) and late (blocks the worker
     // computes ahead of the main thread in fast mode).
     for (const std::uint64_t bad : {std::uint64_t{5}, std::uint64_t{25000}})
@@ -114,9 +117,7 @@ TEST_CASE("an invalid streamline stops QuickBundlesX with its index, on one thre
 }
 
 TEST_CASE("QuickBundlesX cancelled halfway through on two threads stops cleanly") {
-    Registry reg;
-    reg.scan({HZ_TEST_PLUGIN_DIR});
-    const hz_clustering &c = qbx(reg);
+    const hz_clustering &c = qbx();
     const Tractogram t = phantom(30000);
     for (const double mode : {0.0, 1.0}) {
         CAPTURE(mode);
@@ -179,9 +180,7 @@ double matched_fraction(const std::vector<std::int64_t> &a, const std::vector<st
 // fast mode the same tree on one thread and two, with >= 99.9 % of the
 // streamlines in exact mode's clusters at every level.
 TEST_CASE("QuickBundlesX at every SIMD target the CPU runs: exact mode the same tree, fast mode within 0.1 % of it") {
-    Registry reg;
-    reg.scan({HZ_TEST_PLUGIN_DIR});
-    const hz_clustering &c = qbx(reg);
+    const hz_clustering &c = qbx();
     const Tractogram t = phantom(30000);
     const std::uint64_t n = t.nb_streamlines();
     const Result exact = cluster(c, t, 0, 2);

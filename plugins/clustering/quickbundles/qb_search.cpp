@@ -214,6 +214,14 @@ HWY_INLINE bool update_with_box_12(D d, float *HWY_RESTRICT c, std::uint64_t siz
         return true;
     }
 }
+// C = the update of update_centroid_as, then its AABB and mean point
+// (box_and_mean): fused where update_with_box_12 can. QB's and QBX's update.
+template <class Metric>
+inline void update_with_box(float *c, std::uint64_t size, const float *e, std::uint32_t P, float bc[3], float br[3], float mean[3]) {
+    if (update_with_box_12<Metric>(hn::ScalableTag<float>(), c, size, e, P, bc, br, mean)) return;
+    update_centroid_as<Metric>(c, size, e, P);
+    box_and_mean(c, P, bc, br, mean);
+}
 
 
 // A rigorous lower bound on the distance DIPY computes, from mean points.
@@ -558,10 +566,7 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
             indices.emplace_back();
         }
         float m[3], unused[6];
-        if (!update_with_box_12<Metric>(hn::ScalableTag<float>(), &C[k * P * 3], sizes[k], e, P, unused, unused + 3, m)) {
-            update_centroid_as<Metric>(&C[k * P * 3], sizes[k], e, P);
-            box_and_mean(&C[k * P * 3], P, unused, unused + 3, m);
-        }
+        update_with_box<Metric>(&C[k * P * 3], sizes[k], e, P, unused, unused + 3, m);
         mx[k] = m[0];
         my[k] = m[1];
         mz[k] = m[2];
@@ -605,10 +610,7 @@ struct QbxOps {
         Node::Kid &me = n.parent->kids[n.slot];
         float m[3];
         float *c = n.parent->kid_c.data() + std::size_t(n.slot) * 3 * P;
-        if (!update_with_box_12<Metric>(hn::ScalableTag<float>(), c, n.size, e, P, me.box_c, me.box_r, m)) {
-            update_centroid_as<Metric>(c, n.size, e, P);
-            box_and_mean(c, P, me.box_c, me.box_r, m);
-        }
+        update_with_box<Metric>(c, n.size, e, P, me.box_c, me.box_r, m);
         ++n.size;
         n.parent->mx[n.slot] = m[0];
         n.parent->my[n.slot] = m[1];
