@@ -87,7 +87,7 @@ TEST_CASE("QuickBundlesX on two threads builds the one-thread tree, bit for bit"
     for (const double mode : {0.0, 1.0})
         for (const std::uint64_t *order : std::vector<const std::uint64_t *>{nullptr, shuffled.data()}) {
             CAPTURE(mode, order != nullptr);
-            const Result one = cluster(c, t, mode, 1), two = cluster(c, t, mode, 2);
+            const Result one = cluster(c, t, mode, 1, order), two = cluster(c, t, mode, 2, order);
             REQUIRE(one.status == HZ_OK);
             REQUIRE(two.status == HZ_OK);
             CHECK(one.parent.size() > 300);  // (a real tree: hundreds of clusters)
@@ -96,6 +96,34 @@ TEST_CASE("QuickBundlesX on two threads builds the one-thread tree, bit for bit"
             CHECK(one.offsets == two.offsets);
             CHECK(one.members == two.members);
             CHECK(std::memcmp(one.centroids.data(), two.centroids.data(), one.centroids.size() * sizeof(float)) == 0);
+        }
+}
+
+TEST_CASE("file order (no ordering array) is the identity ordering, bit for bit") {
+    // The plugin runs file order without an array of indices: the same tree
+    // as the identity permutation passed explicitly, in both modes, on one
+    // thread and two; a shuffled order gives another tree.
+    const hz_clustering &c = qbx();
+    const Tractogram t = phantom(25000);
+    std::vector<std::uint64_t> identity(t.nb_streamlines()), shuffled(t.nb_streamlines());
+    std::iota(identity.begin(), identity.end(), 0);
+    std::iota(shuffled.begin(), shuffled.end(), 0);
+    std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937_64(11));
+    for (const double mode : {0.0, 1.0})
+        for (const double threads : {1.0, 2.0}) {
+            CAPTURE(mode, threads);
+            const Result file = cluster(c, t, mode, threads), ident = cluster(c, t, mode, threads, identity.data()),
+                         shuf = cluster(c, t, mode, threads, shuffled.data());
+            REQUIRE(file.status == HZ_OK);
+            REQUIRE(ident.status == HZ_OK);
+            REQUIRE(shuf.status == HZ_OK);
+            CHECK(file.parent == ident.parent);
+            CHECK(file.offsets == ident.offsets);
+            CHECK(file.members == ident.members);
+            CHECK(std::memcmp(file.centroids.data(), ident.centroids.data(), file.centroids.size() * sizeof(float)) == 0);
+            CHECK(std::equal(file.members.begin(), file.members.begin() + t.nb_streamlines(), identity.begin()));  // the root
+            CHECK(std::equal(shuf.members.begin(), shuf.members.begin() + t.nb_streamlines(), shuffled.begin()));
+            CHECK(shuf.members != file.members);
         }
 }
 

@@ -284,6 +284,7 @@ Features identity_features(const float *points, std::uint64_t n, std::uint32_t P
 namespace detail {
 
 void check_order(const std::vector<std::uint64_t> &order, std::uint64_t N) {
+    if (order.empty()) return;  // file order
     if (order.size() != N) throw InputError("ordering has " + std::to_string(order.size()) + " entries for " + std::to_string(N) + " streamlines");
     std::vector<bool> seen(N, false);
     for (auto i : order) {
@@ -328,8 +329,8 @@ Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &
         // Every node's members in processing order, scattered level by
         // level (the levels' ranges are disjoint: one thread each, two at once).
         hzio::resize_prefaulted(t.members, t.member_offsets.back());
-        std::copy(paths->order.begin(), paths->order.end(), t.members.begin());  // the root
-        const std::uint64_t N = paths->order.size();
+        const std::uint64_t N = paths->N;
+        for (std::uint64_t it = 0; it < N; ++it) t.members[it] = paths->order[it];  // the root
         const std::uint32_t L = paths->L;
         // Each node's output position by uid, in two flat tables.
         std::vector<std::uint32_t> out_a(paths->store_a.size()), out_b(paths->store_b.size());

@@ -113,6 +113,8 @@ struct Tree {
     std::uint64_t nb_nodes() const { return parent.size(); }
 };
 
+// `order` (every function below): the processing order, step it taking
+// streamline order[it]; a permutation of 0..N-1, or empty for file order.
 // QuickBundles with threshold T: one level below the root.
 // Exact: DIPY's arithmetic, bit for bit. Fast: float32 distances (labels
 // agree with exact mode except where rounding decides a near-tie).

@@ -81,12 +81,22 @@ struct Node {
     const float *centroid(std::uint32_t P) const { return parent ? parent->kid_c.data() + std::size_t(slot) * 3 * P : c.data(); }
 };
 
+// A processing order as the searches read it: step it processes streamline
+// order[it], where `order` is a permutation of 0..N-1 or, empty, file order
+// (no array: a fresh process would be given its N words page by page).
+struct Order {
+    const std::uint64_t *p = nullptr;  // null: file order
+    explicit Order(const std::vector<std::uint64_t> &order) : p(order.empty() ? nullptr : order.data()) {}
+    std::uint64_t operator[](std::uint64_t it) const { return p ? p[it] : it; }
+};
+
 // QBX's members, recorded per streamline rather than per node: the node
 // that processing step `it` joined at level l (1..L) is node(path[it * L + l - 1]).
 struct Paths {
     const std::vector<std::uint32_t> &path;
     std::uint32_t L;
-    const std::vector<std::uint64_t> &order;
+    std::uint64_t N;
+    Order order;
     const std::deque<Node> &store_a, &store_b;  // uid = index in A's store, or kStageB | index in B's
     static constexpr std::uint32_t kStageB = 0x80000000u;
     const Node &node(std::uint32_t uid) const { return uid & kStageB ? store_b[uid & ~kStageB] : store_a[uid]; }
@@ -98,7 +108,7 @@ struct Paths {
 Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &thresholds, std::uint32_t P,
              const Paths *paths = nullptr);
 
-// InputError unless `order` is a permutation of 0..N-1.
+// InputError unless `order` is empty (file order) or a permutation of 0..N-1.
 void check_order(const std::vector<std::uint64_t> &order, std::uint64_t N);
 
 // The searches (qb_search.cpp), dispatched to the best SIMD target of the

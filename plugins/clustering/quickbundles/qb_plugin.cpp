@@ -158,9 +158,11 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
             // (gap: ABI 1.5, zero from older hosts.)
             if (in->gap > 1) return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "run: gap %u (0 or 1 supported)", in->gap);
             const qb::Input input{in->positions, in->offsets, in->nb_streamlines, in->gap};
-            std::vector<std::uint64_t> order;
-            hzio::resize_prefaulted(order, in->nb_streamlines);
-            for (std::uint64_t i = 0; i < order.size(); ++i) order[i] = ordering ? ordering[i] : i;
+            std::vector<std::uint64_t> order;  // (empty: file order)
+            if (ordering != nullptr) {
+                hzio::resize_prefaulted(order, in->nb_streamlines);
+                std::copy_n(ordering, in->nb_streamlines, order.begin());
+            }
             const unsigned threads = c.threads ? c.threads : std::max(1u, std::thread::hardware_concurrency());
             const qb::CancelFn cancel = [task] { return hz::cancelled(task); };
             const qb::ProgressFn progress = [task](double f) { hz::report(task, f); };

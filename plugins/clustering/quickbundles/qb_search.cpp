@@ -518,6 +518,7 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
     const std::uint32_t P = f.nb_points;
     const std::uint64_t N = f.count;
     check_order(order, N);
+    const Order ord(order);
     std::vector<float> C(kTail, 0.0f);  // K feature blocks, then kTail floats
     std::vector<float> mx, my, mz, la, lb, fg_buf(3 * P + kTail);  // the clusters' mean points; scratch
     LowerBound lbound;
@@ -530,7 +531,7 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
             if (cancel && cancel()) throw Cancelled{};
             if (progress) progress(double(it) / double(N));
         }
-        const std::uint64_t idx = order[it];
+        const std::uint64_t idx = ord[it];
         const float *fd = &f.direct[idx * P * 3], *fg = flipped_of(f, idx, fg_buf.data(), P);
         const float *mf = &f.geom[idx * Features::kGeom + 6], *mg = mf + 3;
         const std::uint64_t K = sizes.size();
@@ -586,7 +587,8 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
         n.indices = std::move(indices[k]);
         nodes[0].children.push_back(&n);
     }
-    nodes[0].indices = order;
+    nodes[0].indices.resize(N);
+    for (std::uint64_t it = 0; it < N; ++it) nodes[0].indices[it] = ord[it];
     nodes[0].size = N;
     // Root centroid: size-weighted mean of the clusters (float64, then float32).
     for (std::uint32_t i = 0; i < P * 3; ++i) {
@@ -730,6 +732,7 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
     const std::uint32_t L = static_cast<std::uint32_t>(t.size());
     if (L == 0) throw InputError("QuickBundlesX needs at least one threshold");
     check_order(order, N);
+    const Order ord(order);
     std::deque<Node> store_a, store_b;  // each thread's nodes (stable addresses)
     Node &root = store_a.emplace_back();
     root.threshold = t[0];
@@ -758,7 +761,7 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
     const float *direct = streamed ? ring_direct.data() : src.f->direct.data();
     const float *flipped = streamed ? ring_flipped.data() : src.f->flipped.empty() ? nullptr : src.f->flipped.data();
     const float *geom = streamed ? ring_geom.data() : src.f->geom.data();
-    auto row = [&](std::uint64_t it) { return streamed ? (it & (R - 1)) : order[it]; };
+    auto row = [&](std::uint64_t it) { return streamed ? (it & (R - 1)) : ord[it]; };
     // The flipped features of row r: stored (exact mode, the ring), or the
     // reversal of the direct ones into `buf`.
     auto flipped_row = [&](std::uint64_t r, float *buf) -> const float * {
@@ -777,14 +780,14 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
         return b;
     };
 
-    struct Handoff {
-        Node *node;  // the level-1 node, or null when the main thread went on below it
-        bool flip;
-    };
-    std::vector<Handoff> handoff;
+    // The hand-off, one word per step: its level-1 node | its flip (bit 0),
+    // or 0 when the main thread went on below that node itself.
+    static_assert(alignof(Node) >= 2);
+    std::vector<std::uint64_t> handoff;
+    hzio::resize_prefaulted(handoff, N);
+    auto handoff_word = [](Node *node, bool flip) { return static_cast<std::uint64_t>(reinterpret_cast<std::uintptr_t>(node)) | flip; };
     std::vector<std::uint8_t> leaf_flip;
     std::vector<std::uint32_t> path;  // each step's node per level
-    hzio::resize_prefaulted(handoff, N);
     hzio::resize_prefaulted(leaf_flip, N);
     hzio::resize_prefaulted(path, N * L);
     constexpr std::uint32_t kStageB = Paths::kStageB;  // uid tag of the worker's nodes
@@ -857,7 +860,7 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
         const std::uint64_t end = std::min(N, b0 + kRingBlock), r0 = b0 & (R - 1);
         float m = 0.0f;
         std::string bad;
-        if (!extract_block(*src.in, order.data(), b0, end, P, Resampling::Fast, ring_direct.data() + r0 * P * 3, nullptr,
+        if (!extract_block(*src.in, ord.p, b0, end, P, Resampling::Fast, ring_direct.data() + r0 * P * 3, nullptr,
                            ring_geom.data() + r0 * Features::kGeom, scratch, m, bad)) {
             const std::lock_guard<std::mutex> lock(error_mutex);
             if (b0 < failed_at.load(std::memory_order_relaxed)) {
@@ -903,10 +906,11 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
                 const std::uint64_t until =
                     streamed && next_block.load(std::memory_order_relaxed) < N ? std::min(avail, it + kRingBlock) : avail;
                 for (; it < until; ++it) {
-                    const Handoff h = handoff[it];
-                    if (h.node == nullptr) continue;
+                    const std::uint64_t h = handoff[it];
+                    if (h == 0) continue;
                     load(worker_lane, it);
-                    below(worker_lane, it, h.node, h.flip, store_b, kStageB);
+                    below(worker_lane, it, reinterpret_cast<Node *>(static_cast<std::uintptr_t>(h & ~std::uint64_t{1})), h & 1,
+                          store_b, kStageB);
                 }
                 replay(it, worker_lane.fg.data());
                 done.store(it, std::memory_order_release);
@@ -960,9 +964,9 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
             else if (n1->deep_main && lag < kGiveLag) n1->deep_main = false;
             if (n1->deep_main) {
                 below(main_lane, it, n1, flip, store_a, 0);
-                handoff[it] = {nullptr, flip};
+                handoff[it] = 0;
             } else {
-                handoff[it] = {n1, flip};
+                handoff[it] = handoff_word(n1, flip);
                 n1->last_sent = it + 1;
             }
             if ((it & 63) == 63) published.store(it + 1, std::memory_order_release);
@@ -979,7 +983,7 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
     if (cancelled) throw Cancelled{};
     replay(N, main_lane.fg.data());
     if (progress) progress(1.0);
-    const Paths paths{path, L, order, store_a, store_b};
+    const Paths paths{path, L, N, ord, store_a, store_b};
     return flatten(root, L, t, P, &paths);
 }
 
