@@ -125,26 +125,24 @@ HWY_INLINE void sum_lanes4(D d, V a, V b, V c, V e, float *HWY_RESTRICT out) {
     out[2] = hn::GetLane(hn::SumOfLanes(d, c));
     out[3] = hn::GetLane(hn::SumOfLanes(d, e));
 #else
-    {
-        // Per block: ab = [a0+a2, b0+b2, a1+a3, b1+b3], ce likewise; then as
-        // 64-bit pairs: [a0123, b0123, c0123, e0123].
-        const V ab = hn::Add(hn::InterleaveLower(d, a, b), hn::InterleaveUpper(d, a, b));
-        const V ce = hn::Add(hn::InterleaveLower(d, c, e), hn::InterleaveUpper(d, c, e));
-        const hn::Repartition<double, D> d64;
-        const auto ab64 = hn::BitCast(d64, ab), ce64 = hn::BitCast(d64, ce);
-        const V v = hn::Add(hn::BitCast(d, hn::InterleaveLower(d64, ab64, ce64)), hn::BitCast(d, hn::InterleaveUpper(d64, ab64, ce64)));
-        if constexpr (hn::MaxLanes(D()) == 4) {
-            hn::StoreU(v, d, out);
-        } else if constexpr (hn::MaxLanes(D()) == 8) {
-            const hn::Half<D> dh;
-            hn::StoreU(hn::Add(hn::LowerHalf(dh, v), hn::UpperHalf(dh, v)), dh, out);
-        } else {
-            static_assert(hn::MaxLanes(D()) == 16);
-            const hn::Half<D> dh;
-            const hn::Half<decltype(dh)> dq;
-            const auto h = hn::Add(hn::LowerHalf(dh, v), hn::UpperHalf(dh, v));
-            hn::StoreU(hn::Add(hn::LowerHalf(dq, h), hn::UpperHalf(dq, h)), dq, out);
-        }
+    // Per block: ab = [a0+a2, b0+b2, a1+a3, b1+b3], ce likewise; then as
+    // 64-bit pairs: [a0123, b0123, c0123, e0123].
+    const V ab = hn::Add(hn::InterleaveLower(d, a, b), hn::InterleaveUpper(d, a, b));
+    const V ce = hn::Add(hn::InterleaveLower(d, c, e), hn::InterleaveUpper(d, c, e));
+    const hn::Repartition<double, D> d64;
+    const auto ab64 = hn::BitCast(d64, ab), ce64 = hn::BitCast(d64, ce);
+    const V v = hn::Add(hn::BitCast(d, hn::InterleaveLower(d64, ab64, ce64)), hn::BitCast(d, hn::InterleaveUpper(d64, ab64, ce64)));
+    if constexpr (hn::MaxLanes(D()) == 4) {
+        hn::StoreU(v, d, out);
+    } else if constexpr (hn::MaxLanes(D()) == 8) {
+        const hn::Half<D> dh;
+        hn::StoreU(hn::Add(hn::LowerHalf(dh, v), hn::UpperHalf(dh, v)), dh, out);
+    } else {
+        static_assert(hn::MaxLanes(D()) == 16);
+        const hn::Half<D> dh;
+        const hn::Half<decltype(dh)> dq;
+        const auto h = hn::Add(hn::LowerHalf(dh, v), hn::UpperHalf(dh, v));
+        hn::StoreU(hn::Add(hn::LowerHalf(dq, h), hn::UpperHalf(dq, h)), dq, out);
     }
 #endif
 }
@@ -482,7 +480,7 @@ std::int64_t search_fast(std::size_t K, bool interleaved, const float *kid_c, co
     // batch's distances do not wait for each other's comparisons, so the
     // CPU overlaps them.
     std::size_t batch[kSearchAll];
-    float sum[2 * kSearchAll + 2];
+    float sum[2 * kSearchAll];  // (sum_lanes4 fills four from an even j: up to sum[2 * kSearchAll - 1])
     const float inv_p = 1.0f / static_cast<float>(P);  // (a product, not a division, per distance)
     const hn::ScalableTag<float> df;
     auto run = [&](std::size_t n) {
