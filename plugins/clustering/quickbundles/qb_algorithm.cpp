@@ -330,7 +330,7 @@ Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &
         // level (the levels' ranges are disjoint: one thread each, two at once).
         hzio::resize_prefaulted(t.members, t.member_offsets.back());
         const std::uint64_t N = paths->N;
-        for (std::uint64_t it = 0; it < N; ++it) t.members[it] = paths->order[it];  // the root
+        paths->order.copy(N, t.members.data());  // the root
         const std::uint32_t L = paths->L;
         // Each node's output position by uid, in two flat tables.
         std::vector<std::uint32_t> out_a(paths->store_a.size()), out_b(paths->store_b.size());

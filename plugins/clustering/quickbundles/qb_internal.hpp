@@ -88,6 +88,10 @@ struct Order {
     const std::uint64_t *p = nullptr;  // null: file order
     explicit Order(const std::vector<std::uint64_t> &order) : p(order.empty() ? nullptr : order.data()) {}
     std::uint64_t operator[](std::uint64_t it) const { return p ? p[it] : it; }
+    // out[0..N) = the streamlines of steps 0..N-1 (a root's members).
+    void copy(std::uint64_t N, std::uint64_t *out) const {
+        for (std::uint64_t it = 0; it < N; ++it) out[it] = (*this)[it];
+    }
 };
 
 // QBX's members, recorded per streamline rather than per node: the node

@@ -161,9 +161,8 @@ double resample_one(const float *HWY_RESTRICT p, std::uint64_t n, std::uint32_t 
                 if (static_cast<std::uint64_t>(readable - src) >= 3 * N) {
                     hn::LoadInterleaved3(d, src, x, y, z);
                 } else {
-                    float tail[3 * (HWY_MAX_BYTES / sizeof(float))];
+                    float tail[3 * (HWY_MAX_BYTES / sizeof(float))] = {};  // (lanes past `have` replaced below)
                     std::copy_n(src, 3 * have, tail);
-                    for (std::uint64_t k = have; k < N; ++k) std::copy_n(last, 3, tail + 3 * k);
                     hn::LoadInterleaved3(d, tail, x, y, z);
                 }
                 const auto keep = hn::FirstN(d, have);

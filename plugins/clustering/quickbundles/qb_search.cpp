@@ -482,15 +482,15 @@ std::int64_t search_fast(std::size_t K, bool interleaved, const float *kid_c, co
     std::size_t batch[kSearchAll];
     float sum[2 * kSearchAll];  // (sum_lanes4 fills four from an even j: up to sum[2 * kSearchAll - 1])
     const float inv_p = 1.0f / static_cast<float>(P);  // (a product, not a division, per distance)
-    const hn::ScalableTag<float> df;
+    const hn::ScalableTag<float> d;
     auto run = [&](std::size_t n) {
         // Two candidates at a time, both orientations each, their four sums
         // reduced together.
         for (std::size_t j = 0; j < n; j += 2) {
-            hn::Vec<decltype(df)> f0, g0, f1 = hn::Zero(df), g1 = hn::Zero(df);
-            mdf_pair_lanes(df, kid_c + batch[j] * 3 * P, fd, fg, P, f0, g0);
-            if (j + 1 < n) mdf_pair_lanes(df, kid_c + batch[j + 1] * 3 * P, fd, fg, P, f1, g1);
-            sum_lanes4(df, f0, g0, f1, g1, sum + 2 * j);
+            hn::Vec<decltype(d)> f0, g0, f1 = hn::Zero(d), g1 = hn::Zero(d);
+            mdf_pair_lanes(d, kid_c + batch[j] * 3 * P, fd, fg, P, f0, g0);
+            if (j + 1 < n) mdf_pair_lanes(d, kid_c + batch[j + 1] * 3 * P, fd, fg, P, f1, g1);
+            sum_lanes4(d, f0, g0, f1, g1, sum + 2 * j);
         }
         for (std::size_t j = 0; j < n; ++j) {
             const std::size_t k = batch[j];
@@ -504,7 +504,6 @@ std::int64_t search_fast(std::size_t K, bool interleaved, const float *kid_c, co
             if (tested(k)) batch[n++] = k;
         run(n);
     } else {
-        const hn::ScalableTag<float> d;
         const std::size_t N = hn::Lanes(d), Kp = (K + N - 1) / N * N;
         scratch.resize(Kp);
         float *q = scratch.data();
@@ -631,7 +630,7 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
         nodes[0].children.push_back(&n);
     }
     nodes[0].indices.resize(N);
-    for (std::uint64_t it = 0; it < N; ++it) nodes[0].indices[it] = ord[it];
+    ord.copy(N, nodes[0].indices.data());
     nodes[0].size = N;
     // Root centroid: size-weighted mean of the clusters (float64, then float32).
     for (std::uint32_t i = 0; i < P * 3; ++i) {
@@ -829,6 +828,7 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
     std::vector<std::uint64_t> handoff;
     hzio::resize_prefaulted(handoff, N);
     auto handoff_word = [](Node *node, bool flip) { return static_cast<std::uint64_t>(reinterpret_cast<std::uintptr_t>(node)) | flip; };
+    auto handoff_node = [](std::uint64_t h) { return reinterpret_cast<Node *>(static_cast<std::uintptr_t>(h & ~std::uint64_t{1})); };
     std::vector<std::uint8_t> leaf_flip;
     std::vector<std::uint32_t> path;  // each step's node per level
     hzio::resize_prefaulted(leaf_flip, N);
@@ -952,8 +952,7 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
                     const std::uint64_t h = handoff[it];
                     if (h == 0) continue;
                     load(worker_lane, it);
-                    below(worker_lane, it, reinterpret_cast<Node *>(static_cast<std::uintptr_t>(h & ~std::uint64_t{1})), h & 1,
-                          store_b, kStageB);
+                    below(worker_lane, it, handoff_node(h), h & 1, store_b, kStageB);
                 }
                 replay(it, worker_lane.fg.data());
                 done.store(it, std::memory_order_release);
