@@ -10,15 +10,57 @@
 #include <new>
 #include <thread>
 
+#include <sys/mman.h>
+#include <unistd.h>
+
 namespace hz::core {
+
+namespace {
+
+// Gives a large block's pages back to the kernel on several cores, then
+// frees it. Unmapping 1.2 GB of written pages is the kernel's work page by
+// page (0.06-0.07 s here, a sixth of loading a 1.2 GB TRK file); munmap does
+// it on one core, while MADV_DONTNEED on disjoint parts runs on as many as
+// call it (0.033 s on two). Only whole pages inside [p, p + bytes) are
+// dropped: the allocator's own header before p is left alone. Never throws:
+// without a thread it all runs on the caller's.
+void release_in_parallel(void *p, std::size_t bytes) noexcept {
+    const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+    const std::uintptr_t b = (reinterpret_cast<std::uintptr_t>(p) + page - 1) / page * page,
+                         e = (reinterpret_cast<std::uintptr_t>(p) + bytes) / page * page;
+    if (e <= b) return;
+    const std::uintptr_t parts = std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
+    const std::uintptr_t step = (e - b) / parts / page * page;
+    auto drop = [](std::uintptr_t lo, std::uintptr_t hi) { (void)::madvise(reinterpret_cast<void *>(lo), hi - lo, MADV_DONTNEED); };
+    std::vector<std::thread> helpers;
+    std::uintptr_t at = b;
+    for (std::uintptr_t k = 1; k < parts && step > 0; ++k, at += step) {
+        try {
+            helpers.emplace_back(drop, at, at + step);
+        } catch (...) {  // no thread to be had: this one does that part too
+            drop(at, at + step);
+        }
+    }
+    drop(at, e);
+    for (auto &t : helpers) t.join();
+}
+
+constexpr std::size_t kParallelRelease = std::size_t(64) << 20;
+
+}  // namespace
 
 std::shared_ptr<void> allocate_uninitialised(std::size_t bytes) {
     // (Transparent huge pages and populated anonymous mappings were measured
     // for 1 GB decodes here: no faster, and huge pages much slower when the
     // kernel had to compact memory for them.)
-    void *p = std::aligned_alloc(64, (bytes + 63) / 64 * 64);
+    const std::size_t size = (bytes + 63) / 64 * 64;
+    void *p = std::aligned_alloc(64, size);
     if (p == nullptr) throw std::bad_alloc();
-    return std::shared_ptr<void>(p, [](void *q) { std::free(q); });
+    if (size < kParallelRelease) return std::shared_ptr<void>(p, [](void *q) { std::free(q); });
+    return std::shared_ptr<void>(p, [size](void *q) {
+        release_in_parallel(q, size);
+        std::free(q);
+    });
 }
 
 void parallel_ranges(std::uint64_t n, std::uint64_t grain, const std::function<void(std::uint64_t, std::uint64_t)> &fn) {
