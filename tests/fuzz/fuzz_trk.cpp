@@ -15,13 +15,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
         std::string many_error;
         trk::Layout many;
         try {
-            many = trk::scan(data, size, h, {}, {}, trk::ScanPlan{7, 1});
+            many = trk::scan(data, size, h, {}, trk::ScanPlan{7, 1});
         } catch (const trk::FormatError &e) {
             many_error = e.what();
         }
         trk::Layout l;
         try {
-            l = trk::scan(data, size, h, {}, {}, trk::ScanPlan{1, 1});
+            l = trk::scan(data, size, h, {}, trk::ScanPlan{1, 1});
         } catch (const trk::FormatError &e) {
             if (many_error != e.what()) __builtin_trap();
             throw;

@@ -220,7 +220,7 @@ TEST_CASE("trk: the record walk in many chains gives exactly the single walk's l
             const trk::Header h = trk::parse_header(b, f.size());
             auto walk = [&](trk::ScanPlan plan, trk::Layout &l) -> std::string {
                 try {
-                    l = trk::scan(b, f.size(), h, {}, {}, plan);
+                    l = trk::scan(b, f.size(), h, {}, plan);
                     return "";
                 } catch (const trk::FormatError &e) {
                     return e.what();

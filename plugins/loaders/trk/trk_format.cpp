@@ -292,22 +292,16 @@ struct Chain {
     std::size_t target = 0;  // the chain this one is to meet
     std::size_t next_hop = 0;  // the first of the target's prefix not yet passed
     std::size_t join_at = 0;  // Joined: where, in the target's prefix
-    std::uint64_t released = 0;  // its pages before this are dropped
-    // Stops, publishing its prefix and dropping the pages it walked.
-    void stop(State st, const Release &release) {
+    // Stops, publishing its prefix.
+    void stop(State st) {
         state = st;
         prefix_done.store(true, std::memory_order_release);
-        drop(release);
-    }
-    void drop(const Release &release) {  // (16 chains at once: each keeps few pages mapped)
-        if (release && pos > released) release(released, pos);
-        released = pos;
     }
 };
 
 }  // namespace
 
-Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const Tick &cancelled, const Release &release, ScanPlan plan) {
+Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const Tick &cancelled, ScanPlan plan) {
     const Walker w{b, size, 4ull * (3 + h.n_scalars), 4ull * h.n_properties, h.swap};
     const std::uint64_t want = h.n_count > 0 ? static_cast<std::uint64_t>(h.n_count) : UINT64_MAX;
     // Chains and threads: one of each below 64 MiB of records.
@@ -336,13 +330,13 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                     found = k == kPlausible || pos == size;
                 }
                 if (!found) {  // no chain here: the one before passes it at once
-                    ch.stop(Chain::Ended, {});
+                    ch.stop(Chain::Ended);
                     ch.start.store(0, std::memory_order_release);
                     continue;
                 }
                 g -= 4;
             }
-            ch.pos = ch.released = g;
+            ch.pos = g;
             ch.chunks.push_back({0, g, 0});
             ch.prefix.reserve(kPrefix);
             ch.start.store(g, std::memory_order_release);
@@ -367,7 +361,7 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                     while (ch.next_hop < nx.prefix.size() && nx.prefix[ch.next_hop].pos < ch.pos) ++ch.next_hop;
                     if (ch.next_hop < nx.prefix.size() && nx.prefix[ch.next_hop].pos == ch.pos) {
                         ch.join_at = ch.next_hop;
-                        ch.stop(Chain::Joined, release);
+                        ch.stop(Chain::Joined);
                         break;
                     }
                     if (ch.next_hop < nx.prefix.size()) break;  // not there yet
@@ -377,7 +371,7 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                 if (ch.state == Chain::Joined || wait) continue;
                 moved = true;
                 if (ch.pos == size) {
-                    ch.stop(Chain::Ended, release);
+                    ch.stop(Chain::Ended);
                     continue;
                 }
                 if (ch.prefix.size() < kPrefix) {
@@ -392,12 +386,11 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                     ch.fault = f;
                     ch.fault_n = n;
                     ch.pos = at;
-                    ch.stop(Chain::Failed, release);
+                    ch.stop(Chain::Failed);
                     continue;
                 }
                 ++ch.s;
                 ch.v += static_cast<std::uint64_t>(n);
-                if (ch.pos - ch.released >= (8u << 20)) ch.drop(release);
             }
             if (t == 0 && (++rounds & 0x3FFF) == 0 && cancelled && cancelled(0)) stop.store(true, std::memory_order_relaxed);
             if (active && !moved) std::this_thread::yield();

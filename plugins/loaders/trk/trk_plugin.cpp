@@ -32,12 +32,9 @@ hz_status run(hz_error *err, const std::string &path, F &&body) {
     return hz::format_guard<trk::FormatError, hzio::IoError, trk::Cancelled>(err, "trk", path, body);
 }
 
-// Polls cancellation and drops the mapped pages already walked.
-trk::Tick tick(const hz_task *task, const hzio::MappedFile &file) {
-    return [task, &file](std::uint64_t pos) {
-        if (pos > (64u << 20)) file.release_before(pos - (32u << 20));
-        return hz::cancelled(task);
-    };
+// Polls cancellation.
+trk::Tick tick(const hz_task *task) {
+    return [task](std::uint64_t) { return hz::cancelled(task); };
 }
 
 // Drops the mapped pages of a decoded chunk.
@@ -56,7 +53,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         r->path = req->path;
         r->file = std::make_unique<hzio::MappedFile>(r->path);
         r->header = trk::parse_header(r->file->data(), r->file->size());
-        r->layout = trk::scan(r->file->data(), r->file->size(), r->header, tick(nullptr, *r->file), release(*r->file));
+        r->layout = trk::scan(r->file->data(), r->file->size(), r->header, tick(nullptr));
         for (const auto &w : r->header.warnings) log(HZ_LOG_WARN, r->path + ": " + w);
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
@@ -126,7 +123,7 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         r.properties.resize(r.layout.nb_streamlines * r.header.n_properties);
         trk::Box box;
         trk::decode(r.file->data(), r.file->size(), r.header, r.layout, dst->positions, dst->offsets,
-                    r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, *r.file),
+                    r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task),
                     release(*r.file), &box);
         r.extras_decoded = true;
         // decode() rejected every non-finite input coordinate and found the
@@ -156,7 +153,7 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
             r.scalars.resize(r.layout.nb_vertices * r.header.n_scalars);
             r.properties.resize(r.layout.nb_streamlines * r.header.n_properties);
             trk::decode(r.file->data(), r.file->size(), r.header, r.layout, nullptr, nullptr,
-                        r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, *r.file), release(*r.file));
+                        r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task), release(*r.file));
             r.extras_decoded = true;
         }
         const bool scalar = index < r.header.scalars.size();
