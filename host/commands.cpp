@@ -35,6 +35,9 @@ int cmd_plugins(const GlobalOptions &g, bool as_json) {
         }
         j["rejected"] = json::array();
         for (const auto &r : reg.rejected()) j["rejected"].push_back({{"file", r.file}, {"status", "rejected"}, {"reason", r.reason}});
+        const auto list = core::default_trial_cache();
+        j["trial_list"] = list.empty() ? json(nullptr) : json(list.string());
+        j["trial_loads"] = reg.trial_loads();
         std::cout << j.dump(2) << "\n";
         return 0;
     }
@@ -52,6 +55,9 @@ int cmd_plugins(const GlobalOptions &g, bool as_json) {
         for (const auto &r : reg.rejected()) std::printf("  %s: %s\n", r.file.c_str(), r.reason.c_str());
     }
     std::printf("\n%zu plugins loaded, %zu files rejected\n", reg.plugins().size(), reg.rejected().size());
+    const auto list = core::default_trial_cache();
+    std::printf("%zu files trial-loaded in a child this time; trial list (files that passed, loaded without one while unchanged): %s\n",
+                reg.trial_loads(), list.empty() ? "off" : list.c_str());
     return 0;
 }
 

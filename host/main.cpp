@@ -19,7 +19,7 @@
 namespace hz::host {
 
 core::Registry load_registry(const GlobalOptions &g) {
-    core::Registry reg(core::Registry::Options{true, g.plugin_timeout_s});
+    core::Registry reg(core::Registry::Options{true, g.plugin_timeout_s, core::default_trial_cache()});
     reg.scan(core::plugin_search_path(g.plugin_dirs));
     for (const auto &r : reg.rejected()) spdlog::debug("rejected {}: {}", r.file, r.reason);
     return reg;

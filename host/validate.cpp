@@ -1104,7 +1104,7 @@ std::vector<Check> catalogue() {
                      } catch (const std::exception &e) {
                          return skip(std::string("no headless OpenGL here: ") + e.what());
                      }
-                     core::Registry reg(core::Registry::Options{false, 10.0});
+                     core::Registry reg(core::Registry::Options{false, 10.0, {}});
                      reg.add_module(x.module);
                      const core::LoadedPlugin *p = reg.find(x.plugin.id);
                      if (p == nullptr || p->shader() == nullptr) return fail("the shader interface does not resolve");

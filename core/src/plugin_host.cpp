@@ -10,7 +10,12 @@
 #include <chrono>
 #include <csignal>
 #include <cstring>
+#include <array>
 #include <elf.h>
+#include <optional>
+#include <string_view>
+#include <sys/stat.h>
+#include <tuple>
 #include <fcntl.h>
 #include <fstream>
 #include <map>
@@ -437,7 +442,132 @@ std::vector<fs::path> plugin_search_path(const std::vector<fs::path> &cli_dirs) 
     return dirs;
 }
 
+fs::path default_trial_cache() {
+    if (const char *env = std::getenv("HORIZON_PLUGIN_CACHE"); env != nullptr && *env != '\0')
+        return std::string_view(env) == "off" ? fs::path() : fs::path(env);
+    if (const char *xdg = std::getenv("XDG_CACHE_HOME"); xdg != nullptr && *xdg != '\0')
+        return fs::path(xdg) / "horizon" / "plugin-trials.json";
+    if (const char *home = std::getenv("HOME"); home != nullptr && *home != '\0')
+        return fs::path(home) / ".cache" / "horizon" / "plugin-trials.json";
+    return {};
+}
+
 namespace {
+
+// What identifies one version of a file (stat, following links): device,
+// inode, size, modification and change times in ns.
+using Stamp = std::array<std::int64_t, 5>;
+
+std::optional<Stamp> stamp_of(const fs::path &f) {
+    struct stat st {};
+    if (::stat(f.c_str(), &st) != 0) return std::nullopt;
+    auto ns = [](const timespec &t) { return std::int64_t(t.tv_sec) * 1000000000 + t.tv_nsec; };
+    return Stamp{static_cast<std::int64_t>(st.st_dev), static_cast<std::int64_t>(st.st_ino), static_cast<std::int64_t>(st.st_size),
+                 ns(st.st_mtim), ns(st.st_ctim)};
+}
+
+std::string key_of(const fs::path &f) {
+    std::error_code ec;
+    const fs::path a = fs::absolute(f, ec);
+    return (ec ? f : a).lexically_normal().string();
+}
+
+// The list of trial loads that passed (Registry::Options::trial_cache):
+// {"format": "horizon-plugin-trials", "version": 1, "passed": [{"file": F,
+// "stamp": [5 integers], "host": EXE, "host_stamp": [5 integers]}, ...]}.
+class TrialList {
+public:
+    explicit TrialList(fs::path file) : file_(std::move(file)) {
+        if (file_.empty()) return;
+        host_ = key_of(executable_path());
+        const auto hs = stamp_of(host_);
+        if (!hs) {  // (no way to tell this host from another)
+            file_.clear();
+            return;
+        }
+        host_stamp_ = *hs;
+        std::ifstream in(file_, std::ios::binary);
+        if (!in) return;
+        const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+        if (j.is_discarded() || !j.is_object() || j.value("format", "") != kFormat || j.value("version", 0) != 1 ||
+            !j.contains("passed") || !j["passed"].is_array()) {
+            spdlog::debug("plugin trial list {} ignored: not a version 1 list", file_.string());
+            return;
+        }
+        for (const auto &e : j["passed"]) {
+            Entry x;
+            if (!e.is_object() || !read(e, "file", x.file) || !read(e, "host", x.host) || !read(e, "stamp", x.stamp) ||
+                !read(e, "host_stamp", x.host_stamp))
+                continue;
+            entries_.push_back(std::move(x));
+        }
+    }
+    bool enabled() const { return !file_.empty(); }
+    // Whether `file`, as it is now, passed a trial load by this host.
+    bool vouches(const std::string &file, const Stamp &now) const {
+        return enabled() && std::any_of(entries_.begin(), entries_.end(), [&](const Entry &e) {
+                   return e.file == file && e.stamp == now && e.host == host_ && e.host_stamp == host_stamp_;
+               });
+    }
+    void passed(const std::string &file, const Stamp &now) {
+        if (!enabled()) return;
+        std::erase_if(entries_, [&](const Entry &e) { return e.file == file && e.host == host_; });
+        entries_.push_back({file, now, host_, host_stamp_});
+        changed_ = true;
+    }
+    // Writes the list if it changed (to a temporary file, then renamed over
+    // it), without the entries whose file or host is gone or changed, and
+    // without the oldest beyond kMax.
+    void save() {
+        if (!changed_ || !enabled()) return;
+        std::erase_if(entries_, [](const Entry &e) { return stamp_of(e.file) != e.stamp || stamp_of(e.host) != e.host_stamp; });
+        if (entries_.size() > kMax) entries_.erase(entries_.begin(), entries_.end() - kMax);
+        nlohmann::json list = nlohmann::json::array();
+        for (const auto &e : entries_) list.push_back({{"file", e.file}, {"stamp", e.stamp}, {"host", e.host}, {"host_stamp", e.host_stamp}});
+        const std::string text = nlohmann::json{{"format", kFormat}, {"version", 1}, {"passed", list}}.dump(1) + "\n";
+        std::error_code ec;
+        fs::create_directories(file_.parent_path(), ec);
+        const fs::path tmp = file_.string() + ".tmp." + std::to_string(::getpid());
+        bool ok = false;
+        {
+            std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+            ok = out && (out << text) && (out.flush(), out.good());
+        }
+        if (ok) fs::rename(tmp, file_, ec);
+        if (!ok || ec) {
+            fs::remove(tmp, ec);
+            spdlog::debug("plugin trial list {} not written", file_.string());
+        }
+    }
+
+private:
+    static constexpr const char *kFormat = "horizon-plugin-trials";
+    static constexpr std::size_t kMax = 256;
+    struct Entry {
+        std::string file;
+        Stamp stamp{};
+        std::string host;
+        Stamp host_stamp{};
+    };
+    static bool read(const nlohmann::json &e, const char *key, std::string &out) {
+        if (!e.contains(key) || !e[key].is_string()) return false;
+        out = e[key].get<std::string>();
+        return true;
+    }
+    static bool read(const nlohmann::json &e, const char *key, Stamp &out) {
+        if (!e.contains(key) || !e[key].is_array() || e[key].size() != out.size()) return false;
+        for (std::size_t i = 0; i < out.size(); ++i) {
+            if (!e[key][i].is_number_integer()) return false;
+            out[i] = e[key][i].get<std::int64_t>();
+        }
+        return true;
+    }
+    fs::path file_;
+    std::string host_;
+    Stamp host_stamp_{};
+    std::vector<Entry> entries_;
+    bool changed_ = false;
+};
 
 // A trial load of `file`, as a one-line JSON report: {"ok": true, "count": N}
 // or {"ok": false, "reason": "..."}.
@@ -473,35 +603,68 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
         for (const auto &f : files) load(f);
         return;
     }
-    // One child trial-loads the files in order and reports each as soon as
+    // Files the trial list vouches for are loaded at once; the others go to
+    // one child, which trial-loads them in order and reports each as soon as
     // it is done, so the host loads it for real while the child tries the
     // next (a fork per file cost about 1 ms each, twice the loading). A file
-    // the child dies or hangs on is rejected, and a new child goes on after it.
-    std::size_t next = 0;
-    while (next < files.size()) {
-        const std::size_t from = next;
-        const auto [pid, fd] = spawn([&](int out) {
-            for (std::size_t i = from; i < files.size(); ++i) write_all(out, trial_report(files[i]) + "\n");
-        });
-        ChildResult r;
-        std::string buf;
-        const auto limit = std::chrono::duration<double>(options_.timeout_s);
-        auto deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(limit);
-        while (next < files.size()) {
-            if (read_child(pid, fd, deadline, buf, true, r) != 1) break;  // died or hung on files[next]
-            const std::size_t nl = buf.find('\n');
-            take_report(files[next], buf.substr(0, nl), "trial load gave a malformed report");
-            buf.erase(0, nl + 1);
-            ++next;
-            deadline = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(limit);
+    // the child dies or hangs on is rejected, and a new child goes on after
+    // it. Either way the files are loaded in search order (the first plugin
+    // with a given id wins).
+    TrialList list(options_.trial_cache);
+    std::vector<std::string> keys(files.size());
+    std::vector<std::optional<Stamp>> stamps(files.size());
+    std::vector<std::size_t> todo;  // the files to trial-load, in order
+    for (std::size_t i = 0; i < files.size(); ++i) {
+        if (list.enabled()) {
+            keys[i] = key_of(files[i]);
+            stamps[i] = stamp_of(files[i]);
         }
+        if (!stamps[i] || !list.vouches(keys[i], *stamps[i])) todo.push_back(i);
+    }
+    const auto limit = std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(options_.timeout_s));
+    pid_t pid = -1;
+    int fd = -1;
+    std::string buf;
+    ChildResult r;
+    std::chrono::steady_clock::time_point deadline;
+    std::size_t next = 0;  // todo[next]: the next report the child owes
+    auto start_child = [&] {
+        const std::size_t from = next;
+        std::tie(pid, fd) = spawn([&, from](int out) {
+            for (std::size_t k = from; k < todo.size(); ++k) write_all(out, trial_report(files[todo[k]]) + "\n");
+        });
+        trial_loads_ += todo.size() - from;
+        buf.clear();
+        r = ChildResult{};
+        deadline = std::chrono::steady_clock::now() + limit;
+    };
+    auto end_child = [&] {
         ::close(fd);
         reap(pid, deadline, r);
-        if (next < files.size()) {
-            reject(files[next], trial_failure(r));
-            ++next;
+        pid = -1;
+    };
+    if (!todo.empty()) start_child();
+    for (std::size_t i = 0; i < files.size(); ++i) {
+        if (next == todo.size() || todo[next] != i) {  // vouched for
+            load(files[i]);
+            continue;
         }
+        if (pid < 0) start_child();
+        ++next;
+        if (read_child(pid, fd, deadline, buf, true, r) != 1) {  // died or hung on this file
+            end_child();
+            trial_loads_ -= todo.size() - next;  // (the next child tries those)
+            reject(files[i], trial_failure(r));
+            continue;
+        }
+        const std::size_t nl = buf.find('\n');
+        const std::string report = buf.substr(0, nl);
+        buf.erase(0, nl + 1);
+        deadline = std::chrono::steady_clock::now() + limit;
+        if (take_report(files[i], report, "trial load gave a malformed report") && stamps[i]) list.passed(keys[i], *stamps[i]);
     }
+    if (pid >= 0) end_child();
+    list.save();
 }
 
 std::string Registry::trial_failure(const ChildResult &r) const {
@@ -510,11 +673,18 @@ std::string Registry::trial_failure(const ChildResult &r) const {
     return "trial load " + r.describe() + " without a report";
 }
 
-void Registry::take_report(const fs::path &file, const std::string &report, const std::string &if_malformed) {
+bool Registry::take_report(const fs::path &file, const std::string &report, const std::string &if_malformed) {
     const nlohmann::json j = nlohmann::json::parse(report, nullptr, false);
-    if (j.is_discarded() || !j.contains("ok")) return reject(file, if_malformed);
-    if (!j["ok"].get<bool>()) return reject(file, j["reason"].get<std::string>());
+    if (j.is_discarded() || !j.contains("ok") || !j["ok"].is_boolean()) {
+        reject(file, if_malformed);
+        return false;
+    }
+    if (!j["ok"].get<bool>()) {
+        reject(file, j.contains("reason") && j["reason"].is_string() ? j["reason"].get<std::string>() : if_malformed);
+        return false;
+    }
     load(file);
+    return true;
 }
 
 void Registry::reject(const fs::path &file, const std::string &why) {
@@ -525,9 +695,11 @@ void Registry::reject(const fs::path &file, const std::string &why) {
 void Registry::add_file(const fs::path &file) {
     if (auto why = elf_precheck(file)) return reject(file, *why);
     if (options_.isolate) {
+        ++trial_loads_;
         const ChildResult r = run_in_child([&] { return trial_report(file); }, options_.timeout_s);
         if (r.timed_out || r.signal != 0) return reject(file, trial_failure(r));
-        return take_report(file, r.output, trial_failure(r));
+        take_report(file, r.output, trial_failure(r));
+        return;
     }
     load(file);
 }

@@ -22,6 +22,8 @@ def run(*args, timeout=60, env=None):
     """Runs horizon with `args`; returns the CompletedProcess (text mode)."""
     e = dict(os.environ)
     e.pop("HORIZON_PLUGIN_PATH", None)
+    # One trial list for the whole suite, in the build tree (not the user's).
+    e["HORIZON_PLUGIN_CACHE"] = os.path.join(BUILD, "tests", "plugin-trials.json") if BUILD else "off"
     if env:
         e.update(env)
     e["XDG_DATA_HOME"] = e.get("HZ_TEST_XDG", "/nonexistent-xdg")

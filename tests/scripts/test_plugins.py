@@ -1,5 +1,6 @@
 """`horizon plugins`: discovery, and rejection of everything that is not a
 good plugin, each with a one-line reason naming the file."""
+import json
 import os
 import shutil
 import unittest
@@ -26,6 +27,58 @@ class PluginsTest(TempDirTest):
         text = run("plugins")
         self.assertEqual(text.returncode, 0)
         self.assertIn("org.horizon.loader.tck", text.stdout)
+
+    def test_trial_list(self):
+        """A plugin file whose trial load passed is loaded without a new one
+        while it and the host are unchanged; a crashing one is tried every
+        time; a changed file is tried again; a spoiled list is ignored."""
+        lst = self.path("cache/trials.json")
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(TEMPLATES, "tpl_lambert_shader.so"), d)
+        shutil.copy(os.path.join(FIXTURES, "fx_init_crash.so"), d)
+        files = sum(os.path.isfile(os.path.join(BUNDLED, f)) for f in os.listdir(BUNDLED)) + 2
+        env = {"HORIZON_PLUGIN_CACHE": lst}
+
+        def listing(e=env):
+            j = run_json("--plugin-dir", d, "plugins", "--json", env=e)
+            return j, sorted(p["id"] for p in j["plugins"]), sorted((r["file"], r["reason"]) for r in j["rejected"])
+
+        first, ids, rejected = listing()
+        self.assertEqual(first["trial_loads"], files)
+        self.assertEqual(first["trial_list"], lst)
+        self.assertIn("org.example.shader.lambert", ids)
+        self.assertEqual([os.path.basename(f) for f, _ in rejected], ["fx_init_crash.so"])
+        with open(lst) as f:
+            listed = {e["file"] for e in json.load(f)["passed"]}
+        self.assertIn(os.path.join(d, "tpl_lambert_shader.so"), listed)
+        self.assertNotIn(os.path.join(d, "fx_init_crash.so"), listed)
+
+        again, ids2, rejected2 = listing()
+        self.assertEqual(again["trial_loads"], 1)  # the crashing one only
+        self.assertEqual((ids2, rejected2), (ids, rejected))
+
+        lambert = os.path.join(d, "tpl_lambert_shader.so")
+        st = os.stat(lambert)
+        os.utime(lambert, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+        changed, ids3, _ = listing()
+        self.assertEqual(changed["trial_loads"], 2)
+        self.assertEqual(ids3, ids)
+
+        for junk in (b"", b"{not json", b'{"format": "horizon-plugin-trials", "version": 1, "passed": [{"file": 3}, 7]}'):
+            with open(lst, "wb") as f:
+                f.write(junk)
+            spoiled, ids4, rejected4 = listing()
+            self.assertEqual(spoiled["trial_loads"], files)
+            self.assertEqual((ids4, rejected4), (ids, rejected))
+
+        off, ids5, _ = listing({"HORIZON_PLUGIN_CACHE": "off"})
+        self.assertEqual(off["trial_loads"], files)
+        self.assertIsNone(off["trial_list"])
+        self.assertEqual(ids5, ids)
+        text = run("--plugin-dir", d, "plugins", env=env).stdout
+        self.assertIn("trial list", text)
+        self.assertIn(lst, text)
 
     def test_bad_plugin_dir(self):
         d = self.path("plugins")

@@ -115,6 +115,41 @@ TEST_CASE("the registry isolates a crashing init and keeps the good plugins") {
     CHECK(r.plugins()[0].info.kind == HZ_KIND_SHADER);
 }
 
+TEST_CASE("the trial list: files that passed load without a child, in search order, the first id still winning") {
+    const fs::path d = fs::temp_directory_path() / ("hz_trials_" + std::to_string(::getpid()));
+    fs::remove_all(d);
+    fs::create_directories(d / "p");
+    for (const char *name : {"a.so", "b.so"})  // one plugin id twice
+        fs::copy_file(fs::path(HZ_TEST_FIXTURE_DIR) / "fx_valid.so", d / "p" / name);
+    fs::copy_file(fs::path(HZ_TEST_FIXTURE_DIR) / "fx_init_crash.so", d / "p" / "c.so");
+    const Registry::Options with_list{true, 10.0, d / "trials.json"};
+    auto scan = [&](const Registry::Options &o) {
+        auto r = std::make_unique<Registry>(o);
+        r->scan({d / "p"});
+        REQUIRE(r->plugins().size() == 1);
+        CHECK(fs::path(r->plugins()[0].info.file).filename() == "a.so");
+        REQUIRE(r->rejected().size() == 2);
+        CHECK(fs::path(r->rejected()[0].file).filename() == "b.so");
+        CHECK_THAT(r->rejected()[0].reason, Catch::Contains("duplicate plugin id"));
+        CHECK(fs::path(r->rejected()[1].file).filename() == "c.so");
+        CHECK_THAT(r->rejected()[1].reason, Catch::Contains("SIGSEGV"));
+        return r->trial_loads();
+    };
+    CHECK(scan(with_list) == 3);
+    CHECK(scan(with_list) == 1);  // a and b vouched for; c crashed, so it is tried again
+    // a changed: tried again (in a child) while b is loaded at once; a still comes first.
+    fs::last_write_time(d / "p" / "a.so", fs::last_write_time(d / "p" / "a.so") + std::chrono::seconds(1));
+    CHECK(scan(with_list) == 2);
+    CHECK(scan(with_list) == 1);
+    // A new file under the same name (another inode) is tried again.
+    fs::rename(d / "p" / "b.so", d / "p" / "b2.so");
+    fs::copy_file(d / "p" / "b2.so", d / "p" / "b.so");
+    fs::remove(d / "p" / "b2.so");
+    CHECK(scan(with_list) == 2);
+    CHECK(scan(Registry::Options{true, 10.0, {}}) == 3);  // no list
+    fs::remove_all(d);
+}
+
 TEST_CASE("search path order: --plugin-dir, HORIZON_PLUGIN_PATH, user dir, bundled") {
     ::setenv("HORIZON_PLUGIN_PATH", "/a:/b", 1);
     ::setenv("XDG_DATA_HOME", "/xdg", 1);
