@@ -271,6 +271,13 @@ void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header
         },
         [&] { return cancelled && cancelled(0); });
     if (!done) throw Cancelled{};
+    // The delimiters are among the flagged triples: room for all of them at
+    // once, rather than a growing vector that copies itself into fresh
+    // memory again and again (8 MB at a million streamlines).
+    std::size_t flagged = 0;
+    for (const auto &chunk : specials) flagged += chunk.size();
+    w.L.delimiters.reserve(flagged);
+    hzio::prefault_write(w.L.delimiters.data(), flagged * sizeof(std::uint64_t));
     std::uint64_t next = 0;  // first triple not yet walked
     std::uint64_t stop = n_triples;  // the triple that ended the walk (the terminator)
     for (auto &chunk : specials) {

@@ -1,6 +1,7 @@
 // hz.loader/1 adapter for the MRtrix TCK format (tck_format.hpp).
 #include "tck_format.hpp"
 #include "mapped_file.hpp"
+#include "parallel.hpp"
 
 #include <hz/cpp/plugin.hpp>
 
@@ -139,6 +140,7 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
                                   (unsigned long long)dst->offsets_capacity, (unsigned long long)(r.layout.nb_streamlines + 1));
         if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
         const auto &D = r.layout.delimiters;
+        hzio::prefault_write(dst->offsets, (r.layout.nb_streamlines + 1) * sizeof(std::uint64_t));  // (one call, not a fault a page)
         dst->offsets[0] = 0;
         for (std::uint64_t k = 0; k < r.layout.nb_streamlines; ++k) dst->offsets[k + 1] = D[k] + 1;
         return HZ_OK;
