@@ -6,7 +6,9 @@ python3-nibabel) and `cat`, on the same files, in one run.
 
 Writes one TCK of N random-walk streamlines of P points (float32), converts
 it with horizon to TRK and TRX (stored zip), then times, per file, with a
-warm page cache: `cat FILE > /dev/null`, nibabel's `nib.streamlines.load`
+warm page cache (each file's pages dropped, then read back once by `cat`, so
+every file is cached as a cold read leaves it) and Horizon's plugin trial list
+warm: `cat FILE > /dev/null`, nibabel's `nib.streamlines.load`
 (CPU seconds of the whole process minus the interpreter's start-up, as
 measured on an empty script), `horizon info FILE` (a full load into the
 data model plus its statistics) and `horizon info --verify FILE` (the same,
@@ -106,10 +108,18 @@ def main():
     decoded_mib = (n * p * 12 + (n + 1) * 8) / 2**20
     nib_script = "import sys, nibabel as nib; s = nib.streamlines.load(sys.argv[1]).streamlines; len(s._data)"
     _, py_start, _ = best_of(args.repeat, ["/usr/bin/python3", "-c", "import sys, nibabel"])
+    # Horizon's plugin trial list as after any earlier command (README: the trial list).
+    subprocess.run([horizon, "plugins"], check=True, stdout=subprocess.DEVNULL)
     rows = []
     for ext, path in files.items():
         size_mib = os.path.getsize(path) / 2**20
-        subprocess.run(["cat", path], stdout=subprocess.DEVNULL)  # warm the page cache
+        # The page cache as a cold read leaves it: the file's pages dropped, then
+        # read back once. How a file was written changes how the kernel caches
+        # it (in how large pieces), and with it the cost of reading it again.
+        fd = os.open(path, os.O_RDONLY)
+        os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_DONTNEED)
+        os.close(fd)
+        subprocess.run(["cat", path], stdout=subprocess.DEVNULL)
         cmds = [["cat", path], [horizon, "info", path], [horizon, "info", "--verify", path]]
         if ext != "trx":  # (nibabel 5.0 has no TRX reader)
             cmds.append(["/usr/bin/python3", "-c", nib_script, path])
@@ -123,7 +133,7 @@ def main():
               f"rss {ver_rss:6.0f} MiB", flush=True)
     os.makedirs(os.path.join(ROOT, "bench", "results"), exist_ok=True)
     with open(os.path.join(ROOT, "bench", "results", "io.md"), "w") as f:
-        f.write(f"{n:,} streamlines x {p} points, decoded {decoded_mib:.0f} MiB; warm page cache; best of {args.repeat}, the tools run in turn.\n"
+        f.write(f"{n:,} streamlines x {p} points, decoded {decoded_mib:.0f} MiB; page cache warm from a cold read (each file dropped from it, then read once); plugin trial list warm; best of {args.repeat}, the tools run in turn.\n"
                 "tck: data at a multiple of 4 bytes, as MRtrix writes them (mapped in place); tck (nibabel-written): the "
                 "same streamlines saved by nibabel, data at byte 67 (mapped; the floats are copied to aligned memory on "
                 "first use). `--verify`: the load, then the host reads every coordinate again (for the nibabel-written "
