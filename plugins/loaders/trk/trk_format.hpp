@@ -76,8 +76,8 @@ struct ScanPlan {
 // `cancelled` is polled on the calling thread. The pages walked stay mapped
 // for decode(), which drops them chunk by chunk once decoded: dropping them
 // here made decode() map every page a second time (1.2 GB of records:
-// 0.43-0.47 s -> 0.37-0.39 s for the whole load, peak RSS 1.03x -> 1.04x
-// the decoded data).
+// 0.42-0.44 s -> 0.38-0.40 s for the whole load in alternating runs, peak
+// RSS 1.03x -> 1.04x the decoded data).
 Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled = {}, ScanPlan plan = {});
 
 // Decodes into host buffers: positions (V x 3, RAS+ mm), offsets (N + 1),
