@@ -30,29 +30,6 @@ std::string fmt_threshold(double t) {
     return buf;
 }
 
-// Writes `text` to `path` through a temporary file in the same directory.
-void write_text_atomic(const fs::path &path, const std::string &text, bool force) {
-    std::error_code ec;
-    if (fs::exists(path, ec) && !force) throw core::Error(path.string() + ": already exists (use --force to replace it)");
-    const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-    if (!fs::is_directory(dir, ec)) throw core::Error(path.string() + ": directory " + dir.string() + " does not exist");
-    const fs::path tmp = dir / ("." + path.filename().string() + ".tmp-" + std::to_string(::getpid()));
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        out << text;
-        out.flush();
-        if (!out) {
-            fs::remove(tmp, ec);
-            throw core::Error(path.string() + ": write failed");
-        }
-    }
-    fs::rename(tmp, path, ec);
-    if (ec) {
-        fs::remove(tmp, ec);
-        throw core::Error(path.string() + ": cannot rename into place: " + ec.message());
-    }
-}
-
 // A reproducible permutation: Fisher-Yates over std::mt19937_64 (whose
 // output sequence the C++ standard fixes), so the same seed gives the same
 // order on every platform.
@@ -164,7 +141,7 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
             }
             csv += "\n";
         }
-        write_text_atomic(o.labels, csv, o.force);
+        core::write_text_atomic(o.labels, csv, o.force);
     }
     if (!o.centroids.empty()) {
         const uint32_t level = o.level < 0 ? v.nb_levels : static_cast<uint32_t>(o.level);

@@ -8,6 +8,7 @@
 #include <exception>
 #include <mutex>
 #include <new>
+#include <system_error>
 #include <thread>
 
 #include <sys/mman.h>
@@ -29,20 +30,14 @@ void release_in_parallel(void *p, std::size_t bytes) noexcept {
     const std::uintptr_t b = (reinterpret_cast<std::uintptr_t>(p) + page - 1) / page * page,
                          e = (reinterpret_cast<std::uintptr_t>(p) + bytes) / page * page;
     if (e <= b) return;
-    const std::uintptr_t parts = std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
-    const std::uintptr_t step = (e - b) / parts / page * page;
-    auto drop = [](std::uintptr_t lo, std::uintptr_t hi) { (void)::madvise(reinterpret_cast<void *>(lo), hi - lo, MADV_DONTNEED); };
-    std::vector<std::thread> helpers;
-    std::uintptr_t at = b;
-    for (std::uintptr_t k = 1; k < parts && step > 0; ++k, at += step) {
-        try {
-            helpers.emplace_back(drop, at, at + step);
-        } catch (...) {  // no thread to be had: this one does that part too
-            drop(at, at + step);
-        }
+    auto drop = [&](std::uint64_t lo, std::uint64_t hi) {  // (in pages from b)
+        (void)::madvise(reinterpret_cast<void *>(b + lo * page), (hi - lo) * page, MADV_DONTNEED);
+    };
+    try {
+        parallel_ranges((e - b) / page, (std::uint64_t(16) << 20) / page, drop);
+    } catch (...) {  // (only when even the thread list cannot be allocated)
+        drop(0, (e - b) / page);
     }
-    drop(at, e);
-    for (auto &t : helpers) t.join();
 }
 
 constexpr std::size_t kParallelRelease = std::size_t(64) << 20;
@@ -79,7 +74,14 @@ void parallel_ranges(std::uint64_t n, std::uint64_t grain, const std::function<v
             errors[k] = std::current_exception();
         }
     };
-    for (std::uint64_t k = 1; k < parts; ++k) threads.emplace_back(run, k);
+    threads.reserve(parts - 1);
+    for (std::uint64_t k = 1; k < parts; ++k) {
+        try {
+            threads.emplace_back(run, k);
+        } catch (const std::system_error &) {  // no thread to be had: this one runs that range too
+            run(k);
+        }
+    }
     run(0);
     for (auto &t : threads) t.join();
     for (auto &e : errors)

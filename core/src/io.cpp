@@ -633,4 +633,26 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     }
 }
 
+void write_text_atomic(const fs::path &path, const std::string &text, bool force) {
+    std::error_code ec;
+    if (fs::exists(path, ec) && !force) throw Error(path.string() + ": already exists (use --force to replace it)");
+    const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+    if (!fs::is_directory(dir, ec)) throw Error(path.string() + ": directory " + dir.string() + " does not exist");
+    const fs::path tmp = dir / ("." + path.filename().string() + ".tmp-" + std::to_string(::getpid()));
+    {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        out << text;
+        out.flush();
+        if (!out) {
+            fs::remove(tmp, ec);
+            throw Error(path.string() + ": write failed");
+        }
+    }
+    fs::rename(tmp, path, ec);
+    if (ec) {
+        fs::remove(tmp, ec);
+        throw Error(path.string() + ": cannot rename into place: " + ec.message());
+    }
+}
+
 }  // namespace hz::core

@@ -1,4 +1,5 @@
 #include <hz/core/data.hpp>
+#include <hz/core/io.hpp>
 #include <hz/core/plugin_host.hpp>
 
 #include <boost/dll/shared_library.hpp>
@@ -527,16 +528,10 @@ public:
         const std::string text = nlohmann::json{{"format", kFormat}, {"version", 1}, {"passed", list}}.dump(1) + "\n";
         std::error_code ec;
         fs::create_directories(file_.parent_path(), ec);
-        const fs::path tmp = file_.string() + ".tmp." + std::to_string(::getpid());
-        bool ok = false;
-        {
-            std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-            ok = out && (out << text) && (out.flush(), out.good());
-        }
-        if (ok) fs::rename(tmp, file_, ec);
-        if (!ok || ec) {
-            fs::remove(tmp, ec);
-            spdlog::debug("plugin trial list {} not written", file_.string());
+        try {
+            write_text_atomic(file_, text, true);
+        } catch (const std::exception &e) {
+            spdlog::debug("plugin trial list not written: {}", e.what());
         }
     }
 
@@ -633,7 +628,6 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
         std::tie(pid, fd) = spawn([&, from](int out) {
             for (std::size_t k = from; k < todo.size(); ++k) write_all(out, trial_report(files[todo[k]]) + "\n");
         });
-        trial_loads_ += todo.size() - from;
         buf.clear();
         r = ChildResult{};
         deadline = std::chrono::steady_clock::now() + limit;
@@ -643,6 +637,7 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
         reap(pid, deadline, r);
         pid = -1;
     };
+    trial_loads_ += todo.size();  // (each tried once, by the child running when it is reached)
     if (!todo.empty()) start_child();
     for (std::size_t i = 0; i < files.size(); ++i) {
         if (next == todo.size() || todo[next] != i) {  // vouched for
@@ -653,7 +648,6 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
         ++next;
         if (read_child(pid, fd, deadline, buf, true, r) != 1) {  // died or hung on this file
             end_child();
-            trial_loads_ -= todo.size() - next;  // (the next child tries those)
             reject(files[i], trial_failure(r));
             continue;
         }

@@ -47,6 +47,11 @@ void check_reported_bounds(const Tractogram &t, const Bounds &reported, const fs
 // fault in as before.
 void make_resident(const void *p, std::size_t bytes);
 
+// Writes `text` to `path` through a temporary file in the same directory,
+// renamed over `path` on success and deleted on failure. Refuses to replace
+// an existing file unless `force`. Throws Error naming `path`.
+void write_text_atomic(const fs::path &path, const std::string &text, bool force);
+
 // Writes `ds` to `path` atomically: into a temporary file in the same
 // directory, renamed over `path` on success, deleted on failure. Refuses to
 // overwrite an existing file unless `force`, and never overwrites `protect`
