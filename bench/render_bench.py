@@ -53,7 +53,7 @@ def frame_ms(horizon, material, env, frames, tmp):
     path = os.path.join(tmp, "sphere.json")
     with open(path, "w") as f:
         json.dump(scene, f)
-    out = subprocess.run([horizon, "render", path, "-o", os.path.join(tmp, "s.png"), "--frames", str(frames), "--samples", "1",
+    out = subprocess.run([horizon, "render", path, "-o", os.path.join(tmp, "s.png"), "--force", "--frames", str(frames), "--samples", "1",
                           "--json"], capture_output=True, text=True, check=True, env={**os.environ, "DISPLAY": ""})
     return json.loads(out.stdout)["frame_ms_min"]
 
@@ -97,7 +97,7 @@ def tractogram_png(horizon, n, lod, render, tmp):
     with open(path, "w") as f:
         json.dump(scene, f)
     t0 = time.perf_counter()
-    out = subprocess.run([horizon, "render", path, "-o", os.path.join(tmp, "t.png"), "--lod-pixels", str(lod), "--json"],
+    out = subprocess.run([horizon, "render", path, "-o", os.path.join(tmp, "t.png"), "--force", "--lod-pixels", str(lod), "--json"],
                          capture_output=True, text=True, check=True, env={**os.environ, "DISPLAY": ""})
     wall = time.perf_counter() - t0
     return wall, json.loads(out.stdout)

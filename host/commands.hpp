@@ -46,6 +46,20 @@ struct ClusterOptions {
     bool force = false, json = false;
 };
 
+// Level-of-detail knobs, the same for `render` and `view`.
+struct LodOptions {
+    double lod_pixels = 0.5;       // streamline decimation tolerance in pixels (0 = every point)
+    double lod_points = 5e5;     // tractograms above this many points get a subsample proxy
+    double gpu_memory_mb = 768;    // streamline geometry kept in GL buffers; the rest is streamed
+    int lod_scale = 4;             // the proxy frame is drawn at 1/lod_scale of the size
+    void apply(core::render::RenderSettings &rs) const {
+        rs.lod_pixels = lod_pixels, rs.lod_points = lod_points, rs.gpu_memory_mb = gpu_memory_mb, rs.proxy_scale = lod_scale;
+    }
+};
+
+// Seconds since the program started (the window's --stats, progress lines).
+double seconds_since_launch();
+
 struct RenderOptions {
     std::vector<std::string> inputs;  // data files, or one scene file (.json)
     std::string scene;                // the scene file, when one was given (named in errors)
@@ -53,7 +67,9 @@ struct RenderOptions {
     std::string out = "horizon.png";
     std::string size = "1280x720";
     int samples = 0;          // 0: automatic (RenderSettings)
-    double lod_pixels = 0.5;
+    LodOptions lod;
+    bool preview = false;     // draw the level-of-detail proxy only (the window's first picture)
+    bool force = false;       // replace an existing output
     int frames = 1;           // frames to draw (timing: the median of frames 2..N)
     bool json = false;
 };
@@ -74,7 +90,8 @@ struct ViewOptions {
     std::string script;               // scripted input (tests)
     bool exit_after_script = true;
     std::string screenshot_dir = ".";
-    std::uint64_t lod_streamlines = 20000;  // tractograms above this get a centroid proxy while moving
+    LodOptions lod;
+    std::string stats;                      // --stats FILE.json: per-frame times and what was drawn
     bool explore = false;                   // Fig. 5: QuickBundlesX centroids, expand / hide / repeat
     std::string view;                       // a named camera view fitted to the scene (empty: the scene's own)
 };

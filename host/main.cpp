@@ -12,11 +12,37 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
 
 namespace hz::host {
+
+namespace {
+const auto kLaunch = std::chrono::steady_clock::now();
+
+// The level-of-detail options `render` and `view` share (documented once).
+void add_lod_options(CLI::App *cmd, LodOptions &lod) {
+    cmd->add_option("--lod-pixels", lod.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 100.0));
+    cmd->add_option("--lod-points", lod.lod_points,
+                    "tractograms with more points get a uniform subsample of about this many points as their proxy "
+                    "(drawn while the camera moves and first at rest)")
+        ->capture_default_str()
+        ->check(CLI::Range(1000.0, 1e12));
+    cmd->add_option("--lod-scale", lod.lod_scale, "the proxy is drawn at 1/N of the size, then upscaled")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 16));
+    cmd->add_option("--gpu-memory", lod.gpu_memory_mb,
+                    "MiB of streamline geometry kept in GL buffers; the rest is rebuilt and streamed when drawn")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1048576.0));
+}
+}  // namespace
+
+double seconds_since_launch() { return std::chrono::duration<double>(std::chrono::steady_clock::now() - kLaunch).count(); }
 
 core::Registry load_registry(const GlobalOptions &g) {
     core::Registry reg(core::Registry::Options{true, g.plugin_timeout_s, core::default_trial_cache()});
@@ -103,22 +129,24 @@ int main(int argc, char **argv) {
     render->add_option("-o,--out", ro.out, "output image (.png, .exr, .jpg, .tif)")->capture_default_str();
     render->add_option("--size", ro.size, "WIDTHxHEIGHT")->capture_default_str();
     render->add_option("--samples", ro.samples, "MSAA samples (1 = off; 0 = 4, or 1 above 200k streamline segments)")->capture_default_str();
-    render->add_option("--lod-pixels", ro.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")->capture_default_str();
+    add_lod_options(render, ro.lod);
+    render->add_flag("--preview", ro.preview, "draw the level-of-detail proxy only: the window's first picture, in a fraction of the time");
     render->add_option("--frames", ro.frames, "draw N frames and report the median time of frames 2..N (benchmarks)")
         ->check(CLI::Range(1, 1000))->capture_default_str();
     render->add_flag("--json", ro.json, "timings and counts as JSON");
+    render->add_flag("-f,--force", ro.force, "replace an existing output image (never an input)");
 
     ViewOptions vwo;
     auto *view = app.add_subcommand("view", "open the interactive window on data files or a scene file");
     view->add_option("inputs", vwo.inputs, "data files (tractograms, surfaces, volumes) or one scene .json")->required();
     view->add_option("--size", vwo.size, "window size WIDTHxHEIGHT")->capture_default_str();
     view->add_option("--samples", vwo.samples, "MSAA samples")->capture_default_str();
-    view->add_option("--script", vwo.script, "drive the window from a script (wait N, drag, pan, scroll, key, set, shader, moving on|off, expand K, hide K, repeat, reset, press LABEL, screenshot, quit)");
+    view->add_option("--script", vwo.script, "drive the window from a script (wait N (frames), sleep S (seconds), drag, pan, scroll, key, set, shader, moving on|off, expand K, hide K, repeat, reset, press LABEL, screenshot, quit)");
     view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")->capture_default_str();
     view->add_option("--view", vwo.view, "initial camera view fitted to the scene (R returns to it)")->check(CLI::IsMember(named_views()));
     view->add_flag("--explore", vwo.explore, "explore the first tractogram as QuickBundlesX clusters: expand, hide, repeat (paper Fig. 5)");
-    view->add_option("--lod-streamlines", vwo.lod_streamlines,
-                     "tractograms with more streamlines show QuickBundlesX centroids while the camera moves")->capture_default_str();
+    add_lod_options(view, vwo.lod);
+    view->add_option("--stats", vwo.stats, "write per-frame times and what each frame drew to this JSON file at exit");
 
     ShaderCheckOptions sco;
     auto *scheck = app.add_subcommand("shader-check", "GPU equals CPU: render analytic scenes with shading plugins and compare every pixel");

@@ -56,7 +56,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     core::render::RenderSettings rs;
     rs.width = w, rs.height = h;
     rs.samples = o.samples;
-    rs.lod_pixels = o.lod_pixels;
+    o.lod.apply(rs);
     rs.bake_materials = true;  // a scene file's materials do not change while it renders
     const core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
     try {
@@ -65,6 +65,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
         if (o.scene.empty()) throw;
         throw core::Error(o.scene + ": " + e.what());  // name the scene file
     }
+    r.set_interacting(o.preview);
     r.render(view, w, h);
     const double first_ms = r.stats().draw_ms;  // includes the GL driver's shader compilation
     std::vector<double> frames;
@@ -98,15 +99,19 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"triangles", s.triangles_drawn},
                             {"samples", s.samples},
                             {"points_total", s.points_total},
-                            {"points_kept", s.points_kept}};
+                            {"points_drawn", s.points_drawn},
+                            {"streamlines_drawn", s.streamlines_drawn},
+                            {"streamed_points", s.streamed_points},
+                            {"proxy", s.proxy},
+                            {"points_kept", s.points_drawn}};
         std::cout << j.dump(2) << "\n";
     } else {
         std::printf("Wrote %s (%dx%d) in %.0f ms: context %.0f, upload %.0f, environment %.0f, first frame %.0f, read %.0f, write %.0f\n",
                     o.out.c_str(), w, h, ms_since(t0), ctx_ms, s.upload_ms, s.environment_ms, first_ms, s.readback_ms, write_ms);
         if (o.frames > 1) std::printf("  %d frames: median %.1f ms/frame\n", o.frames, frame_ms);
         if (s.points_total)
-            std::printf("  streamline points drawn: %llu of %llu (decimated at %.2f px)\n", (unsigned long long)s.points_kept,
-                        (unsigned long long)s.points_total, o.lod_pixels);
+            std::printf("  streamline points drawn: %llu of %llu (decimated at %.2f px%s)\n", (unsigned long long)s.points_drawn,
+                        (unsigned long long)s.points_total, o.lod.lod_pixels, s.proxy ? "; the level-of-detail proxy" : "");
     }
     return 0;
 }
@@ -114,6 +119,19 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
 int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     const core::Registry reg = load_registry(g);
     core::loader_for_write(reg, o.out, HZ_DATA_IMAGE);  // fail on an unwritable target before the work
+    // Never over an input (a NIfTI pair's other half included), and over an
+    // existing file only with --force: checked before any work.
+    std::error_code ec;
+    const fs::path out(o.out);
+    for (const auto &in : o.inputs) {
+        fs::path other(in);
+        const std::string ext = other.extension().string();
+        bool same = fs::exists(out, ec) && fs::equivalent(out, in, ec);
+        if (ext == ".hdr" || ext == ".img")
+            same = same || (fs::exists(out, ec) && fs::equivalent(out, fs::path(in).replace_extension(ext == ".hdr" ? ".img" : ".hdr"), ec));
+        if (same) throw core::Error(o.out + ": refusing to overwrite the input file " + in);
+    }
+    if (fs::exists(out, ec) && !o.force) throw core::Error(o.out + ": already exists (use --force to replace it)");
     RenderOptions opts = o;
     if (is_scene_file(o.inputs)) opts.scene = o.inputs[0];
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");

@@ -16,8 +16,10 @@
 #include <imgui.h>
 #include <imgui_impl_glfw.h>
 #include <imgui_impl_opengl3.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <array>
 #include <cmath>
 #include <memory>
@@ -96,6 +98,7 @@ struct App {
     double last_material_edit = -1e9;
     static constexpr double kBakeAfter = 0.75;
     bool force_moving = false;  // scripts: `moving on|off`
+    std::uint64_t events = 0;   // input and window events so far (a frame is drawn only after one, or while busy)
     // Scripts: `press LABEL` clicks a panel button through Dear ImGui's own
     // input (the mouse moved over it, pressed, released: one frame each).
     // The buttons drawn in the last frame, by label: their rectangles.
@@ -331,7 +334,82 @@ private:
 
 App *app_of(GLFWwindow *w) { return static_cast<App *>(glfwGetWindowUserPointer(w)); }
 
+// A progressive step's time budget: input is handled between steps.
+constexpr double kStepMs = 50.0;
+
+// This process's resident anonymous memory (RssAnon), MiB; file pages of
+// mapped inputs are not counted. -1 where /proc is not there.
+double rss_anon_mb() {
+    std::ifstream in("/proc/self/status");
+    for (std::string line; std::getline(in, line);)
+        if (line.rfind("RssAnon:", 0) == 0) return std::strtod(line.c_str() + 8, nullptr) / 1024.0;
+    return -1;
+}
+
+int fw_of(GLFWwindow *w) {
+    int fw = 0, fh = 0;
+    glfwGetFramebufferSize(w, &fw, &fh);
+    return fw;
+}
+int fh_of(GLFWwindow *w) {
+    int fw = 0, fh = 0;
+    glfwGetFramebufferSize(w, &fw, &fh);
+    return fh;
+}
+
+// `view --stats FILE.json`: every frame the window drew, what it drew and
+// how long it took (render, panel and buffer swap), for tests and the
+// benchmark. Kinds: "moving" (the level-of-detail proxy while the camera
+// moves), "refine" (a progressive step of a still frame, not complete),
+// "complete" (the step that completed it, or a frame drawn whole), "still"
+// (the kept image presented again, e.g. for the panel; no scene drawing).
+struct FrameLog {
+    nlohmann::json frames = nlohmann::json::array();
+    double peak_anon_mb = 0;
+    double first_frame_s = -1, first_complete_s = -1;
+    void add(const char *kind, const core::render::FrameStats &s, double ms) {
+        const double t = seconds_since_launch();
+        const double anon = rss_anon_mb();
+        peak_anon_mb = std::max(peak_anon_mb, anon);
+        if (first_frame_s < 0) first_frame_s = t;
+        if (first_complete_s < 0 && std::string(kind) == "complete") first_complete_s = t;
+        const bool drew = std::string(kind) != "still";
+        frames.push_back({{"t", t},
+                          {"ms", ms},
+                          {"kind", kind},
+                          {"step", drew ? s.refine_step : 0},
+                          {"chunks_left", s.refine_remaining},
+                          {"streamlines", drew ? s.streamlines_drawn : 0},
+                          {"points", drew ? s.points_drawn : 0},
+                          {"segments", drew ? s.segments_drawn : 0},
+                          {"triangles", drew ? s.triangles_drawn : 0},
+                          {"streamed_points", drew ? s.streamed_points : 0},
+                          {"proxy", drew && s.proxy},
+                          {"rss_anon_mb", anon}});
+    }
+    void write(const std::string &path, const core::render::Renderer &r, int w, int h) const {
+        std::uint64_t streamlines = 0, points = 0;
+        for (const auto &ob : r.scene().objects)
+            if (ob.kind == HZ_DATA_STREAMLINES && !ob.proxy_for)
+                streamlines += ob.data.tractogram.nb_streamlines(), points += ob.data.tractogram.nb_vertices();
+        const nlohmann::json j = {{"window", {w, h}},
+                                  {"step_budget_ms", kStepMs},
+                                  {"streamlines", streamlines},
+                                  {"points", points},
+                                  {"streamlines_with_proxy", r.streamlines_with_proxy()},
+                                  {"first_frame_s", first_frame_s},
+                                  {"first_complete_s", first_complete_s},
+                                  {"peak_rss_anon_mb", peak_anon_mb},
+                                  {"gl", r.gl_description()},
+                                  {"frames", frames}};
+        core::write_text_atomic(path, j.dump(1) + "\n", /*force=*/true);
+        std::printf("stats: %s (%zu frames)\n", path.c_str(), frames.size());
+        std::fflush(stdout);
+    }
+};
+
 void cb_button(GLFWwindow *w, int button, int action, int mods) {
+    ++app_of(w)->events;
     if (ImGui::GetIO().WantCaptureMouse) return;
     App &a = *app_of(w);
     glfwGetCursorPos(w, &a.last_x, &a.last_y);
@@ -343,11 +421,18 @@ void cb_button(GLFWwindow *w, int button, int action, int mods) {
     if (!down) a.dragging = a.panning = false;
     if (left && !down && std::hypot(a.last_x - a.press_x, a.last_y - a.press_y) <= App::kClickPx) a.click(a.last_x, a.last_y);
 }
-void cb_cursor(GLFWwindow *w, double x, double y) { app_of(w)->drag_to(x, y); }
+void cb_cursor(GLFWwindow *w, double x, double y) {
+    ++app_of(w)->events;
+    app_of(w)->drag_to(x, y);
+}
 void cb_scroll(GLFWwindow *w, double, double dy) {
+    ++app_of(w)->events;
     if (!ImGui::GetIO().WantCaptureMouse) app_of(w)->scroll(dy);
 }
+void cb_char(GLFWwindow *w, unsigned int) { ++app_of(w)->events; }
+void cb_refresh(GLFWwindow *w) { ++app_of(w)->events; }
 void cb_key(GLFWwindow *w, int key, int, int action, int) {
+    ++app_of(w)->events;
     if (action == GLFW_PRESS && !ImGui::GetIO().WantCaptureKeyboard) app_of(w)->key(key);
 }
 
@@ -473,6 +558,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
     glfwSetCursorPosCallback(win, cb_cursor);
     glfwSetScrollCallback(win, cb_scroll);
     glfwSetKeyCallback(win, cb_key);
+    glfwSetCharCallback(win, cb_char);
+    glfwSetWindowRefreshCallback(win, cb_refresh);
     IMGUI_CHECKVERSION();
     ImGui::CreateContext();
     ImGui::GetIO().IniFilename = nullptr;
@@ -485,7 +572,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         core::render::Renderer r(reg);
         app.r = &r;
         core::render::RenderSettings rs;
-        rs.width = w0, rs.height = h0, rs.samples = o.samples, rs.lod_pixels = 0.5;
+        rs.width = w0, rs.height = h0, rs.samples = o.samples;
+        o.lod.apply(rs);
         // Baked materials, except while the material panel is being edited
         // (each new value would compile a program): see App::material_edited.
         rs.bake_materials = true;
@@ -550,31 +638,6 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 return true;
             };
         }
-        // Level of detail (paper section 3.4): a large tractogram is shown as
-        // its QuickBundlesX centroids while the camera moves, in full when
-        // it rests.
-        const std::size_t n_objects = scene.objects.size();
-        for (std::size_t i = 0; i < n_objects; ++i) {
-            const auto &ob = scene.objects[i];
-            if (ob.kind != HZ_DATA_STREAMLINES || ob.clustering || ob.proxy_for ||
-                ob.data.tractogram.nb_streamlines() <= o.lod_streamlines)
-                continue;
-            core::render::Object px;
-            px.name = ob.name + " (centroids while moving)";
-            px.kind = px.data.kind = HZ_DATA_STREAMLINES;
-            core::render::ClusterSpec cs;
-            cs.algorithm = "qbx";
-            cs.level = -1;
-            px.data.tractogram = core::render::cluster_centroids(reg, scene.objects[i].data.tractogram, cs);
-            px.render = "lines";
-            px.coloring = ob.coloring.mode == "data" ? core::render::Coloring{} : ob.coloring;
-            if (ob.coloring.mode == "data") px.coloring.mode = "direction";
-            px.material = ob.material;
-            px.proxy_for = i;
-            std::printf("%s: %llu streamlines; %llu QuickBundlesX centroids stand in while the camera moves\n", ob.name.c_str(),
-                        (unsigned long long)ob.data.tractogram.nb_streamlines(), (unsigned long long)px.data.tractogram.nb_streamlines());
-            scene.objects.push_back(std::move(px));
-        }
         const core::render::View v0 = core::render::fit_view(scene, scene.camera, double(w0) / h0);
         const core::Bounds b = core::render::scene_bounds(scene);
         if (!b.empty)
@@ -582,6 +645,14 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         r.set_scene(std::move(scene), v0, rs);
         app.orbit.from_view(v0);
         app.home = app.orbit;
+        // Level of detail (paper section 3.4): a tractogram of more than
+        // --lod-points points is drawn as a uniform subsample of its
+        // streamlines while the camera moves and first when it rests, then
+        // refined to full detail in steps of about kStepMs.
+        if (const std::uint64_t n = r.streamlines_with_proxy(); n > 0)
+            std::printf("level of detail: %llu streamlines drawn as a subsample of about %.0f points while moving, refined at rest\n",
+                        (unsigned long long)n, o.lod.lod_points);
+        std::fflush(stdout);
 
         std::vector<std::string> script;
         if (!o.script.empty()) {
@@ -592,21 +663,58 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         }
         std::size_t pc = 0;
         int wait = 0;
+        double sleep_until = 0;
         float exposure = float(r.scene().exposure);
         std::vector<core::render::Material> materials;
         for (const auto &ob : r.scene().objects) materials.push_back(ob.material);
 
+        // The still image: the view, size and scene generation it shows.
+        struct Still {
+            bool valid = false;
+            std::array<double, 12> view{};
+            int w = 0, h = 0;
+            std::uint64_t generation = 0;
+            bool baked = false;  // (the baked programs draw the same picture, faster: drawn again with them)
+            bool operator==(const Still &) const = default;
+        } still;
+        FrameLog log;
+        std::uint64_t seen_events = ~0ull;
+        bool first_frame = true;
         while (!glfwWindowShouldClose(win) && !app.quit) {
-            glfwPollEvents();
-            // One script command per frame (wait N: N frames).
+            // Nothing to draw (a complete still image, no script, no
+            // motion to settle): sleep until an event, so that an idle
+            // window costs nothing; wake for the end of a motion or the
+            // material bake.
+            {
+                const double now = glfwGetTime();
+                const bool settling = now - app.last_motion < 0.25 || now - app.last_material_edit < App::kBakeAfter + 0.05;
+                const bool busy = r.refining() || !still.valid || app.dragging || app.panning || app.force_moving || wait > 0 ||
+                                  glfwGetTime() < sleep_until ||
+                                  app.press_stage >= 0 || pc < script.size() || !app.pending_shot.empty() || first_frame ||
+                                  (!o.script.empty() && o.exit_after_script);
+                if (busy) glfwPollEvents();
+                else if (settling) glfwWaitEventsTimeout(0.05);
+                else glfwWaitEventsTimeout(1.0);
+            }
+            // One script command per frame (wait N: N frames); a screenshot
+            // waits until the still image is complete (as a user would).
+            const bool hold_for_still =
+                pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving && (r.refining() || !still.valid);
             if (wait > 0) --wait;
-            else if (app.press_stage >= 0) {  // a panel press takes its three frames
+            else if (glfwGetTime() < sleep_until) {
+            } else if (app.press_stage >= 0) {  // a panel press takes its three frames
+            } else if (hold_for_still) {
             } else if (pc < script.size()) {
                 std::istringstream cmd(script[pc++]);
                 std::string op;
                 cmd >> op;
                 try {
                     if (op == "wait") cmd >> wait;
+                    else if (op == "sleep") {  // wall-clock seconds (frames go on meanwhile)
+                        double sec = 0;
+                        if (!(cmd >> sec) || !(sec >= 0)) throw core::Error("sleep needs seconds");
+                        sleep_until = glfwGetTime() + sec;
+                    }
                     else if (op == "drag" || op == "pan") {
                         double x0, y0, x1, y1;
                         cmd >> x0 >> y0 >> x1 >> y1;
@@ -683,10 +791,38 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             int fw, fh;
             glfwGetFramebufferSize(win, &fw, &fh);
             if (fw <= 0 || fh <= 0) continue;
+            const auto frame_t0 = std::chrono::steady_clock::now();
             const bool moving = app.dragging || app.panning || glfwGetTime() - app.last_motion < 0.25 || app.force_moving;
             r.set_interacting(moving);
-            r.set_bake_materials(glfwGetTime() - app.last_material_edit > App::kBakeAfter);
-            r.render_to_window(app.orbit.view(app.radius), fw, fh);
+            const bool bake = glfwGetTime() - app.last_material_edit > App::kBakeAfter;
+            r.set_bake_materials(bake);
+            const core::render::View view = app.orbit.view(app.radius);
+            Still now;
+            now.valid = true;
+            for (int k = 0; k < 3; ++k) now.view[k] = view.eye[k], now.view[3 + k] = view.target[k], now.view[6 + k] = view.up[k];
+            now.view[9] = view.fov_deg, now.view[10] = view.near_mm, now.view[11] = view.far_mm;
+            now.w = fw, now.h = fh, now.generation = r.generation(), now.baked = bake;
+            const char *kind;
+            if (moving) {
+                // The proxy, drawn whole each frame; the still image is gone.
+                r.render_to_window(view, fw, fh);
+                still.valid = false;
+                kind = "moving";
+            } else if (!(still == now)) {
+                r.begin_progressive(view, fw, fh);
+                r.present(fw, fh);
+                still = now;
+                kind = r.refining() ? "refine" : "complete";
+            } else if (r.refining()) {
+                kind = r.progressive_step(kStepMs) ? "complete" : "refine";
+                r.present(fw, fh);
+            } else if (app.events != seen_events || !app.pending_shot.empty() || app.press_stage >= 0 || pc < script.size() || wait > 0) {
+                r.present(fw, fh);  // the kept still image (the panel is redrawn over it)
+                kind = "still";
+            } else {
+                continue;  // nothing changed: no frame at all
+            }
+            seen_events = app.events;
             if (!app.pending_shot.empty()) {
                 save_screenshot(reg, r, app.pending_shot, fw, fh);
                 app.pending_shot.clear();
@@ -714,6 +850,10 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             ImGui::Begin("Horizon");
             ImGui::Text("%.0f ms/frame   %llu segments   %llu triangles", r.stats().draw_ms, (unsigned long long)r.stats().segments_drawn,
                         (unsigned long long)r.stats().triangles_drawn);
+            if (r.refining())
+                ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "refining: %llu chunks to go", (unsigned long long)r.stats().refine_remaining);
+            else if (r.stats().proxy)
+                ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: level-of-detail subsample");
             ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset");
             if (ImGui::SliderFloat("exposure", &exposure, 0.05f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic)) r.set_exposure(exposure);
             if (ex && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
@@ -771,7 +911,14 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             ImGui::Render();
             ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
             glfwSwapBuffers(win);
+            log.add(kind, r.stats(), std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_t0).count());
+            if (first_frame) {
+                first_frame = false;
+                std::printf("first frame after %.2f s\n", seconds_since_launch());
+                std::fflush(stdout);
+            }
         }
+        if (!o.stats.empty()) log.write(o.stats, r, fw_of(win), fh_of(win));
         app.on_click = nullptr;  // (they refer to r and ex, which end here)
         app.on_key = nullptr;
         app.r = nullptr;

@@ -26,22 +26,7 @@ struct Core {
     }
 };
 
-// Our own splitmix-based uniform draws: std::uniform_real_distribution is
-// implementation-defined, and the phantom must be identical everywhere.
-struct Rng {
-    std::uint64_t s;
-    std::uint64_t next() {
-        std::uint64_t z = (s += 0x9E3779B97F4A7C15ull);
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        return z ^ (z >> 31);
-    }
-    double uniform(double a, double b) { return a + (b - a) * (double(next() >> 11) * 0x1.0p-53); }
-    double normal() {
-        const double u1 = std::max(uniform(0, 1), 1e-300), u2 = uniform(0, 1);
-        return std::sqrt(-2 * std::log(u1)) * std::cos(2 * M_PI * u2);
-    }
-};
+using Rng = SplitMix64;
 
 const V3 kHalfBox = {70, 85, 60};
 

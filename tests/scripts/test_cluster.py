@@ -2,6 +2,8 @@
 every level and the same float32 centroids, bit for bit, for the same
 processing order; plus the cases where clustering methods break."""
 import os
+import struct
+import re
 import unittest
 
 import nibabel as nib
@@ -269,8 +271,16 @@ class ClusterEdgeCasesTest(TempDirTest):
 
     def test_bad_input_fails_cleanly(self):
         f = self.write("nan.tck", [np.array([[0, 0, 0], [1, 1, 1]], np.float32)])
-        with open(f, "r+b") as fh:  # turn one coordinate into +Inf (not a delimiter: TCK rejects it)
+        inf = self.write("inf.tck", [np.array([[0, 0, 0], [1, 1, 1]], np.float32)])
+        with open(inf, "r+b") as fh:  # turn one coordinate into +Inf (not a delimiter: TCK rejects it)
             data = fh.read()
+            offset = int(re.search(rb"file: \. (\d+)", data).group(1))
+            fh.seek(offset + 4)  # y of the first point
+            fh.write(struct.pack("<f", float("inf")))
+        p = run("cluster", inf, "--labels", self.path("l.csv"))
+        self.assert_clean_error(p, "inf.tck")
+        self.assertIn("NaN/Inf", p.stderr)
+        self.assertFalse(os.path.exists(self.path("l.csv")))
         p = run("cluster", self.path("nope.tck"), "--labels", self.path("l.csv"))
         self.assert_clean_error(p, "nope.tck")
         self.assertFalse(os.path.exists(self.path("l.csv")))

@@ -78,7 +78,8 @@ class RenderTest(TempDirTest):
         # Flat shading: one colour over the whole surface (up to edge antialiasing).
         surf = np.any(np.abs(ic - ic[0, 0]) > 10, axis=2)
         colours = ic[surf]
-        self.assertLess(np.percentile(np.ptp(colours, axis=0), 50), 1e9)
+        near = np.all(np.abs(colours - np.median(colours, axis=0)) <= 2, axis=1)
+        self.assertGreater(near.mean(), 0.9, "flat: all but the edge pixels have the surface's one colour")
         self.assertLess(np.median(np.abs(colours - np.median(colours, axis=0))), 1.0)
 
     def test_data_colouring_and_cluster_tubes(self):
@@ -115,7 +116,8 @@ class RenderTest(TempDirTest):
                              {"type": "streamlines", "file": "demo/qbx_centroids_level1.tck", "render": "tubes", "radius": 1.5,
                               "color": {"mode": "solid", "value": [1, 0.8, 0.2]}}]}
         out, stats = render_scene(self, scene, "files")
-        self.assertEqual(stats["points_total"], stats["points_total"])
+        expected = sum(run_json("info", self.path(f), "--json")["nb_vertices"] for f in ("demo/phantom.tck", "demo/qbx_centroids_level1.tck"))
+        self.assertEqual(stats["points_total"], expected)
         self.assertGreater(stats["segments"], 100)
 
     def make_surface_with_thickness(self):
@@ -319,7 +321,9 @@ def xvfb_run(args, env, timeout=300):
     return p
 
 
-@unittest.skipUnless(shutil.which("xvfb-run"), "xvfb-run is not installed")
+# Skipped on a user's machine without xvfb-run; in CI (CI set) a missing
+# xvfb-run fails every window test instead (the bootstrap installs it).
+@unittest.skipUnless(shutil.which("xvfb-run") or os.environ.get("CI"), "xvfb-run is not installed")
 class WindowTest(TempDirTest):
     def demo_400(self):
         """The 400-streamline phantom the exploration tests open (in d/)."""
@@ -380,7 +384,7 @@ class WindowTest(TempDirTest):
         script = self.path("script.txt")
         with open(script, "w") as f:
             f.write("\n".join(["wait 2", "set 0 roughness 0.3", "set 0 metallic 0.2", "wait 1",
-                               f"screenshot {self.path('uniform.png')}", "wait 60",
+                               f"screenshot {self.path('uniform.png')}", "sleep 1.5", "wait 2",
                                f"screenshot {self.path('baked.png')}", "wait 1", "quit"]) + "\n")
         env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
         if "ASAN_OPTIONS" in env:
@@ -423,8 +427,10 @@ class WindowTest(TempDirTest):
         self.assertIn("need their surface", p.stderr)
 
     def test_level_of_detail_while_moving(self):
-        # A tractogram above --lod-streamlines is drawn as QuickBundlesX
-        # centroids while the camera moves and in full at rest.
+        # A tractogram above --lod-points is drawn as a subsample of its
+        # streamlines (at 1/--lod-scale of the size) while the camera moves;
+        # at rest the proxy comes first, then full detail in steps, and the
+        # finished still image is exactly the one drawn without a proxy.
         p = run("demo", "--out", self.path("d"), "--streamlines", "600", "--no-window", env=NO_DISPLAY, timeout=180)
         self.assertEqual(p.returncode, 0, p.stderr)
         script = self.path("lod.txt")
@@ -435,13 +441,26 @@ class WindowTest(TempDirTest):
         env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
-        p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--lod-streamlines", "100", "--script", script],
-                     env)
+        stats = self.path("stats.json")
+        p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--lod-points", "4000", "--script", script,
+                      "--stats", stats], env)
         self.assertEqual(p.returncode, 0, p.stderr)
-        self.assertIn("QuickBundlesX centroids stand in", p.stdout)
+        self.assertIn("level of detail: 600 streamlines", p.stdout)
         rest, moving, rest2 = (load(self.path(n)) for n in ("rest.png", "moving.png", "rest2.png"))
         self.assertGreater(np.mean(np.abs(rest - moving)), 0.5, "the proxy is drawn while moving")
         np.testing.assert_array_equal(rest, rest2)
+        frames = json.load(open(stats))["frames"]
+        moving_frames = [f for f in frames if f["kind"] == "moving"]
+        self.assertTrue(moving_frames and all(f["proxy"] and f["streamlines"] < 600 for f in moving_frames))
+        self.assertTrue(any(f["kind"] in ("refine", "complete") and f["step"] > 0 for f in frames), "refined in steps")
+        # Without a proxy (--lod-points above the size) the same still image.
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 1", f"screenshot {self.path('plain.png')}", "quit"]) + "\n")
+        p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--lod-points", "1e9", "--script", script],
+                     env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertNotIn("level of detail:", p.stdout)
+        np.testing.assert_array_equal(load(self.path("plain.png")), rest)
 
     def test_view_starts_at_a_named_view(self):
         # `view --view V` opens at the view `render --view V` draws, the

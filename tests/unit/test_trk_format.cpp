@@ -24,7 +24,7 @@ std::string slurp(const std::string &p) {
 
 }  // namespace
 
-TEST_CASE("trk: at every SIMD target, the parallel chunked decode equals one sequential chunk; the first bad point in file order is named") {
+TEST_CASE("trk: at every SIMD target, the parallel chunked decode equals one sequential chunk, and the first bad point in file order is named") {
     hz::test::for_each_simd_target([&](const char *) {
         // About 40 MB of records: three chunks of 16 MiB, with one scalar column
         // and one property so records are not plain points.
@@ -88,7 +88,7 @@ TEST_CASE("trk: at every SIMD target, the parallel chunked decode equals one seq
     });
 }
 
-TEST_CASE("trk: at every SIMD target, the vector transform of scalar-free points equals the scalar formula bit for bit; non-finite input is flagged") {
+TEST_CASE("trk: at every SIMD target, the vector transform of scalar-free points equals the scalar formula bit for bit, and non-finite input is flagged") {
     hz::test::for_each_simd_target([&](const char *) {
         // An oblique affine with a translation, every length 0..40 (vector body
         // and scalar tail), points at an offset of one float (unaligned vectors).

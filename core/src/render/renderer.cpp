@@ -14,6 +14,9 @@
 #include <algorithm>
 #include <chrono>
 #include <functional>
+#include <future>
+#include <mutex>
+#include <thread>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -160,6 +163,9 @@ GLuint link_program(const std::vector<GLuint> &shaders, const std::string &what)
     return p;
 }
 
+struct Program;
+void bind_sampler(Program &p, const char *name, int unit, GLenum target, GLuint tex);
+
 struct Program {
     GLuint id = 0;
     std::string fragment_source;
@@ -170,6 +176,13 @@ struct Program {
         return cache[name] = glGetUniformLocation(id, name.c_str());
     }
 };
+
+// Binds `tex` to texture unit `unit` and points sampler `name` of the bound program `p` at it.
+void bind_sampler(Program &p, const char *name, int unit, GLenum target, GLuint tex) {
+    glActiveTexture(GL_TEXTURE0 + unit);
+    glBindTexture(target, tex);
+    glUniform1i(p.loc(name), unit);
+}
 
 enum class Geom { Mesh, Tube, Line };
 
@@ -222,6 +235,56 @@ struct Tex2dFbo {
     }
 };
 
+// A streamline vertex as the line and tube programs read it.
+struct LineVertex {
+    float pos[3];
+    std::uint32_t tangent;  // snorm 2_10_10_10
+    std::uint8_t rgba[4];   // linear colour
+    float radius;           // tube radius, mm
+};
+static_assert(sizeof(LineVertex) == 24);
+
+// What building the vertices of a run of streamlines reads: the object's
+// tractogram (its positions may be a mapping of the file) and its colouring
+// resolved per streamline. Shared with the threads that build chunks.
+struct LineData {
+    const Tractogram *t = nullptr;
+    enum class Mode { Direction, Solid, Data, Cluster } mode = Mode::Solid;
+    std::array<std::uint8_t, 4> solid{};
+    std::string colormap;
+    std::array<double, 2> range{0, 1};
+    const DataArray *per_vertex = nullptr;               // data colouring by a per-point array
+    std::vector<double> per_streamline;                  // ... or by a per-streamline array
+    std::vector<std::array<std::uint8_t, 4>> cluster;    // cluster colouring, per streamline
+    std::vector<float> radius;                           // per streamline
+    std::vector<float> highlight;                        // per streamline; empty: none
+};
+
+// Streamline geometry is cut into chunks of at most kChunkPoints input
+// points: no GL buffer grows with the data (llvmpipe faults on vertex
+// buffers past 2^31 bytes; drivers cap buffer sizes), a frame can be drawn
+// a chunk at a time (progressive refinement), and chunks beyond the
+// renderer's memory budget are built again each frame into a ring buffer
+// instead of being kept.
+constexpr std::uint64_t kChunkPoints = 1u << 18;
+
+struct LineChunk {
+    std::uint64_t a = 0, b = 0;   // streamlines [a, b) (of the object, or of its proxy's list)
+    std::uint64_t points = 0;     // input points
+    GLuint vao = 0, vbo = 0;      // resident geometry; 0: built and streamed when drawn
+    std::vector<GLint> firsts;    // per drawn streamline, into the chunk's vertices
+    std::vector<GLsizei> counts;
+    std::uint64_t segments = 0, kept = 0, bytes = 0;
+    bool built = false;           // firsts/counts known
+};
+
+struct BuiltLines {
+    std::vector<LineVertex> verts;
+    std::vector<GLint> firsts;
+    std::vector<GLsizei> counts;
+    std::uint64_t segments = 0, kept = 0;
+};
+
 struct GpuObject {
     std::size_t index = 0;
     Geom geom = Geom::Mesh;
@@ -231,6 +294,17 @@ struct GpuObject {
     std::vector<GLsizei> counts;
     GLsizei index_count = 0;
     std::uint64_t segments = 0, triangles = 0;
+    // streamlines: full detail in chunks, and the level-of-detail proxy (a
+    // density-preserving subsample: every streamline whose hash falls below
+    // a fraction, the same geometry as at full detail) drawn while the
+    // camera moves and as the first picture of a progressive frame. An
+    // object small enough to be its own proxy has none.
+    std::shared_ptr<LineData> lines;
+    std::vector<LineChunk> chunks, proxy_chunks;
+    std::vector<std::uint64_t> proxy_ids;
+    std::uint64_t points_total = 0, streamlines = 0;
+    double tol_mm = 0, proxy_tol_mm = 0;  // the proxy is drawn at 1/proxy_scale of the size: decimated as much coarser
+    bool has_lod_proxy() const { return !proxy_chunks.empty(); }
     // shading
     const LoadedPlugin *shader = nullptr;
     std::vector<double> values;       // schema order, every component
@@ -322,6 +396,13 @@ struct Renderer::Impl {
     Fbo msaa;          // the HDR path's multisampled RGBA16F target
     Fbo msaa_display;  // the display path's multisampled RGBA8 target
     Tex2dFbo resolved, behind, ldr;
+    // The level-of-detail frame: drawn at 1/settings.proxy_scale of the
+    // window's size into `lowres` (fewer fragments; each subsample line
+    // covers proxy_scale window pixels across, which keeps the picture's
+    // coverage), then upscaled (bilinear) into `ldr`.
+    Tex2dFbo lowres;
+    Tex2dFbo *out_ = &ldr;  // where the frame being drawn ends (ldr, or lowres for the proxy frame)
+    std::unique_ptr<Program> composite;
     // Where shading programs write. Display: tonemapped, sRGB-encoded
     // values straight into the RGBA8 image (one pass, no float target).
     // HDR: linear radiance into RGBA16F, then a tonemapping pass; needed
@@ -332,10 +413,13 @@ struct Renderer::Impl {
     FrameStats stats;
     int max_samples = 1;
     bool interacting = false;
+    std::uint64_t generation = 0;  // bumped by every change to what a frame shows
     std::vector<bool> has_proxy;
     double tol_mm = 0;  // streamline decimation tolerance of the current scene
 
     void release(GpuObject &o) {
+        release_chunks(o.chunks);
+        release_chunks(o.proxy_chunks);
         if (o.vao) glDeleteVertexArrays(1, &o.vao);
         if (o.vbo) glDeleteBuffers(1, &o.vbo);
         if (o.ebo) glDeleteBuffers(1, &o.ebo);
@@ -396,6 +480,8 @@ struct Renderer::Impl {
 
     ~Impl() {
         clear_objects();
+        if (ring_vao) glDeleteVertexArrays(1, &ring_vao);
+        if (ring_vbo) glDeleteBuffers(1, &ring_vbo);
         for (auto &[k, p] : programs) glDeleteProgram(p->id);
         for (auto &[k, p] : aux_programs) glDeleteProgram(p->id);
         for (auto *p : {&env_face, &prefilter, &irradiance, &lut_prog})
@@ -408,6 +494,8 @@ struct Renderer::Impl {
         resolved.destroy();
         behind.destroy();
         ldr.destroy();
+        lowres.destroy();
+        if (composite) glDeleteProgram(composite->id);
     }
 
     std::unique_ptr<Program> make_simple(const std::string &vs, const std::string &fs, const std::string &what) {
@@ -865,14 +953,19 @@ struct Renderer::Impl {
         return c;
     }
 
-    void upload_streamlines(GpuObject &g, const Object &o, double tol_mm) {
+    // The colouring of tractogram object `o`, resolved per streamline.
+    static std::shared_ptr<LineData> line_data(const Object &o) {
+        auto d = std::make_shared<LineData>();
         const Tractogram &t = o.data.tractogram;
         const std::uint64_t N = t.nb_streamlines();
-        // Colours and radii.
-        std::vector<double> per_vertex, per_streamline;
-        std::array<double, 2> range{0, 1};
+        d->t = &t;
         const Coloring &c = o.coloring;
-        if (c.mode == "data") {
+        if (c.mode == "direction") d->mode = LineData::Mode::Direction;
+        else if (c.mode == "cluster") d->mode = LineData::Mode::Cluster;
+        else if (c.mode == "data") d->mode = LineData::Mode::Data;
+        else d->mode = LineData::Mode::Solid;
+        d->solid = rgba8(c.color[0], c.color[1], c.color[2]);
+        if (d->mode == LineData::Mode::Data) {
             const DataArray *a = nullptr;
             for (const auto &x : t.arrays)
                 if (x.name == c.array && (x.attach == HZ_ATTACH_VERTEX || x.attach == HZ_ATTACH_STREAMLINE)) a = &x;
@@ -881,47 +974,33 @@ struct Renderer::Impl {
                 for (const auto &x : t.arrays) list += (list.empty() ? "" : ", ") + x.name;
                 throw Error(o.name + ": color: no per-point or per-streamline array '" + c.array + "' (arrays: " + (list.empty() ? "none" : list) + ")");
             }
-            (a->attach == HZ_ATTACH_VERTEX ? per_vertex : per_streamline) = array_values(*a);
-            range = c.range ? *c.range : finite_range(a->attach == HZ_ATTACH_VERTEX ? per_vertex : per_streamline);
+            d->colormap = c.colormap;
+            if (a->attach == HZ_ATTACH_VERTEX) {
+                d->per_vertex = a;
+                if (c.range) d->range = *c.range;
+                else {
+                    double lo = INFINITY, hi = -INFINITY;
+                    const std::size_t stride = dtype_size(a->dtype) * a->components;
+                    for (std::uint64_t i = 0; i < a->count; ++i) {
+                        const double v = values_of(a->bytes.data() + i * stride, a->dtype, 1, stride)[0];
+                        if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+                    }
+                    d->range = !(lo <= hi) ? std::array<double, 2>{0, 1} : lo == hi ? std::array<double, 2>{lo, lo + 1} : std::array<double, 2>{lo, hi};
+                }
+            } else {
+                d->per_streamline = array_values(*a);
+                d->range = c.range ? *c.range : finite_range(d->per_streamline);
+            }
         }
-        // Cluster colours: by a per-streamline "cluster_id" when present (stable
-        // while clusters are expanded or hidden), else by position.
-        std::vector<double> cluster_ids;
-        if (c.mode == "cluster")
+        if (d->mode == LineData::Mode::Cluster) {
+            // By a per-streamline "cluster_id" when present (stable while
+            // clusters are expanded or hidden), else by position.
+            std::vector<double> ids;
             for (const auto &x : t.arrays)
-                if (x.name == "cluster_id" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) cluster_ids = array_values(x);
-        const std::vector<float> radius = tube_radii(o);
-        // Highlighted streamlines (a per-streamline "highlight" array, e.g.
-        // the clusters selected in the window): their colour mixed towards
-        // white by the value, clamped to [0, 1].
-        std::vector<double> highlight;
-        for (const auto &x : t.arrays)
-            if (x.name == "highlight" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) highlight = array_values(x);
-        struct V {
-            float pos[3];
-            std::uint32_t tangent;
-            std::uint8_t rgba[4];
-            float radius;
-        };
-        static_assert(sizeof(V) == 24);
-        std::vector<V> verts;
-        verts.reserve(t.nb_vertices());
-        g.firsts.clear();
-        g.counts.clear();
-        std::vector<std::uint32_t> keep;
-        const float *P = t.positions.data();
-        for (std::uint64_t s = 0; s < N; ++s) {
-            const std::uint64_t b = t.begin(s), e = t.end(s), n = e - b;
-            stats.points_total += n;
-            if (n < 2) continue;
-            decimate(P + b * 3, n, tol_mm, keep);
-            g.firsts.push_back(GLint(verts.size()));
-            g.counts.push_back(GLsizei(keep.size()));
-            g.segments += keep.size() - 1;
-            stats.points_kept += keep.size();
-            std::array<std::uint8_t, 4> cluster_col{};
-            if (c.mode == "cluster") {
-                const double key = cluster_ids.empty() ? double(s) : cluster_ids[s];
+                if (x.name == "cluster_id" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) ids = array_values(x);
+            d->cluster.resize(N);
+            for (std::uint64_t s = 0; s < N; ++s) {
+                const double key = ids.empty() ? double(s) : ids[s];
                 const double hue = std::fmod(key * 0.618033988749895, 1.0);
                 const double h6 = hue * 6, x = 1 - std::abs(std::fmod(h6, 2.0) - 1);
                 double r = 0, gg = 0, bb = 0;
@@ -933,50 +1012,328 @@ struct Renderer::Impl {
                 case 4: r = x, bb = 1; break;
                 default: r = 1, bb = x; break;
                 }
-                cluster_col = rgba8(srgb_to_linear(0.25 + 0.7 * r), srgb_to_linear(0.25 + 0.7 * gg), srgb_to_linear(0.25 + 0.7 * bb));
+                d->cluster[s] = rgba8(srgb_to_linear(0.25 + 0.7 * r), srgb_to_linear(0.25 + 0.7 * gg), srgb_to_linear(0.25 + 0.7 * bb));
             }
+        }
+        d->radius = tube_radii(o);
+        // Highlighted streamlines (a per-streamline "highlight" array, e.g.
+        // the clusters selected in the window): their colour mixed towards
+        // white by the value, clamped to [0, 1].
+        for (const auto &x : t.arrays)
+            if (x.name == "highlight" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) {
+                const std::vector<double> h = array_values(x);
+                if (std::any_of(h.begin(), h.end(), [](double v) { return v > 0; })) d->highlight.assign(h.begin(), h.end());
+            }
+        return d;
+    }
+
+    // The colour every vertex of `d` has, if it is one (solid colouring, or
+    // per-streamline colours that happen to be equal): with baked materials
+    // it is a constant of the program.
+    static std::optional<std::array<std::uint8_t, 4>> uniform_colour(const LineData &d) {
+        if (!d.highlight.empty() || d.t->nb_vertices() == 0) return std::nullopt;
+        if (d.mode == LineData::Mode::Solid) return d.solid;
+        if (d.mode == LineData::Mode::Cluster && !d.cluster.empty() &&
+            std::all_of(d.cluster.begin(), d.cluster.end(), [&](const auto &c) { return c == d.cluster[0]; }))
+            return d.cluster[0];
+        if (d.mode == LineData::Mode::Data && !d.per_streamline.empty() &&
+            std::all_of(d.per_streamline.begin(), d.per_streamline.end(), [&](double v) { return v == d.per_streamline[0] || (std::isnan(v) && std::isnan(d.per_streamline[0])); })) {
+            const auto m = colormap(d.colormap, (d.per_streamline[0] - d.range[0]) / (d.range[1] - d.range[0]));
+            return rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
+        }
+        return std::nullopt;
+    }
+
+    // rgba8's quantisation of srgb_to_linear(|x|), x in [-1, 1], through a
+    // table of 4097 entries (the direction colouring of every vertex).
+    static std::uint8_t direction_lut(float x) {
+        static const auto table = [] {
+            std::array<std::uint8_t, 4097> t{};
+            for (int i = 0; i <= 4096; ++i) t[i] = rgba8(srgb_to_linear(i / 4096.0), 0, 0)[0];
+            return t;
+        }();
+        return table[std::size_t(std::lround(std::min(std::abs(x), 1.0f) * 4096.0f))];
+    }
+
+    // The vertices of streamlines [a, b) of `d` (or of ids[a..b) when `ids`
+    // is given), decimated at `tol` mm. Touches nothing but its arguments:
+    // chunks are built on other threads.
+    static void build_lines(const LineData &d, const std::uint64_t *ids, std::uint64_t a, std::uint64_t b, double tol, BuiltLines &out) {
+        const Tractogram &t = *d.t;
+        const float *P = t.positions.data();
+        std::vector<std::uint32_t> keep;
+        out.verts.clear(), out.firsts.clear(), out.counts.clear();
+        out.segments = out.kept = 0;
+        {
+            std::uint64_t pts = 0;
+            for (std::uint64_t k = a; k < b; ++k) pts += t.size(ids ? ids[k] : k);
+            out.verts.reserve(pts);
+            out.firsts.reserve(b - a), out.counts.reserve(b - a);
+        }
+        std::size_t stride = 0;
+        if (d.per_vertex) stride = dtype_size(d.per_vertex->dtype) * d.per_vertex->components;
+        for (std::uint64_t k = a; k < b; ++k) {
+            const std::uint64_t s = ids ? ids[k] : k;
+            const std::uint64_t sb = t.begin(s), e = t.end(s), n = e - sb;
+            if (n < 2) continue;
+            decimate(P + sb * 3, n, tol, keep);
+            out.firsts.push_back(GLint(out.verts.size()));
+            out.counts.push_back(GLsizei(keep.size()));
+            out.segments += keep.size() - 1;
+            out.kept += keep.size();
+            std::array<std::uint8_t, 4> scol = d.solid;
+            if (d.mode == LineData::Mode::Cluster) scol = d.cluster[s];
+            else if (d.mode == LineData::Mode::Data && !d.per_vertex) {
+                const auto m = colormap(d.colormap, (d.per_streamline[s] - d.range[0]) / (d.range[1] - d.range[0]));
+                scol = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
+            }
+            const double hl = d.highlight.empty() ? 0.0 : std::min<double>(d.highlight[s], 1.0) * 0.75;
+            const float radius = d.radius[s];
             for (std::uint32_t ki = 0; ki < keep.size(); ++ki) {
-                const std::uint64_t i = b + keep[ki];
-                const std::uint64_t i0 = i > b ? i - 1 : i, i1 = i + 1 < e ? i + 1 : i;
+                const std::uint64_t i = sb + keep[ki];
+                const std::uint64_t i0 = i > sb ? i - 1 : i, i1 = i + 1 < e ? i + 1 : i;
                 float tx = P[i1 * 3] - P[i0 * 3], ty = P[i1 * 3 + 1] - P[i0 * 3 + 1], tz = P[i1 * 3 + 2] - P[i0 * 3 + 2];
                 const float len = std::sqrt(tx * tx + ty * ty + tz * tz);
                 if (len > 0 && std::isfinite(len)) tx /= len, ty /= len, tz /= len;
                 else tx = ty = tz = 0;
-                V v;
+                LineVertex v;
                 v.pos[0] = P[i * 3], v.pos[1] = P[i * 3 + 1], v.pos[2] = P[i * 3 + 2];
                 v.tangent = pack_snorm_2_10_10_10(tx, ty, tz);
-                std::array<std::uint8_t, 4> col;
-                if (c.mode == "direction") col = rgba8(srgb_to_linear(std::abs(tx)), srgb_to_linear(std::abs(ty)), srgb_to_linear(std::abs(tz)));
-                else if (c.mode == "cluster") col = cluster_col;
-                else if (c.mode == "data") {
-                    const double val = per_vertex.empty() ? per_streamline[s] : per_vertex[i];
-                    const auto m = colormap(c.colormap, (val - range[0]) / (range[1] - range[0]));
+                std::array<std::uint8_t, 4> col = scol;
+                if (d.mode == LineData::Mode::Direction) col = {direction_lut(tx), direction_lut(ty), direction_lut(tz), 255};
+                else if (d.per_vertex) {
+                    const double val = values_of(d.per_vertex->bytes.data() + i * stride, d.per_vertex->dtype, 1, stride)[0];
+                    const auto m = colormap(d.colormap, (val - d.range[0]) / (d.range[1] - d.range[0]));
                     col = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
-                } else col = rgba8(c.color[0], c.color[1], c.color[2]);
-                if (!highlight.empty() && highlight[s] > 0) {
-                    const double w = std::min(highlight[s], 1.0) * 0.75;
-                    for (int k = 0; k < 3; ++k) col[k] = std::uint8_t(std::lround(col[k] + (255 - col[k]) * w));
                 }
+                if (hl > 0)
+                    for (int c = 0; c < 3; ++c) col[c] = std::uint8_t(std::lround(col[c] + (255 - col[c]) * hl));
                 std::memcpy(v.rgba, col.data(), 4);
-                v.radius = radius[s];
-                verts.push_back(v);
+                v.radius = radius;
+                out.verts.push_back(v);
             }
         }
-        g.uniform_rgba = same_colour(verts);
-        glGenVertexArrays(1, &g.vao);
-        glBindVertexArray(g.vao);
-        glGenBuffers(1, &g.vbo);
-        glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
-        glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(verts.size() * sizeof(V)), verts.data(), GL_STATIC_DRAW);
+    }
+
+    // Chunks of at most kChunkPoints input points over streamlines [0, n)
+    // (or over ids[0..n)).
+    static std::vector<LineChunk> partition(const Tractogram &t, const std::uint64_t *ids, std::uint64_t n) {
+        std::vector<LineChunk> out;
+        LineChunk c;
+        for (std::uint64_t k = 0; k < n; ++k) {
+            const std::uint64_t pts = t.size(ids ? ids[k] : k);
+            if (c.points > 0 && c.points + pts > kChunkPoints) {
+                c.b = k;
+                out.push_back(std::move(c));
+                c = LineChunk{};
+                c.a = k;
+            }
+            c.points += pts;
+        }
+        c.b = n;
+        if (c.b > c.a) out.push_back(std::move(c));
+        return out;
+    }
+
+    // Sets the vertex layout of the bound VAO for the bound buffer.
+    static void line_attributes() {
+        const GLsizei st = sizeof(LineVertex);
         glEnableVertexAttribArray(0);
-        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(V), reinterpret_cast<void *>(0));
+        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, st, reinterpret_cast<void *>(0));
         glEnableVertexAttribArray(1);
-        glVertexAttribPointer(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, sizeof(V), reinterpret_cast<void *>(12));
+        glVertexAttribPointer(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, st, reinterpret_cast<void *>(12));
         glEnableVertexAttribArray(2);
-        glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, sizeof(V), reinterpret_cast<void *>(16));
+        glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, st, reinterpret_cast<void *>(16));
         glEnableVertexAttribArray(3);
-        glVertexAttribPointer(3, 1, GL_FLOAT, GL_FALSE, sizeof(V), reinterpret_cast<void *>(20));
-        g.bounds = bounds_of(t.positions.data(), t.nb_stored());
+        glVertexAttribPointer(3, 1, GL_FLOAT, GL_FALSE, st, reinterpret_cast<void *>(20));
+    }
+
+    // Streamline geometry kept in GL buffers, all objects together, against
+    // settings.gpu_memory_mb; and the ring buffer of streamed chunks.
+    std::uint64_t resident_bytes = 0;
+    GLuint ring_vao = 0, ring_vbo = 0;
+    // Chunks being built on other threads, by chunk.
+    std::map<const LineChunk *, std::future<std::shared_ptr<BuiltLines>>> pending;
+
+    std::uint64_t budget_bytes() const { return std::uint64_t(std::max(0.0, settings.gpu_memory_mb)) << 20; }
+
+    // Records chunk c's draw lists from `b` and keeps its vertices in a GL
+    // buffer of its own while the budget allows.
+    void adopt(LineChunk &c, BuiltLines &b) {
+        c.firsts = std::move(b.firsts);
+        c.counts = std::move(b.counts);
+        c.segments = b.segments, c.kept = b.kept;
+        c.built = true;
+        const std::uint64_t bytes = b.verts.size() * sizeof(LineVertex);
+        if (resident_bytes + bytes > budget_bytes() || b.verts.empty()) return;
+        glGenVertexArrays(1, &c.vao);
+        glBindVertexArray(c.vao);
+        glGenBuffers(1, &c.vbo);
+        glBindBuffer(GL_ARRAY_BUFFER, c.vbo);
+        glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(bytes), b.verts.data(), GL_STATIC_DRAW);
+        line_attributes();
+        c.bytes = bytes;
+        resident_bytes += bytes;
+    }
+
+    void release_chunks(std::vector<LineChunk> &cs) {
+        for (LineChunk &c : cs) {
+            if (auto it = pending.find(&c); it != pending.end()) {
+                it->second.wait();
+                pending.erase(it);
+            }
+            if (c.vao) glDeleteVertexArrays(1, &c.vao);
+            if (c.vbo) glDeleteBuffers(1, &c.vbo);
+            resident_bytes -= c.bytes;
+            c.vao = c.vbo = 0, c.bytes = 0;
+        }
+        cs.clear();
+    }
+
+    // Starts building chunks [i, i + ahead) of `cs` that are not resident on
+    // other threads (bounded: `ahead` chunks of at most kChunkPoints each).
+    void prefetch(const GpuObject &g, std::vector<LineChunk> &cs, bool proxy, std::size_t i, std::size_t ahead) {
+        for (std::size_t k = i; k < cs.size() && k < i + ahead; ++k) {
+            LineChunk &c = cs[k];
+            if (c.vbo || pending.count(&c)) continue;
+            std::shared_ptr<LineData> d = g.lines;
+            const std::uint64_t *ids = proxy ? g.proxy_ids.data() : nullptr;
+            const std::uint64_t a = c.a, b = c.b;
+            const double tol = proxy ? g.proxy_tol_mm : g.tol_mm;
+            pending.emplace(&c, std::async(std::launch::async, [this, d, ids, a, b, tol] {
+                                auto out = spare_lines();
+                                build_lines(*d, ids, a, b, tol, *out);
+                                return out;
+                            }));
+        }
+    }
+
+    // Chunk c's vertices: from its prefetch, or built now.
+    std::shared_ptr<BuiltLines> take(const GpuObject &g, LineChunk &c, bool proxy) {
+        if (auto it = pending.find(&c); it != pending.end()) {
+            auto b = it->second.get();
+            pending.erase(it);
+            return b;
+        }
+        auto b = spare_lines();
+        build_lines(*g.lines, proxy ? g.proxy_ids.data() : nullptr, c.a, c.b, proxy ? g.proxy_tol_mm : g.tol_mm, *b);
+        return b;
+    }
+
+    // Vertex buffers of built chunks are reused (a fresh 6 MB block for
+    // every chunk would be faulted in, page by page, each time): a chunk's
+    // BuiltLines goes back to the pool when its last user drops it.
+    std::mutex spare_mutex;
+    std::vector<std::unique_ptr<BuiltLines>> spare;
+    std::shared_ptr<BuiltLines> spare_lines() {
+        std::unique_ptr<BuiltLines> b;
+        {
+            std::lock_guard<std::mutex> lock(spare_mutex);
+            if (!spare.empty()) b = std::move(spare.back()), spare.pop_back();
+        }
+        if (!b) b = std::make_unique<BuiltLines>();
+        return std::shared_ptr<BuiltLines>(b.release(), [this](BuiltLines *p) {
+            std::lock_guard<std::mutex> lock(spare_mutex);
+            if (spare.size() < 8) spare.emplace_back(p);
+            else delete p;
+        });
+    }
+
+    // Draws chunk k of g's full (or proxy) chunks with the bound program:
+    // from its GL buffer, or built (or taken from its prefetch), kept when
+    // the budget allows, else streamed through the ring buffer.
+    void draw_chunk(GpuObject &g, bool proxy, std::size_t k) {
+        std::vector<LineChunk> &cs = proxy ? g.proxy_chunks : g.chunks;
+        LineChunk &c = cs[k];
+        if (!c.vbo) {
+            prefetch(g, cs, proxy, k + 1, std::max(1u, std::thread::hardware_concurrency()));
+            std::shared_ptr<BuiltLines> b = take(g, c, proxy);
+            const bool first = !c.built;
+            if (first) adopt(c, *b);
+            if (!c.vbo && !b->verts.empty()) {
+                if (!first) c.firsts = std::move(b->firsts), c.counts = std::move(b->counts);
+                if (!ring_vao) {
+                    glGenVertexArrays(1, &ring_vao);
+                    glBindVertexArray(ring_vao);
+                    glGenBuffers(1, &ring_vbo);
+                    glBindBuffer(GL_ARRAY_BUFFER, ring_vbo);
+                    line_attributes();
+                }
+                glBindVertexArray(ring_vao);
+                glBindBuffer(GL_ARRAY_BUFFER, ring_vbo);
+                // A new store each time (orphaning): the driver keeps the
+                // previous one until the draws that read it are done.
+                glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(b->verts.size() * sizeof(LineVertex)), b->verts.data(), GL_STREAM_DRAW);
+                glMultiDrawArrays(GL_LINE_STRIP, c.firsts.data(), c.counts.data(), GLsizei(c.firsts.size()));
+                stats.streamed_points += c.kept;
+                c.firsts.clear(), c.counts.clear();
+                c.firsts.shrink_to_fit(), c.counts.shrink_to_fit();
+                count_chunk(c, proxy);
+                return;
+            }
+        }
+        if (c.vbo) {
+            glBindVertexArray(c.vao);
+            glMultiDrawArrays(GL_LINE_STRIP, c.firsts.data(), c.counts.data(), GLsizei(c.firsts.size()));
+        }
+        count_chunk(c, proxy);
+    }
+
+    void count_chunk(const LineChunk &c, bool proxy) {
+        stats.segments_drawn += c.segments;
+        stats.points_drawn += c.kept;
+        stats.streamlines_drawn += c.counts.empty() ? c.b - c.a : c.counts.size();
+        ++stats.chunks_drawn;
+        if (proxy) stats.proxy = true;
+    }
+
+    void upload_streamlines(GpuObject &g, const Object &o, double tol_mm) {
+        const Tractogram &t = o.data.tractogram;
+        const std::uint64_t N = t.nb_streamlines();
+        g.lines = line_data(o);
+        g.uniform_rgba = uniform_colour(*g.lines);
+        g.tol_mm = tol_mm;
+        g.proxy_tol_mm = tol_mm * std::max(1, settings.proxy_scale);
+        g.streamlines = N;
+        g.points_total = t.nb_vertices();
+        stats.points_total += g.points_total;
+        g.chunks = partition(t, nullptr, N);
+        // The level-of-detail proxy: above `lod_points` input points, the
+        // streamlines whose hash falls below lod_points / points (in
+        // expectation a uniform subsample: the same density everywhere).
+        const double lod = std::max(1.0, settings.lod_points);
+        if (double(g.points_total) > lod) {
+            const double keep = lod / double(g.points_total);
+            const std::uint64_t cut = std::uint64_t(keep * 18446744073709551615.0);
+            for (std::uint64_t s = 0; s < N; ++s) {
+                std::uint64_t z = (s + 1) * 0x9E3779B97F4A7C15ull;
+                z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+                z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+                if ((z ^ (z >> 31)) < cut) g.proxy_ids.push_back(s);
+            }
+            if (g.proxy_ids.empty() && N) g.proxy_ids.push_back(0);
+            g.proxy_chunks = partition(t, g.proxy_ids.data(), g.proxy_ids.size());
+        }
+        // Small objects are built now, in parallel (the draw lists are then
+        // known: MSAA is chosen from the segment count); large ones chunk
+        // by chunk as they are first drawn (a window shows the proxy first).
+        if (g.points_total <= settings.eager_points) {
+            for (std::size_t k = 0; k < g.chunks.size(); ++k) {
+                prefetch(g, g.chunks, false, k, std::max(1u, std::thread::hardware_concurrency()));
+                auto b = take(g, g.chunks[k], false);
+                adopt(g.chunks[k], *b);
+                g.segments += g.chunks[k].segments;
+                stats.points_kept += g.chunks[k].kept;
+            }
+        } else {
+            g.segments = g.points_total;  // (an upper bound until drawn)
+        }
+        for (std::size_t k = 0; k < g.proxy_chunks.size(); ++k) {
+            prefetch(g, g.proxy_chunks, true, k, std::max(1u, std::thread::hardware_concurrency()));
+            auto b = take(g, g.proxy_chunks[k], true);
+            adopt(g.proxy_chunks[k], *b);
+        }
+        g.bounds = !o.data.bounds.empty ? o.data.bounds : bounds_of(t.positions.data(), t.nb_stored());
     }
 
     void upload_mesh(GpuObject &g, const Object &o) {
@@ -1232,7 +1589,16 @@ struct Renderer::Impl {
         glUniformMatrix3fv(p.loc("hz_env_rotation"), 1, GL_FALSE, glm::value_ptr(env_rotation));
     }
 
-    void draw_object(const GpuObject &g, const Object &o, const Matrices &m, const View &v, bool debug, int w, int h) {
+    // Which of a tractogram's geometry draw_object draws: every chunk, the
+    // level-of-detail proxy, or none (the program is bound and its uniforms
+    // set for the caller to draw chunks itself).
+    enum class LinesPart { Full, Proxy, None };
+    // The part of a tractogram drawn in this frame: its proxy while
+    // interacting (when it has one), else all of it.
+    LinesPart part_for(const GpuObject &g) const { return interacting && g.has_lod_proxy() ? LinesPart::Proxy : LinesPart::Full; }
+
+    void draw_object(GpuObject &g, const Object &o, const Matrices &m, const View &v, bool debug, int w, int h,
+                     LinesPart lines = LinesPart::Full) {
         if (g.slices) {
             if (debug) return;
             Program *slice = &aux(Aux::Slices, display_direct);
@@ -1243,12 +1609,8 @@ struct Renderer::Impl {
             glUniform2f(slice->loc("u_window"), float(g.window[0]), float(g.window[1]));
             glUniform1f(slice->loc("u_opacity"), float(o.opacity));
             glUniform1f(slice->loc("u_clip_below"), o.clip_below ? float(*o.clip_below) : -INFINITY);
-            glActiveTexture(GL_TEXTURE4);
-            glBindTexture(GL_TEXTURE_3D, g.volume_tex);
-            glUniform1i(slice->loc("u_volume"), 4);
-            glActiveTexture(GL_TEXTURE5);
-            glBindTexture(GL_TEXTURE_2D, g.colormap_tex);
-            glUniform1i(slice->loc("u_colormap"), 5);
+            bind_sampler(*slice, "u_volume", 4, GL_TEXTURE_3D, g.volume_tex);
+            bind_sampler(*slice, "u_colormap", 5, GL_TEXTURE_2D, g.colormap_tex);
             glBindVertexArray(g.vao);
             glDrawArrays(GL_TRIANGLES, 0, g.slice_vertices);
             stats.triangles_drawn += g.triangles;
@@ -1274,9 +1636,10 @@ struct Renderer::Impl {
         if (g.geom == Geom::Mesh) {
             glDrawElements(GL_TRIANGLES, g.index_count, GL_UNSIGNED_INT, nullptr);
             stats.triangles_drawn += g.triangles;
-        } else {
-            glMultiDrawArrays(GL_LINE_STRIP, g.firsts.data(), g.counts.data(), GLsizei(g.firsts.size()));
-            stats.segments_drawn += g.segments;
+        } else if (lines == LinesPart::Proxy) {
+            for (std::size_t k = 0; k < g.proxy_chunks.size(); ++k) draw_chunk(g, true, k);
+        } else if (lines == LinesPart::Full) {
+            for (std::size_t k = 0; k < g.chunks.size(); ++k) draw_chunk(g, false, k);
         }
     }
 
@@ -1303,7 +1666,7 @@ struct Renderer::Impl {
     GLuint begin_frame(int w, int h) {
         const int samples = std::clamp(settings.samples, 1, std::max(1, max_samples));
         display_direct = frame_is_direct();
-        ldr.ensure(w, h, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
+        out_->ensure(w, h, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
         if (!display_direct) {
             ensure_fbo(msaa, w, h, samples, GL_RGBA16F);
             resolved.ensure(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT);
@@ -1313,16 +1676,16 @@ struct Renderer::Impl {
             ensure_fbo(msaa_display, w, h, samples, GL_RGBA8);
             return msaa_display.fbo;
         }
-        ldr.ensure_depth();
-        return ldr.fbo;
+        out_->ensure_depth();
+        return out_->fbo;
     }
 
     void finish_frame(GLuint target, int w, int h) {
-        if (target == ldr.fbo) return;
+        if (target == out_->fbo) return;
         glBindFramebuffer(GL_READ_FRAMEBUFFER, target);
-        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_direct ? ldr.fbo : resolved.fbo);
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_direct ? out_->fbo : resolved.fbo);
         glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
-        if (!display_direct) tonemap_to(ldr.fbo, w, h);
+        if (!display_direct) tonemap_to(out_->fbo, w, h);
     }
 
     // The scene's background as the frame's output stores it.
@@ -1340,9 +1703,9 @@ struct Renderer::Impl {
         return c;
     }
 
-    void draw_scene(const View &v, int w, int h) {
-        const Matrices m = matrices(v, w, h);
-        const GLuint target = begin_frame(w, h);
+    // Clears `target` to the background (and the environment, when shown)
+    // and sets the state of the opaque pass.
+    void clear_and_sky(const Matrices &m, GLuint target, int w, int h) {
         glBindFramebuffer(GL_FRAMEBUFFER, target);
         glViewport(0, 0, w, h);
         const auto bg = background_value();
@@ -1363,22 +1726,32 @@ struct Renderer::Impl {
             glBindVertexArray(empty_vao);
             glDrawArrays(GL_TRIANGLES, 0, 3);
         }
+        opaque_state();
+    }
+
+    static void opaque_state() {
         glEnable(GL_DEPTH_TEST);
         glDepthFunc(GL_LESS);
         glDepthMask(GL_TRUE);
         glDisable(GL_BLEND);
         glDisable(GL_CULL_FACE);
+    }
+
+    void draw_scene(const View &v, int w, int h) {
+        const Matrices m = matrices(v, w, h);
+        const GLuint target = begin_frame(w, h);
+        clear_and_sky(m, target, w, h);
         // Pass 1: opaque. Pass 2: refractive objects, which composite the
         // opaque image behind them themselves. Pass 3: blended translucency.
         bool later = false;
-        for (const auto &g : objects) {
+        for (auto &g : objects) {
             const Object &o = scene.objects[g.index];
             if (!drawn(g.index)) continue;
             if (composited(g)) {
                 later = true;
                 continue;
             }
-            draw_object(g, o, m, v, false, w, h);
+            draw_object(g, o, m, v, false, w, h, part_for(g));
         }
         if (later) {
             behind.ensure(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT);
@@ -1386,21 +1759,170 @@ struct Renderer::Impl {
             glBindFramebuffer(GL_DRAW_FRAMEBUFFER, behind.fbo);
             glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
             glBindFramebuffer(GL_FRAMEBUFFER, msaa.fbo);
-            for (const auto &g : objects) {
+            for (auto &g : objects) {
                 const Object &o = scene.objects[g.index];
-                if (drawn(g.index) && g.refractive && o.opacity >= 1.0) draw_object(g, o, m, v, false, w, h);
+                if (drawn(g.index) && g.refractive && o.opacity >= 1.0) draw_object(g, o, m, v, false, w, h, part_for(g));
             }
             glEnable(GL_BLEND);
             glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
             glDepthMask(GL_FALSE);
-            for (const auto &g : objects) {
+            for (auto &g : objects) {
                 const Object &o = scene.objects[g.index];
-                if (drawn(g.index) && o.opacity < 1.0) draw_object(g, o, m, v, false, w, h);
+                if (drawn(g.index) && o.opacity < 1.0) draw_object(g, o, m, v, false, w, h, part_for(g));
             }
             glDepthMask(GL_TRUE);
             glDisable(GL_BLEND);
         }
         finish_frame(target, w, h);
+    }
+
+    // Progressive drawing (the window at rest): the first step draws
+    // everything small and the proxies of large tractograms; each later step
+    // adds full-detail chunks over it, with depth testing, within a time
+    // budget. A proxy's streamlines are drawn again at full detail with the
+    // same geometry, so the finished image is the full frame's.
+    struct Refine {
+        bool active = false;
+        View view;
+        int w = 0, h = 0;
+        GLuint target = 0;
+        Matrices m;
+        std::vector<std::pair<std::size_t, std::size_t>> items;  // (object, chunk) still to draw
+        std::size_t next = 0;
+        int step = 0;
+    } refine;
+
+    void reset_counters() {
+        stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
+        stats.chunks_drawn = stats.streamed_points = 0;
+        stats.proxy = false;
+        stats.refine_step = 0;
+        stats.refine_remaining = 0;
+    }
+
+    bool any_lod_proxy() const {
+        return std::any_of(objects.begin(), objects.end(), [&](const GpuObject &g) { return drawn(g.index) && g.has_lod_proxy(); });
+    }
+
+    // A frame: at the window's size, or, when a tractogram drawn has a
+    // level-of-detail proxy and the camera moves, the proxy frame (at
+    // 1/proxy_scale of the size into lowres, upscaled into ldr).
+    void frame(const View &v, int w, int h) {
+        if (interacting && any_lod_proxy()) proxy_frame(v, w, h);
+        else draw_scene(v, w, h);
+    }
+
+    void proxy_frame(const View &v, int w, int h) {
+        const int s = std::max(1, settings.proxy_scale);
+        const int pw = std::max(1, (w + s - 1) / s), ph = std::max(1, (h + s - 1) / s);
+        lowres.ensure(pw, ph, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
+        lowres.ensure_depth();
+        const bool was = interacting;
+        interacting = true;
+        out_ = &lowres;
+        try {
+            draw_scene(v, pw, ph);
+        } catch (...) {
+            out_ = &ldr, interacting = was;
+            throw;
+        }
+        out_ = &ldr;
+        interacting = was;
+        ldr.ensure(w, h, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, lowres.fbo);
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, ldr.fbo);
+        glBlitFramebuffer(0, 0, pw, ph, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_LINEAR);
+    }
+
+    // The window's picture while refining: the full-detail image drawn so
+    // far over the upscaled proxy frame, by coverage (the refinement target
+    // is cleared to alpha 0).
+    void present_composite(int w, int h) {
+        if (!composite)
+            composite = make_simple(glsl::kFullscreenVS, R"glsl(#version 410 core
+in vec2 v_uv;
+uniform sampler2D u_full, u_proxy;
+out vec4 o;
+void main() {
+    vec4 f = texture(u_full, v_uv);
+    o = vec4(mix(texture(u_proxy, v_uv).rgb, f.rgb, f.a), 1.0);
+}
+)glsl", "refinement composite");
+        glBindFramebuffer(GL_FRAMEBUFFER, 0);
+        glViewport(0, 0, w, h);
+        glDisable(GL_DEPTH_TEST);
+        glDisable(GL_BLEND);
+        glUseProgram(composite->id);
+        bind_sampler(*composite, "u_full", 0, GL_TEXTURE_2D, ldr.tex);
+        bind_sampler(*composite, "u_proxy", 1, GL_TEXTURE_2D, lowres.tex);
+        glBindVertexArray(empty_vao);
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+    }
+
+    void begin_progressive(const View &v, int w, int h) {
+        refine = Refine{};
+        reset_counters();
+        if (!any_lod_proxy() || !frame_is_direct()) {  // nothing to refine, or composited objects: one full frame
+            draw_scene(v, w, h);
+            return;
+        }
+        // The first picture: the proxy frame (lowres); then the full-detail
+        // image, cleared to alpha 0, gets everything without a proxy now and
+        // the tractograms' chunks step by step.
+        proxy_frame(v, w, h);
+        const FrameStats first = stats;
+        refine.view = v, refine.w = w, refine.h = h;
+        refine.m = matrices(v, w, h);
+        refine.target = begin_frame(w, h);
+        clear_and_sky(refine.m, refine.target, w, h);
+        glClearColor(0, 0, 0, 0);  // (alpha only: the background colour stays)
+        glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_TRUE);
+        if (!(env_on && scene.environment.visible)) glClear(GL_COLOR_BUFFER_BIT);
+        glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+        for (auto &g : objects) {
+            if (!drawn(g.index)) continue;
+            if (g.has_lod_proxy())
+                for (std::size_t k = 0; k < g.chunks.size(); ++k) refine.items.emplace_back(&g - objects.data(), k);
+            else
+                draw_object(g, scene.objects[g.index], refine.m, v, false, w, h, LinesPart::Full);
+        }
+        finish_frame(refine.target, w, h);
+        stats.proxy = true;
+        stats.points_drawn += first.points_drawn, stats.streamlines_drawn += first.streamlines_drawn;
+        stats.segments_drawn += first.segments_drawn, stats.chunks_drawn += first.chunks_drawn;
+        refine.active = !refine.items.empty();
+        refine.step = 1;
+        stats.refine_remaining = refine.items.size();
+    }
+
+    // One more step of the progressive frame, of about `budget_ms` (at
+    // least one chunk); true once the frame is complete.
+    bool progressive_step(double budget_ms) {
+        if (!refine.active) return true;
+        reset_counters();
+        const auto t0 = Clock::now();
+        glBindFramebuffer(GL_FRAMEBUFFER, refine.target);
+        glViewport(0, 0, refine.w, refine.h);
+        opaque_state();
+        std::size_t bound = SIZE_MAX;
+        while (refine.next < refine.items.size()) {
+            const auto [oi, k] = refine.items[refine.next];
+            GpuObject &g = objects[oi];
+            if (oi != bound) {
+                draw_object(g, scene.objects[g.index], refine.m, refine.view, false, refine.w, refine.h, LinesPart::None);
+                bound = oi;
+            }
+            const auto tc = Clock::now();
+            draw_chunk(g, false, k);
+            glFinish();
+            ++refine.next;
+            if (ms_since(t0) + ms_since(tc) > budget_ms) break;
+        }
+        finish_frame(refine.target, refine.w, refine.h);
+        stats.refine_step = ++refine.step;
+        stats.refine_remaining = refine.items.size() - refine.next;
+        if (refine.next >= refine.items.size()) refine.active = false;
+        return !refine.active;
     }
 
     void tonemap_to(GLuint fbo, int w, int h) {
@@ -1436,6 +1958,8 @@ std::string Renderer::gl_description() const {
 void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &settings) {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
+    I.refine.active = false;
+    ++I.generation;
     I.clear_objects();
     I.scene = std::move(scene);
     I.settings = settings;
@@ -1469,6 +1993,7 @@ void Renderer::set_material(std::size_t object, const Material &m) {
         if (g.index == object && !g.slices) {
             I.resolve_material(g, I.scene.objects[object], m);
             I.scene.objects[object].material = m;
+            ++I.generation;
             return;
         }
     throw Error("object " + std::to_string(object) + " has no material");
@@ -1478,6 +2003,10 @@ void Renderer::replace_object(std::size_t i, Object o) {
     Impl &I = *impl_;
     if (i >= I.scene.objects.size()) throw Error("no object " + std::to_string(i));
     if (o.kind != I.scene.objects[i].kind) throw Error(o.name + ": replace_object cannot change the kind of data");
+    ++I.generation;
+    I.refine.active = false;
+    for (auto &g : I.objects)  // (its chunks' builds read the object's data)
+        if (g.index == i) I.release(g);
     I.scene.objects[i] = std::move(o);
     for (auto &g : I.objects)
         if (g.index == i) {
@@ -1490,7 +2019,11 @@ void Renderer::replace_object(std::size_t i, Object o) {
 
 void Renderer::set_interacting(bool on) { impl_->interacting = on; }
 
-void Renderer::set_exposure(double e) { impl_->scene.exposure = std::clamp(e, 1e-4, 1e4); }
+void Renderer::set_exposure(double e) {
+    const double x = std::clamp(e, 1e-4, 1e4);
+    if (x != impl_->scene.exposure) ++impl_->generation;
+    impl_->scene.exposure = x;
+}
 
 void Renderer::set_bake_materials(bool bake) {
     Impl &I = *impl_;
@@ -1503,7 +2036,10 @@ void Renderer::set_bake_materials(bool bake) {
 }
 
 void Renderer::set_visible(std::size_t object, bool visible) {
-    if (object < impl_->scene.objects.size()) impl_->scene.objects[object].visible = visible;
+    if (object < impl_->scene.objects.size() && impl_->scene.objects[object].visible != visible) {
+        impl_->scene.objects[object].visible = visible;
+        ++impl_->generation;
+    }
 }
 
 View Renderer::fit_view(const Camera &c, double aspect) const { return render::fit_view(impl_->scene, c, aspect); }
@@ -1520,7 +2056,10 @@ Bounds scene_bounds(const Scene &s) {
     };
     for (const Object &o : s.objects) {
         if (!o.visible) continue;
-        if (o.kind == HZ_DATA_STREAMLINES) add(bounds_of(o.data.tractogram.positions.data(), o.data.tractogram.nb_stored()));
+        // (the bounds read_dataset computed while validating, when known: a
+        // tractogram's positions are not scanned again)
+        if (o.kind == HZ_DATA_STREAMLINES)
+            add(!o.data.bounds.empty ? o.data.bounds : bounds_of(o.data.tractogram.positions.data(), o.data.tractogram.nb_stored()));
         else if (o.kind == HZ_DATA_MESH) add(bounds_of(o.data.mesh.vertices.data(), o.data.mesh.nb_vertices()));
         else if (o.kind == HZ_DATA_VOLUME && o.data.volume.dims.size() >= 3) {
             const Volume &v = o.data.volume;
@@ -1574,8 +2113,9 @@ View fit_view(const Scene &scene, const Camera &c, double aspect) {
 void Renderer::render(const View &view, int width, int height) {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
-    I.stats.segments_drawn = I.stats.triangles_drawn = 0;
-    I.draw_scene(view, width, height);
+    I.refine.active = false;
+    I.reset_counters();
+    I.frame(view, width, height);
     glFinish();
     I.stats.draw_ms = ms_since(t0);
 }
@@ -1583,13 +2123,50 @@ void Renderer::render(const View &view, int width, int height) {
 void Renderer::render_to_window(const View &view, int width, int height) {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
-    I.stats.segments_drawn = I.stats.triangles_drawn = 0;
-    I.draw_scene(view, width, height);
+    I.refine.active = false;
+    I.reset_counters();
+    I.frame(view, width, height);
+    present(width, height);
+    I.stats.draw_ms = ms_since(t0);
+}
+
+void Renderer::begin_progressive(const View &view, int width, int height) {
+    Impl &I = *impl_;
+    const auto t0 = Clock::now();
+    I.begin_progressive(view, width, height);
+    glFinish();
+    I.stats.draw_ms = ms_since(t0);
+}
+
+bool Renderer::progressive_step(double budget_ms) {
+    Impl &I = *impl_;
+    const auto t0 = Clock::now();
+    const bool done = I.progressive_step(budget_ms);
+    I.stats.draw_ms = ms_since(t0);
+    return done;
+}
+
+bool Renderer::refining() const { return impl_->refine.active; }
+
+void Renderer::present(int width, int height) {
+    Impl &I = *impl_;
+    if (I.refine.active && I.lowres.fbo) {
+        I.present_composite(width, height);
+        return;
+    }
     glBindFramebuffer(GL_READ_FRAMEBUFFER, I.ldr.fbo);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
     glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
-    I.stats.draw_ms = ms_since(t0);
+}
+
+std::uint64_t Renderer::generation() const { return impl_->generation; }
+
+std::uint64_t Renderer::streamlines_with_proxy() const {
+    std::uint64_t n = 0;
+    for (const auto &g : impl_->objects)
+        if (g.has_lod_proxy()) n += g.streamlines;
+    return n;
 }
 
 namespace {
@@ -1649,7 +2226,7 @@ std::array<FloatImage, 5> Renderer::render_debug(const View &view, int w, int h)
     glEnable(GL_DEPTH_TEST);
     glDisable(GL_BLEND);
     const Impl::Matrices m = Impl::matrices(view, w, h);
-    for (const auto &g : I.objects)
+    for (auto &g : I.objects)
         if (!g.slices && I.scene.objects[g.index].visible) I.draw_object(g, I.scene.objects[g.index], m, view, true, w, h);
     std::array<FloatImage, 5> out;
     std::vector<float> tmp(std::size_t(w) * h * 4);

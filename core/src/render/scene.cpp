@@ -343,6 +343,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (ob.clustering) {
             try {
                 ob.data.tractogram = cluster_centroids(reg, ob.data.tractogram, *ob.clustering);
+                ob.data.bounds = core::Bounds{};  // (those of the streamlines, not of their centroids)
             } catch (const Error &e) {
                 fail(what, where + ".clustering", e.what());
             }

@@ -4,6 +4,8 @@
 
 #include <hz/core/data.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 namespace hz::core {
@@ -21,5 +23,22 @@ struct PhantomOptions {
 
 // Deterministic for a given options struct (same seed, same bits).
 Tractogram make_phantom(const PhantomOptions &o);
+
+// splitmix64 draws, the same on every platform (std::uniform_real_distribution
+// is implementation-defined; synthetic data must be identical everywhere).
+struct SplitMix64 {
+    std::uint64_t s;
+    std::uint64_t next() {
+        std::uint64_t z = (s += 0x9E3779B97F4A7C15ull);
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        return z ^ (z >> 31);
+    }
+    double uniform(double a, double b) { return a + (b - a) * (double(next() >> 11) * 0x1.0p-53); }
+    double normal() {
+        const double u1 = std::max(uniform(0, 1), 1e-300), u2 = uniform(0, 1);
+        return std::sqrt(-2 * std::log(u1)) * std::cos(2 * M_PI * u2);
+    }
+};
 
 }  // namespace hz::core

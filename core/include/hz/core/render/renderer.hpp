@@ -49,6 +49,21 @@ struct RenderSettings {
     // rasterises multisampled lines about 5-8x slower).
     int samples = 0;
     double lod_pixels = 0.5;         // streamline decimation tolerance in pixels (0 = keep every point)
+    // Level of detail: a tractogram of more than `lod_points` points gets a
+    // proxy, a uniform subsample of its streamlines of about that many
+    // points, drawn while the camera moves and as the first picture of a
+    // progressive frame (begin_progressive).
+    double lod_points = 5e5;
+    // The proxy frame is drawn at 1/proxy_scale of the size, then upscaled.
+    int proxy_scale = 4;
+    // Streamline geometry kept in GL buffers, all objects together (MiB);
+    // chunks beyond it are built again each time they are drawn and
+    // streamed through one ring buffer. No GL buffer is larger than one
+    // chunk (2^18 input points).
+    double gpu_memory_mb = 768;
+    // Tractograms of at most this many points are built when the scene is
+    // set; larger ones chunk by chunk as they are first drawn.
+    std::uint64_t eager_points = 8000000;
     // Material parameters, and a base colour shared by every vertex of an
     // object, become constants of the object's program instead of uniforms:
     // the GLSL compiler then folds everything computed from them, and
@@ -61,7 +76,15 @@ struct RenderSettings {
 
 struct FrameStats {
     double upload_ms = 0, environment_ms = 0, draw_ms = 0, readback_ms = 0;
-    std::uint64_t segments_drawn = 0, triangles_drawn = 0, points_kept = 0, points_total = 0;
+    // Of the scene (set_scene): input points of every tractogram, and the
+    // points kept by decimation of those built when the scene was set.
+    std::uint64_t points_kept = 0, points_total = 0;
+    // Of the last frame or progressive step.
+    std::uint64_t segments_drawn = 0, triangles_drawn = 0, points_drawn = 0, streamlines_drawn = 0;
+    std::uint64_t chunks_drawn = 0, streamed_points = 0;  // streamed: built for this frame, not kept
+    bool proxy = false;                                   // a level-of-detail proxy was drawn
+    int refine_step = 0;                                  // progressive: the step (0: a whole frame)
+    std::uint64_t refine_remaining = 0;                   // progressive: chunks still to draw
     int samples = 1;  // MSAA samples in use
 };
 
@@ -103,6 +126,24 @@ public:
     void render(const View &view, int width, int height);
     // Draws into the currently bound framebuffer 0 (the window) instead.
     void render_to_window(const View &view, int width, int height);
+
+    // Progressive drawing, for a window at rest: begin_progressive draws
+    // the first picture (everything small, and the level-of-detail proxy of
+    // each large tractogram) into the offscreen target; each
+    // progressive_step adds full-detail streamlines over it for about
+    // `budget_ms` (at least one chunk) and returns true once the frame is
+    // complete; the finished image equals render()'s. present() copies the
+    // offscreen image into the window (framebuffer 0). Any change to the
+    // scene (see generation()) ends a progressive frame: begin again.
+    void begin_progressive(const View &view, int width, int height);
+    bool progressive_step(double budget_ms);
+    bool refining() const;
+    void present(int width, int height);
+    // Bumped by every change to what a frame shows (objects, materials,
+    // visibility, exposure): a still image is current while it is unchanged.
+    std::uint64_t generation() const;
+    // Streamlines of the tractograms drawn through a level-of-detail proxy.
+    std::uint64_t streamlines_with_proxy() const;
     // Reads the last offscreen frame.
     Image read_image();
     // Reads the window's back buffer after render_to_window (screenshots).

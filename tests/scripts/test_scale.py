@@ -1,0 +1,140 @@
+"""Scale: a realistic whole-brain tractogram (hz-make-tractogram: 100-400
+points per streamline, 0.5-0.8 mm steps) in the window and headless.
+
+These check bounds and structure (what was drawn, in what steps, within what
+memory), not timings: timings live in bench/scale_bench.py. Needs xvfb-run
+(installed by .ci/bootstrap test); a missing tool fails the test.
+"""
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+import unittest
+
+import numpy as np
+from PIL import Image
+
+from hztest import BUILD, HORIZON, run
+
+MAKE = os.path.join(BUILD, "bin", "hz-make-tractogram")
+# The sanitizer build runs every access checked: a smaller (still realistic) file.
+SANITIZED = "ASAN_OPTIONS" in os.environ
+N = 300000 if SANITIZED else 1000000
+CHUNK_POINTS = 1 << 18  # the renderer's chunk (renderer.cpp kChunkPoints)
+
+
+def load(p):
+    return np.asarray(Image.open(p).convert("RGB"), dtype=np.float64)
+
+
+class ScaleTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix="hz_scale_")
+        cls.tck = os.path.join(cls.tmp, "brain.tck")
+        p = subprocess.run([MAKE, cls.tck, "--streamlines", str(N), "--seed", "3"], capture_output=True, text=True, timeout=900)
+        if p.returncode != 0:
+            raise AssertionError(p.stderr)
+        info = json.loads(run("info", cls.tck, "--json").stdout)
+        cls.points = info["nb_vertices"]
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    def path(self, name):
+        return os.path.join(self.tmp, name)
+
+    def test_generated_file_is_realistic(self):
+        # 100-400 points per streamline, as nibabel reads it.
+        import nibabel as nib
+        t = nib.streamlines.load(self.tck, lazy_load=True)
+        lengths, steps = [], []
+        for i, s in enumerate(t.streamlines):
+            lengths.append(len(s))
+            steps.append(np.linalg.norm(np.diff(s, axis=0), axis=1).mean())
+            if i == 2000:
+                break
+        self.assertGreaterEqual(min(lengths), 100)
+        self.assertLessEqual(max(lengths), 400)
+        self.assertGreater(np.mean(lengths), 130)
+        steps = np.array(steps)
+        self.assertGreater(np.mean((steps >= 0.5) & (steps <= 1.0)), 0.95, "steps of 0.5-1 mm")
+        self.assertGreater(steps.min(), 0.35)
+        self.assertLess(steps.max(), 1.2)
+
+    def test_render_draws_more_than_2gib_of_vertices(self):
+        # Every point kept (--lod-pixels 0): more than 2^31 bytes of 24-byte
+        # vertices, drawn through bounded chunks (a single buffer this size
+        # faulted in llvmpipe). Little memory kept: the rest is streamed.
+        out = self.path("full.png")
+        p = run("render", self.tck, "-o", out, "--size", "320x200", "--lod-pixels", "0", "--gpu-memory", "256", "--json",
+                timeout=1800)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        j = json.loads(p.stdout)
+        self.assertEqual(j["points_drawn"], self.points)
+        self.assertEqual(j["streamlines_drawn"], N)
+        if not SANITIZED:
+            self.assertGreater(j["points_drawn"] * 24, 2 ** 31)
+        self.assertGreater(j["streamed_points"], 0, "beyond --gpu-memory, chunks are streamed")
+        self.assertFalse(j["proxy"])
+        img = load(out)
+        self.assertGreater((img.max(axis=2) > 60).mean(), 0.15, "the brain covers the picture")
+
+    def test_preview_is_the_proxy(self):
+        out = self.path("preview.png")
+        j = json.loads(run("render", self.tck, "-o", out, "--size", "640x400", "--preview", "--json").stdout)
+        self.assertTrue(j["proxy"])
+        self.assertLess(j["points_drawn"], self.points / 20)
+        self.assertGreater(j["streamlines_drawn"], 1000)
+        self.assertGreater((load(out).max(axis=2) > 60).mean(), 0.15)
+
+    def test_window_opens_moves_rests_and_refines(self):
+        self.assertTrue(shutil.which("xvfb-run"), "xvfb-run is needed (installed by .ci/bootstrap test)")
+        script = self.path("s.txt")
+        shot = self.path("rest.png")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 2", "drag 300 300 420 330", "wait 3", f"screenshot {shot}", "quit"]) + "\n")
+        stats = self.path("stats.json")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg",
+               "HORIZON_PLUGIN_CACHE": os.path.join(BUILD, "tests", "plugin-trials.json")}
+        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.tck, "--size", "640x400",
+                            "--script", script, "--stats", stats], capture_output=True, text=True, timeout=1800, env=env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("level of detail:", p.stdout)
+        with open(stats) as fh:
+            j = json.load(fh)
+        frames = j["frames"]
+        self.assertEqual(j["streamlines"], N)
+        self.assertEqual(j["streamlines_with_proxy"], N)
+        kinds = [f["kind"] for f in frames]
+        # The first picture is the proxy (a subsample), then refinement.
+        self.assertEqual(frames[0]["kind"], "refine")
+        self.assertTrue(frames[0]["proxy"])
+        self.assertLess(frames[0]["points"], self.points / 20)
+        # Moving: only the proxy, every frame.
+        moving = [f for f in frames if f["kind"] == "moving"]
+        self.assertGreater(len(moving), 0)
+        for f in moving:
+            self.assertTrue(f["proxy"])
+            self.assertLess(f["points"], self.points / 20)
+        # At rest: steps of at most about one chunk each, which together
+        # draw every streamline once, ending in one complete frame.
+        last = max(i for i, f in enumerate(frames) if f["kind"] == "refine" and f["step"] == 0)
+        steps = frames[last + 1:]
+        refine = [f for f in steps if f["kind"] in ("refine", "complete")]
+        self.assertIn("complete", kinds[last:])
+        for f in refine:
+            self.assertLessEqual(f["points"], 2 * CHUNK_POINTS)
+        self.assertEqual(sum(f["streamlines"] for f in refine), N)
+        self.assertGreater(len(refine), 10, "refined in many steps, input handled between them")
+        # Memory: anonymous (not the mapped file's pages) well under 1.5 GB.
+        self.assertGreater(j["peak_rss_anon_mb"], 0)
+        self.assertLess(j["peak_rss_anon_mb"], 1536)
+        # The screenshot waited for the complete still frame.
+        self.assertGreater((load(shot).max(axis=2) > 60).mean(), 0.15)
+
+
+if __name__ == "__main__":
+    unittest.main()
