@@ -689,11 +689,10 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 const double now = glfwGetTime();
                 const bool settling = now - app.last_motion < 0.25 || now - app.last_material_edit < App::kBakeAfter + 0.05;
                 const bool busy = r.refining() || !still.valid || app.dragging || app.panning || app.force_moving || wait > 0 ||
-                                  glfwGetTime() < sleep_until ||
-                                  app.press_stage >= 0 || pc < script.size() || !app.pending_shot.empty() || first_frame ||
-                                  (!o.script.empty() && o.exit_after_script);
+                                  app.press_stage >= 0 || (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
+                                  (!o.script.empty() && o.exit_after_script && pc >= script.size());
                 if (busy) glfwPollEvents();
-                else if (settling) glfwWaitEventsTimeout(0.05);
+                else if (settling || now < sleep_until) glfwWaitEventsTimeout(std::clamp(sleep_until - now, 0.005, 0.05));
                 else glfwWaitEventsTimeout(1.0);
             }
             // One script command per frame (wait N: N frames); a screenshot
@@ -816,7 +815,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             } else if (r.refining()) {
                 kind = r.progressive_step(kStepMs) ? "complete" : "refine";
                 r.present(fw, fh);
-            } else if (app.events != seen_events || !app.pending_shot.empty() || app.press_stage >= 0 || pc < script.size() || wait > 0) {
+            } else if (app.events != seen_events || !app.pending_shot.empty() || app.press_stage >= 0 || wait > 0 ||
+                       (pc < script.size() && glfwGetTime() >= sleep_until)) {
                 r.present(fw, fh);  // the kept still image (the panel is redrawn over it)
                 kind = "still";
             } else {

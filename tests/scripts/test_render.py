@@ -462,6 +462,26 @@ class WindowTest(TempDirTest):
         self.assertNotIn("level of detail:", p.stdout)
         np.testing.assert_array_equal(load(self.path("plain.png")), rest)
 
+    def test_idle_window_draws_nothing(self):
+        # Once the still image is complete, a window with no input draws no
+        # frame at all (and sleeps in glfwWaitEvents: little CPU time).
+        self.demo_400()
+        script = self.path("idle.txt")
+        with open(script, "w") as f:
+            f.write("wait 2\nsleep 2\nquit\n")
+        stats = self.path("idle.json")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "320x240", "--script", script, "--stats", stats], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        with open(stats) as f:
+            frames = json.load(f)["frames"]
+        self.assertEqual(frames[0]["kind"], "complete")
+        start = frames[2]["t"]  # after `wait 2`
+        during = [f for f in frames if start + 0.2 < f["t"] < start + 1.8]
+        self.assertEqual(during, [], "no frame while idle")
+
     def test_view_starts_at_a_named_view(self):
         # `view --view V` opens at the view `render --view V` draws, the
         # views looking straight down or up included (the window's z-up orbit
