@@ -346,15 +346,11 @@ double rss_anon_mb() {
     return -1;
 }
 
-int fw_of(GLFWwindow *w) {
+// The window's framebuffer size in pixels.
+std::pair<int, int> framebuffer_size(GLFWwindow *w) {
     int fw = 0, fh = 0;
     glfwGetFramebufferSize(w, &fw, &fh);
-    return fw;
-}
-int fh_of(GLFWwindow *w) {
-    int fw = 0, fh = 0;
-    glfwGetFramebufferSize(w, &fw, &fh);
-    return fh;
+    return {fw, fh};
 }
 
 // `view --stats FILE.json`: every frame the window drew, what it drew and
@@ -918,7 +914,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 std::fflush(stdout);
             }
         }
-        if (!o.stats.empty()) log.write(o.stats, r, fw_of(win), fh_of(win));
+        if (!o.stats.empty()) log.write(o.stats, r, framebuffer_size(win).first, framebuffer_size(win).second);
         app.on_click = nullptr;  // (they refer to r and ex, which end here)
         app.on_key = nullptr;
         app.r = nullptr;

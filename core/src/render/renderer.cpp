@@ -74,27 +74,27 @@ std::array<std::uint8_t, 4> rgba8(double r, double g, double b, double a = 1.0) 
     return {q(r), q(g), q(b), q(a)};
 }
 
+// The value of type `dtype` at `p`, as a double (NaN for an unknown type).
+double value_at(const std::byte *p, hz_dtype dtype) {
+    switch (dtype) {
+    case HZ_DTYPE_U8: return *reinterpret_cast<const std::uint8_t *>(p);
+    case HZ_DTYPE_I8: return *reinterpret_cast<const std::int8_t *>(p);
+    case HZ_DTYPE_U16: { std::uint16_t x; std::memcpy(&x, p, 2); return x; }
+    case HZ_DTYPE_I16: { std::int16_t x; std::memcpy(&x, p, 2); return x; }
+    case HZ_DTYPE_U32: { std::uint32_t x; std::memcpy(&x, p, 4); return x; }
+    case HZ_DTYPE_I32: { std::int32_t x; std::memcpy(&x, p, 4); return x; }
+    case HZ_DTYPE_U64: { std::uint64_t x; std::memcpy(&x, p, 8); return double(x); }
+    case HZ_DTYPE_I64: { std::int64_t x; std::memcpy(&x, p, 8); return double(x); }
+    case HZ_DTYPE_F32: { float x; std::memcpy(&x, p, 4); return x; }
+    case HZ_DTYPE_F64: { double x; std::memcpy(&x, p, 8); return x; }
+    default: return std::nan("");
+    }
+}
+
 // `count` values of type `dtype`, `stride` bytes apart, as doubles.
 std::vector<double> values_of(const std::byte *data, hz_dtype dtype, std::uint64_t count, std::size_t stride) {
     std::vector<double> out(count);
-    for (std::uint64_t i = 0; i < count; ++i) {
-        const std::byte *p = data + i * stride;
-        double v = 0;
-        switch (dtype) {
-        case HZ_DTYPE_U8: v = *reinterpret_cast<const std::uint8_t *>(p); break;
-        case HZ_DTYPE_I8: v = *reinterpret_cast<const std::int8_t *>(p); break;
-        case HZ_DTYPE_U16: { std::uint16_t x; std::memcpy(&x, p, 2); v = x; break; }
-        case HZ_DTYPE_I16: { std::int16_t x; std::memcpy(&x, p, 2); v = x; break; }
-        case HZ_DTYPE_U32: { std::uint32_t x; std::memcpy(&x, p, 4); v = x; break; }
-        case HZ_DTYPE_I32: { std::int32_t x; std::memcpy(&x, p, 4); v = x; break; }
-        case HZ_DTYPE_U64: { std::uint64_t x; std::memcpy(&x, p, 8); v = double(x); break; }
-        case HZ_DTYPE_I64: { std::int64_t x; std::memcpy(&x, p, 8); v = double(x); break; }
-        case HZ_DTYPE_F32: { float x; std::memcpy(&x, p, 4); v = x; break; }
-        case HZ_DTYPE_F64: { std::memcpy(&v, p, 8); break; }
-        default: v = std::nan(""); break;
-        }
-        out[i] = v;
-    }
+    for (std::uint64_t i = 0; i < count; ++i) out[i] = value_at(data + i * stride, dtype);
     return out;
 }
 
@@ -982,7 +982,7 @@ struct Renderer::Impl {
                     double lo = INFINITY, hi = -INFINITY;
                     const std::size_t stride = dtype_size(a->dtype) * a->components;
                     for (std::uint64_t i = 0; i < a->count; ++i) {
-                        const double v = values_of(a->bytes.data() + i * stride, a->dtype, 1, stride)[0];
+                        const double v = value_at(a->bytes.data() + i * stride, a->dtype);
                         if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
                     }
                     d->range = !(lo <= hi) ? std::array<double, 2>{0, 1} : lo == hi ? std::array<double, 2>{lo, lo + 1} : std::array<double, 2>{lo, hi};
@@ -1102,7 +1102,7 @@ struct Renderer::Impl {
                 std::array<std::uint8_t, 4> col = scol;
                 if (d.mode == LineData::Mode::Direction) col = {direction_lut(tx), direction_lut(ty), direction_lut(tz), 255};
                 else if (d.per_vertex) {
-                    const double val = values_of(d.per_vertex->bytes.data() + i * stride, d.per_vertex->dtype, 1, stride)[0];
+                    const double val = value_at(d.per_vertex->bytes.data() + i * stride, d.per_vertex->dtype);
                     const auto m = colormap(d.colormap, (val - d.range[0]) / (d.range[1] - d.range[0]));
                     col = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
                 }
