@@ -12,7 +12,8 @@ this machine (llvmpipe), at 1280x800:
 - `horizon render` at full detail, end to end, and `render --preview`;
 - the level-of-detail chart: the proxy's error against the full-detail frame
   from the same camera (SSIM of the 4x-downsampled luminance, bench/imgmetrics.py)
-  against its frame time, for several --lod-points and --lod-scale.
+  against its frame time, for both proxies (--lod-proxy shell, uniform) and
+  several --lod-points and --lod-scale, and from other cameras.
 Prints a Markdown table and writes bench/results/scale.md and docs/lod_chart.png.
 """
 import argparse
@@ -91,21 +92,33 @@ def main():
     rows.append(("render, full detail, end to end (s)", f"{full['wall_s']:.1f} ({full['points_drawn'] / 1e6:.0f}M points drawn)"))
     rows.append(("render --preview, end to end (s)", f"{prev['wall_s']:.2f}"))
 
-    ref = load(os.path.join(work, "full.png"))
+    ref = imgmetrics.downsample(load(os.path.join(work, "full.png")), 4)
     chart = []
-    for scale in (2, 4, 8):
-        for pts in (2.5e5, 5e5, 1e6, 2e6):
-            out = os.path.join(work, f"p_{scale}_{pts:g}.png")
-            j = render(horizon, tck, out, "--preview", "--lod-points", f"{pts:g}", "--lod-scale", str(scale), "--frames", "5")
-            im = load(out)
-            s4 = imgmetrics.ssim(imgmetrics.downsample(ref, 4), imgmetrics.downsample(im, 4))
-            chart.append((scale, pts, j["frame_ms_min"], s4, imgmetrics.mae(imgmetrics.downsample(ref, 4), imgmetrics.downsample(im, 4))))
+    for proxy in ("shell", "uniform"):
+        for scale in (2, 4):
+            for pts in (2.5e5, 5e5, 1e6):
+                out = os.path.join(work, f"p_{proxy}_{scale}_{pts:g}.png")
+                j = render(horizon, tck, out, "--preview", "--lod-proxy", proxy, "--lod-points", f"{pts:g}", "--lod-scale", str(scale),
+                           "--frames", "5")
+                im = imgmetrics.downsample(load(out), 4)
+                chart.append((proxy, scale, pts, j["frame_ms_min"], imgmetrics.ssim(ref, im), imgmetrics.mae(ref, im)))
+    # The shell is the same for every camera: the default proxy from other sides.
+    views = []
+    for view in ("superior", "anterior"):
+        f = render(horizon, tck, os.path.join(work, f"full_{view}.png"), "--view", view)
+        for proxy in ("shell", "uniform"):
+            render(horizon, tck, os.path.join(work, f"p_{view}_{proxy}.png"), "--view", view, "--preview", "--lod-proxy", proxy)
+        r = imgmetrics.downsample(load(os.path.join(work, f"full_{view}.png")), 4)
+        views.append((view, *(imgmetrics.ssim(r, imgmetrics.downsample(load(os.path.join(work, f"p_{view}_{p}.png")), 4))
+                              for p in ("shell", "uniform"))))
     head = f"{args.streamlines} streamlines ({full['points_total'] / 1e6:.0f}M points), {SIZE}, {full['gl']}"
     lines = ["# Scale benchmark", "", head, "", "| measure | value |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]
-    lines += ["", "Level of detail: the proxy (`render --preview`) against the full-detail frame, same camera.", "",
-              "| --lod-scale | --lod-points | frame ms (fastest of 4) | SSIM, 4x downsampled | MAE, 4x downsampled |",
-              "|---|---|---|---|---|"]
-    lines += [f"| {s} | {p:g} | {ms:.1f} | {ss:.3f} | {ma:.1f} |" for s, p, ms, ss, ma in chart]
+    lines += ["", "Level of detail: the proxy (`render --preview`) against the full-detail frame, same camera (left).", "",
+              "| --lod-proxy | --lod-scale | --lod-points | frame ms (fastest of 4) | SSIM, 4x downsampled | MAE, 4x downsampled |",
+              "|---|---|---|---|---|---|"]
+    lines += [f"| {x} | {s} | {p:g} | {ms:.1f} | {ss:.3f} | {ma:.1f} |" for x, s, p, ms, ss, ma in chart]
+    lines += ["", "Other cameras, default proxy settings: SSIM, 4x downsampled.", "", "| view | shell | uniform |", "|---|---|---|"]
+    lines += [f"| {v} | {a:.3f} | {b:.3f} |" for v, a, b in views]
     text = "\n".join(lines) + "\n"
     print(text)
     try:
@@ -113,9 +126,10 @@ def main():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         fig, ax = plt.subplots(figsize=(6, 4))
-        for scale in (2, 4, 8):
-            pts = [c for c in chart if c[0] == scale]
-            ax.plot([c[2] for c in pts], [c[3] for c in pts], "o-", label=f"proxy at 1/{scale} size")
+        for proxy, mark in (("shell", "o-"), ("uniform", "s--")):
+            for scale in (2, 4):
+                pts = [c for c in chart if c[0] == proxy and c[1] == scale]
+                ax.plot([c[3] for c in pts], [c[4] for c in pts], mark, label=f"{proxy} proxy at 1/{scale} size")
         ax.axvline(33, color="gray", ls="--", lw=0.8)
         ax.set_xlabel("frame time, ms (llvmpipe, 2 cores)")
         ax.set_ylabel("SSIM against full detail (4x downsampled)")

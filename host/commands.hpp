@@ -52,8 +52,10 @@ struct LodOptions {
     double lod_points = 5e5;     // tractograms above this many points get a subsample proxy
     double gpu_memory_mb = 768;    // streamline geometry kept in GL buffers; the rest is streamed
     int lod_scale = 4;             // the proxy frame is drawn at 1/lod_scale of the size
+    std::string lod_proxy = "shell";  // shell (the outer layer, computed in the background) or uniform
     void apply(core::render::RenderSettings &rs) const {
         rs.lod_pixels = lod_pixels, rs.lod_points = lod_points, rs.gpu_memory_mb = gpu_memory_mb, rs.proxy_scale = lod_scale;
+        rs.shell_proxy = lod_proxy == "shell";
     }
 };
 

@@ -28,10 +28,15 @@ void add_lod_options(CLI::App *cmd, LodOptions &lod) {
         ->capture_default_str()
         ->check(CLI::Range(0.0, 100.0));
     cmd->add_option("--lod-points", lod.lod_points,
-                    "tractograms with more points get a uniform subsample of about this many points as their proxy "
+                    "tractograms with more points get a proxy of about this many points "
                     "(drawn while the camera moves and first at rest)")
         ->capture_default_str()
         ->check(CLI::Range(1000.0, 1e12));
+    cmd->add_option("--lod-proxy", lod.lod_proxy,
+                    "the proxy: shell (the streamlines' runs nearest the tractogram's outer surface, what a dense "
+                    "tractogram shows; a uniform subsample until computed) or uniform")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"shell", "uniform"}));
     cmd->add_option("--lod-scale", lod.lod_scale, "the proxy is drawn at 1/N of the size, then upscaled")
         ->capture_default_str()
         ->check(CLI::Range(1, 16));

@@ -57,6 +57,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     rs.width = w, rs.height = h;
     rs.samples = o.samples;
     o.lod.apply(rs);
+    if (!o.preview) rs.shell_proxy = false;  // a full-detail frame draws no proxy
     rs.bake_materials = true;  // a scene file's materials do not change while it renders
     const core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
     try {
@@ -66,6 +67,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
         throw core::Error(o.scene + ": " + e.what());  // name the scene file
     }
     r.set_interacting(o.preview);
+    if (o.preview) r.update_proxies(true);  // the proxy the window shows once computed
     r.render(view, w, h);
     const double first_ms = r.stats().draw_ms;  // includes the GL driver's shader compilation
     std::vector<double> frames;

@@ -642,12 +642,12 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         app.orbit.from_view(v0);
         app.home = app.orbit;
         // Level of detail (paper section 3.4): a tractogram of more than
-        // --lod-points points is drawn as a uniform subsample of its
-        // streamlines while the camera moves and first when it rests, then
-        // refined to full detail in steps of about kStepMs.
+        // --lod-points points is drawn as a proxy of about that many points
+        // while the camera moves and first when it rests, then refined to
+        // full detail in steps of about kStepMs.
         if (const std::uint64_t n = r.streamlines_with_proxy(); n > 0)
-            std::printf("level of detail: %llu streamlines drawn as a subsample of about %.0f points while moving, refined at rest\n",
-                        (unsigned long long)n, o.lod.lod_points);
+            std::printf("level of detail: %llu streamlines drawn as a %s proxy of about %.0f points while moving, refined at rest\n",
+                        (unsigned long long)n, o.lod.lod_proxy.c_str(), o.lod.lod_points);
         std::fflush(stdout);
 
         std::vector<std::string> script;
@@ -787,6 +787,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             glfwGetFramebufferSize(win, &fw, &fh);
             if (fw <= 0 || fh <= 0) continue;
             const auto frame_t0 = std::chrono::steady_clock::now();
+            r.update_proxies(false);  // a shell proxy computed in the background
             const bool moving = app.dragging || app.panning || glfwGetTime() - app.last_motion < 0.25 || app.force_moving;
             r.set_interacting(moving);
             const bool bake = glfwGetTime() - app.last_material_edit > App::kBakeAfter;

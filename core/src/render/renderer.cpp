@@ -5,6 +5,7 @@
 
 #include "gl.hpp"
 #include "glsl.hpp"
+#include "shell_proxy.hpp"
 
 #include <glm/glm.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -12,6 +13,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <functional>
 #include <future>
@@ -267,13 +269,16 @@ struct LineData {
 // renderer's memory budget are built again each frame into a ring buffer
 // instead of being kept.
 constexpr std::uint64_t kChunkPoints = 1u << 18;
+constexpr std::uint32_t kRestart = 0xFFFFFFFFu;  // the primitive restart index
 
 struct LineChunk {
-    std::uint64_t a = 0, b = 0;   // streamlines [a, b) (of the object, or of its proxy's list)
+    std::uint64_t a = 0, b = 0;   // streamlines [a, b) (of the object, or pieces [a, b) of its proxy)
     std::uint64_t points = 0;     // input points
     GLuint vao = 0, vbo = 0;      // resident geometry; 0: built and streamed when drawn
     std::vector<GLint> firsts;    // per drawn streamline, into the chunk's vertices
     std::vector<GLsizei> counts;
+    GLuint ebo = 0;               // the strips' indices (BuiltLines::indices)
+    GLsizei nb_indices = 0;
     std::uint64_t segments = 0, kept = 0, bytes = 0;
     bool built = false;           // firsts/counts known
 };
@@ -282,6 +287,10 @@ struct BuiltLines {
     std::vector<LineVertex> verts;
     std::vector<GLint> firsts;
     std::vector<GLsizei> counts;
+    // One line strip per streamline, separated by kRestart: a chunk is one
+    // glDrawElements (llvmpipe sets up each draw of a glMultiDrawArrays
+    // separately: microseconds each, seconds for a million streamlines).
+    std::vector<std::uint32_t> indices;
     std::uint64_t segments = 0, kept = 0;
 };
 
@@ -294,14 +303,23 @@ struct GpuObject {
     std::vector<GLsizei> counts;
     GLsizei index_count = 0;
     std::uint64_t segments = 0, triangles = 0;
-    // streamlines: full detail in chunks, and the level-of-detail proxy (a
-    // density-preserving subsample: every streamline whose hash falls below
-    // a fraction, the same geometry as at full detail) drawn while the
-    // camera moves and as the first picture of a progressive frame. An
-    // object small enough to be its own proxy has none.
+    // streamlines: full detail in chunks, and the level-of-detail proxy
+    // drawn while the camera moves and as the first picture of a
+    // progressive frame: first a uniform subsample (immediate), replaced by
+    // the shell proxy (shell_proxy.hpp) when a background thread has
+    // computed it. An object small enough to be its own proxy has none.
     std::shared_ptr<LineData> lines;
     std::vector<LineChunk> chunks, proxy_chunks;
-    std::vector<std::uint64_t> proxy_ids;
+    std::shared_ptr<const std::vector<Piece>> proxy;  // what the proxy draws
+    std::future<std::vector<Piece>> shell;            // the shell proxy, being computed
+    std::shared_ptr<std::atomic<bool>> shell_cancel;
+    ~GpuObject() {
+        if (shell_cancel) *shell_cancel = true;
+        if (shell.valid()) shell.wait();
+    }
+    GpuObject() = default;
+    GpuObject(GpuObject &&) = default;
+    GpuObject &operator=(GpuObject &&) = default;
     std::uint64_t points_total = 0, streamlines = 0;
     double tol_mm = 0, proxy_tol_mm = 0;  // the proxy is drawn at 1/proxy_scale of the size: decimated as much coarser
     bool has_lod_proxy() const { return !proxy_chunks.empty(); }
@@ -482,6 +500,7 @@ struct Renderer::Impl {
         clear_objects();
         if (ring_vao) glDeleteVertexArrays(1, &ring_vao);
         if (ring_vbo) glDeleteBuffers(1, &ring_vbo);
+        if (ring_ebo) glDeleteBuffers(1, &ring_ebo);
         for (auto &[k, p] : programs) glDeleteProgram(p->id);
         for (auto &[k, p] : aux_programs) glDeleteProgram(p->id);
         for (auto *p : {&env_face, &prefilter, &irradiance, &lut_prog})
@@ -1058,23 +1077,25 @@ struct Renderer::Impl {
     // The vertices of streamlines [a, b) of `d` (or of ids[a..b) when `ids`
     // is given), decimated at `tol` mm. Touches nothing but its arguments:
     // chunks are built on other threads.
-    static void build_lines(const LineData &d, const std::uint64_t *ids, std::uint64_t a, std::uint64_t b, double tol, BuiltLines &out) {
+    // The vertices of streamlines [a, b), or of pieces [a, b) of `pieces`.
+    static void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::uint64_t b, double tol, BuiltLines &out) {
         const Tractogram &t = *d.t;
         const float *P = t.positions.data();
         std::vector<std::uint32_t> keep;
-        out.verts.clear(), out.firsts.clear(), out.counts.clear();
+        out.verts.clear(), out.firsts.clear(), out.counts.clear(), out.indices.clear();
         out.segments = out.kept = 0;
         {
             std::uint64_t pts = 0;
-            for (std::uint64_t k = a; k < b; ++k) pts += t.size(ids ? ids[k] : k);
+            for (std::uint64_t k = a; k < b; ++k) pts += pieces ? pieces[k].count : t.size(k);
             out.verts.reserve(pts);
             out.firsts.reserve(b - a), out.counts.reserve(b - a);
         }
         std::size_t stride = 0;
         if (d.per_vertex) stride = dtype_size(d.per_vertex->dtype) * d.per_vertex->components;
         for (std::uint64_t k = a; k < b; ++k) {
-            const std::uint64_t s = ids ? ids[k] : k;
-            const std::uint64_t sb = t.begin(s), e = t.end(s), n = e - sb;
+            const std::uint64_t s = pieces ? pieces[k].s : k;
+            const std::uint64_t sb = pieces ? t.begin(s) + pieces[k].first : t.begin(s);
+            const std::uint64_t e = pieces ? sb + pieces[k].count : t.end(s), n = e - sb;
             if (n < 2) continue;
             decimate(P + sb * 3, n, tol, keep);
             out.firsts.push_back(GLint(out.verts.size()));
@@ -1113,15 +1134,21 @@ struct Renderer::Impl {
                 out.verts.push_back(v);
             }
         }
+        out.indices.clear();
+        out.indices.reserve(out.verts.size() + out.counts.size());
+        for (std::size_t k = 0; k < out.firsts.size(); ++k) {
+            for (GLsizei q = 0; q < out.counts[k]; ++q) out.indices.push_back(std::uint32_t(out.firsts[k] + q));
+            out.indices.push_back(kRestart);
+        }
     }
 
     // Chunks of at most kChunkPoints input points over streamlines [0, n)
-    // (or over ids[0..n)).
-    static std::vector<LineChunk> partition(const Tractogram &t, const std::uint64_t *ids, std::uint64_t n) {
+    // (or over pieces[0..n)).
+    static std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::uint64_t n) {
         std::vector<LineChunk> out;
         LineChunk c;
         for (std::uint64_t k = 0; k < n; ++k) {
-            const std::uint64_t pts = t.size(ids ? ids[k] : k);
+            const std::uint64_t pts = pieces ? pieces[k].count : t.size(k);
             if (c.points > 0 && c.points + pts > kChunkPoints) {
                 c.b = k;
                 out.push_back(std::move(c));
@@ -1151,7 +1178,7 @@ struct Renderer::Impl {
     // Streamline geometry kept in GL buffers, all objects together, against
     // settings.gpu_memory_mb; and the ring buffer of streamed chunks.
     std::uint64_t resident_bytes = 0;
-    GLuint ring_vao = 0, ring_vbo = 0;
+    GLuint ring_vao = 0, ring_vbo = 0, ring_ebo = 0;
     // Chunks being built on other threads, by chunk.
     std::map<const LineChunk *, std::future<std::shared_ptr<BuiltLines>>> pending;
 
@@ -1164,14 +1191,19 @@ struct Renderer::Impl {
         c.counts = std::move(b.counts);
         c.segments = b.segments, c.kept = b.kept;
         c.built = true;
-        const std::uint64_t bytes = b.verts.size() * sizeof(LineVertex);
+        const std::uint64_t vbytes = b.verts.size() * sizeof(LineVertex), ibytes = b.indices.size() * sizeof(std::uint32_t);
+        const std::uint64_t bytes = vbytes + ibytes;
         if (resident_bytes + bytes > budget_bytes() || b.verts.empty()) return;
         glGenVertexArrays(1, &c.vao);
         glBindVertexArray(c.vao);
         glGenBuffers(1, &c.vbo);
         glBindBuffer(GL_ARRAY_BUFFER, c.vbo);
-        glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(bytes), b.verts.data(), GL_STATIC_DRAW);
+        glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(vbytes), b.verts.data(), GL_STATIC_DRAW);
         line_attributes();
+        glGenBuffers(1, &c.ebo);
+        glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, c.ebo);  // (VAO state)
+        glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(ibytes), b.indices.data(), GL_STATIC_DRAW);
+        c.nb_indices = GLsizei(b.indices.size());
         c.bytes = bytes;
         resident_bytes += bytes;
     }
@@ -1184,8 +1216,9 @@ struct Renderer::Impl {
             }
             if (c.vao) glDeleteVertexArrays(1, &c.vao);
             if (c.vbo) glDeleteBuffers(1, &c.vbo);
+            if (c.ebo) glDeleteBuffers(1, &c.ebo);
             resident_bytes -= c.bytes;
-            c.vao = c.vbo = 0, c.bytes = 0;
+            c.vao = c.vbo = c.ebo = 0, c.bytes = 0, c.nb_indices = 0;
         }
         cs.clear();
     }
@@ -1197,12 +1230,12 @@ struct Renderer::Impl {
             LineChunk &c = cs[k];
             if (c.vbo || pending.count(&c)) continue;
             std::shared_ptr<LineData> d = g.lines;
-            const std::uint64_t *ids = proxy ? g.proxy_ids.data() : nullptr;
+            std::shared_ptr<const std::vector<Piece>> pieces = proxy ? g.proxy : nullptr;
             const std::uint64_t a = c.a, b = c.b;
             const double tol = proxy ? g.proxy_tol_mm : g.tol_mm;
-            pending.emplace(&c, std::async(std::launch::async, [this, d, ids, a, b, tol] {
+            pending.emplace(&c, std::async(std::launch::async, [this, d, pieces, a, b, tol] {
                                 auto out = spare_lines();
-                                build_lines(*d, ids, a, b, tol, *out);
+                                build_lines(*d, pieces ? pieces->data() : nullptr, a, b, tol, *out);
                                 return out;
                             }));
         }
@@ -1216,7 +1249,7 @@ struct Renderer::Impl {
             return b;
         }
         auto b = spare_lines();
-        build_lines(*g.lines, proxy ? g.proxy_ids.data() : nullptr, c.a, c.b, proxy ? g.proxy_tol_mm : g.tol_mm, *b);
+        build_lines(*g.lines, proxy ? g.proxy->data() : nullptr, c.a, c.b, proxy ? g.proxy_tol_mm : g.tol_mm, *b);
         return b;
     }
 
@@ -1258,13 +1291,17 @@ struct Renderer::Impl {
                     glGenBuffers(1, &ring_vbo);
                     glBindBuffer(GL_ARRAY_BUFFER, ring_vbo);
                     line_attributes();
+                    glGenBuffers(1, &ring_ebo);
+                    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, ring_ebo);
                 }
                 glBindVertexArray(ring_vao);
                 glBindBuffer(GL_ARRAY_BUFFER, ring_vbo);
                 // A new store each time (orphaning): the driver keeps the
                 // previous one until the draws that read it are done.
                 glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(b->verts.size() * sizeof(LineVertex)), b->verts.data(), GL_STREAM_DRAW);
-                glMultiDrawArrays(GL_LINE_STRIP, c.firsts.data(), c.counts.data(), GLsizei(c.firsts.size()));
+                glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(b->indices.size() * sizeof(std::uint32_t)), b->indices.data(),
+                             GL_STREAM_DRAW);
+                draw_strips(GLsizei(b->indices.size()));
                 stats.streamed_points += c.kept;
                 c.firsts.clear(), c.counts.clear();
                 c.firsts.shrink_to_fit(), c.counts.shrink_to_fit();
@@ -1274,9 +1311,16 @@ struct Renderer::Impl {
         }
         if (c.vbo) {
             glBindVertexArray(c.vao);
-            glMultiDrawArrays(GL_LINE_STRIP, c.firsts.data(), c.counts.data(), GLsizei(c.firsts.size()));
+            draw_strips(c.nb_indices);
         }
         count_chunk(c, proxy);
+    }
+
+    static void draw_strips(GLsizei nb_indices) {
+        glEnable(GL_PRIMITIVE_RESTART);
+        glPrimitiveRestartIndex(kRestart);
+        glDrawElements(GL_LINE_STRIP, nb_indices, GL_UNSIGNED_INT, nullptr);
+        glDisable(GL_PRIMITIVE_RESTART);
     }
 
     void count_chunk(const LineChunk &c, bool proxy) {
@@ -1301,18 +1345,17 @@ struct Renderer::Impl {
         // The level-of-detail proxy: above `lod_points` input points, the
         // streamlines whose hash falls below lod_points / points (in
         // expectation a uniform subsample: the same density everywhere).
+        g.bounds = !o.data.bounds.empty ? o.data.bounds : bounds_of(t.positions.data(), t.nb_stored());
         const double lod = std::max(1.0, settings.lod_points);
         if (double(g.points_total) > lod) {
-            const double keep = lod / double(g.points_total);
-            const std::uint64_t cut = std::uint64_t(keep * 18446744073709551615.0);
-            for (std::uint64_t s = 0; s < N; ++s) {
-                std::uint64_t z = (s + 1) * 0x9E3779B97F4A7C15ull;
-                z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-                z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-                if ((z ^ (z >> 31)) < cut) g.proxy_ids.push_back(s);
+            g.proxy = std::make_shared<const std::vector<Piece>>(uniform_proxy(t, lod));
+            g.proxy_chunks = partition(t, g.proxy->data(), g.proxy->size());
+            if (settings.shell_proxy) {
+                g.shell_cancel = std::make_shared<std::atomic<bool>>(false);
+                g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod, cancel = g.shell_cancel] {
+                    return shell_proxy(t, b, lod, *cancel);
+                });
             }
-            if (g.proxy_ids.empty() && N) g.proxy_ids.push_back(0);
-            g.proxy_chunks = partition(t, g.proxy_ids.data(), g.proxy_ids.size());
         }
         // Small objects are built now, in parallel (the draw lists are then
         // known: MSAA is chosen from the segment count); large ones chunk
@@ -1328,12 +1371,33 @@ struct Renderer::Impl {
         } else {
             g.segments = g.points_total;  // (an upper bound until drawn)
         }
+        build_proxy(g);
+    }
+
+    void build_proxy(GpuObject &g) {
         for (std::size_t k = 0; k < g.proxy_chunks.size(); ++k) {
             prefetch(g, g.proxy_chunks, true, k, std::max(1u, std::thread::hardware_concurrency()));
             auto b = take(g, g.proxy_chunks[k], true);
             adopt(g.proxy_chunks[k], *b);
         }
-        g.bounds = !o.data.bounds.empty ? o.data.bounds : bounds_of(t.positions.data(), t.nb_stored());
+    }
+
+    // Replaces uniform proxies by their shell proxies where these are
+    // computed (or, with `wait`, once they are). True if one changed.
+    bool adopt_shell_proxies(bool wait) {
+        bool changed = false;
+        for (GpuObject &g : objects) {
+            if (!g.shell.valid()) continue;
+            if (!wait && g.shell.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
+            std::vector<Piece> pieces = g.shell.get();
+            if (pieces.empty()) continue;
+            release_chunks(g.proxy_chunks);
+            g.proxy = std::make_shared<const std::vector<Piece>>(std::move(pieces));
+            g.proxy_chunks = partition(scene.objects[g.index].data.tractogram, g.proxy->data(), g.proxy->size());
+            build_proxy(g);
+            changed = true;
+        }
+        return changed;
     }
 
     void upload_mesh(GpuObject &g, const Object &o) {
@@ -2018,6 +2082,8 @@ void Renderer::replace_object(std::size_t i, Object o) {
 }
 
 void Renderer::set_interacting(bool on) { impl_->interacting = on; }
+
+bool Renderer::update_proxies(bool wait) { return impl_->adopt_shell_proxies(wait); }
 
 void Renderer::set_exposure(double e) {
     const double x = std::clamp(e, 1e-4, 1e4);

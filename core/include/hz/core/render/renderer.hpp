@@ -50,10 +50,14 @@ struct RenderSettings {
     int samples = 0;
     double lod_pixels = 0.5;         // streamline decimation tolerance in pixels (0 = keep every point)
     // Level of detail: a tractogram of more than `lod_points` points gets a
-    // proxy, a uniform subsample of its streamlines of about that many
-    // points, drawn while the camera moves and as the first picture of a
-    // progressive frame (begin_progressive).
+    // proxy of about that many points, drawn while the camera moves and as
+    // the first picture of a progressive frame (begin_progressive): at once a
+    // uniform subsample of its streamlines, then (with shell_proxy) the
+    // runs of streamlines nearest its outer surface, which is what a frame
+    // of a dense tractogram shows, computed on a background thread and
+    // adopted by update_proxies().
     double lod_points = 5e5;
+    bool shell_proxy = true;
     // The proxy frame is drawn at 1/proxy_scale of the size, then upscaled.
     int proxy_scale = 4;
     // Streamline geometry kept in GL buffers, all objects together (MiB);
@@ -117,6 +121,11 @@ public:
     // While interacting, objects with a level-of-detail proxy are replaced
     // by it (Object::proxy_for).
     void set_interacting(bool interacting);
+    // Adopts the level-of-detail proxies computed in the background since
+    // the last call (RenderSettings::shell_proxy); with `wait`, waits for
+    // all of them first. Returns true if a proxy changed (a proxy frame
+    // shown now is out of date; a full-detail frame is not). GL thread.
+    bool update_proxies(bool wait);
     const Scene &scene() const;
 
     // Camera fitted to the visible objects for the scene's camera spec.
