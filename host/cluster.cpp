@@ -2,11 +2,13 @@
 // per-level labels (CSV), optionally one level's centroids and the labelled
 // tractogram.
 #include "commands.hpp"
+#include "progress.hpp"
 
 #include <hz/core/io.hpp>
 
 #include <nlohmann/json.hpp>
 
+#include <optional>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -59,12 +61,15 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     if (plugin == nullptr) throw core::Error("clustering plugin '" + id + "' not found (see `horizon plugins`)");
     if (o.labels.empty() && o.centroids.empty() && o.out.empty())
         throw core::Error("nothing to write: give --labels, --centroids or --out");
-    // Fail on unwritable targets before the work.
+    // Fail on unwritable targets, and on outputs that would replace an input
+    // or exist without --force, before the work.
+    check_outputs({o.labels, o.centroids, o.out}, {o.input}, o.force);
     if (!o.centroids.empty()) core::loader_for_write(reg, o.centroids);
     if (!o.out.empty()) core::loader_for_write(reg, o.out);
 
     const auto t0 = std::chrono::steady_clock::now();
-    const core::Dataset ds = core::read_dataset(reg, o.input);
+    std::optional<Progress> reading(std::in_place, "reading " + o.input, !o.json);
+    const core::Dataset ds = core::read_dataset(reg, o.input, reading->task());
     if (ds.kind != HZ_DATA_STREAMLINES) throw core::Error(o.input + ": not a tractogram");
     // (A plugin older than ABI 1.5 gets a mapped TCK without its delimiters: copied here, while reading.)
     const core::Tractogram t = plugin->streamlines_for(ds.tractogram);
@@ -78,6 +83,7 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     // end to end (4.81 s at 5M streamlines either way); 0.064 -> 0.060 s of
     // clustering at 100k.
     core::make_resident(view.positions, view.nb_vertices * 3 * sizeof(float));
+    reading.reset();
     const auto t1 = std::chrono::steady_clock::now();
 
     ClusterRun run;
@@ -105,8 +111,11 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
         if (order.size() != t.nb_streamlines())
             throw core::Error(o.order + ": holds " + std::to_string(order.size()) + " indices for " + std::to_string(t.nb_streamlines()) + " streamlines");
     }
-    core::Task task;
-    const hz_status st = run.table->run(run.obj, &view, order.empty() ? nullptr : order.data(), task.get(), &err);
+    hz_status st;
+    {
+        Progress clustering("clustering " + std::to_string(t.nb_streamlines()) + " streamlines (" + o.algorithm + ")", !o.json);
+        st = run.table->run(run.obj, &view, order.empty() ? nullptr : order.data(), clustering.task(), &err);
+    }
     if (st != HZ_OK) throw core::Error(o.input + ": " + id + ": " + err.message);
     run.view.struct_size = sizeof run.view;
     if (run.table->get_result(run.obj, &run.view, &err) != HZ_OK) throw core::Error(id + ": " + err.message);
@@ -225,6 +234,8 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
 
     const double read_s = std::chrono::duration<double>(t1 - t0).count();
     const double cluster_s = std::chrono::duration<double>(t2 - t1).count();
+    // Standard output holds the labels (--labels -): the report goes to stderr.
+    std::FILE *report = o.labels == "-" ? stderr : stdout;
     if (o.json) {
         nlohmann::json j;
         j["input"] = o.input;
@@ -235,12 +246,12 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
         j["levels"] = nlohmann::json::array();
         for (uint32_t l = 0; l < v.nb_levels; ++l)
             j["levels"].push_back({{"threshold", v.level_thresholds[l]}, {"clusters", count_of_level[l + 1]}});
-        std::cout << j.dump(2) << "\n";
+        std::fprintf(report, "%s\n", j.dump(2).c_str());
     } else {
-        std::printf("%s: %llu streamlines, %s (read %.3f s, clustered %.3f s)\n", o.input.c_str(), (unsigned long long)n,
-                    plugin->info.name.c_str(), read_s, cluster_s);
+        std::fprintf(report, "%s: %llu streamlines, %s (read %.3f s, clustered %.3f s)\n", o.input.c_str(), (unsigned long long)n,
+                     plugin->info.name.c_str(), read_s, cluster_s);
         for (uint32_t l = 0; l < v.nb_levels; ++l)
-            std::printf("  level %u  threshold %6s mm  %8llu clusters\n", l + 1, fmt_threshold(v.level_thresholds[l]).c_str(),
+            std::fprintf(report, "  level %u  threshold %6s mm  %8llu clusters\n", l + 1, fmt_threshold(v.level_thresholds[l]).c_str(),
                         (unsigned long long)count_of_level[l + 1]);
     }
     return 0;

@@ -1,4 +1,5 @@
 #include "commands.hpp"
+#include "progress.hpp"
 
 #include <hz/core/io.hpp>
 #include <hz/core/phantom.hpp>
@@ -6,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <optional>
 #include <cstdio>
 #include <unistd.h>
 #include <iostream>
@@ -253,11 +255,51 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json, bool
     return 0;
 }
 
+namespace {
+
+// The files an input is read from: itself, and the other half of a NIfTI
+// pair (.hdr/.img, also gzipped).
+std::vector<std::filesystem::path> files_of_input(const std::string &in) {
+    std::vector<std::filesystem::path> out{in};
+    for (const char *gz : {"", ".gz"}) {
+        const std::string g = gz;
+        for (const auto &[a, b] : {std::pair{".hdr", ".img"}, std::pair{".img", ".hdr"}}) {
+            const std::string suffix = std::string(a) + g;
+            if (in.size() > suffix.size() && in.compare(in.size() - suffix.size(), suffix.size(), suffix) == 0)
+                out.emplace_back(in.substr(0, in.size() - suffix.size()) + b + g);
+        }
+    }
+    return out;
+}
+
+}  // namespace
+
+void check_outputs(const std::vector<std::string> &outputs, const std::vector<std::string> &inputs, bool force) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    for (std::size_t i = 0; i < outputs.size(); ++i) {
+        const std::string &o = outputs[i];
+        if (o.empty() || o == "-") continue;
+        for (std::size_t j = 0; j < i; ++j)
+            if (outputs[j] == o || (fs::exists(o, ec) && fs::exists(outputs[j], ec) && fs::equivalent(o, outputs[j], ec)))
+                throw core::Error(o + ": named as two outputs");
+        for (const auto &in : inputs)
+            for (const auto &f : files_of_input(in))
+                if (fs::path(o).lexically_normal() == f.lexically_normal() || (fs::exists(o, ec) && fs::exists(f, ec) && fs::equivalent(o, f, ec)))
+                    throw core::Error(o + ": refusing to overwrite the input file " + f.string());
+        core::check_output_target(o);
+        if (fs::exists(fs::symlink_status(o, ec)) && !force) throw core::Error(o + ": already exists (use --force to replace it)");
+    }
+}
+
 int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string &out, bool force) {
     const core::Registry reg = load_registry(g);
+    check_outputs({out}, {in}, force);
     // Pick the writer first: an unsupported target fails before any reading.
     core::loader_for_write(reg, out);
-    const core::Dataset ds = core::read_dataset(reg, in);
+    std::optional<Progress> reading(std::in_place, "reading " + in, true);
+    const core::Dataset ds = core::read_dataset(reg, in, reading->task());
+    reading.reset();
     std::vector<std::string> dropped;
     core::write_dataset(reg, ds, out, force, &dropped, in);
     for (const auto &d : dropped) std::fprintf(stderr, "horizon: warning: %s: dropped %s\n", out.c_str(), d.c_str());

@@ -49,7 +49,7 @@ struct ClusterOptions {
 // Level-of-detail knobs, the same for `render` and `view`.
 struct LodOptions {
     double lod_pixels = 0.5;       // streamline decimation tolerance in pixels (0 = every point)
-    double lod_points = 5e5;     // tractograms above this many points get a subsample proxy
+    double lod_points = 3e5;       // tractograms above this many points get a proxy of about this many
     double gpu_memory_mb = 768;    // streamline geometry kept in GL buffers; the rest is streamed
     int lod_scale = 4;             // the proxy frame is drawn at 1/lod_scale of the size
     std::string lod_proxy = "shell";  // shell (the outer layer, computed in the background) or uniform
@@ -140,6 +140,15 @@ core::render::Scene scene_from_inputs(const core::Registry &reg, const std::vect
                                       const char *command);
 // The named views (for the command line's check).
 const std::vector<std::string> &named_views();
-void write_image(const core::Registry &reg, const core::render::Image &im, const std::filesystem::path &path);
+// Writes an image (format by extension) atomically; "-": a PNG on standard
+// output. Refuses to replace an existing file unless `force`.
+void write_image(const core::Registry &reg, const core::render::Image &im, const std::filesystem::path &path, bool force);
+
+// Before any work: every output (empty ones and "-", standard output,
+// skipped) must differ from every input, a NIfTI pair's other half
+// included, and from the other outputs; must not be a device, FIFO,
+// socket or directory; and must not exist unless `force`. Throws Error
+// naming the output.
+void check_outputs(const std::vector<std::string> &outputs, const std::vector<std::string> &inputs, bool force);
 
 }  // namespace hz::host

@@ -5,6 +5,7 @@
 //   horizon convert IN OUT [--force]
 //   horizon demo [--out DIR]
 #include "commands.hpp"
+#include "progress.hpp"
 
 #include <hz/core/io.hpp>
 
@@ -60,6 +61,7 @@ core::Registry load_registry(const GlobalOptions &g) {
 
 int main(int argc, char **argv) {
     using namespace hz::host;
+    hz::core::install_termination_cleanup();  // no temporary left by ^C, kill or ulimit -f
     auto logger = spdlog::stderr_color_st("horizon");
     logger->set_pattern("%^%l%$: %v");
     spdlog::set_default_logger(logger);
@@ -180,6 +182,7 @@ int main(int argc, char **argv) {
         return app.exit(e);
     }
     if (verbose) spdlog::set_level(spdlog::level::debug);
+    if (json || vo.json || co.json || ro.json) disable_progress();  // (machine-readable output: no progress line)
     if (const char *t = std::getenv("HORIZON_TRACE"); t && *t == '1') spdlog::set_level(spdlog::level::trace);
 
     try {

@@ -13,7 +13,10 @@
 #include <vector>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <iostream>
+#include <iterator>
+#include <stdlib.h>
 
 namespace hz::host {
 
@@ -26,7 +29,7 @@ double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std
 
 }  // namespace
 
-void write_image(const core::Registry &reg, const core::render::Image &im, const fs::path &path) {
+void write_image(const core::Registry &reg, const core::render::Image &im, const fs::path &path, bool force) {
     core::Dataset ds;
     ds.kind = HZ_DATA_IMAGE;
     ds.volume.dtype = HZ_DTYPE_U8;
@@ -35,7 +38,27 @@ void write_image(const core::Registry &reg, const core::render::Image &im, const
     for (std::size_t i = 0; i < std::size_t(im.width) * im.height; ++i)
         std::memcpy(ds.volume.voxels.data() + i * 3, &im.rgba[i * 4], 3);
     std::vector<std::string> dropped;
-    core::write_dataset(reg, ds, path, /*force=*/true, &dropped);
+    if (path != "-") {
+        core::write_dataset(reg, ds, path, force, &dropped);
+        return;
+    }
+    // Standard output: a PNG written to a private temporary folder, then copied.
+    char dir_template[] = "/tmp/horizon-stdout-XXXXXX";
+    const char *dir = ::mkdtemp(dir_template);
+    if (dir == nullptr) throw core::Error(std::string("standard output: cannot create a temporary folder: ") + std::strerror(errno));
+    const fs::path png = fs::path(dir) / "image.png";
+    struct Cleanup {
+        fs::path d;
+        ~Cleanup() {
+            std::error_code ec;
+            fs::remove_all(d, ec);
+        }
+    } cleanup{dir};
+    core::write_dataset(reg, ds, png, true, &dropped);
+    std::ifstream in(png, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (std::fwrite(bytes.data(), 1, bytes.size(), stdout) != bytes.size() || std::fflush(stdout) != 0)
+        throw core::Error(std::string("standard output: write failed: ") + std::strerror(errno));
 }
 
 std::pair<int, int> parse_size(const std::string &s) {
@@ -79,9 +102,10 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     const double frame_ms = frames.empty() ? first_ms : frames[frames.size() / 2];
     const core::render::Image im = r.read_image();
     const auto tw = Clock::now();
-    write_image(reg, im, o.out);
+    write_image(reg, im, o.out, o.force);
     const double write_ms = ms_since(tw);
     const auto &s = r.stats();
+    if (o.out == "-") return 0;  // (standard output holds the picture)
     if (o.json) {
         nlohmann::json j = {{"output", o.out},
                             {"width", w},
@@ -120,20 +144,11 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
 
 int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     const core::Registry reg = load_registry(g);
-    core::loader_for_write(reg, o.out, HZ_DATA_IMAGE);  // fail on an unwritable target before the work
+    if (o.out == "-" && o.json) throw core::Error("-o - and --json both write to standard output: choose one");
+    if (o.out != "-") core::loader_for_write(reg, o.out, HZ_DATA_IMAGE);  // fail on an unwritable target before the work
     // Never over an input (a NIfTI pair's other half included), and over an
     // existing file only with --force: checked before any work.
-    std::error_code ec;
-    const fs::path out(o.out);
-    for (const auto &in : o.inputs) {
-        fs::path other(in);
-        const std::string ext = other.extension().string();
-        bool same = fs::exists(out, ec) && fs::equivalent(out, in, ec);
-        if (ext == ".hdr" || ext == ".img")
-            same = same || (fs::exists(out, ec) && fs::equivalent(out, fs::path(in).replace_extension(ext == ".hdr" ? ".img" : ".hdr"), ec));
-        if (same) throw core::Error(o.out + ": refusing to overwrite the input file " + in);
-    }
-    if (fs::exists(out, ec) && !o.force) throw core::Error(o.out + ": already exists (use --force to replace it)");
+    check_outputs({o.out}, o.inputs, o.force);
     RenderOptions opts = o;
     if (is_scene_file(o.inputs)) opts.scene = o.inputs[0];
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");

@@ -1,10 +1,12 @@
 // A scene from data files, shared by `horizon view` and `horizon render`:
 // what a user gets without writing a scene file.
 #include "commands.hpp"
+#include "progress.hpp"
 
 #include <hz/core/io.hpp>
 #include <hz/core/render/scene.hpp>
 
+#include <optional>
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -19,7 +21,9 @@ core::render::Scene scene_from_files(const core::Registry &reg, const std::vecto
     core::render::Scene s;
     for (const auto &f : files) {
         core::render::Object o;
-        core::Dataset data = core::read_dataset(reg, f);
+        std::optional<Progress> reading(std::in_place, "reading " + f, true);
+        core::Dataset data = core::read_dataset(reg, f, reading->task());
+        reading.reset();
         if (core::is_overlay(data)) {
             // Per-vertex values (lh.thickness, overlay-only GIFTI): onto the
             // last surface named before it, which is then coloured by them.

@@ -495,7 +495,7 @@ bool material_controls(const core::Registry &reg, const core::render::Object &o,
 }
 
 void save_screenshot(const core::Registry &reg, core::render::Renderer &r, const std::string &path, int w, int h) {
-    write_image(reg, r.read_window_image(w, h), path);
+    write_image(reg, r.read_window_image(w, h), path, /*force=*/true);
     std::printf("screenshot: %s\n", path.c_str());
     std::fflush(stdout);
 }

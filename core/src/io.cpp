@@ -10,7 +10,9 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <memory>
 #include <fstream>
 #include <mutex>
 #include <random>
@@ -490,8 +492,8 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     std::error_code ec;
     if (!protect.empty() && fs::exists(path, ec) && fs::equivalent(path, protect, ec))
         throw Error(path.string() + ": refusing to overwrite the input file");
+    check_output_target(path);
     if (fs::exists(path, ec) && !force) throw Error(path.string() + ": already exists (use --force to replace it)");
-    if (fs::is_directory(path, ec)) throw Error(path.string() + ": is a directory");
     const LoadedPlugin &p = loader_for_write(reg, path, ds.kind);
     const hz_loader *l = p.loader();
     if (!(l->data_kinds & ds.kind))
@@ -506,7 +508,9 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     tmp_name += std::to_string(::getpid());
     tmp_name += '-';
     tmp_name += std::to_string(rd() % 1000000);
-    const fs::path tmp = dir / tmp_name;
+    remove_stale_temporaries(path);
+    TemporaryFile tmp_file(dir / tmp_name);
+    const fs::path &tmp = tmp_file.path();
 
     std::vector<hz_metadata_entry> meta;
     for (const auto &[k, v] : ds.metadata) meta.push_back({k.c_str(), v.c_str()});
@@ -565,7 +569,8 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     struct Companions {
         fs::path dir;
         std::vector<std::pair<fs::path, fs::path>> files;
-    } companions{dir, {}};
+        std::vector<std::unique_ptr<TemporaryFile>> temps;  // removed unless published
+    } companions{dir, {}, {}};
     hz_write_request req{};
     req.struct_size = sizeof req;
     req.path = stmp.c_str();
@@ -585,19 +590,18 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
         if (!fs::equivalent(t.has_parent_path() ? t.parent_path() : fs::path("."), c->dir, e) ||
             !fs::equivalent(f.has_parent_path() ? f.parent_path() : fs::path("."), c->dir, e) || !f.has_filename())
             return HZ_E_INVALID_ARGUMENT;
-        c->files.emplace_back(t, f);
+        try {
+            c->temps.push_back(std::make_unique<TemporaryFile>(t));
+            c->files.emplace_back(t, f);
+        } catch (...) {
+            return HZ_E_OUT_OF_MEMORY;
+        }
         return HZ_OK;
     };
     req.companion_ctx = &companions;
-    auto discard = [&] {
-        std::error_code e;
-        fs::remove_all(tmp, e);
-        for (const auto &[t, f] : companions.files) fs::remove(t, e);
-    };
     hz_error err = make_error();
     const hz_status st = l->write(&req, &view, task, &err);
     if (st != HZ_OK) {
-        discard();
         std::string msg = err.message[0] ? err.message : ("write failed with status " + std::to_string(st));
         // Report the user's target, not our temporary name.
         for (auto pos = msg.find(stmp); pos != std::string::npos; pos = msg.find(stmp)) msg.replace(pos, stmp.size(), path.string());
@@ -607,52 +611,51 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     // Companions first, so the main file never appears without them.
     for (const auto &[t, f] : companions.files) {
         if (!fs::exists(t, ec)) {
-            discard();
-            throw Error(path.string() + ": the writer reported a companion file it did not write (" + f.string() + ")");
+                throw Error(path.string() + ": the writer reported a companion file it did not write (" + f.string() + ")");
         }
         if (fs::exists(f, ec) && (!protect.empty() && fs::equivalent(f, protect, ec))) {
-            discard();
-            throw Error(f.string() + ": refusing to overwrite the input file");
+                throw Error(f.string() + ": refusing to overwrite the input file");
         }
         if (fs::exists(f, ec) && !force) {
-            discard();
-            throw Error(f.string() + ": already exists (use --force to replace it)");
+                throw Error(f.string() + ": already exists (use --force to replace it)");
         }
+        check_output_target(f);
     }
-    for (const auto &[t, f] : companions.files) {
-        fs::rename(t, f, ec);
-        if (ec) {
-            discard();
-            throw Error(f.string() + ": cannot rename the temporary file into place: " + ec.message());
-        }
-    }
-    fs::rename(tmp, path, ec);
-    if (ec) {
-        fs::remove_all(tmp, ec);
-        throw Error(path.string() + ": cannot rename the temporary file into place: " + ec.message());
-    }
+    for (std::size_t i = 0; i < companions.files.size(); ++i) publish(*companions.temps[i], companions.files[i].second, force);
+    publish(tmp_file, path, force);
 }
 
 void write_text_atomic(const fs::path &path, const std::string &text, bool force) {
     std::error_code ec;
+    if (path == "-") {  // standard output
+        std::fwrite(text.data(), 1, text.size(), stdout);
+        if (std::fflush(stdout) != 0 || std::ferror(stdout)) throw Error(std::string("standard output: write failed: ") + std::strerror(errno));
+        return;
+    }
+    check_output_target(path);
     if (fs::exists(path, ec) && !force) throw Error(path.string() + ": already exists (use --force to replace it)");
     const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
     if (!fs::is_directory(dir, ec)) throw Error(path.string() + ": directory " + dir.string() + " does not exist");
-    const fs::path tmp = dir / ("." + path.filename().string() + ".tmp-" + std::to_string(::getpid()));
+    remove_stale_temporaries(path);
+    std::random_device rd;
+    TemporaryFile tmp(dir / ("." + path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rd() % 1000000)));
     {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        out << text;
-        out.flush();
-        if (!out) {
-            fs::remove(tmp, ec);
-            throw Error(path.string() + ": write failed");
+        const int fd = ::open(tmp.path().c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+        if (fd < 0) throw Error(path.string() + ": cannot create a temporary file: " + std::strerror(errno));
+        std::size_t done = 0;
+        while (done < text.size()) {
+            const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+            if (n < 0 && errno == EINTR) continue;
+            if (n <= 0) {
+                const int e = n < 0 ? errno : EIO;
+                ::close(fd);
+                throw Error(path.string() + ": write failed: " + std::strerror(e));
+            }
+            done += std::size_t(n);
         }
+        if (::close(fd) != 0) throw Error(path.string() + ": write failed: " + std::strerror(errno));
     }
-    fs::rename(tmp, path, ec);
-    if (ec) {
-        fs::remove(tmp, ec);
-        throw Error(path.string() + ": cannot rename into place: " + ec.message());
-    }
+    publish(tmp, path, force);
 }
 
 }  // namespace hz::core

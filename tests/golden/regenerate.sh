@@ -14,7 +14,7 @@ for name, scene in golden_scenes().items():
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
         json.dump(scene, f)
     out = os.path.join("tests", "golden", name + ".png")
-    subprocess.run([os.environ["HORIZON_BIN"], "render", f.name, "-o", out, "--size", "200x150"], check=True, env={**os.environ, "DISPLAY": ""})
+    subprocess.run([os.environ["HORIZON_BIN"], "render", f.name, "-o", out, "--size", "200x150", "--force"], check=True, env={**os.environ, "DISPLAY": ""})
     os.unlink(f.name)
     print("wrote", out)
 PY

@@ -463,6 +463,22 @@ vec3 hz_display(vec3 c) {
               0.0422319509);
     return mix(c * 12.92, hi, step(vec3(0.0031308), c));
 }
+// The radiance whose exposed, tone-curved value is d (in [0, 1]): data
+// drawn into the HDR image (volume slices) through this comes out of the
+// tonemapping pass as d, whatever the exposure and curve.
+vec3 hz_display_inverse(vec3 d) {
+    d = clamp(d, 0.0, 0.999);
+#if HZ_TONEMAP == 0
+    // c (2.51 c + 0.03) = d (c (2.43 c + 0.59) + 0.14), solved for c >= 0
+    vec3 a = 2.51 - 2.43 * d, b = 0.03 - 0.59 * d;
+    vec3 c = (-b + sqrt(b * b + 4.0 * a * 0.14 * d)) / (2.0 * a);
+#elif HZ_TONEMAP == 1
+    vec3 c = d / (1.0 - d);
+#else
+    vec3 c = d;
+#endif
+    return c / max(hz_exposure, 1e-30);
+}
 )glsl";
 
 inline constexpr const char *kTonemapFS = R"glsl(
@@ -499,11 +515,15 @@ void main() {
     float v = texture(u_volume, tc).r;
     if (v < u_clip_below) discard;
     float t = clamp((v - u_window.x) / max(u_window.y - u_window.x, 1e-30), 0.0, 1.0);
+    // Data are shown as they are: the window and colormap map a value to
+    // exactly the colormap's (sRGB-encoded) entry, with no exposure or tone
+    // curve (those are for lit geometry).
     vec3 c = texture(u_colormap, vec2(t, 0.5)).rgb;
-    // Colormaps are sRGB-encoded tables; the HDR buffer is linear.
+#ifndef HZ_DISPLAY
+    // The HDR buffer is linear and tonemapped afterwards: store what the
+    // tonemapping pass turns back into c.
     c = mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(vec3(0.04045), c));
-#ifdef HZ_DISPLAY
-    c = hz_display(c);
+    c = hz_display_inverse(c);
 #endif
     o = vec4(c, u_opacity);
 }

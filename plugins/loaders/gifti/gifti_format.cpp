@@ -2,6 +2,7 @@
 // for the accepted aliases). XML by pugixml, deflate by zlib.
 #include "gifti_format.hpp"
 
+#include "files.hpp"
 #include "mapped_file.hpp"
 
 #include <pugixml.hpp>
@@ -211,7 +212,12 @@ Array read_array(const pugi::xml_node &da, std::size_t index, const fs::path &di
             const std::string name = da.attribute("ExternalFileName").as_string();
             const long long off = da.attribute("ExternalFileOffset").as_llong(0);
             if (name.empty() || off < 0) throw FormatError(at + ": ExternalFileBinary without a file name or with a negative offset");
-            const fs::path ext = fs::path(name).is_absolute() ? fs::path(name) : dir / name;
+            fs::path ext;
+            try {
+                ext = hzio::companion_path((dir / "x").string(), name);
+            } catch (const hzio::IoError &e) {
+                throw FormatError(at + ": " + e.what());
+            }
             std::error_code ec;
             const std::uint64_t size = fs::file_size(ext, ec);
             if (ec) throw FormatError(at + ": external file " + ext.string() + " cannot be opened");

@@ -18,11 +18,15 @@
 
 #include <tiny_gltf.h>
 
+#include "files.hpp"
+#include "mapped_file.hpp"
+
 #include <array>
 #include <cmath>
 #include <cstring>
 #include <functional>
 #include <memory>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <sys/stat.h>
@@ -131,12 +135,39 @@ struct Surface {
 
 bool skip_images(tinygltf::Image *, const int, std::string *, std::string *, int, int, const unsigned char *, int, void *) { return true; }
 
+// External buffers and images (uri): only regular files inside the glTF's
+// folder (hzio::contained_file); a uri with ../, an absolute one, a link out
+// of the folder or a FIFO is an error, never read. user_data: the glTF path.
+bool uri_exists(const std::string &path, void *) {
+    struct stat st {};
+    return ::lstat(path.c_str(), &st) == 0;  // (uri_read then says why a file is refused)
+}
+std::string uri_expand(const std::string &path, void *) { return path; }  // (no ~ or $VAR expansion)
+bool uri_read(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *gltf) {
+    try {
+        const std::string p = hzio::contained_file(*static_cast<const std::string *>(gltf), path);
+        hzio::MappedFile m(p);
+        out->assign(m.data(), m.data() + m.size());
+        return true;
+    } catch (const std::exception &e) {
+        if (err) *err += e.what() + std::string("\n");
+        return false;
+    }
+}
+bool uri_write(std::string *err, const std::string &, const std::vector<unsigned char> &, void *) {
+    if (err) *err += "external files are not written\n";
+    return false;
+}
+
 Surface parse(const std::string &path) {
     struct stat st{};
     if (::stat(path.c_str(), &st) != 0) throw IoError("cannot open: " + std::string(std::strerror(errno)));
+    if (!S_ISREG(st.st_mode)) throw IoError("not a regular file");
     if (st.st_size < 12) throw FormatError("file is " + std::to_string(st.st_size) + " bytes: too short for glTF");
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(skip_images, nullptr);
+    tinygltf::FsCallbacks fs{uri_exists, uri_expand, uri_read, uri_write, const_cast<std::string *>(&path)};
+    loader.SetFsCallbacks(fs);
     tinygltf::Model m;
     std::string err, warn;
     std::FILE *f = std::fopen(path.c_str(), "rb");
@@ -460,8 +491,14 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         m.defaultScene = 0;
         const std::string ext = req->extension ? req->extension : "gltf";
         tinygltf::TinyGLTF w;
-        if (!w.WriteGltfSceneToFile(&m, req->path, true, true, ext != "glb", ext == "glb"))
-            throw IoError("write failed");
+        std::ostringstream os;  // (tinygltf's file writer does not check its stream: a full disk went unnoticed)
+        if (!w.WriteGltfSceneToStream(&m, os, ext != "glb", ext == "glb") || !os) throw IoError("write failed");
+        const std::string bytes = std::move(os).str();
+        try {
+            hzio::write_file(req->path, bytes.data(), bytes.size());
+        } catch (const hzio::IoError &e) {
+            throw IoError(e.what());
+        }
         return HZ_OK;
     });
 }

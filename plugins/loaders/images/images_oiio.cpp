@@ -3,7 +3,10 @@
 
 #include <hz/hz_types.h>
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+
+#include "files.hpp"
 
 #include <cstdio>
 #include <fcntl.h>
@@ -170,10 +173,18 @@ int write(const char *path, const char *ext, uint64_t w, uint64_t h, uint32_t ch
         spec.attribute("png:compressionLevel", 3);
         spec.attribute("Software", "Horizon");
         spec.attribute("oiio:UnassociatedAlpha", 1);
+        // Encoded in memory, then written with every write checked (the
+        // PNG and JPEG writers report success, or exit through libjpeg, on
+        // a full disk).
+        std::vector<unsigned char> encoded;
+        OIIO::Filesystem::IOVecOutput mem(encoded);
+        const bool in_memory = out->supports("ioproxy");
+        if (in_memory) out->set_ioproxy(&mem);
         if (!out->open(path, spec) || !out->write_image(t, px) || !out->close()) {
             put(err, n, out->geterror());
             return -1;
         }
+        if (in_memory) hzio::write_file(path, encoded.data(), encoded.size());
         return 0;
     } catch (const std::exception &e) {
         put(err, n, e.what());

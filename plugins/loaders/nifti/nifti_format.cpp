@@ -52,6 +52,8 @@ bool ends_with(const std::string &s, const std::string &suffix) {
 // A whole gzip stream, inflated up to `limit` bytes (never more: the
 // declared size bounds the work, the real stream bounds the memory).
 std::vector<unsigned char> gunzip(const std::string &path, std::uint64_t limit) {
+    std::error_code ec;
+    if (fs::exists(path, ec) && !fs::is_regular_file(path, ec)) throw FormatError("not a regular file");  // (a FIFO would block)
     gzFile g = gzopen(path.c_str(), "rb");
     if (g == nullptr) throw FormatError(std::string("cannot open: ") + std::strerror(errno));
     gzbuffer(g, 1 << 17);
@@ -276,6 +278,8 @@ Image Image::open(const std::string &path) {
         std::error_code ec;
         if (!fs::exists(hdr_path, ec)) throw FormatError("header file " + hdr_path + " does not exist");
         if (!fs::exists(img_path, ec)) throw FormatError("image file " + img_path + " does not exist");
+        if (!fs::is_regular_file(hdr_path, ec)) throw FormatError("header file " + hdr_path + " is not a regular file");
+        if (!fs::is_regular_file(img_path, ec)) throw FormatError("image file " + img_path + " is not a regular file");
     }
     // Header bytes.
     std::vector<unsigned char> head;

@@ -194,7 +194,12 @@ Header parse_header(const unsigned char *b, std::uint64_t size) {
         for (int i = 0; i < 16; ++i) m[static_cast<std::size_t>(i)] = load<float>(b + 440 + 4 * i, sw);
         for (double v : m)
             if (!std::isfinite(v)) throw FormatError("vox_to_ras holds a non-finite value");
-        if (m[15] != 0) h.vox_to_ras = m;  // [3][3] == 0: not recorded
+        if (m[15] != 0) {  // [3][3] == 0: not recorded
+            // A singular matrix would collapse every point (nibabel refuses it too).
+            const double det = m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) + m[2] * (m[4] * m[9] - m[5] * m[8]);
+            if (!(std::abs(det) > 1e-12)) throw FormatError("vox_to_ras is singular (its 3x3 part has determinant " + std::to_string(det) + ")");
+            h.vox_to_ras = m;
+        }
     } else if (h.version != 1) {
         throw FormatError("version " + std::to_string(h.version) + " is not 1 or 2");
     }
@@ -526,7 +531,7 @@ void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout
         for (const Box &c : boxes) box->merge(c);
 }
 
-void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
+std::uint64_t write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
            std::uint64_t nb_streamlines, const WriteSpec &spec) {
     if (nb_streamlines > static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max()))
         throw FormatError("TRK holds at most 2^31-1 streamlines");
@@ -566,7 +571,13 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
     for (int i = 0; i < 16; ++i) store<float>(hdr + 440 + 4 * i, static_cast<float>(A[static_cast<std::size_t>(i)]));
     const std::string order = axcodes(A);
     std::memcpy(hdr + 948, order.data(), 3);
-    store<std::int32_t>(hdr + 988, static_cast<std::int32_t>(nb_streamlines));
+    // With properties, a record of 0 points is more than nibabel can read
+    // ("number of values should match n_elements"): such streamlines are
+    // left out. Without, it is kept (valid TRK, as nibabel writes it).
+    std::uint64_t empty = 0;
+    if (!spec.properties.empty())
+        for (std::uint64_t s = 0; s < nb_streamlines; ++s) empty += offsets[s + 1] - spec.gap <= offsets[s];
+    store<std::int32_t>(hdr + 988, static_cast<std::int32_t>(nb_streamlines - empty));
     store<std::int32_t>(hdr + 992, 2);
     store<std::int32_t>(hdr + 996, 1000);
 
@@ -611,6 +622,7 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
             std::fclose(fp);
             throw FormatError("streamline " + std::to_string(s) + " has too many points for TRK");
         }
+        if (n == 0 && empty > 0) continue;
         room(4);
         put(static_cast<std::int32_t>(n));
         for (std::uint64_t v = offsets[s]; v < end; ++v) {
@@ -634,6 +646,7 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
     (void)kBigHost;
     if (std::fclose(fp) != 0) ok = false;
     if (!ok) throw FormatError(std::string("write failed: ") + std::strerror(errno));
+    return empty;
 }
 
 }  // namespace trk

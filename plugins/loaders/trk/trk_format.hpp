@@ -115,8 +115,11 @@ struct WriteSpec {
     // gap); scalar rows are indexed like the positions.
     std::uint32_t gap = 0;
 };
-void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
-           std::uint64_t nb_streamlines, const WriteSpec &spec);
+// Streamlines without points are left out when there are properties (TRK
+// readers, nibabel's among them, cannot read such a record then); returns
+// how many were.
+std::uint64_t write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
+                    std::uint64_t nb_streamlines, const WriteSpec &spec);
 
 int probe(const unsigned char *head, std::uint64_t size);
 

@@ -258,7 +258,10 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             static const char *own[] = {"version", "dimensions", "voxel_sizes", "voxel_order", "n_count", "byte_order", "count", "datatype", "file"};
             if (std::find(std::begin(own), std::end(own), k) == std::end(own)) req->on_dropped(req->ctx, ("header entry '" + k + "'").c_str());
         }
-        trk::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, spec);
+        const std::uint64_t empty = trk::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, spec);
+        if (empty > 0 && req->on_dropped)
+            req->on_dropped(req->ctx, (std::to_string(empty) + " streamline" + (empty == 1 ? "" : "s") +
+                                       " without points (TRK readers cannot read them)").c_str());
         return HZ_OK;
     });
 }

@@ -47,6 +47,48 @@ void check_reported_bounds(const Tractogram &t, const Bounds &reported, const fs
 // fault in as before.
 void make_resident(const void *p, std::size_t bytes);
 
+// ------------------------------------------------------------------ outputs
+// Every output is written to a temporary file beside it (.NAME.tmp-PID-N),
+// synced, then renamed into place (output.cpp).
+
+// Removes the temporaries being written when the process gets SIGINT,
+// SIGTERM or SIGHUP (then dies of the signal as before), and ignores
+// SIGXFSZ (a write past `ulimit -f` then fails with EFBIG and is reported).
+// Called once, early, by the program.
+void install_termination_cleanup();
+
+// A temporary output: removed (file or directory) on destruction unless
+// published, and by the termination handler meanwhile. Not copyable.
+class TemporaryFile {
+public:
+    explicit TemporaryFile(const fs::path &path);
+    ~TemporaryFile();
+    TemporaryFile(const TemporaryFile &) = delete;
+    TemporaryFile &operator=(const TemporaryFile &) = delete;
+    const fs::path &path() const { return path_; }
+    void published() { published_ = true; }
+
+private:
+    fs::path path_;
+    int slot_ = -1;
+    bool published_ = false;
+};
+
+// Throws Error if `path` exists and is not a regular file or a symbolic
+// link: a device, FIFO or socket is never replaced (renaming over /dev/null
+// as root would replace the device), a directory never overwritten.
+void check_output_target(const fs::path &path);
+
+// Removes temporaries of `path` (.NAME.tmp-PID...) left by processes that
+// are gone (killed, power cut).
+void remove_stale_temporaries(const fs::path &path);
+
+// Syncs `tmp`, renames it to `path` and syncs the directory. Without
+// `force` an existing `path` is never replaced, atomically (of two writers
+// of the same new output, one fails). Throws Error naming `path`, with the
+// system's reason; `tmp` is then removed by its destructor.
+void publish(TemporaryFile &tmp, const fs::path &path, bool force);
+
 // Writes `text` to `path` through a temporary file in the same directory,
 // renamed over `path` on success and deleted on failure. Refuses to replace
 // an existing file unless `force`. Throws Error naming `path`.

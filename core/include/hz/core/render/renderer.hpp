@@ -56,7 +56,7 @@ struct RenderSettings {
     // runs of streamlines nearest its outer surface, which is what a frame
     // of a dense tractogram shows, computed on a background thread and
     // adopted by update_proxies().
-    double lod_points = 5e5;
+    double lod_points = 3e5;
     bool shell_proxy = true;
     // The proxy frame is drawn at 1/proxy_scale of the size, then upscaled.
     int proxy_scale = 4;

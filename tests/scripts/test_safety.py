@@ -1,0 +1,344 @@
+"""Nothing a user feeds horizon harms their data or their machine (issue 28).
+
+Each case is one class of the probe: outputs that are devices or inputs,
+full disks, file size limits, signals, races, companion files that point
+elsewhere, FIFOs that would block, data shown through the tone curve. Cases
+that need root (mknod, a tmpfs for a full disk) fail in CI when not root
+(CI runs as root) and are skipped elsewhere.
+"""
+import json
+import os
+import resource
+import signal
+import struct
+import subprocess
+import time
+import unittest
+
+import numpy as np
+from PIL import Image
+
+from hztest import HORIZON, TempDirTest, run, tck_bytes
+
+ROOT = os.geteuid() == 0
+IN_CI = bool(os.environ.get("CI"))
+
+
+def needs_root(test):
+    if ROOT or IN_CI:
+        return test
+    return unittest.skip("needs root (mknod, mount)")(test)
+
+
+def temporaries(folder):
+    return [n for n in os.listdir(folder) if ".tmp-" in n]
+
+
+class SafetyTest(TempDirTest):
+    def setUp(self):
+        super().setUp()
+        self.tck = self.path("in.tck")
+        rng = np.random.default_rng(1)
+        lines = [np.cumsum(rng.normal(size=(40, 3)), axis=0) for _ in range(300)]
+        with open(self.tck, "wb") as f:
+            f.write(tck_bytes(lines))
+
+    # -- outputs -----------------------------------------------------------
+    @needs_root
+    def test_a_device_is_never_replaced(self):
+        self.assertTrue(ROOT, "CI runs as root")
+        dev = self.path("null")
+        os.mknod(dev, 0o666 | 0o020000, os.makedev(1, 3))
+        p = run("cluster", self.tck, "--labels", dev, "--force")
+        self.assert_clean_error(p, dev)
+        self.assertIn("not a regular file", p.stderr)
+        self.assertTrue(os.path.exists(dev) and not os.path.isfile(dev), "still a device")
+        fifo = self.path("pipe.png")
+        os.mkfifo(fifo)
+        p = run("render", self.tck, "-o", fifo, "--force", timeout=120)
+        self.assert_clean_error(p, fifo)
+        self.assertFalse(os.path.isfile(fifo))
+        self.assertEqual(temporaries(self.tmp), [])
+
+    def test_dash_is_standard_output(self):
+        p = subprocess.run([HORIZON, "cluster", self.tck, "--labels", "-"], capture_output=True, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        rows = p.stdout.decode().splitlines()
+        self.assertTrue(rows[0].startswith("streamline,"), rows[:2])
+        self.assertEqual(len(rows), 301)
+        p = subprocess.run([HORIZON, "render", self.tck, "-o", "-", "--size", "64x48"], capture_output=True, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(p.stdout[:8], b"\x89PNG\r\n\x1a\n")
+        self.assertEqual(temporaries(self.tmp), [])
+
+    def test_no_output_replaces_an_input(self):
+        before = open(self.tck, "rb").read()
+        for args in (("cluster", self.tck, "--labels", self.tck, "--force"), ("cluster", self.tck, "--out", self.tck, "--force"),
+                     ("convert", self.tck, self.tck, "--force"), ("render", self.tck, "-o", self.tck, "--force")):
+            p = run(*args, timeout=120)
+            self.assert_clean_error(p, self.tck)
+            self.assertIn("refusing to overwrite the input", p.stderr)
+        self.assertEqual(open(self.tck, "rb").read(), before)
+        # A NIfTI pair's other half, and two outputs naming one file.
+        import nibabel as nib
+        nib.save(nib.Nifti1Pair(np.zeros((4, 4, 4), np.float32), np.eye(4)), self.path("v.hdr"))
+        img = open(self.path("v.img"), "rb").read()
+        p = run("render", self.path("v.hdr"), "-o", self.path("v.img"), "--force", timeout=120)
+        self.assert_clean_error(p, "v.img")
+        self.assertEqual(open(self.path("v.img"), "rb").read(), img)
+        p = run("cluster", self.tck, "--labels", self.path("x.csv"), "--out", self.path("x.csv"))
+        self.assert_clean_error(p, "x.csv")
+
+    def test_existing_outputs_need_force(self):
+        for args, out in ((("convert", self.tck, self.path("o.trk")), "o.trk"), (("cluster", self.tck, "--labels", self.path("l.csv")), "l.csv"),
+                          (("render", self.tck, "-o", self.path("o.png"), "--size", "64x48"), "o.png")):
+            with open(self.path(out), "w") as f:
+                f.write("keep me")
+            p = run(*args, timeout=120)
+            self.assert_clean_error(p, out)
+            self.assertIn("--force", p.stderr)
+            self.assertEqual(open(self.path(out)).read(), "keep me")
+            self.assertEqual(run(*args, "--force", timeout=120).returncode, 0)
+            self.assertNotEqual(open(self.path(out), "rb").read(), b"keep me")
+
+    def test_two_writers_of_one_new_output(self):
+        # Without --force, exactly one of two simultaneous writers succeeds
+        # (the check and the rename are one atomic step).
+        big = self.path("big.tck")
+        rng = np.random.default_rng(2)
+        with open(big, "wb") as f:
+            f.write(tck_bytes([np.cumsum(rng.normal(size=(100, 3)), axis=0) for _ in range(20000)]))
+        out = self.path("race.trk")
+        for _ in range(3):
+            if os.path.exists(out):
+                os.remove(out)
+            procs = [subprocess.Popen([HORIZON, "convert", big, out], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                     for _ in range(2)]
+            errs = [p.communicate(timeout=120)[1] for p in procs]
+            codes = sorted(p.returncode for p in procs)
+            self.assertEqual(codes, [0, 1], errs)
+            self.assertIn("already exists", "".join(errs))
+        self.assertEqual(temporaries(self.tmp), [])
+
+    @needs_root
+    def test_full_disk_is_an_error_not_a_truncated_file(self):
+        self.assertTrue(ROOT, "CI runs as root")
+        disk = self.path("disk")
+        os.mkdir(disk)
+        subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", disk], check=True)
+        try:
+            import nibabel as nib  # noqa: F401
+            surf = self.path("s.gii")
+            self.make_gifti(surf, n=4000)
+            cases = [("render", self.tck, "-o", os.path.join(disk, "x.png"), "--size", "640x480"),
+                     ("render", self.tck, "-o", os.path.join(disk, "x.jpg"), "--size", "640x480"),
+                     ("convert", surf, os.path.join(disk, "x.gltf")), ("convert", surf, os.path.join(disk, "x.glb")),
+                     ("convert", self.tck, os.path.join(disk, "x.trk")), ("cluster", self.tck, "--labels", os.path.join(disk, "l.csv"))]
+            with open(os.path.join(disk, "fill"), "wb", buffering=0) as f:  # to the last byte
+                try:
+                    while True:
+                        f.write(b"\0" * 512)
+                except OSError:
+                    pass
+            for args in cases:
+                p = run(*args, timeout=120)
+                self.assertNotEqual(p.returncode, 0, f"{args}: {p.stdout}")
+                self.assertIn("horizon: error:", p.stderr)
+                self.assertIn("No space left", p.stderr)
+                self.assertEqual(sorted(os.listdir(disk)), ["fill"], f"{args}: nothing left at the final name or as a temporary")
+        finally:
+            subprocess.run(["umount", disk])
+
+    def test_file_size_limit_is_an_error(self):
+        def limit():
+            resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000))
+        out = self.path("big.trk")
+        p = subprocess.run([HORIZON, "convert", self.tck, out], capture_output=True, text=True, timeout=120, preexec_fn=limit)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("File too large", p.stderr)
+        self.assertFalse(os.path.exists(out))
+        self.assertEqual(temporaries(self.tmp), [])
+
+    def test_signals_leave_no_temporary(self):
+        big = self.path("big.tck")
+        rng = np.random.default_rng(3)
+        with open(big, "wb") as f:
+            f.write(tck_bytes([np.cumsum(rng.normal(size=(200, 3)), axis=0) for _ in range(60000)]))
+        for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+            out = self.path("sig.trk")
+            p = subprocess.Popen([HORIZON, "convert", big, out, "--force"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            deadline = time.time() + 60
+            while not temporaries(self.tmp) and p.poll() is None and time.time() < deadline:
+                time.sleep(0.005)
+            p.send_signal(sig)
+            p.wait(timeout=60)
+            if p.returncode == 0:
+                continue  # (it finished first: nothing to clean)
+            self.assertEqual(p.returncode, -sig)
+            self.assertEqual(temporaries(self.tmp), [], sig)
+
+    def test_stale_temporaries_are_removed(self):
+        # Left by a process that is gone (a power cut, SIGKILL).
+        stale = self.path(".out.trk.tmp-999999999-12")
+        with open(stale, "w") as f:
+            f.write("x")
+        self.assertEqual(run("convert", self.tck, self.path("out.trk")).returncode, 0)
+        self.assertFalse(os.path.exists(stale))
+
+    # -- inputs ------------------------------------------------------------
+    def make_gifti(self, path, n=3, external=None):
+        data = "<Data>" + " ".join("0" for _ in range(n * 3)) + "</Data>"
+        enc = "ASCII"
+        if external is not None:
+            enc, data = f'ExternalFileBinary" ExternalFileName="{external}" ExternalFileOffset="0', "<Data></Data>"
+        tris = " ".join(f"0 {i} {i + 1}" for i in range(1, n - 1))
+        with open(path, "w") as f:
+            f.write(f'''<?xml version="1.0" encoding="UTF-8"?>
+<GIFTI Version="1.0" NumberOfDataArrays="2">
+<DataArray Intent="NIFTI_INTENT_POINTSET" DataType="NIFTI_TYPE_FLOAT32" ArrayIndexingOrder="RowMajorOrder" Dimensionality="2" Dim0="{n}" Dim1="3" Encoding="{enc}" Endian="LittleEndian">{data}</DataArray>
+<DataArray Intent="NIFTI_INTENT_TRIANGLE" DataType="NIFTI_TYPE_INT32" ArrayIndexingOrder="RowMajorOrder" Dimensionality="2" Dim0="{n - 2}" Dim1="3" Encoding="ASCII" Endian="LittleEndian"><Data>{tris}</Data></DataArray>
+</GIFTI>
+''')
+
+    def test_companion_files_stay_in_the_folder(self):
+        secret = self.path("secret.bin")
+        with open(secret, "wb") as f:
+            f.write(np.arange(9, dtype="<f4").tobytes())
+        sub = self.path("sub")
+        os.mkdir(sub)
+        os.symlink(secret, os.path.join(sub, "link.bin"))
+        os.mkfifo(os.path.join(sub, "fifo.bin"))
+        with open(os.path.join(sub, "ok.bin"), "wb") as f:
+            f.write(np.arange(9, dtype="<f4").tobytes())
+        gltf = {"asset": {"version": "2.0"}, "buffers": [{"uri": None, "byteLength": 36}],
+                "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
+                "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 1, 2], "max": [6, 7, 8]}],
+                "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0}
+        for name, ok in (("ok.bin", True), ("../secret.bin", False), (secret, False), ("link.bin", False), ("fifo.bin", False)):
+            for kind in ("gltf", "gifti"):
+                path = os.path.join(sub, f"m.{'gltf' if kind == 'gltf' else 'surf.gii'}")
+                if kind == "gltf":
+                    gltf["buffers"][0]["uri"] = name
+                    with open(path, "w") as f:
+                        json.dump(gltf, f)
+                else:
+                    self.make_gifti(path, external=name)
+                out = self.path(f"copy.{kind}.glb")
+                if os.path.exists(out):
+                    os.remove(out)
+                p = run("convert", path, out, timeout=20)
+                if ok:
+                    self.assertEqual(p.returncode, 0, p.stderr)
+                else:
+                    self.assert_clean_error(p, path)
+                    self.assertRegex(p.stderr, "outside the file's folder|absolute path|not a regular file|File not found")
+                    self.assertFalse(os.path.exists(out))
+
+    def test_fifo_inputs_do_not_block(self):
+        import nibabel as nib
+        nib.save(nib.Nifti1Pair(np.zeros((4, 4, 4), np.float32), np.eye(4)), self.path("v.hdr"))
+        os.remove(self.path("v.img"))
+        os.mkfifo(self.path("v.img"))
+        p = run("info", self.path("v.hdr"), timeout=20)
+        self.assert_clean_error(p, "v.img")
+        os.mkfifo(self.path("f.tck"))
+        p = run("info", self.path("f.tck"), timeout=20)
+        self.assert_clean_error(p, "f.tck")
+
+    def test_trk_with_a_singular_affine_is_refused(self):
+        # nibabel refuses it as well; accepted, every point would collapse.
+        import nibabel as nib
+        path = self.path("singular.trk")
+        nib.streamlines.save(nib.streamlines.Tractogram([np.array([[1.0, 2, 3], [4, 5, 6]], np.float32)], affine_to_rasmm=np.eye(4)), path)
+        with open(path, "rb") as f:
+            data = bytearray(f.read())
+        data[440:504] = np.diag([0.0, 0.0, 0.0, 1.0]).astype("<f4").tobytes()
+        with open(path, "wb") as f:
+            f.write(bytes(data))
+        p = run("info", path)
+        self.assert_clean_error(p, path)
+        self.assertIn("singular", p.stderr)
+
+    def test_streamlines_without_points_are_left_out_of_a_trk(self):
+        # A TRX (here a TCK) with an empty streamline and per-streamline data,
+        # converted to TRK: nibabel must read it (it could not).
+        import nibabel as nib
+        src = self.path("e.trx")
+        lines = [np.zeros((0, 3), np.float32), np.array([[0, 0, 0], [1, 1, 1]], np.float32), np.array([[2, 2, 2], [3, 3, 3]], np.float32)]
+        from test_trx import make_trx
+        make_trx(src, lines, dpv=False, extra={"dps/weight.float32": np.array([1.0, 2.0, 3.0], np.float32).tobytes()})
+        out = self.path("e.trk")
+        p = run("convert", src, out)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("without points", p.stderr)
+        t = nib.streamlines.load(out)
+        self.assertEqual(len(t.streamlines), 2)
+        np.testing.assert_allclose(t.tractogram.data_per_streamline["weight"].ravel(), [2.0, 3.0])
+
+    # -- messages ----------------------------------------------------------
+    def on_terminal(self, *args):
+        # Runs horizon with stderr on a pseudo-terminal; returns what it showed there.
+        import pty
+        master, slave = pty.openpty()
+        env = {**os.environ, "HORIZON_PROGRESS_DELAY": "0"}
+        p = subprocess.Popen([HORIZON, *args], stdout=subprocess.PIPE, stderr=slave, env=env)
+        os.close(slave)
+        shown = b""
+        while True:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:
+                break
+            if not chunk:
+                break
+            shown += chunk
+        out = p.communicate(timeout=120)[0]
+        os.close(master)
+        self.assertEqual(p.returncode, 0, shown)
+        return shown.decode(errors="replace"), out.decode()
+
+    def test_progress_lines_on_a_terminal_only(self):
+        big = self.path("big.tck")
+        rng = np.random.default_rng(4)
+        with open(big, "wb") as f:
+            f.write(tck_bytes([np.cumsum(rng.normal(size=(100, 3)), axis=0) for _ in range(30000)]))
+        shown, _ = self.on_terminal("cluster", big, "--labels", self.path("l.csv"))
+        self.assertRegex(shown, r"horizon: clustering 30000 streamlines \(qbx\) \.\.\. ")
+        self.assertIn("\r\x1b[K", shown, "the line is cleared when the work ends")
+        # Not on a terminal, or with --json: no progress line.
+        p = run("cluster", big, "--labels", self.path("l.csv"), "--force", env={"HORIZON_PROGRESS_DELAY": "0"})
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertNotIn("clustering", p.stderr)
+        shown, out = self.on_terminal("cluster", big, "--labels", self.path("l.csv"), "--force", "--json")
+        self.assertNotIn("horizon: clustering", shown)
+        json.loads(out)
+
+    # -- pictures ----------------------------------------------------------
+    def test_data_is_shown_as_it_is(self):
+        # A 0-1 ramp through window [0, 1] and the gray colormap: pixel values
+        # follow the colormap (linear for gray), whatever the exposure: only
+        # lit geometry goes through exposure and the tone curve.
+        import nibabel as nib
+        x = np.linspace(0, 1, 64, dtype=np.float32)
+        nib.save(nib.Nifti1Image(np.broadcast_to(x[:, None, None], (64, 64, 64)).copy(), np.eye(4)), self.path("ramp.nii.gz"))
+        for exposure in (1.0, 2.5):
+            for tonemap in ("aces", "reinhard"):
+                scene = {"objects": [{"type": "slices", "file": self.path("ramp.nii.gz"), "x": None, "y": None, "z": 32, "window": [0, 1],
+                                      "colormap": "gray"}],
+                         "camera": {"view": "superior"}, "background": [0, 0, 0], "exposure": exposure, "tonemap": tonemap}
+                with open(self.path("s.json"), "w") as f:
+                    json.dump(scene, f)
+                out = self.path("ramp.png")
+                p = run("render", self.path("s.json"), "-o", out, "--size", "256x256", "--force", timeout=120)
+                self.assertEqual(p.returncode, 0, p.stderr)
+                row = np.asarray(Image.open(out).convert("L"), dtype=float)[128]
+                lit = np.flatnonzero(row > 0)
+                xs = np.linspace(0, 1, lit[-1] - lit[0] + 1)
+                err = np.abs(row[lit[0]:lit[-1] + 1] - 255 * xs)
+                self.assertLess(np.median(err), 3.0, (exposure, tonemap))
+                mid = row[(lit[0] + lit[-1]) // 2]
+                self.assertAlmostEqual(mid, 128, delta=4, msg=(exposure, tonemap))
+
+
+if __name__ == "__main__":
+    unittest.main()
