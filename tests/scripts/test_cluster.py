@@ -235,6 +235,33 @@ class ClusterEdgeCasesTest(TempDirTest):
         self.assertEqual(set(lab[:, 1]), {0})
         self.assertEqual(set(lab[:, 2]), {0})
 
+    def test_join_at_exactly_the_threshold_as_dipy(self):
+        """A streamline joins a cluster whose centroid is exactly `threshold`
+        away (distance <= threshold, not <): duplicates at threshold 0, and
+        parallel straight lines exactly 4 mm apart (12 equally spaced points:
+        resampling keeps them, the distance is exactly 4 in float32), compared
+        with DIPY's labels at every level."""
+        line = np.array([[i, 0, 0] for i in range(12)], np.float32)
+        sl = []
+        for k in range(6):
+            base = line + np.float32(100 * k)
+            sl += [base, base.copy(), base + np.array([0, 4, 0], np.float32), base + np.array([0, 0, 9], np.float32)]
+        f = self.write("edge.tck", sl)
+        sl = [s.astype(np.float32) for s in nib.streamlines.load(f).streamlines]
+        for thresholds in ([4.0, 0.0], [9.0, 4.0, 0.0]):
+            with self.subTest(thresholds=thresholds):
+                lab = self.labels(f, "--algorithm", "qbx", "--thresholds", ",".join(map(str, thresholds)))
+                tree = QuickBundlesX(thresholds).cluster(sl)
+                for level in range(1, len(thresholds) + 1):
+                    np.testing.assert_array_equal(lab[:, level], dipy_labels(tree.get_clusters(level), len(sl)), f"level {level}")
+                zero = len(thresholds)  # the last level (threshold 0): duplicates share a cluster
+                self.assertEqual(lab[0, zero], lab[1, zero])
+                self.assertNotEqual(lab[0, zero], lab[2, zero])
+                self.assertEqual(lab[0, zero - 1], lab[2, zero - 1], "4 mm apart joins at threshold 4")
+        for t in (0.0, 4.0):
+            lab = self.labels(f, "--algorithm", "qb", "--thresholds", str(t))
+            np.testing.assert_array_equal(lab[:, 1], dipy_labels(QuickBundles(t).cluster(sl), len(sl)), f"qb {t}")
+
     def test_far_coordinates_and_a_huge_streamline(self):
         rng = np.random.default_rng(3)
         far = [s + np.float32(1e6) for s in random_streamlines(30, rng, 5, 20)]
