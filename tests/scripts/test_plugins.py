@@ -3,9 +3,10 @@ good plugin, each with a one-line reason naming the file."""
 import json
 import os
 import shutil
+import subprocess
 import unittest
 
-from hztest import BUNDLED, FIXTURES, TEMPLATES, TempDirTest, run, run_json
+from hztest import BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, run, run_json
 
 BUNDLED_IDS = {"org.horizon.loader.tck", "org.horizon.loader.trk", "org.horizon.loader.trx", "org.horizon.loader.nifti",
                "org.horizon.shader.lambert", "org.horizon.shader.blinn_phong", "org.horizon.shader.line_stalling",
@@ -79,6 +80,33 @@ class PluginsTest(TempDirTest):
         text = run("--plugin-dir", d, "plugins", env=env).stdout
         self.assertIn("trial list", text)
         self.assertIn(lst, text)
+
+    def test_trial_list_is_invalidated_by_a_new_horizon(self):
+        """Entries were vouched for by one build of `horizon`: another (an
+        upgrade; here the same file with a new modification time) tries every
+        plugin again, and entries of a host that is gone are dropped."""
+        prefix = self.path("prefix")
+        os.makedirs(os.path.join(prefix, "bin"))
+        os.makedirs(os.path.join(prefix, "lib", "horizon"))
+        os.symlink(BUNDLED, os.path.join(prefix, "lib", "horizon", "plugins"))
+        exe = os.path.join(prefix, "bin", "horizon")
+        shutil.copy2(HORIZON, exe)
+        lst = self.path("trials.json")
+        env = {**os.environ, "HORIZON_PLUGIN_CACHE": lst, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        env.pop("HORIZON_PLUGIN_PATH", None)
+
+        def trials():
+            p = subprocess.run([exe, "plugins", "--json"], capture_output=True, text=True, timeout=120, env=env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            return json.loads(p.stdout)["trial_loads"]
+
+        files = sum(os.path.isfile(os.path.join(BUNDLED, f)) for f in os.listdir(BUNDLED))
+        self.assertEqual(trials(), files)
+        self.assertEqual(trials(), 0)
+        st = os.stat(exe)
+        os.utime(exe, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+        self.assertEqual(trials(), files, "a changed horizon trusts no earlier trial")
+        self.assertEqual(trials(), 0)
 
     def test_bad_plugin_dir(self):
         d = self.path("plugins")

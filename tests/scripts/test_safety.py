@@ -159,6 +159,21 @@ class SafetyTest(TempDirTest):
         self.assertFalse(os.path.exists(out))
         self.assertEqual(temporaries(self.tmp), [])
 
+    def test_a_failed_forced_write_keeps_the_old_output(self):
+        # --force replaces an output only once the new one is complete.
+        def limit():
+            resource.setrlimit(resource.RLIMIT_FSIZE, (1500, 1500))
+        for args, out in ((("cluster", self.tck, "--labels"), "l.csv"), (("convert", self.tck), "o.trk"),
+                          (("render", self.tck, "--size", "320x200", "-o"), "o.png")):
+            with open(self.path(out), "w") as f:
+                f.write("keep me")
+            p = subprocess.run([HORIZON, *args, self.path(out), "--force"], capture_output=True, text=True, timeout=120, preexec_fn=limit)
+            self.assertNotEqual(p.returncode, 0, out)
+            self.assertIn("File too large", p.stderr)
+            with open(self.path(out)) as f:
+                self.assertEqual(f.read(), "keep me", out)
+        self.assertEqual(temporaries(self.tmp), [])
+
     def test_signals_leave_no_temporary(self):
         big = self.path("big.tck")
         rng = np.random.default_rng(3)

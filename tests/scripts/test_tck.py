@@ -225,11 +225,17 @@ class TckMalformedTest(TempDirTest):
             "no_end.tck": good[:off - 4],
             "binary_junk.tck": b"mrtrix tracks\n" + os.urandom(3000).replace(b"END", b"xxx"),
         }
+        # The reason, where one check owns the case (another failing later
+        # with a vaguer message would hide a broken check).
+        reasons = {"offset_beyond_eof.tck": "past the end of the file", "offset_in_header.tck": "inside the header",
+                   "no_terminator.tck": "terminator", "no_end.tck": "no END line", "int32.tck": "unsupported"}
         for name, data in cases.items():
             with self.subTest(case=name):
                 f = self.write(name, data)
                 p = run("info", f, timeout=10)
                 self.assert_clean_error(p, name)
+                if name in reasons:
+                    self.assertIn(reasons[name], p.stderr)
 
     def test_absurd_sizes_do_not_allocate(self):
         # A header claiming an enormous count with almost no data.

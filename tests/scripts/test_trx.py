@@ -216,11 +216,17 @@ class TrxTest(TempDirTest):
             "missing_header": dict(extra={"header.json": None}),
             "bad_json": dict(extra={"header.json": b"{not json"}),
         }
+        reasons = {"offsets_not_monotonic": "offsets decrease", "offsets_first_nonzero": "expected 0",
+                   "path_traversal": "escapes the archive", "nb_vertices_too_large": "NB_VERTICES", "missing_header": "no header.json",
+                   "dpv_wrong_size": "bytes, ", "dps_wrong_size": "bytes, "}
         for name, kw in cases.items():
             with self.subTest(case=name):
                 f = self.path(name + ".trx")
                 make_trx(f, sl, **kw)
-                self.assert_clean_error(run("info", f, timeout=10), name + ".trx")
+                p = run("info", f, timeout=10)
+                self.assert_clean_error(p, name + ".trx")
+                if name in reasons:
+                    self.assertIn(reasons[name], p.stderr)
         good = self.path("good.trx")
         make_trx(good, sl, compression=zipfile.ZIP_DEFLATED)
         with open(good, "rb") as fh:

@@ -1,0 +1,104 @@
+#!/usr/bin/env python3
+"""The mutation check: every declared mutant of real logic must be caught.
+
+    tests/mutation/run.py [BUILD_DIR] [--only ID,...]
+
+For each mutant of tests/mutation/mutants.json: the snippet is replaced in the
+source (it must occur exactly once: a stale list fails), the mutant's target
+is rebuilt incrementally in BUILD_DIR (an already built tree: `build`), and its
+tests run (ctest's command and environment for the named test, narrowed with
+unittest's -k where given). The mutant is caught if any of them fails. The
+source is restored after each mutant, whatever happens, and the touched
+targets are rebuilt at the end. Exit status 1 if a mutant survived or could
+not be applied. Meant for a scratch checkout (CI's clean clone).
+"""
+import json
+import os
+import subprocess
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def ctest_tests(build):
+    out = subprocess.run(["ctest", "--test-dir", build, "--show-only=json-v1"], capture_output=True, text=True, check=True).stdout
+    tests = {}
+    for t in json.loads(out)["tests"]:
+        props = {p["name"]: p["value"] for p in t.get("properties", [])}
+        tests[t["name"]] = (t["command"], props.get("WORKING_DIRECTORY"), props.get("ENVIRONMENT", []))
+    return tests
+
+
+def run_test(tests, name, k, timeout=900):
+    command, cwd, env_list = tests[name]
+    env = dict(os.environ)
+    for kv in env_list:
+        key, _, value = kv.partition("=")
+        env[key] = value
+    cmd = list(command) + (["-k", k] if k else [])
+    p = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    return p.returncode
+
+
+def main():
+    args = [a for a in sys.argv[1:] if not a.startswith("--")]
+    only = None
+    for a in sys.argv[1:]:
+        if a.startswith("--only="):
+            only = set(a.split("=", 1)[1].split(","))
+    build = os.path.abspath(args[0] if args else os.path.join(ROOT, "build"))
+    with open(os.path.join(ROOT, "tests", "mutation", "mutants.json")) as f:
+        mutants = json.load(f)["mutants"]
+    tests = ctest_tests(build)
+    if only:
+        mutants = [m for m in mutants if m["id"] in only]
+    survived, broken, targets = [], [], set()
+    t_all = time.time()
+    for m in mutants:
+        t0 = time.time()
+        path = os.path.join(ROOT, m["file"])
+        with open(path) as f:
+            original = f.read()
+        if original.count(m["find"]) != 1:
+            broken.append(f"{m['id']}: the snippet occurs {original.count(m['find'])} times in {m['file']}")
+            print(f"BROKEN   {m['id']}: snippet found {original.count(m['find'])} times", flush=True)
+            continue
+        missing = [t for t, _ in m["tests"] if t not in tests]
+        if missing:
+            broken.append(f"{m['id']}: no test named {missing}")
+            print(f"BROKEN   {m['id']}: no test {missing}", flush=True)
+            continue
+        targets.add(m["target"])
+        try:
+            with open(path, "w") as f:
+                f.write(original.replace(m["find"], m["replace"]))
+            b = subprocess.run(["cmake", "--build", build, "--target", m["target"], "-j", str(os.cpu_count() or 2)], capture_output=True,
+                               text=True)
+            if b.returncode != 0:
+                broken.append(f"{m['id']}: the mutant does not build:\n{b.stdout[-2000:]}{b.stderr[-2000:]}")
+                print(f"BROKEN   {m['id']}: does not build", flush=True)
+                continue
+            caught_by = None
+            for name, k in m["tests"]:
+                if run_test(tests, name, k) != 0:
+                    caught_by = f"{name}{' -k ' + k if k else ''}"
+                    break
+        finally:
+            with open(path, "w") as f:
+                f.write(original)
+        status = f"caught by {caught_by}" if caught_by else "SURVIVED"
+        print(f"{'ok      ' if caught_by else 'SURVIVED'} {m['id']}: {status} ({time.time() - t0:.0f} s)", flush=True)
+        if not caught_by:
+            survived.append(m["id"])
+    for t in sorted(targets):  # the unmutated build again
+        subprocess.run(["cmake", "--build", build, "--target", t, "-j", str(os.cpu_count() or 2)], capture_output=True, check=True)
+    print(f"mutation check: {len(mutants) - len(survived) - len(broken)} caught, {len(survived)} survived, {len(broken)} broken "
+          f"({time.time() - t_all:.0f} s)")
+    for b in broken:
+        print("  " + b)
+    return 1 if survived or broken else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
