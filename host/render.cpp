@@ -82,8 +82,17 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     o.lod.apply(rs);
     if (!o.preview) rs.shell_proxy = false;  // a full-detail frame draws no proxy
     rs.bake_materials = true;  // a scene file's materials do not change while it renders
+    // A picture of nothing is an error, not a blank PNG with exit status 0.
+    const bool something = std::any_of(scene.objects.begin(), scene.objects.end(), [](const core::render::Object &ob) {
+        if (!ob.visible) return false;
+        const core::Dataset &d = ob.data;
+        if (d.kind == HZ_DATA_STREAMLINES) return d.tractogram.nb_vertices() > 0;
+        if (d.kind == HZ_DATA_MESH) return d.mesh.nb_faces() > 0;
+        return true;
+    });
     const core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
     try {
+        if (!something) throw core::Error("nothing to draw: the scene's objects are empty or hidden");
         r.set_scene(std::move(scene), view, rs);
     } catch (const core::Error &e) {
         if (o.scene.empty()) throw;

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cstdint>
 #include <cerrno>
 #include <cstring>
 #include <string>
@@ -31,6 +32,78 @@ void on_termination(int sig) {
 }
 
 std::string errno_message(int e) { return std::strerror(e); }
+
+void write_all(const char *s) {
+    std::size_t n = std::strlen(s);
+    while (n > 0) {
+        const ssize_t w = ::write(STDERR_FILENO, s, n);
+        if (w <= 0) return;
+        s += w, n -= std::size_t(w);
+    }
+}
+
+// The file mapped at `addr`, from /proc/self/maps (async-signal-safe: only
+// open, read and close). False if none.
+bool mapped_file_at(std::uintptr_t addr, char *out, std::size_t cap) {
+    const int fd = ::open("/proc/self/maps", O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return false;
+    char buf[8192], line[4096 + 256];
+    std::size_t len = 0;
+    bool found = false;
+    for (;;) {
+        const ssize_t r = ::read(fd, buf, sizeof buf);
+        if (r <= 0) break;
+        for (ssize_t i = 0; i < r && !found; ++i) {
+            if (buf[i] != '\n') {
+                if (len + 1 < sizeof line) line[len++] = buf[i];
+                continue;
+            }
+            line[len] = '\0';
+            len = 0;
+            // "start-end perms offset dev inode   path"
+            std::uintptr_t lo = 0, hi = 0;
+            const char *p = line;
+            auto hex = [&](std::uintptr_t &v) {
+                for (; *p; ++p) {
+                    const char c = *p;
+                    const int d = c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 : -1;
+                    if (d < 0) break;
+                    v = v * 16 + std::uintptr_t(d);
+                }
+            };
+            hex(lo);
+            if (*p == '-') ++p;
+            hex(hi);
+            if (addr < lo || addr >= hi) continue;
+            const char *path = std::strchr(line, '/');
+            if (path == nullptr) break;
+            std::size_t k = 0;
+            for (; path[k] && k + 1 < cap; ++k) out[k] = path[k];
+            out[k] = '\0';
+            found = true;
+        }
+        if (found) break;
+    }
+    ::close(fd);
+    return found;
+}
+
+// A mapped input that shrank under us (truncated, replaced in place): the
+// kernel raises SIGBUS on the pages past its new end. One line naming the
+// file instead of a silent death.
+void on_sigbus(int sig, siginfo_t *info, void *) {
+    char name[4096];
+    for (int i = 0; i < kSlots; ++i)
+        if (g_used[i].load()) ::unlink(g_paths[i]);
+    if (info != nullptr && mapped_file_at(reinterpret_cast<std::uintptr_t>(info->si_addr), name, sizeof name)) {
+        write_all("horizon: error: ");
+        write_all(name);
+        write_all(": the file was truncated or changed while it was being read\n");
+        ::_exit(1);
+    }
+    ::signal(sig, SIG_DFL);  // not a mapped file: a crash, as before
+    ::raise(sig);
+}
 
 // fsync of a file or directory; errno on failure, 0 on success.
 int sync_path(const fs::path &p, bool directory) {
@@ -56,6 +129,11 @@ void install_termination_cleanup() {
     // Past a file size limit (ulimit -f) a write fails with EFBIG, reported
     // like any other write error, instead of a silent SIGXFSZ.
     ::signal(SIGXFSZ, SIG_IGN);
+    struct sigaction bus {};
+    bus.sa_sigaction = on_sigbus;
+    bus.sa_flags = SA_SIGINFO;
+    sigemptyset(&bus.sa_mask);
+    ::sigaction(SIGBUS, &bus, nullptr);
 }
 
 TemporaryFile::TemporaryFile(const fs::path &path) : path_(path) {

@@ -215,6 +215,31 @@ class SafetyTest(TempDirTest):
 </GIFTI>
 ''')
 
+    def test_an_input_truncated_while_mapped(self):
+        # The pages past the new end raise SIGBUS: one line naming the file
+        # and exit status 1, never a death by signal (whichever moment the
+        # truncation hits: before the open, during the read, or after).
+        big = self.path("big.tck")
+        rng = np.random.default_rng(6)
+        with open(big, "wb") as f:
+            f.write(tck_bytes([np.cumsum(rng.normal(size=(150, 3)), axis=0) for _ in range(40000)]))
+        data = open(big, "rb").read()
+        seen_error = False
+        for delay in (0.0, 0.02, 0.05, 0.1, 0.2, 0.4):
+            with open(big, "wb") as f:
+                f.write(data)
+            p = subprocess.Popen([HORIZON, "cluster", big, "--labels", self.path("l.csv"), "--force"], stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.PIPE, text=True)
+            time.sleep(delay)
+            os.truncate(big, 4096)
+            err = p.communicate(timeout=120)[1]
+            self.assertIn(p.returncode, (0, 1), err)
+            if p.returncode == 1:
+                seen_error = True
+                self.assertEqual(len(err.strip().splitlines()), 1, err)
+                self.assertIn("big.tck", err)
+        self.assertTrue(seen_error)
+
     def test_companion_files_stay_in_the_folder(self):
         secret = self.path("secret.bin")
         with open(secret, "wb") as f:
@@ -329,6 +354,36 @@ class SafetyTest(TempDirTest):
         json.loads(out)
 
     # -- pictures ----------------------------------------------------------
+    def test_meaningless_render_parameters_are_refused(self):
+        import nibabel as nib
+        nib.save(nib.Nifti1Image(np.zeros((8, 8, 8), np.float32), np.eye(4)), self.path("v.nii.gz"))
+        tracts = {"type": "streamlines", "file": self.tck}
+        slices = {"type": "slices", "file": self.path("v.nii.gz")}
+        cases = {"exposure": ({"objects": [tracts], "exposure": -1}, "exposure"),
+                 "zoom": ({"objects": [tracts], "camera": {"zoom": 0}}, "camera.zoom"),
+                 "opacity": ({"objects": [{**tracts, "opacity": 2}]}, "objects[0].opacity"),
+                 "radius": ({"objects": [{**tracts, "radius": -1}]}, "objects[0].radius"),
+                 "window": ({"objects": [{**slices, "window": [3, 3]}]}, "objects[0].window"),
+                 "slice": ({"objects": [{**slices, "z": 100}]}, "outside the volume"),
+                 "hidden": ({"objects": [{**tracts, "visible": False}]}, "nothing to draw")}
+        for name, (scene, where) in cases.items():
+            with self.subTest(case=name):
+                f = self.path(name + ".json")
+                with open(f, "w") as fh:
+                    json.dump(scene, fh)
+                out = self.path(name + ".png")
+                p = run("render", f, "-o", out, "--size", "64x48", timeout=120)
+                self.assert_clean_error(p, name + ".json")
+                self.assertIn(where, p.stderr)
+                self.assertFalse(os.path.exists(out))
+        empty = self.path("empty.tck")
+        with open(empty, "wb") as fh:
+            fh.write(tck_bytes([]))
+        p = run("render", empty, "-o", self.path("e.png"), timeout=120)
+        self.assert_clean_error(p, "empty.tck")
+        self.assertIn("nothing to draw", p.stderr)
+
+
     def test_data_is_shown_as_it_is(self):
         # A 0-1 ramp through window [0, 1] and the gray colormap: pixel values
         # follow the colormap (linear for gray), whatever the exposure: only

@@ -1554,6 +1554,11 @@ struct Renderer::Impl {
         std::vector<float> quads;
         auto quad = [&](int axis, double at) {
             if (std::isnan(at)) at = mid[axis];
+            if (at < lo[axis] || at > hi[axis]) {
+                char msg[160];
+                std::snprintf(msg, sizeof msg, ": slice %c = %g mm lies outside the volume (%.1f to %.1f mm)", "xyz"[axis], at, lo[axis], hi[axis]);
+                throw Error(o.name + msg);
+            }
             const int u = (axis + 1) % 3, w = (axis + 2) % 3;
             const double cu[4] = {lo[u], hi[u], hi[u], lo[u]}, cw[4] = {lo[w], lo[w], hi[w], hi[w]};
             const int order[6] = {0, 1, 2, 0, 2, 3};
@@ -1721,7 +1726,17 @@ struct Renderer::Impl {
         glBindRenderbuffer(GL_RENDERBUFFER, f.depth);
         glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples > 1 ? samples : 0, GL_DEPTH_COMPONENT24, w, h);
         glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f.depth);
-        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete multisample framebuffer");
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE) return;
+        if (samples > 1) {
+            // Too large for multisampling (e.g. 16384x16384 x 4 samples):
+            // the same picture without MSAA rather than none.
+            spdlog::warn("{}x{} with {} samples does not fit: drawn without multisampling", w, h, samples);
+            f.destroy();
+            ensure_fbo(f, w, h, 1, color_format);
+            f.samples = samples;  // (what was asked: no new attempt each frame)
+            return;
+        }
+        throw Error("renderer: " + std::to_string(w) + "x" + std::to_string(h) + " does not fit in the GL driver's memory");
     }
 
     // Chooses the frame's output and makes its targets; returns the

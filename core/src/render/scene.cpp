@@ -41,6 +41,18 @@ double num(const json &j, const std::string &what, const std::string &where) {
     return v;
 }
 
+// A number in [lo, hi] (open at lo when lo_open): a meaningless value is an
+// error naming where it is, not a blank picture.
+double num_in(const json &j, const std::string &what, const std::string &where, double lo, double hi, bool lo_open = false) {
+    const double v = num(j, what, where);
+    if (v < lo || v > hi || (lo_open && v == lo)) {
+        std::ostringstream range;
+        range << (lo_open ? "(" : "[") << lo << ", " << hi << "]";
+        fail(what, where, "must be in " + range.str() + ", not " + j.dump());
+    }
+    return v;
+}
+
 template <std::size_t N>
 std::array<double, N> vec(const json &j, const std::string &what, const std::string &where) {
     if (!j.is_array() || j.size() != N) fail(what, where, "expected an array of " + std::to_string(N) + " numbers");
@@ -206,8 +218,8 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (c.contains("position")) s.camera.position = vec<3>(c["position"], what, "camera.position");
         if (c.contains("target")) s.camera.target = vec<3>(c["target"], what, "camera.target");
         if (c.contains("up")) s.camera.up = vec<3>(c["up"], what, "camera.up");
-        if (c.contains("fov")) s.camera.fov_deg = std::clamp(num(c["fov"], what, "camera.fov"), 1.0, 150.0);
-        if (c.contains("zoom")) s.camera.zoom = std::clamp(num(c["zoom"], what, "camera.zoom"), 0.01, 100.0);
+        if (c.contains("fov")) s.camera.fov_deg = num_in(c["fov"], what, "camera.fov", 1.0, 150.0);
+        if (c.contains("zoom")) s.camera.zoom = num_in(c["zoom"], what, "camera.zoom", 0.01, 100.0);
     }
     if (root.contains("lights")) {
         if (!root["lights"].is_array()) fail(what, "lights", "expected an array");
@@ -220,7 +232,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             if (l.contains("direction")) L.direction = vec<3>(l["direction"], what, where + ".direction");
             if (l.contains("position")) L.position = vec<3>(l["position"], what, where + ".position");
             if (l.contains("color")) L.color = vec<3>(l["color"], what, where + ".color");
-            if (l.contains("intensity")) L.intensity = std::max(0.0, num(l["intensity"], what, where + ".intensity"));
+            if (l.contains("intensity")) L.intensity = num_in(l["intensity"], what, where + ".intensity", 0.0, 1e6);
             if (l.contains("space")) L.camera_space = str(l["space"], what, where + ".space", {"camera", "world"}) == "camera";
             if (L.type == "directional" && L.direction == Vec3{0, 0, 0}) fail(what, where + ".direction", "must not be zero");
             s.lights.push_back(L);
@@ -238,7 +250,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             if (!e.contains("type")) s.environment.type = "file";
         }
         if (s.environment.type == "file" && s.environment.path.empty()) fail(what, "environment", "type 'file' needs 'path'");
-        if (e.contains("intensity")) s.environment.intensity = std::max(0.0, num(e["intensity"], what, "environment.intensity"));
+        if (e.contains("intensity")) s.environment.intensity = num_in(e["intensity"], what, "environment.intensity", 0.0, 1e6);
         if (e.contains("rotation")) s.environment.rotation_deg = num(e["rotation"], what, "environment.rotation");
         if (e.contains("visible")) {
             if (!e["visible"].is_boolean()) fail(what, "environment.visible", "expected true or false");
@@ -246,7 +258,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         }
     }
     if (root.contains("background")) s.background = vec<3>(root["background"], what, "background");
-    if (root.contains("exposure")) s.exposure = std::clamp(num(root["exposure"], what, "exposure"), 1e-4, 1e4);
+    if (root.contains("exposure")) s.exposure = num_in(root["exposure"], what, "exposure", 1e-4, 1e4);
     if (root.contains("tonemap")) s.tonemap = str(root["tonemap"], what, "tonemap", {"aces", "reinhard", "none"});
 
     if (!root.contains("objects") || !root["objects"].is_array()) fail(what, "objects", "expected an array of objects");
@@ -271,9 +283,9 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             if (!o["visible"].is_boolean()) fail(what, where + ".visible", "expected true or false");
             ob.visible = o["visible"].get<bool>();
         }
-        if (o.contains("opacity")) ob.opacity = std::clamp(num(o["opacity"], what, where + ".opacity"), 0.0, 1.0);
+        if (o.contains("opacity")) ob.opacity = num_in(o["opacity"], what, where + ".opacity", 0.0, 1.0);
         if (o.contains("render")) ob.render = str(o["render"], what, where + ".render", {"lines", "tubes"});
-        if (o.contains("radius")) ob.radius_mm = std::clamp(num(o["radius"], what, where + ".radius"), 1e-3, 100.0);
+        if (o.contains("radius")) ob.radius_mm = num_in(o["radius"], what, where + ".radius", 1e-3, 100.0);
         if (o.contains("color")) ob.coloring = parse_coloring(o["color"], what, where + ".color");
         if (o.contains("material")) ob.material = parse_material(o["material"], what, where + ".material");
         for (const char *ax : {"x", "y", "z"})
@@ -282,7 +294,10 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                 (ax[0] == 'x' ? ob.slice_x : ax[0] == 'y' ? ob.slice_y : ob.slice_z) = v;
             }
         if (o.contains("clip_below") && !o["clip_below"].is_null()) ob.clip_below = num(o["clip_below"], what, where + ".clip_below");
-        if (o.contains("window")) ob.window = vec<2>(o["window"], what, where + ".window");
+        if (o.contains("window")) {
+            ob.window = vec<2>(o["window"], what, where + ".window");
+            if (!((*ob.window)[1] > (*ob.window)[0])) fail(what, where + ".window", "must be [low, high] with high > low, not " + o["window"].dump());
+        }
         if (o.contains("colormap")) ob.slice_colormap = str(o["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
         if (o.contains("clustering")) {
             const json &c = o["clustering"];

@@ -52,8 +52,10 @@ void make_resident(const void *p, std::size_t bytes);
 // synced, then renamed into place (output.cpp).
 
 // Removes the temporaries being written when the process gets SIGINT,
-// SIGTERM or SIGHUP (then dies of the signal as before), and ignores
-// SIGXFSZ (a write past `ulimit -f` then fails with EFBIG and is reported).
+// SIGTERM or SIGHUP (then dies of the signal as before); ignores SIGXFSZ (a
+// write past `ulimit -f` then fails with EFBIG and is reported); turns the
+// SIGBUS of a mapped input truncated while read into one error line naming
+// the file (found in /proc/self/maps) and exit status 1.
 // Called once, early, by the program.
 void install_termination_cleanup();
 
