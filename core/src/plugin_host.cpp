@@ -26,6 +26,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdio>
+
 namespace hz::core {
 
 // ------------------------------------------------------------ host services
@@ -579,7 +581,51 @@ std::string trial_report(const fs::path &file) {
 
 }  // namespace
 
+namespace {
+
+// A plugin file: NAME.so, not hidden (a `.x.so.old` left by an editor or an
+// upgrade must not shadow `x.so`). Other files (LICENSE.txt, README) are
+// not candidates, and not reported.
+bool is_candidate(const fs::path &f) {
+    const std::string name = f.filename().string();
+    return !name.empty() && name[0] != '.' && name.size() > 3 && name.compare(name.size() - 3, 3, ".so") == 0;
+}
+
+// Anyone may replace what lies in a world-writable folder, or a
+// world-writable file: code from there is not loaded (as ssh refuses keys
+// others can write).
+bool world_writable(const fs::path &p) {
+    struct stat st {};
+    return ::stat(p.c_str(), &st) == 0 && (st.st_mode & S_IWOTH);
+}
+
+// Plugin code run in this process (init) writing to standard output would
+// corrupt what the command prints there (--json): it goes to stderr instead.
+class StdoutToStderr {
+public:
+    StdoutToStderr() {
+        std::fflush(stdout);
+        saved_ = ::dup(STDOUT_FILENO);
+        if (saved_ >= 0) ::dup2(STDERR_FILENO, STDOUT_FILENO);
+    }
+    ~StdoutToStderr() {
+        std::fflush(stdout);
+        if (saved_ >= 0) {
+            ::dup2(saved_, STDOUT_FILENO);
+            ::close(saved_);
+        }
+    }
+    StdoutToStderr(const StdoutToStderr &) = delete;
+    StdoutToStderr &operator=(const StdoutToStderr &) = delete;
+
+private:
+    int saved_ = -1;
+};
+
+}  // namespace
+
 void Registry::scan(const std::vector<fs::path> &dirs) {
+    StdoutToStderr quiet;
     std::vector<fs::path> files;  // every candidate, in search order
     for (const auto &dir : dirs) {
         searched_.push_back(dir);
@@ -587,10 +633,13 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
         if (!fs::is_directory(dir, ec)) continue;
         std::vector<fs::path> here;
         for (const auto &de : fs::directory_iterator(dir, fs::directory_options::skip_permission_denied, ec))
-            if (de.is_regular_file(ec) || de.is_symlink(ec)) here.push_back(de.path());
+            if ((de.is_regular_file(ec) || de.is_symlink(ec)) && is_candidate(de.path())) here.push_back(de.path());
         std::sort(here.begin(), here.end());
+        const bool open_dir = world_writable(dir);
         for (auto &f : here) {
-            if (auto why = elf_precheck(f)) reject(f, *why);
+            if (open_dir) reject(f, "its folder is world-writable (anyone could replace it): not loaded");
+            else if (world_writable(f)) reject(f, "the file is world-writable (anyone could replace it): not loaded");
+            else if (auto why = elf_precheck(f)) reject(f, *why);
             else files.push_back(std::move(f));
         }
     }

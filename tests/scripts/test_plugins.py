@@ -108,10 +108,24 @@ class PluginsTest(TempDirTest):
         self.assertEqual(trials(), files, "a changed horizon trusts no earlier trial")
         self.assertEqual(trials(), 0)
 
+    def test_a_world_writable_folder_is_not_loaded(self):
+        d = self.path("open")
+        os.mkdir(d)
+        shutil.copy(os.path.join(TEMPLATES, "tpl_lambert_shader.so"), d)
+        os.chmod(d, 0o777)
+        j = run_json("--plugin-dir", d, "plugins", "--json")
+        self.assertNotIn("org.example.shader.lambert", {p["id"] for p in j["plugins"]})
+        self.assertTrue(any("world-writable" in r["reason"] and r["file"].endswith("tpl_lambert_shader.so") for r in j["rejected"]), j["rejected"])
+        os.chmod(d, 0o755)
+        j = run_json("--plugin-dir", d, "plugins", "--json")
+        self.assertIn("org.example.shader.lambert", {p["id"] for p in j["plugins"]})
+
     def test_bad_plugin_dir(self):
         d = self.path("plugins")
         os.mkdir(d)
         open(os.path.join(d, "empty.so"), "wb").close()
+        with open(os.path.join(d, "text.so"), "w") as f:
+            f.write("not a plugin\n")
         with open(os.path.join(d, "readme.txt"), "w") as f:
             f.write("This directory holds plugins.\n")
         with open(os.path.join(d, "random.so"), "wb") as f:
@@ -125,16 +139,27 @@ class PluginsTest(TempDirTest):
             f.seek(18)
             f.write(bytes([183, 0]))
         shutil.copy(os.path.join(TEMPLATES, "tpl_length_clustering.so"), d)
+        # Not candidates: a hidden leftover (it must not shadow anything) and
+        # files that are not NAME.so (a licence beside a plugin).
+        shutil.copy(os.path.join(FIXTURES, "fx_init_crash.so"), os.path.join(d, ".tpl_lambert_shader.so.old"))
+        with open(os.path.join(d, "LICENSE.txt"), "w") as f:
+            f.write("MIT\n")
+        # A world-writable plugin file is not loaded.
+        shutil.copy(os.path.join(TEMPLATES, "tpl_lambert_shader.so"), os.path.join(d, "open.so"))
+        os.chmod(os.path.join(d, "open.so"), 0o666)
 
         p = run("--plugin-dir", d, "plugins", "--json")
         self.assertEqual(p.returncode, 0, p.stderr)
         import json
         j = json.loads(p.stdout)
         reasons = {os.path.basename(r["file"]): r["reason"] for r in j["rejected"]}
+        for name in ("readme.txt", "LICENSE.txt", ".tpl_lambert_shader.so.old"):
+            self.assertNotIn(name, reasons)
         expect = {
+            "open.so": "world-writable",
             "empty.so": "empty",
-            "readme.txt": "text file",
             "random.so": "not a shared object",
+            "text.so": "text file",
             "fx_no_entry.so": "no 'hz_plugin_entry_v1'",
             "fx_wrong_abi_symbol.so": "ABI 2",
             "fx_wrong_abi_field.so": "ABI 2",
