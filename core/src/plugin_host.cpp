@@ -489,6 +489,15 @@ public:
             return;
         }
         host_stamp_ = *hs;
+        // Only a regular file (or none yet): a FIFO would block every
+        // command, a folder or device is not a list. Anything else disables
+        // the list for this run (trial loads as without one).
+        struct stat st {};
+        if (::lstat(file_.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+            spdlog::warn("plugin trial list {} is not a regular file: not used", file_.string());
+            file_.clear();
+            return;
+        }
         std::ifstream in(file_, std::ios::binary);
         if (!in) return;
         const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);

@@ -108,6 +108,16 @@ class PluginsTest(TempDirTest):
         self.assertEqual(trials(), files, "a changed horizon trusts no earlier trial")
         self.assertEqual(trials(), 0)
 
+    def test_a_trial_list_that_is_not_a_file_is_not_used(self):
+        # A FIFO would block every command; a folder made every command fail.
+        fifo, folder = self.path("fifo"), self.path("folder")
+        os.mkfifo(fifo)
+        os.mkdir(folder)
+        for where in (fifo, folder):
+            j = run_json("plugins", "--json", env={"HORIZON_PLUGIN_CACHE": where}, timeout=30)
+            self.assertTrue(BUNDLED_IDS <= {p["id"] for p in j["plugins"]})
+        self.assertTrue(os.path.isdir(folder))
+
     def test_a_world_writable_folder_is_not_loaded(self):
         d = self.path("open")
         os.mkdir(d)
