@@ -1,4 +1,5 @@
 #include <hz/core/data.hpp>
+#include <spdlog/spdlog.h>
 
 
 #include <algorithm>
@@ -8,9 +9,11 @@
 #include <exception>
 #include <mutex>
 #include <new>
+#include <string>
 #include <system_error>
 #include <thread>
 
+#include <fcntl.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -56,6 +59,28 @@ std::shared_ptr<void> allocate_uninitialised(std::size_t bytes) {
         release_in_parallel(q, size);
         std::free(q);
     });
+}
+
+std::shared_ptr<void> allocate_spillable(std::size_t bytes) {
+    std::size_t from = kSpillBytes;
+    if (const char *m = std::getenv("HORIZON_SPILL_MIN_BYTES"); m && *m) from = std::strtoull(m, nullptr, 10);  // (tests)
+    if (bytes == 0 || bytes < from) return allocate_uninitialised(bytes);
+    const char *env = std::getenv("HORIZON_SPILL_DIR");
+    const std::string dir = env && *env ? env : "/var/tmp";
+    if (dir == "off") return allocate_uninitialised(bytes);
+    const int fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+    if (fd < 0) return allocate_uninitialised(bytes);
+    // The blocks are reserved now (a full disk is found here, not as a
+    // SIGBUS on a later write into the mapping).
+    if (::posix_fallocate(fd, 0, off_t(bytes)) != 0) {
+        ::close(fd);
+        return allocate_uninitialised(bytes);
+    }
+    void *p = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_POPULATE, fd, 0);
+    ::close(fd);  // (the mapping keeps the file; unlinked, it goes with it)
+    if (p == MAP_FAILED) return allocate_uninitialised(bytes);
+    spdlog::debug("{} MB decoded into a temporary file in {}", bytes >> 20, dir);
+    return std::shared_ptr<void>(p, [bytes](void *q) { ::munmap(q, bytes); });
 }
 
 void parallel_ranges(std::uint64_t n, std::uint64_t grain, const std::function<void(std::uint64_t, std::uint64_t)> &fn) {

@@ -403,7 +403,14 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
         if (mapped) {
             dst.flags = HZ_STREAMLINES_OFFSETS_ONLY;
         } else {
-            t.positions = Buffer<float>(3 * info.nb_vertices);
+            {
+                const std::size_t n = 3 * info.nb_vertices;
+                if (n) {
+                    std::shared_ptr<void> block = allocate_spillable(n * sizeof(float));
+                    float *p = static_cast<float *>(block.get());
+                    t.positions = Buffer<float>(p, n, std::move(block));
+                }
+            }
             dst.positions = t.positions.data();
             dst.positions_capacity = t.positions.size();
             dst.check = &check;  // (1.7: the loader may vouch for what it wrote)

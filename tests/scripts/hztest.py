@@ -18,6 +18,20 @@ TEMPLATES = os.environ.get("HORIZON_TEMPLATE_DIR", "")
 BUNDLED = os.path.join(BUILD, "lib", "horizon", "plugins")
 
 
+def environment(*args, env=None):
+    """The environment run() gives horizon for `args` (for tests that start
+    it themselves: pipes, ptys, limits, signals)."""
+    e = dict(os.environ)
+    e.pop("HORIZON_PLUGIN_PATH", None)
+    e["HORIZON_PLUGIN_CACHE"] = os.path.join(BUILD, "tests", "plugin-trials.json") if BUILD else "off"
+    if env:
+        e.update(env)
+    e["XDG_DATA_HOME"] = e.get("HZ_TEST_XDG", "/nonexistent-xdg")
+    if "ASAN_OPTIONS" in e and args and str(args[0]) in GL_COMMANDS:
+        e["ASAN_OPTIONS"] += ":detect_leaks=0"
+    return e
+
+
 def run(*args, timeout=60, env=None):
     """Runs horizon with `args`; returns the CompletedProcess (text mode)."""
     e = dict(os.environ)

@@ -18,7 +18,7 @@ import unittest
 import numpy as np
 from PIL import Image
 
-from hztest import HORIZON, TempDirTest, run, tck_bytes
+from hztest import HORIZON, TempDirTest, environment, run, tck_bytes
 
 ROOT = os.geteuid() == 0
 IN_CI = bool(os.environ.get("CI"))
@@ -61,12 +61,13 @@ class SafetyTest(TempDirTest):
         self.assertEqual(temporaries(self.tmp), [])
 
     def test_dash_is_standard_output(self):
-        p = subprocess.run([HORIZON, "cluster", self.tck, "--labels", "-"], capture_output=True, timeout=120)
+        p = subprocess.run([HORIZON, "cluster", self.tck, "--labels", "-"], capture_output=True, timeout=120, env=environment("cluster"))
         self.assertEqual(p.returncode, 0, p.stderr)
         rows = p.stdout.decode().splitlines()
         self.assertTrue(rows[0].startswith("streamline,"), rows[:2])
         self.assertEqual(len(rows), 301)
-        p = subprocess.run([HORIZON, "render", self.tck, "-o", "-", "--size", "64x48"], capture_output=True, timeout=120)
+        p = subprocess.run([HORIZON, "render", self.tck, "-o", "-", "--size", "64x48"], capture_output=True, timeout=120,
+                           env=environment("render"))
         self.assertEqual(p.returncode, 0, p.stderr)
         self.assertEqual(p.stdout[:8], b"\x89PNG\r\n\x1a\n")
         self.assertEqual(temporaries(self.tmp), [])
@@ -112,7 +113,8 @@ class SafetyTest(TempDirTest):
         for _ in range(3):
             if os.path.exists(out):
                 os.remove(out)
-            procs = [subprocess.Popen([HORIZON, "convert", big, out], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            procs = [subprocess.Popen([HORIZON, "convert", big, out], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                      env=environment("convert"))
                      for _ in range(2)]
             errs = [p.communicate(timeout=120)[1] for p in procs]
             codes = sorted(p.returncode for p in procs)
@@ -153,7 +155,8 @@ class SafetyTest(TempDirTest):
         def limit():
             resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000))
         out = self.path("big.trk")
-        p = subprocess.run([HORIZON, "convert", self.tck, out], capture_output=True, text=True, timeout=120, preexec_fn=limit)
+        p = subprocess.run([HORIZON, "convert", self.tck, out], capture_output=True, text=True, timeout=120, preexec_fn=limit,
+                           env=environment("convert"))
         self.assertEqual(p.returncode, 1, p.stderr)
         self.assertIn("File too large", p.stderr)
         self.assertFalse(os.path.exists(out))
@@ -167,7 +170,8 @@ class SafetyTest(TempDirTest):
                           (("render", self.tck, "--size", "320x200", "-o"), "o.png")):
             with open(self.path(out), "w") as f:
                 f.write("keep me")
-            p = subprocess.run([HORIZON, *args, self.path(out), "--force"], capture_output=True, text=True, timeout=120, preexec_fn=limit)
+            p = subprocess.run([HORIZON, *args, self.path(out), "--force"], capture_output=True, text=True, timeout=120, preexec_fn=limit,
+                               env=environment(*args))
             self.assertNotEqual(p.returncode, 0, out)
             self.assertIn("File too large", p.stderr)
             with open(self.path(out)) as f:
@@ -181,7 +185,8 @@ class SafetyTest(TempDirTest):
             f.write(tck_bytes([np.cumsum(rng.normal(size=(200, 3)), axis=0) for _ in range(60000)]))
         for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
             out = self.path("sig.trk")
-            p = subprocess.Popen([HORIZON, "convert", big, out, "--force"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            p = subprocess.Popen([HORIZON, "convert", big, out, "--force"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                 env=environment("convert"))
             deadline = time.time() + 60
             while not temporaries(self.tmp) and p.poll() is None and time.time() < deadline:
                 time.sleep(0.005)
@@ -228,7 +233,7 @@ class SafetyTest(TempDirTest):
         for delay in (0.0, 0.02, 0.05, 0.1, 0.2, 0.4):
             with open(big, "wb") as f:
                 f.write(data)
-            p = subprocess.Popen([HORIZON, "cluster", big, "--labels", self.path("l.csv"), "--force"], stdout=subprocess.DEVNULL,
+            p = subprocess.Popen([HORIZON, "cluster", big, "--labels", self.path("l.csv"), "--force"], stdout=subprocess.DEVNULL, env=environment("cluster"),
                                  stderr=subprocess.PIPE, text=True)
             time.sleep(delay)
             os.truncate(big, 4096)
@@ -320,7 +325,7 @@ class SafetyTest(TempDirTest):
         # Runs horizon with stderr on a pseudo-terminal; returns what it showed there.
         import pty
         master, slave = pty.openpty()
-        env = {**os.environ, "HORIZON_PROGRESS_DELAY": "0"}
+        env = environment(*args, env={"HORIZON_PROGRESS_DELAY": "0"})
         p = subprocess.Popen([HORIZON, *args], stdout=subprocess.PIPE, stderr=slave, env=env)
         os.close(slave)
         shown = b""

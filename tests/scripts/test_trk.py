@@ -89,6 +89,26 @@ class TrkTest(TempDirTest):
                 self.assert_close(list(back.streamlines), ref)
                 np.testing.assert_allclose(back.header[Field.VOXEL_TO_RASMM], aff, atol=1e-5)
 
+    def test_decoded_positions_spilled_to_a_temporary_file(self):
+        # Large decoded positions live in an unlinked file in the spill
+        # folder (file-backed, reclaimable memory): the same streamlines as
+        # in memory; an unusable folder falls back to memory; nothing is
+        # left in the folder.
+        rng = np.random.default_rng(8)
+        sl = random_streamlines(300, rng, 2, 60)
+        f = self.path("s.trk")
+        nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), f)
+        ref = list(nib.streamlines.load(f).streamlines)
+        spill = self.path("spill")
+        os.mkdir(spill)
+        for where in (spill, self.path("absent"), "off"):
+            out = self.path("s_%s.tck" % os.path.basename(where))
+            p = run("convert", f, out, env={"HORIZON_SPILL_DIR": where, "HORIZON_SPILL_MIN_BYTES": "0", "HORIZON_TRACE": "1"})
+            self.assertEqual(p.returncode, 0, p.stderr)
+            self.assertEqual("decoded into a temporary file" in p.stderr, where == spill, p.stderr)
+            self.assert_close(list(nib.streamlines.load(out).streamlines), ref)
+        self.assertEqual(os.listdir(spill), [])
+
     def test_tck_to_trk_to_tck(self):
         rng = np.random.default_rng(1)
         sl = random_streamlines(30, rng, 2, 40)

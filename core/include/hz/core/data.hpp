@@ -28,6 +28,18 @@ struct Error : std::runtime_error {
 // `bytes` of uninitialised memory aligned to 64 bytes; throws std::bad_alloc.
 std::shared_ptr<void> allocate_uninitialised(std::size_t bytes);
 
+// For large decoded arrays (a TRK's positions: 2 GB at a million
+// streamlines): from `kSpillBytes` up, the memory is a shared mapping of an
+// unlinked temporary file in the spill folder ($HORIZON_SPILL_DIR, default
+// /var/tmp; "off" disables), so its pages are the page cache's: written back
+// and reclaimed under memory pressure instead of held as the process's
+// anonymous memory, as a mapped input file's are. Smaller arrays, or no
+// usable folder (absent, full, no O_TMPFILE): allocate_uninitialised.
+// Zero-filled where file-backed. HORIZON_SPILL_MIN_BYTES overrides
+// kSpillBytes (tests). Throws std::bad_alloc.
+inline constexpr std::size_t kSpillBytes = std::size_t(256) << 20;
+std::shared_ptr<void> allocate_spillable(std::size_t bytes);
+
 // An array that is not zero-filled on creation (decoders overwrite it), so
 // that reading 1 GB of positions does not first write 1 GB of zeros. A Buffer
 // may also view memory owned by someone else (a file mapping the host made
