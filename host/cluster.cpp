@@ -5,6 +5,7 @@
 #include "progress.hpp"
 
 #include <hz/core/io.hpp>
+#include <hz/core/params.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -56,9 +57,31 @@ struct ClusterRun {
 
 int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     const core::Registry reg = load_registry(g);
-    const std::string id = "org.horizon.clustering." + o.algorithm;
-    const core::LoadedPlugin *plugin = reg.find(id);
-    if (plugin == nullptr) throw core::Error("clustering plugin '" + id + "' not found (see `horizon plugins`)");
+    const core::LoadedPlugin *plugin = find_clustering(reg, o.algorithm);
+    const std::string id = plugin->info.id;
+    // Every parameter through the plugin's schema, before any work: the
+    // shortcuts (--thresholds, --nb-points, --threads, --mode) and --param.
+    const std::vector<core::ParamSpec> schema = core::schema_of(*plugin);
+    std::vector<std::pair<std::string, std::vector<double>>> settings;
+    auto shortcut = [&](const std::string &flag, std::initializer_list<const char *> names, std::vector<double> v) {
+        for (const char *n : names)
+            for (const auto &s : schema)
+                if (s.name == n) {
+                    try {
+                        core::check_param(s, v);
+                    } catch (const core::Error &e) {
+                        throw core::Error(flag + ": " + e.what());
+                    }
+                    settings.emplace_back(n, std::move(v));
+                    return;
+                }
+        throw core::Error(flag + ": " + id + " has no such parameter (`horizon plugins " + id + "` lists them; use --param)");
+    };
+    if (!o.thresholds.empty()) shortcut("--thresholds", {"thresholds", "threshold"}, o.thresholds);
+    if (o.nb_points) shortcut("--nb-points", {"nb_points"}, {double(o.nb_points)});
+    if (o.threads) shortcut("--threads", {"threads"}, {double(o.threads)});
+    if (!o.mode.empty()) shortcut("--mode", {"mode"}, {o.mode == "fast" ? 1.0 : 0.0});
+    for (auto &[name, v] : core::parse_param_items(schema, id, o.params)) settings.emplace_back(name, std::move(v));
     if (o.labels.empty() && o.centroids.empty() && o.out.empty())
         throw core::Error("nothing to write: give --labels, --centroids or --out");
     // Fail on unwritable targets, and on outputs that would replace an input
@@ -91,14 +114,9 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     hz_error err{};
     err.struct_size = sizeof err;
     if (run.table->create(core::host_services(), &run.obj, &err) != HZ_OK) throw core::Error(id + ": " + err.message);
-    auto set = [&](const char *name, const std::vector<double> &v) {
-        if (run.table->set_param(run.obj, name, v.data(), static_cast<uint32_t>(v.size()), &err) != HZ_OK)
-            throw core::Error(std::string("--") + name + ": " + err.message);
-    };
-    if (!o.thresholds.empty()) set(o.algorithm == "qb" ? "threshold" : "thresholds", o.thresholds);
-    if (o.nb_points) set("nb_points", {double(o.nb_points)});
-    if (o.threads) set("threads", {double(o.threads)});
-    set("mode", {o.mode == "fast" ? 1.0 : 0.0});
+    for (const auto &[name, v] : settings)
+        if (run.table->set_param(run.obj, name.c_str(), v.data(), static_cast<uint32_t>(v.size()), &err) != HZ_OK)
+            throw core::Error(id + ": parameter " + name + ": " + err.message);
     std::vector<std::uint64_t> order;
     if (o.order == "shuffle") {
         order = shuffled(t.nb_streamlines(), o.seed);

@@ -2,6 +2,7 @@
 #include "progress.hpp"
 
 #include <hz/core/io.hpp>
+#include <hz/core/params.hpp>
 #include <hz/core/phantom.hpp>
 
 #include <nlohmann/json.hpp>
@@ -9,6 +10,7 @@
 
 #include <optional>
 #include <cstdio>
+#include <sstream>
 #include <unistd.h>
 #include <iostream>
 
@@ -16,25 +18,75 @@ namespace hz::host {
 
 using nlohmann::json;
 
-int cmd_plugins(const GlobalOptions &g, bool as_json) {
+namespace {
+
+json plugin_json(const core::LoadedPlugin &p) {
+    json j = {{"id", p.info.id},
+              {"kind", core::plugin_kind_name(p.info.kind)},
+              {"name", p.info.name},
+              {"version", p.info.version},
+              {"abi", std::to_string(p.info.abi.major) + "." + std::to_string(p.info.abi.minor)},
+              {"vendor", p.info.vendor},
+              {"license", p.info.license},
+              {"description", p.info.description},
+              {"interfaces", p.info.interfaces},
+              {"file", p.info.file},
+              {"status", "loaded"}};
+    if (p.shader() || p.clustering()) j["parameters"] = core::schema_json(core::schema_of(p));
+    return j;
+}
+
+}  // namespace
+
+int cmd_plugins(const GlobalOptions &g, bool as_json, const std::string &only) {
     const core::Registry reg = load_registry(g);
+    if (!only.empty()) {
+        const core::LoadedPlugin *p = reg.find(only);
+        for (const auto &q : reg.plugins()) {  // or the last part of one id ("qbx", "principled")
+            const std::string &id = q.info.id;
+            if (p == nullptr && id.size() > only.size() && id.compare(id.size() - only.size(), only.size(), only) == 0 &&
+                id[id.size() - only.size() - 1] == '.')
+                p = &q;
+        }
+        if (p == nullptr) throw core::Error("no plugin has the id '" + only + "' (see `horizon plugins`)");
+        const json j = plugin_json(*p);
+        if (as_json) {
+            std::cout << j.dump(2) << "\n";
+            return 0;
+        }
+        std::printf("%s  %s %s (%s), ABI %s\n  %s\n  %s\n", p->info.id.c_str(), p->info.name.c_str(), p->info.version.c_str(),
+                    core::plugin_kind_name(p->info.kind), j["abi"].get<std::string>().c_str(), p->info.description.c_str(), p->info.file.c_str());
+        if (j.contains("parameters")) {
+            std::printf("\nParameters (--param NAME=VALUE, or in a scene file):\n");
+            for (const auto &s : core::schema_of(*p)) {
+                std::string range;
+                if (!s.enum_labels.empty()) {
+                    for (const auto &l : s.enum_labels) range += (range.empty() ? "" : "|") + l;
+                } else if (s.type == HZ_PARAM_BOOL) {
+                    range = "true|false";
+                } else {
+                    std::ostringstream r;
+                    r << "[" << s.min[0] << ", " << s.max[0] << "]";
+                    range = r.str();
+                }
+                std::string def;
+                for (double d : s.defaults) def += (def.empty() ? "" : ",") + ([&] { std::ostringstream o; o << d; return o.str(); })();
+                if (!s.enum_labels.empty() && s.defaults.size() == 1 && s.defaults[0] >= 0 && s.defaults[0] < double(s.enum_labels.size()))
+                    def = s.enum_labels[std::size_t(s.defaults[0])];
+                if (s.type == HZ_PARAM_BOOL && s.defaults.size() == 1) def = s.defaults[0] != 0 ? "true" : "false";
+                std::printf("  %-18s %-11s %-22s default %-12s %s%s%s\n", s.name.c_str(), core::param_type_name(s.type), range.c_str(),
+                            def.c_str(), s.unit.empty() ? "" : ("(" + s.unit + ") ").c_str(), s.tooltip.c_str(),
+                            s.type == HZ_PARAM_FLOAT_ARRAY ? (" (up to " + std::to_string(s.components) + " values)").c_str() : "");
+            }
+        }
+        return 0;
+    }
     if (as_json) {
         json j;
         j["search_path"] = json::array();
         for (const auto &d : reg.searched()) j["search_path"].push_back(d.string());
         j["plugins"] = json::array();
-        for (const auto &p : reg.plugins()) {
-            j["plugins"].push_back({{"id", p.info.id},
-                                    {"kind", core::plugin_kind_name(p.info.kind)},
-                                    {"name", p.info.name},
-                                    {"version", p.info.version},
-                                    {"vendor", p.info.vendor},
-                                    {"license", p.info.license},
-                                    {"description", p.info.description},
-                                    {"interfaces", p.info.interfaces},
-                                    {"file", p.info.file},
-                                    {"status", "loaded"}});
-        }
+        for (const auto &p : reg.plugins()) j["plugins"].push_back(plugin_json(p));
         j["rejected"] = json::array();
         for (const auto &r : reg.rejected()) j["rejected"].push_back({{"file", r.file}, {"status", "rejected"}, {"reason", r.reason}});
         const auto list = core::default_trial_cache();
@@ -273,6 +325,26 @@ std::vector<std::filesystem::path> files_of_input(const std::string &in) {
 }
 
 }  // namespace
+
+const core::LoadedPlugin *find_clustering(const core::Registry &reg, const std::string &name) {
+    std::vector<const core::LoadedPlugin *> match;
+    std::string all;
+    for (const auto &p : reg.plugins()) {
+        if (p.info.kind != HZ_KIND_CLUSTERING) continue;
+        all += (all.empty() ? "" : ", ") + p.info.id;
+        if (p.info.id == name) return &p;
+        const std::string &id = p.info.id;
+        if (id.size() > name.size() && id.compare(id.size() - name.size(), name.size(), name) == 0 && id[id.size() - name.size() - 1] == '.')
+            match.push_back(&p);
+    }
+    if (match.size() == 1) return match[0];
+    if (match.size() > 1) {
+        std::string ids;
+        for (const auto *p : match) ids += (ids.empty() ? "" : ", ") + p->info.id;
+        throw core::Error("--algorithm " + name + " is ambiguous: " + ids + " (give the full id)");
+    }
+    throw core::Error("--algorithm " + name + ": no clustering plugin has this id (found: " + (all.empty() ? "none" : all) + ")");
+}
 
 void check_outputs(const std::vector<std::string> &outputs, const std::vector<std::string> &inputs, bool force) {
     namespace fs = std::filesystem;

@@ -34,13 +34,14 @@ struct DemoOptions {
 
 struct ClusterOptions {
     std::string input;
-    std::string algorithm = "qbx";         // qb | qbx | qbx_merge
+    std::string algorithm = "qbx";         // a clustering plugin's id, or its last part (qb, qbx, qbx_merge)
+    std::vector<std::string> params;       // --param NAME=VALUE
     std::vector<double> thresholds;        // empty: the plugin's defaults
     std::uint32_t nb_points = 0;           // 0: the plugin's default
     std::string order = "file";            // file | shuffle
     std::uint64_t seed = 0;
     unsigned threads = 0;
-    std::string mode = "exact";            // exact | fast
+    std::string mode;                      // exact | fast; empty: the plugin's default
     std::string labels, centroids, out;
     int level = -1;                        // centroid level; -1: the deepest
     bool force = false, json = false;
@@ -100,7 +101,8 @@ struct ViewOptions {
 
 core::Registry load_registry(const GlobalOptions &g);
 
-int cmd_plugins(const GlobalOptions &g, bool json);
+// Every plugin (or the one with id `only`, with its parameters), or --json.
+int cmd_plugins(const GlobalOptions &g, bool json, const std::string &only = "");
 int cmd_validate(const GlobalOptions &g, const ValidateOptions &o);
 int cmd_info(const GlobalOptions &g, const std::string &file, bool json, bool verify);
 int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string &out, bool force);
@@ -143,6 +145,11 @@ const std::vector<std::string> &named_views();
 // Writes an image (format by extension) atomically; "-": a PNG on standard
 // output. Refuses to replace an existing file unless `force`.
 void write_image(const core::Registry &reg, const core::render::Image &im, const std::filesystem::path &path, bool force);
+
+// The clustering plugin `name` names: its id, or the last part of one
+// ("qbx" for org.horizon.clustering.qbx). Throws Error listing the
+// clustering plugins when none (or more than one) matches.
+const core::LoadedPlugin *find_clustering(const core::Registry &reg, const std::string &name);
 
 // Before any work: every output (empty ones and "-", standard output,
 // skipped) must differ from every input, a NIfTI pair's other half

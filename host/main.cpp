@@ -68,6 +68,11 @@ int main(int argc, char **argv) {
     spdlog::set_level(spdlog::level::warn);
 
     CLI::App app{"Horizon: cinematic visualization of tractograms, surfaces and volumes"};
+    // Global options are taken before or after the command
+    // (`horizon plugins --plugin-dir D` as `horizon --plugin-dir D plugins`).
+    app.fallthrough();
+    app.set_version_flag("--version", std::string("horizon ") + HZ_HOST_VERSION + " (plugin ABI " + std::to_string(HZ_ABI_VERSION_MAJOR) + "." +
+                                          std::to_string(HZ_ABI_VERSION_MINOR) + ")");
     app.require_subcommand(1);
     GlobalOptions g;
     app.add_option("--plugin-dir", g.plugin_dirs, "extra plugin directory (searched first; repeatable)");
@@ -78,7 +83,9 @@ int main(int argc, char **argv) {
 
     bool json = false;
     auto *plugins = app.add_subcommand("plugins", "list every plugin found, or why it was rejected");
-    plugins->add_flag("--json", json, "machine-readable output");
+    plugins->add_flag("--json", json, "machine-readable output (with every plugin's ABI version and parameter schema)");
+    std::string plugin_id;
+    plugins->add_option("id", plugin_id, "show one plugin: its description, ABI and parameters");
 
     ValidateOptions vo;
     auto *validate = app.add_subcommand("validate", "check a plugin file against the ABI contract");
@@ -104,17 +111,19 @@ int main(int argc, char **argv) {
     convert->add_flag("-f,--force", force, "replace an existing output file");
 
     ClusterOptions co;
-    auto *cluster = app.add_subcommand("cluster", "cluster streamlines (QuickBundles / QuickBundlesX), DIPY's exact answers");
+    auto *cluster = app.add_subcommand("cluster", "cluster streamlines with any clustering plugin (QuickBundles, QuickBundlesX: DIPY's exact answers)");
     cluster->add_option("input", co.input, "tractogram")->required();
-    cluster->add_option("--algorithm", co.algorithm, "qb, qbx or qbx_merge")
-        ->check(CLI::IsMember({"qb", "qbx", "qbx_merge"}))->capture_default_str();
+    cluster->add_option("--algorithm", co.algorithm,
+                        "a clustering plugin: its id, or the last part of it (qb, qbx, qbx_merge, ...; see `horizon plugins`)")
+        ->capture_default_str();
+    cluster->add_option("--param", co.params, "NAME=VALUE, a parameter of the plugin (repeatable; `horizon plugins ID` lists them)");
     cluster->add_option("--thresholds", co.thresholds, "MDF thresholds in mm, comma-separated (qb: one)")->delimiter(',');
     cluster->add_option("--nb-points", co.nb_points, "resampling points (default: qb/qbx 12, qbx_merge 20)");
     cluster->add_option("--order", co.order, "processing order: file, shuffle (with --seed), or a text file of indices")
         ->capture_default_str();
     cluster->add_option("--seed", co.seed, "seed of --order shuffle")->capture_default_str();
-    cluster->add_option("--mode", co.mode, "exact: DIPY's answers bit for bit; fast: float32 distances")
-        ->check(CLI::IsMember({"exact", "fast"}))->capture_default_str();
+    cluster->add_option("--mode", co.mode, "exact: DIPY's answers bit for bit; fast: float32 distances (plugins with a 'mode' parameter)")
+        ->check(CLI::IsMember({"exact", "fast"}));
     cluster->add_option("--threads", co.threads, "threads (0: all cores; QuickBundlesX searches on up to 2, 1: on one); the result does not depend on it");
     cluster->add_option("--labels", co.labels, "CSV: one row per streamline, one column per level");
     cluster->add_option("--centroids", co.centroids, "write one level's centroids as streamlines");
@@ -186,7 +195,7 @@ int main(int argc, char **argv) {
     if (const char *t = std::getenv("HORIZON_TRACE"); t && *t == '1') spdlog::set_level(spdlog::level::trace);
 
     try {
-        if (*plugins) return cmd_plugins(g, json);
+        if (*plugins) return cmd_plugins(g, json, plugin_id);
         if (*validate) return cmd_validate(g, vo);
         if (*info) return cmd_info(g, info_file, json, info_verify);
         if (*convert) return cmd_convert(g, conv_in, conv_out, force);

@@ -108,6 +108,64 @@ class PluginsTest(TempDirTest):
         self.assertEqual(trials(), files, "a changed horizon trusts no earlier trial")
         self.assertEqual(trials(), 0)
 
+    def test_version_and_global_options_after_the_command(self):
+        p = run("--version")
+        self.assertEqual(p.returncode, 0)
+        self.assertRegex(p.stdout, r"^horizon \d+\.\d+\.\d+ \(plugin ABI 1\.\d+\)")
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(TEMPLATES, "tpl_lambert_shader.so"), d)
+        j = run_json("plugins", "--json", "--plugin-dir", d)
+        self.assertIn("org.example.shader.lambert", {p["id"] for p in j["plugins"]})
+
+    def test_schemas_are_listed(self):
+        j = run_json("plugins", "--json")
+        by_id = {p["id"]: p for p in j["plugins"]}
+        for p in j["plugins"]:
+            self.assertRegex(p["abi"], r"^1\.\d+$")
+        qbx = {s["name"]: s for s in by_id["org.horizon.clustering.qbx"]["parameters"]}
+        self.assertEqual(qbx["thresholds"]["type"], "float_array")
+        self.assertEqual(qbx["thresholds"]["default"], [30, 25, 20, 15])
+        self.assertEqual(qbx["mode"]["choices"], ["exact", "fast"])
+        principled = {s["name"] for s in by_id["org.horizon.shader.principled"]["parameters"]}
+        self.assertTrue({"roughness", "sheen", "clearcoat_gloss", "base_color"} <= principled)
+        self.assertNotIn("parameters", by_id["org.horizon.loader.tck"])
+        one = run_json("plugins", "qbx", "--json")
+        self.assertEqual(one["id"], "org.horizon.clustering.qbx")
+        text = run("plugins", "org.horizon.clustering.qbx").stdout
+        self.assertIn("--param NAME=VALUE", text)
+        self.assertRegex(text, r"mode +enum +exact\|fast +default exact")
+        self.assertNotEqual(run("plugins", "no.such.plugin").returncode, 0)
+
+    def test_a_third_party_clustering_plugin_runs_from_cluster(self):
+        from hztest import tck_bytes
+        import numpy as np
+        rng = np.random.default_rng(3)
+        lines = [np.cumsum(rng.normal(size=(int(rng.integers(5, 80)), 3)), axis=0) for _ in range(200)]
+        tck = self.path("t.tck")
+        with open(tck, "wb") as f:
+            f.write(tck_bytes(lines))
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(TEMPLATES, "tpl_length_clustering.so"), d)
+        labels = self.path("l.csv")
+        p = run("cluster", tck, "--algorithm", "length", "--param", "bin_width=20", "--labels", labels, "--plugin-dir", d)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("Length bins", p.stdout)
+        rows = np.loadtxt(labels, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
+        self.assertEqual(rows.shape, (200, 2))
+        # Its parameters are checked against its own schema, before any work.
+        p = run("cluster", tck, "--algorithm", "org.example.clustering.length", "--param", "bin_width=0", "--labels", labels, "--force",
+                "--plugin-dir", d)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("bin_width: 0 is outside [0.1, 1000]", p.stderr)
+        p = run("cluster", tck, "--algorithm", "length", "--thresholds", "5", "--labels", labels, "--force", "--plugin-dir", d)
+        self.assertIn("has no such parameter", p.stderr)
+        p = run("cluster", tck, "--algorithm", "length", "--param", "width=3", "--labels", labels, "--force", "--plugin-dir", d)
+        self.assertIn("it has: bin_width", p.stderr)
+        p = run("cluster", tck, "--algorithm", "nope", "--labels", labels, "--force")
+        self.assertIn("no clustering plugin has this id", p.stderr)
+
     def test_a_trial_list_that_is_not_a_file_is_not_used(self):
         # A FIFO would block every command; a folder made every command fail.
         fifo, folder = self.path("fifo"), self.path("folder")
