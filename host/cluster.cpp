@@ -57,31 +57,17 @@ struct ClusterRun {
 
 int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     const core::Registry reg = load_registry(g);
-    const core::LoadedPlugin *plugin = find_clustering(reg, o.algorithm);
+    const core::LoadedPlugin *plugin = core::find_clustering(reg, o.algorithm);
     const std::string id = plugin->info.id;
     // Every parameter through the plugin's schema, before any work: the
     // shortcuts (--thresholds, --nb-points, --threads, --mode) and --param.
     const std::vector<core::ParamSpec> schema = core::schema_of(*plugin);
-    std::vector<std::pair<std::string, std::vector<double>>> settings;
-    auto shortcut = [&](const std::string &flag, std::initializer_list<const char *> names, std::vector<double> v) {
-        for (const char *n : names)
-            for (const auto &s : schema)
-                if (s.name == n) {
-                    try {
-                        core::check_param(s, v);
-                    } catch (const core::Error &e) {
-                        throw core::Error(flag + ": " + e.what());
-                    }
-                    settings.emplace_back(n, std::move(v));
-                    return;
-                }
-        throw core::Error(flag + ": " + id + " has no such parameter (`horizon plugins " + id + "` lists them; use --param)");
-    };
-    if (!o.thresholds.empty()) shortcut("--thresholds", {"thresholds", "threshold"}, o.thresholds);
-    if (o.nb_points) shortcut("--nb-points", {"nb_points"}, {double(o.nb_points)});
-    if (o.threads) shortcut("--threads", {"threads"}, {double(o.threads)});
-    if (!o.mode.empty()) shortcut("--mode", {"mode"}, {o.mode == "fast" ? 1.0 : 0.0});
-    for (auto &[name, v] : core::parse_param_items(schema, id, o.params)) settings.emplace_back(name, std::move(v));
+    std::map<std::string, std::vector<double>> settings;
+    if (!o.thresholds.empty()) core::apply_shortcut(schema, id, "--thresholds", {"thresholds", "threshold"}, o.thresholds, settings);
+    if (o.nb_points) core::apply_shortcut(schema, id, "--nb-points", {"nb_points"}, {double(o.nb_points)}, settings);
+    if (o.threads) core::apply_shortcut(schema, id, "--threads", {"threads"}, {double(o.threads)}, settings);
+    if (!o.mode.empty()) core::apply_shortcut(schema, id, "--mode", {"mode"}, {o.mode == "fast" ? 1.0 : 0.0}, settings);
+    for (auto &[name, v] : core::parse_param_items(schema, id, o.params)) settings[name] = std::move(v);
     if (o.labels.empty() && o.centroids.empty() && o.out.empty())
         throw core::Error("nothing to write: give --labels, --centroids or --out");
     // Fail on unwritable targets, and on outputs that would replace an input

@@ -326,26 +326,6 @@ std::vector<std::filesystem::path> files_of_input(const std::string &in) {
 
 }  // namespace
 
-const core::LoadedPlugin *find_clustering(const core::Registry &reg, const std::string &name) {
-    std::vector<const core::LoadedPlugin *> match;
-    std::string all;
-    for (const auto &p : reg.plugins()) {
-        if (p.info.kind != HZ_KIND_CLUSTERING) continue;
-        all += (all.empty() ? "" : ", ") + p.info.id;
-        if (p.info.id == name) return &p;
-        const std::string &id = p.info.id;
-        if (id.size() > name.size() && id.compare(id.size() - name.size(), name.size(), name) == 0 && id[id.size() - name.size() - 1] == '.')
-            match.push_back(&p);
-    }
-    if (match.size() == 1) return match[0];
-    if (match.size() > 1) {
-        std::string ids;
-        for (const auto *p : match) ids += (ids.empty() ? "" : ", ") + p->info.id;
-        throw core::Error("--algorithm " + name + " is ambiguous: " + ids + " (give the full id)");
-    }
-    throw core::Error("--algorithm " + name + ": no clustering plugin has this id (found: " + (all.empty() ? "none" : all) + ")");
-}
-
 void check_outputs(const std::vector<std::string> &outputs, const std::vector<std::string> &inputs, bool force) {
     namespace fs = std::filesystem;
     std::error_code ec;

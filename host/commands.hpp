@@ -96,6 +96,8 @@ struct ViewOptions {
     LodOptions lod;
     std::string stats;                      // --stats FILE.json: per-frame times and what was drawn
     bool explore = false;                   // Fig. 5: QuickBundlesX centroids, expand / hide / repeat
+    std::string algorithm = "qbx";          // --explore's clustering plugin (id or last part)
+    std::vector<std::string> params;        // its --param NAME=VALUE
     std::string view;                       // a named camera view fitted to the scene (empty: the scene's own)
 };
 
@@ -145,11 +147,6 @@ const std::vector<std::string> &named_views();
 // Writes an image (format by extension) atomically; "-": a PNG on standard
 // output. Refuses to replace an existing file unless `force`.
 void write_image(const core::Registry &reg, const core::render::Image &im, const std::filesystem::path &path, bool force);
-
-// The clustering plugin `name` names: its id, or the last part of one
-// ("qbx" for org.horizon.clustering.qbx). Throws Error listing the
-// clustering plugins when none (or more than one) matches.
-const core::LoadedPlugin *find_clustering(const core::Registry &reg, const std::string &name);
 
 // Before any work: every output (empty ones and "-", standard output,
 // skipped) must differ from every input, a NIfTI pair's other half

@@ -161,6 +161,8 @@ int main(int argc, char **argv) {
     view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")->capture_default_str();
     view->add_option("--view", vwo.view, "initial camera view fitted to the scene (R returns to it)")->check(CLI::IsMember(named_views()));
     view->add_flag("--explore", vwo.explore, "explore the first tractogram as QuickBundlesX clusters: expand, hide, repeat (paper Fig. 5)");
+    view->add_option("--algorithm", vwo.algorithm, "--explore with this clustering plugin (its id or the last part of it)")->capture_default_str();
+    view->add_option("--param", vwo.params, "NAME=VALUE, a parameter of the clustering plugin (repeatable)");
     add_lod_options(view, vwo.lod);
     view->add_option("--stats", vwo.stats, "write per-frame times and what each frame drew to this JSON file at exit");
 

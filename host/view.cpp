@@ -8,6 +8,7 @@
 #include "commands.hpp"
 
 #include <hz/core/io.hpp>
+#include <hz/core/params.hpp>
 #include <hz/core/render/pick.hpp>
 #include <hz/core/render/renderer.hpp>
 
@@ -161,9 +162,20 @@ struct App {
 // streamlines. Clusters are picked in the window by clicking their centroid
 // (a toggle; selected ones are drawn lighter); E expands and H hides every
 // selected cluster, A selects all shown clusters or none, C clusters again.
+// The clustering --explore runs: --algorithm (a plugin id or its last part)
+// with its --param values, checked against the plugin's schema.
+core::render::ClusterSpec explore_spec(const core::Registry &reg, const ViewOptions &o) {
+    core::render::ClusterSpec spec;
+    spec.algorithm = o.algorithm;
+    const core::LoadedPlugin *plugin = core::find_clustering(reg, o.algorithm);
+    spec.params = core::parse_param_items(core::schema_of(*plugin), plugin->info.id, o.params);
+    return spec;
+}
+
 class Explorer {
 public:
-    Explorer(const core::Registry &reg, core::Tractogram all, std::string name) : reg_(reg), all_(std::move(all)), name_(std::move(name)) {
+    Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec)
+        : reg_(reg), all_(std::move(all)), name_(std::move(name)), spec_(std::move(spec)) {
         reset();
     }
     // Clusters shown, largest first (the panel's and the script's numbering).
@@ -267,7 +279,7 @@ public:
         t.arrays.push_back(core::f32_array("highlight", HZ_ATTACH_STREAMLINE, picked));
         o.render = "tubes";
         o.radius_mm = 1.0;
-        o.clustering = core::render::ClusterSpec{};
+        o.clustering = spec_;
         o.coloring.mode = "cluster";
         return o;
     }
@@ -294,7 +306,7 @@ private:
     // new cluster, largest first, takes the colour most of its streamlines
     // had, unless a larger one took it already; the rest get new colours.
     void cluster(std::vector<std::uint64_t> subset, const std::unordered_map<std::uint64_t, std::uint64_t> *before) {
-        tree_ = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), core::render::ClusterSpec{});
+        tree_ = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), spec_);
         subset_ = std::move(subset);
         shown_.clear();
         selected_.clear();
@@ -324,6 +336,7 @@ private:
     const core::Registry &reg_;
     core::Tractogram all_;
     std::string name_;
+    core::render::ClusterSpec spec_;  // the clustering plugin and its parameters (--algorithm, --param)
     core::render::ClusterTree tree_;
     std::vector<std::uint64_t> subset_, shown_, expanded_;
     std::set<std::uint64_t> selected_;  // tree nodes, all shown
@@ -580,7 +593,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         if (o.explore) {
             for (std::size_t i = 0; i < scene.objects.size() && !ex; ++i)
                 if (scene.objects[i].kind == HZ_DATA_STREAMLINES) {
-                    ex = std::make_unique<Explorer>(reg, std::move(scene.objects[i].data.tractogram), scene.objects[i].name);
+                    ex = std::make_unique<Explorer>(reg, std::move(scene.objects[i].data.tractogram), scene.objects[i].name, explore_spec(reg, o));
                     ci = i;
                     scene.objects[i] = ex->centroids_object();
                     si = scene.objects.size();
@@ -928,8 +941,9 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
 }
 
 int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
-    require_display(o.inputs);
     const core::Registry reg = load_registry(g);
+    if (o.explore) explore_spec(reg, o);  // (a bad --algorithm or --param fails before anything opens)
+    require_display(o.inputs);
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "view");
     try {
         return view_scene(reg, std::move(scene), o);

@@ -179,6 +179,44 @@ std::map<std::string, std::vector<double>> parse_param_items(const std::vector<P
     return out;
 }
 
+const LoadedPlugin *find_clustering(const Registry &reg, const std::string &name) {
+    std::vector<const LoadedPlugin *> match;
+    std::string all;
+    for (const auto &p : reg.plugins()) {
+        if (p.info.kind != HZ_KIND_CLUSTERING) continue;
+        all += (all.empty() ? "" : ", ") + p.info.id;
+        if (p.info.id == name) return &p;
+        const std::string &id = p.info.id;
+        if (id.size() > name.size() && id.compare(id.size() - name.size(), name.size(), name) == 0 && id[id.size() - name.size() - 1] == '.')
+            match.push_back(&p);
+    }
+    if (match.size() == 1) return match[0];
+    if (match.size() > 1) {
+        std::string ids;
+        for (const LoadedPlugin *p : match) ids += (ids.empty() ? "" : ", ") + p->info.id;
+        throw Error("--algorithm " + name + " is ambiguous: " + ids + " (give the full id)");
+    }
+    throw Error("--algorithm " + name + ": no clustering plugin has this id (found: " + (all.empty() ? "none" : all) + ")");
+}
+
+
+void apply_shortcut(const std::vector<ParamSpec> &schema, const std::string &plugin_id, const std::string &flag,
+                    std::initializer_list<const char *> names, const std::vector<double> &values,
+                    std::map<std::string, std::vector<double>> &out) {
+    for (const char *n : names)
+        for (const auto &s : schema)
+            if (s.name == n) {
+                try {
+                    check_param(s, values);
+                } catch (const Error &e) {
+                    throw Error(flag + ": " + e.what());
+                }
+                out[n] = values;
+                return;
+            }
+    throw Error(flag + ": " + plugin_id + " has no such parameter (`horizon plugins " + plugin_id + "` lists them)");
+}
+
 nlohmann::json schema_json(const std::vector<ParamSpec> &schema) {
     nlohmann::json a = nlohmann::json::array();
     for (const auto &s : schema) {

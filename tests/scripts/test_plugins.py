@@ -166,6 +166,33 @@ class PluginsTest(TempDirTest):
         p = run("cluster", tck, "--algorithm", "nope", "--labels", labels, "--force")
         self.assertIn("no clustering plugin has this id", p.stderr)
 
+    def test_a_third_party_clustering_plugin_in_scenes_and_explore(self):
+        from hztest import tck_bytes
+        import numpy as np
+        rng = np.random.default_rng(4)
+        tck = self.path("t.tck")
+        with open(tck, "wb") as f:
+            f.write(tck_bytes([np.cumsum(rng.normal(size=(int(rng.integers(5, 80)), 3)), axis=0) for _ in range(100)]))
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(TEMPLATES, "tpl_length_clustering.so"), d)
+        scene = {"objects": [{"type": "streamlines", "file": tck, "clustering": {"algorithm": "length", "params": {"bin_width": 5}}}]}
+        for params, ok, where in (({"bin_width": 5}, True, None), ({"bin_width": -1}, False, "objects[0].clustering.params.bin_width"),
+                                  ({"width": 1}, False, "it has: bin_width")):
+            scene["objects"][0]["clustering"]["params"] = params
+            with open(self.path("s.json"), "w") as f:
+                json.dump(scene, f)
+            p = run("render", self.path("s.json"), "-o", self.path("s.png"), "--size", "64x48", "--force", "--plugin-dir", d, timeout=120)
+            self.assertEqual(p.returncode == 0, ok, p.stderr)
+            if where:
+                self.assertIn(where, p.stderr)
+        # view --explore checks the plugin and its parameters before opening anything.
+        p = run("view", tck, "--explore", "--algorithm", "length", "--param", "bin_width=0", "--plugin-dir", d)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("bin_width: 0 is outside", p.stderr)
+        p = run("view", tck, "--explore", "--algorithm", "nope")
+        self.assertIn("no clustering plugin has this id", p.stderr)
+
     def test_a_trial_list_that_is_not_a_file_is_not_used(self):
         # A FIFO would block every command; a folder made every command fail.
         fifo, folder = self.path("fifo"), self.path("folder")

@@ -1,5 +1,6 @@
 // Scene files, built-in demo data and clustering for display.
 #include <hz/core/io.hpp>
+#include <hz/core/params.hpp>
 #include <hz/core/phantom.hpp>
 #include <hz/core/render/scene.hpp>
 
@@ -301,9 +302,34 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (o.contains("colormap")) ob.slice_colormap = str(o["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
         if (o.contains("clustering")) {
             const json &c = o["clustering"];
-            check_keys(c, {"algorithm", "thresholds", "level", "width_by_size"}, what, where + ".clustering");
+            check_keys(c, {"algorithm", "thresholds", "level", "width_by_size", "params"}, what, where + ".clustering");
             ClusterSpec cs;
-            if (c.contains("algorithm")) cs.algorithm = str(c["algorithm"], what, where + ".clustering.algorithm", {"qb", "qbx", "qbx_merge"});
+            if (c.contains("algorithm")) {
+                if (!c["algorithm"].is_string()) fail(what, where + ".clustering.algorithm", "expected a plugin id");
+                cs.algorithm = c["algorithm"].get<std::string>();
+                try {
+                    find_clustering(reg, cs.algorithm);
+                } catch (const Error &e) {
+                    fail(what, where + ".clustering.algorithm", e.what());
+                }
+            }
+            if (c.contains("params")) {
+                if (!c["params"].is_object()) fail(what, where + ".clustering.params", "expected an object of NAME: value");
+                const LoadedPlugin *plugin = nullptr;
+                try {
+                    plugin = find_clustering(reg, cs.algorithm);
+                } catch (const Error &e) {
+                    fail(what, where + ".clustering.algorithm", e.what());
+                }
+                const std::vector<ParamSpec> schema = schema_of(*plugin);
+                for (const auto &[k, v] : c["params"].items()) {
+                    try {
+                        cs.params[k] = param_from_json(find_param(schema, plugin->info.id, k), v);
+                    } catch (const Error &e) {
+                        fail(what, where + ".clustering.params." + k, e.what());
+                    }
+                }
+            }
             if (c.contains("thresholds")) {
                 if (!c["thresholds"].is_array()) fail(what, where + ".clustering.thresholds", "expected an array of numbers");
                 for (const auto &t : c["thresholds"]) cs.thresholds.push_back(num(t, what, where + ".clustering.thresholds"));
@@ -517,9 +543,16 @@ Volume make_head_volume(double voxel_mm) {
 }
 
 ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec) {
-    const std::string id = "org.horizon.clustering." + spec.algorithm;
-    const LoadedPlugin *plugin = reg.find(id);
-    if (plugin == nullptr) throw Error("clustering plugin '" + id + "' not found (see `horizon plugins`)");
+    const LoadedPlugin *plugin = find_clustering(reg, spec.algorithm);
+    const std::string id = plugin->info.id;
+    const std::vector<ParamSpec> schema = schema_of(*plugin);
+    std::map<std::string, std::vector<double>> settings;
+    // Display only needs a plugin's fast mode, where it has one; what the
+    // spec sets wins.
+    for (const auto &s : schema)
+        if (s.name == "mode" && s.enum_labels.size() > 1 && s.enum_labels[1] == "fast") settings["mode"] = {1.0};
+    if (!spec.thresholds.empty()) apply_shortcut(schema, id, "clustering.thresholds", {"thresholds", "threshold"}, spec.thresholds, settings);
+    for (const auto &[k, v] : spec.params) settings[k] = v;
     const hz_clustering *c = plugin->clustering();
     hz_error err{};
     err.struct_size = sizeof err;
@@ -530,13 +563,9 @@ ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const Clust
         hz_clusterer *o;
         ~Guard() { c->destroy(o); }
     } guard{c, obj};
-    if (!spec.thresholds.empty()) {
-        const char *name = spec.algorithm == "qb" ? "threshold" : "thresholds";
-        if (c->set_param(obj, name, spec.thresholds.data(), static_cast<uint32_t>(spec.thresholds.size()), &err) != HZ_OK)
-            throw Error(std::string("clustering.thresholds: ") + err.message);
-    }
-    const double fast = 1.0;
-    c->set_param(obj, "mode", &fast, 1, &err);  // display only needs the fast mode
+    for (const auto &[k, v] : settings)
+        if (c->set_param(obj, k.c_str(), v.data(), static_cast<uint32_t>(v.size()), &err) != HZ_OK)
+            throw Error(id + ": parameter " + k + ": " + err.message);
     const Tractogram input = plugin->streamlines_for(t);
     const hz_streamlines_view view = input.view();
     Task task;

@@ -51,6 +51,18 @@ void check_param(const ParamSpec &spec, const std::vector<double> &values);
 std::map<std::string, std::vector<double>> parse_param_items(const std::vector<ParamSpec> &schema, const std::string &plugin_id,
                                                              const std::vector<std::string> &items);
 
+// The clustering plugin `name` names: its id, or the last part of one
+// ("qbx" for org.horizon.clustering.qbx). Throws Error listing the
+// clustering plugins when none (or more than one) matches.
+const LoadedPlugin *find_clustering(const Registry &reg, const std::string &name);
+
+// A shortcut option (--thresholds, "thresholds" in a scene) set as the first
+// of `names` the schema has: checked, stored in out[name]. Throws Error
+// "FLAG: ..." when the plugin has none of them or the values do not fit.
+void apply_shortcut(const std::vector<ParamSpec> &schema, const std::string &plugin_id, const std::string &flag,
+                    std::initializer_list<const char *> names, const std::vector<double> &values,
+                    std::map<std::string, std::vector<double>> &out);
+
 // The schema as JSON (names, types, ranges, defaults, docs), for
 // `horizon plugins --json` and `horizon plugins ID`.
 nlohmann::json schema_json(const std::vector<ParamSpec> &schema);

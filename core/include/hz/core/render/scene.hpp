@@ -40,8 +40,9 @@ struct Coloring {
 
 // Replace a tractogram by one level of a clustering tree (paper Fig. 5).
 struct ClusterSpec {
-    std::string algorithm = "qbx";    // qb | qbx | qbx_merge
+    std::string algorithm = "qbx";    // a clustering plugin: its id, or the last part of it (qb, qbx, qbx_merge, ...)
     std::vector<double> thresholds;   // empty: the plugin's defaults
+    std::map<std::string, std::vector<double>> params;  // the plugin's own parameters, by name (checked by its schema)
     int level = 1;                    // 1 = coarsest; -1 = finest
     bool width_by_size = true;        // tube radius grows with sqrt(cluster size)
 };
