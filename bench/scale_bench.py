@@ -96,7 +96,7 @@ def main():
     chart = []
     for proxy in ("shell", "uniform"):
         for scale in (2, 4):
-            for pts in (2.5e5, 5e5, 1e6):
+            for pts in (2e5, 5e5, 1e6):
                 out = os.path.join(work, f"p_{proxy}_{scale}_{pts:g}.png")
                 j = render(horizon, tck, out, "--preview", "--lod-proxy", proxy, "--lod-points", f"{pts:g}", "--lod-scale", str(scale),
                            "--frames", "5")

@@ -50,7 +50,7 @@ struct ClusterOptions {
 // Level-of-detail knobs, the same for `render` and `view`.
 struct LodOptions {
     double lod_pixels = 0.5;       // streamline decimation tolerance in pixels (0 = every point)
-    double lod_points = 3e5;       // tractograms above this many points get a proxy of about this many
+    double lod_points = 2e5;       // tractograms above this many points get a proxy of about this many
     double gpu_memory_mb = 768;    // streamline geometry kept in GL buffers; the rest is streamed
     int lod_scale = 4;             // the proxy frame is drawn at 1/lod_scale of the size
     std::string lod_proxy = "shell";  // shell (the outer layer, computed in the background) or uniform

@@ -81,6 +81,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     rs.samples = o.samples;
     o.lod.apply(rs);
     if (!o.preview) rs.shell_proxy = false;  // a full-detail frame draws no proxy
+    rs.shell_all_cores = true;               // --preview waits for it
     rs.bake_materials = true;  // a scene file's materials do not change while it renders
     // A picture of nothing is an error, not a blank PNG with exit status 0.
     const bool something = std::any_of(scene.objects.begin(), scene.objects.end(), [](const core::render::Object &ob) {

@@ -1352,8 +1352,9 @@ struct Renderer::Impl {
             g.proxy_chunks = partition(t, g.proxy->data(), g.proxy->size());
             if (settings.shell_proxy) {
                 g.shell_cancel = std::make_shared<std::atomic<bool>>(false);
-                g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod, cancel = g.shell_cancel] {
-                    return shell_proxy(t, b, lod, *cancel);
+                g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod, cancel = g.shell_cancel,
+                                                          all = settings.shell_all_cores] {
+                    return shell_proxy(t, b, lod, *cancel, all);
                 });
             }
         }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <mutex>
 
@@ -78,8 +79,14 @@ std::vector<Piece> uniform_proxy(const Tractogram &t, double budget_points) {
 }
 
 std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budget_points, const std::atomic<bool> &cancel,
-                               int grid, int shell_voxels) {
+                               bool all_cores, int grid, int shell_voxels) {
     const std::uint64_t N = t.nb_streamlines();
+    // On every core (someone waits for it), or on this thread alone (a
+    // window's first frames need the other core).
+    auto run_ranges = [&](std::uint64_t n, const std::function<void(std::uint64_t, std::uint64_t)> &fn) {
+        if (all_cores) parallel_ranges(n, 4096, fn);
+        else if (n) fn(0, n);
+    };
     if (N == 0 || b.empty) return {};
     const float *P = t.positions.data();
     const int close_r = 2, pad = close_r + 1;
@@ -97,8 +104,7 @@ std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budg
 
     // 1. Occupancy, one grid per thread, merged.
     std::mutex merge;
-    const std::uint64_t grain = 4096;
-    parallel_ranges(N, grain, [&](std::uint64_t a, std::uint64_t e) {
+    run_ranges(N, [&](std::uint64_t a, std::uint64_t e) {
         std::vector<std::uint8_t> mine(nvox, 0);
         for (std::uint64_t s = a; s < e; ++s) {
             if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return;
@@ -165,7 +171,7 @@ std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budg
     // 3. Per streamline: its smallest depth and its points in the shell.
     std::vector<std::uint8_t> min_depth(N, 255);
     std::vector<std::uint32_t> in_shell(N, 0);
-    parallel_ranges(N, grain, [&](std::uint64_t a, std::uint64_t e) {
+    run_ranges(N, [&](std::uint64_t a, std::uint64_t e) {
         for (std::uint64_t s = a; s < e; ++s) {
             if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return;
             std::uint8_t m = 255;

@@ -35,10 +35,11 @@ std::vector<Piece> uniform_proxy(const Tractogram &t, double budget_points);
 //      a hash: uniform within a layer), and of each only the runs of at least
 //      two points within `shell_voxels` of the outside, until `budget_points`
 //      points are taken.
-// Reads every point twice (std::thread over streamline ranges): meant for a
+// Reads every point twice, on every core (std::thread over streamline
+// ranges) with `all_cores`, else on the calling thread: meant for a
 // background thread. `cancel` is polled; when set the result is empty.
 // Bounds `b` must hold every point (the reader's bounds).
 std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budget_points, const std::atomic<bool> &cancel,
-                               int grid = 96, int shell_voxels = 4);
+                               bool all_cores, int grid = 96, int shell_voxels = 4);
 
 }  // namespace hz::core::render

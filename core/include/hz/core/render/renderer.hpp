@@ -56,8 +56,11 @@ struct RenderSettings {
     // runs of streamlines nearest its outer surface, which is what a frame
     // of a dense tractogram shows, computed on a background thread and
     // adopted by update_proxies().
-    double lod_points = 3e5;
+    double lod_points = 2e5;
     bool shell_proxy = true;
+    // The shell proxy computed on every core (render --preview waits for
+    // it) or on one (a window keeps a core for its first frames).
+    bool shell_all_cores = false;
     // The proxy frame is drawn at 1/proxy_scale of the size, then upscaled.
     int proxy_scale = 4;
     // Streamline geometry kept in GL buffers, all objects together (MiB);
