@@ -284,10 +284,18 @@ class RenderTest(TempDirTest):
             self.assertTrue(os.path.exists(ref), f"missing {ref}: run tests/golden/regenerate.sh")
             a, b = load(out), load(ref)
             self.assertEqual(a.shape, b.shape, name)
-            diff = np.abs(a - b)
-            # Tolerance: Mesa/LLVM versions and CPUs may round differently.
-            self.assertLess(diff.mean(), 1.5, f"{name}: mean difference {diff.mean():.2f}/255")
-            self.assertGreater(np.mean(diff.max(axis=2) <= 24), 0.99, f"{name}: too many pixels differ")
+            # Over the foreground only (the pixels either picture draws: a
+            # mean over a mostly empty frame hides any change), with a
+            # tolerance near the noise: rebuilds and driver rounding differ
+            # by 0.07/255 on average there, at most 3 levels; doubling the
+            # roughness of tubes_principled gives 7.1, dropping its clearcoat
+            # 2.6 with 7 % of the pixels off by more than 6 levels.
+            bg = b[0, 0]
+            fg = (np.abs(b - bg).max(axis=2) > 3) | (np.abs(a - bg).max(axis=2) > 3)
+            self.assertGreater(fg.mean(), 0.05, f"{name}: the scene draws almost nothing")
+            diff = np.abs(a - b).max(axis=2)[fg]
+            self.assertLess(diff.mean(), 0.6, f"{name}: mean foreground difference {diff.mean():.2f}/255")
+            self.assertLess(np.mean(diff > 6), 0.005, f"{name}: {100 * np.mean(diff > 6):.1f} % of the foreground differs by more than 6/255")
 
 
 class ShaderCheckTest(unittest.TestCase):
