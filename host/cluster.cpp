@@ -250,7 +250,7 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
         j["levels"] = nlohmann::json::array();
         for (uint32_t l = 0; l < v.nb_levels; ++l)
             j["levels"].push_back({{"threshold", v.level_thresholds[l]}, {"clusters", count_of_level[l + 1]}});
-        std::fprintf(report, "%s\n", j.dump(2).c_str());
+        std::fprintf(report, "%s\n", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
     } else {
         std::fprintf(report, "%s: %llu streamlines, %s (read %.3f s, clustered %.3f s)\n", o.input.c_str(), (unsigned long long)n,
                      plugin->info.name.c_str(), read_s, cluster_s);

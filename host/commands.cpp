@@ -51,7 +51,7 @@ int cmd_plugins(const GlobalOptions &g, bool as_json, const std::string &only) {
         if (p == nullptr) throw core::Error("no plugin has the id '" + only + "' (see `horizon plugins`)");
         const json j = plugin_json(*p);
         if (as_json) {
-            std::cout << j.dump(2) << "\n";
+            std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
             return 0;
         }
         std::printf("%s  %s %s (%s), ABI %s\n  %s\n  %s\n", p->info.id.c_str(), p->info.name.c_str(), p->info.version.c_str(),
@@ -92,7 +92,7 @@ int cmd_plugins(const GlobalOptions &g, bool as_json, const std::string &only) {
         const auto list = core::default_trial_cache();
         j["trial_list"] = list.empty() ? json(nullptr) : json(list.string());
         j["trial_loads"] = reg.trial_loads();
-        std::cout << j.dump(2) << "\n";
+        std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
         return 0;
     }
     std::printf("Search path:\n");
@@ -230,7 +230,7 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json, bool
     if (as_json) {
         json out = j;
         out["file"] = file;
-        std::cout << out.dump(2) << "\n";
+        std::cout << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
         return 0;
     }
     std::printf("file:          %s\n", file.c_str());

@@ -210,8 +210,23 @@ int main(int argc, char **argv) {
         if (*render) return cmd_render(g, ro);
         if (*scheck) return cmd_shader_check(g, sco);
         if (*view) return cmd_view(g, vwo);
+    } catch (const std::bad_alloc &) {
+        std::fprintf(stderr, "horizon: error: out of memory (the data do not fit in this machine's memory)\n");
+        return 1;
     } catch (const std::exception &e) {
-        std::fprintf(stderr, "horizon: error: %s\n", e.what());
+        // One line, whatever the names in it hold (a file name may contain a
+        // newline or control characters).
+        std::string line;
+        for (const char *p = e.what(); *p; ++p) {
+            const unsigned char c = static_cast<unsigned char>(*p);
+            if (c == '\n') line += "\\n";
+            else if (c < 0x20 || c == 0x7f) {
+                char esc[8];
+                std::snprintf(esc, sizeof esc, "\\x%02x", c);
+                line += esc;
+            } else line += char(c);
+        }
+        std::fprintf(stderr, "horizon: error: %s\n", line.c_str());
         return 1;
     }
     return 2;

@@ -140,7 +140,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"streamed_points", s.streamed_points},
                             {"proxy", s.proxy},
                             {"points_kept", s.points_drawn}};
-        std::cout << j.dump(2) << "\n";
+        std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     } else {
         std::printf("Wrote %s (%dx%d) in %.0f ms: context %.0f, upload %.0f, environment %.0f, first frame %.0f, read %.0f, write %.0f\n",
                     o.out.c_str(), w, h, ms_since(t0), ctx_ms, s.upload_ms, s.environment_ms, first_ms, s.readback_ms, write_ms);

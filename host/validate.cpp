@@ -1342,7 +1342,7 @@ int cmd_validate(const GlobalOptions &, const ValidateOptions &o) {
         for (const auto &r : results) j["checks"].push_back({{"check", r.check}, {"plugin", r.plugin}, {"status", r.status}, {"reason", r.reason}});
         j["summary"] = {{"passed", passed}, {"failed", failed}, {"skipped", skipped}};
         j["ok"] = failed == 0;
-        std::cout << j.dump(2) << "\n";
+        std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     } else {
         std::printf("\n%d passed, %d failed, %d skipped: %s\n", passed, failed, skipped, failed ? "FAIL" : "OK");
     }

@@ -342,7 +342,20 @@ void make_resident(const void *p, std::size_t bytes) {
 #endif
 }
 
+namespace {
+Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const hz_task *task);
+}
+
 Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *task) {
+    try {
+        return read_dataset_unguarded(reg, path, task);
+    } catch (const std::bad_alloc &) {
+        throw Error(path.string() + ": out of memory while reading it (the data do not fit in this machine's memory)");
+    }
+}
+
+namespace {
+Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const hz_task *task) {
     const LoadedPlugin &p = loader_for_read(reg, path);
     const hz_loader *l = p.loader();
     if (l->open == nullptr || l->get_info == nullptr) throw Error(path.string() + ": loader " + p.info.id + " cannot read");
@@ -493,6 +506,7 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
     }
     return ds;
 }
+}  // namespace
 
 void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path, bool force,
                    std::vector<std::string> *dropped, const fs::path &protect, const hz_task *task) {

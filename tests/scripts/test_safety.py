@@ -342,6 +342,23 @@ class SafetyTest(TempDirTest):
         self.assertEqual(p.returncode, 0, shown)
         return shown.decode(errors="replace"), out.decode()
 
+    def test_odd_file_names_keep_errors_on_one_line(self):
+        # A newline in a name does not split the error; a name that is not
+        # UTF-8 does not break --json.
+        odd = self.path("two\nlines.tck")
+        with open(odd, "wb") as f:
+            f.write(b"not a tractogram")
+        p = run("info", odd)
+        self.assertEqual(p.returncode, 1)
+        self.assertEqual(len(p.stderr.splitlines()), 1, p.stderr)
+        self.assertIn("two\\nlines.tck", p.stderr)
+        raw = os.path.join(os.fsencode(self.tmp), b"caf\xe9.tck")
+        with open(raw, "wb") as f:
+            f.write(tck_bytes([np.zeros((3, 3))]))
+        p = subprocess.run([os.fsencode(HORIZON), b"info", raw, b"--json"], capture_output=True, timeout=60, env=environment("info"))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(json.loads(p.stdout.decode("utf-8"))["nb_streamlines"], 1)
+
     def test_progress_lines_on_a_terminal_only(self):
         big = self.path("big.tck")
         rng = np.random.default_rng(4)
