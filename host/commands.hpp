@@ -21,6 +21,7 @@ struct ValidateOptions {
     double timeout_s = 60.0;
     std::vector<std::string> data_files;
     std::uint64_t seed = 1;
+    bool no_gpu = false;  // accept shaders without compiling their GLSL (no headless OpenGL here)
 };
 
 struct DemoOptions {

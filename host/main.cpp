@@ -94,6 +94,8 @@ int main(int argc, char **argv) {
     validate->add_option("--timeout", vo.timeout_s, "seconds per check before it counts as hung")->capture_default_str();
     validate->add_option("--data", vo.data_files, "sample files for a loader's read checks (repeatable)");
     validate->add_option("--seed", vo.seed, "seed of the randomised checks")->capture_default_str();
+    validate->add_flag("--no-gpu", vo.no_gpu,
+                       "skip compiling and running a shader's GLSL (without it, a machine with no headless OpenGL fails that check)");
 
     std::string info_file;
     auto *info = app.add_subcommand("info", "describe a data file");

@@ -1098,11 +1098,14 @@ std::vector<Check> catalogue() {
                      return pass(std::to_string(evaluated) + " evaluations");
                  }});
     c.push_back({"shader-gpu-equals-cpu", HZ_KIND_SHADER, "the host's programs built from the GLSL equal the CPU reference pixel by pixel (headless OpenGL; see `horizon shader-check`)", [](const Ctx &x) {
+                     if (x.opts.no_gpu) return skip("--no-gpu: the GLSL was not compiled");
                      std::unique_ptr<core::render::GlContext> gl;
                      try {
                          gl = core::render::make_headless_context();
                      } catch (const std::exception &e) {
-                         return skip(std::string("no headless OpenGL here: ") + e.what());
+                         // Not a pass: GLSL nobody compiled may not compile.
+                         return fail(std::string("the GLSL was not compiled: no headless OpenGL here (") + e.what() +
+                                     "); install Mesa's EGL (libegl1, libgl1-mesa-dri) or pass --no-gpu to accept it unchecked");
                      }
                      core::Registry reg(core::Registry::Options{false, 10.0, {}});
                      reg.add_module(x.module);
