@@ -3,6 +3,7 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <ucontext.h>
 #include <stdio.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -91,7 +92,9 @@ bool mapped_file_at(std::uintptr_t addr, char *out, std::size_t cap) {
 // A mapped input that shrank under us (truncated, replaced in place): the
 // kernel raises SIGBUS on the pages past its new end. One line naming the
 // file instead of a silent death.
-void on_sigbus(int sig, siginfo_t *info, void *) {
+void on_crash(int sig, siginfo_t *, void *ctx);
+
+void on_sigbus(int sig, siginfo_t *info, void *ctx) {
     char name[4096];
     for (int i = 0; i < kSlots; ++i)
         if (g_used[i].load()) ::unlink(g_paths[i]);
@@ -101,7 +104,36 @@ void on_sigbus(int sig, siginfo_t *info, void *) {
         write_all(": the file was truncated or changed while it was being read\n");
         ::_exit(1);
     }
-    ::signal(sig, SIG_DFL);  // not a mapped file: a crash, as before
+    on_crash(sig, info, ctx);  // not a mapped file: a crash, as before
+}
+
+// A crash: where the faulting instruction lies (/proc/self/maps), named on
+// stderr when it is a plugin's code, then the default action (the process
+// dies of the signal as before).
+void on_crash(int sig, siginfo_t *, void *ctx) {
+    char name[4096];
+    std::uintptr_t pc = 0;
+#if defined(__x86_64__)
+    if (ctx) pc = std::uintptr_t(static_cast<ucontext_t *>(ctx)->uc_mcontext.gregs[REG_RIP]);
+#elif defined(__aarch64__)
+    if (ctx) pc = std::uintptr_t(static_cast<ucontext_t *>(ctx)->uc_mcontext.pc);
+#endif
+    const char *what = sig == SIGSEGV ? "SIGSEGV" : sig == SIGILL ? "SIGILL" : sig == SIGFPE ? "SIGFPE" : "SIGBUS";
+    if (pc && mapped_file_at(pc, name, sizeof name)) {
+        const std::size_t n = std::strlen(name);
+        const bool plugin = n > 3 && std::strcmp(name + n - 3, ".so") == 0 && std::strstr(name, "/libc.so") == nullptr &&
+                            std::strstr(name, "/x86_64-linux-gnu/") == nullptr && std::strstr(name, "/aarch64-linux-gnu/") == nullptr;
+        if (plugin) {
+            write_all("horizon: error: the plugin ");
+            write_all(name);
+            write_all(" crashed (");
+            write_all(what);
+            write_all("); move it out of the plugin folders or report it to its author\n");
+        }
+    }
+    for (int i = 0; i < kSlots; ++i)
+        if (g_used[i].load()) ::unlink(g_paths[i]);
+    ::signal(sig, SIG_DFL);
     ::raise(sig);
 }
 
@@ -134,6 +166,17 @@ void install_termination_cleanup() {
     bus.sa_flags = SA_SIGINFO;
     sigemptyset(&bus.sa_mask);
     ::sigaction(SIGBUS, &bus, nullptr);
+    // Crashes in a plugin after its trial (a later call) name the plugin.
+    // (Not where a sanitizer or debugger already handles them.)
+    for (int sig : {SIGSEGV, SIGILL, SIGFPE}) {
+        struct sigaction old {};
+        if (::sigaction(sig, nullptr, &old) != 0 || old.sa_handler != SIG_DFL) continue;
+        struct sigaction crash {};
+        crash.sa_sigaction = on_crash;
+        crash.sa_flags = SA_SIGINFO | SA_RESETHAND;
+        sigemptyset(&crash.sa_mask);
+        ::sigaction(sig, &crash, nullptr);
+    }
 }
 
 TemporaryFile::TemporaryFile(const fs::path &path) : path_(path) {

@@ -193,6 +193,20 @@ class PluginsTest(TempDirTest):
         p = run("view", tck, "--explore", "--algorithm", "nope")
         self.assertIn("no clustering plugin has this id", p.stderr)
 
+    def test_a_crash_after_the_trial_names_the_plugin(self):
+        # The plugin loads and passes its trial, then crashes when called:
+        # the command still dies (nothing is known about its state), but
+        # says which plugin did it.
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(FIXTURES, "fx_eval_crash.so"), d)
+        case = json.dumps({"id": "a", "model": "fixture", "params": {"gain": 0.5}, "N": [0, 0, 1], "L": [0, 0, 1], "V": [0, 0, 1]})
+        from hztest import environment
+        p = subprocess.run([HORIZON, "--plugin-dir", d, "brdf", "--shader", "org.horizon.test.fixture"], input=case + "\n",
+                           capture_output=True, text=True, timeout=60, env=environment("brdf"))
+        self.assertEqual(p.returncode, -11, p.stderr)
+        self.assertIn("the plugin " + os.path.join(d, "fx_eval_crash.so") + " crashed (SIGSEGV)", p.stderr)
+
     def test_a_trial_list_that_is_not_a_file_is_not_used(self):
         # A FIFO would block every command; a folder made every command fail.
         fifo, folder = self.path("fifo"), self.path("folder")
