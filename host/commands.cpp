@@ -41,13 +41,7 @@ json plugin_json(const core::LoadedPlugin &p) {
 int cmd_plugins(const GlobalOptions &g, bool as_json, const std::string &only) {
     const core::Registry reg = load_registry(g);
     if (!only.empty()) {
-        const core::LoadedPlugin *p = reg.find(only);
-        for (const auto &q : reg.plugins()) {  // or the last part of one id ("qbx", "principled")
-            const std::string &id = q.info.id;
-            if (p == nullptr && id.size() > only.size() && id.compare(id.size() - only.size(), only.size(), only) == 0 &&
-                id[id.size() - only.size() - 1] == '.')
-                p = &q;
-        }
+        const core::LoadedPlugin *p = core::find_plugin(reg, only);  // an id, or its last part ("qbx", "principled")
         if (p == nullptr) throw core::Error("no plugin has the id '" + only + "' (see `horizon plugins`)");
         const json j = plugin_json(*p);
         if (as_json) {

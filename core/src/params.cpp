@@ -179,26 +179,30 @@ std::map<std::string, std::vector<double>> parse_param_items(const std::vector<P
     return out;
 }
 
-const LoadedPlugin *find_clustering(const Registry &reg, const std::string &name) {
+const LoadedPlugin *find_plugin(const Registry &reg, const std::string &name, hz_plugin_kind kind, std::string *ambiguous) {
     std::vector<const LoadedPlugin *> match;
-    std::string all;
     for (const auto &p : reg.plugins()) {
-        if (p.info.kind != HZ_KIND_CLUSTERING) continue;
-        all += (all.empty() ? "" : ", ") + p.info.id;
-        if (p.info.id == name) return &p;
+        if (kind != 0 && p.info.kind != kind) continue;
         const std::string &id = p.info.id;
+        if (id == name) return &p;
         if (id.size() > name.size() && id.compare(id.size() - name.size(), name.size(), name) == 0 && id[id.size() - name.size() - 1] == '.')
             match.push_back(&p);
     }
     if (match.size() == 1) return match[0];
-    if (match.size() > 1) {
-        std::string ids;
-        for (const LoadedPlugin *p : match) ids += (ids.empty() ? "" : ", ") + p->info.id;
-        throw Error("--algorithm " + name + " is ambiguous: " + ids + " (give the full id)");
-    }
-    throw Error("--algorithm " + name + ": no clustering plugin has this id (found: " + (all.empty() ? "none" : all) + ")");
+    if (match.size() > 1 && ambiguous)
+        for (const LoadedPlugin *p : match) *ambiguous += (ambiguous->empty() ? "" : ", ") + p->info.id;
+    return nullptr;
 }
 
+const LoadedPlugin *find_clustering(const Registry &reg, const std::string &name) {
+    std::string ambiguous;
+    if (const LoadedPlugin *p = find_plugin(reg, name, HZ_KIND_CLUSTERING, &ambiguous)) return p;
+    if (!ambiguous.empty()) throw Error("--algorithm " + name + " is ambiguous: " + ambiguous + " (give the full id)");
+    std::string all;
+    for (const auto &p : reg.plugins())
+        if (p.info.kind == HZ_KIND_CLUSTERING) all += (all.empty() ? "" : ", ") + p.info.id;
+    throw Error("--algorithm " + name + ": no clustering plugin has this id (found: " + (all.empty() ? "none" : all) + ")");
+}
 
 void apply_shortcut(const std::vector<ParamSpec> &schema, const std::string &plugin_id, const std::string &flag,
                     std::initializer_list<const char *> names, const std::vector<double> &values,

@@ -23,6 +23,7 @@ def environment(*args, env=None):
     it themselves: pipes, ptys, limits, signals)."""
     e = dict(os.environ)
     e.pop("HORIZON_PLUGIN_PATH", None)
+    # One trial list for the whole suite, in the build tree (not the user's).
     e["HORIZON_PLUGIN_CACHE"] = os.path.join(BUILD, "tests", "plugin-trials.json") if BUILD else "off"
     if env:
         e.update(env)
@@ -34,16 +35,7 @@ def environment(*args, env=None):
 
 def run(*args, timeout=60, env=None):
     """Runs horizon with `args`; returns the CompletedProcess (text mode)."""
-    e = dict(os.environ)
-    e.pop("HORIZON_PLUGIN_PATH", None)
-    # One trial list for the whole suite, in the build tree (not the user's).
-    e["HORIZON_PLUGIN_CACHE"] = os.path.join(BUILD, "tests", "plugin-trials.json") if BUILD else "off"
-    if env:
-        e.update(env)
-    e["XDG_DATA_HOME"] = e.get("HZ_TEST_XDG", "/nonexistent-xdg")
-    if "ASAN_OPTIONS" in e and args and str(args[0]) in GL_COMMANDS:
-        e["ASAN_OPTIONS"] += ":detect_leaks=0"
-    return subprocess.run([HORIZON, *map(str, args)], capture_output=True, text=True, timeout=timeout, env=e)
+    return subprocess.run([HORIZON, *map(str, args)], capture_output=True, text=True, timeout=timeout, env=environment(*args, env=env))
 
 
 # Commands that load Mesa's OpenGL driver. Under the ASan suite their leak

@@ -51,6 +51,10 @@ void check_param(const ParamSpec &spec, const std::vector<double> &values);
 std::map<std::string, std::vector<double>> parse_param_items(const std::vector<ParamSpec> &schema, const std::string &plugin_id,
                                                              const std::vector<std::string> &items);
 
+// The plugin (of `kind`; 0: any) whose id is `name` or ends in "." + name;
+// nullptr when none or several match (then, with `ambiguous`, their ids).
+const LoadedPlugin *find_plugin(const Registry &reg, const std::string &name, hz_plugin_kind kind = 0, std::string *ambiguous = nullptr);
+
 // The clustering plugin `name` names: its id, or the last part of one
 // ("qbx" for org.horizon.clustering.qbx). Throws Error listing the
 // clustering plugins when none (or more than one) matches.
