@@ -48,6 +48,16 @@ struct ClusterOptions {
     bool force = false, json = false;
 };
 
+struct FilterOptions {
+    std::string input;
+    std::vector<std::string> include, exclude;  // ROI specs: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or a mask file
+    double min_length = 0, max_length = 0;      // mm; max 0: no upper bound
+    bool ends_only = false, invert = false;
+    std::string out;                            // the selected streamlines (any streamline format)
+    std::string ids;                            // their indices, one per line ("-": stdout)
+    bool force = false, json = false;
+};
+
 // Level-of-detail knobs, the same for `render` and `view`.
 struct LodOptions {
     double lod_pixels = 0.5;       // streamline decimation tolerance in pixels (0 = every point)
@@ -110,6 +120,7 @@ int cmd_validate(const GlobalOptions &g, const ValidateOptions &o);
 int cmd_info(const GlobalOptions &g, const std::string &file, bool json, bool verify);
 int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string &out, bool force);
 int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o);
+int cmd_filter(const GlobalOptions &g, const FilterOptions &o);
 int cmd_brdf(const GlobalOptions &g, const std::string &shader_id);
 int cmd_demo(const GlobalOptions &g, const DemoOptions &o);
 int cmd_render(const GlobalOptions &g, const RenderOptions &o);

@@ -134,6 +134,22 @@ int main(int argc, char **argv) {
     cluster->add_flag("-f,--force", co.force, "replace existing outputs");
     cluster->add_flag("--json", co.json, "machine-readable summary");
 
+    FilterOptions fo;
+    auto *filter = app.add_subcommand("filter", "select streamlines by include / exclude regions and length (MRtrix3 tckedit's rules)");
+    filter->add_option("input", fo.input, "tractogram")->required();
+    filter->add_option("--include", fo.include,
+                       "a region each kept streamline must have a vertex in: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 (RAS+ mm) or a "
+                       "mask volume (nonzero voxels); repeatable, all must be met");
+    filter->add_option("--exclude", fo.exclude, "a region no kept streamline may have a vertex in (same forms); repeatable");
+    filter->add_option("--min-length", fo.min_length, "minimum length in mm (inclusive)");
+    filter->add_option("--max-length", fo.max_length, "maximum length in mm (inclusive; 0: none)");
+    filter->add_flag("--ends-only", fo.ends_only, "test the regions against the two end points only");
+    filter->add_flag("--invert", fo.invert, "keep the streamlines the criteria drop instead");
+    filter->add_option("-o,--out", fo.out, "the selected streamlines (.trx, .trk, .tck; per-streamline data and groups carried over)");
+    filter->add_option("--ids", fo.ids, "write the selected streamlines' indices (0-based, one per line; - for stdout)");
+    filter->add_flag("-f,--force", fo.force, "replace existing outputs (never an input)");
+    filter->add_flag("--json", fo.json, "machine-readable summary");
+
     std::string brdf_shader;
     auto *brdf = app.add_subcommand("brdf", "evaluate shading plugins' CPU references over JSON lines on stdin");
     brdf->add_option("--shader", brdf_shader, "only this shader plugin id (default: route each case by its model)");
@@ -195,7 +211,7 @@ int main(int argc, char **argv) {
         return app.exit(e);
     }
     if (verbose) spdlog::set_level(spdlog::level::debug);
-    if (json || vo.json || co.json || ro.json) disable_progress();  // (machine-readable output: no progress line)
+    if (json || vo.json || co.json || ro.json || fo.json) disable_progress();  // (machine-readable output: no progress line)
     if (const char *t = std::getenv("HORIZON_TRACE"); t && *t == '1') spdlog::set_level(spdlog::level::trace);
 
     try {
@@ -208,6 +224,7 @@ int main(int argc, char **argv) {
             return cmd_demo(g, demo_opts);
         }
         if (*cluster) return cmd_cluster(g, co);
+        if (*filter) return cmd_filter(g, fo);
         if (*brdf) return cmd_brdf(g, brdf_shader);
         if (*render) return cmd_render(g, ro);
         if (*scheck) return cmd_shader_check(g, sco);

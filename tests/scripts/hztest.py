@@ -46,6 +46,15 @@ def run(*args, timeout=60, env=None):
 GL_COMMANDS = {"render", "view", "shader-check", "demo"}
 
 
+def make_tractogram(path, n, seed, timeout=900):
+    """A realistic whole-brain tractogram of n streamlines (bench's
+    hz-make-tractogram: 100-400 points each, 0.5-0.8 mm steps) at `path`."""
+    make = os.path.join(BUILD, "bin", "hz-make-tractogram")
+    p = subprocess.run([make, str(path), "--streamlines", str(n), "--seed", str(seed)], capture_output=True, text=True, timeout=timeout)
+    if p.returncode != 0:
+        raise AssertionError(f"hz-make-tractogram failed: {p.stderr}")
+
+
 def run_json(*args, **kw):
     p = run(*args, **kw)
     if p.returncode != 0:

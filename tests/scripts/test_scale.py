@@ -15,9 +15,8 @@ import unittest
 import numpy as np
 from PIL import Image
 
-from hztest import BUILD, HORIZON, SOURCE, run
+from hztest import BUILD, HORIZON, SOURCE, make_tractogram, run
 
-MAKE = os.path.join(BUILD, "bin", "hz-make-tractogram")
 # The sanitizer build runs every access checked: a smaller (still realistic) file.
 SANITIZED = "ASAN_OPTIONS" in os.environ
 N = 300000 if SANITIZED else 1000000
@@ -33,9 +32,7 @@ class ScaleTest(unittest.TestCase):
     def setUpClass(cls):
         cls.tmp = tempfile.mkdtemp(prefix="hz_scale_")
         cls.tck = os.path.join(cls.tmp, "brain.tck")
-        p = subprocess.run([MAKE, cls.tck, "--streamlines", str(N), "--seed", "3"], capture_output=True, text=True, timeout=900)
-        if p.returncode != 0:
-            raise AssertionError(p.stderr)
+        make_tractogram(cls.tck, N, 3)
         info = json.loads(run("info", cls.tck, "--json").stdout)
         cls.points = info["nb_vertices"]
 

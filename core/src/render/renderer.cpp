@@ -76,23 +76,6 @@ std::array<std::uint8_t, 4> rgba8(double r, double g, double b, double a = 1.0) 
     return {q(r), q(g), q(b), q(a)};
 }
 
-// The value of type `dtype` at `p`, as a double (NaN for an unknown type).
-double value_at(const std::byte *p, hz_dtype dtype) {
-    switch (dtype) {
-    case HZ_DTYPE_U8: return *reinterpret_cast<const std::uint8_t *>(p);
-    case HZ_DTYPE_I8: return *reinterpret_cast<const std::int8_t *>(p);
-    case HZ_DTYPE_U16: { std::uint16_t x; std::memcpy(&x, p, 2); return x; }
-    case HZ_DTYPE_I16: { std::int16_t x; std::memcpy(&x, p, 2); return x; }
-    case HZ_DTYPE_U32: { std::uint32_t x; std::memcpy(&x, p, 4); return x; }
-    case HZ_DTYPE_I32: { std::int32_t x; std::memcpy(&x, p, 4); return x; }
-    case HZ_DTYPE_U64: { std::uint64_t x; std::memcpy(&x, p, 8); return double(x); }
-    case HZ_DTYPE_I64: { std::int64_t x; std::memcpy(&x, p, 8); return double(x); }
-    case HZ_DTYPE_F32: { float x; std::memcpy(&x, p, 4); return x; }
-    case HZ_DTYPE_F64: { double x; std::memcpy(&x, p, 8); return x; }
-    default: return std::nan("");
-    }
-}
-
 // `count` values of type `dtype`, `stride` bytes apart, as doubles.
 std::vector<double> values_of(const std::byte *data, hz_dtype dtype, std::uint64_t count, std::size_t stride) {
     std::vector<double> out(count);

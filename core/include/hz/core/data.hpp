@@ -179,6 +179,8 @@ using Affine = std::array<double, 16>;
 constexpr Affine kIdentity = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
 
 std::size_t dtype_size(hz_dtype t);
+// The element of type `t` at `p` (any alignment), as a double (NaN for an unknown type).
+double value_at(const std::byte *p, hz_dtype t);
 const char *dtype_name(hz_dtype t);
 
 // Extra per-vertex / per-streamline / per-face data.

@@ -1,0 +1,101 @@
+// Streamline selection by regions of interest and length: the one
+// implementation behind `horizon filter`, the window's ROIs and scene files.
+//
+// The semantics are MRtrix3 tckedit's (3.0), so that a selection made here
+// and one made with tckedit on the same file agree streamline for streamline:
+// - a streamline is kept when each include region holds at least one of its
+//   vertices, no exclude region holds any, and its length is within
+//   [min_length, max_length] (both inclusive);
+// - only vertices are tested (a segment that crosses a small region between
+//   two vertices does not count), as tckedit does;
+// - the length is the sum of its segments' lengths, added in float32 in
+//   vertex order (tckedit's arithmetic); an empty streamline has no length
+//   and is never kept;
+// - a sphere holds p when |p - c|^2 <= r^2 (float32); a mask holds p when
+//   the voxel nearest to p (rounded voxel coordinates) is inside the image
+//   and not zero (NaN voxels are outside here; tckedit counts them in);
+// - with ends_only, only the first and last vertices are tested;
+// - invert keeps exactly the streamlines the other settings drop (tckedit's
+//   -inverse, without its mask cropping).
+// Boxes (axis-aligned, inclusive) are Horizon's own; tckedit has none.
+#pragma once
+
+#include <hz/core/data.hpp>
+#include <hz/core/plugin_host.hpp>
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hz::core {
+
+// A region of interest, RAS+ mm.
+struct Roi {
+    enum class Shape { Sphere, Box, Mask };
+    Shape shape = Shape::Sphere;
+    bool include = true;
+    std::array<double, 3> center{};  // sphere
+    double radius = 0;
+    std::array<double, 3> lo{}, hi{};  // box, lo <= hi
+    // mask: one byte per voxel (x fastest), 1 where the voxel is set; the
+    // RAS+ mm -> voxel affine; the name of the file it came from.
+    std::shared_ptr<const std::vector<std::uint8_t>> mask;
+    std::array<std::uint64_t, 3> dims{};
+    Affine ras_to_voxel = kIdentity;
+    std::string file;
+
+    bool contains(const float *p) const;
+    // Bounds in RAS+ mm outside which contains() is false.
+    Bounds bounds() const;
+    // The spec that parse_roi reads back ("sphere:X,Y,Z,R", "box:...", the file).
+    std::string spec() const;
+};
+
+// "sphere:X,Y,Z,R", "box:X0,Y0,Z0,X1,Y1,Z1" (any two opposite corners) or a
+// mask volume's file name (read through `reg`, any volume format; the first
+// 3D volume of a 4D one). Throws Error, one line naming `spec`: bad numbers,
+// a radius <= 0, an empty box side, an unreadable file, a file that is not a
+// volume, a mask with no voxel set.
+Roi parse_roi(const Registry &reg, const std::string &spec, bool include);
+// A mask ROI from a volume already read (nonzero voxels); `file` names it.
+Roi mask_roi(const Volume &v, const std::string &file, bool include);
+
+struct FilterSpec {
+    std::vector<Roi> rois;  // include and exclude regions, any order
+    double min_length = 0;
+    double max_length = std::numeric_limits<double>::infinity();
+    bool ends_only = false;
+    bool invert = false;
+    // Whether anything is asked at all (otherwise every non-empty streamline passes).
+    bool active() const { return !rois.empty() || min_length > 0 || max_length < std::numeric_limits<double>::infinity() || invert; }
+    // One line for headers and reports ("include sphere:1,2,3,4; min_length 40").
+    std::string describe() const;
+};
+
+// The length of streamline s as tckedit measures it (NaN when empty).
+float streamline_length(const Tractogram &t, std::uint64_t s);
+
+// Per-streamline axis-aligned boxes (float32, min xyz then max xyz), built
+// once per tractogram on every core: a streamline whose box misses an
+// include region's bounds fails without a look at its vertices, one whose
+// box misses every exclude region's is not scanned for them.
+struct StreamlineBoxes {
+    std::vector<std::array<float, 6>> box;  // empty streamline: min > max
+    static StreamlineBoxes of(const Tractogram &t);
+};
+
+// The streamlines of `t` that `f` keeps, in ascending order; over `subset`
+// only (ascending or not; the result keeps its order) when given. `boxes`
+// (StreamlineBoxes::of(t)) speeds it up when given. Runs on every core.
+std::vector<std::uint64_t> filter_streamlines(const Tractogram &t, const FilterSpec &f, const StreamlineBoxes *boxes = nullptr,
+                                              const std::vector<std::uint64_t> *subset = nullptr);
+
+// The streamlines `ids` of `t` in that order, with their per-vertex and
+// per-streamline arrays, and groups (TRX) narrowed to the streamlines kept
+// and renumbered; group data is kept for the groups that keep members.
+Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids);
+
+}  // namespace hz::core

@@ -1,0 +1,84 @@
+// Streamline selection (core/filter.hpp): the vector loops of every SIMD
+// target answer what the scalar region test answers, vertex for vertex,
+// including points on or within a rounding of a region's boundary.
+#include "simd_targets.hpp"
+
+#include <hz/core/filter.hpp>
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+using namespace hz::core;
+
+namespace {
+
+// Streamlines of 37 vertices (lanes and a tail), far from everything
+// except vertex `at` of each, which lies near the region's boundary.
+Tractogram probes(const std::vector<std::array<float, 3>> &near, std::mt19937 &rng) {
+    const std::uint64_t P = 37;
+    Tractogram t;
+    t.positions = Buffer<float>(near.size() * P * 3);
+    t.offsets = Buffer<std::uint64_t>(near.size() + 1);
+    std::uniform_int_distribution<std::uint64_t> pick(0, P - 1);
+    for (std::size_t s = 0; s < near.size(); ++s) {
+        t.offsets[s] = s * P;
+        const std::uint64_t at = pick(rng);
+        for (std::uint64_t v = 0; v < P; ++v)
+            for (int i = 0; i < 3; ++i) t.positions[(s * P + v) * 3 + i] = v == at ? near[s][i] : 1000.0f + float(v);
+    }
+    t.offsets[near.size()] = near.size() * P;
+    return t;
+}
+
+}  // namespace
+
+TEST_CASE("filter: every SIMD target agrees with the scalar region test at the boundary", "[filter]") {
+    std::mt19937 rng(7);
+    std::normal_distribution<double> g(0, 1);
+    Roi sphere;
+    sphere.shape = Roi::Shape::Sphere;
+    sphere.center = {1.25, -3.5, 7.125};
+    sphere.radius = 4.1;
+    Roi box;
+    box.shape = Roi::Shape::Box;
+    box.lo = {-2.3, 0.7, -1.1};
+    box.hi = {3.9, 5.3, 2.2};
+    for (const Roi *r : {&sphere, &box}) {
+        std::vector<std::array<float, 3>> near;
+        for (int k = 0; k < 4000; ++k) {
+            std::array<float, 3> p;
+            if (r == &sphere) {  // on the sphere, nudged by a few ulps either way
+                double d[3] = {g(rng), g(rng), g(rng)};
+                const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+                for (int i = 0; i < 3; ++i) p[i] = float(r->center[i] + r->radius * d[i] / n);
+                for (int i = 0; i < 3; ++i)
+                    for (int u = int(rng() % 5); u > 0; --u) p[i] = std::nextafter(p[i], (rng() & 1) ? 1e9f : -1e9f);
+            } else {  // on a face of the box, or just off it
+                for (int i = 0; i < 3; ++i) p[i] = float(r->lo[i] + (r->hi[i] - r->lo[i]) * std::uniform_real_distribution<double>(0, 1)(rng));
+                const int axis = int(rng() % 3);
+                p[axis] = float((rng() & 1) ? r->lo[axis] : r->hi[axis]);
+                if (rng() & 1) p[axis] = std::nextafter(p[axis], (rng() & 1) ? 1e9f : -1e9f);
+            }
+            near.push_back(p);
+        }
+        const Tractogram t = probes(near, rng);
+        std::vector<std::uint64_t> want;
+        for (std::size_t s = 0; s < near.size(); ++s)
+            if (r->contains(near[s].data())) want.push_back(s);
+        REQUIRE(want.size() > 500);
+        REQUIRE(want.size() < near.size() - 500);
+        FilterSpec f;
+        f.rois = {*r};
+        hz::test::for_each_simd_target([&](const char *) {
+            CHECK(filter_streamlines(t, f) == want);
+            // Exclusion: exactly the others.
+            FilterSpec x = f;
+            x.rois[0].include = false;
+            const std::vector<std::uint64_t> rest = filter_streamlines(t, x);
+            CHECK(rest.size() + want.size() == near.size());
+        });
+    }
+}
