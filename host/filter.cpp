@@ -86,7 +86,9 @@ int cmd_filter(const GlobalOptions &g, const FilterOptions &o) {
         out.kind = HZ_DATA_STREAMLINES;
         out.metadata = ds.metadata;
         out.metadata.emplace_back("horizon_filter", spec.describe());
-        out.tractogram = core::subset_with_arrays(t, kept);
+        // Every streamline kept: the input's own arrays (a mapped TCK's
+        // included), no copy.
+        out.tractogram = kept.size() == t.nb_streamlines() ? t.shared() : core::subset_with_arrays(t, kept);
         std::vector<std::string> dropped;
         core::write_dataset(reg, out, o.out, o.force, &dropped, o.input);
         for (const auto &d : dropped) std::fprintf(stderr, "horizon: warning: %s: dropped %s\n", o.out.c_str(), d.c_str());

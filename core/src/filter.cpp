@@ -18,6 +18,14 @@ std::uint64_t first_in_box(const float *xyz, std::uint64_t n, const float *lo, c
 
 namespace {
 
+// std::round (halves away from zero) without its library call: x minus its
+// truncation is exact below 2^23, beyond which every float is an integer.
+inline float round_half_away(float x) {
+    if (!(std::abs(x) < 0x1p23f)) return x;
+    const float t = float(std::int32_t(x)), f = x - t;
+    return f >= 0.5f ? t + 1 : f <= -0.5f ? t - 1 : t;
+}
+
 // The numbers of "a,b,c": exactly `n` finite ones, or Error naming `spec`.
 std::vector<double> numbers(const std::string &text, std::size_t n, const std::string &spec, const char *form) {
     std::vector<double> v;
@@ -61,8 +69,10 @@ std::string fmt(double x) {
 }
 
 
-// Whether a vertex of streamline vertices [b, e) at p lies in r.
-bool any_in(const Roi &r, const float *p, std::uint64_t b, std::uint64_t e) {
+
+// Whether a vertex of streamline vertices [b, e) at p lies in r, whose
+// bounds are `rb` (a mask's vertices outside them need no lookup).
+bool any_in(const Roi &r, const Bounds &rb, const float *p, std::uint64_t b, std::uint64_t e) {
     switch (r.shape) {
     case Roi::Shape::Sphere:
         return detail::first_in_sphere(p + b * 3, e - b, float(r.center[0]), float(r.center[1]), float(r.center[2]), float(r.radius)) < e - b;
@@ -70,10 +80,15 @@ bool any_in(const Roi &r, const float *p, std::uint64_t b, std::uint64_t e) {
         const float lo[3] = {float(r.lo[0]), float(r.lo[1]), float(r.lo[2])}, hi[3] = {float(r.hi[0]), float(r.hi[1]), float(r.hi[2])};
         return detail::first_in_box(p + b * 3, e - b, lo, hi) < e - b;
     }
-    case Roi::Shape::Mask:
-        for (std::uint64_t v = b; v < e; ++v)
-            if (r.contains(p + v * 3)) return true;
+    case Roi::Shape::Mask: {
+        const float lo[3] = {float(rb.min[0]), float(rb.min[1]), float(rb.min[2])}, hi[3] = {float(rb.max[0]), float(rb.max[1]), float(rb.max[2])};
+        for (std::uint64_t v = b; v < e;) {
+            v += detail::first_in_box(p + v * 3, e - v, lo, hi);  // (the next vertex within the bounds)
+            if (v < e && r.contains(p + v * 3)) return true;
+            ++v;
+        }
         return false;
+    }
     }
     return false;
 }
@@ -96,10 +111,12 @@ bool Roi::contains(const float *p) const {
         return p[0] >= float(lo[0]) && p[0] <= float(hi[0]) && p[1] >= float(lo[1]) && p[1] <= float(hi[1]) && p[2] >= float(lo[2]) &&
                p[2] <= float(hi[2]);
     case Shape::Mask: {
-        const Affine &m = ras_to_voxel;
-        double v[3];
-        for (int i = 0; i < 3; ++i) v[i] = std::round(m[i * 4] * p[0] + m[i * 4 + 1] * p[1] + m[i * 4 + 2] * p[2] + m[i * 4 + 3]);
-        if (!(v[0] >= 0 && v[1] >= 0 && v[2] >= 0 && v[0] < double(dims[0]) && v[1] < double(dims[1]) && v[2] < double(dims[2])))
+        // tckedit's arithmetic: the RAS -> voxel affine in float32, each
+        // coordinate ((m0 x + m1 y) + m2 z) + t, rounded half away from zero.
+        const std::array<float, 12> &m = r2v;
+        float v[3];
+        for (int i = 0; i < 3; ++i) v[i] = round_half_away((m[i * 4] * p[0] + m[i * 4 + 1] * p[1]) + m[i * 4 + 2] * p[2] + m[i * 4 + 3]);
+        if (!(v[0] >= 0 && v[1] >= 0 && v[2] >= 0 && v[0] < float(dims[0]) && v[1] < float(dims[1]) && v[2] < float(dims[2])))
             return false;
         return (*mask)[(std::uint64_t(v[2]) * dims[1] + std::uint64_t(v[1])) * dims[0] + std::uint64_t(v[0])] != 0;
     }
@@ -164,6 +181,7 @@ Roi mask_roi(const Volume &v, const std::string &file, bool include) {
     r.file = file;
     r.dims = {v.dims[0], v.dims[1], v.dims[2]};
     r.ras_to_voxel = affine_inverse(v.voxel_to_ras, "ROI mask " + file);
+    for (int i = 0; i < 12; ++i) r.r2v[i] = float(r.ras_to_voxel[i]);
     const std::uint64_t n = r.dims[0] * r.dims[1] * r.dims[2];
     const std::size_t es = dtype_size(v.dtype);
     if (es == 0 || v.voxels.size() < n * es) throw Error("ROI mask " + file + ": unsupported voxel type");
@@ -226,9 +244,17 @@ float streamline_length(const Tractogram &t, std::uint64_t s) {
     if (e <= b) return std::numeric_limits<float>::quiet_NaN();
     const float *p = t.positions.data();
     float len = 0;
-    for (std::uint64_t v = b + 1; v < e; ++v) {
-        const float dx = p[v * 3] - p[v * 3 - 3], dy = p[v * 3 + 1] - p[v * 3 - 2], dz = p[v * 3 + 2] - p[v * 3 - 1];
-        len += std::sqrt(dx * dx + dy * dy + dz * dz);
+    // The segments' lengths 64 at a time (independent: the compiler
+    // vectorises them), then summed in order, as tckedit adds them.
+    float seg[64];
+    for (std::uint64_t v = b + 1; v < e; v += 64) {
+        const std::uint64_t m = std::min<std::uint64_t>(64, e - v);
+        const float *q = p + v * 3;
+        for (std::uint64_t j = 0; j < m; ++j) {
+            const float dx = q[j * 3] - q[j * 3 - 3], dy = q[j * 3 + 1] - q[j * 3 - 2], dz = q[j * 3 + 2] - q[j * 3 - 1];
+            seg[j] = std::sqrt(dx * dx + dy * dy + dz * dz);
+        }
+        for (std::uint64_t j = 0; j < m; ++j) len += seg[j];
     }
     return len;
 }
@@ -280,9 +306,9 @@ std::vector<std::uint64_t> filter_streamlines(const Tractogram &t, const FilterS
             // streamline whose box misses a region's bounds has no vertex
             // in it.
             for (std::size_t k = 0; pass && k < inc.size(); ++k)
-                pass = (box == nullptr || boxes_overlap(*box, inc_b[k])) && any_in(*inc[k], p, b, e);
+                pass = (box == nullptr || boxes_overlap(*box, inc_b[k])) && any_in(*inc[k], inc_b[k], p, b, e);
             for (std::size_t k = 0; pass && k < exc.size(); ++k)
-                pass = (box != nullptr && !boxes_overlap(*box, exc_b[k])) || !any_in(*exc[k], p, b, e);
+                pass = (box != nullptr && !boxes_overlap(*box, exc_b[k])) || !any_in(*exc[k], exc_b[k], p, b, e);
         }
         // (The length last: most streamlines fail the regions first.)
         if (pass && lengths) {

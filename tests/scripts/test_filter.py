@@ -68,7 +68,11 @@ class Region:
             return (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) + d[:, 2] * d[:, 2] <= self.r * self.r
         if self.kind == "box":
             return np.all((pts >= self.lo) & (pts <= self.hi), axis=1)
-        v = np.rint(pts.astype(np.float64) @ self.inv[:3, :3].T + self.inv[:3, 3]).astype(np.int64)
+        # float32, ((m0 x + m1 y) + m2 z) + t, rounded half away from zero (tckedit's)
+        m = self.inv[:3].astype(np.float32)
+        v = ((m[:, 0] * pts[:, :1] + m[:, 1] * pts[:, 1:2]) + m[:, 2] * pts[:, 2:3]) + m[:, 3]
+        t = np.trunc(v)
+        v = (t + (v - t >= 0.5) - (v - t <= -0.5)).astype(np.int64)
         ok = np.all((v >= 0) & (v < np.array(self.data.shape[:3])), axis=1)
         hit = np.zeros(len(pts), bool)
         hit[ok] = self.data[v[ok, 0], v[ok, 1], v[ok, 2]]

@@ -16,7 +16,10 @@
 #include <limits>
 #include <sys/mman.h>
 #include <sys/stat.h>
+#include <sys/uio.h>
 #include <unistd.h>
+#include <utility>
+#include <vector>
 
 namespace tck {
 
@@ -435,52 +438,75 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
     }
     head.resize(offset, '\0');
 
-    std::FILE *f = std::fopen(path.c_str(), "wb");
-    if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno), true);
-    std::vector<float> buf;
-    buf.reserve(3 * 262144);
-    bool ok = std::fwrite(head.data(), 1, head.size(), f) == head.size();
-    const float nan = std::numeric_limits<float>::quiet_NaN();
-    const float inf = std::numeric_limits<float>::infinity();
-    auto flush = [&] {
-        if (ok && !buf.empty()) {
-            if constexpr (!kLittle)
-                for (auto &x : buf) x = std::bit_cast<float>(bswap(std::bit_cast<std::uint32_t>(x)));
-            ok = std::fwrite(buf.data(), sizeof(float), buf.size(), f) == buf.size();
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0) throw FormatError(std::string("cannot create: ") + std::strerror(errno), true);
+    struct Closer {
+        int fd;
+        ~Closer() {
+            if (fd >= 0) ::close(fd);
         }
-        buf.clear();
+    } closer{fd};
+    // Gathered writes straight from the caller's positions (little-endian
+    // machines): each streamline's run, then a shared delimiter triple; up
+    // to IOV_MAX pieces per call, no copy in between.
+    static const float delimiter[3] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::quiet_NaN(),
+                                       std::numeric_limits<float>::quiet_NaN()};
+    static const float terminator[3] = {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity(),
+                                        std::numeric_limits<float>::infinity()};
+    std::vector<iovec> iov;
+    iov.reserve(1024);
+    std::vector<float> swapped;  // (big-endian machines: a byte-swapped copy of the pending runs)
+    auto flush = [&] {
+        std::size_t k = 0;
+        while (k < iov.size()) {
+            const int cnt = int(std::min<std::size_t>(iov.size() - k, 1024));
+            const ssize_t w = ::writev(fd, iov.data() + k, cnt);
+            if (w < 0) {
+                if (errno == EINTR) continue;
+                throw FormatError(std::string("write failed: ") + std::strerror(errno), true);
+            }
+            // Advance past what was written (a short write resumes mid-piece).
+            std::size_t left = std::size_t(w);
+            while (k < iov.size() && left >= iov[k].iov_len) left -= iov[k++].iov_len;
+            if (left) {
+                iov[k].iov_base = static_cast<char *>(iov[k].iov_base) + left;
+                iov[k].iov_len -= left;
+            }
+        }
+        iov.clear();
+        swapped.clear();
     };
-    // Whole streamlines at a time: a finiteness test the compiler
-    // vectorises (exponent bits all set: Inf or NaN), then one copy.
-    for (std::uint64_t s = 0; s < nb_streamlines && ok; ++s) {
+    auto add = [&](const void *p, std::size_t bytes) {
+        if (bytes == 0) return;
+        if constexpr (!kLittle) {
+            const float *q = static_cast<const float *>(p);
+            std::size_t at = swapped.size();
+            if (swapped.capacity() < at + bytes / 4) {  // (no reallocation under pending iovecs)
+                flush();
+                swapped.reserve(std::max<std::size_t>(bytes / 4, 1 << 20));
+                at = 0;
+            }
+            for (std::size_t i = 0; i < bytes / 4; ++i) swapped.push_back(std::bit_cast<float>(bswap(std::bit_cast<std::uint32_t>(q[i]))));
+            p = swapped.data() + at;
+        }
+        iov.push_back({const_cast<void *>(p), bytes});
+        if (iov.size() == 1024) flush();
+    };
+    add(head.data(), head.size());
+    for (std::uint64_t s = 0; s < nb_streamlines; ++s) {
         const float *run = positions + 3 * offsets[s];
         const std::uint64_t n = 3 * (offsets[s + 1] - gap - offsets[s]);
+        // Exponent bits all set: Inf or NaN (a test the compiler vectorises).
         std::uint32_t bad = 0;
         for (std::uint64_t i = 0; i < n; ++i) bad |= (std::bit_cast<std::uint32_t>(run[i]) & 0x7f800000u) == 0x7f800000u;
-        if (bad) {
-            std::fclose(f);
-            throw FormatError("streamline " + std::to_string(s) + " has a non-finite coordinate (TCK uses NaN/Inf as delimiters)");
-        }
-        if (buf.size() + n + 3 > buf.capacity()) flush();
-        if (n + 3 > buf.capacity()) {  // (a streamline longer than the buffer: straight through)
-            if constexpr (!kLittle) {
-                for (std::uint64_t i = 0; i < n; i += 3 * 65536) {
-                    buf.assign(run + i, run + std::min(n, i + 3 * 65536));
-                    flush();
-                }
-            } else {
-                ok = ok && std::fwrite(run, sizeof(float), n, f) == n;
-            }
-        } else {
-            buf.insert(buf.end(), run, run + n);
-        }
-        buf.insert(buf.end(), {nan, nan, nan});
+        if (bad) throw FormatError("streamline " + std::to_string(s) + " has a non-finite coordinate (TCK uses NaN/Inf as delimiters)");
+        add(run, n * sizeof(float));
+        add(delimiter, sizeof delimiter);
     }
-    buf.insert(buf.end(), {inf, inf, inf});
+    add(terminator, sizeof terminator);
     flush();
     (void)nb_vertices;
-    if (std::fclose(f) != 0) ok = false;
-    if (!ok) throw FormatError(std::string("write failed: ") + std::strerror(errno), true);
+    if (::close(std::exchange(closer.fd, -1)) != 0) throw FormatError(std::string("write failed: ") + std::strerror(errno), true);
 }
 
 }  // namespace tck

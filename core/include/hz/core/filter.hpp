@@ -12,8 +12,9 @@
 //   vertex order (tckedit's arithmetic); an empty streamline has no length
 //   and is never kept;
 // - a sphere holds p when |p - c|^2 <= r^2 (float32); a mask holds p when
-//   the voxel nearest to p (rounded voxel coordinates) is inside the image
-//   and not zero (NaN voxels are outside here; tckedit counts them in);
+//   the voxel nearest to p (voxel coordinates from the RAS -> voxel affine
+//   in float32, rounded half away from zero) is inside the image and not
+//   zero (NaN voxels are outside here; tckedit counts them in);
 // - with ends_only, only the first and last vertices are tested;
 // - invert keeps exactly the streamlines the other settings drop (tckedit's
 //   -inverse, without its mask cropping).
@@ -45,6 +46,7 @@ struct Roi {
     std::shared_ptr<const std::vector<std::uint8_t>> mask;
     std::array<std::uint64_t, 3> dims{};
     Affine ras_to_voxel = kIdentity;
+    std::array<float, 12> r2v{};  // its first three rows in float32 (what contains() uses, as tckedit does)
     std::string file;
 
     bool contains(const float *p) const;
