@@ -110,6 +110,7 @@ struct ViewOptions {
     std::string algorithm = "qbx";          // --explore's clustering plugin (id or last part)
     std::vector<std::string> params;        // its --param NAME=VALUE
     std::string view;                       // a named camera view fitted to the scene (empty: the scene's own)
+    std::vector<std::string> include, exclude;  // regions of interest over the first tractogram (as `filter` takes them)
 };
 
 core::Registry load_registry(const GlobalOptions &g);

@@ -175,12 +175,14 @@ int main(int argc, char **argv) {
     view->add_option("inputs", vwo.inputs, "data files (tractograms, surfaces, volumes) or one scene .json")->required();
     view->add_option("--size", vwo.size, "window size WIDTHxHEIGHT")->capture_default_str();
     view->add_option("--samples", vwo.samples, "MSAA samples")->capture_default_str();
-    view->add_option("--script", vwo.script, "drive the window from a script (wait N (frames), sleep S (seconds), drag, pan, scroll, key, set, shader, moving on|off, expand K, hide K, repeat, reset, press LABEL, screenshot, quit)");
+    view->add_option("--script", vwo.script, "drive the window from a script (wait N (frames), sleep S (seconds), drag, pan, scroll, click X Y [ctrl] [alt], key K|ctrl+K, set, shader, moving on|off, expand K [streamlines], hide K, repeat [T...], reset, roi sphere|box|mask|move|scale|flip|remove ..., undo, redo, save PATH [force], press LABEL, screenshot, quit; see docs/window.md)");
     view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")->capture_default_str();
     view->add_option("--view", vwo.view, "initial camera view fitted to the scene (R returns to it)")->check(CLI::IsMember(named_views()));
     view->add_flag("--explore", vwo.explore, "explore the first tractogram as QuickBundlesX clusters: expand, hide, repeat (paper Fig. 5)");
     view->add_option("--algorithm", vwo.algorithm, "--explore with this clustering plugin (its id or the last part of it)")->capture_default_str();
     view->add_option("--param", vwo.params, "NAME=VALUE, a parameter of the clustering plugin (repeatable)");
+    view->add_option("--include", vwo.include, "a region of interest the shown streamlines must meet: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or a mask file (repeatable; the window adds, moves and removes them too)");
+    view->add_option("--exclude", vwo.exclude, "a region the shown streamlines must not meet (same forms; repeatable)");
     add_lod_options(view, vwo.lod);
     view->add_option("--stats", vwo.stats, "write per-frame times and what each frame drew to this JSON file at exit");
 

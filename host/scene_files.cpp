@@ -39,6 +39,20 @@ core::render::Scene scene_from_files(const core::Registry &reg, const std::vecto
             o.coloring.mode = "direction";
             o.render = o.data.tractogram.nb_streamlines() <= 20000 ? "tubes" : "lines";
             o.radius_mm = 0.3;
+            // A selection the window saved: coloured by the clusters it was
+            // saved with (per-streamline "horizon_cluster", -1 for streamlines
+            // expanded on their own), with the palette the window used.
+            core::Tractogram &t = o.data.tractogram;
+            std::vector<float> ids;
+            for (const auto &a : t.arrays)
+                if (a.name == "horizon_cluster" && a.attach == HZ_ATTACH_STREAMLINE && a.count == t.nb_streamlines() && a.components == 1) {
+                    ids.resize(a.count);
+                    for (std::uint64_t i = 0; i < a.count; ++i) ids[i] = float(core::value_at(a.bytes.data() + i * core::dtype_size(a.dtype), a.dtype));
+                }
+            if (!ids.empty()) {
+                t.arrays.push_back(core::f32_array("cluster_id", HZ_ATTACH_STREAMLINE, ids));
+                o.coloring.mode = "cluster";
+            }
         } else if (o.kind == HZ_DATA_MESH) {
             o.coloring.color = {0.85, 0.72, 0.68};
             core::render::apply_file_material(o, false, false);

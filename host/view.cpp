@@ -6,6 +6,7 @@
 // (tests run it under Xvfb). Without a display it says so and points to
 // `horizon render`.
 #include "commands.hpp"
+#include "session.hpp"
 
 #include <hz/core/io.hpp>
 #include <hz/core/params.hpp>
@@ -114,11 +115,13 @@ struct App {
     bool orbit_started = false;
     // The exploration's hooks (with --explore): a click at window
     // coordinates, and keys it takes (returns true) before the camera's.
-    std::function<void(double, double)> on_click;
-    std::function<bool(int)> on_key;
+    std::function<void(double, double, int)> on_click;  // (x, y, GLFW modifier bits)
+    std::function<bool(int, int)> on_key;
+    // A Ctrl+wheel turn (resizes the region of interest being edited).
+    std::function<void(double)> on_ctrl_scroll;
 
-    void click(double x, double y) {
-        if (on_click) on_click(x, y);
+    void click(double x, double y, int mods = 0) {
+        if (on_click) on_click(x, y, mods);
     }
 
     void drag_to(double x, double y) {
@@ -145,8 +148,9 @@ struct App {
         last_motion = glfwGetTime();
         orbit.distance = std::clamp(orbit.distance * std::pow(0.9, dy), radius * 0.05, radius * 50);
     }
-    void key(int k) {
-        if (on_key && on_key(k)) return;
+    void key(int k, int mods = 0) {
+        if (on_key && on_key(k, mods)) return;
+        if (mods & GLFW_MOD_CONTROL) return;  // (Ctrl+S is not a screenshot)
         if (k == GLFW_KEY_S) pending_shot = (shot_dir / ("horizon-screenshot-" + std::to_string(++shots) + ".png")).string();
         else if (k == GLFW_KEY_R) orbit = home;
         else if (k == GLFW_KEY_Q || k == GLFW_KEY_ESCAPE) quit = true;
@@ -172,178 +176,18 @@ core::render::ClusterSpec explore_spec(const core::Registry &reg, const ViewOpti
     return spec;
 }
 
-class Explorer {
-public:
-    Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec)
-        : reg_(reg), all_(std::move(all)), name_(std::move(name)), spec_(std::move(spec)) {
-        reset();
-    }
-    // Clusters shown, largest first (the panel's and the script's numbering).
-    const std::vector<std::uint64_t> &shown() const { return shown_; }
-    std::uint64_t size(std::uint64_t node) const { return tree_.size(node); }
-    std::uint32_t level(std::uint64_t node) const { return tree_.level[node]; }
-    std::string summary() const {
-        std::string colours;
-        for (std::uint64_t node : shown_) colours += (colours.empty() ? "" : " ") + std::to_string(colour_[node]);
-        std::string picked;
-        for (std::size_t k = 0; k < shown_.size(); ++k)
-            if (selected_.count(shown_[k])) picked += " #" + std::to_string(k);
-        return std::to_string(shown_.size()) + " clusters, " + std::to_string(expanded_.size()) + " streamlines expanded, " +
-               std::to_string(rounds_) + " clustering round(s); selected" + (picked.empty() ? " none" : picked) + "; colours " + colours;
-    }
-    bool is_selected(std::size_t rank) const { return selected_.count(at(rank)) != 0; }
-    std::size_t nb_selected() const { return selected_.size(); }
-
-    // Selects the cluster shown at `rank` (streamline `rank` of
-    // centroids_object()), or unselects it when it was selected.
-    void toggle(std::size_t rank) {
-        const std::uint64_t node = at(rank);
-        if (!selected_.erase(node)) selected_.insert(node);
-    }
-    // Every shown cluster selected, or none when all were.
-    void select_all() {
-        if (selected_.size() == shown_.size()) selected_.clear();
-        else selected_ = std::set<std::uint64_t>(shown_.begin(), shown_.end());
-    }
-    void expand_selected() {
-        if (selected_.empty()) throw core::Error("no cluster selected (click a centroid)");
-        for (std::uint64_t node : std::exchange(selected_, {})) expand_node(node);
-    }
-    void hide_selected() {
-        if (selected_.empty()) throw core::Error("no cluster selected (click a centroid)");
-        for (std::uint64_t node : std::exchange(selected_, {})) std::erase(shown_, node);
-    }
-
-    void expand(std::size_t rank) { expand_node(at(rank)); }
-    void expand_node(std::uint64_t node) {
-        selected_.erase(node);
-        std::erase(shown_, node);
-        if (tree_.level[node] < tree_.nb_levels) {
-            // The largest child keeps the parent's colour, the others get new ones.
-            std::vector<std::uint64_t> kids;
-            for (std::uint64_t k = 0; k < tree_.parent.size(); ++k)
-                if (tree_.parent[k] == std::int64_t(node)) kids.push_back(k);
-            std::stable_sort(kids.begin(), kids.end(), [&](std::uint64_t a, std::uint64_t b) { return size(a) > size(b); });
-            for (std::size_t i = 0; i < kids.size(); ++i) colour_[kids[i]] = i == 0 ? colour_[node] : next_colour_++;
-            shown_.insert(shown_.end(), kids.begin(), kids.end());
-        } else {
-            for (std::uint64_t m = tree_.member_offsets[node]; m < tree_.member_offsets[node + 1]; ++m)
-                expanded_.push_back(subset_[tree_.members[m]]);
-        }
-        sort();
-    }
-    void hide(std::size_t rank) {
-        const std::uint64_t node = at(rank);
-        selected_.erase(node);
-        std::erase(shown_, node);
-    }
-    void repeat() {
-        std::vector<std::uint64_t> keep = expanded_;
-        for (std::uint64_t node : shown_)
-            for (std::uint64_t m = tree_.member_offsets[node]; m < tree_.member_offsets[node + 1]; ++m) keep.push_back(subset_[tree_.members[m]]);
-        std::sort(keep.begin(), keep.end());
-        keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
-        if (keep.empty()) throw core::Error("nothing is shown to cluster again");
-        // Each streamline's colour now, so that the new clusters can keep them.
-        std::unordered_map<std::uint64_t, std::uint64_t> before;
-        for (std::uint64_t node : shown_)
-            for (std::uint64_t m = tree_.member_offsets[node]; m < tree_.member_offsets[node + 1]; ++m) before[subset_[tree_.members[m]]] = colour_[node];
-        cluster(std::move(keep), &before);
-    }
-    void reset() {
-        std::vector<std::uint64_t> every(all_.nb_streamlines());
-        for (std::uint64_t i = 0; i < every.size(); ++i) every[i] = i;
-        next_colour_ = 0;
-        cluster(std::move(every), nullptr);
-    }
-
-    core::render::Object centroids_object() const {
-        core::render::Object o;
-        o.name = name_ + ": QuickBundlesX centroids";
-        o.kind = o.data.kind = HZ_DATA_STREAMLINES;
-        core::Tractogram &t = o.data.tractogram;
-        const std::uint64_t K = shown_.size(), P = tree_.nb_points;
-        t.positions = core::Buffer<float>(K * P * 3);
-        t.offsets = core::Buffer<std::uint64_t>(K + 1);
-        std::vector<float> sizes(K), ids(K), picked(K);  // a cluster's colour id, stable while others change
-        for (std::uint64_t i = 0; i < K; ++i) {
-            std::copy_n(tree_.centroids.data() + shown_[i] * P * 3, P * 3, t.positions.data() + i * P * 3);
-            t.offsets[i] = i * P;
-            sizes[i] = float(size(shown_[i]));
-            ids[i] = float(colour_[shown_[i]]);
-            picked[i] = selected_.count(shown_[i]) ? 1.0f : 0.0f;
-        }
-        t.offsets[K] = K * P;
-        t.arrays.push_back(core::f32_array("cluster_size", HZ_ATTACH_STREAMLINE, sizes));
-        t.arrays.push_back(core::f32_array("cluster_id", HZ_ATTACH_STREAMLINE, ids));
-        t.arrays.push_back(core::f32_array("highlight", HZ_ATTACH_STREAMLINE, picked));
-        o.render = "tubes";
-        o.radius_mm = 1.0;
-        o.clustering = spec_;
-        o.coloring.mode = "cluster";
-        return o;
-    }
-    core::render::Object streamlines_object() const {
-        core::render::Object o;
-        o.name = name_ + ": expanded streamlines";
-        o.kind = o.data.kind = HZ_DATA_STREAMLINES;
-        o.data.tractogram = core::select_streamlines(all_, expanded_);
-        o.render = "lines";
-        o.coloring.mode = "direction";
-        return o;
-    }
-
-private:
-    std::uint64_t at(std::size_t rank) const {
-        if (rank >= shown_.size()) throw core::Error("no cluster " + std::to_string(rank) + " (" + std::to_string(shown_.size()) + " shown)");
-        return shown_[rank];
-    }
-    void sort() {
-        std::stable_sort(shown_.begin(), shown_.end(), [&](std::uint64_t a, std::uint64_t b) { return size(a) > size(b); });
-    }
-    // QuickBundlesX (fast mode) over the streamlines `subset` of all_;
-    // shows the first level. With `before` (streamline -> colour id), each
-    // new cluster, largest first, takes the colour most of its streamlines
-    // had, unless a larger one took it already; the rest get new colours.
-    void cluster(std::vector<std::uint64_t> subset, const std::unordered_map<std::uint64_t, std::uint64_t> *before) {
-        tree_ = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), spec_);
-        subset_ = std::move(subset);
-        shown_.clear();
-        selected_.clear();
-        expanded_.clear();
-        for (std::uint64_t k = 0; k < tree_.level.size(); ++k)
-            if (tree_.level[k] == 1) shown_.push_back(k);
-        sort();
-        colour_.assign(tree_.level.size(), 0);
-        std::set<std::uint64_t> taken;
-        for (std::uint64_t node : shown_) {
-            std::uint64_t pick = next_colour_;
-            if (before != nullptr) {
-                std::map<std::uint64_t, std::uint64_t> votes;
-                for (std::uint64_t m = tree_.member_offsets[node]; m < tree_.member_offsets[node + 1]; ++m)
-                    if (auto it = before->find(subset_[tree_.members[m]]); it != before->end()) ++votes[it->second];
-                std::uint64_t best = 0;
-                for (const auto &[c, n] : votes)
-                    if (n > best && !taken.count(c)) best = n, pick = c;
-            }
-            if (pick == next_colour_) ++next_colour_;
-            taken.insert(pick);
-            colour_[node] = pick;
-        }
-        ++rounds_;
-    }
-
-    const core::Registry &reg_;
-    core::Tractogram all_;
-    std::string name_;
-    core::render::ClusterSpec spec_;  // the clustering plugin and its parameters (--algorithm, --param)
-    core::render::ClusterTree tree_;
-    std::vector<std::uint64_t> subset_, shown_, expanded_;
-    std::set<std::uint64_t> selected_;  // tree nodes, all shown
-    std::vector<std::uint64_t> colour_;  // per tree node: its colour id (the palette entry)
-    std::uint64_t next_colour_ = 0;
-    int rounds_ = 0;
-};
+// A new object drawn as `o` is (everything but its data, which the caller
+// sets): Object holds move-only buffers.
+core::render::Object styled_like(const core::render::Object &o) {
+    core::render::Object n;
+    n.name = o.name, n.kind = o.kind, n.visible = o.visible, n.proxy_for = o.proxy_for, n.render = o.render, n.radius_mm = o.radius_mm;
+    n.clustering = o.clustering, n.coloring = o.coloring, n.material = o.material, n.opacity = o.opacity;
+    n.slice_x = o.slice_x, n.slice_y = o.slice_y, n.slice_z = o.slice_z, n.window = o.window, n.slice_colormap = o.slice_colormap;
+    n.clip_below = o.clip_below;
+    n.data.kind = o.data.kind, n.data.format = o.data.format, n.data.loader_id = o.data.loader_id;
+    n.data.source_space = o.data.source_space, n.data.metadata = o.data.metadata;
+    return n;
+}
 
 App *app_of(GLFWwindow *w) { return static_cast<App *>(glfwGetWindowUserPointer(w)); }
 
@@ -428,7 +272,7 @@ void cb_button(GLFWwindow *w, int button, int action, int mods) {
     else a.panning = down;
     if (left && down) a.press_x = a.last_x, a.press_y = a.last_y, a.orbit_started = false;
     if (!down) a.dragging = a.panning = false;
-    if (left && !down && std::hypot(a.last_x - a.press_x, a.last_y - a.press_y) <= App::kClickPx) a.click(a.last_x, a.last_y);
+    if (left && !down && std::hypot(a.last_x - a.press_x, a.last_y - a.press_y) <= App::kClickPx) a.click(a.last_x, a.last_y, mods);
 }
 void cb_cursor(GLFWwindow *w, double x, double y) {
     ++app_of(w)->events;
@@ -436,13 +280,18 @@ void cb_cursor(GLFWwindow *w, double x, double y) {
 }
 void cb_scroll(GLFWwindow *w, double, double dy) {
     ++app_of(w)->events;
-    if (!ImGui::GetIO().WantCaptureMouse) app_of(w)->scroll(dy);
+    if (ImGui::GetIO().WantCaptureMouse) return;
+    App &a = *app_of(w);
+    if ((glfwGetKey(w, GLFW_KEY_LEFT_CONTROL) == GLFW_PRESS || glfwGetKey(w, GLFW_KEY_RIGHT_CONTROL) == GLFW_PRESS) && a.on_ctrl_scroll)
+        a.on_ctrl_scroll(dy);
+    else
+        a.scroll(dy);
 }
 void cb_char(GLFWwindow *w, unsigned int) { ++app_of(w)->events; }
 void cb_refresh(GLFWwindow *w) { ++app_of(w)->events; }
-void cb_key(GLFWwindow *w, int key, int, int action, int) {
+void cb_key(GLFWwindow *w, int key, int, int action, int mods) {
     ++app_of(w)->events;
-    if (action == GLFW_PRESS && !ImGui::GetIO().WantCaptureKeyboard) app_of(w)->key(key);
+    if (action == GLFW_PRESS && !ImGui::GetIO().WantCaptureKeyboard) app_of(w)->key(key, mods);
 }
 
 // The material panel: one control per schema parameter.
@@ -586,34 +435,201 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         // Baked materials, except while the material panel is being edited
         // (each new value would compile a program): see App::material_edited.
         rs.bake_materials = true;
-        // The Fig. 5 exploration: the first tractogram becomes QuickBundlesX
-        // centroids (object ci) plus the streamlines expanded so far (si).
-        std::unique_ptr<Explorer> ex;
-        std::size_t ci = 0, si = 0;
-        if (o.explore) {
-            for (std::size_t i = 0; i < scene.objects.size() && !ex; ++i)
-                if (scene.objects[i].kind == HZ_DATA_STREAMLINES) {
-                    ex = std::make_unique<Explorer>(reg, std::move(scene.objects[i].data.tractogram), scene.objects[i].name, explore_spec(reg, o));
-                    ci = i;
-                    scene.objects[i] = ex->centroids_object();
-                    si = scene.objects.size();
-                    scene.objects.push_back(ex->streamlines_object());
-                }
-            if (!ex) throw core::Error("--explore needs a tractogram");
-            std::printf("explore: %s\n", ex->summary().c_str());
-            std::fflush(stdout);
+        // The editing session over the first tractogram (object ti): the
+        // regions of interest that select its streamlines, undo / redo, save.
+        // With --explore (paper Fig. 5) it becomes QuickBundlesX centroids
+        // (object ci = ti) plus the streamlines expanded so far (si).
+        std::unique_ptr<Session> session;
+        Explorer *ex = nullptr;
+        std::size_t ti = 0, ci = 0, si = 0, wire_in = 0, wire_out = 0;
+        for (std::size_t i = 0; i < scene.objects.size() && !session; ++i) {
+            core::render::Object &ob = scene.objects[i];
+            if (ob.kind != HZ_DATA_STREAMLINES || ob.proxy_for) continue;
+            ti = i;
+            std::vector<core::Roi> rois = Session::rois_from_metadata(reg, ob.data.metadata);  // (a file saved by the window)
+            for (const std::string &spec : o.include) rois.push_back(core::parse_roi(reg, spec, true));
+            for (const std::string &spec : o.exclude) rois.push_back(core::parse_roi(reg, spec, false));
+            std::unique_ptr<Explorer> explorer;
+            if (o.explore) explorer = std::make_unique<Explorer>(reg, ob.data.tractogram.shared(), ob.name, explore_spec(reg, o));
+            session = std::make_unique<Session>(reg, ob.data.tractogram.shared(), o.inputs, std::move(explorer));
+            ex = session->explorer();
+            for (auto &roi : rois) session->add_roi(std::move(roi));
+            if (!session->rois().empty()) session->apply();
+            if (ex) {
+                ci = i;
+                ob = ex->centroids_object();
+                si = scene.objects.size();
+                scene.objects.push_back(ex->streamlines_object());
+            } else if (!session->rois().empty()) {
+                ob.data.tractogram = core::subset_with_arrays(session->all(), session->kept());
+            }
+            // The regions, drawn as wire figures: include green, exclude red.
+            for (bool include : {true, false}) {
+                core::render::Object w;
+                w.name = include ? "include regions" : "exclude regions";
+                w.kind = w.data.kind = HZ_DATA_STREAMLINES;
+                w.render = "tubes";
+                w.radius_mm = 0.35;
+                w.coloring.mode = "solid";
+                w.coloring.color = include ? std::array<double, 3>{0.15, 0.85, 0.3} : std::array<double, 3>{0.95, 0.2, 0.15};
+                w.material.shader = "flat";
+                (include ? wire_in : wire_out) = scene.objects.size();
+                scene.objects.push_back(std::move(w));
+            }
         }
-        auto explore_refresh = [&](core::render::Renderer &rr) {
-            rr.replace_object(ci, ex->centroids_object());
-            rr.replace_object(si, ex->streamlines_object());
-            std::printf("explore: %s\n", ex->summary().c_str());
+        if (o.explore && !ex) throw core::Error("--explore needs a tractogram");
+        if (!session && (!o.include.empty() || !o.exclude.empty())) throw core::Error("--include and --exclude need a tractogram");
+        // A wire object's data: the regions of that kind, or a stand-in
+        // (hidden) when there is none.
+        auto wires = [&](bool include) {
+            core::Tractogram t = session->roi_wires(include);
+            if (t.nb_streamlines() == 0) {
+                t.positions = core::Buffer<float>{0, 0, 0, 0, 0, 0.01f};
+                t.offsets = core::Buffer<std::uint64_t>{0, 2};
+            }
+            return t;
+        };
+        auto report = [&](bool selection) {
+            if (ex) std::printf("explore: %s\n", ex->summary().c_str());
+            if (selection) std::printf("roi: %s (%.1f ms)\n", session->summary().c_str(), session->last_filter_ms());
             std::fflush(stdout);
         };
-        if (ex) {
-            // Picking: the centroid under the cursor, on the CPU with the
-            // camera the frame is drawn with (cursor coordinates scaled to
-            // the framebuffer's pixels).
-            app.on_click = [&](double x, double y) {
+        // After every edit: the objects that show the session again.
+        auto refresh = [&](core::render::Renderer &rr, bool selection_changed) {
+            if (ex) {
+                rr.replace_object(ci, ex->centroids_object());
+                rr.replace_object(si, ex->streamlines_object());
+            } else if (selection_changed) {
+                core::render::Object ob = styled_like(rr.scene().objects[ti]);
+                ob.data.tractogram = session->rois().empty() ? session->all().shared() : core::subset_with_arrays(session->all(), session->kept());
+                rr.replace_object(ti, std::move(ob));
+            }
+            for (bool include : {true, false}) {
+                const std::size_t k = include ? wire_in : wire_out;
+                core::render::Object w = styled_like(rr.scene().objects[k]);
+                const bool any = std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
+                w.data.tractogram = wires(include);
+                rr.replace_object(k, std::move(w));
+                rr.set_visible(k, any);
+            }
+            report(selection_changed);
+        };
+        if (session) {
+            for (bool include : {true, false}) {
+                core::render::Object &w = scene.objects[include ? wire_in : wire_out];
+                w.data.tractogram = wires(include);
+                w.visible = std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
+            }
+            report(!session->rois().empty());
+        }
+        // An edit: recorded for undo, applied, shown; an error leaves the
+        // session as it was (and says why on stderr, or to the script).
+        auto edit = [&](const std::function<void()> &fn, bool selection_changes) {
+            session->record();
+            try {
+                fn();
+            } catch (const core::Error &) {
+                session->undo();
+                throw;
+            }
+            refresh(r, selection_changes);
+        };
+        auto edit_ui = [&](const std::function<void()> &fn, bool selection_changes) {
+            try {
+                edit(fn, selection_changes);
+            } catch (const core::Error &e) {
+                std::fprintf(stderr, "horizon: %s\n", e.what());
+            }
+        };
+        auto undo_redo = [&](bool undo) {
+            if (!(undo ? session->undo() : session->redo())) {
+                std::printf("%s: nothing to %s\n", undo ? "undo" : "redo", undo ? "undo" : "redo");
+                std::fflush(stdout);
+                return;
+            }
+            refresh(r, true);
+        };
+        int saves = 0;
+        auto save_to = [&](const std::string &path, bool force) {
+            const std::string line = session->save(path, force);
+            std::printf("%s\n", line.c_str());
+            std::fflush(stdout);
+        };
+        // Ctrl+S: the next free horizon-selection-N.trx in the screenshot folder.
+        auto save_next = [&] {
+            std::error_code ec;
+            fs::path p;
+            do p = app.shot_dir / ("horizon-selection-" + std::to_string(++saves) + ".trx");
+            while (fs::exists(fs::symlink_status(p, ec)));
+            try {
+                save_to(p.string(), false);
+            } catch (const std::exception &e) {
+                std::fprintf(stderr, "horizon: %s\n", e.what());
+            }
+        };
+        // The world point under window point (x, y): the picked streamline's
+        // depth along the ray through it (nullopt over nothing).
+        auto point_under = [&](double x, double y) -> std::optional<std::array<double, 3>> {
+            int ww, wh, fw, fh;
+            glfwGetWindowSize(win, &ww, &wh);
+            glfwGetFramebufferSize(win, &fw, &fh);
+            if (ww <= 0 || wh <= 0 || fw <= 0 || fh <= 0) return std::nullopt;
+            const core::render::Object &ob = r.scene().objects[ex ? ci : ti];
+            const core::render::View v = app.orbit.view(app.radius);
+            const double px = x * fw / ww, py = y * fh / wh;
+            const auto hit = core::render::pick_streamline(ob.data.tractogram, ob.render == "tubes" ? core::render::tube_radii(ob) : std::vector<float>{},
+                                                           v, fw, fh, px, py);
+            if (!hit) return std::nullopt;
+            // The ray through the pixel, in the camera's frame.
+            const double fwd[3] = {v.target[0] - v.eye[0], v.target[1] - v.eye[1], v.target[2] - v.eye[2]};
+            const double fl = std::sqrt(fwd[0] * fwd[0] + fwd[1] * fwd[1] + fwd[2] * fwd[2]);
+            const double f[3] = {fwd[0] / fl, fwd[1] / fl, fwd[2] / fl};
+            double rt[3] = {f[1] * v.up[2] - f[2] * v.up[1], f[2] * v.up[0] - f[0] * v.up[2], f[0] * v.up[1] - f[1] * v.up[0]};
+            const double rl = std::sqrt(rt[0] * rt[0] + rt[1] * rt[1] + rt[2] * rt[2]);
+            for (double &c : rt) c /= rl;
+            const double u[3] = {rt[1] * f[2] - rt[2] * f[1], rt[2] * f[0] - rt[0] * f[2], rt[0] * f[1] - rt[1] * f[0]};
+            const double th = std::tan(v.fov_deg * M_PI / 360.0), aspect = double(fw) / fh;
+            const double sx = (2 * (px + 0.5) / fw - 1) * th * aspect, sy = (1 - 2 * (py + 0.5) / fh) * th;
+            std::array<double, 3> p;
+            for (int i = 0; i < 3; ++i) p[i] = v.eye[i] + hit->depth_mm * (f[i] + sx * rt[i] + sy * u[i]);
+            return p;
+        };
+        std::size_t active_roi = 0;  // the region Ctrl+wheel resizes (the last placed or edited)
+        bool roi_drag = false;       // a panel drag of a region in progress (recorded once for undo)
+        auto place_sphere = [&](const std::array<double, 3> &c, double radius, bool include) {
+            core::Roi roi;
+            roi.shape = core::Roi::Shape::Sphere;
+            roi.center = c;
+            roi.radius = radius;
+            roi.include = include;
+            edit([&] {
+                session->add_roi(roi);
+                session->apply();
+            }, true);
+            active_roi = session->rois().size() - 1;
+        };
+        if (session) {
+            // Ctrl+click: an include sphere (5 mm) where the click meets a
+            // streamline (or a centroid); a plain click picks a cluster.
+            app.on_click = [&](double x, double y, int mods) {
+                if (mods & GLFW_MOD_CONTROL) {
+                    const auto p = point_under(x, y);
+                    if (!p) {
+                        std::printf("roi: nothing under (%.0f, %.0f) to place a region on\n", x, y);
+                        std::fflush(stdout);
+                        return;
+                    }
+                    try {
+                        place_sphere(*p, 5.0, !(mods & GLFW_MOD_ALT));
+                    } catch (const core::Error &e) {
+                        std::fprintf(stderr, "horizon: %s\n", e.what());
+                    }
+                    return;
+                }
+                if (!ex) return;
+                // Picking: the centroid under the cursor, on the CPU with the
+                // camera the frame is drawn with (cursor coordinates scaled to
+                // the framebuffer's pixels).
                 int ww, wh, fw, fh;
                 glfwGetWindowSize(win, &ww, &wh);
                 glfwGetFramebufferSize(win, &fw, &fh);
@@ -628,23 +644,40 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 }
                 const std::size_t k = hit->streamline;
                 ex->toggle(k);
-                std::printf("explore: %s #%zu (level %u, %llu streamlines)\n", ex->is_selected(k) ? "picked" : "unpicked", k,
-                            ex->level(ex->shown()[k]), (unsigned long long)ex->size(ex->shown()[k]));
-                explore_refresh(r);
+                std::printf("explore: %s #%zu %s (level %u, %llu streamlines)\n", ex->is_selected(k) ? "picked" : "unpicked", k,
+                            ex->path(ex->shown()[k]).c_str(), ex->level(ex->shown()[k]), (unsigned long long)ex->size(ex->shown()[k]));
+                refresh(r, false);
             };
-            app.on_key = [&](int k) {
-                try {
-                    if (k == GLFW_KEY_E) ex->expand_selected();
-                    else if (k == GLFW_KEY_H) ex->hide_selected();
-                    else if (k == GLFW_KEY_A) ex->select_all();
-                    else if (k == GLFW_KEY_C) ex->repeat();
+            app.on_key = [&](int k, int mods) {
+                if (mods & GLFW_MOD_CONTROL) {
+                    if (k == GLFW_KEY_Z) undo_redo(!(mods & GLFW_MOD_SHIFT));
+                    else if (k == GLFW_KEY_Y) undo_redo(false);
+                    else if (k == GLFW_KEY_S) save_next();
                     else return false;
-                } catch (const core::Error &e) {
-                    std::fprintf(stderr, "horizon: %s\n", e.what());
                     return true;
                 }
-                explore_refresh(r);
+                if (!ex) return false;
+                std::function<void()> fn;
+                if (k == GLFW_KEY_E) fn = [&] { ex->expand_selected(); };
+                else if (k == GLFW_KEY_X) fn = [&] {  // the selected clusters straight to their streamlines
+                    if (ex->nb_selected() == 0) throw core::Error("no cluster selected (click a centroid)");
+                    for (std::size_t rank = ex->shown().size(); rank-- > 0;)
+                        if (ex->is_selected(rank)) ex->expand_to_streamlines(rank);
+                };
+                else if (k == GLFW_KEY_H) fn = [&] { ex->hide_selected(); };
+                else if (k == GLFW_KEY_A) fn = [&] { ex->select_all(); };
+                else if (k == GLFW_KEY_C) fn = [&] { ex->repeat(); };
+                else return false;
+                edit_ui(fn, false);
                 return true;
+            };
+            app.on_ctrl_scroll = [&](double dy) {
+                if (session->rois().empty()) return;
+                active_roi = std::min(active_roi, session->rois().size() - 1);
+                edit_ui([&] {
+                    session->resize_roi(active_roi, std::pow(1.1, dy));
+                    session->apply();
+                }, true);
             };
         }
         const core::render::View v0 = core::render::fit_view(scene, scene.camera, double(w0) / h0);
@@ -731,19 +764,27 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                         (op == "drag" ? app.dragging : app.panning) = true;
                         for (int s = 1; s <= 8; ++s) app.drag_to(x0 + (x1 - x0) * s / 8, y0 + (y1 - y0) * s / 8);
                         app.dragging = app.panning = false;
-                    } else if (op == "click") {  // as a left press and release at window point (x, y)
+                    } else if (op == "click") {  // as a left press and release at window point (x, y) [ctrl] [alt]
                         double x, y;
                         if (!(cmd >> x >> y)) throw core::Error("click needs x y");
+                        int mods = 0;
+                        for (std::string m; cmd >> m;) mods |= m == "ctrl" ? GLFW_MOD_CONTROL : m == "alt" ? GLFW_MOD_ALT : m == "shift" ? GLFW_MOD_SHIFT : 0;
                         app.last_x = x, app.last_y = y;
-                        app.click(x, y);
+                        app.click(x, y, mods);
                     } else if (op == "scroll") {
                         double d;
                         cmd >> d;
                         app.scroll(d);
-                    } else if (op == "key") {
+                    } else if (op == "key") {  // key K, or with modifiers: key ctrl+z, key ctrl+shift+z
                         std::string k;
                         cmd >> k;
-                        app.key(k == "esc" ? GLFW_KEY_ESCAPE : GLFW_KEY_A + (std::toupper(k[0]) - 'A'));
+                        int mods = 0;
+                        for (std::size_t plus; (plus = k.find('+')) != std::string::npos && plus + 1 < k.size(); k = k.substr(plus + 1)) {
+                            const std::string m = k.substr(0, plus);
+                            mods |= m == "ctrl" ? GLFW_MOD_CONTROL : m == "shift" ? GLFW_MOD_SHIFT : m == "alt" ? GLFW_MOD_ALT : 0;
+                        }
+                        if (k.empty()) throw core::Error("key needs a key");
+                        app.key(k == "esc" ? GLFW_KEY_ESCAPE : GLFW_KEY_A + (std::toupper(k[0]) - 'A'), mods);
                     } else if (op == "screenshot") {
                         cmd >> app.pending_shot;
                     } else if (op == "shader" || op == "set") {
@@ -765,13 +806,76 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                         r.set_material(obj, materials[obj]);
                     } else if (op == "expand" || op == "hide" || op == "repeat" || op == "reset") {
                         if (!ex) throw core::Error(op + " needs --explore");
-                        std::size_t k = 0;
-                        if (op == "expand" || op == "hide") cmd >> k;
-                        if (op == "expand") ex->expand(k);
-                        else if (op == "hide") ex->hide(k);
-                        else if (op == "repeat") ex->repeat();
-                        else ex->reset();
-                        explore_refresh(r);
+                        // expand K [streamlines], hide K: K a rank (0 = the
+                        // largest shown) or a path (c2.1); repeat [T1 T2 ...]:
+                        // thresholds in mm (default: fitted to what is shown).
+                        std::string k, mode;
+                        std::vector<double> thresholds;
+                        if (op == "expand" || op == "hide") cmd >> k >> mode;
+                        if (op == "repeat")
+                            for (double t; cmd >> t;) thresholds.push_back(t);
+                        edit([&] {
+                            if (op == "expand" && mode == "streamlines") ex->expand_to_streamlines(ex->rank_of(k));
+                            else if (op == "expand") ex->expand(ex->rank_of(k));
+                            else if (op == "hide") ex->hide(ex->rank_of(k));
+                            else if (op == "repeat") ex->repeat(thresholds);
+                            else ex->reset(&session->kept());
+                        }, false);
+                    } else if (op == "roi") {
+                        // roi sphere X Y Z R [include|exclude], roi box X0 Y0 Z0 X1 Y1 Z1 [...],
+                        // roi mask FILE [...], roi move K X Y Z, roi scale K F, roi flip K, roi remove K
+                        if (!session) throw core::Error("roi needs a tractogram");
+                        std::string what;
+                        cmd >> what;
+                        auto numbers = [&](int n) {
+                            std::string out;
+                            for (int i = 0; i < n; ++i) {
+                                std::string x;
+                                if (!(cmd >> x)) throw core::Error("roi " + what + " needs " + std::to_string(n) + " numbers");
+                                out += (i ? "," : "") + x;
+                            }
+                            return out;
+                        };
+                        if (what == "sphere" || what == "box" || what == "mask") {
+                            std::string spec;
+                            if (what == "mask") cmd >> spec;
+                            else spec = what + ":" + numbers(what == "sphere" ? 4 : 6);
+                            std::string mode = "include";
+                            cmd >> mode;
+                            if (mode != "include" && mode != "exclude") throw core::Error("roi: '" + mode + "' is neither include nor exclude");
+                            core::Roi roi = core::parse_roi(reg, spec, mode == "include");
+                            edit([&] {
+                                session->add_roi(roi);
+                                session->apply();
+                            }, true);
+                            active_roi = session->rois().size() - 1;
+                        } else if (what == "move" || what == "scale" || what == "flip" || what == "remove") {
+                            std::size_t k = 0;
+                            if (!(cmd >> k)) throw core::Error("roi " + what + " needs a region number");
+                            std::array<double, 3> c{};
+                            double f = 1;
+                            if (what == "move" && !(cmd >> c[0] >> c[1] >> c[2])) throw core::Error("roi move needs K X Y Z");
+                            if (what == "scale" && !(cmd >> f)) throw core::Error("roi scale needs K FACTOR");
+                            edit([&] {
+                                if (what == "move") session->move_roi(k, c);
+                                else if (what == "scale") session->resize_roi(k, f);
+                                else if (what == "flip") session->flip_roi(k);
+                                else session->remove_roi(k);
+                                session->apply();
+                            }, true);
+                            active_roi = k;
+                        } else {
+                            throw core::Error("roi: unknown '" + what + "' (sphere, box, mask, move, scale, flip, remove)");
+                        }
+                    } else if (op == "undo" || op == "redo") {
+                        if (!session) throw core::Error(op + " needs a tractogram");
+                        undo_redo(op == "undo");
+                    } else if (op == "save") {  // save PATH [force]
+                        if (!session) throw core::Error("save needs a tractogram");
+                        std::string path, force;
+                        if (!(cmd >> path)) throw core::Error("save needs a file name");
+                        cmd >> force;
+                        save_to(path, force == "force");
                     } else if (op == "press") {
                         std::string label;
                         std::getline(cmd >> std::ws, label);
@@ -866,38 +970,104 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: level-of-detail subsample");
             ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset");
             if (ImGui::SliderFloat("exposure", &exposure, 0.05f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic)) r.set_exposure(exposure);
+            // What a panel control asks for, done after the panel (an edit:
+            // recorded for undo).
+            std::function<void()> act;
+            bool act_selects = false;
             if (ex && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
                 ImGui::TextWrapped("%s", ex->summary().c_str());
-                bool changed = false;
-                try {
-                    ImGui::TextDisabled("click a centroid: select  E: expand  H: hide  A: all/none  C: cluster again");
-                    if (button("Repeat: cluster what is shown")) ex->repeat(), changed = true;
+                ImGui::TextDisabled("click a centroid: select  E: expand  X: to streamlines  H: hide  A: all/none  C: cluster again");
+                if (button("Repeat: cluster what is shown")) act = [&] { ex->repeat(); };
+                ImGui::SameLine();
+                if (button("Reset")) act = [&] { ex->reset(&session->kept()); };
+                if (ex->nb_selected() > 0) {
+                    if (button("Expand selected")) act = [&] { ex->expand_selected(); };
                     ImGui::SameLine();
-                    if (button("Reset")) ex->reset(), changed = true;
-                    if (ex->nb_selected() > 0) {
-                        if (button("Expand selected")) ex->expand_selected(), changed = true;
-                        ImGui::SameLine();
-                        if (!changed && button("Hide selected")) ex->hide_selected(), changed = true;
+                    if (button("Hide selected")) act = [&] { ex->hide_selected(); };
+                }
+                // The legend: each cluster's colour, path, level and size.
+                const std::size_t n = std::min<std::size_t>(ex->shown().size(), 40);
+                for (std::size_t k = 0; k < n && !act; ++k) {
+                    const std::uint64_t node = ex->shown()[k];
+                    ImGui::PushID(int(100000 + k));
+                    bool sel = ex->is_selected(k);
+                    if (ImGui::Checkbox("##sel", &sel)) act = [&, k] { ex->toggle(k); };
+                    ImGui::SameLine();
+                    const auto rgb = core::render::cluster_palette(double(ex->colour(node)));
+                    ImGui::ColorButton("##colour", ImVec4(float(rgb[0]), float(rgb[1]), float(rgb[2]), 1.0f), ImGuiColorEditFlags_NoTooltip,
+                                       ImVec2(12, 12));
+                    ImGui::SameLine();
+                    ImGui::Text("#%zu %s  level %u  %llu", k, ex->path(node).c_str(), ex->level(node), (unsigned long long)ex->size(node));
+                    ImGui::SameLine();
+                    if (ImGui::SmallButton("expand")) act = [&, k] { ex->expand(k); };
+                    ImGui::SameLine();
+                    if (ImGui::SmallButton("streamlines")) act = [&, k] { ex->expand_to_streamlines(k); };
+                    ImGui::SameLine();
+                    if (ImGui::SmallButton("hide")) act = [&, k] { ex->hide(k); };
+                    ImGui::PopID();
+                }
+                if (ex->shown().size() > n) ImGui::TextDisabled("... and %zu smaller clusters", ex->shown().size() - n);
+            }
+            // (Under the exploration's panel, and closed at first there: the
+            // panel must fit small windows.)
+            if (session && ImGui::CollapsingHeader("Regions of interest", ex ? 0 : ImGuiTreeNodeFlags_DefaultOpen)) {
+                ImGui::Text("%llu of %llu streamlines selected (%.0f ms)", (unsigned long long)session->kept().size(),
+                            (unsigned long long)session->all().nb_streamlines(), session->last_filter_ms());
+                ImGui::TextDisabled("Ctrl+click: include sphere  Ctrl+Alt+click: exclude\nCtrl+wheel: resize  Ctrl+Z / Ctrl+Shift+Z: undo / redo  Ctrl+S: save");
+                if (button("Add sphere")) {
+                    const std::array<double, 3> c{app.orbit.target[0], app.orbit.target[1], app.orbit.target[2]};
+                    act = [&, c] {
+                        core::Roi roi;
+                        roi.center = c, roi.radius = 10.0;
+                        session->add_roi(roi);
+                        session->apply();
+                        active_roi = session->rois().size() - 1;
+                    };
+                    act_selects = true;
+                }
+                ImGui::SameLine();
+                if (button("Undo")) undo_redo(true);
+                ImGui::SameLine();
+                if (button("Redo")) undo_redo(false);
+                ImGui::SameLine();
+                if (button("Save")) save_next();
+                for (std::size_t k = 0; k < session->rois().size() && !act; ++k) {
+                    const core::Roi &roi = session->rois()[k];
+                    ImGui::PushID(int(200000 + k));
+                    bool include = roi.include;
+                    if (ImGui::Checkbox("include", &include)) act = [&, k] { session->flip_roi(k), session->apply(); }, act_selects = true;
+                    ImGui::SameLine();
+                    ImGui::Text("#%zu %s", k, roi.spec().c_str());
+                    if (roi.shape != core::Roi::Shape::Mask) {
+                        // Dragged: the region follows at once; the selection
+                        // is made again when the drag ends (one undo step).
+                        const auto centre = roi.shape == core::Roi::Shape::Sphere
+                                                ? roi.center
+                                                : std::array<double, 3>{(roi.lo[0] + roi.hi[0]) / 2, (roi.lo[1] + roi.hi[1]) / 2, (roi.lo[2] + roi.hi[2]) / 2};
+                        float c[3] = {float(centre[0]), float(centre[1]), float(centre[2])};
+                        if (ImGui::DragFloat3("centre (mm)", c, 0.25f)) {
+                            if (!roi_drag) session->record(), roi_drag = true;
+                            session->move_roi(k, {c[0], c[1], c[2]});
+                            active_roi = k;
+                            refresh(r, false);
+                        }
+                        if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply(), refresh(r, true);
+                        float size = float(roi.shape == core::Roi::Shape::Sphere ? roi.radius : (roi.hi[0] - roi.lo[0]) / 2);
+                        if (ImGui::SliderFloat(roi.shape == core::Roi::Shape::Sphere ? "radius (mm)" : "half size x (mm)", &size, 0.5f, 60.0f, "%.1f",
+                                               ImGuiSliderFlags_Logarithmic)) {
+                            if (!roi_drag) session->record(), roi_drag = true;
+                            const double now = roi.shape == core::Roi::Shape::Sphere ? roi.radius : (roi.hi[0] - roi.lo[0]) / 2;
+                            session->resize_roi(k, size / std::max(now, 1e-6));
+                            active_roi = k;
+                            refresh(r, false);
+                        }
+                        if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply(), refresh(r, true);
                     }
-                    const std::size_t n = std::min<std::size_t>(ex->shown().size(), 40);
-                    for (std::size_t k = 0; k < n && !changed; ++k) {
-                        const std::uint64_t node = ex->shown()[k];
-                        ImGui::PushID(int(100000 + k));
-                        bool sel = ex->is_selected(k);
-                        if (ImGui::Checkbox("##sel", &sel)) ex->toggle(k), changed = true;
-                        ImGui::SameLine();
-                        ImGui::Text("#%zu  level %u  %llu streamlines", k, ex->level(node), (unsigned long long)ex->size(node));
-                        ImGui::SameLine();
-                        if (ImGui::SmallButton("expand")) ex->expand(k), changed = true;
-                        ImGui::SameLine();
-                        if (!changed && ImGui::SmallButton("hide")) ex->hide(k), changed = true;
-                        ImGui::PopID();
-                    }
-                    if (changed) explore_refresh(r);
-                } catch (const core::Error &e) {
-                    std::fprintf(stderr, "horizon: %s\n", e.what());
+                    if (ImGui::SmallButton("remove")) act = [&, k] { session->remove_roi(k), session->apply(); }, act_selects = true;
+                    ImGui::PopID();
                 }
             }
+            if (act) edit_ui(act, act_selects);
             for (std::size_t i = 0; i < r.scene().objects.size(); ++i) {
                 const auto &ob = r.scene().objects[i];
                 ImGui::PushID(int(i));
@@ -931,6 +1101,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         if (!o.stats.empty()) log.write(o.stats, r, framebuffer_size(win).first, framebuffer_size(win).second);
         app.on_click = nullptr;  // (they refer to r and ex, which end here)
         app.on_key = nullptr;
+        app.on_ctrl_scroll = nullptr;
         app.r = nullptr;
     }
     ImGui_ImplOpenGL3_Shutdown();

@@ -347,6 +347,22 @@ std::array<double, 16> view_projection(const View &v, int width, int height) {
     return out;
 }
 
+std::array<double, 3> cluster_palette(double id) {
+    // Golden-ratio steps around the hue circle: neighbours in id order are far apart.
+    const double hue = std::fmod(id * 0.618033988749895, 1.0);
+    const double h6 = hue * 6, x = 1 - std::abs(std::fmod(h6, 2.0) - 1);
+    double r = 0, g = 0, b = 0;
+    switch (int(h6)) {
+    case 0: r = 1, g = x; break;
+    case 1: r = x, g = 1; break;
+    case 2: g = 1, b = x; break;
+    case 3: g = x, b = 1; break;
+    case 4: r = x, b = 1; break;
+    default: r = 1, b = x; break;
+    }
+    return {0.25 + 0.7 * r, 0.25 + 0.7 * g, 0.25 + 0.7 * b};
+}
+
 std::vector<float> tube_radii(const Object &o) {
     const Tractogram &t = o.data.tractogram;
     const std::uint64_t N = t.nb_streamlines();
@@ -1003,18 +1019,8 @@ struct Renderer::Impl {
             d->cluster.resize(N);
             for (std::uint64_t s = 0; s < N; ++s) {
                 const double key = ids.empty() ? double(s) : ids[s];
-                const double hue = std::fmod(key * 0.618033988749895, 1.0);
-                const double h6 = hue * 6, x = 1 - std::abs(std::fmod(h6, 2.0) - 1);
-                double r = 0, gg = 0, bb = 0;
-                switch (int(h6)) {
-                case 0: r = 1, gg = x; break;
-                case 1: r = x, gg = 1; break;
-                case 2: gg = 1, bb = x; break;
-                case 3: gg = x, bb = 1; break;
-                case 4: r = x, bb = 1; break;
-                default: r = 1, bb = x; break;
-                }
-                d->cluster[s] = rgba8(srgb_to_linear(0.25 + 0.7 * r), srgb_to_linear(0.25 + 0.7 * gg), srgb_to_linear(0.25 + 0.7 * bb));
+                const auto c = cluster_palette(key);
+                d->cluster[s] = rgba8(srgb_to_linear(c[0]), srgb_to_linear(c[1]), srgb_to_linear(c[2]));
             }
         }
         d->radius = tube_radii(o);

@@ -576,6 +576,7 @@ ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const Clust
     ClusterTree tree;
     tree.nb_levels = v.nb_levels;
     tree.nb_points = v.nb_points;
+    if (v.level_thresholds) tree.thresholds.assign(v.level_thresholds, v.level_thresholds + v.nb_levels);
     tree.parent.assign(v.parent, v.parent + v.nb_nodes);
     tree.level.assign(v.level, v.level + v.nb_nodes);
     tree.centroids.assign(v.centroids, v.centroids + v.nb_nodes * v.nb_points * 3);

@@ -189,6 +189,8 @@ Bounds scene_bounds(const Scene &scene);
 // a per-streamline "cluster_size" array. (A per-streamline "highlight" array
 // mixes a streamline's colour towards white by its value in [0, 1].)
 std::vector<float> tube_radii(const Object &o);
+// The colour (sRGB, 0..1) of cluster colour id `id` in "cluster" colouring (legends).
+std::array<double, 3> cluster_palette(double id);
 
 // Looks up a shader plugin by id or by the last component of its id.
 const LoadedPlugin *find_shader(const Registry &reg, const std::string &name);

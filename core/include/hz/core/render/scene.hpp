@@ -128,6 +128,7 @@ Volume make_head_volume(double voxel_mm = 2.0); // a T1-like synthetic volume, s
 // A clustering tree, copied out of the plugin (hz_cluster_tree_view).
 struct ClusterTree {
     std::uint32_t nb_levels = 0, nb_points = 0;
+    std::vector<double> thresholds;              // per level (1..nb_levels), mm; empty when the plugin reports none
     std::vector<std::int64_t> parent;            // per node; -1 for the root
     std::vector<std::uint32_t> level;            // per node; 0 for the root
     std::vector<float> centroids;                // nodes x nb_points x 3

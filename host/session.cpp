@@ -1,0 +1,492 @@
+#include "session.hpp"
+#include "commands.hpp"
+
+#include <hz/core/io.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+
+namespace hz::host {
+
+// ---------------------------------------------------------------- Explorer
+
+Explorer::Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec)
+    : reg_(reg), all_(std::move(all)), name_(std::move(name)), spec_(std::move(spec)) {
+    const core::Bounds b = all_.nb_stored() ? core::bounds_of(all_.positions.data(), all_.nb_stored()) : core::Bounds{};
+    all_diagonal_ = b.empty ? 0 : std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]);
+    reset();
+}
+
+std::uint64_t Explorer::at(std::size_t rank) const {
+    if (rank >= s_.shown.size()) throw core::Error("no cluster " + std::to_string(rank) + " (" + std::to_string(s_.shown.size()) + " shown)");
+    return s_.shown[rank];
+}
+
+void Explorer::sort() {
+    std::stable_sort(s_.shown.begin(), s_.shown.end(), [&](std::uint64_t a, std::uint64_t b) { return size(a) > size(b); });
+}
+
+std::vector<std::uint64_t> Explorer::children(std::uint64_t node) const {
+    std::vector<std::uint64_t> kids;
+    const auto &parent = s_.tree->parent;
+    for (std::uint64_t k = 0; k < parent.size(); ++k)
+        if (parent[k] == std::int64_t(node)) kids.push_back(k);
+    std::stable_sort(kids.begin(), kids.end(), [&](std::uint64_t a, std::uint64_t b) { return size(a) > size(b); });
+    return kids;
+}
+
+std::string Explorer::path(std::uint64_t node) const {
+    std::vector<std::size_t> ranks;
+    for (std::uint64_t n = node; s_.tree->level[n] >= 1;) {
+        const std::int64_t p = s_.tree->parent[n];
+        std::vector<std::uint64_t> sib;
+        if (p >= 0) sib = children(std::uint64_t(p));
+        else
+            for (std::uint64_t k = 0; k < s_.tree->level.size(); ++k)
+                if (s_.tree->level[k] == s_.tree->level[n] && s_.tree->parent[k] < 0) sib.push_back(k);
+        ranks.push_back(std::size_t(std::find(sib.begin(), sib.end(), n) - sib.begin()) + 1);
+        if (p < 0) break;
+        n = std::uint64_t(p);
+    }
+    std::string s = "c";
+    for (auto it = ranks.rbegin(); it != ranks.rend(); ++it) s += (it == ranks.rbegin() ? "" : ".") + std::to_string(*it);
+    return s;
+}
+
+std::size_t Explorer::rank_of(const std::string &what) const {
+    if (!what.empty() && what[0] == 'c') {
+        for (std::size_t k = 0; k < s_.shown.size(); ++k)
+            if (path(s_.shown[k]) == what) return k;
+        throw core::Error("no cluster " + what + " is shown");
+    }
+    std::size_t used = 0;
+    unsigned long k = 0;
+    try {
+        k = std::stoul(what, &used);
+    } catch (const std::exception &) {
+        used = 0;
+    }
+    if (used == 0 || used != what.size()) throw core::Error("'" + what + "' is not a cluster (a rank such as 0, or a path such as c2.1)");
+    at(k);
+    return k;
+}
+
+std::string Explorer::summary() const {
+    std::string colours;
+    for (std::uint64_t node : s_.shown) colours += (colours.empty() ? "" : " ") + std::to_string(s_.colour[node]);
+    std::string picked;
+    for (std::size_t k = 0; k < s_.shown.size(); ++k)
+        if (s_.selected.count(s_.shown[k])) picked += " #" + std::to_string(k);
+    return std::to_string(s_.shown.size()) + " clusters, " + std::to_string(s_.expanded.size()) + " streamlines expanded, " +
+           std::to_string(s_.rounds) + " clustering round(s); selected" + (picked.empty() ? " none" : picked) + "; colours " + colours;
+}
+
+void Explorer::toggle(std::size_t rank) {
+    const std::uint64_t node = at(rank);
+    if (!s_.selected.erase(node)) s_.selected.insert(node);
+}
+
+void Explorer::select_all() {
+    if (s_.selected.size() == s_.shown.size()) s_.selected.clear();
+    else s_.selected = std::set<std::uint64_t>(s_.shown.begin(), s_.shown.end());
+}
+
+void Explorer::expand_selected() {
+    if (s_.selected.empty()) throw core::Error("no cluster selected (click a centroid)");
+    for (std::uint64_t node : std::exchange(s_.selected, {})) expand_node(node, false);
+}
+
+void Explorer::hide_selected() {
+    if (s_.selected.empty()) throw core::Error("no cluster selected (click a centroid)");
+    for (std::uint64_t node : std::exchange(s_.selected, {})) std::erase(s_.shown, node);
+}
+
+void Explorer::expand(std::size_t rank) { expand_node(at(rank), false); }
+void Explorer::expand_to_streamlines(std::size_t rank) { expand_node(at(rank), true); }
+
+void Explorer::expand_node(std::uint64_t node, bool to_streamlines) {
+    s_.selected.erase(node);
+    std::erase(s_.shown, node);
+    const auto &t = *s_.tree;
+    if (!to_streamlines && t.level[node] < t.nb_levels) {
+        // The largest child keeps the parent's colour, the others get new ones.
+        const std::vector<std::uint64_t> kids = children(node);
+        for (std::size_t i = 0; i < kids.size(); ++i) s_.colour[kids[i]] = i == 0 ? s_.colour[node] : s_.next_colour++;
+        s_.shown.insert(s_.shown.end(), kids.begin(), kids.end());
+    } else {
+        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) s_.expanded.push_back(s_.subset[t.members[m]]);
+    }
+    sort();
+}
+
+void Explorer::hide(std::size_t rank) {
+    const std::uint64_t node = at(rank);
+    s_.selected.erase(node);
+    std::erase(s_.shown, node);
+}
+
+core::Bounds Explorer::extent(const std::vector<std::uint64_t> &ids) const {
+    core::Bounds b;
+    const float *p = all_.positions.data();
+    for (std::uint64_t s : ids)
+        for (std::uint64_t v = all_.begin(s); v < all_.end(s); ++v)
+            for (int i = 0; i < 3; ++i) {
+                if (b.empty || p[v * 3 + i] < b.min[i]) b.min[i] = p[v * 3 + i];
+                if (b.empty || p[v * 3 + i] > b.max[i]) b.max[i] = p[v * 3 + i];
+                if (i == 2) b.empty = false;
+            }
+    return b;
+}
+
+void Explorer::repeat(std::vector<double> thresholds) {
+    std::vector<std::uint64_t> keep = shown_streamlines();
+    if (keep.empty()) throw core::Error("nothing is shown to cluster again");
+    if (thresholds.empty() && !s_.thresholds.empty() && all_diagonal_ > 0) {
+        // A bundle isolated from a whole brain would be one cluster at the
+        // whole brain's thresholds: scale them by its extent.
+        const core::Bounds b = extent(keep);
+        const double scale = std::min(1.0, std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]) / all_diagonal_);
+        for (double t : s_.thresholds) thresholds.push_back(std::max(1.0, t * scale));
+        // Relative to the first clustering's thresholds, not the last ones.
+        if (!spec_.thresholds.empty() && spec_.thresholds.size() == thresholds.size())
+            for (std::size_t i = 0; i < thresholds.size(); ++i) thresholds[i] = std::max(1.0, spec_.thresholds[i] * scale);
+    }
+    // Each streamline's colour now, so that the new clusters can keep them.
+    std::unordered_map<std::uint64_t, std::uint64_t> before;
+    const auto &t = *s_.tree;
+    for (std::uint64_t node : s_.shown)
+        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) before[s_.subset[t.members[m]]] = s_.colour[node];
+    cluster(std::move(keep), &before, thresholds);
+}
+
+void Explorer::reset(const std::vector<std::uint64_t> *ids) {
+    std::vector<std::uint64_t> every;
+    if (ids) every = *ids;
+    else {
+        every.resize(all_.nb_streamlines());
+        std::iota(every.begin(), every.end(), 0);
+    }
+    s_.next_colour = 0;
+    cluster(std::move(every), nullptr, spec_.thresholds);
+}
+
+// QuickBundlesX (fast mode) over the streamlines `subset` of all_; shows
+// the first level. With `before` (streamline -> colour id), each new
+// cluster, largest first, takes the colour most of its streamlines had,
+// unless a larger one took it already; the rest get new colours.
+void Explorer::cluster(std::vector<std::uint64_t> subset, const std::unordered_map<std::uint64_t, std::uint64_t> *before,
+                       const std::vector<double> &thresholds) {
+    core::render::ClusterSpec spec = spec_;
+    spec.thresholds = thresholds;
+    auto tree = std::make_shared<core::render::ClusterTree>();
+    if (!subset.empty()) *tree = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), spec);
+    else {
+        tree->parent = {-1}, tree->level = {0}, tree->member_offsets = {0, 0};
+    }
+    s_.tree = tree;
+    s_.thresholds = tree->thresholds;
+    s_.subset = std::move(subset);
+    s_.shown.clear();
+    s_.selected.clear();
+    s_.expanded.clear();
+    for (std::uint64_t k = 0; k < tree->level.size(); ++k)
+        if (tree->level[k] == 1) s_.shown.push_back(k);
+    sort();
+    s_.colour.assign(tree->level.size(), 0);
+    std::set<std::uint64_t> taken;
+    for (std::uint64_t node : s_.shown) {
+        std::uint64_t pick = s_.next_colour;
+        if (before != nullptr) {
+            std::map<std::uint64_t, std::uint64_t> votes;
+            for (std::uint64_t m = tree->member_offsets[node]; m < tree->member_offsets[node + 1]; ++m)
+                if (auto it = before->find(s_.subset[tree->members[m]]); it != before->end()) ++votes[it->second];
+            std::uint64_t best = 0;
+            for (const auto &[c, n] : votes)
+                if (n > best && !taken.count(c)) best = n, pick = c;
+        }
+        if (pick == s_.next_colour) ++s_.next_colour;
+        taken.insert(pick);
+        s_.colour[node] = pick;
+    }
+    ++s_.rounds;
+}
+
+std::vector<std::uint64_t> Explorer::shown_streamlines(std::vector<std::string> *cluster_of) const {
+    std::vector<std::pair<std::uint64_t, std::size_t>> all;  // (streamline, cluster rank + 1; 0: expanded)
+    const auto &t = *s_.tree;
+    for (std::uint64_t s : s_.expanded) all.emplace_back(s, 0);
+    for (std::size_t k = 0; k < s_.shown.size(); ++k)
+        for (std::uint64_t m = t.member_offsets[s_.shown[k]]; m < t.member_offsets[s_.shown[k] + 1]; ++m)
+            all.emplace_back(s_.subset[t.members[m]], k + 1);
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end(), [](const auto &a, const auto &b) { return a.first == b.first; }), all.end());
+    std::vector<std::uint64_t> ids(all.size());
+    std::vector<std::string> paths;
+    if (cluster_of) {
+        for (std::uint64_t node : s_.shown) paths.push_back(path(node));
+        cluster_of->assign(all.size(), "");
+    }
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        ids[i] = all[i].first;
+        if (cluster_of && all[i].second) (*cluster_of)[i] = paths[all[i].second - 1];
+    }
+    return ids;
+}
+
+core::render::Object Explorer::centroids_object() const {
+    core::render::Object o;
+    o.name = name_ + ": QuickBundlesX centroids";
+    o.kind = o.data.kind = HZ_DATA_STREAMLINES;
+    core::Tractogram &t = o.data.tractogram;
+    const std::uint64_t K = s_.shown.size(), P = s_.tree->nb_points;
+    t.positions = core::Buffer<float>(K * P * 3);
+    t.offsets = core::Buffer<std::uint64_t>(K + 1);
+    std::vector<float> sizes(K), ids(K), picked(K);  // a cluster's colour id, stable while others change
+    for (std::uint64_t i = 0; i < K; ++i) {
+        std::copy_n(s_.tree->centroids.data() + s_.shown[i] * P * 3, P * 3, t.positions.data() + i * P * 3);
+        t.offsets[i] = i * P;
+        sizes[i] = float(size(s_.shown[i]));
+        ids[i] = float(s_.colour[s_.shown[i]]);
+        picked[i] = s_.selected.count(s_.shown[i]) ? 1.0f : 0.0f;
+    }
+    t.offsets[K] = K * P;
+    t.arrays.push_back(core::f32_array("cluster_size", HZ_ATTACH_STREAMLINE, sizes));
+    t.arrays.push_back(core::f32_array("cluster_id", HZ_ATTACH_STREAMLINE, ids));
+    t.arrays.push_back(core::f32_array("highlight", HZ_ATTACH_STREAMLINE, picked));
+    o.render = "tubes";
+    o.radius_mm = 1.0;
+    o.clustering = spec_;
+    o.coloring.mode = "cluster";
+    return o;
+}
+
+core::render::Object Explorer::streamlines_object() const {
+    core::render::Object o;
+    o.name = name_ + ": expanded streamlines";
+    o.kind = o.data.kind = HZ_DATA_STREAMLINES;
+    o.data.tractogram = core::select_streamlines(all_, s_.expanded);
+    o.render = "lines";
+    o.coloring.mode = "direction";
+    return o;
+}
+
+// ----------------------------------------------------------------- Session
+
+Session::Session(const core::Registry &reg, core::Tractogram all, std::vector<std::string> inputs, std::unique_ptr<Explorer> ex)
+    : reg_(reg), all_(std::move(all)), inputs_(std::move(inputs)), ex_(std::move(ex)) {
+    kept_.resize(all_.nb_streamlines());
+    std::iota(kept_.begin(), kept_.end(), 0);
+}
+
+Session::State Session::snapshot() const {
+    State s;
+    s.rois = rois_;
+    s.kept = kept_;
+    if (ex_) s.explore = std::make_unique<Explorer::State>(ex_->state());
+    return s;
+}
+
+void Session::restore(const State &s) {
+    rois_ = s.rois;
+    kept_ = s.kept;
+    if (ex_ && s.explore) ex_->restore(*s.explore);
+}
+
+void Session::record() {
+    undo_.push_back(snapshot());
+    redo_.clear();
+}
+
+bool Session::undo() {
+    if (undo_.empty()) return false;
+    redo_.push_back(snapshot());
+    restore(undo_.back());
+    undo_.pop_back();
+    return true;
+}
+
+bool Session::redo() {
+    if (redo_.empty()) return false;
+    undo_.push_back(snapshot());
+    restore(redo_.back());
+    redo_.pop_back();
+    return true;
+}
+
+core::Roi &Session::roi(std::size_t k) {
+    if (k >= rois_.size()) throw core::Error("no region " + std::to_string(k) + " (" + std::to_string(rois_.size()) + " placed)");
+    return rois_[k];
+}
+
+void Session::add_roi(core::Roi r) { rois_.push_back(std::move(r)); }
+
+void Session::move_roi(std::size_t k, const std::array<double, 3> &c) {
+    core::Roi &r = roi(k);
+    if (r.shape == core::Roi::Shape::Mask) throw core::Error("region " + std::to_string(k) + " is a mask: it cannot move");
+    if (r.shape == core::Roi::Shape::Sphere) r.center = c;
+    else
+        for (int i = 0; i < 3; ++i) {
+            const double half = (r.hi[i] - r.lo[i]) / 2;
+            r.lo[i] = c[i] - half, r.hi[i] = c[i] + half;
+        }
+}
+
+void Session::resize_roi(std::size_t k, double factor) {
+    core::Roi &r = roi(k);
+    if (!(factor > 0) || !std::isfinite(factor)) throw core::Error("a region's size factor must be > 0");
+    if (r.shape == core::Roi::Shape::Mask) throw core::Error("region " + std::to_string(k) + " is a mask: it cannot be resized");
+    if (r.shape == core::Roi::Shape::Sphere) r.radius = std::max(0.1, r.radius * factor);
+    else
+        for (int i = 0; i < 3; ++i) {
+            const double c = (r.lo[i] + r.hi[i]) / 2, half = std::max(0.05, (r.hi[i] - r.lo[i]) / 2 * factor);
+            r.lo[i] = c - half, r.hi[i] = c + half;
+        }
+}
+
+void Session::flip_roi(std::size_t k) { roi(k).include = !roi(k).include; }
+
+void Session::remove_roi(std::size_t k) {
+    roi(k);
+    rois_.erase(rois_.begin() + std::ptrdiff_t(k));
+}
+
+void Session::apply() {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (rois_.empty()) {
+        kept_.resize(all_.nb_streamlines());
+        std::iota(kept_.begin(), kept_.end(), 0);
+    } else {
+        if (boxes_.box.size() != all_.nb_streamlines()) boxes_ = core::StreamlineBoxes::of(all_);
+        core::FilterSpec f;
+        f.rois = rois_;
+        kept_ = core::filter_streamlines(all_, f, &boxes_);
+    }
+    filter_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (ex_) ex_->reset(&kept_);
+}
+
+std::vector<std::uint64_t> Session::shown(std::vector<std::string> *cluster_of) const {
+    if (ex_) return ex_->shown_streamlines(cluster_of);
+    if (cluster_of) cluster_of->assign(kept_.size(), "");
+    return kept_;
+}
+
+std::string Session::save(const std::string &path, bool force) const {
+    check_outputs({path}, inputs_, force);
+    core::loader_for_write(reg_, path);
+    std::vector<std::string> cluster_of;
+    const std::vector<std::uint64_t> ids = shown(&cluster_of);
+    core::Dataset out;
+    out.kind = HZ_DATA_STREAMLINES;
+    out.tractogram = core::subset_with_arrays(all_, ids);
+    // Clusters: a TRX group per cluster shown (named by its path, which
+    // TRX names cannot hold dots of), and each streamline's group index as
+    // per-streamline data (-1: a streamline expanded on its own).
+    std::vector<std::string> names;
+    std::map<std::string, std::vector<std::uint32_t>> members;
+    std::vector<std::int32_t> label(ids.size(), -1);
+    for (std::size_t i = 0; i < ids.size(); ++i)
+        if (!cluster_of[i].empty()) {
+            auto [it, added] = members.try_emplace(cluster_of[i]);
+            if (added) names.push_back(cluster_of[i]);
+            it->second.push_back(std::uint32_t(i));
+        }
+    std::sort(names.begin(), names.end(), [&](const std::string &a, const std::string &b) { return members[a].size() > members[b].size(); });
+    for (std::size_t g = 0; g < names.size(); ++g) {
+        for (std::uint32_t i : members[names[g]]) label[i] = std::int32_t(g);
+        std::string gname = names[g];
+        std::replace(gname.begin(), gname.end(), '.', '_');
+        core::DataArray a{gname, HZ_ATTACH_GROUP, HZ_DTYPE_U32, 1, members[names[g]].size(),
+                          core::Buffer<std::byte>(members[names[g]].size() * 4)};
+        std::memcpy(a.bytes.data(), members[names[g]].data(), members[names[g]].size() * 4);
+        out.tractogram.arrays.push_back(std::move(a));
+    }
+    if (ex_) {
+        core::DataArray a{"horizon_cluster", HZ_ATTACH_STREAMLINE, HZ_DTYPE_I32, 1, ids.size(), core::Buffer<std::byte>(ids.size() * 4)};
+        std::memcpy(a.bytes.data(), label.data(), ids.size() * 4);
+        out.tractogram.arrays.push_back(std::move(a));
+    }
+    nlohmann::json rois = nlohmann::json::array();
+    for (const core::Roi &r : rois_) rois.push_back({{"spec", r.spec()}, {"include", r.include}});
+    out.metadata.emplace_back("horizon_source", inputs_.empty() ? std::string() : inputs_[0]);
+    out.metadata.emplace_back("horizon_rois", rois.dump());
+    if (ex_) out.metadata.emplace_back("horizon_clusters", nlohmann::json(names).dump());
+    std::vector<std::string> dropped;
+    core::write_dataset(reg_, out, path, force, &dropped, inputs_.empty() ? std::string() : inputs_[0]);
+    std::string line = "saved " + std::to_string(ids.size()) + " streamlines";
+    if (ex_) line += " in " + std::to_string(names.size()) + " clusters";
+    line += ", " + std::to_string(rois_.size()) + " regions -> " + path;
+    for (const auto &d : dropped) line += " (dropped " + d + ")";
+    return line;
+}
+
+std::vector<core::Roi> Session::rois_from_metadata(const core::Registry &reg, const std::vector<std::pair<std::string, std::string>> &metadata) {
+    std::vector<core::Roi> out;
+    for (const auto &[k, v] : metadata) {
+        if (k != "horizon_rois") continue;
+        const nlohmann::json j = nlohmann::json::parse(v, nullptr, false);
+        if (!j.is_array()) throw core::Error("horizon_rois: not a JSON list");
+        for (const auto &e : j) {
+            if (!e.is_object() || !e.contains("spec") || !e["spec"].is_string())
+                throw core::Error("horizon_rois: an entry without a spec");
+            out.push_back(core::parse_roi(reg, e["spec"].get<std::string>(), e.value("include", true)));
+        }
+    }
+    return out;
+}
+
+core::Tractogram Session::roi_wires(bool include) const {
+    std::vector<float> pts;
+    std::vector<std::uint64_t> offs{0};
+    auto add_line = [&](const std::vector<std::array<double, 3>> &line) {
+        for (const auto &p : line) pts.insert(pts.end(), {float(p[0]), float(p[1]), float(p[2])});
+        offs.push_back(pts.size() / 3);
+    };
+    for (const core::Roi &r : rois_) {
+        if (r.include != include) continue;
+        const core::Bounds b = r.bounds();
+        if (r.shape == core::Roi::Shape::Sphere) {
+            for (int axis = 0; axis < 3; ++axis) {
+                std::vector<std::array<double, 3>> circle;
+                for (int k = 0; k <= 48; ++k) {
+                    const double a = 2 * M_PI * k / 48;
+                    std::array<double, 3> p = r.center;
+                    p[(axis + 1) % 3] += r.radius * std::cos(a);
+                    p[(axis + 2) % 3] += r.radius * std::sin(a);
+                    circle.push_back(p);
+                }
+                add_line(circle);
+            }
+        } else {  // a box, or a mask's bounds
+            const auto &lo = r.shape == core::Roi::Shape::Box ? r.lo : b.min;
+            const auto &hi = r.shape == core::Roi::Shape::Box ? r.hi : b.max;
+            for (int axis = 0; axis < 3; ++axis)
+                for (int c = 0; c < 4; ++c) {
+                    std::array<double, 3> p0, p1;
+                    const int u = (axis + 1) % 3, w = (axis + 2) % 3;
+                    p0[axis] = lo[axis], p1[axis] = hi[axis];
+                    p0[u] = p1[u] = (c & 1) ? hi[u] : lo[u];
+                    p0[w] = p1[w] = (c & 2) ? hi[w] : lo[w];
+                    add_line({p0, p1});
+                }
+        }
+    }
+    core::Tractogram t;
+    t.positions = core::Buffer<float>::copy_of(pts);
+    t.offsets = core::Buffer<std::uint64_t>::copy_of(offs);
+    return t;
+}
+
+std::string Session::summary() const {
+    std::string s = std::to_string(rois_.size()) + " regions, " + std::to_string(kept_.size()) + " of " + std::to_string(all_.nb_streamlines()) +
+                    " streamlines selected";
+    for (std::size_t k = 0; k < rois_.size(); ++k) s += "; #" + std::to_string(k) + " " + (rois_[k].include ? "include " : "exclude ") + rois_[k].spec();
+    return s;
+}
+
+}  // namespace hz::host

@@ -1,0 +1,177 @@
+// The window's editing session: the exploration of the paper's Fig. 5
+// (Explorer), regions of interest that select streamlines (the rules of
+// `horizon filter`), undo / redo of every edit, and saving what is shown.
+// GL-free: the window (view.cpp) turns what it holds into scene objects.
+#pragma once
+
+#include <hz/core/filter.hpp>
+#include <hz/core/render/scene.hpp>
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace hz::host {
+
+// QuickBundlesX exploration of a tractogram: shown as the centroids of one
+// level (tubes, width by cluster size); "expand" replaces a centroid by its
+// children at the next level, or by its streamlines at the last (or straight
+// by its streamlines: expand_to_streamlines); "hide" removes a cluster;
+// "repeat" re-clusters what is still shown, with thresholds fitted to its
+// extent. Every clustering covers a set of streamlines of the tractogram
+// (all of them, or what the regions of interest select).
+//
+// A cluster is named by its path in the tree: "c2.1" is the first child
+// (largest first) of the second largest cluster of level 1. Paths do not
+// change while clusters are expanded and hidden; a new clustering (repeat,
+// regions) gives new ones.
+class Explorer {
+public:
+    // Everything an edit changes (what undo restores). Copies share the tree.
+    struct State {
+        std::shared_ptr<const core::render::ClusterTree> tree;
+        std::vector<std::uint64_t> subset;    // the streamlines clustered (tree members index it)
+        std::vector<std::uint64_t> shown;     // tree nodes shown, largest first
+        std::vector<std::uint64_t> expanded;  // streamlines shown on their own
+        std::set<std::uint64_t> selected;     // tree nodes, all shown
+        std::vector<std::uint64_t> colour;    // per tree node: its palette entry
+        std::uint64_t next_colour = 0;
+        int rounds = 0;
+        std::vector<double> thresholds;       // of the last clustering (mm per level)
+    };
+
+    Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec);
+
+    const core::Tractogram &all() const { return all_; }
+    const State &state() const { return s_; }
+    void restore(State s) { s_ = std::move(s); }
+    const std::vector<std::uint64_t> &shown() const { return s_.shown; }
+    std::uint64_t size(std::uint64_t node) const { return s_.tree->size(node); }
+    std::uint32_t level(std::uint64_t node) const { return s_.tree->level[node]; }
+    std::uint64_t colour(std::uint64_t node) const { return s_.colour[node]; }
+    std::string path(std::uint64_t node) const;
+    std::string summary() const;
+    bool is_selected(std::size_t rank) const { return s_.selected.count(at(rank)) != 0; }
+    std::size_t nb_selected() const { return s_.selected.size(); }
+    // The rank of a cluster given as a rank ("3") or a path ("c2.1"); throws Error.
+    std::size_t rank_of(const std::string &what) const;
+
+    void toggle(std::size_t rank);
+    void select_all();
+    void expand_selected();
+    void hide_selected();
+    void expand(std::size_t rank);
+    void expand_to_streamlines(std::size_t rank);
+    void hide(std::size_t rank);
+    // Clusters again what is shown; thresholds (mm per level) given, or
+    // when empty the last ones scaled by the extent of what is shown
+    // against the whole tractogram's (at least 1 mm each).
+    void repeat(std::vector<double> thresholds = {});
+    // The first clustering of `ids` (every streamline when null).
+    void reset(const std::vector<std::uint64_t> *ids = nullptr);
+
+    // The streamlines shown (clusters' members and expanded ones), ascending,
+    // and for each its cluster's path ("" for an expanded streamline).
+    std::vector<std::uint64_t> shown_streamlines(std::vector<std::string> *cluster_of = nullptr) const;
+
+    core::render::Object centroids_object() const;
+    core::render::Object streamlines_object() const;
+
+private:
+    std::uint64_t at(std::size_t rank) const;
+    void sort();
+    std::vector<std::uint64_t> children(std::uint64_t node) const;
+    void expand_node(std::uint64_t node, bool to_streamlines);
+    void cluster(std::vector<std::uint64_t> subset, const std::unordered_map<std::uint64_t, std::uint64_t> *before,
+                 const std::vector<double> &thresholds);
+    core::Bounds extent(const std::vector<std::uint64_t> &ids) const;
+
+    const core::Registry &reg_;
+    core::Tractogram all_;
+    std::string name_;
+    core::render::ClusterSpec spec_;
+    double all_diagonal_ = 0;
+    State s_;
+};
+
+// Regions of interest over one tractogram, with undo / redo and saving.
+// Either plain (the window shows the streamlines the regions select) or
+// over an Explorer (the regions select what is clustered).
+class Session {
+public:
+    struct State {
+        std::vector<core::Roi> rois;
+        std::vector<std::uint64_t> kept;  // what the regions select (ascending); all when no region
+        std::unique_ptr<Explorer::State> explore;
+        State() = default;
+        State(const State &o) : rois(o.rois), kept(o.kept), explore(o.explore ? std::make_unique<Explorer::State>(*o.explore) : nullptr) {}
+        State &operator=(const State &o) {
+            rois = o.rois, kept = o.kept;
+            explore = o.explore ? std::make_unique<Explorer::State>(*o.explore) : nullptr;
+            return *this;
+        }
+    };
+
+    // `inputs` name the files the window opened (saving never replaces
+    // one); `ex` (may be null) is the exploration over `all`.
+    Session(const core::Registry &reg, core::Tractogram all, std::vector<std::string> inputs, std::unique_ptr<Explorer> ex);
+
+    Explorer *explorer() { return ex_.get(); }
+    const core::Tractogram &all() const { return all_; }
+    const std::vector<core::Roi> &rois() const { return rois_; }
+    const std::vector<std::uint64_t> &kept() const { return kept_; }
+    double last_filter_ms() const { return filter_ms_; }
+
+    // Every edit: record() before it (the state undo returns to).
+    void record();
+    bool undo();
+    bool redo();
+    std::size_t undo_depth() const { return undo_.size(); }
+
+    // Region edits (then apply()). k: the region's index; throws Error.
+    void add_roi(core::Roi r);
+    void move_roi(std::size_t k, const std::array<double, 3> &centre);
+    void resize_roi(std::size_t k, double factor);
+    void flip_roi(std::size_t k);
+    void remove_roi(std::size_t k);
+    // Selects the streamlines the regions keep and, over an exploration,
+    // clusters them again (the first clustering of the selection).
+    void apply();
+
+    // The streamlines shown now: kept (plain) or the exploration's.
+    std::vector<std::uint64_t> shown(std::vector<std::string> *cluster_of = nullptr) const;
+    // Writes what is shown to `path` (any streamline format; TRX holds a
+    // group per shown cluster, the cluster paths as per-streamline data and
+    // the regions in its header). Never over the input. Returns one line.
+    std::string save(const std::string &path, bool force) const;
+    // The regions found in a saved file's metadata ("horizon_rois"): what
+    // reopening it restores.
+    static std::vector<core::Roi> rois_from_metadata(const core::Registry &reg,
+                                                     const std::vector<std::pair<std::string, std::string>> &metadata);
+
+    // The regions as wire figures (three great circles a sphere, twelve
+    // edges a box): include regions, then exclude ones.
+    core::Tractogram roi_wires(bool include) const;
+    std::string summary() const;
+
+private:
+    State snapshot() const;
+    void restore(const State &s);
+    core::Roi &roi(std::size_t k);
+
+    const core::Registry &reg_;
+    core::Tractogram all_;
+    std::vector<std::string> inputs_;
+    std::unique_ptr<Explorer> ex_;
+    core::StreamlineBoxes boxes_;
+    std::vector<core::Roi> rois_;
+    std::vector<std::uint64_t> kept_;
+    double filter_ms_ = 0;
+    std::vector<State> undo_, redo_;
+};
+
+}  // namespace hz::host
