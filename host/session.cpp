@@ -283,6 +283,17 @@ Session::Session(const core::Registry &reg, core::Tractogram all, std::vector<st
     std::iota(kept_.begin(), kept_.end(), 0);
 }
 
+void Session::prepare_index() {
+    if (grid_ || grid_future_.valid() || all_.nb_streamlines() < 100000) return;
+    grid_future_ = std::async(std::launch::async, [this] {
+        return std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_, 6.0, 1, &grid_cancel_));
+    });
+}
+
+Session::~Session() {
+    grid_cancel_ = true;  // (the future's destructor waits for the build: stopped early)
+}
+
 Session::State Session::snapshot() const {
     State s;
     s.rois = rois_;
@@ -361,10 +372,11 @@ void Session::apply() {
         kept_.resize(all_.nb_streamlines());
         std::iota(kept_.begin(), kept_.end(), 0);
     } else {
-        if (boxes_.box.size() != all_.nb_streamlines()) boxes_ = core::StreamlineBoxes::of(all_);
+        if (!grid_ && grid_future_.valid()) grid_ = grid_future_.get();
+        if (!grid_) grid_ = std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_));
         core::FilterSpec f;
         f.rois = rois_;
-        kept_ = core::filter_streamlines(all_, f, &boxes_);
+        kept_ = core::filter_streamlines(all_, f, nullptr, nullptr, grid_.get());
     }
     filter_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (ex_) ex_->reset(&kept_);

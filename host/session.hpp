@@ -7,7 +7,9 @@
 #include <hz/core/filter.hpp>
 #include <hz/core/render/scene.hpp>
 
+#include <atomic>
 #include <cstdint>
+#include <future>
 #include <map>
 #include <memory>
 #include <set>
@@ -119,6 +121,9 @@ public:
     // `inputs` name the files the window opened (saving never replaces
     // one); `ex` (may be null) is the exploration over `all`.
     Session(const core::Registry &reg, core::Tractogram all, std::vector<std::string> inputs, std::unique_ptr<Explorer> ex);
+    ~Session();
+    Session(const Session &) = delete;
+    Session &operator=(const Session &) = delete;
 
     Explorer *explorer() { return ex_.get(); }
     const core::Tractogram &all() const { return all_; }
@@ -138,6 +143,11 @@ public:
     void resize_roi(std::size_t k, double factor);
     void flip_roi(std::size_t k);
     void remove_roi(std::size_t k);
+    // Starts building the spatial index in the background (one thread),
+    // for a tractogram of 100k streamlines or more: the window calls it a
+    // second after its first frame, so that the first region placed does
+    // not wait for it (without it, the first region builds it).
+    void prepare_index();
     // Selects the streamlines the regions keep and, over an exploration,
     // clusters them again (the first clustering of the selection).
     void apply();
@@ -167,7 +177,10 @@ private:
     core::Tractogram all_;
     std::vector<std::string> inputs_;
     std::unique_ptr<Explorer> ex_;
-    core::StreamlineBoxes boxes_;
+    // The spatial index (prepare_index, or the first region).
+    std::shared_ptr<const core::StreamlineGrid> grid_;
+    std::future<std::shared_ptr<const core::StreamlineGrid>> grid_future_;
+    std::atomic<bool> grid_cancel_{false};
     std::vector<core::Roi> rois_;
     std::vector<std::uint64_t> kept_;
     double filter_ms_ = 0;

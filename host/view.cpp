@@ -1092,6 +1092,9 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
             glfwSwapBuffers(win);
             log.add(kind, r.stats(), std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_t0).count());
+            // The regions' spatial index, a second after the first frame
+            // (the shell proxy's thread is then done, as a rule).
+            if (session && log.first_frame_s >= 0 && seconds_since_launch() > log.first_frame_s + 1.0) session->prepare_index();
             if (first_frame) {
                 first_frame = false;
                 std::printf("first frame after %.2f s\n", seconds_since_launch());

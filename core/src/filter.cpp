@@ -6,8 +6,10 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <mutex>
 #include <sstream>
+#include <thread>
 
 namespace hz::core {
 
@@ -279,8 +281,103 @@ StreamlineBoxes StreamlineBoxes::of(const Tractogram &t) {
     return out;
 }
 
+StreamlineGrid StreamlineGrid::of(const Tractogram &t, double cell_mm, unsigned threads, const std::atomic<bool> *cancel) {
+    StreamlineGrid g;
+    const std::uint64_t N = t.nb_streamlines();
+    if (N >= (std::uint64_t(1) << 32)) throw Error("filter: more than 2^32 streamlines for the spatial index");
+    g.nb_streamlines = N;
+    g.cell = cell_mm;
+    const float *p = t.positions.data();
+    g.bounds = t.nb_stored() ? bounds_of(p, t.nb_stored()) : Bounds{};
+    if (g.bounds.empty) {
+        g.start.assign(2, 0);
+        g.n = {1, 1, 1};
+        return g;
+    }
+    for (int i = 0; i < 3; ++i) g.n[i] = std::uint64_t(std::floor((g.bounds.max[i] - g.bounds.min[i]) / cell_mm)) + 1;
+    const std::uint64_t cells = g.n[0] * g.n[1] * g.n[2];
+    const float lo[3] = {float(g.bounds.min[0]), float(g.bounds.min[1]), float(g.bounds.min[2])};
+    const float inv = float(1.0 / cell_mm);
+    const std::uint64_t nx = g.n[0], ny = g.n[1], nz = g.n[2];
+    auto cell_of = [&](const float *q) {
+        const auto c = [&](int i, std::uint64_t m) { return std::min<std::uint64_t>(m - 1, std::uint64_t(std::max(0.0f, (q[i] - lo[i]) * inv))); };
+        return (c(2, nz) * ny + c(1, ny)) * nx + c(0, nx);
+    };
+    // A counting sort on every core: parts of streamlines count their
+    // entries per cell, then write them where the counts put them.
+    const std::uint64_t hw = threads ? threads : std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+    const std::uint64_t grain = std::max<std::uint64_t>(1024, (N + hw - 1) / hw);
+    const std::uint64_t parts = (N + grain - 1) / grain;
+    std::vector<std::vector<std::uint64_t>> count(parts, std::vector<std::uint64_t>(cells, 0));
+    std::atomic<bool> stop{false};
+    auto walk = [&](std::uint64_t from, std::uint64_t to, auto &&emit) {
+        for (std::uint64_t s = from; s < to; ++s) {
+            if ((s & 4095) == 0 && cancel && cancel->load(std::memory_order_relaxed)) {
+                stop = true;
+                return;
+            }
+            std::uint64_t prev = ~std::uint64_t(0);
+            for (std::uint64_t v = t.begin(s); v < t.end(s); ++v) {
+                const std::uint64_t c = cell_of(p + v * 3);
+                if (c != prev) emit(c, s), prev = c;
+            }
+        }
+    };
+    // (parallel_ranges makes one part per `grain` streamlines; with one
+    // thread asked for, the parts run one after the other here.)
+    auto run_parts = [&](const std::function<void(std::uint64_t, std::uint64_t)> &fn) {
+        if (threads == 1)
+            for (std::uint64_t from = 0; from < N; from += grain) fn(from, std::min(N, from + grain));
+        else
+            parallel_ranges(N, grain, fn);
+    };
+    run_parts([&](std::uint64_t from, std::uint64_t to) {
+        std::vector<std::uint64_t> &mine = count[from / grain];
+        walk(from, to, [&](std::uint64_t c, std::uint64_t) { ++mine[c]; });
+    });
+    if (stop) return StreamlineGrid{};
+    g.start.assign(cells + 1, 0);
+    std::uint64_t total = 0;
+    for (std::uint64_t c = 0; c < cells; ++c) {
+        g.start[c] = total;
+        for (std::uint64_t k = 0; k < parts; ++k) {
+            const std::uint64_t n = count[k][c];
+            count[k][c] = total;  // (now: where part k writes in cell c)
+            total += n;
+        }
+    }
+    g.start[cells] = total;
+    g.ids.resize(total);
+    run_parts([&](std::uint64_t from, std::uint64_t to) {
+        std::vector<std::uint64_t> &at = count[from / grain];
+        walk(from, to, [&](std::uint64_t c, std::uint64_t s) { g.ids[at[c]++] = std::uint32_t(s); });
+    });
+    if (stop) return StreamlineGrid{};
+    return g;
+}
+
+void StreamlineGrid::mark(const Bounds &r, std::vector<std::uint64_t> &bits) const {
+    if (bounds.empty || r.empty) return;
+    std::uint64_t a[3], z[3];
+    for (int i = 0; i < 3; ++i) {
+        // (Widened past the float32 rounding of the vertices' cells.)
+        const double pad_lo = 1e-3 * (1 + std::abs(r.min[i])), pad_hi = 1e-3 * (1 + std::abs(r.max[i]));
+        if (r.max[i] + pad_hi < bounds.min[i] || r.min[i] - pad_lo > bounds.max[i]) return;
+        const double lo = std::max(0.0, std::floor((r.min[i] - pad_lo - bounds.min[i]) / cell));
+        const double hi = std::floor((r.max[i] + pad_hi - bounds.min[i]) / cell);
+        a[i] = std::min<std::uint64_t>(n[i] - 1, std::uint64_t(lo));
+        z[i] = std::min<std::uint64_t>(n[i] - 1, std::uint64_t(std::max(0.0, hi)));
+    }
+    for (std::uint64_t k = a[2]; k <= z[2]; ++k)
+        for (std::uint64_t j = a[1]; j <= z[1]; ++j)
+            for (std::uint64_t i = a[0]; i <= z[0]; ++i) {
+                const std::uint64_t c = (k * n[1] + j) * n[0] + i;
+                for (std::uint64_t e = start[c]; e < start[c + 1]; ++e) bits[ids[e] >> 6] |= std::uint64_t(1) << (ids[e] & 63);
+            }
+}
+
 std::vector<std::uint64_t> filter_streamlines(const Tractogram &t, const FilterSpec &f, const StreamlineBoxes *boxes,
-                                              const std::vector<std::uint64_t> *subset) {
+                                              const std::vector<std::uint64_t> *subset, const StreamlineGrid *grid) {
     const std::uint64_t n = subset ? subset->size() : t.nb_streamlines();
     std::vector<const Roi *> inc, exc;
     std::vector<Bounds> inc_b, exc_b;
@@ -292,22 +389,23 @@ std::vector<std::uint64_t> filter_streamlines(const Tractogram &t, const FilterS
     const float *p = t.positions.data();
     // Lengths are compared in float32, as tckedit does.
     const float min_len = float(f.min_length), max_len = float(f.max_length);
-    auto keep = [&](std::uint64_t s) -> bool {
+    // Whether non-empty streamline s meets the criteria (before invert);
+    // without `check_exc`, the exclude regions are known to be far from it.
+    auto keep_pass = [&](std::uint64_t s, bool check_exc) -> bool {
         const std::uint64_t b = t.begin(s), e = t.end(s);
-        if (e <= b) return false;  // (no length: tckedit drops it even with -inverse)
         bool pass = true;
         const std::array<float, 6> *box = boxes ? &boxes->box[s] : nullptr;
         if (f.ends_only) {
             const float *ends[2] = {p + b * 3, p + (e - 1) * 3};
             for (const Roi *r : inc) pass = pass && (r->contains(ends[0]) || r->contains(ends[1]));
-            for (const Roi *r : exc) pass = pass && !r->contains(ends[0]) && !r->contains(ends[1]);
+            for (const Roi *r : exc) pass = pass && (!check_exc || (!r->contains(ends[0]) && !r->contains(ends[1])));
         } else {
             // Each region over the whole run (in cache after the first); a
             // streamline whose box misses a region's bounds has no vertex
             // in it.
             for (std::size_t k = 0; pass && k < inc.size(); ++k)
                 pass = (box == nullptr || boxes_overlap(*box, inc_b[k])) && any_in(*inc[k], inc_b[k], p, b, e);
-            for (std::size_t k = 0; pass && k < exc.size(); ++k)
+            for (std::size_t k = 0; pass && check_exc && k < exc.size(); ++k)
                 pass = (box != nullptr && !boxes_overlap(*box, exc_b[k])) || !any_in(*exc[k], exc_b[k], p, b, e);
         }
         // (The length last: most streamlines fail the regions first.)
@@ -315,8 +413,47 @@ std::vector<std::uint64_t> filter_streamlines(const Tractogram &t, const FilterS
             const float len = streamline_length(t, s);
             pass = len <= max_len && len >= min_len;
         }
-        return pass != f.invert;
+        return pass;
     };
+    // (An empty streamline has no length: tckedit drops it even with -inverse.)
+    auto keep = [&](std::uint64_t s) { return t.end(s) > t.begin(s) && keep_pass(s, true) != f.invert; };
+    if (grid && !subset && grid->nb_streamlines == t.nb_streamlines() && !f.rois.empty()) {
+        // Candidates from the grid: a streamline must be listed near every
+        // include region (none: every streamline is); one listed near no
+        // exclude region needs no vertex test for them.
+        const std::uint64_t N = t.nb_streamlines(), words = (N + 63) / 64;
+        std::vector<std::uint64_t> cand(words, inc.empty() ? ~std::uint64_t(0) : 0), near_exc(words, 0), one(words);
+        for (std::size_t k = 0; k < inc.size(); ++k) {
+            std::vector<std::uint64_t> &bits = k == 0 ? cand : one;
+            if (k) std::fill(one.begin(), one.end(), 0);
+            grid->mark(inc_b[k], bits);
+            if (k)
+                for (std::uint64_t w = 0; w < words; ++w) cand[w] &= one[w];
+        }
+        for (std::size_t k = 0; k < exc.size(); ++k) grid->mark(exc_b[k], near_exc);
+        std::mutex m;
+        std::vector<std::pair<std::uint64_t, std::vector<std::uint64_t>>> parts;
+        parallel_ranges(words, 256, [&](std::uint64_t from, std::uint64_t to) {
+            std::vector<std::uint64_t> mine;
+            for (std::uint64_t w = from; w < to; ++w) {
+                std::uint64_t bits = f.invert ? ~std::uint64_t(0) : cand[w];
+                if (w == words - 1 && N % 64) bits &= (std::uint64_t(1) << (N % 64)) - 1;
+                for (; bits; bits &= bits - 1) {
+                    const std::uint64_t s = w * 64 + std::uint64_t(__builtin_ctzll(bits));
+                    if (t.end(s) <= t.begin(s)) continue;
+                    // (With invert, a streamline no include region is near fails them.)
+                    const bool pass = (cand[w] >> (s & 63) & 1) && keep_pass(s, (near_exc[w] >> (s & 63) & 1) != 0);
+                    if (pass != f.invert) mine.push_back(s);
+                }
+            }
+            std::lock_guard<std::mutex> lock(m);
+            parts.emplace_back(from, std::move(mine));
+        });
+        std::sort(parts.begin(), parts.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
+        std::vector<std::uint64_t> out;
+        for (const auto &pp : parts) out.insert(out.end(), pp.second.begin(), pp.second.end());
+        return out;
+    }
     std::mutex m;
     std::vector<std::pair<std::uint64_t, std::vector<std::uint64_t>>> parts;
     parallel_ranges(n, 2048, [&](std::uint64_t from, std::uint64_t to) {

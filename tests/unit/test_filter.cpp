@@ -82,3 +82,47 @@ TEST_CASE("filter: every SIMD target agrees with the scalar region test at the b
         });
     }
 }
+
+TEST_CASE("filter: the spatial grid selects exactly what the full scan selects", "[filter]") {
+    // Random walks through a 100 mm box, regions of every kind near and
+    // across cell boundaries, with and without invert and ends_only.
+    std::mt19937 rng(11);
+    std::normal_distribution<float> step(0.f, 1.f);
+    std::uniform_real_distribution<float> u(-50.f, 50.f);
+    const std::uint64_t S = 3000;
+    Tractogram t;
+    std::vector<float> pos;
+    std::vector<std::uint64_t> offs{0};
+    for (std::uint64_t s = 0; s < S; ++s) {
+        float p[3] = {u(rng), u(rng), u(rng)};
+        const int n = s % 97 == 0 ? 0 : 1 + int(rng() % 80);  // (some empty, some single points)
+        for (int v = 0; v < n; ++v) {
+            for (float &c : p) c += step(rng);
+            pos.insert(pos.end(), p, p + 3);
+        }
+        offs.push_back(pos.size() / 3);
+    }
+    t.positions = Buffer<float>::copy_of(pos);
+    t.offsets = Buffer<std::uint64_t>::copy_of(offs);
+    const StreamlineGrid grid = StreamlineGrid::of(t, 6.0);
+    REQUIRE(grid.ids.size() >= S / 2);
+    auto sphere = [](double x, double y, double z, double r, bool inc) {
+        Roi roi;
+        roi.center = {x, y, z}, roi.radius = r, roi.include = inc;
+        return roi;
+    };
+    Roi box;
+    box.shape = Roi::Shape::Box;
+    box.lo = {-12, -6, 0}, box.hi = {6, 18, 12};  // (faces on cell boundaries of the grid's origin plus multiples of 6 are likely)
+    for (int trial = 0; trial < 40; ++trial) {
+        FilterSpec f;
+        const int kinds = trial % 4;
+        f.rois.push_back(sphere(u(rng), u(rng), u(rng), 3 + (rng() % 20), kinds != 1));
+        if (kinds >= 2) f.rois.push_back(sphere(u(rng), u(rng), u(rng), 5 + (rng() % 15), false));
+        if (kinds == 3) f.rois.push_back(box);
+        f.invert = trial % 5 == 0;
+        f.ends_only = trial % 7 == 0;
+        INFO("trial " << trial << ": " << f.describe());
+        CHECK(filter_streamlines(t, f, nullptr, nullptr, &grid) == filter_streamlines(t, f));
+    }
+}
