@@ -8,6 +8,7 @@
 #include "commands.hpp"
 #include "session.hpp"
 
+#include <hz/core/filter.hpp>
 #include <hz/core/io.hpp>
 #include <hz/core/params.hpp>
 #include <hz/core/render/pick.hpp>
@@ -1117,6 +1118,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
 int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
     const core::Registry reg = load_registry(g);
     if (o.explore) explore_spec(reg, o);  // (a bad --algorithm or --param fails before anything opens)
+    for (const auto *list : {&o.include, &o.exclude})  // (and a bad region)
+        for (const std::string &spec : *list) core::parse_roi(reg, spec, list == &o.include);
     require_display(o.inputs);
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "view");
     try {

@@ -1,0 +1,227 @@
+"""The quality-control loop in the window (under Xvfb, driven by --script):
+regions of interest placed, moved, resized, flipped and removed; undo and
+redo; Ctrl+click on a streamline; saving what is shown (Ctrl+S and `save`)
+and reopening it; the exploration's cluster paths, expansion straight to
+streamlines, thresholds fitted on repeat. What was saved is checked against
+what was shown and against `horizon filter` on the same regions.
+"""
+import json
+import os
+import re
+import shutil
+import unittest
+import zipfile
+
+import numpy as np
+
+from hztest import HORIZON, TempDirTest, run
+from test_render import NO_DISPLAY, load, xvfb_run
+
+
+def streamlines(path):
+    import nibabel as nib
+    return list(nib.streamlines.load(path).streamlines)
+
+
+def trx_parts(path):
+    z = zipfile.ZipFile(path)
+    header = json.loads(z.read("header.json"))
+    groups, dps = {}, {}
+    pos_name = next(n for n in z.namelist() if n.startswith("positions."))
+    off_name = next(n for n in z.namelist() if n.startswith("offsets."))
+    pos = np.frombuffer(z.read(pos_name), dtype=np.dtype(pos_name.rsplit(".", 1)[1])).reshape(-1, 3)
+    offs = np.frombuffer(z.read(off_name), dtype=np.dtype(off_name.rsplit(".", 1)[1])).astype(np.int64)[:header["NB_STREAMLINES"]]
+    bounds = np.append(offs, len(pos))
+    header["streamlines"] = [pos[bounds[i]:bounds[i + 1]] for i in range(len(offs))]
+    for n in z.namelist():
+        if n.startswith("groups/"):
+            base, dt = n[7:].rsplit(".", 1)
+            groups[base] = np.frombuffer(z.read(n), dtype=np.dtype(dt))
+        elif n.startswith("dps/"):
+            base, dt = n[4:].rsplit(".", 1)
+            dps[base] = np.frombuffer(z.read(n), dtype=np.dtype(dt))
+    # (The TRX writer stores metadata values that are JSON as JSON.)
+    for k in ("horizon_rois", "horizon_clusters"):
+        if isinstance(header.get(k), str):
+            header[k] = json.loads(header[k])
+    return header, groups, dps
+
+
+@unittest.skipUnless(shutil.which("xvfb-run") or os.environ.get("CI"), "xvfb-run is not installed")
+class SelectionWindowTest(TempDirTest):
+    def setUp(self):
+        super().setUp()
+        p = run("demo", "--out", self.path("d"), "--streamlines", "2000", "--no-window", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.tck = self.path("d/phantom.tck")
+
+    def window(self, name, lines, *args, source=None):
+        script = self.path(name + ".txt")
+        with open(script, "w") as f:
+            f.write("\n".join(lines) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # (see test_render)
+        return xvfb_run([HORIZON, "view", source or self.tck, *args, "--size", "480x320", "--script", script,
+                         "--screenshot-dir", self.tmp], env)
+
+    @staticmethod
+    def roi_lines(p):
+        """The `roi: ` lines (the state after each edit), without their timing."""
+        return [re.sub(r" \([\d.]+ ms\)$", "", l[len("roi: "):]) for l in p.stdout.splitlines() if re.match(r"roi: \d+ regions, ", l)]
+
+    @staticmethod
+    def selected(line):
+        m = re.match(r"(\d+) regions, (\d+) of (\d+) streamlines selected", line)
+        return int(m.group(1)), int(m.group(2)), int(m.group(3))
+
+    def filter_ids(self, *args):
+        p = run("filter", self.tck, *args, "--ids", "-")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return [int(x) for x in p.stdout.split()]
+
+    def test_regions_undo_redo_and_save(self):
+        p = self.window("edit", [
+            "wait 2", f"screenshot {self.path('all.png')}",
+            "roi sphere 0 0 0 15",                      # 1
+            "wait 2", f"screenshot {self.path('one.png')}",
+            "roi sphere 20 0 0 8 exclude",              # 2
+            "roi move 0 5 0 0",                         # 3
+            "roi scale 0 1.5",                          # 4
+            "undo", "undo", "redo",                     # back to 2, then 3
+            f"save {self.path('sel.trx')}", f"save {self.path('sel.tck')}",
+            "key ctrl+z",                               # 2
+            "key ctrl+s",                               # horizon-selection-1.trx
+            "key ctrl+shift+z",                         # 3 again
+            "roi flip 1", "roi remove 0",               # 5, 6: an exclude region alone
+            "quit"])
+        self.assertEqual(p.returncode, 0, p.stderr)
+        states = self.roi_lines(p)
+        self.assertEqual(len(states), 11, states)
+        self.assertEqual([self.selected(s)[0] for s in states], [1, 2, 2, 2, 2, 2, 2, 2, 2, 2, 1])
+        # undo returns exactly to an earlier state, redo to the undone one:
+        # states 1..4 are the edits; then undo (3), undo (2), redo (3),
+        # ctrl+z (2), ctrl+shift+z (3), flip, remove.
+        self.assertEqual(states[4], states[2])
+        self.assertEqual(states[5], states[1])
+        self.assertEqual(states[6], states[2])
+        self.assertEqual(states[7], states[1])
+        self.assertEqual(states[8], states[2])
+        self.assertNotEqual(states[3], states[2])
+        self.assertIn("#0 include sphere:5,0,0,15; #1 exclude sphere:20,0,0,8", states[2])
+        self.assertIn("#0 include sphere:20,0,0,8", states[-1])
+        # What was saved is what was shown: `horizon filter` with the same
+        # regions gives the same streamlines, coordinates and order.
+        want = self.filter_ids("--include", "sphere:5,0,0,15", "--exclude", "sphere:20,0,0,8")
+        self.assertEqual(self.selected(states[2])[1], len(want))
+        got = streamlines(self.path("sel.tck"))
+        full = streamlines(self.tck)
+        self.assertEqual(len(got), len(want))
+        for s, i in zip(got, want):
+            np.testing.assert_array_equal(s, full[i])
+        header, _, _ = trx_parts(self.path("sel.trx"))
+        self.assertEqual(header["horizon_rois"],
+                         [{"include": True, "spec": "sphere:5,0,0,15"}, {"include": False, "spec": "sphere:20,0,0,8"}])
+        self.assertEqual(header["NB_STREAMLINES"], len(want))
+        # Ctrl+S saved the state shown then (state 2).
+        ctrl_s = self.path("horizon-selection-1.trx")
+        self.assertTrue(os.path.exists(ctrl_s), p.stdout)
+        self.assertEqual(trx_parts(ctrl_s)[0]["NB_STREAMLINES"], self.selected(states[1])[1])
+        # The picture changed with the selection.
+        self.assertGreater(np.abs(load(self.path("all.png")) - load(self.path("one.png"))).mean(), 1.0)
+        # Reopening the saved file restores its regions.
+        p = self.window("reopen", ["wait 1", "quit"], source=self.path("sel.trx"))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertTrue(self.roi_lines(p)[0].startswith(f"2 regions, {len(want)} of {len(want)} streamlines selected"), p.stdout)
+
+    def test_ctrl_click_places_a_sphere_on_a_streamline(self):
+        p = self.window("shot", ["wait 2", f"screenshot {self.path('s.png')}", "quit"])
+        self.assertEqual(p.returncode, 0, p.stderr)
+        img = load(self.path("s.png"))
+        bright = img.sum(axis=-1) > 250
+        ys, xs = np.nonzero(bright)
+        self.assertGreater(len(xs), 100)
+        # The brightest pixel near the middle of the picture: on a streamline.
+        order = np.argsort((xs - 240) ** 2 + (ys - 160) ** 2)
+        x, y = int(xs[order[0]]), int(ys[order[0]])
+        p = self.window("click", ["wait 2", f"click {x} {y} ctrl", "click 1 1 ctrl", "quit"])
+        self.assertEqual(p.returncode, 0, p.stderr)
+        states = self.roi_lines(p)
+        self.assertEqual(len(states), 1, p.stdout)
+        n, kept, total = self.selected(states[0])
+        self.assertEqual(n, 1)
+        self.assertGreater(kept, 0, "the sphere sits on the streamline under the click")
+        self.assertLess(kept, total)
+        self.assertIn("nothing under (1, 1)", p.stdout)
+
+    def test_exploration_paths_regions_and_save(self):
+        p = self.window("explore", [
+            "wait 1",
+            "roi sphere 0 0 0 25",
+            "expand c1",
+            "expand c1.1 streamlines",
+            "repeat",
+            f"save {self.path('ex.trx')}",
+            "quit"], "--explore")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        states = [l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore: ")]
+        counts = [tuple(map(int, re.match(r"(\d+) clusters, (\d+) streamlines expanded, (\d+) clustering", s).groups())) for s in states]
+        whole, region = counts[0], counts[1]
+        self.assertEqual(region[2], 2, "the region re-clusters what it selects")
+        self.assertGreater(counts[3][1], 0, "expand ... streamlines: a cluster's streamlines at once")
+        kept = self.selected(self.roi_lines(p)[0])[1]
+        self.assertLess(kept, 2000)
+        # repeat, with thresholds fitted to the selection's extent: more
+        # clusters than the whole brain's thresholds give the same streamlines.
+        self.assertEqual(counts[-1][2], 3)
+        self.assertGreater(counts[-1][0], region[0])
+        header, groups, dps = trx_parts(self.path("ex.trx"))
+        names = header["horizon_clusters"]
+        self.assertEqual(len(names), counts[-1][0])
+        self.assertEqual(sorted(groups), sorted(n.replace(".", "_") for n in names))
+        n = header["NB_STREAMLINES"]
+        labels = dps["horizon_cluster"]
+        self.assertEqual(len(labels), n)
+        for g, name in enumerate(names):
+            np.testing.assert_array_equal(np.sort(groups[name.replace(".", "_")]), np.nonzero(labels == g)[0])
+        # Every saved streamline is one the region selects.
+        want = self.filter_ids("--include", "sphere:0,0,0,25")
+        self.assertEqual(len(want), kept)
+        full = streamlines(self.tck)
+        got = header["streamlines"]
+        keys = {full[i].tobytes() for i in want}
+        self.assertTrue(all(s.astype(np.float32).tobytes() in keys for s in got))
+
+    def test_command_line_regions_and_bad_input(self):
+        # --include / --exclude as `filter` takes them.
+        p = self.window("cli", ["wait 1", "quit"], "--include", "sphere:0,0,0,15", "--exclude", "sphere:20,0,0,8")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        want = self.filter_ids("--include", "sphere:0,0,0,15", "--exclude", "sphere:20,0,0,8")
+        self.assertEqual(self.selected(self.roi_lines(p)[0])[:2], (2, len(want)))
+        # A bad region on the command line: one line, before the window.
+        p = run("view", self.tck, "--include", "sphere:1,2,3")
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("sphere:1,2,3", p.stderr)
+        # In a script: the line is named; nothing is changed.
+        for lines, words in [(["roi sphere 1 2 3"], "line 1: roi sphere needs 4 numbers"),
+                             (["roi remove 3"], "line 1: no region 3"),
+                             (["roi sphere 0 0 0 10 maybe"], "neither include nor exclude"),
+                             ([f"save {self.tck} force"], "refusing to overwrite the input")]:
+            with self.subTest(lines[0]):
+                with open(self.tck, "rb") as f:
+                    before = f.read()
+                p = self.window("bad", lines + ["quit"])
+                self.assertEqual(p.returncode, 1, p.stdout)
+                self.assertIn(words, p.stderr)
+                with open(self.tck, "rb") as f:
+                    self.assertEqual(f.read(), before)
+        # An include region away from the data: nothing selected, said so, the window goes on.
+        p = self.window("far", ["roi sphere 500 500 500 5", "wait 1", "undo", "quit"])
+        self.assertEqual(p.returncode, 0, p.stderr)
+        states = self.roi_lines(p)
+        self.assertEqual(self.selected(states[0])[1], 0)
+        self.assertEqual(self.selected(states[1])[:2], (0, 2000))
+
+
+if __name__ == "__main__":
+    unittest.main()
