@@ -166,7 +166,7 @@ class SelectionWindowTest(TempDirTest):
         self.assertEqual(p.returncode, 0, p.stderr)
         states = [l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore: ")]
         counts = [tuple(map(int, re.match(r"(\d+) clusters, (\d+) streamlines expanded, (\d+) clustering", s).groups())) for s in states]
-        whole, region = counts[0], counts[1]
+        region = counts[1]
         self.assertEqual(region[2], 2, "the region re-clusters what it selects")
         self.assertGreater(counts[3][1], 0, "expand ... streamlines: a cluster's streamlines at once")
         kept = self.selected(self.roi_lines(p)[0])[1]
