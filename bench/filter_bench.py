@@ -76,6 +76,28 @@ def sphere(c, r):
     return ",".join(f"{x:.3f}" for x in c) + f",{r}"
 
 
+def window_selection_times(tck):
+    """Selection times the window prints while a region is dragged (None without xvfb-run)."""
+    import re
+    import shutil
+    import tempfile
+    if not shutil.which("xvfb-run"):
+        return None
+    steps = ["wait 2", "sleep 5", "roi sphere 10 -20 15 12"] + [f"roi move 0 {10 + 2 * k} -20 15" for k in range(1, 9)] + \
+            ["roi sphere -30 0 0 10 exclude"] + [f"roi move 1 {-30 + 2 * k} 0 0" for k in range(1, 5)] + ["quit"]
+    with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as f:
+        f.write("\n".join(steps) + "\n")
+    p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", tck, "--size", "640x400", "--script", f.name],
+                       capture_output=True, text=True, timeout=600)
+    os.unlink(f.name)
+    if p.returncode != 0:
+        raise SystemExit(f"view failed: {p.stderr[-2000:]}")
+    ms = [float(m.group(2)) for m in (re.match(r"roi: (\d+) regions, .*\(([\d.]+) ms\)$", l) for l in p.stdout.splitlines()) if m]
+    n = int(re.search(r"of (\d+) streamlines selected", p.stdout).group(1))
+    print("window selection times (ms):", ms, flush=True)
+    return n, ms[0], ms[1:]
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", default="100000,1000000")
@@ -121,6 +143,7 @@ def main():
             print(f"{n:>9} {name:32s} {summary['selected']:>8} horizon {th:6.2f} s  tckedit {tm:6.2f} s  x{tm / th:5.1f}", flush=True)
     for f in (ours, theirs):
         os.unlink(f)
+    window = window_selection_times(os.path.join(args.work, f"brain_{max(int(x) for x in args.sizes.split(','))}.tck"))
 
     lines = ["# `horizon filter` against tckedit", "",
              f"{time.strftime('%Y-%m-%d')}, `bench/filter_bench.py`, this machine (2 cores, Debian 12), {version}.",
@@ -131,6 +154,15 @@ def main():
              "|---:|---|---:|---:|---:|---:|---|"]
     for n, name, sel, th, tm, r, rs, fs, ws in rows:
         lines.append(f"| {n:,} | {name} | {sel:,} | {th:.2f} | {tm:.2f} | {r:.1f}x | {rs:.2f} / {fs:.2f} / {ws:.2f} |")
+    if window:
+        n, first, times = window
+        lines += ["", f"## The window: a region dragged over {n:,} streamlines", "",
+                  "`horizon view FILE --script` under Xvfb (640x400): a 12 mm include sphere placed 5 s after launch, then moved",
+                  "in 2 mm steps, then an exclude sphere added and moved; each step selects again (the spatial grid) and prints",
+                  "its time. The first step waits for what remains of the grid's background build.", "",
+                  "| step | ms |", "|---|---:|", f"| first region | {first:.0f} |"]
+        lines += [f"| move {i + 1} | {t:.0f} |" for i, t in enumerate(times)]
+        lines.append(f"| median of the moves | {statistics.median(times):.0f} |")
     try:
         import matplotlib
         matplotlib.use("Agg")
