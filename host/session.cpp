@@ -119,7 +119,7 @@ void Explorer::expand_node(std::uint64_t node, bool to_streamlines) {
         for (std::size_t i = 0; i < kids.size(); ++i) s_.colour[kids[i]] = i == 0 ? s_.colour[node] : s_.next_colour++;
         s_.shown.insert(s_.shown.end(), kids.begin(), kids.end());
     } else {
-        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) s_.expanded.push_back(s_.subset[t.members[m]]);
+        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) s_.expanded.push_back((*s_.subset)[t.members[m]]);
     }
     sort();
 }
@@ -160,7 +160,7 @@ void Explorer::repeat(std::vector<double> thresholds) {
     std::unordered_map<std::uint64_t, std::uint64_t> before;
     const auto &t = *s_.tree;
     for (std::uint64_t node : s_.shown)
-        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) before[s_.subset[t.members[m]]] = s_.colour[node];
+        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) before[(*s_.subset)[t.members[m]]] = s_.colour[node];
     cluster(std::move(keep), &before, thresholds);
 }
 
@@ -190,7 +190,7 @@ void Explorer::cluster(std::vector<std::uint64_t> subset, const std::unordered_m
     }
     s_.tree = tree;
     s_.thresholds = tree->thresholds;
-    s_.subset = std::move(subset);
+    s_.subset = std::make_shared<const std::vector<std::uint64_t>>(std::move(subset));
     s_.shown.clear();
     s_.selected.clear();
     s_.expanded.clear();
@@ -204,7 +204,7 @@ void Explorer::cluster(std::vector<std::uint64_t> subset, const std::unordered_m
         if (before != nullptr) {
             std::map<std::uint64_t, std::uint64_t> votes;
             for (std::uint64_t m = tree->member_offsets[node]; m < tree->member_offsets[node + 1]; ++m)
-                if (auto it = before->find(s_.subset[tree->members[m]]); it != before->end()) ++votes[it->second];
+                if (auto it = before->find((*s_.subset)[tree->members[m]]); it != before->end()) ++votes[it->second];
             std::uint64_t best = 0;
             for (const auto &[c, n] : votes)
                 if (n > best && !taken.count(c)) best = n, pick = c;
@@ -222,7 +222,7 @@ std::vector<std::uint64_t> Explorer::shown_streamlines(std::vector<std::string> 
     for (std::uint64_t s : s_.expanded) all.emplace_back(s, 0);
     for (std::size_t k = 0; k < s_.shown.size(); ++k)
         for (std::uint64_t m = t.member_offsets[s_.shown[k]]; m < t.member_offsets[s_.shown[k] + 1]; ++m)
-            all.emplace_back(s_.subset[t.members[m]], k + 1);
+            all.emplace_back((*s_.subset)[t.members[m]], k + 1);
     std::sort(all.begin(), all.end());
     all.erase(std::unique(all.begin(), all.end(), [](const auto &a, const auto &b) { return a.first == b.first; }), all.end());
     std::vector<std::uint64_t> ids(all.size());
@@ -279,8 +279,9 @@ core::render::Object Explorer::streamlines_object() const {
 
 Session::Session(const core::Registry &reg, core::Tractogram all, std::vector<std::string> inputs, std::unique_ptr<Explorer> ex)
     : reg_(reg), all_(std::move(all)), inputs_(std::move(inputs)), ex_(std::move(ex)) {
-    kept_.resize(all_.nb_streamlines());
-    std::iota(kept_.begin(), kept_.end(), 0);
+    auto every = std::make_shared<std::vector<std::uint64_t>>(all_.nb_streamlines());
+    std::iota(every->begin(), every->end(), 0);
+    kept_ = std::move(every);
 }
 
 void Session::prepare_index() {
@@ -369,23 +370,24 @@ void Session::remove_roi(std::size_t k) {
 void Session::apply() {
     const auto t0 = std::chrono::steady_clock::now();
     if (rois_.empty()) {
-        kept_.resize(all_.nb_streamlines());
-        std::iota(kept_.begin(), kept_.end(), 0);
+        auto every = std::make_shared<std::vector<std::uint64_t>>(all_.nb_streamlines());
+        std::iota(every->begin(), every->end(), 0);
+        kept_ = std::move(every);
     } else {
         if (!grid_ && grid_future_.valid()) grid_ = grid_future_.get();
         if (!grid_) grid_ = std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_));
         core::FilterSpec f;
         f.rois = rois_;
-        kept_ = core::filter_streamlines(all_, f, nullptr, nullptr, grid_.get());
+        kept_ = std::make_shared<const std::vector<std::uint64_t>>(core::filter_streamlines(all_, f, nullptr, nullptr, grid_.get()));
     }
     filter_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    if (ex_) ex_->reset(&kept_);
+    if (ex_) ex_->reset(kept_.get());
 }
 
 std::vector<std::uint64_t> Session::shown(std::vector<std::string> *cluster_of) const {
     if (ex_) return ex_->shown_streamlines(cluster_of);
-    if (cluster_of) cluster_of->assign(kept_.size(), "");
-    return kept_;
+    if (cluster_of) cluster_of->assign(kept_->size(), "");
+    return *kept_;
 }
 
 std::string Session::save(const std::string &path, bool force) const {
@@ -495,7 +497,7 @@ core::Tractogram Session::roi_wires(bool include) const {
 }
 
 std::string Session::summary() const {
-    std::string s = std::to_string(rois_.size()) + " regions, " + std::to_string(kept_.size()) + " of " + std::to_string(all_.nb_streamlines()) +
+    std::string s = std::to_string(rois_.size()) + " regions, " + std::to_string(kept_->size()) + " of " + std::to_string(all_.nb_streamlines()) +
                     " streamlines selected";
     for (std::size_t k = 0; k < rois_.size(); ++k) s += "; #" + std::to_string(k) + " " + (rois_[k].include ? "include " : "exclude ") + rois_[k].spec();
     return s;

@@ -36,7 +36,7 @@ public:
     // Everything an edit changes (what undo restores). Copies share the tree.
     struct State {
         std::shared_ptr<const core::render::ClusterTree> tree;
-        std::vector<std::uint64_t> subset;    // the streamlines clustered (tree members index it)
+        std::shared_ptr<const std::vector<std::uint64_t>> subset;  // the streamlines clustered (tree members index it; shared by copies)
         std::vector<std::uint64_t> shown;     // tree nodes shown, largest first
         std::vector<std::uint64_t> expanded;  // streamlines shown on their own
         std::set<std::uint64_t> selected;     // tree nodes, all shown
@@ -107,7 +107,7 @@ class Session {
 public:
     struct State {
         std::vector<core::Roi> rois;
-        std::vector<std::uint64_t> kept;  // what the regions select (ascending); all when no region
+        std::shared_ptr<const std::vector<std::uint64_t>> kept;  // what the regions select (ascending; shared by copies)
         std::unique_ptr<Explorer::State> explore;
         State() = default;
         State(const State &o) : rois(o.rois), kept(o.kept), explore(o.explore ? std::make_unique<Explorer::State>(*o.explore) : nullptr) {}
@@ -128,7 +128,7 @@ public:
     Explorer *explorer() { return ex_.get(); }
     const core::Tractogram &all() const { return all_; }
     const std::vector<core::Roi> &rois() const { return rois_; }
-    const std::vector<std::uint64_t> &kept() const { return kept_; }
+    const std::vector<std::uint64_t> &kept() const { return *kept_; }
     double last_filter_ms() const { return filter_ms_; }
 
     // Every edit: record() before it (the state undo returns to).
@@ -182,7 +182,7 @@ private:
     std::future<std::shared_ptr<const core::StreamlineGrid>> grid_future_;
     std::atomic<bool> grid_cancel_{false};
     std::vector<core::Roi> rois_;
-    std::vector<std::uint64_t> kept_;
+    std::shared_ptr<const std::vector<std::uint64_t>> kept_;  // (undo's copies share it)
     double filter_ms_ = 0;
     std::vector<State> undo_, redo_;
 };

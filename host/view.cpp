@@ -462,7 +462,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 si = scene.objects.size();
                 scene.objects.push_back(ex->streamlines_object());
             } else if (!session->rois().empty()) {
-                ob.data.tractogram = core::subset_with_arrays(session->all(), session->kept());
+                ob.data.tractogram = core::subset_with_arrays(session->all(), session->kept(), true);
             }
             // The regions, drawn as wire figures: include green, exclude red.
             for (bool include : {true, false}) {
@@ -502,7 +502,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 rr.replace_object(si, ex->streamlines_object());
             } else if (selection_changed) {
                 core::render::Object ob = styled_like(rr.scene().objects[ti]);
-                ob.data.tractogram = session->rois().empty() ? session->all().shared() : core::subset_with_arrays(session->all(), session->kept());
+                ob.data.tractogram = session->rois().empty() ? session->all().shared() : core::subset_with_arrays(session->all(), session->kept(), true);
                 rr.replace_object(ti, std::move(ob));
             }
             for (bool include : {true, false}) {

@@ -345,7 +345,7 @@ DataArray f32_array(std::string name, hz_attach attach, const std::vector<float>
     return a;
 }
 
-Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids) {
+Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill) {
     Tractogram out;
     out.offsets = Buffer<std::uint64_t>(ids.size() + 1);
     std::uint64_t nv = 0;
@@ -354,7 +354,11 @@ Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64
         nv += t.size(ids[i]);
     }
     out.offsets[ids.size()] = nv;
-    out.positions = Buffer<float>(nv * 3);
+    if (nv > 0) {
+        std::shared_ptr<void> block = spill ? allocate_spillable(nv * 3 * sizeof(float)) : allocate_uninitialised(nv * 3 * sizeof(float));
+        float *at = static_cast<float *>(block.get());  // (before the move below: argument order is unspecified)
+        out.positions = Buffer<float>(at, nv * 3, std::move(block));
+    }
     // The copy on every core: a whole-brain selection is hundreds of MB,
     // and the first writes to fresh pages (the kernel's faults) are half of
     // the cost.

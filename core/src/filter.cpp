@@ -1,6 +1,8 @@
 #include <hz/core/filter.hpp>
 #include <hz/core/io.hpp>
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -294,6 +296,26 @@ StreamlineGrid StreamlineGrid::of(const Tractogram &t, double cell_mm, unsigned 
         g.n = {1, 1, 1};
         return g;
     }
+    // Bounded memory: the entries a sample of streamlines gives at this
+    // cell size, scaled to all of them; above kMaxEntries (192 MB) the
+    // cells grow (the entries of long streamlines fall as 1 / cell size).
+    {
+        const std::uint64_t stride = std::max<std::uint64_t>(1, N / 20000);
+        std::uint64_t sampled = 0, entries = 0;
+        const float slo[3] = {float(g.bounds.min[0]), float(g.bounds.min[1]), float(g.bounds.min[2])};
+        for (std::uint64_t s = 0; s < N; s += stride, ++sampled) {
+            std::int64_t prev[3] = {-1, -1, -1};
+            for (std::uint64_t v = t.begin(s); v < t.end(s); ++v) {
+                std::int64_t c[3];
+                for (int i = 0; i < 3; ++i) c[i] = std::int64_t((p[v * 3 + i] - slo[i]) / float(cell_mm));
+                if (c[0] != prev[0] || c[1] != prev[1] || c[2] != prev[2]) ++entries, std::copy(c, c + 3, prev);
+            }
+        }
+        constexpr double kMaxEntries = 48e6;
+        const double estimate = double(entries) * double(N) / double(std::max<std::uint64_t>(sampled, 1));
+        if (estimate > kMaxEntries) cell_mm *= estimate / kMaxEntries;
+        g.cell = cell_mm;
+    }
     for (int i = 0; i < 3; ++i) g.n[i] = std::uint64_t(std::floor((g.bounds.max[i] - g.bounds.min[i]) / cell_mm)) + 1;
     const std::uint64_t cells = g.n[0] * g.n[1] * g.n[2];
     const float lo[3] = {float(g.bounds.min[0]), float(g.bounds.min[1]), float(g.bounds.min[2])};
@@ -353,6 +375,8 @@ StreamlineGrid StreamlineGrid::of(const Tractogram &t, double cell_mm, unsigned 
         walk(from, to, [&](std::uint64_t c, std::uint64_t s) { g.ids[at[c]++] = std::uint32_t(s); });
     });
     if (stop) return StreamlineGrid{};
+    spdlog::debug("streamline grid: {} streamlines, {:.1f} mm cells ({} x {} x {}), {} entries ({:.0f} MB)", N, g.cell, g.n[0], g.n[1], g.n[2],
+                  g.ids.size(), double(g.ids.size()) * 4 / 1048576.0);
     return g;
 }
 
@@ -474,8 +498,8 @@ std::vector<std::uint64_t> filter_streamlines(const Tractogram &t, const FilterS
     return out;
 }
 
-Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids) {
-    Tractogram out = select_streamlines(t, ids);
+Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill) {
+    Tractogram out = select_streamlines(t, ids, spill);
     const std::uint64_t N = t.nb_streamlines();
     std::vector<std::int64_t> renumber;  // old index -> new, -1 when dropped (for groups)
     std::vector<std::string> kept_groups;

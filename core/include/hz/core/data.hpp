@@ -235,7 +235,10 @@ struct Tractogram {
 };
 
 // The streamlines `ids` of `t`, in that order (positions only; indices < N).
-Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids);
+// With `spill`, a large selection's positions are allocate_spillable's (a
+// selection kept for display, e.g. a region's streamlines out of ten
+// million: page cache rather than the process's anonymous memory).
+Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill = false);
 
 // Triangle mesh, RAS+ mm.
 struct Mesh {

@@ -95,9 +95,10 @@ struct StreamlineBoxes {
 // tractogram's bounds, each listing the streamlines with a vertex in it (a
 // streamline once per run of its vertices in the cell). A region's
 // candidates are the streamlines listed in the cells its bounds overlap;
-// only those are tested vertex by vertex. At a million whole-brain
-// streamlines and 6 mm cells: about 60 entries per streamline (4 bytes
-// each), built in one pass over the vertices on every core.
+// only those are tested vertex by vertex. Memory is bounded: where the
+// entries would pass 48M (192 MB), the cells grow to keep them about there
+// (a sample of streamlines estimates the count first). Built in two passes
+// over the vertices (a counting sort).
 struct StreamlineGrid {
     Bounds bounds;
     double cell = 0;
@@ -123,6 +124,7 @@ std::vector<std::uint64_t> filter_streamlines(const Tractogram &t, const FilterS
 // The streamlines `ids` of `t` in that order, with their per-vertex and
 // per-streamline arrays, and groups (TRX) narrowed to the streamlines kept
 // and renumbered; group data is kept for the groups that keep members.
-Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids);
+// `spill`: as select_streamlines'.
+Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill = false);
 
 }  // namespace hz::core
