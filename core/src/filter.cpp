@@ -297,23 +297,27 @@ StreamlineGrid StreamlineGrid::of(const Tractogram &t, double cell_mm, unsigned 
         return g;
     }
     // Bounded memory: the entries a sample of streamlines gives at this
-    // cell size, scaled to all of them; above kMaxEntries (192 MB) the
-    // cells grow (the entries of long streamlines fall as 1 / cell size).
+    // cell size, scaled to all of them; above the budget (13 entries per
+    // streamline, at least 48M and at most 128M: 192-512 MB) the cells
+    // grow until the estimate fits.
     {
         const std::uint64_t stride = std::max<std::uint64_t>(1, N / 20000);
-        std::uint64_t sampled = 0, entries = 0;
+        const double budget = std::clamp(13.0 * double(N), 48e6, 128e6);
         const float slo[3] = {float(g.bounds.min[0]), float(g.bounds.min[1]), float(g.bounds.min[2])};
-        for (std::uint64_t s = 0; s < N; s += stride, ++sampled) {
-            std::int64_t prev[3] = {-1, -1, -1};
-            for (std::uint64_t v = t.begin(s); v < t.end(s); ++v) {
-                std::int64_t c[3];
-                for (int i = 0; i < 3; ++i) c[i] = std::int64_t((p[v * 3 + i] - slo[i]) / float(cell_mm));
-                if (c[0] != prev[0] || c[1] != prev[1] || c[2] != prev[2]) ++entries, std::copy(c, c + 3, prev);
+        for (int round = 0; round < 6; ++round) {
+            std::uint64_t sampled = 0, entries = 0;
+            for (std::uint64_t s = 0; s < N; s += stride, ++sampled) {
+                std::int64_t prev[3] = {-1, -1, -1};
+                for (std::uint64_t v = t.begin(s); v < t.end(s); ++v) {
+                    std::int64_t c[3];
+                    for (int i = 0; i < 3; ++i) c[i] = std::int64_t((p[v * 3 + i] - slo[i]) / float(cell_mm));
+                    if (c[0] != prev[0] || c[1] != prev[1] || c[2] != prev[2]) ++entries, std::copy(c, c + 3, prev);
+                }
             }
+            const double estimate = double(entries) * double(N) / double(std::max<std::uint64_t>(sampled, 1));
+            if (estimate <= budget) break;
+            cell_mm *= std::min(4.0, estimate / budget);
         }
-        constexpr double kMaxEntries = 48e6;
-        const double estimate = double(entries) * double(N) / double(std::max<std::uint64_t>(sampled, 1));
-        if (estimate > kMaxEntries) cell_mm *= estimate / kMaxEntries;
         g.cell = cell_mm;
     }
     for (int i = 0; i < 3; ++i) g.n[i] = std::uint64_t(std::floor((g.bounds.max[i] - g.bounds.min[i]) / cell_mm)) + 1;

@@ -96,8 +96,9 @@ struct StreamlineBoxes {
 // streamline once per run of its vertices in the cell). A region's
 // candidates are the streamlines listed in the cells its bounds overlap;
 // only those are tested vertex by vertex. Memory is bounded: where the
-// entries would pass 48M (192 MB), the cells grow to keep them about there
-// (a sample of streamlines estimates the count first). Built in two passes
+// entries would pass 13 per streamline (at least 48M, at most 128M: 192 to
+// 512 MB), the cells grow until they fit (a sample of streamlines
+// estimates the count first). Built in two passes
 // over the vertices (a counting sort).
 struct StreamlineGrid {
     Bounds bounds;
