@@ -106,6 +106,23 @@ void Explorer::hide_selected() {
     for (std::uint64_t node : std::exchange(s_.selected, {})) std::erase(s_.shown, node);
 }
 
+void Explorer::select_only(const std::vector<std::size_t> &ranks) {
+    s_.selected.clear();
+    for (std::size_t k : ranks) s_.selected.insert(at(k));
+}
+
+void Explorer::keep_selected(const std::vector<std::uint64_t> &streamlines) {
+    std::erase_if(s_.shown, [&](std::uint64_t node) { return !s_.selected.count(node); });
+    std::erase_if(s_.expanded, [&](std::uint64_t s) { return !std::binary_search(streamlines.begin(), streamlines.end(), s); });
+    s_.selected.clear();
+}
+
+void Explorer::drop_selected(const std::vector<std::uint64_t> &streamlines) {
+    std::erase_if(s_.shown, [&](std::uint64_t node) { return s_.selected.count(node) != 0; });
+    std::erase_if(s_.expanded, [&](std::uint64_t s) { return std::binary_search(streamlines.begin(), streamlines.end(), s); });
+    s_.selected.clear();
+}
+
 void Explorer::expand(std::size_t rank) { expand_node(at(rank), false); }
 void Explorer::expand_to_streamlines(std::size_t rank) { expand_node(at(rank), true); }
 
@@ -299,6 +316,7 @@ Session::State Session::snapshot() const {
     State s;
     s.rois = rois_;
     s.kept = kept_;
+    s.picked = picked_, s.deleted = deleted_;
     if (ex_) s.explore = std::make_unique<Explorer::State>(ex_->state());
     return s;
 }
@@ -306,6 +324,7 @@ Session::State Session::snapshot() const {
 void Session::restore(const State &s) {
     rois_ = s.rois;
     kept_ = s.kept;
+    picked_ = s.picked, deleted_ = s.deleted;
     if (ex_ && s.explore) ex_->restore(*s.explore);
 }
 
@@ -369,19 +388,75 @@ void Session::remove_roi(std::size_t k) {
 
 void Session::apply() {
     const auto t0 = std::chrono::steady_clock::now();
+    std::vector<std::uint64_t> kept;
     if (rois_.empty()) {
-        auto every = std::make_shared<std::vector<std::uint64_t>>(all_.nb_streamlines());
-        std::iota(every->begin(), every->end(), 0);
-        kept_ = std::move(every);
+        kept.resize(all_.nb_streamlines());
+        std::iota(kept.begin(), kept.end(), 0);
     } else {
         if (!grid_ && grid_future_.valid()) grid_ = grid_future_.get();
         if (!grid_) grid_ = std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_));
         core::FilterSpec f;
         f.rois = rois_;
-        kept_ = std::make_shared<const std::vector<std::uint64_t>>(core::filter_streamlines(all_, f, nullptr, nullptr, grid_.get()));
+        kept = core::filter_streamlines(all_, f, nullptr, nullptr, grid_.get());
     }
+    if (!deleted_->empty()) std::erase_if(kept, [&](std::uint64_t s) { return std::binary_search(deleted_->begin(), deleted_->end(), s); });
+    kept_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(kept));
     filter_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    picked_ = std::make_shared<const std::vector<std::uint64_t>>();
     if (ex_) ex_->reset(kept_.get());
+}
+
+void Session::pick(std::vector<std::uint64_t> ids) {
+    std::sort(ids.begin(), ids.end());
+    const std::vector<std::uint64_t> &pool = ex_ ? ex_->expanded() : *kept_;
+    std::vector<std::uint64_t> sorted_pool = pool;
+    std::sort(sorted_pool.begin(), sorted_pool.end());
+    std::vector<std::uint64_t> out;
+    std::set_intersection(ids.begin(), ids.end(), sorted_pool.begin(), sorted_pool.end(), std::back_inserter(out));
+    picked_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(out));
+}
+
+void Session::keep_picked() {
+    if (ex_ && picked_->empty() && ex_->nb_selected() == 0) throw core::Error("nothing picked (draw a stroke across streamlines or centroids: Ctrl+drag)");
+    if (ex_) {
+        ex_->keep_selected(*picked_);
+    } else {
+        if (picked_->empty()) throw core::Error("nothing picked (draw a stroke across streamlines: Ctrl+drag)");
+        std::vector<std::uint64_t> gone, deleted;
+        std::set_difference(kept_->begin(), kept_->end(), picked_->begin(), picked_->end(), std::back_inserter(gone));
+        std::set_union(deleted_->begin(), deleted_->end(), gone.begin(), gone.end(), std::back_inserter(deleted));
+        deleted_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(deleted));
+        kept_ = picked_;
+    }
+    picked_ = std::make_shared<const std::vector<std::uint64_t>>();
+}
+
+void Session::delete_picked() {
+    if (ex_ && picked_->empty() && ex_->nb_selected() == 0) throw core::Error("nothing picked (draw a stroke across streamlines or centroids: Ctrl+drag)");
+    if (ex_) {
+        ex_->drop_selected(*picked_);
+    } else {
+        if (picked_->empty()) throw core::Error("nothing picked (draw a stroke across streamlines: Ctrl+drag)");
+        std::vector<std::uint64_t> kept, deleted;
+        std::set_difference(kept_->begin(), kept_->end(), picked_->begin(), picked_->end(), std::back_inserter(kept));
+        std::set_union(deleted_->begin(), deleted_->end(), picked_->begin(), picked_->end(), std::back_inserter(deleted));
+        deleted_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(deleted));
+        kept_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(kept));
+    }
+    picked_ = std::make_shared<const std::vector<std::uint64_t>>();
+}
+
+void Session::invert_picked() {
+    std::vector<std::uint64_t> pool = ex_ ? ex_->expanded() : *kept_, out;
+    std::sort(pool.begin(), pool.end());
+    std::set_difference(pool.begin(), pool.end(), picked_->begin(), picked_->end(), std::back_inserter(out));
+    picked_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(out));
+    if (ex_) {
+        std::vector<std::size_t> others;
+        for (std::size_t k = 0; k < ex_->shown().size(); ++k)
+            if (!ex_->is_selected(k)) others.push_back(k);
+        ex_->select_only(others);
+    }
 }
 
 std::vector<std::uint64_t> Session::shown(std::vector<std::string> *cluster_of) const {
@@ -498,7 +573,7 @@ core::Tractogram Session::roi_wires(bool include) const {
 
 std::string Session::summary() const {
     std::string s = std::to_string(rois_.size()) + " regions, " + std::to_string(kept_->size()) + " of " + std::to_string(all_.nb_streamlines()) +
-                    " streamlines selected";
+                    " streamlines selected, " + std::to_string(picked_->size()) + " picked, " + std::to_string(deleted_->size()) + " deleted";
     for (std::size_t k = 0; k < rois_.size(); ++k) s += "; #" + std::to_string(k) + " " + (rois_[k].include ? "include " : "exclude ") + rois_[k].spec();
     return s;
 }

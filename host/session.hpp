@@ -66,6 +66,15 @@ public:
     void select_all();
     void expand_selected();
     void hide_selected();
+    // Selects exactly the clusters shown at `ranks` (a stroke's crossings).
+    void select_only(const std::vector<std::size_t> &ranks);
+    // Hides every cluster not selected and keeps, of the expanded
+    // streamlines, those in `streamlines` (ascending): what a stroke crossed.
+    void keep_selected(const std::vector<std::uint64_t> &streamlines);
+    // Hides the selected clusters and drops the expanded streamlines in
+    // `streamlines` (ascending).
+    void drop_selected(const std::vector<std::uint64_t> &streamlines);
+    const std::vector<std::uint64_t> &expanded() const { return s_.expanded; }
     void expand(std::size_t rank);
     void expand_to_streamlines(std::size_t rank);
     void hide(std::size_t rank);
@@ -107,12 +116,15 @@ class Session {
 public:
     struct State {
         std::vector<core::Roi> rois;
-        std::shared_ptr<const std::vector<std::uint64_t>> kept;  // what the regions select (ascending; shared by copies)
+        std::shared_ptr<const std::vector<std::uint64_t>> kept;  // what the regions select, less the deleted (ascending; shared by copies)
+        std::shared_ptr<const std::vector<std::uint64_t>> picked, deleted;  // a stroke's streamlines; those deleted by hand
         std::unique_ptr<Explorer::State> explore;
         State() = default;
-        State(const State &o) : rois(o.rois), kept(o.kept), explore(o.explore ? std::make_unique<Explorer::State>(*o.explore) : nullptr) {}
+        State(const State &o)
+            : rois(o.rois), kept(o.kept), picked(o.picked), deleted(o.deleted),
+              explore(o.explore ? std::make_unique<Explorer::State>(*o.explore) : nullptr) {}
         State &operator=(const State &o) {
-            rois = o.rois, kept = o.kept;
+            rois = o.rois, kept = o.kept, picked = o.picked, deleted = o.deleted;
             explore = o.explore ? std::make_unique<Explorer::State>(*o.explore) : nullptr;
             return *this;
         }
@@ -152,6 +164,22 @@ public:
     // clusters them again (the first clustering of the selection).
     void apply();
 
+    // Streamline selection by a stroke across the view. pick: the shown
+    // streamlines among `ids` become the picked ones (over an exploration:
+    // the expanded streamlines; its clusters are picked with
+    // Explorer::select_only). keep_picked: everything shown but what is
+    // picked is deleted (over an exploration: the clusters not selected are
+    // hidden); delete_picked: what is picked is deleted (or hidden);
+    // invert_picked: the other shown streamlines become the picked ones.
+    // Deleted streamlines stay out of the selection whatever the regions do
+    // (until undone).
+    const std::vector<std::uint64_t> &picked() const { return *picked_; }
+    std::uint64_t nb_deleted() const { return deleted_->size(); }
+    void pick(std::vector<std::uint64_t> ids);
+    void keep_picked();
+    void delete_picked();
+    void invert_picked();
+
     // The streamlines shown now: kept (plain) or the exploration's.
     std::vector<std::uint64_t> shown(std::vector<std::string> *cluster_of = nullptr) const;
     // Writes what is shown to `path` (any streamline format; TRX holds a
@@ -183,6 +211,8 @@ private:
     std::atomic<bool> grid_cancel_{false};
     std::vector<core::Roi> rois_;
     std::shared_ptr<const std::vector<std::uint64_t>> kept_;  // (undo's copies share it)
+    std::shared_ptr<const std::vector<std::uint64_t>> picked_ = std::make_shared<const std::vector<std::uint64_t>>();
+    std::shared_ptr<const std::vector<std::uint64_t>> deleted_ = std::make_shared<const std::vector<std::uint64_t>>();
     double filter_ms_ = 0;
     std::vector<State> undo_, redo_;
 };

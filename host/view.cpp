@@ -120,6 +120,11 @@ struct App {
     std::function<bool(int, int)> on_key;
     // A Ctrl+wheel turn (resizes the region of interest being edited).
     std::function<void(double)> on_ctrl_scroll;
+    // A stroke drawn with Ctrl+drag (window points): picks the streamlines
+    // it crosses on release.
+    bool stroking = false;
+    std::vector<std::array<double, 2>> stroke;
+    std::function<void(const std::vector<std::array<double, 2>> &)> on_stroke;
 
     void click(double x, double y, int mods = 0) {
         if (on_click) on_click(x, y, mods);
@@ -264,10 +269,25 @@ struct FrameLog {
 
 void cb_button(GLFWwindow *w, int button, int action, int mods) {
     ++app_of(w)->events;
-    if (ImGui::GetIO().WantCaptureMouse) return;
     App &a = *app_of(w);
+    if (a.stroking && action == GLFW_RELEASE && button == GLFW_MOUSE_BUTTON_LEFT) {
+        // The end of a Ctrl+drag: a stroke, or a Ctrl+click if it stayed put.
+        a.stroking = false;
+        glfwGetCursorPos(w, &a.last_x, &a.last_y);
+        if (std::hypot(a.last_x - a.press_x, a.last_y - a.press_y) > App::kClickPx && a.on_stroke) a.on_stroke(a.stroke);
+        else a.click(a.last_x, a.last_y, mods | GLFW_MOD_CONTROL);
+        a.stroke.clear();
+        return;
+    }
+    if (ImGui::GetIO().WantCaptureMouse) return;
     glfwGetCursorPos(w, &a.last_x, &a.last_y);
     const bool down = action == GLFW_PRESS;
+    if (down && button == GLFW_MOUSE_BUTTON_LEFT && (mods & GLFW_MOD_CONTROL) && a.on_stroke) {
+        a.stroking = true;
+        a.press_x = a.last_x, a.press_y = a.last_y;
+        a.stroke = {{a.last_x, a.last_y}};
+        return;
+    }
     const bool left = button == GLFW_MOUSE_BUTTON_LEFT && !(mods & GLFW_MOD_SHIFT);
     if (left) a.dragging = down;
     else a.panning = down;
@@ -277,7 +297,12 @@ void cb_button(GLFWwindow *w, int button, int action, int mods) {
 }
 void cb_cursor(GLFWwindow *w, double x, double y) {
     ++app_of(w)->events;
-    app_of(w)->drag_to(x, y);
+    App &a = *app_of(w);
+    if (a.stroking) {
+        if (std::hypot(x - a.stroke.back()[0], y - a.stroke.back()[1]) >= 2.0) a.stroke.push_back({x, y});
+        return;
+    }
+    a.drag_to(x, y);
 }
 void cb_scroll(GLFWwindow *w, double, double dy) {
     ++app_of(w)->events;
@@ -496,13 +521,27 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             std::fflush(stdout);
         };
         // After every edit: the objects that show the session again.
+        // Streamlines picked by a stroke are drawn lighter: a per-streamline
+        // "highlight" array over the object's streamlines, `ids` (indices
+        // into the session's tractogram).
+        auto highlight = [&](core::Tractogram &t, const std::vector<std::uint64_t> &ids) {
+            const auto &picked = session->picked();
+            if (picked.empty()) return;
+            std::vector<float> h(ids.size());
+            for (std::size_t i = 0; i < ids.size(); ++i) h[i] = std::binary_search(picked.begin(), picked.end(), ids[i]) ? 1.0f : 0.0f;
+            t.arrays.push_back(core::f32_array("highlight", HZ_ATTACH_STREAMLINE, h));
+        };
         auto refresh = [&](core::render::Renderer &rr, bool selection_changed) {
             if (ex) {
                 rr.replace_object(ci, ex->centroids_object());
-                rr.replace_object(si, ex->streamlines_object());
+                core::render::Object so = ex->streamlines_object();
+                highlight(so.data.tractogram, ex->expanded());
+                rr.replace_object(si, std::move(so));
             } else if (selection_changed) {
                 core::render::Object ob = styled_like(rr.scene().objects[ti]);
-                ob.data.tractogram = session->rois().empty() ? session->all().shared() : core::subset_with_arrays(session->all(), session->kept(), true);
+                const bool everything = session->kept().size() == session->all().nb_streamlines();
+                ob.data.tractogram = everything ? session->all().shared() : core::subset_with_arrays(session->all(), session->kept(), true);
+                highlight(ob.data.tractogram, session->kept());
                 rr.replace_object(ti, std::move(ob));
             }
             for (bool include : {true, false}) {
@@ -657,6 +696,14 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                     else return false;
                     return true;
                 }
+                if (k == GLFW_KEY_K || k == GLFW_KEY_D || k == GLFW_KEY_I) {  // what a stroke picked: keep, delete, invert
+                    edit_ui([&] {
+                        if (k == GLFW_KEY_K) session->keep_picked();
+                        else if (k == GLFW_KEY_D) session->delete_picked();
+                        else session->invert_picked();
+                    }, true);
+                    return true;
+                }
                 if (!ex) return false;
                 std::function<void()> fn;
                 if (k == GLFW_KEY_E) fn = [&] { ex->expand_selected(); };
@@ -671,6 +718,33 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 else return false;
                 edit_ui(fn, false);
                 return true;
+            };
+            // A stroke (Ctrl+drag, or `stroke X0 Y0 X1 Y1 ...`): picks the
+            // streamlines it crosses, and over an exploration the clusters
+            // whose centroid it crosses.
+            app.on_stroke = [&](const std::vector<std::array<double, 2>> &stroke) {
+                int ww, wh, fw, fh;
+                glfwGetWindowSize(win, &ww, &wh);
+                glfwGetFramebufferSize(win, &fw, &fh);
+                if (ww <= 0 || wh <= 0 || fw <= 0 || fh <= 0) return;
+                std::vector<std::array<double, 2>> px;
+                for (const auto &q : stroke) px.push_back({q[0] * fw / ww, q[1] * fh / wh});
+                const core::render::View v = app.orbit.view(app.radius);
+                const auto t0 = std::chrono::steady_clock::now();
+                std::vector<std::uint64_t> ids = core::render::streamlines_crossing(r.scene().objects[ex ? si : ti].data.tractogram, v, fw, fh, px);
+                const std::vector<std::uint64_t> &shown_ids = ex ? ex->expanded() : session->kept();
+                for (std::uint64_t &i : ids) i = shown_ids[i];  // (the object's streamline i is shown_ids[i])
+                std::vector<std::size_t> ranks;
+                if (ex)
+                    for (std::uint64_t k : core::render::streamlines_crossing(r.scene().objects[ci].data.tractogram, v, fw, fh, px)) ranks.push_back(k);
+                const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+                edit_ui([&] {
+                    session->pick(std::move(ids));
+                    if (ex) ex->select_only(ranks);
+                }, true);
+                std::printf("stroke: %zu streamlines picked%s (%.0f ms)\n", session->picked().size(),
+                            ex ? (", " + std::to_string(ranks.size()) + " clusters selected").c_str() : "", ms);
+                std::fflush(stdout);
             };
             app.on_ctrl_scroll = [&](double dy) {
                 if (session->rois().empty()) return;
@@ -868,6 +942,22 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                         } else {
                             throw core::Error("roi: unknown '" + what + "' (sphere, box, mask, move, scale, flip, remove)");
                         }
+                    } else if (op == "stroke") {  // stroke X0 Y0 X1 Y1 ...: window points
+                        if (!session) throw core::Error("stroke needs a tractogram");
+                        std::vector<std::array<double, 2>> pts;
+                        for (double x, y; cmd >> x >> y;) pts.push_back({x, y});
+                        if (pts.size() < 2) throw core::Error("stroke needs at least two points (X0 Y0 X1 Y1 ...)");
+                        app.on_stroke(pts);
+                    } else if (op == "picked") {  // picked keep|delete|invert
+                        if (!session) throw core::Error("picked needs a tractogram");
+                        std::string what;
+                        cmd >> what;
+                        if (what != "keep" && what != "delete" && what != "invert") throw core::Error("picked: keep, delete or invert");
+                        edit([&] {
+                            if (what == "keep") session->keep_picked();
+                            else if (what == "delete") session->delete_picked();
+                            else session->invert_picked();
+                        }, true);
                     } else if (op == "undo" || op == "redo") {
                         if (!session) throw core::Error(op + " needs a tractogram");
                         undo_redo(op == "undo");
@@ -1032,6 +1122,15 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 if (button("Redo")) undo_redo(false);
                 ImGui::SameLine();
                 if (button("Save")) save_next();
+                ImGui::Text("%zu picked, %llu deleted", session->picked().size(), (unsigned long long)session->nb_deleted());
+                ImGui::TextDisabled("Ctrl+drag: a stroke picks what it crosses  K: keep  D: delete  I: invert");
+                if (!session->picked().empty() || (ex && ex->nb_selected() > 0)) {
+                    if (button("Keep picked")) act = [&] { session->keep_picked(); }, act_selects = true;
+                    ImGui::SameLine();
+                    if (button("Delete picked")) act = [&] { session->delete_picked(); }, act_selects = true;
+                    ImGui::SameLine();
+                    if (button("Invert")) act = [&] { session->invert_picked(); }, act_selects = true;
+                }
                 for (std::size_t k = 0; k < session->rois().size() && !act; ++k) {
                     const core::Roi &roi = session->rois()[k];
                     ImGui::PushID(int(200000 + k));
@@ -1089,6 +1188,11 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 ImGui::PopID();
             }
             ImGui::End();
+            if (app.stroking && app.stroke.size() > 1) {  // the stroke being drawn
+                std::vector<ImVec2> pts;
+                for (const auto &q : app.stroke) pts.emplace_back(float(q[0]), float(q[1]));
+                ImGui::GetForegroundDrawList()->AddPolyline(pts.data(), int(pts.size()), IM_COL32(255, 220, 60, 230), 0, 2.0f);
+            }
             ImGui::Render();
             ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
             glfwSwapBuffers(win);
@@ -1106,6 +1210,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         app.on_click = nullptr;  // (they refer to r and ex, which end here)
         app.on_key = nullptr;
         app.on_ctrl_scroll = nullptr;
+        app.on_stroke = nullptr;
         app.r = nullptr;
     }
     ImGui_ImplOpenGL3_Shutdown();

@@ -192,6 +192,49 @@ class SelectionWindowTest(TempDirTest):
         keys = {full[i].tobytes() for i in want}
         self.assertTrue(all(s.astype(np.float32).tobytes() in keys for s in got))
 
+    def test_stroke_picks_keeps_and_deletes(self):
+        # A stroke across the middle of the view picks the streamlines it
+        # crosses (drawn lighter); delete removes them, keep keeps only them;
+        # both undo. A stroke over empty space picks nothing.
+        p = self.window("stroke", [
+            "wait 2", f"screenshot {self.path('s0.png')}",
+            "stroke 200 100 280 220", "wait 2", f"screenshot {self.path('s1.png')}",
+            "picked delete",
+            "undo",
+            "picked keep",
+            f"save {self.path('kept.tck')}",
+            "roi sphere 0 0 0 30",           # regions do not bring deleted streamlines back
+            "undo", "undo",
+            "stroke 2 2 20 4",
+            "quit"])
+        self.assertEqual(p.returncode, 0, p.stderr)
+        states = [re.match(r"(\d+) regions, (\d+) of (\d+) streamlines selected, (\d+) picked, (\d+) deleted", l).groups()
+                  for l in self.roi_lines(p)]
+        states = [tuple(map(int, st)) for st in states]
+        picked = states[0][3]
+        self.assertGreater(picked, 20)
+        self.assertLess(picked, 1500)
+        self.assertEqual(states[1][1:], (2000 - picked, 2000, 0, picked))      # delete
+        self.assertEqual(states[2][1:], (2000, 2000, picked, 0))               # undo
+        self.assertEqual(states[3][1:], (picked, 2000, 0, 2000 - picked))      # keep
+        self.assertLessEqual(states[4][1], picked)                             # a region over what is kept
+        self.assertEqual(states[4][4], 2000 - picked)
+        self.assertEqual(states[6][1:], (2000, 2000, picked, 0))               # undo twice
+        self.assertEqual(states[7][3], 0, "a stroke over empty space picks nothing")
+        self.assertEqual(len(streamlines(self.path("kept.tck"))), picked)
+        # The picked streamlines are drawn lighter.
+        a, b = load(self.path("s0.png")), load(self.path("s1.png"))
+        self.assertGreater(b.mean(), a.mean() + 0.5)
+        # Over an exploration, a stroke selects the clusters whose centroids it crosses.
+        p = self.window("stroke_ex", ["wait 1", "stroke 200 100 280 220", "picked delete", "quit"], "--explore")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        m = re.search(r"stroke: 0 streamlines picked, (\d+) clusters selected", p.stdout)
+        self.assertIsNotNone(m, p.stdout)
+        selected = int(m.group(1))
+        self.assertGreater(selected, 0)
+        counts = [int(re.match(r"(\d+) clusters", l[len("explore: "):]).group(1)) for l in p.stdout.splitlines() if l.startswith("explore: ")]
+        self.assertEqual(counts[-1], counts[0] - selected)
+
     def test_command_line_regions_and_bad_input(self):
         # --include / --exclude as `filter` takes them.
         p = self.window("cli", ["wait 1", "quit"], "--include", "sphere:0,0,0,15", "--exclude", "sphere:20,0,0,8")

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <mutex>
+#include <utility>
+#include <vector>
 
 namespace hz::core::render {
 
@@ -67,6 +70,71 @@ std::optional<PickHit> pick_streamline(const Tractogram &t, std::span<const floa
         }
     }
     return on_tube ? on_tube : beside;
+}
+
+namespace {
+
+// Whether segments ab and cd of the plane meet (touching counts).
+bool segments_meet(double ax, double ay, double bx, double by, double cx, double cy, double dx, double dy) {
+    auto orient = [](double px, double py, double qx, double qy, double rx, double ry) {
+        const double v = (qx - px) * (ry - py) - (qy - py) * (rx - px);
+        return (v > 0) - (v < 0);
+    };
+    auto on = [](double px, double py, double qx, double qy, double rx, double ry) {  // r on pq, given collinear
+        return std::min(px, qx) <= rx && rx <= std::max(px, qx) && std::min(py, qy) <= ry && ry <= std::max(py, qy);
+    };
+    const int o1 = orient(ax, ay, bx, by, cx, cy), o2 = orient(ax, ay, bx, by, dx, dy);
+    const int o3 = orient(cx, cy, dx, dy, ax, ay), o4 = orient(cx, cy, dx, dy, bx, by);
+    if (o1 != o2 && o3 != o4) return true;
+    return (o1 == 0 && on(ax, ay, bx, by, cx, cy)) || (o2 == 0 && on(ax, ay, bx, by, dx, dy)) || (o3 == 0 && on(cx, cy, dx, dy, ax, ay)) ||
+           (o4 == 0 && on(cx, cy, dx, dy, bx, by));
+}
+
+}  // namespace
+
+std::vector<std::uint64_t> streamlines_crossing(const Tractogram &t, const View &v, int width, int height,
+                                                std::span<const std::array<double, 2>> stroke) {
+    std::vector<std::uint64_t> out;
+    if (width <= 0 || height <= 0 || stroke.size() < 2) return out;
+    const std::array<double, 16> m = view_projection(v, width, height);
+    const double near = v.near_mm;
+    double lo[2] = {stroke[0][0], stroke[0][1]}, hi[2] = {lo[0], lo[1]};
+    for (const auto &q : stroke)
+        for (int i = 0; i < 2; ++i) lo[i] = std::min(lo[i], q[i]), hi[i] = std::max(hi[i], q[i]);
+    const float *P = t.positions.data();
+    std::mutex mu;
+    std::vector<std::pair<std::uint64_t, std::vector<std::uint64_t>>> parts;
+    parallel_ranges(t.nb_streamlines(), 1024, [&](std::uint64_t from, std::uint64_t to) {
+        std::vector<std::uint64_t> mine;
+        auto crosses = [&](Clip a, Clip b) {
+            if (a.w < near && b.w < near) return false;
+            if (a.w < near) a = lerp(a, b, (near - a.w) / (b.w - a.w));
+            else if (b.w < near) b = lerp(b, a, (near - b.w) / (a.w - b.w));
+            const double ax = (a.x / a.w * 0.5 + 0.5) * width, ay = (0.5 - a.y / a.w * 0.5) * height;
+            const double bx = (b.x / b.w * 0.5 + 0.5) * width, by = (0.5 - b.y / b.w * 0.5) * height;
+            if (std::max(ax, bx) < lo[0] || std::min(ax, bx) > hi[0] || std::max(ay, by) < lo[1] || std::min(ay, by) > hi[1]) return false;
+            for (std::size_t k = 1; k < stroke.size(); ++k)
+                if (segments_meet(ax, ay, bx, by, stroke[k - 1][0], stroke[k - 1][1], stroke[k][0], stroke[k][1])) return true;
+            return false;
+        };
+        for (std::uint64_t s = from; s < to; ++s) {
+            const std::uint64_t b = t.begin(s), e = t.end(s);
+            if (b == e) continue;
+            Clip prev = project(m, P + 3 * b);
+            bool hit = e - b == 1 && crosses(prev, prev);
+            for (std::uint64_t i = b + 1; i < e && !hit; ++i) {
+                const Clip cur = project(m, P + 3 * i);
+                hit = crosses(prev, cur);
+                prev = cur;
+            }
+            if (hit) mine.push_back(s);
+        }
+        std::lock_guard<std::mutex> lock(mu);
+        parts.emplace_back(from, std::move(mine));
+    });
+    std::sort(parts.begin(), parts.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
+    for (auto &pp : parts) out.insert(out.end(), pp.second.begin(), pp.second.end());
+    return out;
 }
 
 }  // namespace hz::core::render

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <vector>
 
 namespace hz::core::render {
 
@@ -38,5 +39,15 @@ struct PickHit {
 // plane; a single-point streamline is a point. nullopt when none is.
 std::optional<PickHit> pick_streamline(const Tractogram &t, std::span<const float> radius_mm, const View &v, int width, int height,
                                        double x, double y, double tolerance_px = 6.0);
+
+// The streamlines of `t` whose drawn axis crosses `stroke` (a polyline of
+// window points, pixels, origin at the top left, as pick_streamline's x,
+// y), ascending: some segment of the streamline, projected with the
+// renderer's matrix and clipped to the near plane, meets some segment of the
+// stroke (touching counts). A single-point streamline crosses where its
+// point lies on the stroke. Runs on every core (a million streamlines in
+// about a second here).
+std::vector<std::uint64_t> streamlines_crossing(const Tractogram &t, const View &v, int width, int height,
+                                                std::span<const std::array<double, 2>> stroke);
 
 }  // namespace hz::core::render
