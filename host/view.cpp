@@ -249,7 +249,7 @@ struct FrameLog {
     void write(const std::string &path, const core::render::Renderer &r, int w, int h) const {
         std::uint64_t streamlines = 0, points = 0;
         for (const auto &ob : r.scene().objects)
-            if (ob.kind == HZ_DATA_STREAMLINES && !ob.proxy_for)
+            if (ob.kind == HZ_DATA_STREAMLINES && !ob.proxy_for && ob.visible)  // (not the hidden stand-ins of the region figures)
                 streamlines += ob.data.tractogram.nb_streamlines(), points += ob.data.tractogram.nb_vertices();
         const nlohmann::json j = {{"window", {w, h}},
                                   {"step_budget_ms", kStepMs},
