@@ -111,7 +111,9 @@ struct ViewOptions {
     std::vector<std::string> params;        // its --param NAME=VALUE
     std::string view;                       // a named camera view fitted to the scene (empty: the scene's own)
     std::vector<std::string> include, exclude;  // regions of interest over the first tractogram (as `filter` takes them)
+    std::string slab;                           // AXIS=CENTRE,HALF: streamlines cropped to a slab
 };
+core::render::Slab parse_slab(const std::string &spec);
 
 core::Registry load_registry(const GlobalOptions &g);
 

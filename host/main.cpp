@@ -182,6 +182,7 @@ int main(int argc, char **argv) {
     view->add_option("--algorithm", vwo.algorithm, "--explore with this clustering plugin (its id or the last part of it)")->capture_default_str();
     view->add_option("--param", vwo.params, "NAME=VALUE, a parameter of the clustering plugin (repeatable)");
     view->add_option("--include", vwo.include, "a region of interest the shown streamlines must meet: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or a mask file (repeatable; the window adds, moves and removes them too)");
+    view->add_option("--slab", vwo.slab, "crop the streamlines to a slab AXIS=CENTRE,HALF in mm, e.g. z=10,5 (the panel moves it)");
     view->add_option("--exclude", vwo.exclude, "a region the shown streamlines must not meet (same forms; repeatable)");
     add_lod_options(view, vwo.lod);
     view->add_option("--stats", vwo.stats, "write per-frame times and what each frame drew to this JSON file at exit");

@@ -330,7 +330,14 @@ void Session::restore(const State &s) {
 
 void Session::record() {
     undo_.push_back(snapshot());
-    redo_.clear();
+    redo_backup_ = std::exchange(redo_, {});
+}
+
+void Session::rollback() {
+    if (undo_.empty()) return;
+    restore(undo_.back());
+    undo_.pop_back();
+    redo_ = std::exchange(redo_backup_, {});
 }
 
 bool Session::undo() {
@@ -408,11 +415,13 @@ void Session::apply() {
 
 void Session::pick(std::vector<std::uint64_t> ids) {
     std::sort(ids.begin(), ids.end());
-    const std::vector<std::uint64_t> &pool = ex_ ? ex_->expanded() : *kept_;
-    std::vector<std::uint64_t> sorted_pool = pool;
-    std::sort(sorted_pool.begin(), sorted_pool.end());
-    std::vector<std::uint64_t> out;
-    std::set_intersection(ids.begin(), ids.end(), sorted_pool.begin(), sorted_pool.end(), std::back_inserter(out));
+    std::vector<std::uint64_t> expanded, out;
+    if (ex_) {  // (kept_ is ascending; the expanded streamlines are in the order they were expanded)
+        expanded = ex_->expanded();
+        std::sort(expanded.begin(), expanded.end());
+    }
+    const std::vector<std::uint64_t> &pool = ex_ ? expanded : *kept_;
+    std::set_intersection(ids.begin(), ids.end(), pool.begin(), pool.end(), std::back_inserter(out));
     picked_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(out));
 }
 

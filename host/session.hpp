@@ -143,8 +143,11 @@ public:
     const std::vector<std::uint64_t> &kept() const { return *kept_; }
     double last_filter_ms() const { return filter_ms_; }
 
-    // Every edit: record() before it (the state undo returns to).
+    // Every edit: record() before it (the state undo returns to); an edit
+    // that failed half-way: rollback() (back to the recorded state, which
+    // leaves the undo and redo lists as they were).
     void record();
+    void rollback();
     bool undo();
     bool redo();
     std::size_t undo_depth() const { return undo_.size(); }
@@ -214,7 +217,7 @@ private:
     std::shared_ptr<const std::vector<std::uint64_t>> picked_ = std::make_shared<const std::vector<std::uint64_t>>();
     std::shared_ptr<const std::vector<std::uint64_t>> deleted_ = std::make_shared<const std::vector<std::uint64_t>>();
     double filter_ms_ = 0;
-    std::vector<State> undo_, redo_;
+    std::vector<State> undo_, redo_, redo_backup_;
 };
 
 }  // namespace hz::host

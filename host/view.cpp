@@ -411,6 +411,18 @@ void require_display(const std::vector<std::string> &inputs) {
 
 }  // namespace
 
+// "z=10,5": a slab along z, centred at 10 mm, 5 mm either side.
+core::render::Slab parse_slab(const std::string &spec) {
+    core::render::Slab sl;
+    char axis = 0, eq = 0, comma = 0;
+    std::istringstream in(spec);
+    if (!(in >> axis >> eq >> sl.centre >> comma >> sl.half) || eq != '=' || comma != ',' || axis < 'x' || axis > 'z' || !(sl.half > 0) ||
+        !std::isfinite(sl.centre) || !std::isfinite(sl.half) || in.peek() != EOF)
+        throw core::Error("--slab '" + spec + "': expected AXIS=CENTRE,HALF (x, y or z; mm; HALF > 0), e.g. z=10,5");
+    sl.axis = axis - 'x';
+    return sl;
+}
+
 int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o) {
     require_display(o.inputs);
     const char *display = std::getenv("DISPLAY");
@@ -569,7 +581,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             try {
                 fn();
             } catch (const core::Error &) {
-                session->undo();
+                session->rollback();
                 throw;
             }
             refresh(r, selection_changes);
@@ -757,6 +769,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         }
         const core::render::View v0 = core::render::fit_view(scene, scene.camera, double(w0) / h0);
         const core::Bounds b = core::render::scene_bounds(scene);
+        const core::Bounds scene_box = b;  // (the slab's range)
+        if (!o.slab.empty()) scene.slab = parse_slab(o.slab);
         if (!b.empty)
             app.radius = 0.5 * std::sqrt(std::pow(b.max[0] - b.min[0], 2) + std::pow(b.max[1] - b.min[1], 2) + std::pow(b.max[2] - b.min[2], 2));
         r.set_scene(std::move(scene), v0, rs);
@@ -941,6 +955,17 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                             active_roi = k;
                         } else {
                             throw core::Error("roi: unknown '" + what + "' (sphere, box, mask, move, scale, flip, remove)");
+                        }
+                    } else if (op == "slab") {  // slab x|y|z CENTRE HALF, or slab off
+                        std::string axis;
+                        cmd >> axis;
+                        if (axis == "off") r.set_slab(std::nullopt);
+                        else {
+                            core::render::Slab sl;
+                            if (axis.size() != 1 || axis[0] < 'x' || axis[0] > 'z' || !(cmd >> sl.centre >> sl.half) || !(sl.half > 0))
+                                throw core::Error("slab needs x|y|z CENTRE HALF (mm, HALF > 0), or off");
+                            sl.axis = axis[0] - 'x';
+                            r.set_slab(sl);
                         }
                     } else if (op == "stroke") {  // stroke X0 Y0 X1 Y1 ...: window points
                         if (!session) throw core::Error("stroke needs a tractogram");
@@ -1168,6 +1193,21 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 }
             }
             if (act) edit_ui(act, act_selects);
+            if (session && ImGui::CollapsingHeader("Slab (crop streamlines)")) {
+                const auto &sb = scene_box;
+                std::optional<core::render::Slab> sl = r.scene().slab;
+                bool on = sl.has_value();
+                core::render::Slab v = sl.value_or(core::render::Slab{2, (sb.min[2] + sb.max[2]) / 2, 5});
+                bool changed = ImGui::Checkbox("crop to a slab", &on);
+                int axis = v.axis;
+                changed |= ImGui::Combo("axis", &axis, "x (left-right)\0y (posterior-anterior)\0z (inferior-superior)\0");
+                if (axis != v.axis) v.axis = axis, v.centre = (sb.min[axis] + sb.max[axis]) / 2;
+                float c = float(v.centre), h = float(v.half);
+                changed |= ImGui::SliderFloat("centre (mm)", &c, float(sb.min[v.axis]), float(sb.max[v.axis]), "%.1f");
+                changed |= ImGui::SliderFloat("half thickness (mm)", &h, 0.5f, 40.0f, "%.1f", ImGuiSliderFlags_Logarithmic);
+                v.centre = c, v.half = h;
+                if (changed) r.set_slab(on ? std::optional<core::render::Slab>(v) : std::nullopt);
+            }
             for (std::size_t i = 0; i < r.scene().objects.size(); ++i) {
                 const auto &ob = r.scene().objects[i];
                 ImGui::PushID(int(i));
@@ -1223,6 +1263,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
 int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
     const core::Registry reg = load_registry(g);
     if (o.explore) explore_spec(reg, o);  // (a bad --algorithm or --param fails before anything opens)
+    if (!o.slab.empty()) parse_slab(o.slab);
     for (const auto *list : {&o.include, &o.exclude})  // (and a bad region)
         for (const std::string &spec : *list) core::parse_roi(reg, spec, list == &o.include);
     require_display(o.inputs);

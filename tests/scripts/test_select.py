@@ -235,6 +235,34 @@ class SelectionWindowTest(TempDirTest):
         counts = [int(re.match(r"(\d+) clusters", l[len("explore: "):]).group(1)) for l in p.stdout.splitlines() if l.startswith("explore: ")]
         self.assertEqual(counts[-1], counts[0] - selected)
 
+    def test_slab_crops_the_streamlines(self):
+        # Seen from the left (the default view), a slab along z keeps a
+        # horizontal band of the picture; along x, a cross-section.
+        p = self.window("slab", ["wait 2", f"screenshot {self.path('a.png')}", "slab z 0 4", "wait 2", f"screenshot {self.path('b.png')}",
+                                 "slab x 10 3", "wait 2", f"screenshot {self.path('c.png')}", "slab off", "wait 2",
+                                 f"screenshot {self.path('d.png')}", "quit"])
+        self.assertEqual(p.returncode, 0, p.stderr)
+        def drawn_of(path):
+            img = load(path)
+            return np.abs(img - img[-1, -1]).sum(axis=-1) > 30  # (differs from the background in the corner)
+        drawn = {k: drawn_of(self.path(k + ".png")) for k in "abcd"}
+        rows = {k: np.nonzero(v.any(axis=1))[0] for k, v in drawn.items()}
+        self.assertLess(np.ptp(rows["b"]), 0.25 * np.ptp(rows["a"]), "a z slab is a thin band seen from the side")
+        self.assertGreater(drawn["c"].sum(), 50)
+        self.assertLess(drawn["c"].sum(), 0.6 * drawn["a"].sum())
+        np.testing.assert_array_equal(drawn["d"], drawn["a"])
+        # The same in a scene file, headless.
+        scene = self.path("slab.json")
+        with open(scene, "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "file": self.tck}], "slab": {"axis": "z", "centre": 0, "half": 4}}, f)
+        self.assertEqual(run("render", scene, "-o", self.path("r.png"), "--size", "480x320").returncode, 0)
+        r = drawn_of(self.path("r.png"))
+        self.assertLess(np.ptp(np.nonzero(r.any(axis=1))[0]), 0.25 * np.ptp(rows["a"]))
+        for bad in ["z=1", "w=1,2", "z=1,0", "z=1,2,3"]:
+            p = run("view", self.tck, "--slab", bad)
+            self.assertEqual(p.returncode, 1, bad)
+            self.assertIn("--slab", p.stderr)
+
     def test_command_line_regions_and_bad_input(self):
         # --include / --exclude as `filter` takes them.
         p = self.window("cli", ["wait 1", "quit"], "--include", "sphere:0,0,0,15", "--exclude", "sphere:20,0,0,8")

@@ -164,11 +164,14 @@ void main() {
 }
 )glsl";
 
+// Streamlines write two clip distances against the slab's planes
+// (hz_clip; (0, 0, 0, 1) each when there is no slab: never clipped).
 inline constexpr const char *kLineVS = R"glsl(#version 410 core
 layout(location = 0) in vec3 a_pos;
 layout(location = 1) in vec4 a_tangent;
 layout(location = 2) in vec4 a_color;
 uniform mat4 hz_view_proj;
+uniform vec4 hz_clip[2];
 out vec3 v_pos;
 out vec3 v_tangent;
 out vec4 v_color;
@@ -177,6 +180,8 @@ void main() {
     v_tangent = a_tangent.xyz;
     v_color = a_color;
     gl_Position = hz_view_proj * vec4(a_pos, 1.0);
+    gl_ClipDistance[0] = dot(hz_clip[0], vec4(a_pos, 1.0));
+    gl_ClipDistance[1] = dot(hz_clip[1], vec4(a_pos, 1.0));
 }
 )glsl";
 
@@ -211,6 +216,7 @@ in vec4 g_color[];
 in float g_radius[];
 uniform mat4 hz_view_proj;
 uniform vec3 hz_eye;
+uniform vec4 hz_clip[2];
 out vec3 v_pos;
 out vec3 v_tangent;
 out vec4 v_color;
@@ -238,6 +244,8 @@ void main() {
             v_front = front;
             v_across = float(s);
             gl_Position = hz_view_proj * vec4(p, 1.0);
+            gl_ClipDistance[0] = dot(hz_clip[0], vec4(p, 1.0));
+            gl_ClipDistance[1] = dot(hz_clip[1], vec4(p, 1.0));
             EmitVertex();
         }
     }

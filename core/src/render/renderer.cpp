@@ -1660,6 +1660,7 @@ struct Renderer::Impl {
                      LinesPart lines = LinesPart::Full) {
         if (g.slices) {
             if (debug) return;
+            set_clipping(false);
             Program *slice = &aux(Aux::Slices, display_direct);
             glUseProgram(slice->id);
             glUniform1f(slice->loc("hz_exposure"), float(scene.exposure));
@@ -1683,6 +1684,19 @@ struct Renderer::Impl {
         glUniform3f(p.loc("hz_tangent_hint"), 0.0f, 0.0f, 1.0f);
         glUniform1f(p.loc("hz_opacity"), float(o.opacity));
         glUniform2f(p.loc("hz_viewport"), float(w), float(h));
+        // The slab crops streamlines (two clip planes); the state stays for
+        // the object's chunks drawn after this call and is reset by the
+        // next object and at the end of the frame.
+        if (g.geom != Geom::Mesh) {
+            GLfloat planes[8] = {0, 0, 0, 1, 0, 0, 0, 1};
+            if (scene.slab) {
+                const Slab &sl = *scene.slab;
+                planes[sl.axis] = 1, planes[3] = float(sl.half - sl.centre);       // x - (c - h) >= 0
+                planes[4 + sl.axis] = -1, planes[7] = float(sl.half + sl.centre);  // (c + h) - x >= 0
+            }
+            glUniform4fv(p.loc("hz_clip"), 2, planes);
+        }
+        set_clipping(g.geom != Geom::Mesh && scene.slab.has_value());
         {
             const glm::mat3 rot(glm::vec3(m.right.x, m.up.x, m.back.x), glm::vec3(m.right.y, m.up.y, m.back.y),
                                 glm::vec3(m.right.z, m.up.z, m.back.z));
@@ -1749,7 +1763,17 @@ struct Renderer::Impl {
         return out_->fbo;
     }
 
+    // GL_CLIP_DISTANCE0/1: on only while streamlines are drawn with a slab
+    // (a program that does not write clip distances must not meet them).
+    bool clipping = false;
+    void set_clipping(bool on) {
+        if (on == clipping) return;
+        for (GLenum c : {GLenum(GL_CLIP_DISTANCE0), GLenum(GL_CLIP_DISTANCE1)}) on ? glEnable(c) : glDisable(c);
+        clipping = on;
+    }
+
     void finish_frame(GLuint target, int w, int h) {
+        set_clipping(false);
         if (target == out_->fbo) return;
         glBindFramebuffer(GL_READ_FRAMEBUFFER, target);
         glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_direct ? out_->fbo : resolved.fbo);
@@ -2089,6 +2113,11 @@ void Renderer::replace_object(std::size_t i, Object o) {
 void Renderer::set_interacting(bool on) { impl_->interacting = on; }
 
 bool Renderer::update_proxies(bool wait) { return impl_->adopt_shell_proxies(wait); }
+
+void Renderer::set_slab(std::optional<Slab> slab) {
+    if (slab != impl_->scene.slab) ++impl_->generation;
+    impl_->scene.slab = slab;
+}
 
 void Renderer::set_exposure(double e) {
     const double x = std::clamp(e, 1e-4, 1e4);

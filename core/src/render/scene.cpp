@@ -209,7 +209,7 @@ void apply_file_material(Object &ob, bool has_material, bool has_color) {
 Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what) {
     const json root = json::parse(text, nullptr, false);
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
-    check_keys(root, {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap"}, what, "scene");
+    check_keys(root, {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab"}, what, "scene");
     Scene s;
     if (root.contains("camera")) {
         const json &c = root["camera"];
@@ -261,6 +261,16 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
     if (root.contains("background")) s.background = vec<3>(root["background"], what, "background");
     if (root.contains("exposure")) s.exposure = num_in(root["exposure"], what, "exposure", 1e-4, 1e4);
     if (root.contains("tonemap")) s.tonemap = str(root["tonemap"], what, "tonemap", {"aces", "reinhard", "none"});
+    if (root.contains("slab")) {  // {"axis": "x"|"y"|"z", "centre": mm, "half": mm}
+        const json &j = root["slab"];
+        if (!j.is_object()) fail(what, "slab", "expected an object {\"axis\", \"centre\", \"half\"}");
+        check_keys(j, {"axis", "centre", "half"}, what, "slab");
+        Slab sl;
+        if (j.contains("axis")) sl.axis = int(str(j["axis"], what, "slab.axis", {"x", "y", "z"})[0] - 'x');
+        if (j.contains("centre")) sl.centre = num_in(j["centre"], what, "slab.centre", -1e5, 1e5);
+        if (j.contains("half")) sl.half = num_in(j["half"], what, "slab.half", 0.0, 1e5, true);
+        s.slab = sl;
+    }
 
     if (!root.contains("objects") || !root["objects"].is_array()) fail(what, "objects", "expected an array of objects");
     for (std::size_t i = 0; i < root["objects"].size(); ++i) {

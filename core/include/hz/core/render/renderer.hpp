@@ -117,6 +117,8 @@ public:
     // re-uploading only that object. Throws Error.
     void replace_object(std::size_t i, Object o);
     void set_exposure(double exposure);
+    // Crops the streamlines to a slab (Scene::slab), or not (nullopt).
+    void set_slab(std::optional<Slab> slab);
     // Switches RenderSettings::bake_materials. The window bakes once the
     // material panel has been left alone for a moment and goes back to
     // uniforms while a slider moves; programs of both forms stay cached.

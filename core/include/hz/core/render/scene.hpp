@@ -98,8 +98,18 @@ struct Environment {
     bool visible = false;              // draw it as the background
 };
 
+// Streamlines cropped to a slab: only what lies within `half` mm of the
+// plane axis = centre (RAS+ mm; axis 0 x, 1 y, 2 z) is drawn (mrview's
+// crop to slab). Surfaces and slices are not cropped.
+struct Slab {
+    int axis = 2;
+    double centre = 0, half = 5;
+    bool operator==(const Slab &) const = default;
+};
+
 struct Scene {
     std::vector<Object> objects;
+    std::optional<Slab> slab;
     Camera camera;
     std::vector<Light> lights;         // empty: a three-point rig (key, fill, rim)
     Environment environment;
