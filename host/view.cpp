@@ -648,6 +648,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         };
         std::size_t active_roi = 0;  // the region Ctrl+wheel resizes (the last placed or edited)
         bool roi_drag = false;       // a panel drag of a region in progress (recorded once for undo)
+        char thresholds_text[64] = "";  // the panel's thresholds for the next repeat
         auto place_sphere = [&](const std::array<double, 3> &c, double radius, bool include) {
             core::Roi roi;
             roi.shape = core::Roi::Shape::Sphere;
@@ -1094,6 +1095,27 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 ImGui::TextWrapped("%s", ex->summary().c_str());
                 ImGui::TextDisabled("click a centroid: select  E: expand  X: to streamlines  H: hide  A: all/none  C: cluster again");
                 if (button("Repeat: cluster what is shown")) act = [&] { ex->repeat(); };
+                // Thresholds for the next repeat (mm, coarse to fine); empty:
+                // fitted to the extent of what is shown.
+                ImGui::SetNextItemWidth(140);
+                ImGui::InputText("##thresholds", thresholds_text, sizeof thresholds_text);
+                ImGui::SameLine();
+                if (button("Repeat with these thresholds")) {
+                    std::vector<double> t;
+                    std::istringstream in{std::string(thresholds_text)};
+                    for (std::string item; std::getline(in >> std::ws, item, ',');)
+                        if (!item.empty()) t.push_back(std::strtod(item.c_str(), nullptr));
+                    act = [&, t] {
+                        if (t.empty() || std::any_of(t.begin(), t.end(), [](double x) { return !(x > 0); }))
+                            throw core::Error("thresholds: positive numbers in mm, comma-separated (e.g. 20,10,5)");
+                        ex->repeat(t);
+                    };
+                }
+                if (ImGui::IsItemHovered()) ImGui::SetTooltip("the thresholds of the last clustering: %s", [&] {
+                    std::string t;
+                    for (double x : ex->state().thresholds) t += (t.empty() ? "" : ", ") + std::to_string(int(std::lround(x)));
+                    return t;
+                }().c_str());
                 ImGui::SameLine();
                 if (button("Reset")) act = [&] { ex->reset(&session->kept()); };
                 if (ex->nb_selected() > 0) {

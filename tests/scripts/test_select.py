@@ -263,6 +263,29 @@ class SelectionWindowTest(TempDirTest):
             self.assertEqual(p.returncode, 1, bad)
             self.assertIn("--slab", p.stderr)
 
+    def test_scene_file_regions(self):
+        # A scene file's streamlines with regions and a length bound draw
+        # exactly what `horizon filter` writes with the same regions.
+        out = self.path("f.tck")
+        p = run("filter", self.tck, "--include", "sphere:0,0,0,15", "--exclude", "sphere:20,0,0,8", "--min-length", 60, "-o", out)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        scenes = {"regions": {"type": "streamlines", "file": self.tck, "include": "sphere:0,0,0,15", "exclude": ["sphere:20,0,0,8"],
+                              "min_length": 60, "render": "lines"},
+                  "filtered": {"type": "streamlines", "file": out, "render": "lines"}}
+        for name, ob in scenes.items():
+            with open(self.path(name + ".json"), "w") as f:
+                json.dump({"objects": [ob], "camera": {"view": "superior"}}, f)
+            p = run("render", self.path(name + ".json"), "-o", self.path(name + ".png"), "--size", "320x240")
+            self.assertEqual(p.returncode, 0, p.stderr)
+        np.testing.assert_array_equal(load(self.path("regions.png")), load(self.path("filtered.png")))
+        # A region that selects nothing, or a bad one, names the object.
+        for ob, words in [({"include": "sphere:500,500,500,5"}, "no streamline is selected"), ({"include": "sphere:1,2"}, "objects[0].include[0]")]:
+            with open(self.path("bad.json"), "w") as f:
+                json.dump({"objects": [{"type": "streamlines", "file": self.tck, **ob}]}, f)
+            p = run("render", self.path("bad.json"), "-o", self.path("bad.png"))
+            self.assertEqual(p.returncode, 1)
+            self.assertIn(words, p.stderr)
+
     def test_command_line_regions_and_bad_input(self):
         # --include / --exclude as `filter` takes them.
         p = self.window("cli", ["wait 1", "quit"], "--include", "sphere:0,0,0,15", "--exclude", "sphere:20,0,0,8")

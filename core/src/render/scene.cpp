@@ -3,6 +3,7 @@
 #include <hz/core/params.hpp>
 #include <hz/core/phantom.hpp>
 #include <hz/core/render/scene.hpp>
+#include <hz/core/filter.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -281,7 +282,9 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         Object ob;
         ob.name = type + " " + std::to_string(i);
         if (type == "streamlines") {
-            check_keys(o, {"type", "name", "file", "builtin", "phantom", "render", "radius", "color", "material", "clustering", "visible", "opacity"}, what, where);
+            check_keys(o, {"type", "name", "file", "builtin", "phantom", "render", "radius", "color", "material", "clustering", "visible", "opacity",
+                           "include", "exclude", "min_length", "max_length"},
+                       what, where);
             ob.coloring.mode = "direction";
         } else if (type == "surface") {
             check_keys(o, {"type", "name", "file", "builtin", "overlays", "color", "material", "visible", "opacity"}, what, where);
@@ -387,6 +390,32 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             if (!o.contains("color")) colour_by_overlay(ob, added);
         }
 
+        if (type == "streamlines" && (o.contains("include") || o.contains("exclude") || o.contains("min_length") || o.contains("max_length"))) {
+            // The streamlines regions of interest and lengths select (the
+            // rules of `horizon filter`; relative mask files from the scene's folder).
+            FilterSpec f;
+            for (const char *key : {"include", "exclude"}) {
+                if (!o.contains(key)) continue;
+                const json &list = o[key].is_string() ? json::array({o[key]}) : o[key];
+                if (!list.is_array()) fail(what, where + "." + key, "expected a region (sphere:X,Y,Z,R, box:..., or a mask file) or an array of them");
+                for (std::size_t k = 0; k < list.size(); ++k) {
+                    const std::string at = where + "." + key + "[" + std::to_string(k) + "]";
+                    std::string spec = str(list[k], what, at);
+                    if (spec.rfind("sphere:", 0) != 0 && spec.rfind("box:", 0) != 0 && fs::path(spec).is_relative()) spec = (base / spec).string();
+                    try {
+                        f.rois.push_back(parse_roi(reg, spec, std::string(key) == "include"));
+                    } catch (const Error &e) {
+                        fail(what, at, e.what());
+                    }
+                }
+            }
+            if (o.contains("min_length")) f.min_length = num_in(o["min_length"], what, where + ".min_length", 0.0, 1e6);
+            if (o.contains("max_length")) f.max_length = num_in(o["max_length"], what, where + ".max_length", 0.0, 1e6);
+            const std::vector<std::uint64_t> kept = filter_streamlines(ob.data.tractogram, f);
+            if (kept.empty()) fail(what, where, "no streamline is selected (" + f.describe() + ")");
+            ob.data.tractogram = subset_with_arrays(ob.data.tractogram, kept);
+            ob.data.bounds = core::Bounds{};
+        }
         if (type == "slices" && !ob.slice_x && !ob.slice_y && !ob.slice_z) {
             // Default: the three slices through the volume's centre.
             ob.slice_x = ob.slice_y = ob.slice_z = std::nan("");
