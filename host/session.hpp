@@ -210,8 +210,8 @@ private:
     std::unique_ptr<Explorer> ex_;
     // The spatial index (prepare_index, or the first region).
     std::shared_ptr<const core::StreamlineGrid> grid_;
+    std::atomic<bool> grid_cancel_{false};  // (before the future: destroyed after it, which waits for the build)
     std::future<std::shared_ptr<const core::StreamlineGrid>> grid_future_;
-    std::atomic<bool> grid_cancel_{false};
     std::vector<core::Roi> rois_;
     std::shared_ptr<const std::vector<std::uint64_t>> kept_;  // (undo's copies share it)
     std::shared_ptr<const std::vector<std::uint64_t>> picked_ = std::make_shared<const std::vector<std::uint64_t>>();
