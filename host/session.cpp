@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <numeric>
 
@@ -188,7 +189,6 @@ void Explorer::reset(const std::vector<std::uint64_t> *ids) {
         every.resize(all_.nb_streamlines());
         std::iota(every.begin(), every.end(), 0);
     }
-    s_.next_colour = 0;
     cluster(std::move(every), nullptr, spec_.thresholds);
 }
 
@@ -196,8 +196,7 @@ void Explorer::reset(const std::vector<std::uint64_t> *ids) {
 // the first level. With `before` (streamline -> colour id), each new
 // cluster, largest first, takes the colour most of its streamlines had,
 // unless a larger one took it already; the rest get new colours.
-void Explorer::cluster(std::vector<std::uint64_t> subset, const std::unordered_map<std::uint64_t, std::uint64_t> *before,
-                       const std::vector<double> &thresholds) {
+std::shared_ptr<const core::render::ClusterTree> Explorer::compute(const std::vector<std::uint64_t> &subset, const std::vector<double> &thresholds) const {
     core::render::ClusterSpec spec = spec_;
     spec.thresholds = thresholds;
     auto tree = std::make_shared<core::render::ClusterTree>();
@@ -205,6 +204,18 @@ void Explorer::cluster(std::vector<std::uint64_t> subset, const std::unordered_m
     else {
         tree->parent = {-1}, tree->level = {0}, tree->member_offsets = {0, 0};
     }
+    return tree;
+}
+
+void Explorer::cluster(std::vector<std::uint64_t> subset, const std::unordered_map<std::uint64_t, std::uint64_t> *before,
+                       const std::vector<double> &thresholds) {
+    auto tree = compute(subset, thresholds);
+    adopt(std::move(subset), std::move(tree), before);
+}
+
+void Explorer::adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const core::render::ClusterTree> tree,
+                     const std::unordered_map<std::uint64_t, std::uint64_t> *before) {
+    if (before == nullptr) s_.next_colour = 0;  // (a first clustering)
     s_.tree = tree;
     s_.thresholds = tree->thresholds;
     s_.subset = std::make_shared<const std::vector<std::uint64_t>>(std::move(subset));
@@ -302,14 +313,16 @@ Session::Session(const core::Registry &reg, core::Tractogram all, std::vector<st
 }
 
 void Session::prepare_index() {
-    if (grid_ || grid_future_.valid() || all_.nb_streamlines() < 100000) return;
+    if (grid_future_.valid() || all_.nb_streamlines() < 100000) return;
     grid_future_ = std::async(std::launch::async, [this] {
         return std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_, 6.0, 1, &grid_cancel_));
-    });
+    }).share();
 }
 
 Session::~Session() {
-    grid_cancel_ = true;  // (the future's destructor waits for the build: stopped early)
+    grid_cancel_ = true;  // (the grid build stops early; a selection in progress is waited for)
+    if (pending_.valid()) pending_.wait();
+    if (grid_future_.valid()) grid_future_.wait();
 }
 
 Session::State Session::snapshot() const {
@@ -329,6 +342,7 @@ void Session::restore(const State &s) {
 }
 
 void Session::record() {
+    settle();
     undo_.push_back(snapshot());
     redo_backup_ = std::exchange(redo_, {});
 }
@@ -341,6 +355,7 @@ void Session::rollback() {
 }
 
 bool Session::undo() {
+    settle();
     if (undo_.empty()) return false;
     redo_.push_back(snapshot());
     restore(undo_.back());
@@ -349,6 +364,7 @@ bool Session::undo() {
 }
 
 bool Session::redo() {
+    settle();
     if (redo_.empty()) return false;
     undo_.push_back(snapshot());
     restore(redo_.back());
@@ -393,27 +409,85 @@ void Session::remove_roi(std::size_t k) {
     rois_.erase(rois_.begin() + std::ptrdiff_t(k));
 }
 
-void Session::apply() {
-    const auto t0 = std::chrono::steady_clock::now();
+std::vector<std::uint64_t> Session::select(const std::vector<core::Roi> &rois, const std::vector<std::uint64_t> &deleted,
+                                          const std::shared_future<std::shared_ptr<const core::StreamlineGrid>> &grid_future) const {
     std::vector<std::uint64_t> kept;
-    if (rois_.empty()) {
+    if (rois.empty()) {
         kept.resize(all_.nb_streamlines());
         std::iota(kept.begin(), kept.end(), 0);
     } else {
-        if (!grid_ && grid_future_.valid()) grid_ = grid_future_.get();
-        if (!grid_) grid_ = std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_));
+        std::shared_ptr<const core::StreamlineGrid> grid = grid_future.valid() ? grid_future.get() : nullptr;
+        if (!grid) grid = std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_));
         core::FilterSpec f;
-        f.rois = rois_;
-        kept = core::filter_streamlines(all_, f, nullptr, nullptr, grid_.get());
+        f.rois = rois;
+        kept = core::filter_streamlines(all_, f, nullptr, nullptr, grid.get());
     }
-    if (!deleted_->empty()) std::erase_if(kept, [&](std::uint64_t s) { return std::binary_search(deleted_->begin(), deleted_->end(), s); });
-    kept_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(kept));
+    if (!deleted.empty()) std::erase_if(kept, [&](std::uint64_t s) { return std::binary_search(deleted.begin(), deleted.end(), s); });
+    return kept;
+}
+
+void Session::ensure_grid_future() {
+    if (!grid_future_.valid() && !rois_.empty()) {  // (no background build started: one now, on every core, waited for)
+        std::promise<std::shared_ptr<const core::StreamlineGrid>> made;
+        made.set_value(std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_)));
+        grid_future_ = made.get_future().share();
+    }
+}
+
+void Session::apply() {
+    settle();
+    const auto t0 = std::chrono::steady_clock::now();
+    ensure_grid_future();
+    std::vector<std::uint64_t> kept = select(rois_, *deleted_, grid_future_);
+    std::shared_ptr<const core::render::ClusterTree> tree = ex_ ? ex_->compute_first(kept) : nullptr;
+    adopt(std::move(kept), std::move(tree));
     filter_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void Session::adopt(std::vector<std::uint64_t> kept, std::shared_ptr<const core::render::ClusterTree> tree) {
+    kept_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(kept));
     picked_ = std::make_shared<const std::vector<std::uint64_t>>();
-    if (ex_) ex_->reset(kept_.get());
+    if (ex_) ex_->adopt(*kept_, std::move(tree), nullptr);
+}
+
+void Session::apply_in_background() {
+    settle();
+    const auto t0 = std::chrono::steady_clock::now();
+    if (!grid_future_.valid() && !rois_.empty()) {
+        grid_future_ = std::async(std::launch::async, [this] {
+            return std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_, 6.0, 0, &grid_cancel_));
+        }).share();
+    }
+    pending_ = std::async(std::launch::async, [this, rois = rois_, deleted = deleted_, grid = grid_future_, t0] {
+        Pending p;
+        p.kept = select(rois, *deleted, grid);
+        if (ex_) p.tree = ex_->compute_first(p.kept);
+        p.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        return p;
+    });
+}
+
+bool Session::selecting() const { return pending_.valid(); }
+
+bool Session::poll() {
+    if (!pending_.valid() || pending_.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return false;
+    settle();
+    return true;
+}
+
+void Session::settle() {
+    if (!pending_.valid()) return;
+    try {
+        Pending p = pending_.get();
+        adopt(std::move(p.kept), std::move(p.tree));
+        filter_ms_ = p.ms;
+    } catch (const std::exception &e) {  // (the selection shown stays the last one made)
+        std::fprintf(stderr, "horizon: the selection failed: %s\n", e.what());
+    }
 }
 
 void Session::pick(std::vector<std::uint64_t> ids) {
+    settle();
     std::sort(ids.begin(), ids.end());
     std::vector<std::uint64_t> expanded, out;
     if (ex_) {  // (kept_ is ascending; the expanded streamlines are in the order they were expanded)
@@ -474,7 +548,8 @@ std::vector<std::uint64_t> Session::shown(std::vector<std::string> *cluster_of) 
     return *kept_;
 }
 
-std::string Session::save(const std::string &path, bool force) const {
+std::string Session::save(const std::string &path, bool force) {
+    settle();
     check_outputs({path}, inputs_, force);
     core::loader_for_write(reg_, path);
     std::vector<std::string> cluster_of;

@@ -8,6 +8,7 @@
 #include <hz/core/render/scene.hpp>
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <future>
 #include <map>
@@ -84,6 +85,15 @@ public:
     void repeat(std::vector<double> thresholds = {});
     // The first clustering of `ids` (every streamline when null).
     void reset(const std::vector<std::uint64_t> *ids = nullptr);
+    // The same in two steps: the tree (any thread; reads only the
+    // tractogram), then adopted (colours from `before` where given, as
+    // repeat does; new ones otherwise).
+    std::shared_ptr<const core::render::ClusterTree> compute(const std::vector<std::uint64_t> &subset, const std::vector<double> &thresholds) const;
+    std::shared_ptr<const core::render::ClusterTree> compute_first(const std::vector<std::uint64_t> &subset) const {
+        return compute(subset, spec_.thresholds);
+    }
+    void adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const core::render::ClusterTree> tree,
+               const std::unordered_map<std::uint64_t, std::uint64_t> *before);
 
     // The streamlines shown (clusters' members and expanded ones), ascending,
     // and for each its cluster's path ("" for an expanded streamline).
@@ -166,6 +176,24 @@ public:
     // Selects the streamlines the regions keep and, over an exploration,
     // clusters them again (the first clustering of the selection).
     void apply();
+    // The same on a thread of its own (the window stays interactive):
+    // poll() adopts the result once it is there (true then: show it
+    // again); settle() waits for it. Every other call that reads or edits
+    // the selection settles first.
+    void apply_in_background();
+    // Waits until the spatial index is built (started if it was not).
+    void wait_for_index() {
+        if (!grid_future_.valid()) prepare_index();
+        if (grid_future_.valid()) grid_future_.wait();
+    }
+    // The spatial index when it is built (nullptr while it is not).
+    const core::StreamlineGrid *grid_if_ready() const {
+        return grid_future_.valid() && grid_future_.wait_for(std::chrono::seconds(0)) == std::future_status::ready ? grid_future_.get().get()
+                                                                                                                      : nullptr;
+    }
+    bool poll();
+    void settle();
+    bool selecting() const;
 
     // Streamline selection by a stroke across the view. pick: the shown
     // streamlines among `ids` become the picked ones (over an exploration:
@@ -188,7 +216,7 @@ public:
     // Writes what is shown to `path` (any streamline format; TRX holds a
     // group per shown cluster, the cluster paths as per-streamline data and
     // the regions in its header). Never over the input. Returns one line.
-    std::string save(const std::string &path, bool force) const;
+    std::string save(const std::string &path, bool force);
     // The regions found in a saved file's metadata ("horizon_rois"): what
     // reopening it restores.
     static std::vector<core::Roi> rois_from_metadata(const core::Registry &reg,
@@ -201,6 +229,10 @@ public:
 
 private:
     State snapshot() const;
+    std::vector<std::uint64_t> select(const std::vector<core::Roi> &rois, const std::vector<std::uint64_t> &deleted,
+                                      const std::shared_future<std::shared_ptr<const core::StreamlineGrid>> &grid) const;
+    void adopt(std::vector<std::uint64_t> kept, std::shared_ptr<const core::render::ClusterTree> tree);
+    void ensure_grid_future();
     void restore(const State &s);
     core::Roi &roi(std::size_t k);
 
@@ -209,9 +241,15 @@ private:
     std::vector<std::string> inputs_;
     std::unique_ptr<Explorer> ex_;
     // The spatial index (prepare_index, or the first region).
-    std::shared_ptr<const core::StreamlineGrid> grid_;
-    std::atomic<bool> grid_cancel_{false};  // (before the future: destroyed after it, which waits for the build)
-    std::future<std::shared_ptr<const core::StreamlineGrid>> grid_future_;
+    std::atomic<bool> grid_cancel_{false};
+    std::shared_future<std::shared_ptr<const core::StreamlineGrid>> grid_future_;
+    // A selection in progress (apply_in_background).
+    struct Pending {
+        std::vector<std::uint64_t> kept;
+        std::shared_ptr<const core::render::ClusterTree> tree;
+        double ms = 0;
+    };
+    std::future<Pending> pending_;
     std::vector<core::Roi> rois_;
     std::shared_ptr<const std::vector<std::uint64_t>> kept_;  // (undo's copies share it)
     std::shared_ptr<const std::vector<std::uint64_t>> picked_ = std::make_shared<const std::vector<std::uint64_t>>();

@@ -20,6 +20,7 @@
 #include <imgui_impl_glfw.h>
 #include <imgui_impl_opengl3.h>
 #include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
@@ -621,17 +622,13 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
         };
         // The world point under window point (x, y): the picked streamline's
         // depth along the ray through it (nullopt over nothing).
-        auto point_under = [&](double x, double y) -> std::optional<std::array<double, 3>> {
+        // (v: the camera of the frame the click was made on.)
+        auto point_under = [&](double x, double y, const core::render::View &v) -> std::optional<std::array<double, 3>> {
             int ww, wh, fw, fh;
             glfwGetWindowSize(win, &ww, &wh);
             glfwGetFramebufferSize(win, &fw, &fh);
             if (ww <= 0 || wh <= 0 || fw <= 0 || fh <= 0) return std::nullopt;
-            const core::render::Object &ob = r.scene().objects[ex ? ci : ti];
-            const core::render::View v = app.orbit.view(app.radius);
             const double px = x * fw / ww, py = y * fh / wh;
-            const auto hit = core::render::pick_streamline(ob.data.tractogram, ob.render == "tubes" ? core::render::tube_radii(ob) : std::vector<float>{},
-                                                           v, fw, fh, px, py);
-            if (!hit) return std::nullopt;
             // The ray through the pixel, in the camera's frame.
             const double fwd[3] = {v.target[0] - v.eye[0], v.target[1] - v.eye[1], v.target[2] - v.eye[2]};
             const double fl = std::sqrt(fwd[0] * fwd[0] + fwd[1] * fwd[1] + fwd[2] * fwd[2]);
@@ -642,13 +639,61 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             const double u[3] = {rt[1] * f[2] - rt[2] * f[1], rt[2] * f[0] - rt[0] * f[2], rt[0] * f[1] - rt[1] * f[0]};
             const double th = std::tan(v.fov_deg * M_PI / 360.0), aspect = double(fw) / fh;
             const double sx = (2 * (px + 0.5) / fw - 1) * th * aspect, sy = (1 - 2 * (py + 0.5) / fh) * th;
+            const double dir[3] = {f[0] + sx * rt[0] + sy * u[0], f[1] + sx * rt[1] + sy * u[1], f[2] + sx * rt[2] + sy * u[2]};
+            std::optional<core::render::PickHit> hit;
+            constexpr double kTolerancePx = 6.0;
+            if (ex) {
+                const core::render::Object &ob = r.scene().objects[ci];
+                hit = core::render::pick_streamline(ob.data.tractogram, core::render::tube_radii(ob), v, fw, fh, px, py, kTolerancePx);
+            } else {
+                // The streamlines shown, only those near the ray when the
+                // spatial grid is built, front to back: the first (nearest)
+                // depth step along the ray where a streamline passes within
+                // half a millimetre of it (or its tube) is what the click
+                // meets; a million streamlines cost a few thousand tests.
+                const core::render::Object &ob = r.scene().objects[ti];
+                std::vector<float> radii = ob.render == "tubes" ? core::render::tube_radii(ob) : std::vector<float>{};
+                const std::uint64_t n = ob.data.tractogram.nb_streamlines();
+                if (radii.empty()) radii.assign(n, 0.5f);
+                for (float &x : radii) x = std::max(x, 0.5f);
+                const std::vector<std::uint64_t> &kept = session->kept();
+                if (const core::StreamlineGrid *grid = session->grid_if_ready()) {
+                    const std::uint64_t words = (session->all().nb_streamlines() + 63) / 64;
+                    std::vector<std::uint64_t> seen(words, 0), step(words, 0);
+                    for (double d = v.near_mm; d <= v.far_mm && !hit; d += grid->cell) {
+                        std::fill(step.begin(), step.end(), 0);
+                        for (double e : {d, d + grid->cell / 2, d + grid->cell}) {
+                            const double reach = kTolerancePx * e * 2 * th / fh + 1e-3 + grid->cell / 2;
+                            core::Bounds box;
+                            box.empty = false;
+                            for (int i = 0; i < 3; ++i) box.min[i] = v.eye[i] + e * dir[i] - reach, box.max[i] = v.eye[i] + e * dir[i] + reach;
+                            grid->mark(box, step);
+                        }
+                        std::vector<std::uint64_t> near;  // (object indices: the object shows kept[i] as its streamline i)
+                        for (std::uint64_t w = 0; w < words; ++w) {
+                            for (std::uint64_t bits = step[w] & ~seen[w]; bits; bits &= bits - 1) {
+                                const std::uint64_t s = w * 64 + std::uint64_t(__builtin_ctzll(bits));
+                                const auto it = std::lower_bound(kept.begin(), kept.end(), s);
+                                if (it != kept.end() && *it == s) near.push_back(std::uint64_t(it - kept.begin()));
+                            }
+                            seen[w] |= step[w];
+                        }
+                        if (!near.empty()) hit = core::render::pick_streamline(ob.data.tractogram, radii, v, fw, fh, px, py, kTolerancePx, &near);
+                    }
+                } else {
+                    hit = core::render::pick_streamline(ob.data.tractogram, radii, v, fw, fh, px, py, kTolerancePx);
+                }
+            }
+            if (!hit) return std::nullopt;
             std::array<double, 3> p;
-            for (int i = 0; i < 3; ++i) p[i] = v.eye[i] + hit->depth_mm * (f[i] + sx * rt[i] + sy * u[i]);
+            for (int i = 0; i < 3; ++i) p[i] = v.eye[i] + hit->depth_mm * dir[i];
             return p;
         };
         std::size_t active_roi = 0;  // the region Ctrl+wheel resizes (the last placed or edited)
         bool roi_drag = false;       // a panel drag of a region in progress (recorded once for undo)
         char thresholds_text[64] = "";  // the panel's thresholds for the next repeat
+        // Interactive region edits select in the background (the window
+        // goes on drawing; the selection is shown when it is there).
         auto place_sphere = [&](const std::array<double, 3> &c, double radius, bool include) {
             core::Roi roi;
             roi.shape = core::Roi::Shape::Sphere;
@@ -657,16 +702,44 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             roi.include = include;
             edit([&] {
                 session->add_roi(roi);
-                session->apply();
-            }, true);
+                session->apply_in_background();
+            }, false);
             active_roi = session->rois().size() - 1;
+        };
+        struct QueuedClick {
+            double x, y;
+            int mods;
+            core::render::View view;
+        };
+        std::optional<QueuedClick> queued_click;  // a Ctrl+click waiting for the spatial index
+        auto process_queued_click = [&] {
+            const QueuedClick q = *std::exchange(queued_click, std::nullopt);
+            const auto t0 = std::chrono::steady_clock::now();
+            const auto p = point_under(q.x, q.y, q.view);
+            spdlog::debug("pick for a region: {:.0f} ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+            try {
+                if (p) place_sphere(*p, 5.0, !(q.mods & GLFW_MOD_ALT));
+                else std::printf("roi: nothing under (%.0f, %.0f) to place a region on\n", q.x, q.y), std::fflush(stdout);
+            } catch (const core::Error &e) {
+                std::fprintf(stderr, "horizon: %s\n", e.what());
+            }
         };
         if (session) {
             // Ctrl+click: an include sphere (5 mm) where the click meets a
             // streamline (or a centroid); a plain click picks a cluster.
             app.on_click = [&](double x, double y, int mods) {
                 if (mods & GLFW_MOD_CONTROL) {
-                    const auto p = point_under(x, y);
+                    // A large tractogram is picked through the spatial
+                    // index: until it is built, the click waits for it (the
+                    // window goes on) instead of testing every streamline.
+                    if (!ex && session->all().nb_streamlines() >= 100000 && !session->grid_if_ready()) {
+                        session->prepare_index();
+                        queued_click = QueuedClick{x, y, mods, app.orbit.view(app.radius)};
+                        std::printf("roi: the click waits for the spatial index\n");
+                        std::fflush(stdout);
+                        return;
+                    }
+                    const auto p = point_under(x, y, app.orbit.view(app.radius));
                     if (!p) {
                         std::printf("roi: nothing under (%.0f, %.0f) to place a region on\n", x, y);
                         std::fflush(stdout);
@@ -764,8 +837,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 active_roi = std::min(active_roi, session->rois().size() - 1);
                 edit_ui([&] {
                     session->resize_roi(active_roi, std::pow(1.1, dy));
-                    session->apply();
-                }, true);
+                    session->apply_in_background();
+                }, false);
             };
         }
         const core::render::View v0 = core::render::fit_view(scene, scene.camera, double(w0) / h0);
@@ -821,6 +894,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 const double now = glfwGetTime();
                 const bool settling = now - app.last_motion < 0.25 || now - app.last_material_edit < App::kBakeAfter + 0.05;
                 const bool busy = r.refining() || !still.valid || app.dragging || app.panning || app.force_moving || wait > 0 ||
+                                  (session && session->selecting()) || queued_click ||
                                   app.press_stage >= 0 || (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
                                   (!o.script.empty() && o.exit_after_script && pc >= script.size());
                 if (busy) glfwPollEvents();
@@ -836,6 +910,12 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             } else if (app.press_stage >= 0) {  // a panel press takes its three frames
             } else if (hold_for_still) {
             } else if (pc < script.size()) {
+                // (Scripts are deterministic: a selection still being made in
+                // the background is waited for before the next command, but
+                // `wait` and `sleep` let frames go on meanwhile.)
+                const bool pause = script[pc].rfind("wait", 0) == 0 || script[pc].rfind("sleep", 0) == 0;
+                if (queued_click && !pause) session->wait_for_index(), process_queued_click();
+                if (session && session->selecting() && !pause) session->settle(), refresh(r, true);
                 std::istringstream cmd(script[pc++]);
                 std::string op;
                 cmd >> op;
@@ -1017,6 +1097,12 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 app.quit = true;
             }
 
+            if (session && session->poll()) {  // a selection made in the background
+                const auto t0 = std::chrono::steady_clock::now();
+                refresh(r, true);
+                spdlog::debug("selection shown: {:.0f} ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+            }
+            if (queued_click && session->grid_if_ready()) process_queued_click();
             int fw, fh;
             glfwGetFramebufferSize(win, &fw, &fh);
             if (fw <= 0 || fh <= 0) continue;
@@ -1149,8 +1235,11 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             // (Under the exploration's panel, and closed at first there: the
             // panel must fit small windows.)
             if (session && ImGui::CollapsingHeader("Regions of interest", ex ? 0 : ImGuiTreeNodeFlags_DefaultOpen)) {
-                ImGui::Text("%llu of %llu streamlines selected (%.0f ms)", (unsigned long long)session->kept().size(),
-                            (unsigned long long)session->all().nb_streamlines(), session->last_filter_ms());
+                if (session->selecting())
+                    ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "selecting...");
+                else
+                    ImGui::Text("%llu of %llu streamlines selected (%.0f ms)", (unsigned long long)session->kept().size(),
+                                (unsigned long long)session->all().nb_streamlines(), session->last_filter_ms());
                 ImGui::TextDisabled("Ctrl+click: include sphere  Ctrl+Alt+click: exclude\nCtrl+wheel: resize  Ctrl+Z / Ctrl+Shift+Z: undo / redo  Ctrl+S: save");
                 if (button("Add sphere")) {
                     const std::array<double, 3> c{app.orbit.target[0], app.orbit.target[1], app.orbit.target[2]};
@@ -1158,10 +1247,9 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                         core::Roi roi;
                         roi.center = c, roi.radius = 10.0;
                         session->add_roi(roi);
-                        session->apply();
+                        session->apply_in_background();
                         active_roi = session->rois().size() - 1;
                     };
-                    act_selects = true;
                 }
                 ImGui::SameLine();
                 if (button("Undo")) undo_redo(true);
@@ -1182,7 +1270,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                     const core::Roi &roi = session->rois()[k];
                     ImGui::PushID(int(200000 + k));
                     bool include = roi.include;
-                    if (ImGui::Checkbox("include", &include)) act = [&, k] { session->flip_roi(k), session->apply(); }, act_selects = true;
+                    if (ImGui::Checkbox("include", &include)) act = [&, k] { session->flip_roi(k), session->apply_in_background(); };
                     ImGui::SameLine();
                     ImGui::Text("#%zu %s", k, roi.spec().c_str());
                     if (roi.shape != core::Roi::Shape::Mask) {
@@ -1198,7 +1286,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                             active_roi = k;
                             refresh(r, false);
                         }
-                        if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply(), refresh(r, true);
+                        if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply_in_background();
                         float size = float(roi.shape == core::Roi::Shape::Sphere ? roi.radius : (roi.hi[0] - roi.lo[0]) / 2);
                         if (ImGui::SliderFloat(roi.shape == core::Roi::Shape::Sphere ? "radius (mm)" : "half size x (mm)", &size, 0.5f, 60.0f, "%.1f",
                                                ImGuiSliderFlags_Logarithmic)) {
@@ -1208,9 +1296,9 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                             active_roi = k;
                             refresh(r, false);
                         }
-                        if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply(), refresh(r, true);
+                        if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply_in_background();
                     }
-                    if (ImGui::SmallButton("remove")) act = [&, k] { session->remove_roi(k), session->apply(); }, act_selects = true;
+                    if (ImGui::SmallButton("remove")) act = [&, k] { session->remove_roi(k), session->apply_in_background(); };
                     ImGui::PopID();
                 }
             }

@@ -28,7 +28,7 @@ Clip lerp(const Clip &a, const Clip &b, double t) {
 }  // namespace
 
 std::optional<PickHit> pick_streamline(const Tractogram &t, std::span<const float> radius_mm, const View &v, int width, int height,
-                                       double x, double y, double tolerance_px) {
+                                       double x, double y, double tolerance_px, const std::vector<std::uint64_t> *subset) {
     if (width <= 0 || height <= 0 || !std::isfinite(x) || !std::isfinite(y)) return std::nullopt;
     tolerance_px = std::max(tolerance_px, 0.0);
     const std::array<double, 16> m = view_projection(v, width, height);
@@ -36,40 +36,58 @@ std::optional<PickHit> pick_streamline(const Tractogram &t, std::span<const floa
     const double focal = 0.5 * height / std::tan(0.5 * v.fov_deg * 3.14159265358979323846 / 180.0);
     // For a perspective projection clip w is the depth along the view axis.
     const double near = v.near_mm;
-    std::optional<PickHit> on_tube, beside;  // the point on a tube (nearest the eye); within the tolerance (closest axis)
-    double beside_gap = std::numeric_limits<double>::infinity();
-    auto segment = [&](std::uint64_t s, double r, Clip a, Clip b) {
-        if (a.w < near && b.w < near) return;  // behind the near plane
-        if (a.w < near) a = lerp(a, b, (near - a.w) / (b.w - a.w));
-        else if (b.w < near) b = lerp(b, a, (near - b.w) / (a.w - b.w));
-        const double ax = (a.x / a.w * 0.5 + 0.5) * width, ay = (0.5 - a.y / a.w * 0.5) * height;
-        const double bx = (b.x / b.w * 0.5 + 0.5) * width, by = (0.5 - b.y / b.w * 0.5) * height;
-        const double dx = bx - ax, dy = by - ay, len2 = dx * dx + dy * dy;
-        const double u = len2 > 0 ? std::clamp(((x - ax) * dx + (y - ay) * dy) / len2, 0.0, 1.0) : 0.0;
-        const double px = ax + u * dx - x, py = ay + u * dy - y, dist = std::sqrt(px * px + py * py);
-        const double depth = 1.0 / ((1.0 - u) / a.w + u / b.w);  // 1/w is linear on screen
-        const double r_px = r * focal / depth;
-        if (dist <= r_px) {
-            if (!on_tube || depth < on_tube->depth_mm) on_tube = PickHit{s, dist, depth};
-        } else if (dist <= r_px + tolerance_px && dist - r_px < beside_gap) {
-            beside_gap = dist - r_px;
-            beside = PickHit{s, dist, depth};
-        }
+    struct Best {
+        std::optional<PickHit> on_tube, beside;  // the point on a tube (nearest the eye); within the tolerance (closest axis)
+        double beside_gap = std::numeric_limits<double>::infinity();
     };
     const float *P = t.positions.data();
-    for (std::uint64_t s = 0; s < t.nb_streamlines(); ++s) {
-        const std::uint64_t b = t.begin(s), e = t.end(s);
-        if (b == e) continue;
-        const double r = radius_mm.empty() ? 0.0 : double(radius_mm[s]);
-        Clip prev = project(m, P + 3 * b);
-        if (e - b == 1) segment(s, r, prev, prev);
-        for (std::uint64_t i = b + 1; i < e; ++i) {
-            const Clip cur = project(m, P + 3 * i);
-            segment(s, r, prev, cur);
-            prev = cur;
+    const std::uint64_t n = subset ? subset->size() : t.nb_streamlines();
+    std::mutex mu;
+    Best best;
+    parallel_ranges(n, 4096, [&](std::uint64_t from, std::uint64_t to) {
+        Best mine;
+        auto segment = [&](std::uint64_t s, double r, Clip a, Clip b) {
+            if (a.w < near && b.w < near) return;  // behind the near plane
+            if (a.w < near) a = lerp(a, b, (near - a.w) / (b.w - a.w));
+            else if (b.w < near) b = lerp(b, a, (near - b.w) / (a.w - b.w));
+            const double ax = (a.x / a.w * 0.5 + 0.5) * width, ay = (0.5 - a.y / a.w * 0.5) * height;
+            const double bx = (b.x / b.w * 0.5 + 0.5) * width, by = (0.5 - b.y / b.w * 0.5) * height;
+            const double dx = bx - ax, dy = by - ay, len2 = dx * dx + dy * dy;
+            const double u = len2 > 0 ? std::clamp(((x - ax) * dx + (y - ay) * dy) / len2, 0.0, 1.0) : 0.0;
+            const double px = ax + u * dx - x, py = ay + u * dy - y, dist = std::sqrt(px * px + py * py);
+            const double depth = 1.0 / ((1.0 - u) / a.w + u / b.w);  // 1/w is linear on screen
+            const double r_px = r * focal / depth;
+            if (dist <= r_px) {
+                if (!mine.on_tube || depth < mine.on_tube->depth_mm) mine.on_tube = PickHit{s, dist, depth};
+            } else if (dist <= r_px + tolerance_px && dist - r_px < mine.beside_gap) {
+                mine.beside_gap = dist - r_px;
+                mine.beside = PickHit{s, dist, depth};
+            }
+        };
+        for (std::uint64_t k = from; k < to; ++k) {
+            const std::uint64_t s = subset ? (*subset)[k] : k;
+            const std::uint64_t b = t.begin(s), e = t.end(s);
+            if (b == e) continue;
+            const double r = radius_mm.empty() ? 0.0 : double(radius_mm[s]);
+            Clip prev = project(m, P + 3 * b);
+            if (e - b == 1) segment(s, r, prev, prev);
+            for (std::uint64_t i = b + 1; i < e; ++i) {
+                const Clip cur = project(m, P + 3 * i);
+                segment(s, r, prev, cur);
+                prev = cur;
+            }
         }
-    }
-    return on_tube ? on_tube : beside;
+        // The parts' answers merged: the same answer as one pass (ties: the
+        // lower streamline index, as one pass in order keeps the first).
+        std::lock_guard<std::mutex> lock(mu);
+        if (mine.on_tube && (!best.on_tube || mine.on_tube->depth_mm < best.on_tube->depth_mm ||
+                             (mine.on_tube->depth_mm == best.on_tube->depth_mm && mine.on_tube->streamline < best.on_tube->streamline)))
+            best.on_tube = mine.on_tube;
+        if (mine.beside && (mine.beside_gap < best.beside_gap ||
+                            (mine.beside_gap == best.beside_gap && mine.beside->streamline < best.beside->streamline)))
+            best.beside = mine.beside, best.beside_gap = mine.beside_gap;
+    });
+    return best.on_tube ? best.on_tube : best.beside;
 }
 
 namespace {

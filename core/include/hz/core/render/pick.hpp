@@ -37,8 +37,9 @@ struct PickHit {
 // nearest to the eye where the point falls on the tube itself, otherwise the
 // one whose axis passes closest on screen. Segments are clipped to the near
 // plane; a single-point streamline is a point. nullopt when none is.
+// With `subset`, only those streamlines are candidates. Runs on every core.
 std::optional<PickHit> pick_streamline(const Tractogram &t, std::span<const float> radius_mm, const View &v, int width, int height,
-                                       double x, double y, double tolerance_px = 6.0);
+                                       double x, double y, double tolerance_px = 6.0, const std::vector<std::uint64_t> *subset = nullptr);
 
 // The streamlines of `t` whose drawn axis crosses `stroke` (a polyline of
 // window points, pixels, origin at the top left, as pick_streamline's x,
