@@ -85,6 +85,7 @@ struct RenderOptions {
     bool preview = false;     // draw the level-of-detail proxy only (the window's first picture)
     bool force = false;       // replace an existing output
     int frames = 1;           // frames to draw (timing: the median of frames 2..N)
+    bool legend = false;      // list the clusters shown (colour, name, size) over the picture
     bool json = false;
 };
 

@@ -167,6 +167,7 @@ int main(int argc, char **argv) {
     render->add_flag("--preview", ro.preview, "draw the level-of-detail proxy only: the window's first picture, in a fraction of the time");
     render->add_option("--frames", ro.frames, "draw N frames and report the median time of frames 2..N (benchmarks)")
         ->check(CLI::Range(1, 1000))->capture_default_str();
+    render->add_flag("--legend", ro.legend, "list the clusters shown (colour, name, size) over the top left of the picture");
     render->add_flag("--json", ro.json, "timings and counts as JSON");
     render->add_flag("-f,--force", ro.force, "replace an existing output image (never an input)");
 

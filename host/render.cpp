@@ -1,6 +1,7 @@
 // `horizon render`: draws data files, or a scene file, headlessly (EGL, no X
 // server) into a PNG; also the picture of `horizon demo`.
 #include "commands.hpp"
+#include "legend.hpp"
 
 #include <hz/core/io.hpp>
 #include <hz/core/render/context.hpp>
@@ -110,7 +111,14 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     }
     std::sort(frames.begin(), frames.end());
     const double frame_ms = frames.empty() ? first_ms : frames[frames.size() / 2];
-    const core::render::Image im = r.read_image();
+    core::render::Image im = r.read_image();
+    if (o.legend) {
+        const std::vector<LegendEntry> entries = cluster_legend(r.scene());
+        if (entries.empty())
+            throw core::Error("--legend: nothing in the picture is coloured by cluster (a scene's \"clustering\" or \"color\": "
+                              "{\"mode\": \"cluster\"}, or a selection the window saved)");
+        draw_legend(im, entries);
+    }
     const auto tw = Clock::now();
     write_image(reg, im, o.out, o.force);
     const double write_ms = ms_since(tw);

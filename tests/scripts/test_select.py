@@ -286,6 +286,32 @@ class SelectionWindowTest(TempDirTest):
             self.assertEqual(p.returncode, 1)
             self.assertIn(words, p.stderr)
 
+    def test_render_legend(self):
+        # `render --legend` lists the clusters over the top left of the
+        # picture and changes nothing else; a picture without clusters says so.
+        scene = self.path("clusters.json")
+        with open(scene, "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "file": self.tck, "clustering": {"level": 1}, "color": {"mode": "cluster"}}],
+                       "camera": {"view": "superior"}}, f)
+        for name, extra in [("plain", []), ("legend", ["--legend"])]:
+            p = run("render", scene, "-o", self.path(name + ".png"), "--size", "640x480", *extra)
+            self.assertEqual(p.returncode, 0, p.stderr)
+        a, b = load(self.path("plain.png")), load(self.path("legend.png"))
+        changed = np.abs(a - b).sum(axis=-1) > 0
+        ys, xs = np.nonzero(changed)
+        self.assertGreater(len(ys), 1000)
+        self.assertLess(xs.max(), 320, "the legend stays in the top left")
+        self.assertLess(ys.min(), 20)
+        # One swatch per cluster: rows of 11x11 squares of one colour each.
+        box = b[ys.min():ys.max() + 1, xs.min():xs.max() + 1]
+        swatch_col = box[:, 8 + 5]  # (the box's padding, then the middle of the swatches)
+        colours = {tuple(c) for c in swatch_col if c.max() - c.min() > 60}
+        self.assertGreaterEqual(len(colours), 5)
+        p = run("render", self.tck, "--legend", "-o", self.path("none.png"))
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("--legend: nothing in the picture is coloured by cluster", p.stderr)
+        self.assertFalse(os.path.exists(self.path("none.png")))
+
     def test_command_line_regions_and_bad_input(self):
         # --include / --exclude as `filter` takes them.
         p = self.window("cli", ["wait 1", "quit"], "--include", "sphere:0,0,0,15", "--exclude", "sphere:20,0,0,8")
