@@ -114,3 +114,27 @@ TEST_CASE("pick_streamline clips at the near plane and takes single points", "[p
     REQUIRE(hit);
     CHECK(hit->pixels == Approx(1));
 }
+
+TEST_CASE("streamlines_crossing picks exactly what a stroke crosses", "[pick]") {
+    // Vertical streamlines (along y) at x = -8, -4, 0, 4, 8 mm, 10 mm long,
+    // seen from above: on screen, vertical lines at 100 + 1.866 x pixels,
+    // from y = 50 - 9.33 to 50 + 9.33. A horizontal stroke at y = 50 from
+    // pixel 95 to 110 (x from -2.7 to 5.4 mm) crosses those at 0 and 4; one
+    // that ends just short of x = 8 (pixel 114.9) does not cross it; one
+    // above the streamlines' ends (y = 35) crosses none; a stroke's vertex on
+    // a streamline counts (touching).
+    std::vector<std::vector<float>> lines;
+    for (float x : {-8.f, -4.f, 0.f, 4.f, 8.f}) lines.push_back({x, -5, 0, x, 5, 0});  // (one segment each: strokes cross it inside)
+    lines.push_back({20, 0, 0});  // (a single point, off every stroke)
+    const Tractogram t = polylines(lines);
+    const auto v = down_z();
+    using P = std::array<double, 2>;
+    auto cross = [&](std::vector<P> stroke) { return render::streamlines_crossing(t, v, 200, 100, stroke); };
+    CHECK(cross({{95, 50}, {110, 50}}) == std::vector<std::uint64_t>{2, 3});
+    CHECK(cross({{95, 50}, {114.8, 50}}) == std::vector<std::uint64_t>{2, 3});
+    CHECK(cross({{95, 50}, {115.2, 50}}) == std::vector<std::uint64_t>{2, 3, 4});
+    CHECK(cross({{80, 35}, {120, 35}}).empty());
+    CHECK(cross({{80, 45}, {100, 45}, {100, 60}}) == std::vector<std::uint64_t>{0, 1, 2});  // (a polyline; its corner lies on streamline 2)
+    CHECK(cross({{100, 45}, {104, 47}}) == std::vector<std::uint64_t>{2});                   // (it only touches streamline 2)
+    CHECK(cross({{100, 50}}).empty());  // (one point is no stroke)
+}
