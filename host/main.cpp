@@ -118,7 +118,8 @@ int main(int argc, char **argv) {
     cluster->add_option("--algorithm", co.algorithm,
                         "a clustering plugin: its id, or the last part of it (qb, qbx, qbx_merge, ...; see `horizon plugins`)")
         ->capture_default_str();
-    cluster->add_option("--param", co.params, "NAME=VALUE, a parameter of the plugin (repeatable; `horizon plugins ID` lists them)");
+    cluster->add_option("--param", co.params, "NAME=VALUE, a parameter of the plugin (repeatable; `horizon plugins ID` lists them)")
+        ->allow_extra_args(false);
     cluster->add_option("--thresholds", co.thresholds, "MDF thresholds in mm, comma-separated (qb: one)")->delimiter(',');
     cluster->add_option("--nb-points", co.nb_points, "resampling points (default: qb/qbx 12, qbx_merge 20)");
     cluster->add_option("--order", co.order, "processing order: file, shuffle (with --seed), or a text file of indices")
@@ -139,8 +140,10 @@ int main(int argc, char **argv) {
     filter->add_option("input", fo.input, "tractogram")->required();
     filter->add_option("--include", fo.include,
                        "a region each kept streamline must have a vertex in: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 (RAS+ mm) or a "
-                       "mask volume (nonzero voxels); repeatable, all must be met");
-    filter->add_option("--exclude", fo.exclude, "a region no kept streamline may have a vertex in (same forms); repeatable");
+                       "mask volume (nonzero voxels); repeatable, all must be met")
+        ->allow_extra_args(false);
+    filter->add_option("--exclude", fo.exclude, "a region no kept streamline may have a vertex in (same forms); repeatable")
+        ->allow_extra_args(false);
     filter->add_option("--min-length", fo.min_length, "minimum length in mm (inclusive)");
     filter->add_option("--max-length", fo.max_length, "maximum length in mm (inclusive; 0: none)");
     filter->add_flag("--ends-only", fo.ends_only, "test the regions against the two end points only");
@@ -181,10 +184,13 @@ int main(int argc, char **argv) {
     view->add_option("--view", vwo.view, "initial camera view fitted to the scene (R returns to it)")->check(CLI::IsMember(named_views()));
     view->add_flag("--explore", vwo.explore, "explore the first tractogram as QuickBundlesX clusters: expand, hide, repeat (paper Fig. 5)");
     view->add_option("--algorithm", vwo.algorithm, "--explore with this clustering plugin (its id or the last part of it)")->capture_default_str();
-    view->add_option("--param", vwo.params, "NAME=VALUE, a parameter of the clustering plugin (repeatable)");
-    view->add_option("--include", vwo.include, "a region of interest the shown streamlines must meet: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or a mask file (repeatable; the window adds, moves and removes them too)");
+    view->add_option("--param", vwo.params, "NAME=VALUE, a parameter of the clustering plugin (repeatable)")
+        ->allow_extra_args(false);
+    view->add_option("--include", vwo.include, "a region of interest the shown streamlines must meet: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or a mask file (repeatable; the window adds, moves and removes them too)")
+        ->allow_extra_args(false);
     view->add_option("--slab", vwo.slab, "crop the streamlines to a slab AXIS=CENTRE,HALF in mm, e.g. z=10,5 (the panel moves it)");
-    view->add_option("--exclude", vwo.exclude, "a region the shown streamlines must not meet (same forms; repeatable)");
+    view->add_option("--exclude", vwo.exclude, "a region the shown streamlines must not meet (same forms; repeatable)")
+        ->allow_extra_args(false);
     add_lod_options(view, vwo.lod);
     view->add_option("--stats", vwo.stats, "write per-frame times and what each frame drew to this JSON file at exit");
 

@@ -282,6 +282,13 @@ class FilterTest(unittest.TestCase):
                 self.assertIn(words, lines[0])
                 self.assertFalse(os.path.exists(out))
 
+    def test_options_before_the_input(self):
+        # Repeatable options take one value each: the input may come after them.
+        c = dict(include=["sphere:10,-20,15,12", "sphere:0,0,0,30"])
+        p = run("filter", "--include", c["include"][0], "--include", c["include"][1], self.tck, "--ids", "-")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual([int(x) for x in p.stdout.split()], reference(self.streamlines, **c))
+
     def test_region_outside_the_data(self):
         out = self.path("outside.tck")
         # An include region away from every streamline (voxel coordinates
