@@ -684,9 +684,45 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                     hit = core::render::pick_streamline(ob.data.tractogram, radii, v, fw, fh, px, py, kTolerancePx);
                 }
             }
-            if (!hit) return std::nullopt;
+            // Surfaces and slices in front of it (or without it) are what
+            // the click meets instead: the nearest of all.
+            std::optional<double> depth;
+            if (hit) depth = hit->depth_mm;
+            const std::array<double, 3> o3{v.eye[0], v.eye[1], v.eye[2]}, d3{dir[0], dir[1], dir[2]};
+            for (const auto &ob : r.scene().objects) {
+                if (!ob.visible) continue;
+                std::optional<double> t;
+                if (ob.kind == HZ_DATA_MESH) {
+                    t = core::render::ray_mesh(ob.data.mesh, o3, d3);
+                } else if (ob.kind == HZ_DATA_VOLUME && ob.data.volume.dims.size() >= 3) {
+                    const core::Volume &vol = ob.data.volume;
+                    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+                    for (int c = 0; c < 8; ++c) {  // (the grid's RAS bounding box, as the slices are drawn)
+                        const double ijk[3] = {(c & 1) ? double(vol.dims[0]) - 0.5 : -0.5, (c & 2) ? double(vol.dims[1]) - 0.5 : -0.5,
+                                               (c & 4) ? double(vol.dims[2]) - 0.5 : -0.5};
+                        for (int i = 0; i < 3; ++i) {
+                            const double x = vol.voxel_to_ras[i * 4] * ijk[0] + vol.voxel_to_ras[i * 4 + 1] * ijk[1] + vol.voxel_to_ras[i * 4 + 2] * ijk[2] +
+                                             vol.voxel_to_ras[i * 4 + 3];
+                            lo[i] = std::min(lo[i], x), hi[i] = std::max(hi[i], x);
+                        }
+                    }
+                    const std::optional<double> at[3] = {ob.slice_x, ob.slice_y, ob.slice_z};
+                    for (int axis = 0; axis < 3; ++axis) {
+                        if (!at[axis] || std::abs(d3[axis]) < 1e-12) continue;
+                        const double c = std::isnan(*at[axis]) ? (lo[axis] + hi[axis]) / 2 : *at[axis];
+                        const double tt = (c - o3[axis]) / d3[axis];
+                        if (!(tt > v.near_mm)) continue;
+                        bool inside = true;
+                        for (int i = 0; i < 3; ++i)
+                            if (i != axis && (o3[i] + tt * d3[i] < lo[i] || o3[i] + tt * d3[i] > hi[i])) inside = false;
+                        if (inside && (!t || tt < *t)) t = tt;
+                    }
+                }
+                if (t && *t > v.near_mm && (!depth || *t < *depth)) depth = t;
+            }
+            if (!depth) return std::nullopt;
             std::array<double, 3> p;
-            for (int i = 0; i < 3; ++i) p[i] = v.eye[i] + hit->depth_mm * dir[i];
+            for (int i = 0; i < 3; ++i) p[i] = v.eye[i] + *depth * dir[i];
             return p;
         };
         std::size_t active_roi = 0;  // the region Ctrl+wheel resizes (the last placed or edited)

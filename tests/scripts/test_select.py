@@ -154,6 +154,23 @@ class SelectionWindowTest(TempDirTest):
         self.assertLess(kept, total)
         self.assertIn("nothing under (1, 1)", p.stdout)
 
+    def test_ctrl_click_on_a_surface(self):
+        # A surface in front of the streamlines takes the click: the sphere
+        # sits on it, nearer the eye (the left view looks along +x) than
+        # where the same click meets a streamline with the surface hidden.
+        centres = {}
+        for visible in (True, False):
+            scene = self.path(f"surface_{visible}.json")
+            with open(scene, "w") as f:
+                json.dump({"objects": [{"type": "surface", "builtin": "cortex", "visible": visible},
+                                       {"type": "streamlines", "file": self.tck}]}, f)
+            p = self.window(f"surface_{visible}", ["wait 2", "click 240 160 ctrl", "quit"], source=scene)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            m = re.search(r"#0 include sphere:([-\d.e]+),([-\d.e]+),([-\d.e]+),5", p.stdout)
+            self.assertIsNotNone(m, p.stdout)
+            centres[visible] = [float(x) for x in m.groups()]
+        self.assertLess(centres[True][0], centres[False][0] - 3.0, centres)
+
     def test_exploration_paths_regions_and_save(self):
         p = self.window("explore", [
             "wait 1",

@@ -138,3 +138,16 @@ TEST_CASE("streamlines_crossing picks exactly what a stroke crosses", "[pick]") 
     CHECK(cross({{100, 45}, {104, 47}}) == std::vector<std::uint64_t>{2});                   // (it only touches streamline 2)
     CHECK(cross({{100, 50}}).empty());  // (one point is no stroke)
 }
+
+TEST_CASE("ray_mesh finds the nearest triangle along a ray", "[pick]") {
+    Mesh m;
+    // Two triangles across the z axis, at z = 10 and z = 30, and one beside it.
+    m.vertices = Buffer<float>{-1, -1, 10, 1, -1, 10, 0, 1, 10, -1, -1, 30, 1, -1, 30, 0, 1, 30, 5, 5, 0, 6, 5, 0, 5, 6, 0};
+    m.faces = Buffer<std::uint32_t>{3, 4, 5, 0, 1, 2, 6, 7, 8};
+    const auto t = render::ray_mesh(m, {0, 0, 0}, {0, 0, 1});
+    REQUIRE(t);
+    CHECK(*t == Approx(10));
+    CHECK(*render::ray_mesh(m, {0, 0, 20}, {0, 0, 1}) == Approx(10));  // (t from the origin given)
+    CHECK_FALSE(render::ray_mesh(m, {0, 0, 40}, {0, 0, 1}));            // (everything behind)
+    CHECK_FALSE(render::ray_mesh(m, {3, 3, 0}, {0, 0, 1}));             // (beside every triangle)
+}

@@ -155,4 +155,37 @@ std::vector<std::uint64_t> streamlines_crossing(const Tractogram &t, const View 
     return out;
 }
 
+std::optional<double> ray_mesh(const Mesh &m, const std::array<double, 3> &o, const std::array<double, 3> &d) {
+    const float *V = m.vertices.data();
+    const std::uint32_t *F = m.faces.data();
+    const std::uint64_t nv = m.nb_vertices();
+    std::mutex mu;
+    double best = std::numeric_limits<double>::infinity();
+    parallel_ranges(m.nb_faces(), 8192, [&](std::uint64_t from, std::uint64_t to) {
+        double mine = std::numeric_limits<double>::infinity();
+        for (std::uint64_t f = from; f < to; ++f) {
+            const std::uint32_t ia = F[f * 3], ib = F[f * 3 + 1], ic = F[f * 3 + 2];
+            if (ia >= nv || ib >= nv || ic >= nv) continue;
+            // Moller-Trumbore, in double.
+            double a[3], e1[3], e2[3];
+            for (int i = 0; i < 3; ++i) a[i] = V[ia * 3 + i], e1[i] = V[ib * 3 + i] - a[i], e2[i] = V[ic * 3 + i] - a[i];
+            const double p[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
+            const double det = e1[0] * p[0] + e1[1] * p[1] + e1[2] * p[2];
+            if (std::abs(det) < 1e-12) continue;
+            const double inv = 1.0 / det, tv[3] = {o[0] - a[0], o[1] - a[1], o[2] - a[2]};
+            const double u = (tv[0] * p[0] + tv[1] * p[1] + tv[2] * p[2]) * inv;
+            if (u < 0 || u > 1) continue;
+            const double q[3] = {tv[1] * e1[2] - tv[2] * e1[1], tv[2] * e1[0] - tv[0] * e1[2], tv[0] * e1[1] - tv[1] * e1[0]};
+            const double w = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) * inv;
+            if (w < 0 || u + w > 1) continue;
+            const double t = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) * inv;
+            if (t > 0 && t < mine) mine = t;
+        }
+        std::lock_guard<std::mutex> lock(mu);
+        best = std::min(best, mine);
+    });
+    if (!std::isfinite(best)) return std::nullopt;
+    return best;
+}
+
 }  // namespace hz::core::render

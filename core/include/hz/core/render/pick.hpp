@@ -51,4 +51,8 @@ std::optional<PickHit> pick_streamline(const Tractogram &t, std::span<const floa
 std::vector<std::uint64_t> streamlines_crossing(const Tractogram &t, const View &v, int width, int height,
                                                 std::span<const std::array<double, 2>> stroke);
 
+// Where the ray o + t d (t > 0) first meets a triangle of `m`: the nearest
+// t, or nullopt. Runs on every core (a cortex of 300k triangles in a few ms).
+std::optional<double> ray_mesh(const Mesh &m, const std::array<double, 3> &o, const std::array<double, 3> &d);
+
 }  // namespace hz::core::render
