@@ -1217,6 +1217,8 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                 ImGui::TextWrapped("%s", ex->summary().c_str());
                 ImGui::TextDisabled("click a centroid: select  E: expand  X: to streamlines  H: hide  A: all/none  C: cluster again");
                 if (button("Repeat: cluster what is shown")) act = [&] { ex->repeat(); };
+                ImGui::SameLine();
+                if (button("Reset")) act = [&] { ex->reset(&session->kept()); };
                 // Thresholds for the next repeat (mm, coarse to fine); empty:
                 // fitted to the extent of what is shown.
                 ImGui::SetNextItemWidth(140);
@@ -1238,8 +1240,6 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
                     for (double x : ex->state().thresholds) t += (t.empty() ? "" : ", ") + std::to_string(int(std::lround(x)));
                     return t;
                 }().c_str());
-                ImGui::SameLine();
-                if (button("Reset")) act = [&] { ex->reset(&session->kept()); };
                 if (ex->nb_selected() > 0) {
                     if (button("Expand selected")) act = [&] { ex->expand_selected(); };
                     ImGui::SameLine();
