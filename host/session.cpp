@@ -16,11 +16,70 @@ namespace hz::host {
 
 // ---------------------------------------------------------------- Explorer
 
-Explorer::Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec)
+Explorer::Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec, bool cluster_now)
     : reg_(reg), all_(std::move(all)), name_(std::move(name)), spec_(std::move(spec)) {
     const core::Bounds b = all_.nb_stored() ? core::bounds_of(all_.positions.data(), all_.nb_stored()) : core::Bounds{};
     all_diagonal_ = b.empty ? 0 : std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]);
-    reset();
+    if (cluster_now) reset();
+}
+
+void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names) {
+    const std::size_t G = names.size();
+    std::vector<std::vector<std::uint64_t>> groups(G);
+    std::vector<std::uint64_t> alone;
+    for (std::uint64_t s = 0; s < label.size(); ++s) {
+        if (label[s] >= 0 && std::size_t(label[s]) < G) groups[std::size_t(label[s])].push_back(s);
+        else alone.push_back(s);
+    }
+    // One level under a root: node 0 the root, node g + 1 saved cluster g.
+    auto tree = std::make_shared<core::render::ClusterTree>();
+    tree->nb_levels = 1;
+    tree->parent.assign(G + 1, 0);
+    tree->parent[0] = -1;
+    tree->level.assign(G + 1, 1);
+    tree->level[0] = 0;
+    std::vector<std::uint64_t> subset;
+    tree->member_offsets = {0, 0};
+    for (std::size_t g = 0; g < G; ++g) {
+        for (std::uint64_t s : groups[g]) tree->members.push_back(subset.size()), subset.push_back(s);
+        tree->member_offsets.push_back(tree->members.size());
+    }
+    // Each cluster's centroid: the plugin's, over its streamlines alone, at
+    // a threshold no two of them are apart by (one cluster).
+    std::vector<double> huge;
+    for (std::size_t l = 0; l < std::max<std::size_t>(1, spec_.thresholds.size()); ++l) huge.push_back(1e4);
+    for (std::size_t g = 0; g < G; ++g) {
+        std::vector<float> c;
+        if (!groups[g].empty()) {
+            const auto t = core::render::run_clustering(reg_, core::select_streamlines(all_, groups[g]), [&] {
+                core::render::ClusterSpec sp = spec_;
+                sp.thresholds = huge;
+                return sp;
+            }());
+            tree->nb_points = t.nb_points;
+            for (std::uint64_t k = 0; k < t.level.size(); ++k)
+                if (t.level[k] == 1) {
+                    c.assign(t.centroids.begin() + std::ptrdiff_t(k * t.nb_points * 3), t.centroids.begin() + std::ptrdiff_t((k + 1) * t.nb_points * 3));
+                    break;
+                }
+        }
+        if (tree->centroids.empty()) tree->centroids.assign(std::size_t(tree->nb_points) * 3, 0.0f);  // (the root's)
+        c.resize(std::size_t(tree->nb_points) * 3, 0.0f);
+        tree->centroids.insert(tree->centroids.end(), c.begin(), c.end());
+    }
+    s_ = State{};
+    s_.tree = tree;
+    s_.subset = std::make_shared<const std::vector<std::uint64_t>>(std::move(subset));
+    s_.expanded = std::move(alone);
+    for (std::size_t g = 0; g < G; ++g) s_.shown.push_back(g + 1);
+    sort();
+    s_.colour.assign(G + 1, 0);
+    for (std::size_t g = 0; g < G; ++g) s_.colour[g + 1] = g;  // (as the saved file is coloured in a plain view)
+    s_.next_colour = G;
+    auto node_names = std::make_shared<std::vector<std::string>>(G + 1);
+    for (std::size_t g = 0; g < G; ++g) (*node_names)[g + 1] = names[g];
+    s_.names = std::move(node_names);
+    s_.rounds = 1;
 }
 
 std::uint64_t Explorer::at(std::size_t rank) const {
@@ -42,6 +101,7 @@ std::vector<std::uint64_t> Explorer::children(std::uint64_t node) const {
 }
 
 std::string Explorer::path(std::uint64_t node) const {
+    if (s_.names && node < s_.names->size() && !(*s_.names)[node].empty()) return (*s_.names)[node];
     std::vector<std::size_t> ranks;
     for (std::uint64_t n = node; s_.tree->level[n] >= 1;) {
         const std::int64_t p = s_.tree->parent[n];
@@ -216,6 +276,7 @@ void Explorer::cluster(std::vector<std::uint64_t> subset, const std::unordered_m
 void Explorer::adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const core::render::ClusterTree> tree,
                      const std::unordered_map<std::uint64_t, std::uint64_t> *before) {
     if (before == nullptr) s_.next_colour = 0;  // (a first clustering)
+    s_.names.reset();
     s_.tree = tree;
     s_.thresholds = tree->thresholds;
     s_.subset = std::make_shared<const std::vector<std::uint64_t>>(std::move(subset));
@@ -434,11 +495,17 @@ void Session::ensure_grid_future() {
     }
 }
 
-void Session::apply() {
+void Session::apply(bool recluster) {
     settle();
     const auto t0 = std::chrono::steady_clock::now();
     ensure_grid_future();
     std::vector<std::uint64_t> kept = select(rois_, *deleted_, grid_future_);
+    if (ex_ && !recluster) {
+        kept_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(kept));
+        picked_ = std::make_shared<const std::vector<std::uint64_t>>();
+        filter_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        return;
+    }
     std::shared_ptr<const core::render::ClusterTree> tree = ex_ ? ex_->compute_first(kept) : nullptr;
     adopt(std::move(kept), std::move(tree));
     filter_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();

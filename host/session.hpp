@@ -45,9 +45,18 @@ public:
         std::uint64_t next_colour = 0;
         int rounds = 0;
         std::vector<double> thresholds;       // of the last clustering (mm per level)
+        std::shared_ptr<const std::vector<std::string>> names;  // per tree node: a saved name (restore_saved), or none
     };
 
-    Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec);
+    // Clusters every streamline at once unless `cluster_now` is false (then
+    // restore_saved or reset must come next).
+    Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec, bool cluster_now = true);
+    // The clusters a selection was saved with (Session::save): per
+    // streamline its cluster's index into `names` (-1: a streamline shown on
+    // its own), one cluster per name, each drawn as the centroid the
+    // clustering plugin gives its streamlines at a threshold that keeps them
+    // together. Expanding a saved cluster shows its streamlines.
+    void restore_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names);
 
     const core::Tractogram &all() const { return all_; }
     const State &state() const { return s_; }
@@ -174,8 +183,10 @@ public:
     // not wait for it (without it, the first region builds it).
     void prepare_index();
     // Selects the streamlines the regions keep and, over an exploration,
-    // clusters them again (the first clustering of the selection).
-    void apply();
+    // clusters them again (the first clustering of the selection) unless
+    // `recluster` is false (the exploration's clusters stay: a saved file
+    // reopened with its clusters).
+    void apply(bool recluster = true);
     // The same on a thread of its own (the window stays interactive):
     // poll() adopts the result once it is there (true then: show it
     // again); settle() waits for it. Every other call that reads or edits

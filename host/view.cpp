@@ -488,12 +488,35 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             std::vector<core::Roi> rois = Session::rois_from_metadata(reg, ob.data.metadata);  // (a file saved by the window)
             for (const std::string &spec : o.include) rois.push_back(core::parse_roi(reg, spec, true));
             for (const std::string &spec : o.exclude) rois.push_back(core::parse_roi(reg, spec, false));
+            // A selection the window saved, reopened with --explore: its
+            // clusters as they were saved ("horizon_cluster" per streamline,
+            // "horizon_clusters" names), not a new clustering.
+            std::vector<std::int64_t> saved_label;
+            std::vector<std::string> saved_names;
+            if (o.explore) {
+                const core::Tractogram &t = ob.data.tractogram;
+                for (const auto &a : t.arrays)
+                    if (a.name == "horizon_cluster" && a.attach == HZ_ATTACH_STREAMLINE && a.count == t.nb_streamlines() && a.components == 1) {
+                        saved_label.resize(a.count);
+                        for (std::uint64_t i = 0; i < a.count; ++i)
+                            saved_label[i] = std::int64_t(core::value_at(a.bytes.data() + i * core::dtype_size(a.dtype), a.dtype));
+                    }
+                for (const auto &[k, val] : ob.data.metadata)
+                    if (k == "horizon_clusters") {
+                        const nlohmann::json j = nlohmann::json::parse(val, nullptr, false);
+                        if (j.is_array())
+                            for (const auto &e : j) saved_names.push_back(e.is_string() ? e.get<std::string>() : "");
+                    }
+                if (saved_names.empty()) saved_label.clear();
+            }
             std::unique_ptr<Explorer> explorer;
-            if (o.explore) explorer = std::make_unique<Explorer>(reg, ob.data.tractogram.shared(), ob.name, explore_spec(reg, o));
+            if (o.explore)
+                explorer = std::make_unique<Explorer>(reg, ob.data.tractogram.shared(), ob.name, explore_spec(reg, o), saved_label.empty());
+            if (explorer && !saved_label.empty()) explorer->restore_saved(saved_label, saved_names);
             session = std::make_unique<Session>(reg, ob.data.tractogram.shared(), o.inputs, std::move(explorer));
             ex = session->explorer();
             for (auto &roi : rois) session->add_roi(std::move(roi));
-            if (!session->rois().empty()) session->apply();
+            if (!session->rois().empty()) session->apply(saved_label.empty());
             if (ex) {
                 ci = i;
                 ob = ex->centroids_object();

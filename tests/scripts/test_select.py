@@ -208,6 +208,15 @@ class SelectionWindowTest(TempDirTest):
         got = header["streamlines"]
         keys = {full[i].tobytes() for i in want}
         self.assertTrue(all(s.astype(np.float32).tobytes() in keys for s in got))
+        # Reopened with --explore, the file shows its clusters as saved, by
+        # their saved names: no new clustering.
+        first = names[0]
+        p = self.window("reopen_ex", ["wait 1", f"expand {first} streamlines", "quit"], "--explore", source=self.path("ex.trx"))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        again = [tuple(map(int, re.match(r"(\d+) clusters, (\d+) streamlines expanded, (\d+) clustering", l[len("explore: "):]).groups()))
+                 for l in p.stdout.splitlines() if l.startswith("explore: ")]
+        self.assertEqual(again[0], (len(names), int((labels < 0).sum()), 1))
+        self.assertEqual(again[1][:2], (len(names) - 1, int((labels < 0).sum()) + len(groups[first.replace(".", "_")])))
 
     def test_stroke_picks_keeps_and_deletes(self):
         # A stroke across the middle of the view picks the streamlines it
