@@ -566,34 +566,41 @@ void Session::pick(std::vector<std::uint64_t> ids) {
     picked_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(out));
 }
 
-void Session::keep_picked() {
-    if (ex_ && picked_->empty() && ex_->nb_selected() == 0) throw core::Error("nothing picked (draw a stroke across streamlines or centroids: Ctrl+drag)");
-    if (ex_) {
-        ex_->keep_selected(*picked_);
-    } else {
-        if (picked_->empty()) throw core::Error("nothing picked (draw a stroke across streamlines: Ctrl+drag)");
-        std::vector<std::uint64_t> gone, deleted;
-        std::set_difference(kept_->begin(), kept_->end(), picked_->begin(), picked_->end(), std::back_inserter(gone));
-        std::set_union(deleted_->begin(), deleted_->end(), gone.begin(), gone.end(), std::back_inserter(deleted));
-        deleted_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(deleted));
-        kept_ = picked_;
-    }
+void Session::require_picked() const {
+    if (ex_ ? picked_->empty() && ex_->nb_selected() == 0 : picked_->empty())
+        throw core::Error(ex_ ? "nothing picked (draw a stroke across streamlines or centroids: Ctrl+drag)"
+                              : "nothing picked (draw a stroke across streamlines: Ctrl+drag)");
+}
+
+void Session::delete_shown(const std::vector<std::uint64_t> &gone) {
+    std::vector<std::uint64_t> kept, deleted;
+    std::set_difference(kept_->begin(), kept_->end(), gone.begin(), gone.end(), std::back_inserter(kept));
+    std::set_union(deleted_->begin(), deleted_->end(), gone.begin(), gone.end(), std::back_inserter(deleted));
+    deleted_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(deleted));
+    kept_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(kept));
     picked_ = std::make_shared<const std::vector<std::uint64_t>>();
 }
 
+void Session::keep_picked() {
+    require_picked();
+    if (ex_) {
+        ex_->keep_selected(*picked_);
+        picked_ = std::make_shared<const std::vector<std::uint64_t>>();
+        return;
+    }
+    std::vector<std::uint64_t> others;
+    std::set_difference(kept_->begin(), kept_->end(), picked_->begin(), picked_->end(), std::back_inserter(others));
+    delete_shown(others);
+}
+
 void Session::delete_picked() {
-    if (ex_ && picked_->empty() && ex_->nb_selected() == 0) throw core::Error("nothing picked (draw a stroke across streamlines or centroids: Ctrl+drag)");
+    require_picked();
     if (ex_) {
         ex_->drop_selected(*picked_);
-    } else {
-        if (picked_->empty()) throw core::Error("nothing picked (draw a stroke across streamlines: Ctrl+drag)");
-        std::vector<std::uint64_t> kept, deleted;
-        std::set_difference(kept_->begin(), kept_->end(), picked_->begin(), picked_->end(), std::back_inserter(kept));
-        std::set_union(deleted_->begin(), deleted_->end(), picked_->begin(), picked_->end(), std::back_inserter(deleted));
-        deleted_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(deleted));
-        kept_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(kept));
+        picked_ = std::make_shared<const std::vector<std::uint64_t>>();
+        return;
     }
-    picked_ = std::make_shared<const std::vector<std::uint64_t>>();
+    delete_shown(*picked_);
 }
 
 void Session::invert_picked() {

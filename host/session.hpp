@@ -244,6 +244,11 @@ private:
                                       const std::shared_future<std::shared_ptr<const core::StreamlineGrid>> &grid) const;
     void adopt(std::vector<std::uint64_t> kept, std::shared_ptr<const core::render::ClusterTree> tree);
     void ensure_grid_future();
+    // Throws Error when a stroke has picked nothing (no cluster selected either).
+    void require_picked() const;
+    // Plain view: the streamlines `gone` (ascending, among those shown) leave
+    // the selection and join the deleted ones; nothing stays picked.
+    void delete_shown(const std::vector<std::uint64_t> &gone);
     void restore(const State &s);
     core::Roi &roi(std::size_t k);
 

@@ -136,32 +136,7 @@ Bounds Roi::bounds() const {
         for (int i = 0; i < 3; ++i) b.min[i] = center[i] - radius * 1.0001 - 1e-4, b.max[i] = center[i] + radius * 1.0001 + 1e-4;
         break;
     case Shape::Box: b.min = lo, b.max = hi; break;
-    case Shape::Mask: {
-        // The corners of the set voxels' index box, each widened by half a
-        // voxel (what rounds onto it), through voxel -> RAS.
-        std::array<std::uint64_t, 3> a{dims[0], dims[1], dims[2]}, z{0, 0, 0};
-        for (std::uint64_t k = 0; k < dims[2]; ++k)
-            for (std::uint64_t j = 0; j < dims[1]; ++j)
-                for (std::uint64_t i = 0; i < dims[0]; ++i)
-                    if ((*mask)[(k * dims[1] + j) * dims[0] + i]) {
-                        a = {std::min(a[0], i), std::min(a[1], j), std::min(a[2], k)};
-                        z = {std::max(z[0], i), std::max(z[1], j), std::max(z[2], k)};
-                    }
-        const Affine inv = affine_inverse(ras_to_voxel, file);
-        b.empty = true;
-        for (int c = 0; c < 8; ++c) {
-            const double v[3] = {(c & 1 ? double(z[0]) + 0.5 : double(a[0]) - 0.5), (c & 2 ? double(z[1]) + 0.5 : double(a[1]) - 0.5),
-                                 (c & 4 ? double(z[2]) + 0.5 : double(a[2]) - 0.5)};
-            for (int i = 0; i < 3; ++i) {
-                const double x = inv[i * 4] * v[0] + inv[i * 4 + 1] * v[1] + inv[i * 4 + 2] * v[2] + inv[i * 4 + 3];
-                const double pad = 1e-3 * (1 + std::abs(x));  // (rounding of the float path)
-                if (b.empty || x - pad < b.min[i]) b.min[i] = x - pad;
-                if (b.empty || x + pad > b.max[i]) b.max[i] = x + pad;
-            }
-            b.empty = false;
-        }
-        break;
-    }
+    case Shape::Mask: b = mask_bounds; break;
     }
     return b;
 }
@@ -175,6 +150,38 @@ std::string Roi::spec() const {
     }
     return {};
 }
+
+namespace {
+
+// The RAS+ bounds outside which a mask holds no point: the corners of its set
+// voxels' index box, each widened by half a voxel (what rounds onto it),
+// through voxel -> RAS, padded past the float32 rounding of contains().
+Bounds set_voxel_bounds(const Roi &r) {
+    std::array<std::uint64_t, 3> a{r.dims[0], r.dims[1], r.dims[2]}, z{0, 0, 0};
+    for (std::uint64_t k = 0; k < r.dims[2]; ++k)
+        for (std::uint64_t j = 0; j < r.dims[1]; ++j)
+            for (std::uint64_t i = 0; i < r.dims[0]; ++i)
+                if ((*r.mask)[(k * r.dims[1] + j) * r.dims[0] + i]) {
+                    a = {std::min(a[0], i), std::min(a[1], j), std::min(a[2], k)};
+                    z = {std::max(z[0], i), std::max(z[1], j), std::max(z[2], k)};
+                }
+    const Affine inv = affine_inverse(r.ras_to_voxel, r.file);
+    Bounds b;
+    for (int c = 0; c < 8; ++c) {
+        const double v[3] = {(c & 1 ? double(z[0]) + 0.5 : double(a[0]) - 0.5), (c & 2 ? double(z[1]) + 0.5 : double(a[1]) - 0.5),
+                             (c & 4 ? double(z[2]) + 0.5 : double(a[2]) - 0.5)};
+        for (int i = 0; i < 3; ++i) {
+            const double x = inv[i * 4] * v[0] + inv[i * 4 + 1] * v[1] + inv[i * 4 + 2] * v[2] + inv[i * 4 + 3];
+            const double pad = 1e-3 * (1 + std::abs(x));
+            if (b.empty || x - pad < b.min[i]) b.min[i] = x - pad;
+            if (b.empty || x + pad > b.max[i]) b.max[i] = x + pad;
+        }
+        b.empty = false;
+    }
+    return b;
+}
+
+}  // namespace
 
 Roi mask_roi(const Volume &v, const std::string &file, bool include) {
     if (v.dims.size() < 3 || v.dims[0] == 0 || v.dims[1] == 0 || v.dims[2] == 0)
@@ -200,6 +207,7 @@ Roi mask_roi(const Volume &v, const std::string &file, bool include) {
     }
     if (set == 0) throw Error("ROI mask " + file + ": no voxel is set (the mask is empty)");
     r.mask = std::move(bits);
+    r.mask_bounds = set_voxel_bounds(r);
     return r;
 }
 

@@ -48,6 +48,7 @@ struct Roi {
     std::array<std::uint64_t, 3> dims{};
     Affine ras_to_voxel = kIdentity;
     std::array<float, 12> r2v{};  // its first three rows in float32 (what contains() uses, as tckedit does)
+    Bounds mask_bounds;           // (the set voxels' RAS bounds, found once by mask_roi)
     std::string file;
 
     bool contains(const float *p) const;
