@@ -12,7 +12,11 @@
 #include <csignal>
 #include <cstring>
 #include <array>
+#include <dlfcn.h>
 #include <elf.h>
+#include <link.h>
+#include <set>
+#include <sys/sysmacros.h>
 #include <optional>
 #include <string_view>
 #include <sys/stat.h>
@@ -94,6 +98,44 @@ constexpr unsigned kHostMachine = EM_AARCH64;
 #else
 constexpr unsigned kHostMachine = 0;
 #endif
+// Whether the shared object's dynamic symbol table defines a symbol named
+// hz_plugin_entry_v* (any major: the loader names a wrong one), read from
+// the file without loading it, so that a library that is not a plugin never
+// runs a constructor, not even in a trial; nullopt when the file has no
+// section headers to tell (then the trial load decides).
+std::optional<bool> exports_plugin_entry(std::ifstream &in, std::uintmax_t size, const Elf64_Ehdr &eh) {
+    if (eh.e_shoff == 0 || eh.e_shnum == 0 || eh.e_shentsize != sizeof(Elf64_Shdr) || eh.e_shoff > size ||
+        std::uintmax_t(eh.e_shnum) * sizeof(Elf64_Shdr) > size - eh.e_shoff)
+        return std::nullopt;
+    std::vector<Elf64_Shdr> sh(eh.e_shnum);
+    in.clear();
+    in.seekg(static_cast<std::streamoff>(eh.e_shoff));
+    if (!in.read(reinterpret_cast<char *>(sh.data()), static_cast<std::streamsize>(sh.size() * sizeof(Elf64_Shdr)))) return std::nullopt;
+    auto within = [&](const Elf64_Shdr &h) { return h.sh_offset <= size && h.sh_size <= size - h.sh_offset; };
+    auto read = [&](const Elf64_Shdr &h, std::vector<char> &out) {
+        out.resize(h.sh_size);
+        in.clear();
+        in.seekg(static_cast<std::streamoff>(h.sh_offset));
+        return static_cast<bool>(in.read(out.data(), static_cast<std::streamsize>(out.size())));
+    };
+    for (const auto &h : sh) {
+        if (h.sh_type != SHT_DYNSYM) continue;
+        if (h.sh_link >= sh.size() || !within(h) || !within(sh[h.sh_link]) || h.sh_entsize != sizeof(Elf64_Sym)) return std::nullopt;
+        std::vector<char> syms, names;
+        if (!read(h, syms) || !read(sh[h.sh_link], names)) return std::nullopt;
+        constexpr std::string_view prefix = "hz_plugin_entry_v";
+        for (std::size_t off = 0; off + sizeof(Elf64_Sym) <= syms.size(); off += sizeof(Elf64_Sym)) {
+            Elf64_Sym sym;
+            std::memcpy(&sym, syms.data() + off, sizeof sym);
+            if (sym.st_shndx == SHN_UNDEF || sym.st_name >= names.size()) continue;
+            const std::string_view name(names.data() + sym.st_name, strnlen(names.data() + sym.st_name, names.size() - sym.st_name));
+            if (name.starts_with(prefix)) return true;
+        }
+        return false;
+    }
+    return std::nullopt;
+}
+
 }  // namespace
 
 std::optional<std::string> elf_precheck(const fs::path &file) {
@@ -123,6 +165,8 @@ std::optional<std::string> elf_precheck(const fs::path &file) {
                "); this host is " + machine_name(kHostMachine);
     }
     if (eh.e_type != ET_DYN) return "an ELF file but not a shared object (e_type " + std::to_string(eh.e_type) + ")";
+    if (exports_plugin_entry(in, size, eh) == false)
+        return "not a Horizon plugin: no '" HZ_PLUGIN_ENTRY_SYMBOL "' symbol exported";
     return std::nullopt;
 }
 
@@ -254,7 +298,12 @@ void reap(pid_t pid, std::chrono::steady_clock::time_point deadline, ChildResult
 
 ChildResult run_in_child(const std::function<std::string()> &fn, double timeout_s) {
     ChildResult r;
-    const auto [pid, fd] = spawn([&](int out) { write_all(out, fn()); });
+    const auto [pid, fd] = spawn([&](int out) {
+        const pid_t self = ::getpid();
+        std::string s = fn();
+        if (::getpid() != self) ::_exit(0);  // a process `fn` forked reports nothing
+        write_all(out, s);
+    });
     const auto deadline = std::chrono::steady_clock::now() +
                           std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(timeout_s));
     read_child(pid, fd, deadline, r.output, false, r);
@@ -309,8 +358,43 @@ std::string first_line(std::string s) {
 }
 }  // namespace
 
-Module::Module(const fs::path &file) : impl_(std::make_unique<Impl>()), file_(fs::absolute(file)) {
+namespace {
+
+std::optional<FileId> path_id(const fs::path &f) {
+    struct stat st {};
+    if (::stat(f.c_str(), &st) != 0) return std::nullopt;
+    return FileId{static_cast<std::uint64_t>(st.st_dev), static_cast<std::uint64_t>(st.st_ino)};
+}
+
+// The file mapped at `addr` in this process: the stat of its
+// /proc/self/map_files link (what a stat of the path gives, overlay file
+// systems included), else the device and inode /proc/self/maps shows.
+std::optional<FileId> mapped_id(const void *addr) {
+    std::ifstream maps("/proc/self/maps");
+    const auto a = reinterpret_cast<std::uintptr_t>(addr);
+    std::string line;
+    while (std::getline(maps, line)) {
+        unsigned long lo = 0, hi = 0, off = 0, ino = 0;
+        unsigned maj = 0, min = 0;
+        char perms[8] = {};
+        if (std::sscanf(line.c_str(), "%lx-%lx %7s %lx %x:%x %lu", &lo, &hi, perms, &off, &maj, &min, &ino) != 7) continue;
+        if (a < lo || a >= hi) continue;
+        char link[64];
+        std::snprintf(link, sizeof link, "/proc/self/map_files/%lx-%lx", lo, hi);
+        struct stat st {};
+        if (::stat(link, &st) == 0) return FileId{static_cast<std::uint64_t>(st.st_dev), static_cast<std::uint64_t>(st.st_ino)};
+        return FileId{static_cast<std::uint64_t>(makedev(maj, min)), ino};
+    }
+    return std::nullopt;
+}
+
+const char *const kReplaced = "the file was replaced after its trial load: not loaded (the next command tries the new file)";
+
+}  // namespace
+
+Module::Module(const fs::path &file, std::optional<FileId> expect) : impl_(std::make_unique<Impl>()), file_(fs::absolute(file)) {
     namespace dll = boost::dll;
+    if (expect && path_id(file_) != expect) throw Error(kReplaced);
     try {
         impl_->lib.load(file_, dll::load_mode::rtld_now | dll::load_mode::rtld_local);
     } catch (const std::exception &e) {
@@ -337,14 +421,23 @@ Module::Module(const fs::path &file) : impl_(std::make_unique<Impl>()), file_(fs
     if (e.abi.major != HZ_ABI_VERSION_MAJOR)
         throw Error("built for Horizon plugin ABI " + std::to_string(e.abi.major) + "." + std::to_string(e.abi.minor) +
                     "; this host supports ABI " + std::to_string(HZ_ABI_VERSION_MAJOR) + ".x");
+    // The object mapped must be the inode the trial saw (a replacement
+    // between the check above and dlopen): its constructors have run, but
+    // none of its code is called.
+    if (expect && mapped_id(entry_) != expect) throw Error(kReplaced);
     if (!e.init || !e.deinit || !e.get_plugin_count || !e.get_plugin_descriptor || !e.get_interface)
         throw Error("entry has a NULL function pointer");
     bool ok = false;
+    const pid_t self = ::getpid();
     try {
         ok = e.init(host_services(), file_.c_str());
     } catch (...) {
+        if (::getpid() != self) ::_exit(0);
         throw Error("init() threw a C++ exception (exceptions must not cross the ABI)");
     }
+    // A process init() forked must not go on as a second host (a second
+    // trial reporter, or a second command writing the same outputs).
+    if (::getpid() != self) ::_exit(0);
     if (!ok) throw Error("init() returned false (the plugin refused to load; see its log)");
     initialised_ = true;
 }
@@ -367,6 +460,83 @@ void Module::deinit() {
         initialised_ = false;
         entry_->deinit();
     }
+}
+
+namespace {
+
+struct LoadedObject {
+    std::string path;
+    ElfW(Addr) base = 0;
+    const ElfW(Phdr) *phdr = nullptr;
+    int phnum = 0;
+    bool contains(std::uintptr_t a) const {
+        for (int i = 0; i < phnum; ++i)
+            if (phdr[i].p_type == PT_LOAD && a >= base + phdr[i].p_vaddr && a < base + phdr[i].p_vaddr + phdr[i].p_memsz) return true;
+        return false;
+    }
+    // DT_SONAME and DT_NEEDED, read from the dynamic section in memory.
+    void dynamic(std::string &soname, std::vector<std::string> &needed) const {
+        const ElfW(Dyn) *d = nullptr;
+        for (int i = 0; i < phnum; ++i)
+            if (phdr[i].p_type == PT_DYNAMIC) d = reinterpret_cast<const ElfW(Dyn) *>(base + phdr[i].p_vaddr);
+        if (d == nullptr) return;
+        std::uintptr_t strtab = 0;
+        std::vector<ElfW(Xword)> offsets;
+        ElfW(Xword) so = ~ElfW(Xword)(0);
+        for (; d->d_tag != DT_NULL; ++d) {
+            if (d->d_tag == DT_STRTAB) strtab = d->d_un.d_ptr;
+            else if (d->d_tag == DT_NEEDED) offsets.push_back(d->d_un.d_val);
+            else if (d->d_tag == DT_SONAME) so = d->d_un.d_val;
+        }
+        if (strtab == 0) return;
+        // glibc relocates these entries in place where the section is
+        // writable; where it is not, they are still link-time addresses.
+        if (strtab < base) strtab += base;
+        const char *str = reinterpret_cast<const char *>(strtab);
+        if (so != ~ElfW(Xword)(0)) soname = str + so;
+        for (auto o : offsets) needed.emplace_back(str + o);
+    }
+};
+
+int collect_object(dl_phdr_info *info, std::size_t, void *data) {
+    auto &out = *static_cast<std::vector<LoadedObject> *>(data);
+    out.push_back({info->dlpi_name ? info->dlpi_name : "", info->dlpi_addr, info->dlpi_phdr, info->dlpi_phnum});
+    return 0;
+}
+
+}  // namespace
+
+std::vector<std::string> Module::dependencies() const {
+    std::vector<LoadedObject> objects;
+    ::dl_iterate_phdr(collect_object, &objects);
+    const auto self = std::find_if(objects.begin(), objects.end(),
+                                   [&](const LoadedObject &o) { return o.contains(reinterpret_cast<std::uintptr_t>(entry_)); });
+    if (self == objects.end()) return {};
+    std::vector<std::string> sonames(objects.size());
+    std::vector<std::vector<std::string>> needed(objects.size());
+    for (std::size_t i = 0; i < objects.size(); ++i)
+        if (!objects[i].path.empty()) objects[i].dynamic(sonames[i], needed[i]);
+    auto resolve = [&](const std::string &name) -> std::ptrdiff_t {
+        for (std::size_t i = 0; i < objects.size(); ++i)
+            if (!objects[i].path.empty() && (sonames[i] == name || objects[i].path == name || fs::path(objects[i].path).filename() == name))
+                return static_cast<std::ptrdiff_t>(i);
+        return -1;
+    };
+    std::vector<std::string> out;
+    std::set<std::size_t> seen{static_cast<std::size_t>(self - objects.begin())};
+    std::vector<std::size_t> todo(seen.begin(), seen.end());
+    while (!todo.empty()) {
+        const std::size_t k = todo.back();
+        todo.pop_back();
+        for (const auto &n : needed[k]) {
+            const auto j = resolve(n);
+            if (j < 0 || !seen.insert(static_cast<std::size_t>(j)).second) continue;
+            out.push_back(objects[static_cast<std::size_t>(j)].path);
+            todo.push_back(static_cast<std::size_t>(j));
+        }
+    }
+    std::sort(out.begin(), out.end());
+    return out;
 }
 
 std::vector<PluginInfo> Module::plugins() const {
@@ -461,13 +631,19 @@ namespace {
 // inode, size, modification and change times in ns.
 using Stamp = std::array<std::int64_t, 5>;
 
-std::optional<Stamp> stamp_of(const fs::path &f) {
-    struct stat st {};
-    if (::stat(f.c_str(), &st) != 0) return std::nullopt;
+Stamp stamp_from(const struct stat &st) {
     auto ns = [](const timespec &t) { return std::int64_t(t.tv_sec) * 1000000000 + t.tv_nsec; };
     return Stamp{static_cast<std::int64_t>(st.st_dev), static_cast<std::int64_t>(st.st_ino), static_cast<std::int64_t>(st.st_size),
                  ns(st.st_mtim), ns(st.st_ctim)};
 }
+
+std::optional<Stamp> stamp_of(const fs::path &f) {
+    struct stat st {};
+    if (::stat(f.c_str(), &st) != 0) return std::nullopt;
+    return stamp_from(st);
+}
+
+FileId id_of(const Stamp &s) { return {static_cast<std::uint64_t>(s[0]), static_cast<std::uint64_t>(s[1])}; }
 
 std::string key_of(const fs::path &f) {
     std::error_code ec;
@@ -476,8 +652,9 @@ std::string key_of(const fs::path &f) {
 }
 
 // The list of trial loads that passed (Registry::Options::trial_cache):
-// {"format": "horizon-plugin-trials", "version": 1, "passed": [{"file": F,
-// "stamp": [5 integers], "host": EXE, "host_stamp": [5 integers]}, ...]}.
+// {"format": "horizon-plugin-trials", "version": 2, "passed": [{"file": F,
+// "stamp": [5 integers], "deps": [[PATH, [5 integers]], ...], "host": EXE,
+// "host_stamp": [5 integers]}, ...]}. Version 1 lists (no deps) are ignored.
 class TrialList {
 public:
     explicit TrialList(fs::path file) : file_(std::move(file)) {
@@ -501,42 +678,60 @@ public:
         std::ifstream in(file_, std::ios::binary);
         if (!in) return;
         const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
-        if (j.is_discarded() || !j.is_object() || j.value("format", "") != kFormat || j.value("version", 0) != 1 ||
+        if (j.is_discarded() || !j.is_object() || j.value("format", "") != kFormat || j.value("version", 0) != kVersion ||
             !j.contains("passed") || !j["passed"].is_array()) {
-            spdlog::debug("plugin trial list {} ignored: not a version 1 list", file_.string());
+            spdlog::debug("plugin trial list {} ignored: not a version {} list", file_.string(), kVersion);
             return;
         }
         for (const auto &e : j["passed"]) {
             Entry x;
             if (!e.is_object() || !read(e, "file", x.file) || !read(e, "host", x.host) || !read(e, "stamp", x.stamp) ||
-                !read(e, "host_stamp", x.host_stamp))
+                !read(e, "host_stamp", x.host_stamp) || !read_deps(e, x.deps))
                 continue;
             entries_.push_back(std::move(x));
         }
     }
     bool enabled() const { return !file_.empty(); }
-    // Whether `file`, as it is now, passed a trial load by this host.
-    bool vouches(const std::string &file, const Stamp &now) const {
+    // Whether `file`, as it is now, passed a trial load by this host, with
+    // the libraries it needs as they are now.
+    bool vouches(const std::string &file, const Stamp &now) {
         return enabled() && std::any_of(entries_.begin(), entries_.end(), [&](const Entry &e) {
-                   return e.file == file && e.stamp == now && e.host == host_ && e.host_stamp == host_stamp_;
+                   return e.file == file && e.stamp == now && e.host == host_ && e.host_stamp == host_stamp_ &&
+                          std::all_of(e.deps.begin(), e.deps.end(), [&](const auto &d) { return current(d.first) == d.second; });
                });
     }
-    void passed(const std::string &file, const Stamp &now) {
+    // Records a trial that passed, with the libraries it loaded (not
+    // recorded when one of them cannot be stamped).
+    void passed(const std::string &file, const Stamp &now, const std::vector<std::string> &deps) {
         if (!enabled()) return;
         std::erase_if(entries_, [&](const Entry &e) { return e.file == file && e.host == host_; });
-        entries_.push_back({file, now, host_, host_stamp_});
+        Entry x{file, now, {}, host_, host_stamp_};
+        for (const auto &d : deps) {
+            const std::string k = key_of(d);
+            const auto st = current(k);
+            if (!st) return;
+            x.deps.emplace_back(k, *st);
+        }
+        entries_.push_back(std::move(x));
         changed_ = true;
     }
     // Writes the list if it changed (to a temporary file, then renamed over
-    // it), without the entries whose file or host is gone or changed, and
-    // without the oldest beyond kMax.
+    // it), without the entries whose file, libraries or host are gone or
+    // changed, and without the oldest beyond kMax.
     void save() {
         if (!changed_ || !enabled()) return;
-        std::erase_if(entries_, [](const Entry &e) { return stamp_of(e.file) != e.stamp || stamp_of(e.host) != e.host_stamp; });
+        std::erase_if(entries_, [&](const Entry &e) {
+            return current(e.file) != e.stamp || current(e.host) != e.host_stamp ||
+                   std::any_of(e.deps.begin(), e.deps.end(), [&](const auto &d) { return current(d.first) != d.second; });
+        });
         if (entries_.size() > kMax) entries_.erase(entries_.begin(), entries_.end() - kMax);
         nlohmann::json list = nlohmann::json::array();
-        for (const auto &e : entries_) list.push_back({{"file", e.file}, {"stamp", e.stamp}, {"host", e.host}, {"host_stamp", e.host_stamp}});
-        const std::string text = nlohmann::json{{"format", kFormat}, {"version", 1}, {"passed", list}}.dump(1) + "\n";
+        for (const auto &e : entries_) {
+            nlohmann::json deps = nlohmann::json::array();
+            for (const auto &d : e.deps) deps.push_back({d.first, d.second});
+            list.push_back({{"file", e.file}, {"stamp", e.stamp}, {"deps", deps}, {"host", e.host}, {"host_stamp", e.host_stamp}});
+        }
+        const std::string text = nlohmann::json{{"format", kFormat}, {"version", kVersion}, {"passed", list}}.dump(1) + "\n";
         std::error_code ec;
         fs::create_directories(file_.parent_path(), ec);
         try {
@@ -548,23 +743,45 @@ public:
 
 private:
     static constexpr const char *kFormat = "horizon-plugin-trials";
+    static constexpr int kVersion = 2;
     static constexpr std::size_t kMax = 256;
     struct Entry {
         std::string file;
         Stamp stamp{};
+        std::vector<std::pair<std::string, Stamp>> deps;
         std::string host;
         Stamp host_stamp{};
     };
+    // A file's stamp now, each file stat()ed once per list (most plugins
+    // share the C and C++ runtimes).
+    std::optional<Stamp> current(const std::string &f) {
+        const auto it = stamps_.find(f);
+        if (it != stamps_.end()) return it->second;
+        return stamps_[f] = stamp_of(f);
+    }
     static bool read(const nlohmann::json &e, const char *key, std::string &out) {
         if (!e.contains(key) || !e[key].is_string()) return false;
         out = e[key].get<std::string>();
         return true;
     }
     static bool read(const nlohmann::json &e, const char *key, Stamp &out) {
-        if (!e.contains(key) || !e[key].is_array() || e[key].size() != out.size()) return false;
+        if (!e.contains(key)) return false;
+        return read_stamp(e[key], out);
+    }
+    static bool read_stamp(const nlohmann::json &v, Stamp &out) {
+        if (!v.is_array() || v.size() != out.size()) return false;
         for (std::size_t i = 0; i < out.size(); ++i) {
-            if (!e[key][i].is_number_integer()) return false;
-            out[i] = e[key][i].get<std::int64_t>();
+            if (!v[i].is_number_integer()) return false;
+            out[i] = v[i].get<std::int64_t>();
+        }
+        return true;
+    }
+    static bool read_deps(const nlohmann::json &e, std::vector<std::pair<std::string, Stamp>> &out) {
+        if (!e.contains("deps") || !e["deps"].is_array()) return false;
+        for (const auto &d : e["deps"]) {
+            Stamp st{};
+            if (!d.is_array() || d.size() != 2 || !d[0].is_string() || !read_stamp(d[1], st)) return false;
+            out.emplace_back(d[0].get<std::string>(), st);
         }
         return true;
     }
@@ -572,21 +789,44 @@ private:
     std::string host_;
     Stamp host_stamp_{};
     std::vector<Entry> entries_;
+    std::map<std::string, std::optional<Stamp>> stamps_;
     bool changed_ = false;
 };
 
-// A trial load of `file`, as a one-line JSON report: {"ok": true, "count": N}
-// or {"ok": false, "reason": "..."}.
-std::string trial_report(const fs::path &file) {
+// A trial load of `file`, as a one-line JSON report: {"ok": true, "count":
+// N, "deps": [PATH, ...], "index": I} or {"ok": false, "reason": "...",
+// "index": I}; `index` tells the reports of one child apart.
+std::string trial_report(const fs::path &file, std::optional<FileId> expect, std::size_t index) {
     try {
-        Module m(file);
+        Module m(file, expect);
         auto ps = m.plugins();
+        auto deps = m.dependencies();
         m.deinit();
-        return nlohmann::json{{"ok", true}, {"count", ps.size()}}.dump();
+        return nlohmann::json{{"ok", true}, {"count", ps.size()}, {"deps", deps}, {"index", index}}.dump();
     } catch (const std::exception &e) {
-        return nlohmann::json{{"ok", false}, {"reason", e.what()}}.dump();
+        return nlohmann::json{{"ok", false}, {"reason", e.what()}, {"index", index}}.dump();
     }
 }
+
+// A file held open from its stamp to its load, so that the stamp and the
+// trial name one inode (the loads check they got that one).
+struct Candidate {
+    fs::path file;
+    std::string key;  // absolute, normal form (the trial list's name)
+    std::optional<Stamp> stamp;
+    int fd = -1;
+    explicit Candidate(fs::path f) : file(std::move(f)), key(key_of(file)) {
+        fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+        struct stat st {};
+        if (fd >= 0 && ::fstat(fd, &st) == 0) stamp = stamp_from(st);
+    }
+    ~Candidate() {
+        if (fd >= 0) ::close(fd);
+    }
+    Candidate(Candidate &&o) noexcept : file(std::move(o.file)), key(std::move(o.key)), stamp(o.stamp), fd(std::exchange(o.fd, -1)) {}
+    Candidate(const Candidate &) = delete;
+    std::optional<FileId> id() const { return stamp ? std::optional<FileId>(id_of(*stamp)) : std::nullopt; }
+};
 
 }  // namespace
 
@@ -635,25 +875,45 @@ private:
 
 void Registry::scan(const std::vector<fs::path> &dirs) {
     StdoutToStderr quiet;
-    std::vector<fs::path> files;  // every candidate, in search order
+    std::vector<Candidate> files;  // every candidate, in search order
     for (const auto &dir : dirs) {
         searched_.push_back(dir);
         std::error_code ec;
         if (!fs::is_directory(dir, ec)) continue;
-        std::vector<fs::path> here;
-        for (const auto &de : fs::directory_iterator(dir, fs::directory_options::skip_permission_denied, ec))
-            if ((de.is_regular_file(ec) || de.is_symlink(ec)) && is_candidate(de.path())) here.push_back(de.path());
+        // NAME.so in the folder, and in its sub-folders one level down (a
+        // plugin shipped as a folder with its README, licence and data, as
+        // CLAP bundles are); each sub-folder's files after the folder's own.
+        std::vector<std::pair<fs::path, bool>> here;  // file, its folder open to all
+        std::vector<fs::path> subdirs;
+        for (const auto &de : fs::directory_iterator(dir, fs::directory_options::skip_permission_denied, ec)) {
+            if ((de.is_regular_file(ec) || de.is_symlink(ec)) && is_candidate(de.path())) here.emplace_back(de.path(), false);
+            else if (de.is_directory(ec) && !de.path().filename().string().starts_with(".")) subdirs.push_back(de.path());
+        }
         std::sort(here.begin(), here.end());
+        std::sort(subdirs.begin(), subdirs.end());
+        for (const auto &sub : subdirs) {
+            std::vector<std::pair<fs::path, bool>> inside;
+            for (const auto &de : fs::directory_iterator(sub, fs::directory_options::skip_permission_denied, ec))
+                if ((de.is_regular_file(ec) || de.is_symlink(ec)) && is_candidate(de.path())) inside.emplace_back(de.path(), world_writable(sub));
+            std::sort(inside.begin(), inside.end());
+            here.insert(here.end(), inside.begin(), inside.end());
+        }
         const bool open_dir = world_writable(dir);
-        for (auto &f : here) {
-            if (open_dir) reject(f, "its folder is world-writable (anyone could replace it): not loaded");
+        for (auto &[f, open_sub] : here) {
+            const bool in_sub = f.parent_path() != dir;
+            if (open_dir || open_sub) reject(f, "its folder is world-writable (anyone could replace it): not loaded");
             else if (world_writable(f)) reject(f, "the file is world-writable (anyone could replace it): not loaded");
-            else if (auto why = elf_precheck(f)) reject(f, *why);
-            else files.push_back(std::move(f));
+            else if (auto why = elf_precheck(f)) {
+                // A sub-folder's other libraries are the plugin's own (the
+                // images loader's OpenImageIO backend): not plugins, not
+                // reported.
+                if (in_sub && why->starts_with("not a Horizon plugin: no")) spdlog::debug("{} is not a plugin: {}", f.string(), *why);
+                else reject(f, *why);
+            } else files.emplace_back(std::move(f));
         }
     }
     if (!options_.isolate) {
-        for (const auto &f : files) load(f);
+        for (const auto &c : files) load(c.file, c.id());
         return;
     }
     // Files the trial list vouches for are loaded at once; the others go to
@@ -662,18 +922,11 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
     // next (a fork per file cost about 1 ms each, twice the loading). A file
     // the child dies or hangs on is rejected, and a new child goes on after
     // it. Either way the files are loaded in search order (the first plugin
-    // with a given id wins).
+    // with a given id wins), each the inode its trial saw.
     TrialList list(options_.trial_cache);
-    std::vector<std::string> keys(files.size());
-    std::vector<std::optional<Stamp>> stamps(files.size());
     std::vector<std::size_t> todo;  // the files to trial-load, in order
-    for (std::size_t i = 0; i < files.size(); ++i) {
-        if (list.enabled()) {
-            keys[i] = key_of(files[i]);
-            stamps[i] = stamp_of(files[i]);
-        }
-        if (!stamps[i] || !list.vouches(keys[i], *stamps[i])) todo.push_back(i);
-    }
+    for (std::size_t i = 0; i < files.size(); ++i)
+        if (!files[i].stamp || !list.vouches(files[i].key, *files[i].stamp)) todo.push_back(i);
     const auto limit = std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(options_.timeout_s));
     pid_t pid = -1;
     int fd = -1;
@@ -684,7 +937,13 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
     auto start_child = [&] {
         const std::size_t from = next;
         std::tie(pid, fd) = spawn([&, from](int out) {
-            for (std::size_t k = from; k < todo.size(); ++k) write_all(out, trial_report(files[todo[k]]) + "\n");
+            const pid_t self = ::getpid();
+            for (std::size_t k = from; k < todo.size(); ++k) {
+                const Candidate &c = files[todo[k]];
+                std::string report = trial_report(c.file, c.id(), todo[k]);
+                if (::getpid() != self) ::_exit(0);  // a process the plugin forked: it reports nothing
+                write_all(out, report + "\n");
+            }
         });
         buf.clear();
         r = ChildResult{};
@@ -698,22 +957,35 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
     trial_loads_ += todo.size();  // (each tried once, by the child running when it is reached)
     if (!todo.empty()) start_child();
     for (std::size_t i = 0; i < files.size(); ++i) {
+        const Candidate &c = files[i];
         if (next == todo.size() || todo[next] != i) {  // vouched for
-            load(files[i]);
+            load(c.file, c.id());
             continue;
         }
         if (pid < 0) start_child();
         ++next;
         if (read_child(pid, fd, deadline, buf, true, r) != 1) {  // died or hung on this file
             end_child();
-            reject(files[i], trial_failure(r));
+            reject(c.file, trial_failure(r));
             continue;
         }
         const std::size_t nl = buf.find('\n');
         const std::string report = buf.substr(0, nl);
         buf.erase(0, nl + 1);
         deadline = std::chrono::steady_clock::now() + limit;
-        if (take_report(files[i], report, "trial load gave a malformed report") && stamps[i]) list.passed(keys[i], *stamps[i]);
+        const nlohmann::json j = nlohmann::json::parse(report, nullptr, false);
+        if (j.is_discarded() || !j.is_object() || j.value("index", std::size_t(-1)) != i) {
+            // Not this file's report: nothing the child says can be matched
+            // to a file any more; a new child goes on after this one.
+            end_child();
+            reject(c.file, "its trial load's report came out of order (did its init() start a process?): not loaded");
+            continue;
+        }
+        std::vector<std::string> deps;
+        if (j.contains("deps") && j["deps"].is_array())
+            for (const auto &d : j["deps"])
+                if (d.is_string()) deps.push_back(d.get<std::string>());
+        if (take_report(c.file, report, "trial load gave a malformed report", c.id()) && c.stamp) list.passed(c.key, *c.stamp, deps);
     }
     if (pid >= 0) end_child();
     list.save();
@@ -725,7 +997,8 @@ std::string Registry::trial_failure(const ChildResult &r) const {
     return "trial load " + r.describe() + " without a report";
 }
 
-bool Registry::take_report(const fs::path &file, const std::string &report, const std::string &if_malformed) {
+bool Registry::take_report(const fs::path &file, const std::string &report, const std::string &if_malformed,
+                           std::optional<FileId> expect) {
     const nlohmann::json j = nlohmann::json::parse(report, nullptr, false);
     if (j.is_discarded() || !j.contains("ok") || !j["ok"].is_boolean()) {
         reject(file, if_malformed);
@@ -735,7 +1008,7 @@ bool Registry::take_report(const fs::path &file, const std::string &report, cons
         reject(file, j.contains("reason") && j["reason"].is_string() ? j["reason"].get<std::string>() : if_malformed);
         return false;
     }
-    load(file);
+    load(file, expect);
     return true;
 }
 
@@ -746,19 +1019,20 @@ void Registry::reject(const fs::path &file, const std::string &why) {
 
 void Registry::add_file(const fs::path &file) {
     if (auto why = elf_precheck(file)) return reject(file, *why);
+    const Candidate c(file);
     if (options_.isolate) {
         ++trial_loads_;
-        const ChildResult r = run_in_child([&] { return trial_report(file); }, options_.timeout_s);
+        const ChildResult r = run_in_child([&] { return trial_report(c.file, c.id(), 0); }, options_.timeout_s);
         if (r.timed_out || r.signal != 0) return reject(file, trial_failure(r));
-        take_report(file, r.output, trial_failure(r));
+        take_report(file, r.output, trial_failure(r), c.id());
         return;
     }
-    load(file);
+    load(file, c.id());
 }
 
-void Registry::load(const fs::path &file) {
+void Registry::load(const fs::path &file, std::optional<FileId> expect) {
     try {
-        auto module = std::make_shared<Module>(file);
+        auto module = std::make_shared<Module>(file, expect);
         for (auto &p : module->plugins()) {
             if (const LoadedPlugin *prev = find(p.id)) {
                 reject(file, "duplicate plugin id '" + p.id + "' (already provided by " + prev->info.file + ")");

@@ -207,6 +207,92 @@ class PluginsTest(TempDirTest):
         self.assertEqual(p.returncode, -11, p.stderr)
         self.assertIn("the plugin " + os.path.join(d, "fx_eval_crash.so") + " crashed (SIGSEGV)", p.stderr)
 
+    def test_a_changed_library_of_a_plugin_is_tried_again(self):
+        """The trial list vouches for a plugin with the libraries it needs as
+        they were: after an upgrade of one (here its own library, swapped
+        for a build that crashes) the plugin is tried again and rejected,
+        instead of loaded untried into the host, which it would kill."""
+        lst = self.path("trials.json")
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(FIXTURES, "fx_dep.so"), d)
+        deps = os.path.join(os.path.dirname(FIXTURES), "deps")
+        lib = os.path.join(d, "libhzfxdep.so.1")
+        shutil.copy(os.path.join(deps, "libhzfxdep_ok.so"), lib)
+        env = {"HORIZON_PLUGIN_CACHE": lst}
+
+        def listing():
+            return run_json("--plugin-dir", d, "plugins", "--json", env=env)
+
+        first = listing()
+        self.assertIn("org.horizon.test.fixture", {p["id"] for p in first["plugins"]})
+        with open(lst) as f:
+            entry = next(e for e in json.load(f)["passed"] if e["file"] == os.path.join(d, "fx_dep.so"))
+        self.assertIn(lib, [dep for dep, _ in entry["deps"]])
+        self.assertTrue(any(os.path.basename(dep).startswith("libc.so") for dep, _ in entry["deps"]), entry["deps"])
+        self.assertEqual(listing()["trial_loads"], 0)
+        os.replace(shutil.copy(os.path.join(deps, "libhzfxdep_crash.so"), lib + ".new"), lib)
+        again = listing()
+        self.assertEqual(again["trial_loads"], 1)
+        self.assertNotIn("org.horizon.test.fixture", {p["id"] for p in again["plugins"]})
+        self.assertEqual([(r["file"], "SIGSEGV" in r["reason"]) for r in again["rejected"]], [(os.path.join(d, "fx_dep.so"), True)])
+
+    def test_a_plugin_replaced_after_its_trial_is_not_loaded(self):
+        """The file's trial load renames another plugin (one that crashes in
+        init) over it before the host loads it: the host loads only the inode
+        the trial saw, so it refuses the replacement with a reason, and the
+        next command tries the new file (and rejects it)."""
+        d = self.path("plugins")
+        os.mkdir(d)
+        target = os.path.join(d, "fx_replaces_itself.so")
+        shutil.copy(os.path.join(FIXTURES, "fx_replaces_itself.so"), target)
+        replacement = self.path("replacement.so")
+        shutil.copy(os.path.join(FIXTURES, "fx_init_crash.so"), replacement)
+        env = {"HORIZON_PLUGIN_CACHE": "off", "HZ_FIXTURE_REPLACEMENT": replacement}
+        p = run("--plugin-dir", d, "plugins", "--json", env=env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        j = json.loads(p.stdout)
+        self.assertFalse(os.path.exists(replacement), "the trial did not replace the file")
+        self.assertNotIn("org.horizon.test.fixture", {q["id"] for q in j["plugins"]})
+        self.assertEqual([(r["file"], "replaced after its trial" in r["reason"]) for r in j["rejected"]], [(target, True)], j["rejected"])
+        j = run_json("--plugin-dir", d, "plugins", "--json", env=env)
+        self.assertEqual([(r["file"], "SIGSEGV" in r["reason"]) for r in j["rejected"]], [(target, True)], j["rejected"])
+
+    def test_an_init_that_forks_changes_nothing(self):
+        """A plugin whose init() forks (both processes return true) comes
+        before one that crashes in init: the forked trial process must not
+        report, or the reports shift and the crashing plugin is loaded; nor
+        may a process forked in the host go on as a second command."""
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(FIXTURES, "fx_init_forks.so"), os.path.join(d, "a_forks.so"))
+        shutil.copy(os.path.join(FIXTURES, "fx_init_crash.so"), os.path.join(d, "b_crashes.so"))
+        for cache in ("off", self.path("trials.json"), self.path("trials.json")):
+            p = run("--plugin-dir", d, "plugins", "--json", env={"HORIZON_PLUGIN_CACHE": cache})
+            self.assertEqual(p.returncode, 0, p.stderr)
+            j = json.loads(p.stdout)  # one document: no second host printed one
+            self.assertIn("org.horizon.test.fixture", {q["id"] for q in j["plugins"] if q["file"].endswith("a_forks.so")})
+            self.assertEqual([(os.path.basename(r["file"]), "SIGSEGV" in r["reason"]) for r in j["rejected"]], [("b_crashes.so", True)])
+
+    def test_plugins_in_sub_folders(self):
+        """One level of sub-folders is searched (a plugin shipped as a folder);
+        a sub-folder's libraries that are not plugins are its own, not
+        reported; deeper folders and other files are not looked at."""
+        d = self.path("plugins")
+        bundle = os.path.join(d, "lambert")
+        os.makedirs(os.path.join(bundle, "deeper"))
+        shutil.copy(os.path.join(TEMPLATES, "tpl_lambert_shader.so"), bundle)
+        shutil.copy(os.path.join(FIXTURES, "fx_no_entry.so"), os.path.join(bundle, "libprivate.so"))
+        shutil.copy(os.path.join(FIXTURES, "fx_valid.so"), os.path.join(bundle, "deeper"))
+        for name in ("LICENSE.txt", "README.md"):
+            with open(os.path.join(bundle, name), "w") as f:
+                f.write("text\n")
+        shutil.copy(os.path.join(FIXTURES, "fx_no_entry.so"), d)
+        j = run_json("--plugin-dir", d, "plugins", "--json")
+        mine = [p for p in j["plugins"] if p["file"].startswith(d)]
+        self.assertEqual([(p["id"], p["file"]) for p in mine], [("org.example.shader.lambert", os.path.join(bundle, "tpl_lambert_shader.so"))])
+        self.assertEqual([r["file"] for r in j["rejected"]], [os.path.join(d, "fx_no_entry.so")])
+
     def test_a_trial_list_that_is_not_a_file_is_not_used(self):
         # A FIFO would block every command; a folder made every command fail.
         fifo, folder = self.path("fifo"), self.path("folder")

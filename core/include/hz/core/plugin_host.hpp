@@ -69,12 +69,23 @@ struct PluginInfo {
 };
 const char *plugin_kind_name(hz_plugin_kind k);
 
+// Which file (device, inode) a path or a mapping is.
+struct FileId {
+    std::uint64_t dev = 0, ino = 0;
+    bool operator==(const FileId &) const = default;
+};
+
 // One loaded library (kept resident until exit).
 class Module {
 public:
     // Loads `file`, checks the entry and calls init(). Throws Error with a
-    // one-line reason (not naming the file; the caller does).
-    explicit Module(const fs::path &file);
+    // one-line reason (not naming the file; the caller does). With `expect`,
+    // the file must be that inode (the one its trial load saw), checked on
+    // the path before dlopen and on the mapped object after, before init():
+    // a file replaced in between is refused, never run. A process that
+    // init() forks ends (_exit(0)) the moment init() returns to the host,
+    // so only the host goes on.
+    explicit Module(const fs::path &file, std::optional<FileId> expect = std::nullopt);
     ~Module();
     Module(const Module &) = delete;
     Module &operator=(const Module &) = delete;
@@ -84,6 +95,9 @@ public:
     const void *interface(const std::string &plugin_id, const char *iface) const;
     void deinit();
     const fs::path &file() const { return file_; }
+    // The loaded file's shared-library dependencies, resolved as the dynamic
+    // linker found them: the DT_NEEDED closure, as absolute paths.
+    std::vector<std::string> dependencies() const;
 
 private:
     struct Impl;
@@ -134,8 +148,10 @@ public:
         double timeout_s = 10.0;   // per trial load
         // A JSON file of the plugin files whose trial load passed, each with
         // what identified it then (device, inode, size, modification and
-        // change times) and the host that tried it (the executable's same
-        // stamp). A file listed unchanged, for this host, is loaded without
+        // change times), the same stamp of every shared library it needs
+        // (the DT_NEEDED closure the trial loaded: a system upgrade that
+        // changes one is a new trial), and the host that tried it (the
+        // executable's stamp). A file listed unchanged, for this host, is loaded without
         // a new trial: the child's fork and its loading of every plugin
         // cost `horizon info` on a small file 4-5 ms of its 15 ms. Any
         // change to the file or the host, or a file missing from the list,
@@ -167,11 +183,13 @@ public:
 
 private:
     void reject(const fs::path &file, const std::string &why);
-    void load(const fs::path &file);  // in this process, after its trial
+    // In this process, after its trial; `expect`: the inode the trial saw.
+    void load(const fs::path &file, std::optional<FileId> expect = std::nullopt);
     // Acts on a trial load's JSON report: loads the file (returns true: the
     // trial passed), or rejects it with the plugin's reason, or with
     // `if_malformed` when the report is not one.
-    bool take_report(const fs::path &file, const std::string &report, const std::string &if_malformed);
+    bool take_report(const fs::path &file, const std::string &report, const std::string &if_malformed,
+                     std::optional<FileId> expect = std::nullopt);
     std::string trial_failure(const ChildResult &r) const;  // why a trial load gave no report
 
     Options options_;
