@@ -133,6 +133,11 @@ bool have_display();
 int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o);
 std::pair<int, int> parse_size(const std::string &s);
 int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o);
+// Compiles the renderer's fragment programs around `shader`'s GLSL (each
+// domain it declares, uniform and baked parameters) with glslang as GLSL
+// 4.10 core, without a GPU; returns the first error, located in the
+// snippet's own lines, or nullopt when every program compiles.
+std::optional<std::string> glsl_offline_error(const core::LoadedPlugin &shader);
 // GPU equals CPU for one shading plugin of `reg` (needs a current GL context).
 struct ShaderGpuResult {
     int sets = 0;

@@ -1020,6 +1020,18 @@ std::vector<Check> catalogue() {
                      }
                      return pass();
                  }});
+    c.push_back({"shader-glsl-compiles", HZ_KIND_SHADER, "the host's programs built around the GLSL compile as GLSL 4.10 core (glslang, no GPU needed; errors at the snippet's lines)", [](const Ctx &x) {
+                     core::Registry reg(core::Registry::Options{false, 10.0, {}});
+                     reg.add_module(x.module);
+                     const core::LoadedPlugin *p = reg.find(x.plugin.id);
+                     if (p == nullptr || p->shader() == nullptr) return fail("the shader interface does not resolve");
+                     try {
+                         if (auto e = glsl_offline_error(*p)) return fail("GLSL compile error in the " + *e);
+                     } catch (const std::exception &e) {
+                         return fail(e.what());
+                     }
+                     return pass();
+                 }});
     c.push_back({"shader-reference-finite-nonnegative", HZ_KIND_SHADER, "CPU reference is finite and >= 0 over sampled directions and parameters, grazing and degenerate cases included", [](const Ctx &x) {
                      const hz_shader &s = shader_of(x);
                      if (!s.eval_reference) return fail("no eval_reference");
@@ -1087,11 +1099,31 @@ std::vector<Check> catalogue() {
                                  double rgb[3] = {-1, -1, -1};
                                  const hz_status st = s.eval_reference(&p, params.data(), static_cast<uint32_t>(params.size()), rgb);
                                  ++evaluated;
-                                 if (st != HZ_OK) return fail("eval_reference returned status " + std::to_string(st) + " on valid input");
+                                 static const char *const kCase[] = {"random directions", "l = n", "l = -v", "grazing light", "grazing light and view",
+                                                                     "tangent along n", "no tangent", "l and v in the horizon", "light along the tangent",
+                                                                     "random directions"};
+                                 // The inputs, as a case `horizon brdf` reads (to reproduce it).
+                                 auto inputs = [&] {
+                                     const std::string& id = x.plugin.id;
+                                     nlohmann::json c{{"id", "validate"}, {"model", id.substr(id.rfind('.') + 1)}, {"N", p.n}, {"L", p.l}, {"V", p.v}};
+                                     if (d == HZ_SHADE_LINE) c["T"] = p.t;
+                                     else c["X"] = p.t, c["Y"] = p.b;
+                                     nlohmann::json values = nlohmann::json::object();
+                                     std::size_t at = 0;
+                                     for (uint32_t i = 0; i < s.param_count; ++i) {
+                                         const hz_param_info *pi = s.get_param(i);
+                                         if (pi->components == 1) values[pi->name] = params[at];
+                                         else values[pi->name] = std::vector<double>(params.begin() + at, params.begin() + at + pi->components);
+                                         at += pi->components;
+                                     }
+                                     c["params"] = values;
+                                     return std::string(" (") + kCase[k % 10] + "); reproduce with: echo '" + c.dump() +
+                                            "' | horizon brdf --shader " + x.plugin.id;
+                                 };
+                                 if (st != HZ_OK) return fail("eval_reference returned status " + std::to_string(st) + " on valid input" + inputs());
                                  for (double c : rgb) {
-                                     if (!std::isfinite(c)) return fail("non-finite output (case " + std::to_string(k % 10) + ")");
-                                     if (c < 0) return fail("negative output " + std::to_string(c) + " (case " + std::to_string(k % 10) + ", l=(" +
-                                                            std::to_string(p.l[0]) + "," + std::to_string(p.l[1]) + "," + std::to_string(p.l[2]) + "))");
+                                     if (!std::isfinite(c)) return fail(std::string("non-finite output (") + (std::isnan(c) ? "NaN" : "Inf") + ")" + inputs());
+                                     if (c < 0) return fail("negative output " + std::to_string(c) + inputs());
                                  }
                              }
                      }

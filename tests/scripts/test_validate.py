@@ -3,9 +3,11 @@ fails broken fixtures naming the failing check, survives crashes and hangs."""
 import glob
 import json
 import os
+import shutil
+import subprocess
 import unittest
 
-from hztest import BUNDLED, FIXTURES, TEMPLATES, TempDirTest, run
+from hztest import BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, environment, run
 
 
 def checks(report):
@@ -88,6 +90,36 @@ class ValidateTest(TempDirTest):
         self.assertEqual(p.returncode, 0)
         self.assertEqual(checks(json.loads(p.stdout))["shader-gpu-equals-cpu"]["status"], "skipped")
 
+    def test_broken_glsl_fails_at_the_snippets_line(self):
+        """Line 3 of the fixture's snippet uses an undeclared name: with
+        headless OpenGL (the driver's compiler, in the GPU check) and without
+        it (glslang, which needs no GPU) validate fails naming that line of
+        the snippet, not a line of the host's assembled program; rendering
+        with the shader says the same."""
+        shader = os.path.join(FIXTURES, "fx_broken_glsl.so")
+        for env, gpu in (({}, True), ({"__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent.json"}, False)):
+            p = run("validate", shader, "--json", env=env, timeout=300)
+            self.assertEqual(p.returncode, 1, p.stderr)
+            c = checks(json.loads(p.stdout))
+            self.assertEqual(c["shader-glsl-compiles"]["status"], "failed")
+            self.assertIn("the plugin's GLSL snippet, line 3:", c["shader-glsl-compiles"]["reason"])
+            self.assertIn("not_declared", c["shader-glsl-compiles"]["reason"])
+            if gpu:
+                self.assertIn("the plugin's GLSL snippet, line 3, column", c["shader-gpu-equals-cpu"]["reason"])
+        scene = self.path("scene.json")
+        with open(scene, "w") as f:
+            json.dump({"objects": [{"type": "surface", "builtin": "sphere", "material": {"shader": "org.horizon.test.fixture"}}]}, f)
+        p = run("--plugin-dir", os.path.dirname(shader), "render", scene, "-o", self.path("x.png"), env={"HORIZON_PLUGIN_CACHE": "off"}, timeout=120)
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("the plugin's GLSL snippet, line 3, column", p.stderr)
+
+    def test_every_bundled_shader_compiles_as_strict_glsl(self):
+        # glslang holds the programs to GLSL 4.10 as written (Mesa accepts
+        # more, e.g. line continuations, which came in 4.20).
+        for name in ("hz_shader_classic.so", "hz_shader_glass.so", "hz_shader_principled.so"):
+            rc, rep = self.validate(os.path.join(BUNDLED, name))
+            self.assertEqual(checks(rep)["shader-glsl-compiles"]["status"], "passed", name)
+
     def test_bundled_loader_runs_the_loader_checks(self):
         rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_tck.so"))
         c = checks(rep)
@@ -168,7 +200,19 @@ class ValidateTest(TempDirTest):
         self.assertEqual(c["shader-schema-wellformed"]["status"], "failed")
         self.assertIn("default", c["shader-schema-wellformed"]["reason"])
         self.assertEqual(c["shader-reference-finite-nonnegative"]["status"], "failed")
-        self.assertIn("negative", c["shader-reference-finite-nonnegative"]["reason"])
+        reason = c["shader-reference-finite-nonnegative"]["reason"]
+        self.assertIn("negative", reason)
+        # The failure gives its inputs as a case `horizon brdf` reads: run,
+        # it gives the same negative value.
+        case = reason.split("reproduce with: echo '")[1].split("' | horizon brdf --shader org.horizon.test.fixture")[0]
+        d = self.path("one")
+        os.mkdir(d)
+        shutil.copy(os.path.join(FIXTURES, "fx_broken_shader.so"), d)
+        p = subprocess.run([HORIZON, "--plugin-dir", d, "brdf", "--shader", "org.horizon.test.fixture"], input=case + "\n", capture_output=True,
+                           text=True, timeout=60, env=environment("brdf", env={"HORIZON_PLUGIN_CACHE": "off"}))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        value = json.loads(p.stdout)["value"]
+        self.assertAlmostEqual(value[0], float(reason.split("negative output ")[1].split(" ")[0]), places=5)
         text = run("validate", os.path.join(FIXTURES, "fx_broken_shader.so"))
         self.assertEqual(text.returncode, 1)
         self.assertIn("failed   shader-schema-wellformed", text.stdout)

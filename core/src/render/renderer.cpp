@@ -5,6 +5,7 @@
 
 #include "gl.hpp"
 #include "glsl.hpp"
+#include "programs.hpp"
 #include "shell_proxy.hpp"
 
 #include <glm/glm.hpp>
@@ -122,7 +123,7 @@ GLuint compile_shader(GLenum type, const std::string &src, const std::string &wh
             }
         if (first.empty()) first = log.substr(0, log.find('\n'));
         spdlog::debug("{}: GLSL log:\n{}", what, log);
-        throw Error(what + ": GLSL compile error: " + first);
+        throw Error(what + ": GLSL compile error in " + glsl_error_where(first));
     }
     return s;
 }
@@ -769,109 +770,21 @@ struct Renderer::Impl {
         program_for(g, display_direct ? Output::Display : Output::Hdr);
     }
 
-    // A GLSL float literal that reads back as float(v) exactly.
-    static std::string glsl_float(double v) {
-        char buf[32];
-        std::snprintf(buf, sizeof buf, "%.9g", double(float(v)));
-        std::string t = buf;
-        if (t.find_first_of(".e") == std::string::npos) t += ".0";
-        return t;
-    }
-
-    // Baked materials: parameter `pi` (values v) as a constant of the
-    // program instead of a uniform, so the compiler folds every expression
-    // of the parameters (and of a colour every vertex shares) once, instead
-    // of per fragment. Returns false for a type it does not bake.
-    static bool bake_declaration(std::ostringstream &decl, const hz_param_info *pi, const std::string &u, const double *v,
-                                 const GpuObject &g) {
-        switch (pi->type) {
-        case HZ_PARAM_FLOAT: decl << "const float " << u << " = " << glsl_float(v[0]) << ";\n"; return true;
-        case HZ_PARAM_INT:
-        case HZ_PARAM_ENUM: decl << "const int " << u << " = " << std::llround(v[0]) << ";\n"; return true;
-        case HZ_PARAM_BOOL: decl << "const bool " << u << " = " << (std::llround(v[0]) != 0 ? "true" : "false") << ";\n"; return true;
-        case HZ_PARAM_VEC2: decl << "const vec2 " << u << " = vec2(" << glsl_float(v[0]) << ", " << glsl_float(v[1]) << ");\n"; return true;
-        case HZ_PARAM_VEC3:
-        case HZ_PARAM_COLOR3:
-            if (pi->name == g.albedo) {
-                if (!g.uniform_rgba) return false;  // per-vertex colours
-                const auto &c = *g.uniform_rgba;
-                decl << "const vec3 " << u << " = vec3(" << glsl_float(c[0] / 255.0) << ", " << glsl_float(c[1] / 255.0) << ", "
-                     << glsl_float(c[2] / 255.0) << ");  // the colour every vertex has\n#define HZ_ALBEDO " << u << "\n";
-                return true;
-            }
-            decl << "const vec3 " << u << " = vec3(" << glsl_float(v[0]) << ", " << glsl_float(v[1]) << ", " << glsl_float(v[2]) << ");\n";
-            return true;
-        default: return false;
-        }
-    }
-
     std::string fragment_source(const GpuObject &g, Output out) const {
-        const bool debug = out == Output::Debug;
-        const hz_shader *sh = g.shader->shader();
-        const hz_shade_domain dom = g.use_line_domain ? HZ_SHADE_LINE : HZ_SHADE_SURFACE;
-        const char *snippet = sh->glsl_source(dom, 410);
-        if (!snippet) throw Error("shader '" + g.shader->info.id + "' gave no GLSL for this geometry");
-        std::ostringstream s;
-        s << "#version 410 core\n";
-        s << (g.geom == Geom::Mesh ? "#define HZ_GEOM_MESH 1\n" : g.geom == Geom::Tube ? "#define HZ_GEOM_TUBE 1\n" : "#define HZ_GEOM_LINE 1\n");
-        s << (dom == HZ_SHADE_LINE ? "#define HZ_DOMAIN_LINE 1\n" : "#define HZ_DOMAIN_SURFACE 1\n");
-        if (sh->output == HZ_SHADER_OUTPUT_BRDF) s << "#define HZ_OUTPUT_BRDF 1\n";
-        if (sh->output == HZ_SHADER_OUTPUT_EMISSION) s << "#define HZ_OUTPUT_EMISSION 1\n";
-        if (debug) s << "#define HZ_DEBUG_OUTPUTS 1\n";
-        if (out == Output::Display) s << "#define HZ_DISPLAY 1\n";
-        s << "#define HZ_TONEMAP " << tone_curve() << "\n";
-        // Lights and environment as constants (see kShadeMain); with no
-        // light at all, one black light keeps the arrays non-empty.
-        // Light i is directional (l = a uniform unit vector) or a point light
-        // (l normalised per fragment), fixed in the program.
-        const std::vector<Light> ls = lights();
-        const std::size_t nl = debug ? 1 : std::clamp<std::size_t>(ls.size(), 1, 8);
-        s << "#define HZ_NB_LIGHTS " << nl << "\n";
-        s << "#define HZ_UNIT_VECTORS 1\n";
-        s << "#define HZ_APPLY_LIGHTS";
-        for (std::size_t i = 0; i < nl; ++i) {
-            const bool point = i < ls.size() && ls[i].type == "point";
-            s << " \\\n    p.l = " << (point ? "hz_safe_normalize(hz_light_vec[" + std::to_string(i) + "].xyz - v_pos, vec3(0.0))"
-                                              : "hz_light_vec[" + std::to_string(i) + "].xyz")
-              << "; HZ_LIGHT_TERM(" << i << ")";
-        }
-        s << "\n";
-        s << "#define HZ_ENV " << (!debug && env_on ? 1 : 0) << "\n";
-        if (g.refractive) s << "#define HZ_REFRACTIVE 1\n";
-        if (std::strstr(snippet, "hz_ambient(")) s << "#define HZ_HAS_AMBIENT 1\n";
-        // Specialisation: parameters that are exactly zero.
-        std::size_t k = 0;
-        std::ostringstream decl;
-        for (uint32_t i = 0; i < sh->param_count; ++i) {
-            const hz_param_info *pi = sh->get_param(i);
-            const std::string u = std::string("u_") + pi->name;
-            if (pi->type == HZ_PARAM_FLOAT && g.values[k] == 0.0) s << "#define HZ_ZERO_" << pi->name << " 1\n";
-            if ((pi->flags & HZ_PARAM_FLAG_REQUIRES_RECOMPILE) &&
-                (pi->type == HZ_PARAM_INT || pi->type == HZ_PARAM_ENUM || pi->type == HZ_PARAM_BOOL))
-                s << "#define HZ_PARAM_" << pi->name << " " << std::llround(g.values[k]) << "\n";
-            if (settings.bake_materials && bake_declaration(decl, pi, u, g.values.data() + k, g)) {
-                k += pi->components;
-                continue;
-            }
-            switch (pi->type) {
-            case HZ_PARAM_FLOAT: decl << "uniform float " << u << ";\n"; break;
-            case HZ_PARAM_INT:
-            case HZ_PARAM_ENUM: decl << "uniform int " << u << ";\n"; break;
-            case HZ_PARAM_BOOL: decl << "uniform bool " << u << ";\n"; break;
-            case HZ_PARAM_VEC2: decl << "uniform vec2 " << u << ";\n"; break;
-            case HZ_PARAM_VEC3: decl << "uniform vec3 " << u << ";\n"; break;
-            case HZ_PARAM_COLOR3:
-                if (pi->name == g.albedo)
-                    decl << "vec3 " << u << ";  // set from the object's colouring\n#define HZ_ALBEDO " << u << "\n#define HZ_ALBEDO_PER_VERTEX 1\n";
-                else decl << "uniform vec3 " << u << ";\n";
-                break;
-            case HZ_PARAM_FLOAT_ARRAY: decl << "uniform float " << u << "[" << pi->components << "];\n"; break;
-            default: break;
-            }
-            k += pi->components;
-        }
-        s << glsl::kPrelude << glsl::kDisplay << decl.str() << "\n// ---- plugin " << g.shader->info.id << "\n" << snippet << "\n// ---- host\n" << glsl::kShadeMain;
-        return s.str();
+        FragmentSpec f;
+        f.shader = g.shader;
+        f.geom = g.geom == Geom::Mesh ? ProgramGeom::Mesh : g.geom == Geom::Tube ? ProgramGeom::Tube : ProgramGeom::Line;
+        f.line_domain = g.use_line_domain;
+        f.values = g.values;
+        f.albedo = g.albedo;
+        f.uniform_rgba = g.uniform_rgba;
+        f.refractive = g.refractive;
+        f.bake = settings.bake_materials;
+        f.output = out == Output::Debug ? ProgramOutput::Debug : out == Output::Display ? ProgramOutput::Display : ProgramOutput::Hdr;
+        f.tone_curve = tone_curve();
+        f.env_on = env_on;
+        f.lights = lights();
+        return fragment_program(f);
     }
 
     Program *get_program(const GpuObject &g, Output out) {

@@ -200,4 +200,21 @@ const LoadedPlugin *find_shader(const Registry &reg, const std::string &name);
 // 256-entry RGB colormap lookup, t in [0,1]; names: viridis, inferno, gray, coolwarm, hot.
 std::array<float, 3> colormap(const std::string &name, double t);
 
+// A fragment program: `head` (the host's declarations), a shader plugin's
+// GLSL `snippet`, then `tail` (the host's main). The snippet is GLSL source
+// string 1 from line 1 (#line 1 1), the host's code string 0 with its own
+// line numbers, so compiler messages name the snippet's lines as its author
+// numbers them.
+std::string with_snippet(const std::string &head, const char *snippet, const char *tail);
+// One compiler error line (Mesa's "1:3(12): error: ...", NVIDIA's
+// "1(3) : error ...", glslang's "ERROR: 1:3: ...") as "the plugin's GLSL
+// snippet, line 3, column 12: ..." (or the host's code around it); a line
+// of another form is returned as it is.
+std::string glsl_error_where(const std::string &line);
+// The fragment program the renderer builds around `shader`'s snippet for
+// `domain` (a mesh or a line), at its parameters' defaults, with uniforms or
+// (`baked`) constants, the environment on and a directional and a point
+// light: what a GLSL compiler must accept (`horizon validate`).
+std::string check_fragment_program(const LoadedPlugin &shader, hz_shade_domain domain, bool baked);
+
 }  // namespace hz::core::render
