@@ -1,4 +1,4 @@
-// Chunked parallel decoding for the loader plugins (std::thread; no SDK
+// Chunked parallel work for the plugins (std::thread; no SDK
 // types). Loaders split a file into runs of whole records during their scan
 // and decode the runs concurrently into the host's buffers.
 #pragma once

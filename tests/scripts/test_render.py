@@ -90,6 +90,26 @@ class RenderTest(TempDirTest):
         im = load(out)
         self.assertGreater(len(np.unique(im.reshape(-1, 3), axis=0)), 500)
 
+    def test_an_explicit_base_color_is_the_colour(self):
+        """The object's colouring drives the shader's colour parameter only
+        when the material leaves it out: an explicit base_color wins (it was
+        silently ignored), on a surface and on streamlines coloured by
+        direction alike."""
+        shots = iter(range(100))
+
+        def centre(obj, params):
+            scene = {"objects": [{**obj, "material": {"shader": "principled", "params": params}}], "camera": {"view": "anterior"}}
+            im = load(render_scene(self, scene, f"bc{next(shots)}")[0])
+            fg = np.any(np.abs(im - im[0, 0]) > 12, axis=2)
+            return im[fg].mean(axis=0)
+        for obj in ({"type": "surface", "builtin": "sphere"},
+                    {"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 200}, "color": "direction", "render": "tubes"}):
+            plain = centre(obj, {"roughness": 0.5})
+            red = centre(obj, {"roughness": 0.5, "base_color": [0.9, 0.02, 0.02]})
+            self.assertGreater(red[0], 3 * red[1], (obj["type"], red))
+            self.assertGreater(red[0], 3 * red[2], (obj["type"], red))
+            self.assertLess(plain[0], 3 * plain[1] + 10, (obj["type"], plain))
+
     def test_environment_from_an_image_file(self):
         # An equirectangular PNG: blue sky above, orange ground below.
         env = np.zeros((64, 128, 3), np.uint8)

@@ -755,6 +755,13 @@ struct Renderer::Impl {
                 values.push_back(v);
             }
         }
+        // A colour the material gives explicitly is the colour: the object's
+        // colouring (per-vertex colours, orientation, data, clusters) drives
+        // the shader's colour parameter only when the material leaves it out.
+        if (!albedo.empty() && m.params.count(albedo)) {
+            spdlog::debug("{}: material: {} given, so the object's colouring does not drive it", o.name, albedo);
+            albedo.clear();
+        }
         for (const auto &[k, v] : m.params)
             if (!known.count(k)) {
                 std::string list;

@@ -17,7 +17,7 @@
 #include <limits>
 #include <thread>
 
-#include "parallel.hpp"  // hzio::prefault_write (plugins/loaders/common)
+#include "parallel.hpp"  // hzio::prefault_write (plugins/common)
 
 namespace qb {
 

@@ -3,7 +3,7 @@
 // flattening into the ABI layout, and the entry points of the searches.
 #pragma once
 
-#include "parallel.hpp"  // hzio::resize_prefaulted (plugins/loaders/common)
+#include "parallel.hpp"  // hzio::resize_prefaulted (plugins/common)
 #include "qb_algorithm.hpp"
 
 #include <cstddef>

@@ -1,6 +1,6 @@
 // hz.clustering/1 adapter: QuickBundles, QuickBundlesX and Horizon's
 // qbx_and_merge in one library (qb_algorithm.hpp holds the algorithms).
-#include "parallel.hpp"  // hzio::resize_prefaulted (plugins/loaders/common)
+#include "parallel.hpp"  // hzio::resize_prefaulted (plugins/common)
 #include "qb_algorithm.hpp"
 
 #include <hz/cpp/plugin.hpp>
