@@ -5,6 +5,7 @@
 #include <hz/core/render/renderer.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -131,6 +132,9 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o);
 int cmd_view(const GlobalOptions &g, const ViewOptions &o);
 bool have_display();
 int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o);
+// The same, the scene read by `make_scene` once the window is open (it shows
+// the reading's progress meanwhile; see load_in_window in view.cpp).
+int view_scene(const core::Registry &reg, const std::function<core::render::Scene()> &make_scene, const ViewOptions &o);
 std::pair<int, int> parse_size(const std::string &s);
 int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o);
 // Compiles the renderer's fragment programs around `shader`'s GLSL (each

@@ -163,7 +163,7 @@ int main(int argc, char **argv) {
         ->required();
     render->add_option("--view", ro.view, "camera view fitted to the scene (replaces a scene file's camera placement)")
         ->check(CLI::IsMember(named_views()));
-    render->add_option("-o,--out", ro.out, "output image (.png, .exr, .jpg, .tif)")->capture_default_str();
+    render->add_option("-o,--out", ro.out, "output image: .png, .jpg, .tif (the display picture) or .exr, .hdr (linear radiance before the tone curve, float)")->capture_default_str();
     render->add_option("--size", ro.size, "WIDTHxHEIGHT")->capture_default_str();
     render->add_option("--samples", ro.samples, "MSAA samples (1 = off; 0 = 4, or 1 above 200k streamline segments)")->capture_default_str();
     add_lod_options(render, ro.lod);

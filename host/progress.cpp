@@ -5,22 +5,45 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <vector>
 
 namespace hz::host {
 
 namespace {
 std::atomic<bool> g_enabled{true};
-}
+std::mutex g_alive_mutex;
+std::vector<Progress *> g_alive;  // in the order they began
+}  // namespace
 
 void disable_progress() { g_enabled = false; }
 
+ProgressState current_progress() {
+    std::lock_guard<std::mutex> lock(g_alive_mutex);
+    if (g_alive.empty()) return {};
+    const Progress *p = g_alive.back();
+    return {true, p->what_, p->fraction_.load(), std::chrono::duration<double>(std::chrono::steady_clock::now() - p->start_).count()};
+}
+
+void cancel_progress() {
+    std::lock_guard<std::mutex> lock(g_alive_mutex);
+    for (Progress *p : g_alive) p->task_.cancel();
+}
+
 Progress::Progress(std::string what, bool enabled) : what_(std::move(what)) {
-    if (!enabled || !g_enabled || ::isatty(STDERR_FILENO) != 1) return;
     task_.on_progress = [this](double f, const char *) { fraction_ = f; };
+    {
+        std::lock_guard<std::mutex> lock(g_alive_mutex);
+        g_alive.push_back(this);
+    }
+    if (!enabled || !g_enabled || ::isatty(STDERR_FILENO) != 1) return;
     thread_ = std::thread([this] { loop(); });
 }
 
 Progress::~Progress() {
+    {
+        std::lock_guard<std::mutex> lock(g_alive_mutex);
+        std::erase(g_alive, this);
+    }
     if (!thread_.joinable()) return;
     {
         std::lock_guard<std::mutex> lock(m_);

@@ -13,6 +13,7 @@
 #include <chrono>
 #include <vector>
 #include <cstdio>
+#include <cctype>
 #include <cstring>
 #include <fstream>
 #include <iostream>
@@ -62,6 +63,19 @@ void write_image(const core::Registry &reg, const core::render::Image &im, const
         throw core::Error(std::string("standard output: write failed: ") + std::strerror(errno));
 }
 
+// A linear float picture (.exr, .hdr): RGB float32 through the images loader.
+void write_float_image(const core::Registry &reg, const core::render::FloatImage &im, const fs::path &path, bool force) {
+    core::Dataset ds;
+    ds.kind = HZ_DATA_IMAGE;
+    ds.volume.dtype = HZ_DTYPE_F32;
+    ds.volume.dims = {3, std::uint64_t(im.width), std::uint64_t(im.height)};
+    ds.volume.voxels = core::Buffer<std::byte>(std::size_t(im.width) * im.height * 3 * sizeof(float));
+    for (std::size_t i = 0; i < std::size_t(im.width) * im.height; ++i)
+        std::memcpy(ds.volume.voxels.data() + i * 3 * sizeof(float), &im.rgba[i * 4], 3 * sizeof(float));
+    std::vector<std::string> dropped;
+    core::write_dataset(reg, ds, path, force, &dropped);
+}
+
 std::pair<int, int> parse_size(const std::string &s) {
     int w = 0, h = 0;
     char x = 0, extra = 0;
@@ -84,6 +98,14 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     if (!o.preview) rs.shell_proxy = false;  // a full-detail frame draws no proxy
     rs.shell_all_cores = true;               // --preview waits for it
     rs.bake_materials = true;  // a scene file's materials do not change while it renders
+    // .exr and .hdr: the linear radiance before the tone curve (float), not
+    // the display picture.
+    std::string ext = fs::path(o.out).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    rs.hdr_output = ext == ".exr" || ext == ".hdr";
+    if (rs.hdr_output && o.preview)
+        throw core::Error("--preview draws a display picture: write it as .png, .jpg or .tif, not " + ext);
+    if (rs.hdr_output && o.legend) throw core::Error("--legend draws on a display picture: write it as .png, .jpg or .tif, not " + ext);
     // A picture of nothing is an error, not a blank PNG with exit status 0.
     const bool something = std::any_of(scene.objects.begin(), scene.objects.end(), [](const core::render::Object &ob) {
         if (!ob.visible) return false;
@@ -111,6 +133,16 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     }
     std::sort(frames.begin(), frames.end());
     const double frame_ms = frames.empty() ? first_ms : frames[frames.size() / 2];
+    if (rs.hdr_output) {
+        const core::render::FloatImage hdr = r.read_hdr_image();
+        const auto tw = Clock::now();
+        write_float_image(reg, hdr, o.out, o.force);
+        if (!o.json) std::printf("Wrote %s (%dx%d, linear radiance before the tone curve) in %.0f ms (write %.0f)\n", o.out.c_str(), w, h,
+                                 ms_since(t0), ms_since(tw));
+        else std::cout << nlohmann::json{{"output", o.out}, {"width", w}, {"height", h}, {"hdr", true}, {"frame_ms", frame_ms},
+                                         {"first_frame_ms", first_ms}, {"total_ms", ms_since(t0)}}.dump(2) << "\n";
+        return 0;
+    }
     core::render::Image im = r.read_image();
     if (o.legend) {
         const std::vector<LegendEntry> entries = cluster_legend(r.scene());

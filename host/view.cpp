@@ -6,6 +6,7 @@
 // (tests run it under Xvfb). Without a display it says so and points to
 // `horizon render`.
 #include "commands.hpp"
+#include "progress.hpp"
 #include "session.hpp"
 
 #include <hz/core/filter.hpp>
@@ -35,6 +36,7 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <future>
 #include <sstream>
 
 namespace hz::host {
@@ -103,6 +105,7 @@ struct App {
     static constexpr double kBakeAfter = 0.75;
     bool force_moving = false;  // scripts: `moving on|off`
     std::uint64_t events = 0;   // input and window events so far (a frame is drawn only after one, or while busy)
+    bool loading = false;       // the data are being read: input waits (the window shows the progress)
     // Scripts: `press LABEL` clicks a panel button through Dear ImGui's own
     // input (the mouse moved over it, pressed, released: one frame each).
     // The buttons drawn in the last frame, by label: their rectangles.
@@ -225,6 +228,7 @@ std::pair<int, int> framebuffer_size(GLFWwindow *w) {
 // (the kept image presented again, e.g. for the panel; no scene drawing).
 struct FrameLog {
     nlohmann::json frames = nlohmann::json::array();
+    nlohmann::json loading;  // the frames that showed the data being read (load_in_window)
     double peak_anon_mb = 0;
     double first_frame_s = -1, first_complete_s = -1;
     void add(const char *kind, const core::render::FrameStats &s, double ms) {
@@ -261,6 +265,7 @@ struct FrameLog {
                                   {"first_complete_s", first_complete_s},
                                   {"peak_rss_anon_mb", peak_anon_mb},
                                   {"gl", r.gl_description()},
+                                  {"loading", loading},
                                   {"frames", frames}};
         core::write_text_atomic(path, j.dump(1) + "\n", /*force=*/true);
         std::printf("stats: %s (%zu frames)\n", path.c_str(), frames.size());
@@ -270,6 +275,7 @@ struct FrameLog {
 
 void cb_button(GLFWwindow *w, int button, int action, int mods) {
     ++app_of(w)->events;
+    if (app_of(w)->loading) return;
     App &a = *app_of(w);
     if (a.stroking && action == GLFW_RELEASE && button == GLFW_MOUSE_BUTTON_LEFT) {
         // The end of a Ctrl+drag: a stroke, or a Ctrl+click if it stayed put.
@@ -298,6 +304,7 @@ void cb_button(GLFWwindow *w, int button, int action, int mods) {
 }
 void cb_cursor(GLFWwindow *w, double x, double y) {
     ++app_of(w)->events;
+    if (app_of(w)->loading) return;
     App &a = *app_of(w);
     if (a.stroking) {
         if (std::hypot(x - a.stroke.back()[0], y - a.stroke.back()[1]) >= 2.0) a.stroke.push_back({x, y});
@@ -307,6 +314,7 @@ void cb_cursor(GLFWwindow *w, double x, double y) {
 }
 void cb_scroll(GLFWwindow *w, double, double dy) {
     ++app_of(w)->events;
+    if (app_of(w)->loading) return;
     if (ImGui::GetIO().WantCaptureMouse) return;
     App &a = *app_of(w);
     if ((glfwGetKey(w, GLFW_KEY_LEFT_CONTROL) == GLFW_PRESS || glfwGetKey(w, GLFW_KEY_RIGHT_CONTROL) == GLFW_PRESS) && a.on_ctrl_scroll)
@@ -318,6 +326,7 @@ void cb_char(GLFWwindow *w, unsigned int) { ++app_of(w)->events; }
 void cb_refresh(GLFWwindow *w) { ++app_of(w)->events; }
 void cb_key(GLFWwindow *w, int key, int, int action, int mods) {
     ++app_of(w)->events;
+    if (app_of(w)->loading) return;
     if (action == GLFW_PRESS && !ImGui::GetIO().WantCaptureKeyboard) app_of(w)->key(key, mods);
 }
 
@@ -424,7 +433,76 @@ core::render::Slab parse_slab(const std::string &spec) {
     return sl;
 }
 
+namespace {
+
+// Reads the scene (`make`) on another thread while the window shows what is
+// being read, how far and for how long (the innermost Progress), instead of
+// nothing: a 1M TRK takes seconds to decode. Input waits; closing the
+// window cancels the read (the command then ends with status 0). Returns
+// the scene, or nullopt when the window was closed; rethrows a read's error.
+std::optional<core::render::Scene> load_in_window(GLFWwindow *win, App &app, const std::function<core::render::Scene()> &make,
+                                                  nlohmann::json &log) {
+    app.loading = true;
+    auto future = std::async(std::launch::async, make);
+    const auto t0 = std::chrono::steady_clock::now();
+    int frames = 0;
+    nlohmann::json seen = nlohmann::json::array();
+    bool closed = false;
+    for (;;) {
+        // One frame at once, then one per 0.1 s or event, until the data are read.
+        if (frames > 0 && future.wait_for(std::chrono::milliseconds(0)) == std::future_status::ready) break;
+        if (!closed && glfwWindowShouldClose(win)) {
+            closed = true;
+            cancel_progress();
+        }
+        const ProgressState p = current_progress();
+        ImGui_ImplOpenGL3_NewFrame();
+        ImGui_ImplGlfw_NewFrame();
+        ImGui::NewFrame();
+        const float fw = ImGui::GetIO().DisplaySize.x, fh = ImGui::GetIO().DisplaySize.y;
+        ImGui::GetBackgroundDrawList()->AddRectFilled(ImVec2(0, 0), ImVec2(fw, fh), IM_COL32(20, 20, 23, 255));
+        const ImVec2 size(std::max(100.0f, std::min(460.0f, fw - 20.0f)), 0.0f);
+        ImGui::SetNextWindowPos(ImVec2(fw * 0.5f, fh * 0.5f), ImGuiCond_Always, ImVec2(0.5f, 0.5f));
+        ImGui::SetNextWindowSize(size);
+        ImGui::Begin("##loading", nullptr, ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoSavedSettings);
+        const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        ImGui::TextUnformatted(closed ? "cancelling..." : p.active ? p.what.c_str() : "preparing the scene");
+        if (p.active && p.fraction >= 0 && p.fraction <= 1) {
+            char label[32];
+            std::snprintf(label, sizeof label, "%.0f %%", p.fraction * 100);
+            ImGui::ProgressBar(float(p.fraction), ImVec2(-1, 0), label);
+        } else {
+            ImGui::ProgressBar(float(std::fmod(secs, 1.0)), ImVec2(-1, 0), "");
+        }
+        ImGui::Text("%.1f s", secs);
+        ImGui::End();
+        ImGui::Render();
+        ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+        glfwSwapBuffers(win);
+        ++frames;
+        seen.push_back({{"t", secs}, {"what", p.active ? p.what : ""}, {"fraction", p.active ? p.fraction : -1.0}});
+        glfwWaitEventsTimeout(0.1);
+    }
+    app.loading = false;
+    log = {{"frames", frames}, {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}, {"progress", seen}};
+    if (closed) {
+        try {
+            (void)future.get();
+        } catch (const std::exception &) {  // (the cancelled read)
+        }
+        return std::nullopt;
+    }
+    return future.get();
+}
+
+}  // namespace
+
 int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o) {
+    auto shared = std::make_shared<core::render::Scene>(std::move(scene));
+    return view_scene(reg, std::function<core::render::Scene()>([shared] { return std::move(*shared); }), o);
+}
+
+int view_scene(const core::Registry &reg, const std::function<core::render::Scene()> &make_scene, const ViewOptions &o) {
     require_display(o.inputs);
     const char *display = std::getenv("DISPLAY");
     glfwSetErrorCallback(on_glfw_error);
@@ -465,6 +543,16 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
     ImGui_ImplOpenGL3_Init("#version 410");
 
     int result = 0;
+    nlohmann::json loading;
+    std::optional<core::render::Scene> loaded = load_in_window(win, app, make_scene, loading);
+    if (!loaded) {
+        ImGui_ImplOpenGL3_Shutdown();
+        ImGui_ImplGlfw_Shutdown();
+        ImGui::DestroyContext();
+        glfwDestroyWindow(win);
+        return 0;
+    }
+    core::render::Scene scene = std::move(*loaded);
     {
         core::render::Renderer r(reg);
         app.r = &r;
@@ -942,6 +1030,7 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             bool operator==(const Still &) const = default;
         } still;
         FrameLog log;
+        log.loading = loading;
         std::uint64_t seen_events = ~0ull;
         bool first_frame = true;
         while (!glfwWindowShouldClose(win) && !app.quit) {
@@ -1380,9 +1469,18 @@ int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewO
             for (std::size_t i = 0; i < r.scene().objects.size(); ++i) {
                 const auto &ob = r.scene().objects[i];
                 ImGui::PushID(int(i));
-                if (ImGui::CollapsingHeader(ob.name.c_str(), i == 0 ? ImGuiTreeNodeFlags_DefaultOpen : 0)) {
+                const bool open = ImGui::CollapsingHeader(ob.name.c_str(), i == 0 ? ImGuiTreeNodeFlags_DefaultOpen : 0);
+                {  // (a script opens or closes it as `press object I`)
+                    const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+                    app.ui_buttons["object " + std::to_string(i)] = {lo.x, lo.y, hi.x, hi.y};
+                }
+                if (open) {
                     bool vis = ob.visible;
                     if (ImGui::Checkbox("visible", &vis)) r.set_visible(i, vis);
+                    {  // (a script presses it as `press visible I`)
+                        const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+                        app.ui_buttons["visible " + std::to_string(i)] = {lo.x, lo.y, hi.x, hi.y};
+                    }
                     if (ob.kind != HZ_DATA_VOLUME && material_controls(reg, ob, materials[i])) {
                         try {
                             app.last_material_edit = glfwGetTime();
@@ -1436,9 +1534,9 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
     for (const auto *list : {&o.include, &o.exclude})  // (and a bad region)
         for (const std::string &spec : *list) core::parse_roi(reg, spec, list == &o.include);
     require_display(o.inputs);
-    core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "view");
     try {
-        return view_scene(reg, std::move(scene), o);
+        // (read once the window is open, which shows the progress)
+        return view_scene(reg, std::function<core::render::Scene()>([&] { return scene_from_inputs(reg, o.inputs, o.view, "view"); }), o);
     } catch (const core::Error &e) {
         if (o.inputs.size() == 1) throw core::Error(o.inputs[0] + ": " + e.what());
         throw;

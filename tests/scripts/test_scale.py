@@ -127,6 +127,16 @@ class ScaleTest(unittest.TestCase):
         with open(stats) as fh:
             j = json.load(fh)
         frames = j["frames"]
+        # While the file was read the window already showed its progress:
+        # frames drawn from the start, each naming what was being read.
+        loading = j["loading"]
+        self.assertGreaterEqual(loading["frames"], 1)
+        self.assertEqual(len(loading["progress"]), loading["frames"])
+        self.assertLess(loading["progress"][0]["t"], 0.5)
+        self.assertLessEqual(loading["seconds"], j["first_frame_s"])
+        for f in loading["progress"]:
+            self.assertIn(f["what"], ("", "reading " + self.tck))
+            self.assertLessEqual(f["fraction"], 1.0)
         self.assertEqual(j["streamlines"], N)
         self.assertEqual(j["streamlines_with_proxy"], N)
         kinds = [f["kind"] for f in frames]

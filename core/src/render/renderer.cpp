@@ -420,6 +420,7 @@ struct Renderer::Impl {
     // coverage), then upscaled (bilinear) into `ldr`.
     Tex2dFbo lowres;
     Tex2dFbo *out_ = &ldr;  // where the frame being drawn ends (ldr, or lowres for the proxy frame)
+    bool hdr_frame_full = false;  // the last frame went through `resolved` at full size (read_hdr_image)
     std::unique_ptr<Program> composite;
     // Where shading programs write. Display: tonemapped, sRGB-encoded
     // values straight into the RGBA8 image (one pass, no float target).
@@ -1668,7 +1669,8 @@ struct Renderer::Impl {
     // in `ldr` (RGBA8) after finish_frame().
     GLuint begin_frame(int w, int h) {
         const int samples = std::clamp(settings.samples, 1, std::max(1, max_samples));
-        display_direct = frame_is_direct();
+        display_direct = frame_is_direct() && !settings.hdr_output;
+        hdr_frame_full = !display_direct && out_ == &ldr;
         out_->ensure(w, h, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
         if (!display_direct) {
             ensure_fbo(msaa, w, h, samples, GL_RGBA16F);
@@ -2209,6 +2211,32 @@ Image Renderer::read_image() {
     const auto t0 = Clock::now();
     glBindFramebuffer(GL_READ_FRAMEBUFFER, I.ldr.fbo);
     Image im = read_pixels(I.ldr.width, I.ldr.height);
+    I.stats.readback_ms = ms_since(t0);
+    return im;
+}
+
+FloatImage Renderer::read_hdr_image() {
+    Impl &I = *impl_;
+    if (!I.hdr_frame_full || I.resolved.width != I.ldr.width || I.resolved.height != I.ldr.height)
+        throw Error("renderer: the last frame has no full-size HDR image (RenderSettings::hdr_output, not the proxy)");
+    const auto t0 = Clock::now();
+    FloatImage im;
+    im.width = I.resolved.width, im.height = I.resolved.height;
+    const std::size_t row = std::size_t(im.width) * 4;
+    std::vector<float> flipped(row * std::size_t(im.height));
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, I.resolved.fbo);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glReadPixels(0, 0, im.width, im.height, GL_RGBA, GL_FLOAT, flipped.data());
+    im.rgba.resize(flipped.size());
+    const float exposure = float(I.scene.exposure);
+    for (int y = 0; y < im.height; ++y) {
+        const float *src = flipped.data() + std::size_t(im.height - 1 - y) * row;
+        float *dst = im.rgba.data() + std::size_t(y) * row;
+        for (std::size_t x = 0; x < row; x += 4) {
+            for (int k = 0; k < 3; ++k) dst[x + k] = std::isfinite(src[x + k]) ? std::max(0.0f, src[x + k]) * exposure : 0.0f;
+            dst[x + 3] = 1.0f;
+        }
+    }
     I.stats.readback_ms = ms_since(t0);
     return im;
 }

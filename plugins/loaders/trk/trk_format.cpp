@@ -516,6 +516,7 @@ void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout
     if (offsets) offsets[0] = 0;
     if (l.chunks.size() < 2) return;
     std::vector<Box> boxes(l.chunks.size() - 1);  // each chunk's, merged in the end
+    std::atomic<std::uint64_t> decoded{0};           // vertices, for the progress `cancelled` is given
     const bool done = hzio::parallel_chunks(
         l.chunks.size() - 1,
         [&](std::size_t c) {
@@ -524,8 +525,9 @@ void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout
             if (h.swap) decode_chunk<true>(b, h, from, to, positions, offsets, scalars, properties, boxes[c]);
             else decode_chunk<false>(b, h, from, to, positions, offsets, scalars, properties, boxes[c]);
             if (release) release(from.byte, to.byte);
+            decoded += to.vertex - from.vertex;
         },
-        [&] { return cancelled && cancelled(0); });
+        [&] { return cancelled && cancelled(decoded.load()); });
     if (!done) throw Cancelled{};
     if (box != nullptr && positions != nullptr)
         for (const Box &c : boxes) box->merge(c);

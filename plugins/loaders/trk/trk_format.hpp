@@ -47,7 +47,8 @@ struct Header {
 // Parses and validates the 1000-byte header of a file of `size` bytes.
 Header parse_header(const unsigned char *bytes, std::uint64_t size);
 
-// Polled now and then (with 0); returns true to cancel.
+// Polled now and then, on the calling thread, with the vertices decoded so
+// far (decode) or 0 (scan); returns true to cancel.
 using Tick = std::function<bool(std::uint64_t)>;
 
 // Where a run of whole records starts: decode() splits the file at these.

@@ -37,6 +37,14 @@ trk::Tick tick(const hz_task *task) {
     return [task](std::uint64_t) { return hz::cancelled(task); };
 }
 
+// The decode's: reports the fraction of `total` vertices decoded as well.
+trk::Tick tick(const hz_task *task, std::uint64_t total) {
+    return [task, total](std::uint64_t done) {
+        if (done > 0 && total > 0) hz::report(task, std::min(1.0, double(done) / double(total)));
+        return hz::cancelled(task);
+    };
+}
+
 // Drops the mapped pages of a decoded chunk.
 trk::Release release(const hzio::MappedFile &file) {
     return [&file](std::uint64_t begin, std::uint64_t end) { file.release(begin, end); };
@@ -123,7 +131,7 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         r.properties.resize(r.layout.nb_streamlines * r.header.n_properties);
         trk::Box box;
         trk::decode(r.file->data(), r.file->size(), r.header, r.layout, dst->positions, dst->offsets,
-                    r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task),
+                    r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, r.layout.nb_vertices),
                     release(*r.file), &box);
         r.extras_decoded = true;
         // decode() rejected every non-finite input coordinate and found the
@@ -153,7 +161,7 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
             r.scalars.resize(r.layout.nb_vertices * r.header.n_scalars);
             r.properties.resize(r.layout.nb_streamlines * r.header.n_properties);
             trk::decode(r.file->data(), r.file->size(), r.header, r.layout, nullptr, nullptr,
-                        r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task), release(*r.file));
+                        r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, r.layout.nb_vertices), release(*r.file));
             r.extras_decoded = true;
         }
         const bool scalar = index < r.header.scalars.size();

@@ -49,6 +49,9 @@ struct RenderSettings {
     // rasterises multisampled lines about 5-8x slower).
     int samples = 0;
     double lod_pixels = 0.5;         // streamline decimation tolerance in pixels (0 = keep every point)
+    // Every frame through the linear HDR target, also where the display
+    // path would do (read_hdr_image: .exr and .hdr pictures).
+    bool hdr_output = false;
     // Level of detail: a tractogram of more than `lod_points` points gets a
     // proxy of about that many points, drawn while the camera moves and as
     // the first picture of a progressive frame (begin_progressive): at once a
@@ -160,6 +163,12 @@ public:
     std::uint64_t streamlines_with_proxy() const;
     // Reads the last offscreen frame.
     Image read_image();
+    // The last offscreen frame before the tone curve: linear RGB radiance
+    // with the scene's exposure applied (what the curve was given), alpha 1;
+    // rows top to bottom. Needs RenderSettings::hdr_output (then every
+    // frame goes through the RGBA16F target) and a full-size frame (not the
+    // proxy's); throws Error otherwise.
+    FloatImage read_hdr_image();
     // Reads the window's back buffer after render_to_window (screenshots).
     Image read_window_image(int width, int height);
 
