@@ -149,15 +149,21 @@ int main(int argc, char **argv) {
             if (i + 1 >= argc) std::exit(fail(a + " needs a value"));
             return argv[++i];
         };
-        if (a == "--streamlines") o.n = std::strtoull(value().c_str(), nullptr, 10);
-        else if (a == "--seed") o.seed = std::strtoull(value().c_str(), nullptr, 10);
-        else if (a == "--bundles") o.bundles = std::atoi(value().c_str());
-        else if (a == "--threads") o.threads = std::atoi(value().c_str());
+        if (a == "--streamlines")
+            o.n = std::strtoull(value().c_str(), nullptr, 10);
+        else if (a == "--seed")
+            o.seed = std::strtoull(value().c_str(), nullptr, 10);
+        else if (a == "--bundles")
+            o.bundles = std::atoi(value().c_str());
+        else if (a == "--threads")
+            o.threads = std::atoi(value().c_str());
         else if (a == "-h" || a == "--help") {
             std::printf("usage: hz-make-tractogram OUT.tck --streamlines N [--seed S] [--bundles B] [--threads T]\n");
             return 0;
-        } else if (!a.empty() && a[0] == '-') return fail("unknown option " + a);
-        else o.out = a;
+        } else if (!a.empty() && a[0] == '-')
+            return fail("unknown option " + a);
+        else
+            o.out = a;
     }
     if (o.out.empty() || o.n == 0) return fail("usage: hz-make-tractogram OUT.tck --streamlines N [--seed S] [--bundles B]");
     if (o.bundles < 1) return fail("--bundles must be at least 1");
@@ -177,8 +183,8 @@ int main(int argc, char **argv) {
     const std::string tmp = o.out + ".part";
     std::FILE *f = std::fopen(tmp.c_str(), "wb");
     if (!f) return fail(o.out + ": cannot create: " + std::strerror(errno));
-    std::string head = "mrtrix tracks\ndatatype: Float32LE\ncount: " + std::to_string(o.n) +
-                       "\ngenerator: hz-make-tractogram seed " + std::to_string(o.seed) + "\nfile: . ";
+    std::string head = "mrtrix tracks\ndatatype: Float32LE\ncount: " + std::to_string(o.n) + "\ngenerator: hz-make-tractogram seed " +
+                       std::to_string(o.seed) + "\nfile: . ";
     std::size_t offset = head.size() + 16;
     offset = (offset + 3) / 4 * 4;
     head += std::to_string(offset);

@@ -113,8 +113,10 @@ int cmd_brdf(const GlobalOptions &g, const std::string &shader_id) {
                 }
             }
             double rgb[3];
-            if (fn->eval_function(model.c_str(), a.data(), static_cast<uint32_t>(a.size()), rgb) != HZ_OK) answer["unsupported"] = true;
-            else answer["value"] = {rgb[0], rgb[1], rgb[2]};
+            if (fn->eval_function(model.c_str(), a.data(), static_cast<uint32_t>(a.size()), rgb) != HZ_OK)
+                answer["unsupported"] = true;
+            else
+                answer["value"] = {rgb[0], rgb[1], rgb[2]};
         } else if (plugin == nullptr) {
             answer["unsupported"] = true;
         } else {
@@ -127,8 +129,10 @@ int cmd_brdf(const GlobalOptions &g, const std::string &shader_id) {
                 const nlohmann::json *v = params.contains(pi->name) ? &params[pi->name] : c.contains(pi->name) ? &c[pi->name] : nullptr;
                 for (uint32_t k = 0; k < pi->components; ++k) {
                     double x = pi->type == HZ_PARAM_FLOAT_ARRAY ? pi->min_value[0] : pi->default_value[k];
-                    if (v != nullptr && v->is_array() && k < v->size() && (*v)[k].is_number()) x = (*v)[k].get<double>();
-                    else if (v != nullptr && v->is_number() && pi->components == 1) x = v->get<double>();
+                    if (v != nullptr && v->is_array() && k < v->size() && (*v)[k].is_number())
+                        x = (*v)[k].get<double>();
+                    else if (v != nullptr && v->is_number() && pi->components == 1)
+                        x = v->get<double>();
                     if (iso && std::string(pi->name) == "anisotropic") x = 0;
                     values.push_back(x);
                 }
@@ -146,8 +150,10 @@ int cmd_brdf(const GlobalOptions &g, const std::string &shader_id) {
             if (c.contains("T") && vec3_of(c, "T", p.t)) p.domain = HZ_SHADE_LINE;  // line models: the tangent
             double rgb[3];
             const hz_status st = s->eval_reference(&p, values.data(), static_cast<uint32_t>(values.size()), rgb);
-            if (st != HZ_OK) answer["unsupported"] = true;
-            else answer["value"] = {rgb[0], rgb[1], rgb[2]};
+            if (st != HZ_OK)
+                answer["unsupported"] = true;
+            else
+                answer["value"] = {rgb[0], rgb[1], rgb[2]};
         }
         std::cout << answer.dump() << '\n' << std::flush;
     }

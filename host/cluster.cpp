@@ -113,7 +113,8 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
         while (order.size() <= t.nb_streamlines() && in >> i) order.push_back(i);
         if (!in.eof() && order.size() <= t.nb_streamlines()) throw core::Error(o.order + ": not a list of integers");
         if (order.size() != t.nb_streamlines())
-            throw core::Error(o.order + ": holds " + std::to_string(order.size()) + " indices for " + std::to_string(t.nb_streamlines()) + " streamlines");
+            throw core::Error(o.order + ": holds " + std::to_string(order.size()) + " indices for " + std::to_string(t.nb_streamlines()) +
+                              " streamlines");
     }
     hz_status st;
     {
@@ -158,7 +159,8 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     }
     if (!o.centroids.empty()) {
         const uint32_t level = o.level < 0 ? v.nb_levels : static_cast<uint32_t>(o.level);
-        if (level > v.nb_levels) throw core::Error("--level " + std::to_string(level) + ": the tree has levels 0.." + std::to_string(v.nb_levels));
+        if (level > v.nb_levels)
+            throw core::Error("--level " + std::to_string(level) + ": the tree has levels 0.." + std::to_string(v.nb_levels));
         core::Dataset c;
         c.kind = HZ_DATA_STREAMLINES;
         const std::uint64_t K = count_of_level[level], P = v.nb_points, k0 = first_of_level[level];
@@ -256,7 +258,7 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
                      plugin->info.name.c_str(), read_s, cluster_s);
         for (uint32_t l = 0; l < v.nb_levels; ++l)
             std::fprintf(report, "  level %u  threshold %6s mm  %8llu clusters\n", l + 1, fmt_threshold(v.level_thresholds[l]).c_str(),
-                        (unsigned long long)count_of_level[l + 1]);
+                         (unsigned long long)count_of_level[l + 1]);
     }
     return 0;
 }

@@ -49,7 +49,8 @@ int cmd_plugins(const GlobalOptions &g, bool as_json, const std::string &only) {
             return 0;
         }
         std::printf("%s  %s %s (%s), ABI %s\n  %s\n  %s\n", p->info.id.c_str(), p->info.name.c_str(), p->info.version.c_str(),
-                    core::plugin_kind_name(p->info.kind), j["abi"].get<std::string>().c_str(), p->info.description.c_str(), p->info.file.c_str());
+                    core::plugin_kind_name(p->info.kind), j["abi"].get<std::string>().c_str(), p->info.description.c_str(),
+                    p->info.file.c_str());
         if (j.contains("parameters")) {
             std::printf("\nParameters (--param NAME=VALUE, or in a scene file):\n");
             for (const auto &s : core::schema_of(*p)) {
@@ -64,7 +65,12 @@ int cmd_plugins(const GlobalOptions &g, bool as_json, const std::string &only) {
                     range = r.str();
                 }
                 std::string def;
-                for (double d : s.defaults) def += (def.empty() ? "" : ",") + ([&] { std::ostringstream o; o << d; return o.str(); })();
+                for (double d : s.defaults)
+                    def += (def.empty() ? "" : ",") + ([&] {
+                               std::ostringstream o;
+                               o << d;
+                               return o.str();
+                           })();
                 if (!s.enum_labels.empty() && s.defaults.size() == 1 && s.defaults[0] >= 0 && s.defaults[0] < double(s.enum_labels.size()))
                     def = s.enum_labels[std::size_t(s.defaults[0])];
                 if (s.type == HZ_PARAM_BOOL && s.defaults.size() == 1) def = s.defaults[0] != 0 ? "true" : "false";
@@ -173,7 +179,10 @@ json describe(const core::Dataset &ds) {
         j["transform"] = affine_json(m.transform);
         j["arrays"] = json::array();
         for (const auto &a : m.arrays)
-            j["arrays"].push_back({{"name", a.name}, {"attach", attach_name(a.attach)}, {"count", a.count}, {"dtype", core::dtype_name(a.dtype)},
+            j["arrays"].push_back({{"name", a.name},
+                                   {"attach", attach_name(a.attach)},
+                                   {"count", a.count},
+                                   {"dtype", core::dtype_name(a.dtype)},
                                    {"components", a.components}});
     }
     if (ds.kind == HZ_DATA_VOLUME) {
@@ -240,7 +249,8 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json, bool
         if (j.contains("verified")) std::printf("verified:      every coordinate read again: finite, bounds as reported\n");
         if (j["positions_copied_on_use"].get<bool>())
             std::printf("positions:     mapped from the file at an offset that is not a multiple of 4 (copied when first used)\n");
-        else if (ds.mapped) std::printf("positions:     mapped from the file (no copy)\n");
+        else if (ds.mapped)
+            std::printf("positions:     mapped from the file (no copy)\n");
         if (!j["bbox_ras_mm"].is_null()) {
             const auto &mn = j["bbox_ras_mm"]["min"];
             const auto &mx = j["bbox_ras_mm"]["max"];
@@ -257,7 +267,8 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json, bool
                 if (groups++ < 5) std::printf("group:         %s (%llu streamlines)\n", a.name.c_str(), (unsigned long long)a.count);
                 continue;
             }
-            std::printf("array:         %s (per %s, %s x %u)\n", a.name.c_str(), attach_name(a.attach), core::dtype_name(a.dtype), a.components);
+            std::printf("array:         %s (per %s, %s x %u)\n", a.name.c_str(), attach_name(a.attach), core::dtype_name(a.dtype),
+                        a.components);
         }
         if (groups > 5) std::printf("group:         ... %zu groups in all\n", groups);
     }
@@ -266,12 +277,13 @@ int cmd_info(const GlobalOptions &g, const std::string &file, bool as_json, bool
             std::printf("overlay:       per-vertex values for a surface of %llu vertices (no geometry)\n",
                         (unsigned long long)core::overlay_vertices(ds));
         else
-            std::printf("vertices:      %llu\ntriangles:     %llu\n", (unsigned long long)ds.mesh.nb_vertices(), (unsigned long long)ds.mesh.nb_faces());
+            std::printf("vertices:      %llu\ntriangles:     %llu\n", (unsigned long long)ds.mesh.nb_vertices(),
+                        (unsigned long long)ds.mesh.nb_faces());
         if (!j["bbox_ras_mm"].is_null()) {
             const auto &mn = j["bbox_ras_mm"]["min"];
             const auto &mx = j["bbox_ras_mm"]["max"];
-            std::printf("bbox RAS mm:   [%.2f %.2f %.2f] .. [%.2f %.2f %.2f]\n", mn[0].get<double>(), mn[1].get<double>(), mn[2].get<double>(),
-                        mx[0].get<double>(), mx[1].get<double>(), mx[2].get<double>());
+            std::printf("bbox RAS mm:   [%.2f %.2f %.2f] .. [%.2f %.2f %.2f]\n", mn[0].get<double>(), mn[1].get<double>(),
+                        mn[2].get<double>(), mx[0].get<double>(), mx[1].get<double>(), mx[2].get<double>());
         }
         for (const auto &a : ds.mesh.arrays)
             std::printf("array:         %s (per vertex, %s x %u)\n", a.name.c_str(), core::dtype_name(a.dtype), a.components);
@@ -331,7 +343,8 @@ void check_outputs(const std::vector<std::string> &outputs, const std::vector<st
                 throw core::Error(o + ": named as two outputs");
         for (const auto &in : inputs)
             for (const auto &f : files_of_input(in))
-                if (fs::path(o).lexically_normal() == f.lexically_normal() || (fs::exists(o, ec) && fs::exists(f, ec) && fs::equivalent(o, f, ec)))
+                if (fs::path(o).lexically_normal() == f.lexically_normal() ||
+                    (fs::exists(o, ec) && fs::exists(f, ec) && fs::equivalent(o, f, ec)))
                     throw core::Error(o + ": refusing to overwrite the input file " + f.string());
         core::check_output_target(o);
         if (fs::exists(fs::symlink_status(o, ec)) && !force) throw core::Error(o + ": already exists (use --force to replace it)");
@@ -352,7 +365,8 @@ int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string
     if (ds.kind == HZ_DATA_STREAMLINES)
         std::printf("%s -> %s (%llu streamlines)\n", in.c_str(), out.c_str(), (unsigned long long)ds.tractogram.nb_streamlines());
     else if (core::is_overlay(ds))
-        std::printf("%s -> %s (per-vertex values for %llu vertices)\n", in.c_str(), out.c_str(), (unsigned long long)core::overlay_vertices(ds));
+        std::printf("%s -> %s (per-vertex values for %llu vertices)\n", in.c_str(), out.c_str(),
+                    (unsigned long long)core::overlay_vertices(ds));
     else if (ds.kind == HZ_DATA_MESH)
         std::printf("%s -> %s (mesh, %llu vertices, %llu triangles)\n", in.c_str(), out.c_str(), (unsigned long long)ds.mesh.nb_vertices(),
                     (unsigned long long)ds.mesh.nb_faces());
@@ -374,8 +388,8 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     ds.metadata = {{"generator", "horizon demo phantom"}, {"seed", std::to_string(po.seed)}};
     const auto path = std::filesystem::path(o.out_dir) / "phantom.tck";
     core::write_dataset(reg, ds, path, /*force=*/true, nullptr);
-    std::printf("Wrote the demo phantom (%llu streamlines, %u bundles) to %s\n\n", (unsigned long long)po.nb_streamlines,
-                po.nb_bundles, path.c_str());
+    std::printf("Wrote the demo phantom (%llu streamlines, %u bundles) to %s\n\n", (unsigned long long)po.nb_streamlines, po.nb_bundles,
+                path.c_str());
     const int rc = cmd_info(g, path.string(), false, false);
     if (rc != 0 || reg.find("org.horizon.clustering.qbx") == nullptr) return rc;
     // The paper's level of detail: QuickBundlesX centroids before streamlines.

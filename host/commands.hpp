@@ -31,21 +31,21 @@ struct DemoOptions {
     std::uint32_t nb_bundles = 24;
     std::uint64_t seed = 1;
     std::string size = "1280x720";
-    bool window = true;   // open the window afterwards when a display exists
+    bool window = true;  // open the window afterwards when a display exists
 };
 
 struct ClusterOptions {
     std::string input;
-    std::string algorithm = "qbx";         // a clustering plugin's id, or its last part (qb, qbx, qbx_merge)
-    std::vector<std::string> params;       // --param NAME=VALUE
-    std::vector<double> thresholds;        // empty: the plugin's defaults
-    std::uint32_t nb_points = 0;           // 0: the plugin's default
-    std::string order = "file";            // file | shuffle
+    std::string algorithm = "qbx";    // a clustering plugin's id, or its last part (qb, qbx, qbx_merge)
+    std::vector<std::string> params;  // --param NAME=VALUE
+    std::vector<double> thresholds;   // empty: the plugin's defaults
+    std::uint32_t nb_points = 0;      // 0: the plugin's default
+    std::string order = "file";       // file | shuffle
     std::uint64_t seed = 0;
     unsigned threads = 0;
-    std::string mode;                      // exact | fast; empty: the plugin's default
+    std::string mode;  // exact | fast; empty: the plugin's default
     std::string labels, centroids, out;
-    int level = -1;                        // centroid level; -1: the deepest
+    int level = -1;  // centroid level; -1: the deepest
     bool force = false, json = false;
 };
 
@@ -54,17 +54,17 @@ struct FilterOptions {
     std::vector<std::string> include, exclude;  // ROI specs: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or a mask file
     double min_length = 0, max_length = 0;      // mm; max 0: no upper bound
     bool ends_only = false, invert = false;
-    std::string out;                            // the selected streamlines (any streamline format)
-    std::string ids;                            // their indices, one per line ("-": stdout)
+    std::string out;  // the selected streamlines (any streamline format)
+    std::string ids;  // their indices, one per line ("-": stdout)
     bool force = false, json = false;
 };
 
 // Level-of-detail knobs, the same for `render` and `view`.
 struct LodOptions {
-    double lod_pixels = 0.5;       // streamline decimation tolerance in pixels (0 = every point)
-    double lod_points = 2e5;       // tractograms above this many points get a proxy of about this many
-    double gpu_memory_mb = 768;    // streamline geometry kept in GL buffers; the rest is streamed
-    int lod_scale = 4;             // the proxy frame is drawn at 1/lod_scale of the size
+    double lod_pixels = 0.5;          // streamline decimation tolerance in pixels (0 = every point)
+    double lod_points = 2e5;          // tractograms above this many points get a proxy of about this many
+    double gpu_memory_mb = 768;       // streamline geometry kept in GL buffers; the rest is streamed
+    int lod_scale = 4;                // the proxy frame is drawn at 1/lod_scale of the size
     std::string lod_proxy = "shell";  // shell (the outer layer, computed in the background) or uniform
     void apply(core::render::RenderSettings &rs) const {
         rs.lod_pixels = lod_pixels, rs.lod_points = lod_points, rs.gpu_memory_mb = gpu_memory_mb, rs.proxy_scale = lod_scale;
@@ -81,19 +81,19 @@ struct RenderOptions {
     std::string view;                 // a named camera view fitted to the scene (empty: the scene's own)
     std::string out = "horizon.png";
     std::string size = "1280x720";
-    int samples = 0;          // 0: automatic (RenderSettings)
+    int samples = 0;  // 0: automatic (RenderSettings)
     LodOptions lod;
-    bool preview = false;     // draw the level-of-detail proxy only (the window's first picture)
-    bool force = false;       // replace an existing output
-    int frames = 1;           // frames to draw (timing: the median of frames 2..N)
-    bool legend = false;      // list the clusters shown (colour, name, size) over the picture
+    bool preview = false;  // draw the level-of-detail proxy only (the window's first picture)
+    bool force = false;    // replace an existing output
+    int frames = 1;        // frames to draw (timing: the median of frames 2..N)
+    bool legend = false;   // list the clusters shown (colour, name, size) over the picture
     bool json = false;
 };
 
 struct ShaderCheckOptions {
-    std::string shader;       // empty: every shading plugin
-    int sets = 8;             // parameter sets per shader (the first: the defaults)
-    int size = 160;           // pixels per side
+    std::string shader;  // empty: every shading plugin
+    int sets = 8;        // parameter sets per shader (the first: the defaults)
+    int size = 160;      // pixels per side
     std::uint64_t seed = 1;
     double rel = 2e-3, abs = 1e-4;
     bool json = false, verbose = false;
@@ -103,15 +103,15 @@ struct ViewOptions {
     std::vector<std::string> inputs;  // data files, or one scene file
     std::string size = "1280x800";
     int samples = 0;
-    std::string script;               // scripted input (tests)
+    std::string script;  // scripted input (tests)
     bool exit_after_script = true;
     std::string screenshot_dir = ".";
     LodOptions lod;
-    std::string stats;                      // --stats FILE.json: per-frame times and what was drawn
-    bool explore = false;                   // Fig. 5: QuickBundlesX centroids, expand / hide / repeat
-    std::string algorithm = "qbx";          // --explore's clustering plugin (id or last part)
-    std::vector<std::string> params;        // its --param NAME=VALUE
-    std::string view;                       // a named camera view fitted to the scene (empty: the scene's own)
+    std::string stats;                          // --stats FILE.json: per-frame times and what was drawn
+    bool explore = false;                       // Fig. 5: QuickBundlesX centroids, expand / hide / repeat
+    std::string algorithm = "qbx";              // --explore's clustering plugin (id or last part)
+    std::vector<std::string> params;            // its --param NAME=VALUE
+    std::string view;                           // a named camera view fitted to the scene (empty: the scene's own)
     std::vector<std::string> include, exclude;  // regions of interest over the first tractogram (as `filter` takes them)
     std::string slab;                           // AXIS=CENTRE,HALF: streamlines cropped to a slab
 };

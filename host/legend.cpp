@@ -57,10 +57,14 @@ std::vector<LegendEntry> cluster_legend(const core::render::Scene &scene, std::s
             const double id = ids ? core::value_at(ids->bytes.data() + s * core::dtype_size(ids->dtype), ids->dtype) : double(s);
             Cluster &c = by_id[id];
             c.id = id;
-            c.size += sizes ? std::uint64_t(std::max(0.0, core::value_at(sizes->bytes.data() + s * core::dtype_size(sizes->dtype), sizes->dtype))) : 1;
+            c.size +=
+                sizes ? std::uint64_t(std::max(0.0, core::value_at(sizes->bytes.data() + s * core::dtype_size(sizes->dtype), sizes->dtype)))
+                      : 1;
             if (c.name.empty()) {
-                if (id < 0) c.name = "single streamlines";
-                else if (std::size_t(id) < names.size() && id == std::floor(id)) c.name = names[std::size_t(id)];
+                if (id < 0)
+                    c.name = "single streamlines";
+                else if (std::size_t(id) < names.size() && id == std::floor(id))
+                    c.name = names[std::size_t(id)];
             }
         }
         for (auto &[id, c] : by_id) all.push_back(std::move(c));
@@ -70,13 +74,15 @@ std::vector<LegendEntry> cluster_legend(const core::render::Scene &scene, std::s
     for (std::size_t k = 0; k < all.size() && k < max_entries; ++k) {
         LegendEntry e;
         e.srgb = core::render::cluster_palette(all[k].id);
-        e.label = (all[k].name.empty() ? "cluster " + std::to_string(k + 1) : all[k].name) + "  " + with_commas(all[k].size) + (all[k].size == 1 ? " streamline" : " streamlines");
+        e.label = (all[k].name.empty() ? "cluster " + std::to_string(k + 1) : all[k].name) + "  " + with_commas(all[k].size) +
+                  (all[k].size == 1 ? " streamline" : " streamlines");
         out.push_back(std::move(e));
     }
     if (all.size() > max_entries) {
         std::uint64_t rest = 0;
         for (std::size_t k = max_entries; k < all.size(); ++k) rest += all[k].size;
-        out.push_back({{-1, -1, -1}, "... " + std::to_string(all.size() - max_entries) + " more clusters, " + with_commas(rest) + " streamlines"});
+        out.push_back(
+            {{-1, -1, -1}, "... " + std::to_string(all.size() - max_entries) + " more clusters, " + with_commas(rest) + " streamlines"});
     }
     return out;
 }
@@ -119,13 +125,15 @@ void draw_legend(core::render::Image &im, const std::vector<LegendEntry> &entrie
         int x = x0 + pad;
         if (entries[k].srgb[0] >= 0) {  // (the "more" line has no colour)
             for (int dy = 0; dy < swatch; ++dy)
-                for (int dx = 0; dx < swatch; ++dx) blend(x + dx, top + s + dy, entries[k].srgb[0], entries[k].srgb[1], entries[k].srgb[2], 1.0);
+                for (int dx = 0; dx < swatch; ++dx)
+                    blend(x + dx, top + s + dy, entries[k].srgb[0], entries[k].srgb[1], entries[k].srgb[2], 1.0);
         }
         x += swatch + 6 * s;
         double pen = 0;
         for (unsigned char c : entries[k].label) {
             const ImFontGlyph *gl = font->FindGlyph(ImWchar(c));
-            const int gx0 = int(std::lround(gl->X0)), gy0 = int(std::lround(gl->Y0)), gx1 = int(std::lround(gl->X1)), gy1 = int(std::lround(gl->Y1));
+            const int gx0 = int(std::lround(gl->X0)), gy0 = int(std::lround(gl->Y0)), gx1 = int(std::lround(gl->X1)),
+                      gy1 = int(std::lround(gl->Y1));
             const int u0 = int(std::lround(gl->U0 * aw)), v0 = int(std::lround(gl->V0 * ah));
             for (int gy = gy0; gy < gy1; ++gy)
                 for (int gx = gx0; gx < gx1; ++gx) {

@@ -71,8 +71,8 @@ int main(int argc, char **argv) {
     // Global options are taken before or after the command
     // (`horizon plugins --plugin-dir D` as `horizon --plugin-dir D plugins`).
     app.fallthrough();
-    app.set_version_flag("--version", std::string("horizon ") + HZ_HOST_VERSION + " (plugin ABI " + std::to_string(HZ_ABI_VERSION_MAJOR) + "." +
-                                          std::to_string(HZ_ABI_VERSION_MINOR) + ")");
+    app.set_version_flag("--version", std::string("horizon ") + HZ_HOST_VERSION + " (plugin ABI " + std::to_string(HZ_ABI_VERSION_MAJOR) +
+                                          "." + std::to_string(HZ_ABI_VERSION_MINOR) + ")");
     app.require_subcommand(1);
     GlobalOptions g;
     app.add_option("--plugin-dir", g.plugin_dirs, "extra plugin directory (searched first; repeatable)");
@@ -113,10 +113,12 @@ int main(int argc, char **argv) {
     convert->add_flag("-f,--force", force, "replace an existing output file");
 
     ClusterOptions co;
-    auto *cluster = app.add_subcommand("cluster", "cluster streamlines with any clustering plugin (QuickBundles, QuickBundlesX: DIPY's exact answers)");
+    auto *cluster =
+        app.add_subcommand("cluster", "cluster streamlines with any clustering plugin (QuickBundles, QuickBundlesX: DIPY's exact answers)");
     cluster->add_option("input", co.input, "tractogram")->required();
-    cluster->add_option("--algorithm", co.algorithm,
-                        "a clustering plugin: its id, or the last part of it (qb, qbx, qbx_merge, ...; see `horizon plugins`)")
+    cluster
+        ->add_option("--algorithm", co.algorithm,
+                     "a clustering plugin: its id, or the last part of it (qb, qbx, qbx_merge, ...; see `horizon plugins`)")
         ->capture_default_str();
     cluster->add_option("--param", co.params, "NAME=VALUE, a parameter of the plugin (repeatable; `horizon plugins ID` lists them)")
         ->allow_extra_args(false);
@@ -127,7 +129,8 @@ int main(int argc, char **argv) {
     cluster->add_option("--seed", co.seed, "seed of --order shuffle")->capture_default_str();
     cluster->add_option("--mode", co.mode, "exact: DIPY's answers bit for bit; fast: float32 distances (plugins with a 'mode' parameter)")
         ->check(CLI::IsMember({"exact", "fast"}));
-    cluster->add_option("--threads", co.threads, "threads (0: all cores; QuickBundlesX searches on up to 2, 1: on one); the result does not depend on it");
+    cluster->add_option("--threads", co.threads,
+                        "threads (0: all cores; QuickBundlesX searches on up to 2, 1: on one); the result does not depend on it");
     cluster->add_option("--labels", co.labels, "CSV: one row per streamline, one column per level");
     cluster->add_option("--centroids", co.centroids, "write one level's centroids as streamlines");
     cluster->add_option("--level", co.level, "level for --centroids (1 = coarsest; default the finest)");
@@ -138,9 +141,10 @@ int main(int argc, char **argv) {
     FilterOptions fo;
     auto *filter = app.add_subcommand("filter", "select streamlines by include / exclude regions and length (MRtrix3 tckedit's rules)");
     filter->add_option("input", fo.input, "tractogram")->required();
-    filter->add_option("--include", fo.include,
-                       "a region each kept streamline must have a vertex in: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 (RAS+ mm) or a "
-                       "mask volume (nonzero voxels); repeatable, all must be met")
+    filter
+        ->add_option("--include", fo.include,
+                     "a region each kept streamline must have a vertex in: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 (RAS+ mm) or a "
+                     "mask volume (nonzero voxels); repeatable, all must be met")
         ->allow_extra_args(false);
     filter->add_option("--exclude", fo.exclude, "a region no kept streamline may have a vertex in (same forms); repeatable")
         ->allow_extra_args(false);
@@ -159,17 +163,23 @@ int main(int argc, char **argv) {
 
     RenderOptions ro;
     auto *render = app.add_subcommand("render", "render data files or a scene file to a PNG, headless (no display needed)");
-    render->add_option("inputs", ro.inputs, "data files (tractograms, surfaces, volumes) or one scene file (JSON; see docs/scene-format.md)")
+    render
+        ->add_option("inputs", ro.inputs, "data files (tractograms, surfaces, volumes) or one scene file (JSON; see docs/scene-format.md)")
         ->required();
     render->add_option("--view", ro.view, "camera view fitted to the scene (replaces a scene file's camera placement)")
         ->check(CLI::IsMember(named_views()));
-    render->add_option("-o,--out", ro.out, "output image: .png, .jpg, .tif (the display picture) or .exr, .hdr (linear radiance before the tone curve, float)")->capture_default_str();
+    render
+        ->add_option("-o,--out", ro.out,
+                     "output image: .png, .jpg, .tif (the display picture) or .exr, .hdr (linear radiance before the tone curve, float)")
+        ->capture_default_str();
     render->add_option("--size", ro.size, "WIDTHxHEIGHT")->capture_default_str();
-    render->add_option("--samples", ro.samples, "MSAA samples (1 = off; 0 = 4, or 1 above 200k streamline segments)")->capture_default_str();
+    render->add_option("--samples", ro.samples, "MSAA samples (1 = off; 0 = 4, or 1 above 200k streamline segments)")
+        ->capture_default_str();
     add_lod_options(render, ro.lod);
     render->add_flag("--preview", ro.preview, "draw the level-of-detail proxy only: the window's first picture, in a fraction of the time");
     render->add_option("--frames", ro.frames, "draw N frames and report the median time of frames 2..N (benchmarks)")
-        ->check(CLI::Range(1, 1000))->capture_default_str();
+        ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
     render->add_flag("--legend", ro.legend, "list the clusters shown (colour, name, size) over the top left of the picture");
     render->add_flag("--json", ro.json, "timings and counts as JSON");
     render->add_flag("-f,--force", ro.force, "replace an existing output image (never an input)");
@@ -179,14 +189,20 @@ int main(int argc, char **argv) {
     view->add_option("inputs", vwo.inputs, "data files (tractograms, surfaces, volumes) or one scene .json")->required();
     view->add_option("--size", vwo.size, "window size WIDTHxHEIGHT")->capture_default_str();
     view->add_option("--samples", vwo.samples, "MSAA samples")->capture_default_str();
-    view->add_option("--script", vwo.script, "drive the window from a script (wait N (frames), sleep S (seconds), drag, pan, scroll, click X Y [ctrl] [alt], key K|ctrl+K, set, shader, moving on|off, expand K [streamlines], hide K, repeat [T...], reset, roi sphere|box|mask|move|scale|flip|remove ..., undo, redo, save PATH [force], press LABEL, screenshot, quit; see docs/window.md)");
+    view->add_option(
+        "--script", vwo.script,
+        "drive the window from a script (wait N (frames), sleep S (seconds), drag, pan, scroll, click X Y [ctrl] [alt], key K|ctrl+K, set, "
+        "shader, moving on|off, expand K [streamlines], hide K, repeat [T...], reset, roi sphere|box|mask|move|scale|flip|remove ..., "
+        "undo, redo, save PATH [force], press LABEL, screenshot, quit; see docs/window.md)");
     view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")->capture_default_str();
     view->add_option("--view", vwo.view, "initial camera view fitted to the scene (R returns to it)")->check(CLI::IsMember(named_views()));
     view->add_flag("--explore", vwo.explore, "explore the first tractogram as QuickBundlesX clusters: expand, hide, repeat (paper Fig. 5)");
-    view->add_option("--algorithm", vwo.algorithm, "--explore with this clustering plugin (its id or the last part of it)")->capture_default_str();
-    view->add_option("--param", vwo.params, "NAME=VALUE, a parameter of the clustering plugin (repeatable)")
-        ->allow_extra_args(false);
-    view->add_option("--include", vwo.include, "a region of interest the shown streamlines must meet: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or a mask file (repeatable; the window adds, moves and removes them too)")
+    view->add_option("--algorithm", vwo.algorithm, "--explore with this clustering plugin (its id or the last part of it)")
+        ->capture_default_str();
+    view->add_option("--param", vwo.params, "NAME=VALUE, a parameter of the clustering plugin (repeatable)")->allow_extra_args(false);
+    view->add_option("--include", vwo.include,
+                     "a region of interest the shown streamlines must meet: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or a mask file "
+                     "(repeatable; the window adds, moves and removes them too)")
         ->allow_extra_args(false);
     view->add_option("--slab", vwo.slab, "crop the streamlines to a slab AXIS=CENTRE,HALF in mm, e.g. z=10,5 (the panel moves it)");
     view->add_option("--exclude", vwo.exclude, "a region the shown streamlines must not meet (same forms; repeatable)")
@@ -195,7 +211,8 @@ int main(int argc, char **argv) {
     view->add_option("--stats", vwo.stats, "write per-frame times and what each frame drew to this JSON file at exit");
 
     ShaderCheckOptions sco;
-    auto *scheck = app.add_subcommand("shader-check", "GPU equals CPU: render analytic scenes with shading plugins and compare every pixel");
+    auto *scheck =
+        app.add_subcommand("shader-check", "GPU equals CPU: render analytic scenes with shading plugins and compare every pixel");
     scheck->add_option("--shader", sco.shader, "only this shading plugin (id or short name)");
     scheck->add_option("--sets", sco.sets, "parameter sets per shader")->capture_default_str();
     scheck->add_option("--size", sco.size, "image side in pixels")->capture_default_str();
@@ -248,12 +265,14 @@ int main(int argc, char **argv) {
         std::string line;
         for (const char *p = e.what(); *p; ++p) {
             const unsigned char c = static_cast<unsigned char>(*p);
-            if (c == '\n') line += "\\n";
+            if (c == '\n')
+                line += "\\n";
             else if (c < 0x20 || c == 0x7f) {
                 char esc[8];
                 std::snprintf(esc, sizeof esc, "\\x%02x", c);
                 line += esc;
-            } else line += char(c);
+            } else
+                line += char(c);
         }
         std::fprintf(stderr, "horizon: error: %s\n", line.c_str());
         return 1;

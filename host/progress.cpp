@@ -63,8 +63,10 @@ void Progress::loop() {
     for (;;) {
         const double s = std::chrono::duration<double>(Clock::now() - t0).count();
         const double f = fraction_;
-        if (f >= 0 && f <= 1) std::fprintf(stderr, "\rhorizon: %s ... %3.0f%%  %.1f s\033[K", what_.c_str(), f * 100, s);
-        else std::fprintf(stderr, "\rhorizon: %s ... %.1f s\033[K", what_.c_str(), s);
+        if (f >= 0 && f <= 1)
+            std::fprintf(stderr, "\rhorizon: %s ... %3.0f%%  %.1f s\033[K", what_.c_str(), f * 100, s);
+        else
+            std::fprintf(stderr, "\rhorizon: %s ... %.1f s\033[K", what_.c_str(), s);
         std::fflush(stderr);
         shown_ = true;
         if (cv_.wait_for(lock, std::chrono::milliseconds(200), [this] { return done_; })) break;

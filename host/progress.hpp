@@ -19,9 +19,9 @@ void disable_progress();
 // The innermost Progress alive now (the window shows it while it reads).
 struct ProgressState {
     bool active = false;
-    std::string what;       // "reading t1m.trk"
-    double fraction = -1;   // 0..1, or < 0 when the work does not report one
-    double seconds = 0;     // since it began
+    std::string what;      // "reading t1m.trk"
+    double fraction = -1;  // 0..1, or < 0 when the work does not report one
+    double seconds = 0;    // since it began
 };
 ProgressState current_progress();
 // Cancels the task of every Progress alive now (a window closed while it

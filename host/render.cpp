@@ -37,8 +37,7 @@ void write_image(const core::Registry &reg, const core::render::Image &im, const
     ds.volume.dtype = HZ_DTYPE_U8;
     ds.volume.dims = {3, std::uint64_t(im.width), std::uint64_t(im.height)};
     ds.volume.voxels = core::Buffer<std::byte>(std::size_t(im.width) * im.height * 3);
-    for (std::size_t i = 0; i < std::size_t(im.width) * im.height; ++i)
-        std::memcpy(ds.volume.voxels.data() + i * 3, &im.rgba[i * 4], 3);
+    for (std::size_t i = 0; i < std::size_t(im.width) * im.height; ++i) std::memcpy(ds.volume.voxels.data() + i * 3, &im.rgba[i * 4], 3);
     std::vector<std::string> dropped;
     if (path != "-") {
         core::write_dataset(reg, ds, path, force, &dropped);
@@ -79,8 +78,7 @@ void write_float_image(const core::Registry &reg, const core::render::FloatImage
 std::pair<int, int> parse_size(const std::string &s) {
     int w = 0, h = 0;
     char x = 0, extra = 0;
-    if (std::sscanf(s.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') || w < 16 || h < 16 || w > 16384 ||
-        h > 16384)
+    if (std::sscanf(s.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') || w < 16 || h < 16 || w > 16384 || h > 16384)
         throw core::Error("--size " + s + ": expected WIDTHxHEIGHT between 16x16 and 16384x16384");
     return {w, h};
 }
@@ -97,14 +95,13 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     o.lod.apply(rs);
     if (!o.preview) rs.shell_proxy = false;  // a full-detail frame draws no proxy
     rs.shell_all_cores = true;               // --preview waits for it
-    rs.bake_materials = true;  // a scene file's materials do not change while it renders
+    rs.bake_materials = true;                // a scene file's materials do not change while it renders
     // .exr and .hdr: the linear radiance before the tone curve (float), not
     // the display picture.
     std::string ext = fs::path(o.out).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     rs.hdr_output = ext == ".exr" || ext == ".hdr";
-    if (rs.hdr_output && o.preview)
-        throw core::Error("--preview draws a display picture: write it as .png, .jpg or .tif, not " + ext);
+    if (rs.hdr_output && o.preview) throw core::Error("--preview draws a display picture: write it as .png, .jpg or .tif, not " + ext);
     if (rs.hdr_output && o.legend) throw core::Error("--legend draws on a display picture: write it as .png, .jpg or .tif, not " + ext);
     // A picture of nothing is an error, not a blank PNG with exit status 0.
     const bool something = std::any_of(scene.objects.begin(), scene.objects.end(), [](const core::render::Object &ob) {
@@ -137,18 +134,28 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
         const core::render::FloatImage hdr = r.read_hdr_image();
         const auto tw = Clock::now();
         write_float_image(reg, hdr, o.out, o.force);
-        if (!o.json) std::printf("Wrote %s (%dx%d, linear radiance before the tone curve) in %.0f ms (write %.0f)\n", o.out.c_str(), w, h,
-                                 ms_since(t0), ms_since(tw));
-        else std::cout << nlohmann::json{{"output", o.out}, {"width", w}, {"height", h}, {"hdr", true}, {"frame_ms", frame_ms},
-                                         {"first_frame_ms", first_ms}, {"total_ms", ms_since(t0)}}.dump(2) << "\n";
+        if (!o.json)
+            std::printf("Wrote %s (%dx%d, linear radiance before the tone curve) in %.0f ms (write %.0f)\n", o.out.c_str(), w, h,
+                        ms_since(t0), ms_since(tw));
+        else
+            std::cout << nlohmann::json{{"output", o.out},
+                                        {"width", w},
+                                        {"height", h},
+                                        {"hdr", true},
+                                        {"frame_ms", frame_ms},
+                                        {"first_frame_ms", first_ms},
+                                        {"total_ms", ms_since(t0)}}
+                             .dump(2)
+                      << "\n";
         return 0;
     }
     core::render::Image im = r.read_image();
     if (o.legend) {
         const std::vector<LegendEntry> entries = cluster_legend(r.scene());
         if (entries.empty())
-            throw core::Error("--legend: nothing in the picture is coloured by cluster (a scene's \"clustering\" or \"color\": "
-                              "{\"mode\": \"cluster\"}, or a selection the window saved)");
+            throw core::Error(
+                "--legend: nothing in the picture is coloured by cluster (a scene's \"clustering\" or \"color\": "
+                "{\"mode\": \"cluster\"}, or a selection the window saved)");
         draw_legend(im, entries);
     }
     const auto tw = Clock::now();

@@ -27,8 +27,10 @@ core::render::Scene scene_from_files(const core::Registry &reg, const std::vecto
         if (core::is_overlay(data)) {
             // Per-vertex values (lh.thickness, overlay-only GIFTI): onto the
             // last surface named before it, which is then coloured by them.
-            auto last = std::find_if(s.objects.rbegin(), s.objects.rend(), [](const core::render::Object &x) { return x.kind == HZ_DATA_MESH; });
-            if (last == s.objects.rend()) throw core::Error(f + ": per-vertex values need their surface named before them (view lh.white lh.thickness)");
+            auto last =
+                std::find_if(s.objects.rbegin(), s.objects.rend(), [](const core::render::Object &x) { return x.kind == HZ_DATA_MESH; });
+            if (last == s.objects.rend())
+                throw core::Error(f + ": per-vertex values need their surface named before them (view lh.white lh.thickness)");
             core::render::colour_by_overlay(*last, core::attach_overlay(last->data.mesh, data, f));
             continue;
         }
@@ -47,7 +49,8 @@ core::render::Scene scene_from_files(const core::Registry &reg, const std::vecto
             for (const auto &a : t.arrays)
                 if (a.name == "horizon_cluster" && a.attach == HZ_ATTACH_STREAMLINE && a.count == t.nb_streamlines() && a.components == 1) {
                     ids.resize(a.count);
-                    for (std::uint64_t i = 0; i < a.count; ++i) ids[i] = float(core::value_at(a.bytes.data() + i * core::dtype_size(a.dtype), a.dtype));
+                    for (std::uint64_t i = 0; i < a.count; ++i)
+                        ids[i] = float(core::value_at(a.bytes.data() + i * core::dtype_size(a.dtype), a.dtype));
                 }
             if (!ids.empty()) {
                 t.arrays.push_back(core::f32_array("cluster_id", HZ_ATTACH_STREAMLINE, ids));
@@ -71,9 +74,7 @@ const std::vector<std::string> &named_views() {
     return names;
 }
 
-bool is_scene_file(const std::vector<std::string> &inputs) {
-    return inputs.size() == 1 && fs::path(inputs[0]).extension() == ".json";
-}
+bool is_scene_file(const std::vector<std::string> &inputs) { return inputs.size() == 1 && fs::path(inputs[0]).extension() == ".json"; }
 
 core::render::Scene scene_from_inputs(const core::Registry &reg, const std::vector<std::string> &inputs, const std::string &view,
                                       const char *command) {

@@ -28,8 +28,10 @@ void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::
     std::vector<std::vector<std::uint64_t>> groups(G);
     std::vector<std::uint64_t> alone;
     for (std::uint64_t s = 0; s < label.size(); ++s) {
-        if (label[s] >= 0 && std::size_t(label[s]) < G) groups[std::size_t(label[s])].push_back(s);
-        else alone.push_back(s);
+        if (label[s] >= 0 && std::size_t(label[s]) < G)
+            groups[std::size_t(label[s])].push_back(s);
+        else
+            alone.push_back(s);
     }
     // One level under a root: node 0 the root, node g + 1 saved cluster g.
     auto tree = std::make_shared<core::render::ClusterTree>();
@@ -59,7 +61,8 @@ void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::
             tree->nb_points = t.nb_points;
             for (std::uint64_t k = 0; k < t.level.size(); ++k)
                 if (t.level[k] == 1) {
-                    c.assign(t.centroids.begin() + std::ptrdiff_t(k * t.nb_points * 3), t.centroids.begin() + std::ptrdiff_t((k + 1) * t.nb_points * 3));
+                    c.assign(t.centroids.begin() + std::ptrdiff_t(k * t.nb_points * 3),
+                             t.centroids.begin() + std::ptrdiff_t((k + 1) * t.nb_points * 3));
                     break;
                 }
         }
@@ -83,7 +86,8 @@ void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::
 }
 
 std::uint64_t Explorer::at(std::size_t rank) const {
-    if (rank >= s_.shown.size()) throw core::Error("no cluster " + std::to_string(rank) + " (" + std::to_string(s_.shown.size()) + " shown)");
+    if (rank >= s_.shown.size())
+        throw core::Error("no cluster " + std::to_string(rank) + " (" + std::to_string(s_.shown.size()) + " shown)");
     return s_.shown[rank];
 }
 
@@ -106,7 +110,8 @@ std::string Explorer::path(std::uint64_t node) const {
     for (std::uint64_t n = node; s_.tree->level[n] >= 1;) {
         const std::int64_t p = s_.tree->parent[n];
         std::vector<std::uint64_t> sib;
-        if (p >= 0) sib = children(std::uint64_t(p));
+        if (p >= 0)
+            sib = children(std::uint64_t(p));
         else
             for (std::uint64_t k = 0; k < s_.tree->level.size(); ++k)
                 if (s_.tree->level[k] == s_.tree->level[n] && s_.tree->parent[k] < 0) sib.push_back(k);
@@ -153,8 +158,10 @@ void Explorer::toggle(std::size_t rank) {
 }
 
 void Explorer::select_all() {
-    if (s_.selected.size() == s_.shown.size()) s_.selected.clear();
-    else s_.selected = std::set<std::uint64_t>(s_.shown.begin(), s_.shown.end());
+    if (s_.selected.size() == s_.shown.size())
+        s_.selected.clear();
+    else
+        s_.selected = std::set<std::uint64_t>(s_.shown.begin(), s_.shown.end());
 }
 
 void Explorer::expand_selected() {
@@ -197,7 +204,8 @@ void Explorer::expand_node(std::uint64_t node, bool to_streamlines) {
         for (std::size_t i = 0; i < kids.size(); ++i) s_.colour[kids[i]] = i == 0 ? s_.colour[node] : s_.next_colour++;
         s_.shown.insert(s_.shown.end(), kids.begin(), kids.end());
     } else {
-        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) s_.expanded.push_back((*s_.subset)[t.members[m]]);
+        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m)
+            s_.expanded.push_back((*s_.subset)[t.members[m]]);
     }
     sort();
 }
@@ -238,13 +246,15 @@ void Explorer::repeat(std::vector<double> thresholds) {
     std::unordered_map<std::uint64_t, std::uint64_t> before;
     const auto &t = *s_.tree;
     for (std::uint64_t node : s_.shown)
-        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) before[(*s_.subset)[t.members[m]]] = s_.colour[node];
+        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m)
+            before[(*s_.subset)[t.members[m]]] = s_.colour[node];
     cluster(std::move(keep), &before, thresholds);
 }
 
 void Explorer::reset(const std::vector<std::uint64_t> *ids) {
     std::vector<std::uint64_t> every;
-    if (ids) every = *ids;
+    if (ids)
+        every = *ids;
     else {
         every.resize(all_.nb_streamlines());
         std::iota(every.begin(), every.end(), 0);
@@ -256,11 +266,13 @@ void Explorer::reset(const std::vector<std::uint64_t> *ids) {
 // the first level. With `before` (streamline -> colour id), each new
 // cluster, largest first, takes the colour most of its streamlines had,
 // unless a larger one took it already; the rest get new colours.
-std::shared_ptr<const core::render::ClusterTree> Explorer::compute(const std::vector<std::uint64_t> &subset, const std::vector<double> &thresholds) const {
+std::shared_ptr<const core::render::ClusterTree> Explorer::compute(const std::vector<std::uint64_t> &subset,
+                                                                   const std::vector<double> &thresholds) const {
     core::render::ClusterSpec spec = spec_;
     spec.thresholds = thresholds;
     auto tree = std::make_shared<core::render::ClusterTree>();
-    if (!subset.empty()) *tree = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), spec);
+    if (!subset.empty())
+        *tree = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), spec);
     else {
         tree->parent = {-1}, tree->level = {0}, tree->member_offsets = {0, 0};
     }
@@ -376,8 +388,8 @@ Session::Session(const core::Registry &reg, core::Tractogram all, std::vector<st
 void Session::prepare_index() {
     if (grid_future_.valid() || all_.nb_streamlines() < 100000) return;
     grid_future_ = std::async(std::launch::async, [this] {
-        return std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_, 6.0, 1, &grid_cancel_));
-    }).share();
+                       return std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_, 6.0, 1, &grid_cancel_));
+                   }).share();
 }
 
 Session::~Session() {
@@ -443,7 +455,8 @@ void Session::add_roi(core::Roi r) { rois_.push_back(std::move(r)); }
 void Session::move_roi(std::size_t k, const std::array<double, 3> &c) {
     core::Roi &r = roi(k);
     if (r.shape == core::Roi::Shape::Mask) throw core::Error("region " + std::to_string(k) + " is a mask: it cannot move");
-    if (r.shape == core::Roi::Shape::Sphere) r.center = c;
+    if (r.shape == core::Roi::Shape::Sphere)
+        r.center = c;
     else
         for (int i = 0; i < 3; ++i) {
             const double half = (r.hi[i] - r.lo[i]) / 2;
@@ -455,7 +468,8 @@ void Session::resize_roi(std::size_t k, double factor) {
     core::Roi &r = roi(k);
     if (!(factor > 0) || !std::isfinite(factor)) throw core::Error("a region's size factor must be > 0");
     if (r.shape == core::Roi::Shape::Mask) throw core::Error("region " + std::to_string(k) + " is a mask: it cannot be resized");
-    if (r.shape == core::Roi::Shape::Sphere) r.radius = std::max(0.1, r.radius * factor);
+    if (r.shape == core::Roi::Shape::Sphere)
+        r.radius = std::max(0.1, r.radius * factor);
     else
         for (int i = 0; i < 3; ++i) {
             const double c = (r.lo[i] + r.hi[i]) / 2, half = std::max(0.05, (r.hi[i] - r.lo[i]) / 2 * factor);
@@ -471,7 +485,7 @@ void Session::remove_roi(std::size_t k) {
 }
 
 std::vector<std::uint64_t> Session::select(const std::vector<core::Roi> &rois, const std::vector<std::uint64_t> &deleted,
-                                          const std::shared_future<std::shared_ptr<const core::StreamlineGrid>> &grid_future) const {
+                                           const std::shared_future<std::shared_ptr<const core::StreamlineGrid>> &grid_future) const {
     std::vector<std::uint64_t> kept;
     if (rois.empty()) {
         kept.resize(all_.nb_streamlines());
@@ -522,8 +536,8 @@ void Session::apply_in_background() {
     const auto t0 = std::chrono::steady_clock::now();
     if (!grid_future_.valid() && !rois_.empty()) {
         grid_future_ = std::async(std::launch::async, [this] {
-            return std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_, 6.0, 0, &grid_cancel_));
-        }).share();
+                           return std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_, 6.0, 0, &grid_cancel_));
+                       }).share();
     }
     pending_ = std::async(std::launch::async, [this, rois = rois_, deleted = deleted_, grid = grid_future_, t0] {
         Pending p;
@@ -643,13 +657,14 @@ std::string Session::save(const std::string &path, bool force) {
             if (added) names.push_back(cluster_of[i]);
             it->second.push_back(std::uint32_t(i));
         }
-    std::sort(names.begin(), names.end(), [&](const std::string &a, const std::string &b) { return members[a].size() > members[b].size(); });
+    std::sort(names.begin(), names.end(),
+              [&](const std::string &a, const std::string &b) { return members[a].size() > members[b].size(); });
     for (std::size_t g = 0; g < names.size(); ++g) {
         for (std::uint32_t i : members[names[g]]) label[i] = std::int32_t(g);
         std::string gname = names[g];
         std::replace(gname.begin(), gname.end(), '.', '_');
-        core::DataArray a{gname, HZ_ATTACH_GROUP, HZ_DTYPE_U32, 1, members[names[g]].size(),
-                          core::Buffer<std::byte>(members[names[g]].size() * 4)};
+        core::DataArray a{gname, HZ_ATTACH_GROUP,          HZ_DTYPE_U32,
+                          1,     members[names[g]].size(), core::Buffer<std::byte>(members[names[g]].size() * 4)};
         std::memcpy(a.bytes.data(), members[names[g]].data(), members[names[g]].size() * 4);
         out.tractogram.arrays.push_back(std::move(a));
     }
@@ -672,15 +687,15 @@ std::string Session::save(const std::string &path, bool force) {
     return line;
 }
 
-std::vector<core::Roi> Session::rois_from_metadata(const core::Registry &reg, const std::vector<std::pair<std::string, std::string>> &metadata) {
+std::vector<core::Roi> Session::rois_from_metadata(const core::Registry &reg,
+                                                   const std::vector<std::pair<std::string, std::string>> &metadata) {
     std::vector<core::Roi> out;
     for (const auto &[k, v] : metadata) {
         if (k != "horizon_rois") continue;
         const nlohmann::json j = nlohmann::json::parse(v, nullptr, false);
         if (!j.is_array()) throw core::Error("horizon_rois: not a JSON list");
         for (const auto &e : j) {
-            if (!e.is_object() || !e.contains("spec") || !e["spec"].is_string())
-                throw core::Error("horizon_rois: an entry without a spec");
+            if (!e.is_object() || !e.contains("spec") || !e["spec"].is_string()) throw core::Error("horizon_rois: an entry without a spec");
             out.push_back(core::parse_roi(reg, e["spec"].get<std::string>(), e.value("include", true)));
         }
     }
@@ -730,9 +745,11 @@ core::Tractogram Session::roi_wires(bool include) const {
 }
 
 std::string Session::summary() const {
-    std::string s = std::to_string(rois_.size()) + " regions, " + std::to_string(kept_->size()) + " of " + std::to_string(all_.nb_streamlines()) +
-                    " streamlines selected, " + std::to_string(picked_->size()) + " picked, " + std::to_string(deleted_->size()) + " deleted";
-    for (std::size_t k = 0; k < rois_.size(); ++k) s += "; #" + std::to_string(k) + " " + (rois_[k].include ? "include " : "exclude ") + rois_[k].spec();
+    std::string s = std::to_string(rois_.size()) + " regions, " + std::to_string(kept_->size()) + " of " +
+                    std::to_string(all_.nb_streamlines()) + " streamlines selected, " + std::to_string(picked_->size()) + " picked, " +
+                    std::to_string(deleted_->size()) + " deleted";
+    for (std::size_t k = 0; k < rois_.size(); ++k)
+        s += "; #" + std::to_string(k) + " " + (rois_[k].include ? "include " : "exclude ") + rois_[k].spec();
     return s;
 }
 

@@ -38,13 +38,13 @@ public:
     struct State {
         std::shared_ptr<const core::render::ClusterTree> tree;
         std::shared_ptr<const std::vector<std::uint64_t>> subset;  // the streamlines clustered (tree members index it; shared by copies)
-        std::vector<std::uint64_t> shown;     // tree nodes shown, largest first
-        std::vector<std::uint64_t> expanded;  // streamlines shown on their own
-        std::set<std::uint64_t> selected;     // tree nodes, all shown
-        std::vector<std::uint64_t> colour;    // per tree node: its palette entry
+        std::vector<std::uint64_t> shown;                          // tree nodes shown, largest first
+        std::vector<std::uint64_t> expanded;                       // streamlines shown on their own
+        std::set<std::uint64_t> selected;                          // tree nodes, all shown
+        std::vector<std::uint64_t> colour;                         // per tree node: its palette entry
         std::uint64_t next_colour = 0;
         int rounds = 0;
-        std::vector<double> thresholds;       // of the last clustering (mm per level)
+        std::vector<double> thresholds;                         // of the last clustering (mm per level)
         std::shared_ptr<const std::vector<std::string>> names;  // per tree node: a saved name (restore_saved), or none
     };
 
@@ -97,7 +97,8 @@ public:
     // The same in two steps: the tree (any thread; reads only the
     // tractogram), then adopted (colours from `before` where given, as
     // repeat does; new ones otherwise).
-    std::shared_ptr<const core::render::ClusterTree> compute(const std::vector<std::uint64_t> &subset, const std::vector<double> &thresholds) const;
+    std::shared_ptr<const core::render::ClusterTree> compute(const std::vector<std::uint64_t> &subset,
+                                                             const std::vector<double> &thresholds) const;
     std::shared_ptr<const core::render::ClusterTree> compute_first(const std::vector<std::uint64_t> &subset) const {
         return compute(subset, spec_.thresholds);
     }
@@ -140,7 +141,10 @@ public:
         std::unique_ptr<Explorer::State> explore;
         State() = default;
         State(const State &o)
-            : rois(o.rois), kept(o.kept), picked(o.picked), deleted(o.deleted),
+            : rois(o.rois),
+              kept(o.kept),
+              picked(o.picked),
+              deleted(o.deleted),
               explore(o.explore ? std::make_unique<Explorer::State>(*o.explore) : nullptr) {}
         State &operator=(const State &o) {
             rois = o.rois, kept = o.kept, picked = o.picked, deleted = o.deleted;
@@ -199,8 +203,9 @@ public:
     }
     // The spatial index when it is built (nullptr while it is not).
     const core::StreamlineGrid *grid_if_ready() const {
-        return grid_future_.valid() && grid_future_.wait_for(std::chrono::seconds(0)) == std::future_status::ready ? grid_future_.get().get()
-                                                                                                                      : nullptr;
+        return grid_future_.valid() && grid_future_.wait_for(std::chrono::seconds(0)) == std::future_status::ready
+                   ? grid_future_.get().get()
+                   : nullptr;
     }
     bool poll();
     void settle();

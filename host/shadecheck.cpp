@@ -60,8 +60,7 @@ struct SetResult {
 
 }  // namespace
 
-ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPlugin *sp, const ShaderCheckOptions &o,
-                                 std::uint64_t seed) {
+ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPlugin *sp, const ShaderCheckOptions &o, std::uint64_t seed) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> U(0, 1);
     const int W = o.size, H = o.size;
@@ -80,8 +79,7 @@ ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPl
             const hz_param_info *pi = sh->get_param(i);
             if (pi->type == HZ_PARAM_COLOR3 && albedo_name.empty()) {
                 albedo_name = pi->name;
-                for (int c = 0; c < 3; ++c)
-                    albedo[c] = set == 0 ? pi->default_value[c] : std::round(U(rng) * 255.0) / 255.0;
+                for (int c = 0; c < 3; ++c) albedo[c] = set == 0 ? pi->default_value[c] : std::round(U(rng) * 255.0) / 255.0;
                 continue;
             }
             if (set == 0) continue;
@@ -89,8 +87,10 @@ ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPl
             for (uint32_t c = 0; c < pi->components && pi->type != HZ_PARAM_FLOAT_ARRAY; ++c) {
                 const double lo = pi->min_value[c], hi = pi->max_value[c], u = U(rng);
                 double x = (pi->flags & HZ_PARAM_FLAG_LOG_SCALE) && lo > 0 ? lo * std::pow(hi / lo, U(rng)) : lo + (hi - lo) * U(rng);
-                if (u < 0.2) x = lo;
-                else if (u < 0.3) x = hi;
+                if (u < 0.2)
+                    x = lo;
+                else if (u < 0.3)
+                    x = hi;
                 if (pi->type == HZ_PARAM_INT || pi->type == HZ_PARAM_ENUM || pi->type == HZ_PARAM_BOOL) x = std::round(x);
                 v.push_back(x);
             }
@@ -106,8 +106,10 @@ ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPl
             for (uint32_t c = 0; c < pi->components; ++c) {
                 double v = pi->type == HZ_PARAM_FLOAT_ARRAY ? (c < pi->default_array_count ? pi->default_array[c] : pi->default_value[0])
                                                             : pi->default_value[c];
-                if (pi->name == albedo_name) v = albedo[c];
-                else if (it != mat.params.end() && c < it->second.size()) v = it->second[c];
+                if (pi->name == albedo_name)
+                    v = albedo[c];
+                else if (it != mat.params.end() && c < it->second.size())
+                    v = it->second[c];
                 values.push_back(v);
             }
         }
@@ -219,9 +221,9 @@ ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPl
                     }
                     if (fail) {
                         if (res.failures < 3 && o.verbose)
-                            std::fprintf(stderr, "  %s set %d pixel (%d,%d): gpu [%g %g %g] cpu [%g %g %g] n.l %.3g n.v %.3g\n", sp->info.id.c_str(), set, x,
-                                         y, gv[0], gv[1], gv[2], ref[0], ref[1], ref[2], n[0] * l[0] + n[1] * l[1] + n[2] * l[2],
-                                         n[0] * v[0] + n[1] * v[1] + n[2] * v[2]);
+                            std::fprintf(stderr, "  %s set %d pixel (%d,%d): gpu [%g %g %g] cpu [%g %g %g] n.l %.3g n.v %.3g\n",
+                                         sp->info.id.c_str(), set, x, y, gv[0], gv[1], gv[2], ref[0], ref[1], ref[2],
+                                         n[0] * l[0] + n[1] * l[1] + n[2] * l[2], n[0] * v[0] + n[1] * v[1] + n[2] * v[2]);
                         ++res.failures;
                     }
                 }
@@ -245,27 +247,39 @@ ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPl
 int cmd_shader_check(const GlobalOptions &g, const ShaderCheckOptions &o) {
     const core::Registry reg = load_registry(g);
     std::vector<const core::LoadedPlugin *> shaders;
-    if (o.shader.empty()) shaders = reg.of_kind(HZ_KIND_SHADER);
-    else if (const auto *p = core::render::find_shader(reg, o.shader)) shaders.push_back(p);
-    else throw core::Error("no shading plugin '" + o.shader + "'");
+    if (o.shader.empty())
+        shaders = reg.of_kind(HZ_KIND_SHADER);
+    else if (const auto *p = core::render::find_shader(reg, o.shader))
+        shaders.push_back(p);
+    else
+        throw core::Error("no shading plugin '" + o.shader + "'");
     auto ctx = core::render::make_headless_context();
     nlohmann::json report = nlohmann::json::array();
     bool all_ok = true;
-    if (!o.json) std::printf("%-40s %5s %9s %7s %7s %7s %10s %10s\n", "shader", "sets", "pixels", "fail", "nan", "neg", "max rel", "max e/tol");
+    if (!o.json)
+        std::printf("%-40s %5s %9s %7s %7s %7s %10s %10s\n", "shader", "sets", "pixels", "fail", "nan", "neg", "max rel", "max e/tol");
     std::uint64_t seed = o.seed;
     for (const core::LoadedPlugin *sp : shaders) {
         const ShaderGpuResult t = check_shader_gpu(reg, sp, o, seed++);
         all_ok = all_ok && t.ok;
         if (o.json)
-            report.push_back({{"shader", sp->info.id}, {"sets", t.sets}, {"pixels", t.pixels}, {"failures", t.failures},
-                              {"nonfinite", t.nonfinite}, {"negative", t.negative}, {"max_rel", t.max_rel},
-                              {"max_err_over_tol", t.max_err_over_tol}, {"ok", t.ok}});
+            report.push_back({{"shader", sp->info.id},
+                              {"sets", t.sets},
+                              {"pixels", t.pixels},
+                              {"failures", t.failures},
+                              {"nonfinite", t.nonfinite},
+                              {"negative", t.negative},
+                              {"max_rel", t.max_rel},
+                              {"max_err_over_tol", t.max_err_over_tol},
+                              {"ok", t.ok}});
         else
             std::printf("%-40s %5d %9llu %7llu %7llu %7llu %10.2e %10.3f %s\n", sp->info.id.c_str(), t.sets, (unsigned long long)t.pixels,
-                        (unsigned long long)t.failures, (unsigned long long)t.nonfinite, (unsigned long long)t.negative,
-                        t.max_rel, t.max_err_over_tol, t.ok ? "ok" : "FAIL");
+                        (unsigned long long)t.failures, (unsigned long long)t.nonfinite, (unsigned long long)t.negative, t.max_rel,
+                        t.max_err_over_tol, t.ok ? "ok" : "FAIL");
     }
-    if (o.json) std::cout << nlohmann::json{{"tolerance", {{"rel", o.rel}, {"abs", o.abs}, {"sens_factor", 8}}}, {"shaders", report}}.dump(2) << "\n";
+    if (o.json)
+        std::cout << nlohmann::json{{"tolerance", {{"rel", o.rel}, {"abs", o.abs}, {"sens_factor", 8}}}, {"shaders", report}}.dump(2)
+                  << "\n";
     return all_ok ? 0 : 1;
 }
 

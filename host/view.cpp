@@ -161,12 +161,14 @@ struct App {
     void key(int k, int mods = 0) {
         if (on_key && on_key(k, mods)) return;
         if (mods & GLFW_MOD_CONTROL) return;  // (Ctrl+S is not a screenshot)
-        if (k == GLFW_KEY_S) pending_shot = (shot_dir / ("horizon-screenshot-" + std::to_string(++shots) + ".png")).string();
-        else if (k == GLFW_KEY_R) orbit = home;
-        else if (k == GLFW_KEY_Q || k == GLFW_KEY_ESCAPE) quit = true;
+        if (k == GLFW_KEY_S)
+            pending_shot = (shot_dir / ("horizon-screenshot-" + std::to_string(++shots) + ".png")).string();
+        else if (k == GLFW_KEY_R)
+            orbit = home;
+        else if (k == GLFW_KEY_Q || k == GLFW_KEY_ESCAPE)
+            quit = true;
     }
 };
-
 
 // The interactive exploration of the paper's Fig. 5: a tractogram shown as
 // the centroids of one QuickBundlesX level (tubes, width by cluster size);
@@ -281,8 +283,10 @@ void cb_button(GLFWwindow *w, int button, int action, int mods) {
         // The end of a Ctrl+drag: a stroke, or a Ctrl+click if it stayed put.
         a.stroking = false;
         glfwGetCursorPos(w, &a.last_x, &a.last_y);
-        if (std::hypot(a.last_x - a.press_x, a.last_y - a.press_y) > App::kClickPx && a.on_stroke) a.on_stroke(a.stroke);
-        else a.click(a.last_x, a.last_y, mods | GLFW_MOD_CONTROL);
+        if (std::hypot(a.last_x - a.press_x, a.last_y - a.press_y) > App::kClickPx && a.on_stroke)
+            a.on_stroke(a.stroke);
+        else
+            a.click(a.last_x, a.last_y, mods | GLFW_MOD_CONTROL);
         a.stroke.clear();
         return;
     }
@@ -296,8 +300,10 @@ void cb_button(GLFWwindow *w, int button, int action, int mods) {
         return;
     }
     const bool left = button == GLFW_MOUSE_BUTTON_LEFT && !(mods & GLFW_MOD_SHIFT);
-    if (left) a.dragging = down;
-    else a.panning = down;
+    if (left)
+        a.dragging = down;
+    else
+        a.panning = down;
     if (left && down) a.press_x = a.last_x, a.press_y = a.last_y, a.orbit_started = false;
     if (!down) a.dragging = a.panning = false;
     if (left && !down && std::hypot(a.last_x - a.press_x, a.last_y - a.press_y) <= App::kClickPx) a.click(a.last_x, a.last_y, mods);
@@ -356,7 +362,8 @@ bool material_controls(const core::Registry &reg, const core::render::Object &o,
         if (pi->type == HZ_PARAM_COLOR3 && i == 0) continue;  // the object's colouring drives the first colour
         auto it = m.params.find(pi->name);
         std::vector<double> v(pi->components);
-        for (uint32_t c = 0; c < pi->components; ++c) v[c] = it != m.params.end() && c < it->second.size() ? it->second[c] : pi->default_value[c];
+        for (uint32_t c = 0; c < pi->components; ++c)
+            v[c] = it != m.params.end() && c < it->second.size() ? it->second[c] : pi->default_value[c];
         const char *label = pi->label && *pi->label ? pi->label : pi->name;
         bool ch = false;
         if (pi->type == HZ_PARAM_FLOAT) {
@@ -415,8 +422,7 @@ std::string render_instead(const std::vector<std::string> &inputs) {
 }
 
 void require_display(const std::vector<std::string> &inputs) {
-    if (!have_display())
-        throw core::Error("no display (DISPLAY is not set): the window needs an X server; " + render_instead(inputs));
+    if (!have_display()) throw core::Error("no display (DISPLAY is not set): the window needs an X server; " + render_instead(inputs));
 }
 
 }  // namespace
@@ -484,7 +490,8 @@ std::optional<core::render::Scene> load_in_window(GLFWwindow *win, App &app, con
         glfwWaitEventsTimeout(0.1);
     }
     app.loading = false;
-    log = {{"frames", frames}, {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}, {"progress", seen}};
+    log = {
+        {"frames", frames}, {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}, {"progress", seen}};
     if (closed) {
         try {
             (void)future.get();
@@ -507,8 +514,7 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
     const char *display = std::getenv("DISPLAY");
     glfwSetErrorCallback(on_glfw_error);
     if (!glfwInit())
-        throw core::Error("cannot open the display " + std::string(display) + " (" + glfw_error +
-                          "); " + render_instead(o.inputs));
+        throw core::Error("cannot open the display " + std::string(display) + " (" + glfw_error + "); " + render_instead(o.inputs));
     struct GlfwGuard {
         ~GlfwGuard() { glfwTerminate(); }
     } glfw_guard;
@@ -584,7 +590,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
             if (o.explore) {
                 const core::Tractogram &t = ob.data.tractogram;
                 for (const auto &a : t.arrays)
-                    if (a.name == "horizon_cluster" && a.attach == HZ_ATTACH_STREAMLINE && a.count == t.nb_streamlines() && a.components == 1) {
+                    if (a.name == "horizon_cluster" && a.attach == HZ_ATTACH_STREAMLINE && a.count == t.nb_streamlines() &&
+                        a.components == 1) {
                         saved_label.resize(a.count);
                         for (std::uint64_t i = 0; i < a.count; ++i)
                             saved_label[i] = std::int64_t(core::value_at(a.bytes.data() + i * core::dtype_size(a.dtype), a.dtype));
@@ -671,7 +678,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
             for (bool include : {true, false}) {
                 const std::size_t k = include ? wire_in : wire_out;
                 core::render::Object w = styled_like(rr.scene().objects[k]);
-                const bool any = std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
+                const bool any =
+                    std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
                 w.data.tractogram = wires(include);
                 rr.replace_object(k, std::move(w));
                 rr.set_visible(k, any);
@@ -682,7 +690,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
             for (bool include : {true, false}) {
                 core::render::Object &w = scene.objects[include ? wire_in : wire_out];
                 w.data.tractogram = wires(include);
-                w.visible = std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
+                w.visible =
+                    std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
             }
             report(!session->rois().empty());
         }
@@ -777,7 +786,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                             const double reach = kTolerancePx * e * 2 * th / fh + 1e-3 + grid->cell / 2;
                             core::Bounds box;
                             box.empty = false;
-                            for (int i = 0; i < 3; ++i) box.min[i] = v.eye[i] + e * dir[i] - reach, box.max[i] = v.eye[i] + e * dir[i] + reach;
+                            for (int i = 0; i < 3; ++i)
+                                box.min[i] = v.eye[i] + e * dir[i] - reach, box.max[i] = v.eye[i] + e * dir[i] + reach;
                             grid->mark(box, step);
                         }
                         std::vector<std::uint64_t> near;  // (object indices: the object shows kept[i] as its streamline i)
@@ -789,7 +799,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                             }
                             seen[w] |= step[w];
                         }
-                        if (!near.empty()) hit = core::render::pick_streamline(ob.data.tractogram, radii, v, fw, fh, px, py, kTolerancePx, &near);
+                        if (!near.empty())
+                            hit = core::render::pick_streamline(ob.data.tractogram, radii, v, fw, fh, px, py, kTolerancePx, &near);
                     }
                 } else {
                     hit = core::render::pick_streamline(ob.data.tractogram, radii, v, fw, fh, px, py, kTolerancePx);
@@ -812,8 +823,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                         const double ijk[3] = {(c & 1) ? double(vol.dims[0]) - 0.5 : -0.5, (c & 2) ? double(vol.dims[1]) - 0.5 : -0.5,
                                                (c & 4) ? double(vol.dims[2]) - 0.5 : -0.5};
                         for (int i = 0; i < 3; ++i) {
-                            const double x = vol.voxel_to_ras[i * 4] * ijk[0] + vol.voxel_to_ras[i * 4 + 1] * ijk[1] + vol.voxel_to_ras[i * 4 + 2] * ijk[2] +
-                                             vol.voxel_to_ras[i * 4 + 3];
+                            const double x = vol.voxel_to_ras[i * 4] * ijk[0] + vol.voxel_to_ras[i * 4 + 1] * ijk[1] +
+                                             vol.voxel_to_ras[i * 4 + 2] * ijk[2] + vol.voxel_to_ras[i * 4 + 3];
                             lo[i] = std::min(lo[i], x), hi[i] = std::max(hi[i], x);
                         }
                     }
@@ -836,8 +847,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
             for (int i = 0; i < 3; ++i) p[i] = v.eye[i] + *depth * dir[i];
             return p;
         };
-        std::size_t active_roi = 0;  // the region Ctrl+wheel resizes (the last placed or edited)
-        bool roi_drag = false;       // a panel drag of a region in progress (recorded once for undo)
+        std::size_t active_roi = 0;     // the region Ctrl+wheel resizes (the last placed or edited)
+        bool roi_drag = false;          // a panel drag of a region in progress (recorded once for undo)
         char thresholds_text[64] = "";  // the panel's thresholds for the next repeat
         // Interactive region edits select in the background (the window
         // goes on drawing; the selection is shown when it is there).
@@ -847,10 +858,12 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
             roi.center = c;
             roi.radius = radius;
             roi.include = include;
-            edit([&] {
-                session->add_roi(roi);
-                session->apply_in_background();
-            }, false);
+            edit(
+                [&] {
+                    session->add_roi(roi);
+                    session->apply_in_background();
+                },
+                false);
             active_roi = session->rois().size() - 1;
         };
         struct QueuedClick {
@@ -863,10 +876,13 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
             const QueuedClick q = *std::exchange(queued_click, std::nullopt);
             const auto t0 = std::chrono::steady_clock::now();
             const auto p = point_under(q.x, q.y, q.view);
-            spdlog::debug("pick for a region: {:.0f} ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+            spdlog::debug("pick for a region: {:.0f} ms",
+                          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
             try {
-                if (p) place_sphere(*p, 5.0, !(q.mods & GLFW_MOD_ALT));
-                else std::printf("roi: nothing under (%.0f, %.0f) to place a region on\n", q.x, q.y), std::fflush(stdout);
+                if (p)
+                    place_sphere(*p, 5.0, !(q.mods & GLFW_MOD_ALT));
+                else
+                    std::printf("roi: nothing under (%.0f, %.0f) to place a region on\n", q.x, q.y), std::fflush(stdout);
             } catch (const core::Error &e) {
                 std::fprintf(stderr, "horizon: %s\n", e.what());
             }
@@ -908,8 +924,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                 glfwGetFramebufferSize(win, &fw, &fh);
                 if (ww <= 0 || wh <= 0 || fw <= 0 || fh <= 0) return;
                 const core::render::Object &cen = r.scene().objects[ci];
-                const auto hit = core::render::pick_streamline(cen.data.tractogram, core::render::tube_radii(cen), app.orbit.view(app.radius),
-                                                               fw, fh, x * fw / ww, y * fh / wh);
+                const auto hit = core::render::pick_streamline(cen.data.tractogram, core::render::tube_radii(cen),
+                                                               app.orbit.view(app.radius), fw, fh, x * fw / ww, y * fh / wh);
                 if (!hit) {
                     std::printf("explore: no centroid under (%.0f, %.0f)\n", x, y);
                     std::fflush(stdout);
@@ -923,32 +939,47 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
             };
             app.on_key = [&](int k, int mods) {
                 if (mods & GLFW_MOD_CONTROL) {
-                    if (k == GLFW_KEY_Z) undo_redo(!(mods & GLFW_MOD_SHIFT));
-                    else if (k == GLFW_KEY_Y) undo_redo(false);
-                    else if (k == GLFW_KEY_S) save_next();
-                    else return false;
+                    if (k == GLFW_KEY_Z)
+                        undo_redo(!(mods & GLFW_MOD_SHIFT));
+                    else if (k == GLFW_KEY_Y)
+                        undo_redo(false);
+                    else if (k == GLFW_KEY_S)
+                        save_next();
+                    else
+                        return false;
                     return true;
                 }
                 if (k == GLFW_KEY_K || k == GLFW_KEY_D || k == GLFW_KEY_I) {  // what a stroke picked: keep, delete, invert
-                    edit_ui([&] {
-                        if (k == GLFW_KEY_K) session->keep_picked();
-                        else if (k == GLFW_KEY_D) session->delete_picked();
-                        else session->invert_picked();
-                    }, true);
+                    edit_ui(
+                        [&] {
+                            if (k == GLFW_KEY_K)
+                                session->keep_picked();
+                            else if (k == GLFW_KEY_D)
+                                session->delete_picked();
+                            else
+                                session->invert_picked();
+                        },
+                        true);
                     return true;
                 }
                 if (!ex) return false;
                 std::function<void()> fn;
-                if (k == GLFW_KEY_E) fn = [&] { ex->expand_selected(); };
-                else if (k == GLFW_KEY_X) fn = [&] {  // the selected clusters straight to their streamlines
-                    if (ex->nb_selected() == 0) throw core::Error("no cluster selected (click a centroid)");
-                    for (std::size_t rank = ex->shown().size(); rank-- > 0;)
-                        if (ex->is_selected(rank)) ex->expand_to_streamlines(rank);
-                };
-                else if (k == GLFW_KEY_H) fn = [&] { ex->hide_selected(); };
-                else if (k == GLFW_KEY_A) fn = [&] { ex->select_all(); };
-                else if (k == GLFW_KEY_C) fn = [&] { ex->repeat(); };
-                else return false;
+                if (k == GLFW_KEY_E)
+                    fn = [&] { ex->expand_selected(); };
+                else if (k == GLFW_KEY_X)
+                    fn = [&] {  // the selected clusters straight to their streamlines
+                        if (ex->nb_selected() == 0) throw core::Error("no cluster selected (click a centroid)");
+                        for (std::size_t rank = ex->shown().size(); rank-- > 0;)
+                            if (ex->is_selected(rank)) ex->expand_to_streamlines(rank);
+                    };
+                else if (k == GLFW_KEY_H)
+                    fn = [&] { ex->hide_selected(); };
+                else if (k == GLFW_KEY_A)
+                    fn = [&] { ex->select_all(); };
+                else if (k == GLFW_KEY_C)
+                    fn = [&] { ex->repeat(); };
+                else
+                    return false;
                 edit_ui(fn, false);
                 return true;
             };
@@ -964,17 +995,21 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                 for (const auto &q : stroke) px.push_back({q[0] * fw / ww, q[1] * fh / wh});
                 const core::render::View v = app.orbit.view(app.radius);
                 const auto t0 = std::chrono::steady_clock::now();
-                std::vector<std::uint64_t> ids = core::render::streamlines_crossing(r.scene().objects[ex ? si : ti].data.tractogram, v, fw, fh, px);
+                std::vector<std::uint64_t> ids =
+                    core::render::streamlines_crossing(r.scene().objects[ex ? si : ti].data.tractogram, v, fw, fh, px);
                 const std::vector<std::uint64_t> &shown_ids = ex ? ex->expanded() : session->kept();
                 for (std::uint64_t &i : ids) i = shown_ids[i];  // (the object's streamline i is shown_ids[i])
                 std::vector<std::size_t> ranks;
                 if (ex)
-                    for (std::uint64_t k : core::render::streamlines_crossing(r.scene().objects[ci].data.tractogram, v, fw, fh, px)) ranks.push_back(k);
+                    for (std::uint64_t k : core::render::streamlines_crossing(r.scene().objects[ci].data.tractogram, v, fw, fh, px))
+                        ranks.push_back(k);
                 const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-                edit_ui([&] {
-                    session->pick(std::move(ids));
-                    if (ex) ex->select_only(ranks);
-                }, true);
+                edit_ui(
+                    [&] {
+                        session->pick(std::move(ids));
+                        if (ex) ex->select_only(ranks);
+                    },
+                    true);
                 std::printf("stroke: %zu streamlines picked%s (%.0f ms)\n", session->picked().size(),
                             ex ? (", " + std::to_string(ranks.size()) + " clusters selected").c_str() : "", ms);
                 std::fflush(stdout);
@@ -982,10 +1017,12 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
             app.on_ctrl_scroll = [&](double dy) {
                 if (session->rois().empty()) return;
                 active_roi = std::min(active_roi, session->rois().size() - 1);
-                edit_ui([&] {
-                    session->resize_roi(active_roi, std::pow(1.1, dy));
-                    session->apply_in_background();
-                }, false);
+                edit_ui(
+                    [&] {
+                        session->resize_roi(active_roi, std::pow(1.1, dy));
+                        session->apply_in_background();
+                    },
+                    false);
             };
         }
         const core::render::View v0 = core::render::fit_view(scene, scene.camera, double(w0) / h0);
@@ -993,7 +1030,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
         const core::Bounds scene_box = b;  // (the slab's range)
         if (!o.slab.empty()) scene.slab = parse_slab(o.slab);
         if (!b.empty)
-            app.radius = 0.5 * std::sqrt(std::pow(b.max[0] - b.min[0], 2) + std::pow(b.max[1] - b.min[1], 2) + std::pow(b.max[2] - b.min[2], 2));
+            app.radius =
+                0.5 * std::sqrt(std::pow(b.max[0] - b.min[0], 2) + std::pow(b.max[1] - b.min[1], 2) + std::pow(b.max[2] - b.min[2], 2));
         r.set_scene(std::move(scene), v0, rs);
         app.orbit.from_view(v0);
         app.home = app.orbit;
@@ -1042,18 +1080,22 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                 const double now = glfwGetTime();
                 const bool settling = now - app.last_motion < 0.25 || now - app.last_material_edit < App::kBakeAfter + 0.05;
                 const bool busy = r.refining() || !still.valid || app.dragging || app.panning || app.force_moving || wait > 0 ||
-                                  (session && session->selecting()) || queued_click ||
-                                  app.press_stage >= 0 || (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
+                                  (session && session->selecting()) || queued_click || app.press_stage >= 0 ||
+                                  (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
                                   (!o.script.empty() && o.exit_after_script && pc >= script.size());
-                if (busy) glfwPollEvents();
-                else if (settling || now < sleep_until) glfwWaitEventsTimeout(std::clamp(sleep_until - now, 0.005, 0.05));
-                else glfwWaitEventsTimeout(1.0);
+                if (busy)
+                    glfwPollEvents();
+                else if (settling || now < sleep_until)
+                    glfwWaitEventsTimeout(std::clamp(sleep_until - now, 0.005, 0.05));
+                else
+                    glfwWaitEventsTimeout(1.0);
             }
             // One script command per frame (wait N: N frames); a screenshot
             // waits until the still image is complete (as a user would).
             const bool hold_for_still =
                 pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving && (r.refining() || !still.valid);
-            if (wait > 0) --wait;
+            if (wait > 0)
+                --wait;
             else if (glfwGetTime() < sleep_until) {
             } else if (app.press_stage >= 0) {  // a panel press takes its three frames
             } else if (hold_for_still) {
@@ -1068,13 +1110,13 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                 std::string op;
                 cmd >> op;
                 try {
-                    if (op == "wait") cmd >> wait;
+                    if (op == "wait")
+                        cmd >> wait;
                     else if (op == "sleep") {  // wall-clock seconds (frames go on meanwhile)
                         double sec = 0;
                         if (!(cmd >> sec) || !(sec >= 0)) throw core::Error("sleep needs seconds");
                         sleep_until = glfwGetTime() + sec;
-                    }
-                    else if (op == "drag" || op == "pan") {
+                    } else if (op == "drag" || op == "pan") {
                         double x0, y0, x1, y1;
                         cmd >> x0 >> y0 >> x1 >> y1;
                         app.last_x = app.press_x = x0, app.last_y = app.press_y = y0;
@@ -1086,7 +1128,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                         double x, y;
                         if (!(cmd >> x >> y)) throw core::Error("click needs x y");
                         int mods = 0;
-                        for (std::string m; cmd >> m;) mods |= m == "ctrl" ? GLFW_MOD_CONTROL : m == "alt" ? GLFW_MOD_ALT : m == "shift" ? GLFW_MOD_SHIFT : 0;
+                        for (std::string m; cmd >> m;)
+                            mods |= m == "ctrl" ? GLFW_MOD_CONTROL : m == "alt" ? GLFW_MOD_ALT : m == "shift" ? GLFW_MOD_SHIFT : 0;
                         app.last_x = x, app.last_y = y;
                         app.click(x, y, mods);
                     } else if (op == "scroll") {
@@ -1132,13 +1175,20 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                         if (op == "expand" || op == "hide") cmd >> k >> mode;
                         if (op == "repeat")
                             for (double t; cmd >> t;) thresholds.push_back(t);
-                        edit([&] {
-                            if (op == "expand" && mode == "streamlines") ex->expand_to_streamlines(ex->rank_of(k));
-                            else if (op == "expand") ex->expand(ex->rank_of(k));
-                            else if (op == "hide") ex->hide(ex->rank_of(k));
-                            else if (op == "repeat") ex->repeat(thresholds);
-                            else ex->reset(&session->kept());
-                        }, false);
+                        edit(
+                            [&] {
+                                if (op == "expand" && mode == "streamlines")
+                                    ex->expand_to_streamlines(ex->rank_of(k));
+                                else if (op == "expand")
+                                    ex->expand(ex->rank_of(k));
+                                else if (op == "hide")
+                                    ex->hide(ex->rank_of(k));
+                                else if (op == "repeat")
+                                    ex->repeat(thresholds);
+                                else
+                                    ex->reset(&session->kept());
+                            },
+                            false);
                     } else if (op == "roi") {
                         // roi sphere X Y Z R [include|exclude], roi box X0 Y0 Z0 X1 Y1 Z1 [...],
                         // roi mask FILE [...], roi move K X Y Z, roi scale K F, roi flip K, roi remove K
@@ -1156,16 +1206,21 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                         };
                         if (what == "sphere" || what == "box" || what == "mask") {
                             std::string spec;
-                            if (what == "mask") cmd >> spec;
-                            else spec = what + ":" + numbers(what == "sphere" ? 4 : 6);
+                            if (what == "mask")
+                                cmd >> spec;
+                            else
+                                spec = what + ":" + numbers(what == "sphere" ? 4 : 6);
                             std::string mode = "include";
                             cmd >> mode;
-                            if (mode != "include" && mode != "exclude") throw core::Error("roi: '" + mode + "' is neither include nor exclude");
+                            if (mode != "include" && mode != "exclude")
+                                throw core::Error("roi: '" + mode + "' is neither include nor exclude");
                             core::Roi roi = core::parse_roi(reg, spec, mode == "include");
-                            edit([&] {
-                                session->add_roi(roi);
-                                session->apply();
-                            }, true);
+                            edit(
+                                [&] {
+                                    session->add_roi(roi);
+                                    session->apply();
+                                },
+                                true);
                             active_roi = session->rois().size() - 1;
                         } else if (what == "move" || what == "scale" || what == "flip" || what == "remove") {
                             std::size_t k = 0;
@@ -1174,13 +1229,19 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                             double f = 1;
                             if (what == "move" && !(cmd >> c[0] >> c[1] >> c[2])) throw core::Error("roi move needs K X Y Z");
                             if (what == "scale" && !(cmd >> f)) throw core::Error("roi scale needs K FACTOR");
-                            edit([&] {
-                                if (what == "move") session->move_roi(k, c);
-                                else if (what == "scale") session->resize_roi(k, f);
-                                else if (what == "flip") session->flip_roi(k);
-                                else session->remove_roi(k);
-                                session->apply();
-                            }, true);
+                            edit(
+                                [&] {
+                                    if (what == "move")
+                                        session->move_roi(k, c);
+                                    else if (what == "scale")
+                                        session->resize_roi(k, f);
+                                    else if (what == "flip")
+                                        session->flip_roi(k);
+                                    else
+                                        session->remove_roi(k);
+                                    session->apply();
+                                },
+                                true);
                             active_roi = k;
                         } else {
                             throw core::Error("roi: unknown '" + what + "' (sphere, box, mask, move, scale, flip, remove)");
@@ -1188,7 +1249,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                     } else if (op == "slab") {  // slab x|y|z CENTRE HALF, or slab off
                         std::string axis;
                         cmd >> axis;
-                        if (axis == "off") r.set_slab(std::nullopt);
+                        if (axis == "off")
+                            r.set_slab(std::nullopt);
                         else {
                             core::render::Slab sl;
                             if (axis.size() != 1 || axis[0] < 'x' || axis[0] > 'z' || !(cmd >> sl.centre >> sl.half) || !(sl.half > 0))
@@ -1207,11 +1269,16 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                         std::string what;
                         cmd >> what;
                         if (what != "keep" && what != "delete" && what != "invert") throw core::Error("picked: keep, delete or invert");
-                        edit([&] {
-                            if (what == "keep") session->keep_picked();
-                            else if (what == "delete") session->delete_picked();
-                            else session->invert_picked();
-                        }, true);
+                        edit(
+                            [&] {
+                                if (what == "keep")
+                                    session->keep_picked();
+                                else if (what == "delete")
+                                    session->delete_picked();
+                                else
+                                    session->invert_picked();
+                            },
+                            true);
                     } else if (op == "undo" || op == "redo") {
                         if (!session) throw core::Error(op + " needs a tractogram");
                         undo_redo(op == "undo");
@@ -1248,7 +1315,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
             if (session && session->poll()) {  // a selection made in the background
                 const auto t0 = std::chrono::steady_clock::now();
                 refresh(r, true);
-                spdlog::debug("selection shown: {:.0f} ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+                spdlog::debug("selection shown: {:.0f} ms",
+                              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
             }
             if (queued_click && session->grid_if_ready()) process_queued_click();
             int fw, fh;
@@ -1316,7 +1384,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
             ImGui::Text("%.0f ms/frame   %llu segments   %llu triangles", r.stats().draw_ms, (unsigned long long)r.stats().segments_drawn,
                         (unsigned long long)r.stats().triangles_drawn);
             if (r.refining())
-                ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "refining: %llu chunks to go", (unsigned long long)r.stats().refine_remaining);
+                ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "refining: %llu chunks to go",
+                                   (unsigned long long)r.stats().refine_remaining);
             else if (r.stats().proxy)
                 ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: level-of-detail subsample");
             ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset");
@@ -1347,11 +1416,15 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                         ex->repeat(t);
                     };
                 }
-                if (ImGui::IsItemHovered()) ImGui::SetTooltip("the thresholds of the last clustering: %s", [&] {
-                    std::string t;
-                    for (double x : ex->state().thresholds) t += (t.empty() ? "" : ", ") + std::to_string(int(std::lround(x)));
-                    return t;
-                }().c_str());
+                if (ImGui::IsItemHovered())
+                    ImGui::SetTooltip("the thresholds of the last clustering: %s",
+                                      [&] {
+                                          std::string t;
+                                          for (double x : ex->state().thresholds)
+                                              t += (t.empty() ? "" : ", ") + std::to_string(int(std::lround(x)));
+                                          return t;
+                                      }()
+                                          .c_str());
                 if (ex->nb_selected() > 0) {
                     if (button("Expand selected")) act = [&] { ex->expand_selected(); };
                     ImGui::SameLine();
@@ -1388,7 +1461,9 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                 else
                     ImGui::Text("%llu of %llu streamlines selected (%.0f ms)", (unsigned long long)session->kept().size(),
                                 (unsigned long long)session->all().nb_streamlines(), session->last_filter_ms());
-                ImGui::TextDisabled("Ctrl+click: include sphere  Ctrl+Alt+click: exclude\nCtrl+wheel: resize  Ctrl+Z / Ctrl+Shift+Z: undo / redo  Ctrl+S: save");
+                ImGui::TextDisabled(
+                    "Ctrl+click: include sphere  Ctrl+Alt+click: exclude\nCtrl+wheel: resize  Ctrl+Z / Ctrl+Shift+Z: undo / redo  Ctrl+S: "
+                    "save");
                 if (button("Add sphere")) {
                     const std::array<double, 3> c{app.orbit.target[0], app.orbit.target[1], app.orbit.target[2]};
                     act = [&, c] {
@@ -1426,7 +1501,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                         // is made again when the drag ends (one undo step).
                         const auto centre = roi.shape == core::Roi::Shape::Sphere
                                                 ? roi.center
-                                                : std::array<double, 3>{(roi.lo[0] + roi.hi[0]) / 2, (roi.lo[1] + roi.hi[1]) / 2, (roi.lo[2] + roi.hi[2]) / 2};
+                                                : std::array<double, 3>{(roi.lo[0] + roi.hi[0]) / 2, (roi.lo[1] + roi.hi[1]) / 2,
+                                                                        (roi.lo[2] + roi.hi[2]) / 2};
                         float c[3] = {float(centre[0]), float(centre[1]), float(centre[2])};
                         if (ImGui::DragFloat3("centre (mm)", c, 0.25f)) {
                             if (!roi_drag) session->record(), roi_drag = true;
@@ -1436,8 +1512,8 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
                         }
                         if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply_in_background();
                         float size = float(roi.shape == core::Roi::Shape::Sphere ? roi.radius : (roi.hi[0] - roi.lo[0]) / 2);
-                        if (ImGui::SliderFloat(roi.shape == core::Roi::Shape::Sphere ? "radius (mm)" : "half size x (mm)", &size, 0.5f, 60.0f, "%.1f",
-                                               ImGuiSliderFlags_Logarithmic)) {
+                        if (ImGui::SliderFloat(roi.shape == core::Roi::Shape::Sphere ? "radius (mm)" : "half size x (mm)", &size, 0.5f,
+                                               60.0f, "%.1f", ImGuiSliderFlags_Logarithmic)) {
                             if (!roi_drag) session->record(), roi_drag = true;
                             const double now = roi.shape == core::Roi::Shape::Sphere ? roi.radius : (roi.hi[0] - roi.lo[0]) / 2;
                             session->resize_roi(k, size / std::max(now, 1e-6));

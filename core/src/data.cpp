@@ -1,7 +1,6 @@
 #include <hz/core/data.hpp>
 #include <spdlog/spdlog.h>
 
-
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -153,7 +152,8 @@ bool minmax48(const float *q, std::uint64_t steps, float *mn, float *mx) {
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #endif
-std::uint64_t minmax48_count(const float *q, std::uint64_t steps, float *mn, float *mx) {
+std::uint64_t
+minmax48_count(const float *q, std::uint64_t steps, float *mn, float *mx) {
     std::uint32_t bad[48] = {};
     for (std::uint64_t i = 0; i < steps; ++i, q += 48)
         for (int k = 0; k < 48; ++k) {
@@ -289,7 +289,7 @@ Bounds delimited_bounds(const float *xyz, std::uint64_t n, const std::uint64_t *
 }
 
 Bounds finite_bounds(const float *xyz, std::uint64_t n, const std::string &what, std::uint64_t first_vertex) {
-    constexpr std::uint64_t kGrain = 1u << 20;  // points per thread at least
+    constexpr std::uint64_t kGrain = 1u << 20;                                    // points per thread at least
     if (n < 2 * kGrain) return finite_bounds_serial(xyz, n, first_vertex, what);  // (no threads, no allocation)
     std::vector<Bounds> parts;
     std::mutex mu;
@@ -305,10 +305,17 @@ Bounds finite_bounds(const float *xyz, std::uint64_t n, const std::string &what,
 
 std::size_t dtype_size(hz_dtype t) {
     switch (t) {
-    case HZ_DTYPE_U8: case HZ_DTYPE_I8: return 1;
-    case HZ_DTYPE_U16: case HZ_DTYPE_I16: case HZ_DTYPE_F16: return 2;
-    case HZ_DTYPE_U32: case HZ_DTYPE_I32: case HZ_DTYPE_F32: return 4;
-    case HZ_DTYPE_U64: case HZ_DTYPE_I64: case HZ_DTYPE_F64: return 8;
+    case HZ_DTYPE_U8:
+    case HZ_DTYPE_I8: return 1;
+    case HZ_DTYPE_U16:
+    case HZ_DTYPE_I16:
+    case HZ_DTYPE_F16: return 2;
+    case HZ_DTYPE_U32:
+    case HZ_DTYPE_I32:
+    case HZ_DTYPE_F32: return 4;
+    case HZ_DTYPE_U64:
+    case HZ_DTYPE_I64:
+    case HZ_DTYPE_F64: return 8;
     case HZ_DTYPE_RGB8: return 3;
     case HZ_DTYPE_RGBA8: return 4;
     default: return 0;
@@ -377,14 +384,46 @@ double value_at(const std::byte *p, hz_dtype dtype) {
     switch (dtype) {
     case HZ_DTYPE_U8: return *reinterpret_cast<const std::uint8_t *>(p);
     case HZ_DTYPE_I8: return *reinterpret_cast<const std::int8_t *>(p);
-    case HZ_DTYPE_U16: { std::uint16_t x; std::memcpy(&x, p, 2); return x; }
-    case HZ_DTYPE_I16: { std::int16_t x; std::memcpy(&x, p, 2); return x; }
-    case HZ_DTYPE_U32: { std::uint32_t x; std::memcpy(&x, p, 4); return x; }
-    case HZ_DTYPE_I32: { std::int32_t x; std::memcpy(&x, p, 4); return x; }
-    case HZ_DTYPE_U64: { std::uint64_t x; std::memcpy(&x, p, 8); return double(x); }
-    case HZ_DTYPE_I64: { std::int64_t x; std::memcpy(&x, p, 8); return double(x); }
-    case HZ_DTYPE_F32: { float x; std::memcpy(&x, p, 4); return x; }
-    case HZ_DTYPE_F64: { double x; std::memcpy(&x, p, 8); return x; }
+    case HZ_DTYPE_U16: {
+        std::uint16_t x;
+        std::memcpy(&x, p, 2);
+        return x;
+    }
+    case HZ_DTYPE_I16: {
+        std::int16_t x;
+        std::memcpy(&x, p, 2);
+        return x;
+    }
+    case HZ_DTYPE_U32: {
+        std::uint32_t x;
+        std::memcpy(&x, p, 4);
+        return x;
+    }
+    case HZ_DTYPE_I32: {
+        std::int32_t x;
+        std::memcpy(&x, p, 4);
+        return x;
+    }
+    case HZ_DTYPE_U64: {
+        std::uint64_t x;
+        std::memcpy(&x, p, 8);
+        return double(x);
+    }
+    case HZ_DTYPE_I64: {
+        std::int64_t x;
+        std::memcpy(&x, p, 8);
+        return double(x);
+    }
+    case HZ_DTYPE_F32: {
+        float x;
+        std::memcpy(&x, p, 4);
+        return x;
+    }
+    case HZ_DTYPE_F64: {
+        double x;
+        std::memcpy(&x, p, 8);
+        return x;
+    }
     default: return std::nan("");
     }
 }
@@ -466,8 +505,8 @@ void Tractogram::validate_offsets(const std::string &what) const {
             throw Error(what + (gap ? ": offsets leave no delimiter after streamline " : ": offsets decrease at streamline ") +
                         std::to_string(i - 1));
     if (offsets[offsets.size() - 1] != nb_stored())
-        throw Error(what + ": final offset " + std::to_string(offsets[offsets.size() - 1]) + " != " +
-                    std::to_string(nb_stored()) + " vertices");
+        throw Error(what + ": final offset " + std::to_string(offsets[offsets.size() - 1]) + " != " + std::to_string(nb_stored()) +
+                    " vertices");
 }
 
 bool is_overlay(const Dataset &ds) { return overlay_vertices(ds) > 0; }

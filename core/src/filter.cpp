@@ -72,20 +72,20 @@ std::string fmt(double x) {
     return buf;
 }
 
-
-
 // Whether a vertex of streamline vertices [b, e) at p lies in r, whose
 // bounds are `rb` (a mask's vertices outside them need no lookup).
 bool any_in(const Roi &r, const Bounds &rb, const float *p, std::uint64_t b, std::uint64_t e) {
     switch (r.shape) {
     case Roi::Shape::Sphere:
-        return detail::first_in_sphere(p + b * 3, e - b, float(r.center[0]), float(r.center[1]), float(r.center[2]), float(r.radius)) < e - b;
+        return detail::first_in_sphere(p + b * 3, e - b, float(r.center[0]), float(r.center[1]), float(r.center[2]), float(r.radius)) <
+               e - b;
     case Roi::Shape::Box: {
         const float lo[3] = {float(r.lo[0]), float(r.lo[1]), float(r.lo[2])}, hi[3] = {float(r.hi[0]), float(r.hi[1]), float(r.hi[2])};
         return detail::first_in_box(p + b * 3, e - b, lo, hi) < e - b;
     }
     case Roi::Shape::Mask: {
-        const float lo[3] = {float(rb.min[0]), float(rb.min[1]), float(rb.min[2])}, hi[3] = {float(rb.max[0]), float(rb.max[1]), float(rb.max[2])};
+        const float lo[3] = {float(rb.min[0]), float(rb.min[1]), float(rb.min[2])},
+                    hi[3] = {float(rb.max[0]), float(rb.max[1]), float(rb.max[2])};
         for (std::uint64_t v = b; v < e;) {
             v += detail::first_in_box(p + v * 3, e - v, lo, hi);  // (the next vertex within the bounds)
             if (v < e && r.contains(p + v * 3)) return true;
@@ -120,8 +120,7 @@ bool Roi::contains(const float *p) const {
         const std::array<float, 12> &m = r2v;
         float v[3];
         for (int i = 0; i < 3; ++i) v[i] = round_half_away((m[i * 4] * p[0] + m[i * 4 + 1] * p[1]) + m[i * 4 + 2] * p[2] + m[i * 4 + 3]);
-        if (!(v[0] >= 0 && v[1] >= 0 && v[2] >= 0 && v[0] < float(dims[0]) && v[1] < float(dims[1]) && v[2] < float(dims[2])))
-            return false;
+        if (!(v[0] >= 0 && v[1] >= 0 && v[2] >= 0 && v[0] < float(dims[0]) && v[1] < float(dims[1]) && v[2] < float(dims[2]))) return false;
         return (*mask)[(std::uint64_t(v[2]) * dims[1] + std::uint64_t(v[1])) * dims[0] + std::uint64_t(v[0])] != 0;
     }
     }
@@ -184,8 +183,7 @@ Bounds set_voxel_bounds(const Roi &r) {
 }  // namespace
 
 Roi mask_roi(const Volume &v, const std::string &file, bool include) {
-    if (v.dims.size() < 3 || v.dims[0] == 0 || v.dims[1] == 0 || v.dims[2] == 0)
-        throw Error("ROI mask " + file + ": not a 3D volume");
+    if (v.dims.size() < 3 || v.dims[0] == 0 || v.dims[1] == 0 || v.dims[2] == 0) throw Error("ROI mask " + file + ": not a 3D volume");
     Roi r;
     r.shape = Roi::Shape::Mask;
     r.include = include;
@@ -334,7 +332,9 @@ StreamlineGrid StreamlineGrid::of(const Tractogram &t, double cell_mm, unsigned 
     const float inv = float(1.0 / cell_mm);
     const std::uint64_t nx = g.n[0], ny = g.n[1], nz = g.n[2];
     auto cell_of = [&](const float *q) {
-        const auto c = [&](int i, std::uint64_t m) { return std::min<std::uint64_t>(m - 1, std::uint64_t(std::max(0.0f, (q[i] - lo[i]) * inv))); };
+        const auto c = [&](int i, std::uint64_t m) {
+            return std::min<std::uint64_t>(m - 1, std::uint64_t(std::max(0.0f, (q[i] - lo[i]) * inv)));
+        };
         return (c(2, nz) * ny + c(1, ny)) * nx + c(0, nx);
     };
     // A counting sort on every core: parts of streamlines count their
@@ -387,8 +387,8 @@ StreamlineGrid StreamlineGrid::of(const Tractogram &t, double cell_mm, unsigned 
         walk(from, to, [&](std::uint64_t c, std::uint64_t s) { g.ids[at[c]++] = std::uint32_t(s); });
     });
     if (stop) return StreamlineGrid{};
-    spdlog::debug("streamline grid: {} streamlines, {:.1f} mm cells ({} x {} x {}), {} entries ({:.0f} MB)", N, g.cell, g.n[0], g.n[1], g.n[2],
-                  g.ids.size(), double(g.ids.size()) * 4 / 1048576.0);
+    spdlog::debug("streamline grid: {} streamlines, {:.1f} mm cells ({} x {} x {}), {} entries ({:.0f} MB)", N, g.cell, g.n[0], g.n[1],
+                  g.n[2], g.ids.size(), double(g.ids.size()) * 4 / 1048576.0);
     return g;
 }
 

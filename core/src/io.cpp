@@ -179,8 +179,7 @@ Buffer<float> map_positions(const hz_positions_extent &ext, std::uint64_t nb_ver
         crc = crc32_combine(crc, p.crc, static_cast<z_off_t>((p.end - p.begin) * 12));
         merge_bounds(bounds, p.b);
     }
-    if (check_crc && crc != ext.crc32)
-        throw Error(where + ": the positions fail their zip CRC-32 check (the archive is corrupt)");
+    if (check_crc && crc != ext.crc32) throw Error(where + ": the positions fail their zip CRC-32 check (the archive is corrupt)");
     return mapped;
 }
 
@@ -380,9 +379,7 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
     if (l->visit_metadata != nullptr) {
         l->visit_metadata(
             g.r,
-            [](void *ctx, const char *k, const char *v) {
-                static_cast<Dataset *>(ctx)->metadata.emplace_back(k ? k : "", v ? v : "");
-            },
+            [](void *ctx, const char *k, const char *v) { static_cast<Dataset *>(ctx)->metadata.emplace_back(k ? k : "", v ? v : ""); },
             &ds, &err);
     }
 
@@ -398,8 +395,10 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
         bool mapped = false;
         if (HZ_HAS_FIELD(l, hz_loader, locate_positions) && l->locate_positions != nullptr && info.nb_vertices > 0) {
             st = l->locate_positions(g.r, &ext, &err);
-            if (st == HZ_OK) mapped = true;
-            else if (st != HZ_E_UNSUPPORTED) throw Error(failure(err, st, path, "locate_positions"));
+            if (st == HZ_OK)
+                mapped = true;
+            else if (st != HZ_E_UNSUPPORTED)
+                throw Error(failure(err, st, path, "locate_positions"));
             err = make_error();
             if (mapped && (ext.flags & ~(HZ_EXTENT_HAS_CRC32 | HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED | HZ_EXTENT_UNALIGNED)) != 0)
                 throw Error(path.string() + ": loader located the positions with a layout flag the host does not know");
@@ -498,7 +497,8 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
         st = l->read_mesh(g.r, &dst, task, &err);
         if (st != HZ_OK) throw Error(failure(err, st, path, "read_mesh"));
         for (std::size_t i = 0; i < m.faces.size(); ++i)
-            if (m.faces[i] >= m.nb_vertices()) throw Error(path.string() + ": triangle " + std::to_string(i / 3) + " uses a vertex out of range");
+            if (m.faces[i] >= m.nb_vertices())
+                throw Error(path.string() + ": triangle " + std::to_string(i / 3) + " uses a vertex out of range");
         std::copy(std::begin(info.voxel_to_ras), std::end(info.voxel_to_ras), m.transform.begin());
         for (uint32_t i = 0; i < info.nb_arrays; ++i) m.arrays.push_back(read_extra_array(*l, g.r, i, path, task));
     } else {
@@ -508,8 +508,8 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
 }
 }  // namespace
 
-void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path, bool force,
-                   std::vector<std::string> *dropped, const fs::path &protect, const hz_task *task) {
+void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path, bool force, std::vector<std::string> *dropped,
+                   const fs::path &protect, const hz_task *task) {
     std::error_code ec;
     if (!protect.empty() && fs::exists(path, ec) && fs::equivalent(path, protect, ec))
         throw Error(path.string() + ": refusing to overwrite the input file");
@@ -517,8 +517,7 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     if (fs::exists(path, ec) && !force) throw Error(path.string() + ": already exists (use --force to replace it)");
     const LoadedPlugin &p = loader_for_write(reg, path, ds.kind);
     const hz_loader *l = p.loader();
-    if (!(l->data_kinds & ds.kind))
-        throw Error(path.string() + ": " + p.info.name + " cannot hold " + kind_name(ds.kind) + " data");
+    if (!(l->data_kinds & ds.kind)) throw Error(path.string() + ": " + p.info.name + " cannot hold " + kind_name(ds.kind) + " data");
 
     const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
     if (!fs::is_directory(dir, ec)) throw Error(path.string() + ": directory " + dir.string() + " does not exist");
@@ -572,7 +571,9 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     const bool pass_gap = ds.kind == HZ_DATA_STREAMLINES && (l->caps & HZ_LOADER_WRITES_GAP) &&
                           std::none_of(ds.tractogram.arrays.begin(), ds.tractogram.arrays.end(),
                                        [](const DataArray &a) { return a.attach == HZ_ATTACH_VERTEX; });
-    const Tractogram compact = ds.kind != HZ_DATA_STREAMLINES ? Tractogram{} : pass_gap ? ds.tractogram.shared() : ds.tractogram.compacted();
+    const Tractogram compact = ds.kind != HZ_DATA_STREAMLINES ? Tractogram{}
+                               : pass_gap                     ? ds.tractogram.shared()
+                                                              : ds.tractogram.compacted();
     if (ds.kind == HZ_DATA_STREAMLINES) {
         view.streamlines = compact.view();
         std::copy(ds.tractogram.reference.begin(), ds.tractogram.reference.end(), view.voxel_to_ras);
@@ -632,13 +633,13 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     // Companions first, so the main file never appears without them.
     for (const auto &[t, f] : companions.files) {
         if (!fs::exists(t, ec)) {
-                throw Error(path.string() + ": the writer reported a companion file it did not write (" + f.string() + ")");
+            throw Error(path.string() + ": the writer reported a companion file it did not write (" + f.string() + ")");
         }
         if (fs::exists(f, ec) && (!protect.empty() && fs::equivalent(f, protect, ec))) {
-                throw Error(f.string() + ": refusing to overwrite the input file");
+            throw Error(f.string() + ": refusing to overwrite the input file");
         }
         if (fs::exists(f, ec) && !force) {
-                throw Error(f.string() + ": already exists (use --force to replace it)");
+            throw Error(f.string() + ": already exists (use --force to replace it)");
         }
         check_output_target(f);
     }
@@ -650,7 +651,8 @@ void write_text_atomic(const fs::path &path, const std::string &text, bool force
     std::error_code ec;
     if (path == "-") {  // standard output
         std::fwrite(text.data(), 1, text.size(), stdout);
-        if (std::fflush(stdout) != 0 || std::ferror(stdout)) throw Error(std::string("standard output: write failed: ") + std::strerror(errno));
+        if (std::fflush(stdout) != 0 || std::ferror(stdout))
+            throw Error(std::string("standard output: write failed: ") + std::strerror(errno));
         return;
     }
     check_output_target(path);

@@ -94,7 +94,17 @@ bool mapped_file_at(std::uintptr_t addr, char *out, std::size_t cap) {
 // file instead of a silent death.
 void on_crash(int sig, siginfo_t *, void *ctx);
 
+// Set by the first thread that reports a fault: threads that fault at the
+// same moment (a parallel decode reading past a truncated file's end) wait
+// for that one to end the process instead of printing a second line.
+std::atomic<bool> g_fault_reported{false};
+void wait_for_the_first_report() {
+    if (!g_fault_reported.exchange(true)) return;
+    for (;;) ::pause();
+}
+
 void on_sigbus(int sig, siginfo_t *info, void *ctx) {
+    wait_for_the_first_report();
     char name[4096];
     for (int i = 0; i < kSlots; ++i)
         if (g_used[i].load()) ::unlink(g_paths[i]);
@@ -111,6 +121,7 @@ void on_sigbus(int sig, siginfo_t *info, void *ctx) {
 // stderr when it is a plugin's code, then the default action (the process
 // dies of the signal as before).
 void on_crash(int sig, siginfo_t *, void *ctx) {
+    if (sig != SIGBUS) wait_for_the_first_report();  // (on_sigbus has)
     char name[4096];
     std::uintptr_t pc = 0;
 #if defined(__x86_64__)

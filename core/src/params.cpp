@@ -17,7 +17,6 @@ std::string fmt(double v) {
     return s.str();
 }
 
-
 std::uint32_t fixed_count(const ParamSpec &s) {
     switch (s.type) {
     case HZ_PARAM_VEC2: return 2;
@@ -54,9 +53,11 @@ const char *param_type_name(hz_param_type t) {
 
 std::vector<ParamSpec> schema_of(const LoadedPlugin &p) {
     std::uint32_t count = 0;
-    const hz_param_info *(HZ_ABI *get)(std::uint32_t) = nullptr;
-    if (const hz_shader *s = p.shader()) count = s->param_count, get = s->get_param;
-    else if (const hz_clustering *c = p.clustering()) count = c->param_count, get = c->get_param;
+    const hz_param_info *(HZ_ABI * get)(std::uint32_t) = nullptr;
+    if (const hz_shader *s = p.shader())
+        count = s->param_count, get = s->get_param;
+    else if (const hz_clustering *c = p.clustering())
+        count = c->param_count, get = c->get_param;
     std::vector<ParamSpec> out;
     for (std::uint32_t i = 0; i < count && get; ++i) {
         const hz_param_info *pi = get(i);
@@ -102,7 +103,9 @@ const ParamSpec &find_param(const std::vector<ParamSpec> &schema, const std::str
 
 void check_param(const ParamSpec &s, const std::vector<double> &v) {
     const std::uint32_t fixed = fixed_count(s);
-    if (fixed && v.size() != fixed) throw Error(s.name + ": expected " + std::to_string(fixed) + " value" + (fixed == 1 ? "" : "s") + ", got " + std::to_string(v.size()));
+    if (fixed && v.size() != fixed)
+        throw Error(s.name + ": expected " + std::to_string(fixed) + " value" + (fixed == 1 ? "" : "s") + ", got " +
+                    std::to_string(v.size()));
     if (!fixed && (v.empty() || v.size() > s.components))
         throw Error(s.name + ": expected 1 to " + std::to_string(s.components) + " values, got " + std::to_string(v.size()));
     for (std::size_t k = 0; k < v.size(); ++k) {
@@ -115,16 +118,20 @@ void check_param(const ParamSpec &s, const std::vector<double> &v) {
             throw Error(s.name + ": no choice " + fmt(x));
         const std::size_t r = s.min.size() == 1 ? 0 : k;
         if (r < s.min.size() && s.type != HZ_PARAM_BOOL && s.type != HZ_PARAM_ENUM && (x < s.min[r] || x > s.max[r]))
-            throw Error(s.name + ": " + fmt(x) + " is outside [" + fmt(s.min[r]) + ", " + fmt(s.max[r]) + "]" + (s.unit.empty() ? "" : " " + s.unit));
+            throw Error(s.name + ": " + fmt(x) + " is outside [" + fmt(s.min[r]) + ", " + fmt(s.max[r]) + "]" +
+                        (s.unit.empty() ? "" : " " + s.unit));
     }
 }
 
 std::vector<double> parse_param(const ParamSpec &s, const std::string &text) {
     std::vector<double> v;
     if (s.type == HZ_PARAM_BOOL) {
-        if (text == "true" || text == "1" || text == "on" || text == "yes") v = {1};
-        else if (text == "false" || text == "0" || text == "off" || text == "no") v = {0};
-        else throw Error(s.name + ": expected true or false, not '" + text + "'");
+        if (text == "true" || text == "1" || text == "on" || text == "yes")
+            v = {1};
+        else if (text == "false" || text == "0" || text == "off" || text == "no")
+            v = {0};
+        else
+            throw Error(s.name + ": expected true or false, not '" + text + "'");
     } else if (s.type == HZ_PARAM_ENUM) {
         for (std::size_t i = 0; i < s.enum_labels.size(); ++i)
             if (s.enum_labels[i] == text) v = {double(i)};
@@ -148,9 +155,12 @@ std::vector<double> parse_param(const ParamSpec &s, const std::string &text) {
 
 std::vector<double> param_from_json(const ParamSpec &s, const nlohmann::json &j) {
     std::vector<double> v;
-    if (j.is_boolean()) v = {j.get<bool>() ? 1.0 : 0.0};
-    else if (j.is_number()) v = {j.get<double>()};
-    else if (j.is_string()) return parse_param(s, j.get<std::string>());
+    if (j.is_boolean())
+        v = {j.get<bool>() ? 1.0 : 0.0};
+    else if (j.is_number())
+        v = {j.get<double>()};
+    else if (j.is_string())
+        return parse_param(s, j.get<std::string>());
     else if (j.is_array()) {
         for (const auto &x : j) {
             if (!x.is_number()) throw Error(s.name + ": expected an array of numbers");
@@ -185,7 +195,8 @@ const LoadedPlugin *find_plugin(const Registry &reg, const std::string &name, hz
         if (kind != 0 && p.info.kind != kind) continue;
         const std::string &id = p.info.id;
         if (id == name) return &p;
-        if (id.size() > name.size() && id.compare(id.size() - name.size(), name.size(), name) == 0 && id[id.size() - name.size() - 1] == '.')
+        if (id.size() > name.size() && id.compare(id.size() - name.size(), name.size(), name) == 0 &&
+            id[id.size() - name.size() - 1] == '.')
             match.push_back(&p);
     }
     if (match.size() == 1) return match[0];

@@ -150,9 +150,9 @@ std::optional<std::string> elf_precheck(const fs::path &file) {
     in.read(reinterpret_cast<char *>(h), sizeof h);
     const auto got = static_cast<std::size_t>(in.gcount());
     if (got < 4 || std::memcmp(h, ELFMAG, SELFMAG) != 0) {
-        const bool text = std::all_of(h, h + got, [](unsigned char c) { return c == '\n' || c == '\r' || c == '\t' || (c >= 32 && c < 127); });
-        return text ? "a text file, not a shared object (no ELF header)"
-                    : "not a shared object (no ELF magic: random or foreign bytes)";
+        const bool text =
+            std::all_of(h, h + got, [](unsigned char c) { return c == '\n' || c == '\r' || c == '\t' || (c >= 32 && c < 127); });
+        return text ? "a text file, not a shared object (no ELF header)" : "not a shared object (no ELF magic: random or foreign bytes)";
     }
     if (got < sizeof(Elf64_Ehdr)) return "truncated ELF header";
     if (h[EI_CLASS] != ELFCLASS64) return "32-bit ELF object; this host needs 64-bit plugins";
@@ -165,8 +165,7 @@ std::optional<std::string> elf_precheck(const fs::path &file) {
                "); this host is " + machine_name(kHostMachine);
     }
     if (eh.e_type != ET_DYN) return "an ELF file but not a shared object (e_type " + std::to_string(eh.e_type) + ")";
-    if (exports_plugin_entry(in, size, eh) == false)
-        return "not a Horizon plugin: no '" HZ_PLUGIN_ENTRY_SYMBOL "' symbol exported";
+    if (exports_plugin_entry(in, size, eh) == false) return "not a Horizon plugin: no '" HZ_PLUGIN_ENTRY_SYMBOL "' symbol exported";
     return std::nullopt;
 }
 
@@ -233,8 +232,7 @@ std::pair<pid_t, int> spawn(const std::function<void(int)> &body) {
 // Reads what the child writes to `fd` into `buf` until EOF (returns 0), the
 // deadline (kills the child, sets r.timed_out, returns -1), or, with
 // `until_newline`, a complete line in buf (returns 1).
-int read_child(pid_t pid, int fd, std::chrono::steady_clock::time_point deadline, std::string &buf, bool until_newline,
-               ChildResult &r) {
+int read_child(pid_t pid, int fd, std::chrono::steady_clock::time_point deadline, std::string &buf, bool until_newline, ChildResult &r) {
     char chunk[65536];
     for (;;) {
         if (until_newline && buf.find('\n') != std::string::npos) return 1;
@@ -348,7 +346,8 @@ std::size_t core_interface_min_size(hz_plugin_kind k) {
 bool valid_plugin_id(std::string_view id) {
     if (id.empty() || !(std::islower(static_cast<unsigned char>(id[0])) || std::isdigit(static_cast<unsigned char>(id[0])))) return false;
     return std::all_of(id.begin(), id.end(), [](char c) {
-        return std::islower(static_cast<unsigned char>(c)) || std::isdigit(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-';
+        return std::islower(static_cast<unsigned char>(c)) || std::isdigit(static_cast<unsigned char>(c)) || c == '.' || c == '_' ||
+               c == '-';
     });
 }
 std::string first_line(std::string s) {
@@ -408,8 +407,8 @@ Module::Module(const fs::path &file, std::optional<FileId> expect) : impl_(std::
         for (int major = 0; major < 16; ++major) {
             const std::string sym = "hz_plugin_entry_v" + std::to_string(major);
             if (major != HZ_ABI_VERSION_MAJOR && impl_->lib.has(sym))
-                throw Error("built for Horizon plugin ABI " + std::to_string(major) + " (exports " + sym +
-                            "); this host supports ABI " + std::to_string(HZ_ABI_VERSION_MAJOR));
+                throw Error("built for Horizon plugin ABI " + std::to_string(major) + " (exports " + sym + "); this host supports ABI " +
+                            std::to_string(HZ_ABI_VERSION_MAJOR));
         }
         throw Error("not a Horizon plugin: no '" HZ_PLUGIN_ENTRY_SYMBOL "' symbol exported");
     }
@@ -484,9 +483,12 @@ struct LoadedObject {
         std::vector<ElfW(Xword)> offsets;
         ElfW(Xword) so = ~ElfW(Xword)(0);
         for (; d->d_tag != DT_NULL; ++d) {
-            if (d->d_tag == DT_STRTAB) strtab = d->d_un.d_ptr;
-            else if (d->d_tag == DT_NEEDED) offsets.push_back(d->d_un.d_val);
-            else if (d->d_tag == DT_SONAME) so = d->d_un.d_val;
+            if (d->d_tag == DT_STRTAB)
+                strtab = d->d_un.d_ptr;
+            else if (d->d_tag == DT_NEEDED)
+                offsets.push_back(d->d_un.d_val);
+            else if (d->d_tag == DT_SONAME)
+                so = d->d_un.d_val;
         }
         if (strtab == 0) return;
         // glibc relocates these entries in place where the section is
@@ -886,30 +888,38 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
         std::vector<std::pair<fs::path, bool>> here;  // file, its folder open to all
         std::vector<fs::path> subdirs;
         for (const auto &de : fs::directory_iterator(dir, fs::directory_options::skip_permission_denied, ec)) {
-            if ((de.is_regular_file(ec) || de.is_symlink(ec)) && is_candidate(de.path())) here.emplace_back(de.path(), false);
-            else if (de.is_directory(ec) && !de.path().filename().string().starts_with(".")) subdirs.push_back(de.path());
+            if ((de.is_regular_file(ec) || de.is_symlink(ec)) && is_candidate(de.path()))
+                here.emplace_back(de.path(), false);
+            else if (de.is_directory(ec) && !de.path().filename().string().starts_with("."))
+                subdirs.push_back(de.path());
         }
         std::sort(here.begin(), here.end());
         std::sort(subdirs.begin(), subdirs.end());
         for (const auto &sub : subdirs) {
             std::vector<std::pair<fs::path, bool>> inside;
             for (const auto &de : fs::directory_iterator(sub, fs::directory_options::skip_permission_denied, ec))
-                if ((de.is_regular_file(ec) || de.is_symlink(ec)) && is_candidate(de.path())) inside.emplace_back(de.path(), world_writable(sub));
+                if ((de.is_regular_file(ec) || de.is_symlink(ec)) && is_candidate(de.path()))
+                    inside.emplace_back(de.path(), world_writable(sub));
             std::sort(inside.begin(), inside.end());
             here.insert(here.end(), inside.begin(), inside.end());
         }
         const bool open_dir = world_writable(dir);
         for (auto &[f, open_sub] : here) {
             const bool in_sub = f.parent_path() != dir;
-            if (open_dir || open_sub) reject(f, "its folder is world-writable (anyone could replace it): not loaded");
-            else if (world_writable(f)) reject(f, "the file is world-writable (anyone could replace it): not loaded");
+            if (open_dir || open_sub)
+                reject(f, "its folder is world-writable (anyone could replace it): not loaded");
+            else if (world_writable(f))
+                reject(f, "the file is world-writable (anyone could replace it): not loaded");
             else if (auto why = elf_precheck(f)) {
                 // A sub-folder's other libraries are the plugin's own (the
                 // images loader's OpenImageIO backend): not plugins, not
                 // reported.
-                if (in_sub && why->starts_with("not a Horizon plugin: no")) spdlog::debug("{} is not a plugin: {}", f.string(), *why);
-                else reject(f, *why);
-            } else files.emplace_back(std::move(f));
+                if (in_sub && why->starts_with("not a Horizon plugin: no"))
+                    spdlog::debug("{} is not a plugin: {}", f.string(), *why);
+                else
+                    reject(f, *why);
+            } else
+                files.emplace_back(std::move(f));
         }
     }
     if (!options_.isolate) {
@@ -997,8 +1007,7 @@ std::string Registry::trial_failure(const ChildResult &r) const {
     return "trial load " + r.describe() + " without a report";
 }
 
-bool Registry::take_report(const fs::path &file, const std::string &report, const std::string &if_malformed,
-                           std::optional<FileId> expect) {
+bool Registry::take_report(const fs::path &file, const std::string &report, const std::string &if_malformed, std::optional<FileId> expect) {
     const nlohmann::json j = nlohmann::json::parse(report, nullptr, false);
     if (j.is_discarded() || !j.contains("ok") || !j["ok"].is_boolean()) {
         reject(file, if_malformed);

@@ -18,9 +18,9 @@
 // variant chosen when the library loads (GCC target_clones; the compiler
 // vectorises plain loops, no intrinsics). Empty elsewhere.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#  define HZIO_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#define HZIO_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
-#  define HZIO_SIMD_CLONES
+#define HZIO_SIMD_CLONES
 #endif
 
 namespace hzio {
@@ -80,8 +80,7 @@ inline bool parallel_chunks(std::size_t n, const std::function<void(std::size_t)
             } catch (...) {
                 errors[c] = std::current_exception();
                 std::size_t f = first_failed.load();
-                while (c < f && !first_failed.compare_exchange_weak(f, c)) {
-                }
+                while (c < f && !first_failed.compare_exchange_weak(f, c)) {}
             }
         }
     };

@@ -7,9 +7,9 @@
 #include <stddef.h>
 
 #ifdef __cplusplus
-#  define HZ_SA static_assert
+#define HZ_SA static_assert
 #else
-#  define HZ_SA _Static_assert
+#define HZ_SA _Static_assert
 #endif
 
 HZ_SA(sizeof(hz_abi_version) == 12, "hz_abi_version");

@@ -10,10 +10,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
     try {
         const fsurf::Surface s = fsurf::parse(data, size);
         for (std::uint32_t f : s.faces)
-            if (f >= s.vertices.size() / 3) __builtin_trap();  // faces are checked
+            if (f >= s.vertices.size() / 3) __builtin_trap();                                   // faces are checked
         if (s.curv && (s.values.empty() || 15 + 4 * s.values.size() > size)) __builtin_trap();  // sizes are checked
-    } catch (const fsurf::FormatError &) {
-    }
+    } catch (const fsurf::FormatError &) {}
     try {
         const fsurf::Annotation a = fsurf::parse_annot(data, size);
         if (4 + 8 * a.labels.size() > size) __builtin_trap();  // counts are checked
@@ -22,7 +21,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
             if (l >= 0 && std::none_of(a.table.begin(), a.table.end(), [l](const fsurf::AnnotEntry &e) { return e.index == l; }))
                 __builtin_trap();  // a label always names a table entry
         }
-    } catch (const fsurf::FormatError &) {
-    }
+    } catch (const fsurf::FormatError &) {}
     return 0;
 }

@@ -18,7 +18,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
         const gifti::Surface s = gifti::read(path);
         for (std::uint32_t f : s.faces)
             if (f >= s.vertices.size() / 3) __builtin_trap();  // faces are checked
-    } catch (const std::runtime_error &) {
-    }
+    } catch (const std::runtime_error &) {}
     return 0;
 }

@@ -24,7 +24,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
         volatile unsigned char sink = 0;
         for (std::uint64_t i = 0; i < bytes; i += 4096) sink = sink ^ img.data()[i];
         if (bytes) sink = sink ^ img.data()[bytes - 1];
-    } catch (const std::runtime_error &) {
-    }
+    } catch (const std::runtime_error &) {}
     return 0;
 }

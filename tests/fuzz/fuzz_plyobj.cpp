@@ -14,7 +14,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
         for (std::uint32_t f : m.faces)
             if (f >= nv) __builtin_trap();  // faces are checked
         if (!m.colors.empty() && m.colors.size() != m.vertices.size()) __builtin_trap();
-    } catch (const plyobj::FormatError &) {
-    }
+    } catch (const plyobj::FormatError &) {}
     return 0;
 }

@@ -45,8 +45,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
             }
             if (l.lo[d] != lo || l.hi[d] != hi) __builtin_trap();
         }
-    } catch (const tck::FormatError &) {
-    }
+    } catch (const tck::FormatError &) {}
     tck::probe(data, size);
     return 0;
 }

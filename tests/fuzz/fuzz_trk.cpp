@@ -43,8 +43,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
             }
             if (box.lo[d] != lo || box.hi[d] != hi) __builtin_trap();
         }
-    } catch (const trk::FormatError &) {
-    }
+    } catch (const trk::FormatError &) {}
     trk::probe(data, size);
     return 0;
 }

@@ -239,8 +239,10 @@ TEST_CASE("QuickBundlesX at every SIMD target the CPU runs: exact mode the same 
             CAPTURE(l + 1);
             CHECK(matched_fraction(fast_labels[l], exact_labels[l]) >= 0.999);
         }
-        if (first_fast.empty()) first_fast = two.centroids;
-        else widths_differ = widths_differ || two.centroids != first_fast;
+        if (first_fast.empty())
+            first_fast = two.centroids;
+        else
+            widths_differ = widths_differ || two.centroids != first_fast;
     });
     // The forcing reached the plugin: fast mode's float32 sums follow the
     // vector width, so its centroids are not the same at every width.

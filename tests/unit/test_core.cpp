@@ -80,11 +80,20 @@ TEST_CASE("run_in_child reports output, crashes and hangs") {
     const auto ok = run_in_child([] { return std::string("hello"); }, 5);
     CHECK(ok.exited);
     CHECK(ok.output == "hello");
-    const auto crash = run_in_child([]() -> std::string { std::raise(SIGSEGV); return ""; }, 5);
+    const auto crash = run_in_child(
+        []() -> std::string {
+            std::raise(SIGSEGV);
+            return "";
+        },
+        5);
     CHECK(crash.signal == SIGSEGV);
     CHECK_THAT(crash.describe(), Catch::Contains("SIGSEGV"));
     const auto t0 = std::chrono::steady_clock::now();
-    const auto hang = run_in_child([]() -> std::string { for (;;) std::this_thread::sleep_for(std::chrono::seconds(1)); }, 0.5);
+    const auto hang = run_in_child(
+        []() -> std::string {
+            for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+        },
+        0.5);
     CHECK(hang.timed_out);
     CHECK(std::chrono::steady_clock::now() - t0 < std::chrono::seconds(5));
 }

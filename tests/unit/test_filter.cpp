@@ -57,7 +57,8 @@ TEST_CASE("filter: every SIMD target agrees with the scalar region test at the b
                 for (int i = 0; i < 3; ++i)
                     for (int u = int(rng() % 5); u > 0; --u) p[i] = std::nextafter(p[i], (rng() & 1) ? 1e9f : -1e9f);
             } else {  // on a face of the box, or just off it
-                for (int i = 0; i < 3; ++i) p[i] = float(r->lo[i] + (r->hi[i] - r->lo[i]) * std::uniform_real_distribution<double>(0, 1)(rng));
+                for (int i = 0; i < 3; ++i)
+                    p[i] = float(r->lo[i] + (r->hi[i] - r->lo[i]) * std::uniform_real_distribution<double>(0, 1)(rng));
                 const int axis = int(rng() % 3);
                 p[axis] = float((rng() & 1) ? r->lo[axis] : r->hi[axis]);
                 if (rng() & 1) p[axis] = std::nextafter(p[axis], (rng() & 1) ? 1e9f : -1e9f);

@@ -125,7 +125,7 @@ TEST_CASE("streamlines_crossing picks exactly what a stroke crosses", "[pick]") 
     // a streamline counts (touching).
     std::vector<std::vector<float>> lines;
     for (float x : {-8.f, -4.f, 0.f, 4.f, 8.f}) lines.push_back({x, -5, 0, x, 5, 0});  // (one segment each: strokes cross it inside)
-    lines.push_back({20, 0, 0});  // (a single point, off every stroke)
+    lines.push_back({20, 0, 0});                                                       // (a single point, off every stroke)
     const Tractogram t = polylines(lines);
     const auto v = down_z();
     using P = std::array<double, 2>;
@@ -135,8 +135,8 @@ TEST_CASE("streamlines_crossing picks exactly what a stroke crosses", "[pick]") 
     CHECK(cross({{95, 50}, {115.2, 50}}) == std::vector<std::uint64_t>{2, 3, 4});
     CHECK(cross({{80, 35}, {120, 35}}).empty());
     CHECK(cross({{80, 45}, {100, 45}, {100, 60}}) == std::vector<std::uint64_t>{0, 1, 2});  // (a polyline; its corner lies on streamline 2)
-    CHECK(cross({{100, 45}, {104, 47}}) == std::vector<std::uint64_t>{2});                   // (it only touches streamline 2)
-    CHECK(cross({{100, 50}}).empty());  // (one point is no stroke)
+    CHECK(cross({{100, 45}, {104, 47}}) == std::vector<std::uint64_t>{2});                  // (it only touches streamline 2)
+    CHECK(cross({{100, 50}}).empty());                                                      // (one point is no stroke)
 }
 
 TEST_CASE("ray_mesh finds the nearest triangle along a ray", "[pick]") {
@@ -148,6 +148,6 @@ TEST_CASE("ray_mesh finds the nearest triangle along a ray", "[pick]") {
     REQUIRE(t);
     CHECK(*t == Approx(10));
     CHECK(*render::ray_mesh(m, {0, 0, 20}, {0, 0, 1}) == Approx(10));  // (t from the origin given)
-    CHECK_FALSE(render::ray_mesh(m, {0, 0, 40}, {0, 0, 1}));            // (everything behind)
-    CHECK_FALSE(render::ray_mesh(m, {3, 3, 0}, {0, 0, 1}));             // (beside every triangle)
+    CHECK_FALSE(render::ray_mesh(m, {0, 0, 40}, {0, 0, 1}));           // (everything behind)
+    CHECK_FALSE(render::ray_mesh(m, {3, 3, 0}, {0, 0, 1}));            // (beside every triangle)
 }

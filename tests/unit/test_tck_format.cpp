@@ -73,7 +73,8 @@ void check_bounds(const Parsed &p) {
 }  // namespace
 
 TEST_CASE("tck: Float32LE with an empty streamline and trailing spaces in the magic line") {
-    const std::string file = header("Float32LE") + f32le({1, 2, 3, 4, 5, 6, NaN, NaN, NaN, NaN, NaN, NaN, 7, 8, 9, NaN, NaN, NaN, Inf, Inf, Inf});
+    const std::string file =
+        header("Float32LE") + f32le({1, 2, 3, 4, 5, 6, NaN, NaN, NaN, NaN, NaN, NaN, 7, 8, 9, NaN, NaN, NaN, Inf, Inf, Inf});
     const Parsed p = parse(file);
     REQUIRE(p.l.nb_streamlines == 3);
     REQUIRE(p.l.nb_vertices == 3);

@@ -24,7 +24,8 @@ std::string slurp(const std::string &p) {
 
 }  // namespace
 
-TEST_CASE("trk: at every SIMD target, the parallel chunked decode equals one sequential chunk, and the first bad point in file order is named") {
+TEST_CASE(
+    "trk: at every SIMD target, the parallel chunked decode equals one sequential chunk, and the first bad point in file order is named") {
     hz::test::for_each_simd_target([&](const char *) {
         // About 40 MB of records: three chunks of 16 MiB, with one scalar column
         // and one property so records are not plain points.
@@ -88,7 +89,9 @@ TEST_CASE("trk: at every SIMD target, the parallel chunked decode equals one seq
     });
 }
 
-TEST_CASE("trk: at every SIMD target, the vector transform of scalar-free points equals the scalar formula bit for bit, and non-finite input is flagged") {
+TEST_CASE(
+    "trk: at every SIMD target, the vector transform of scalar-free points equals the scalar formula bit for bit, and non-finite input is "
+    "flagged") {
     hz::test::for_each_simd_target([&](const char *) {
         // An oblique affine with a translation, every length 0..40 (vector body
         // and scalar tail), points at an offset of one float (unaligned vectors).
@@ -103,8 +106,8 @@ TEST_CASE("trk: at every SIMD target, the vector transform of scalar-free points
             for (std::uint64_t i = 0; i < n; ++i)
                 for (int r = 0; r < 3; ++r) {
                     const float *p = in.data() + 1 + 3 * i;
-                    const float want = static_cast<float>(A[4 * r] * double(p[0]) + A[4 * r + 1] * double(p[1]) + A[4 * r + 2] * double(p[2]) +
-                                                          A[4 * r + 3]);
+                    const float want = static_cast<float>(A[4 * r] * double(p[0]) + A[4 * r + 1] * double(p[1]) +
+                                                          A[4 * r + 2] * double(p[2]) + A[4 * r + 3]);
                     REQUIRE(std::memcmp(&out[3 * i + r], &want, 4) == 0);
                     want_lo[r] = std::min(want_lo[r], want);
                     want_hi[r] = std::max(want_hi[r], want);

@@ -39,8 +39,7 @@ class EglContext final : public GlContext {
 public:
     EglContext() {
         const char *exts = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-        auto get_platform_display =
-            reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
+        auto get_platform_display = reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
         if (exts && std::strstr(exts, "EGL_MESA_platform_surfaceless") && get_platform_display)
             display_ = get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
         if (display_ == EGL_NO_DISPLAY) display_ = eglGetDisplay(EGL_DEFAULT_DISPLAY);
@@ -59,13 +58,13 @@ public:
         }
         const int versions[][2] = {{4, 5}, {4, 3}, {4, 1}};
         for (const auto &v : versions) {
-            const EGLint attrs[] = {EGL_CONTEXT_MAJOR_VERSION, v[0], EGL_CONTEXT_MINOR_VERSION, v[1],
-                                    EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+            const EGLint attrs[] = {
+                EGL_CONTEXT_MAJOR_VERSION,           v[0],    EGL_CONTEXT_MINOR_VERSION, v[1], EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
             context_ = eglCreateContext(display_, config, EGL_NO_CONTEXT, attrs);
             if (context_ != EGL_NO_CONTEXT) break;
         }
-        if (context_ == EGL_NO_CONTEXT)
-            throw Error("headless OpenGL: no OpenGL 4.1+ core context: " + egl_error_name(eglGetError()));
+        if (context_ == EGL_NO_CONTEXT) throw Error("headless OpenGL: no OpenGL 4.1+ core context: " + egl_error_name(eglGetError()));
         make_current();
     }
     ~EglContext() override {

@@ -17,8 +17,8 @@ struct Clip {
 
 Clip project(const std::array<double, 16> &m, const float *p) {
     const double x = p[0], y = p[1], z = p[2];
-    return {m[0] * x + m[4] * y + m[8] * z + m[12], m[1] * x + m[5] * y + m[9] * z + m[13],
-            m[2] * x + m[6] * y + m[10] * z + m[14], m[3] * x + m[7] * y + m[11] * z + m[15]};
+    return {m[0] * x + m[4] * y + m[8] * z + m[12], m[1] * x + m[5] * y + m[9] * z + m[13], m[2] * x + m[6] * y + m[10] * z + m[14],
+            m[3] * x + m[7] * y + m[11] * z + m[15]};
 }
 
 Clip lerp(const Clip &a, const Clip &b, double t) {
@@ -48,8 +48,10 @@ std::optional<PickHit> pick_streamline(const Tractogram &t, std::span<const floa
         Best mine;
         auto segment = [&](std::uint64_t s, double r, Clip a, Clip b) {
             if (a.w < near && b.w < near) return;  // behind the near plane
-            if (a.w < near) a = lerp(a, b, (near - a.w) / (b.w - a.w));
-            else if (b.w < near) b = lerp(b, a, (near - b.w) / (a.w - b.w));
+            if (a.w < near)
+                a = lerp(a, b, (near - a.w) / (b.w - a.w));
+            else if (b.w < near)
+                b = lerp(b, a, (near - b.w) / (a.w - b.w));
             const double ax = (a.x / a.w * 0.5 + 0.5) * width, ay = (0.5 - a.y / a.w * 0.5) * height;
             const double bx = (b.x / b.w * 0.5 + 0.5) * width, by = (0.5 - b.y / b.w * 0.5) * height;
             const double dx = bx - ax, dy = by - ay, len2 = dx * dx + dy * dy;
@@ -126,8 +128,10 @@ std::vector<std::uint64_t> streamlines_crossing(const Tractogram &t, const View 
         std::vector<std::uint64_t> mine;
         auto crosses = [&](Clip a, Clip b) {
             if (a.w < near && b.w < near) return false;
-            if (a.w < near) a = lerp(a, b, (near - a.w) / (b.w - a.w));
-            else if (b.w < near) b = lerp(b, a, (near - b.w) / (a.w - b.w));
+            if (a.w < near)
+                a = lerp(a, b, (near - a.w) / (b.w - a.w));
+            else if (b.w < near)
+                b = lerp(b, a, (near - b.w) / (a.w - b.w));
             const double ax = (a.x / a.w * 0.5 + 0.5) * width, ay = (0.5 - a.y / a.w * 0.5) * height;
             const double bx = (b.x / b.w * 0.5 + 0.5) * width, by = (0.5 - b.y / b.w * 0.5) * height;
             if (std::max(ax, bx) < lo[0] || std::min(ax, bx) > hi[0] || std::max(ay, by) < lo[1] || std::min(ay, by) > hi[1]) return false;

@@ -42,12 +42,17 @@ std::string glsl_error_where(const std::string &line) {
     static const std::regex glslang(R"(^\s*ERROR:\s*(\d+):(\d+):\s*(.*)$)");
     std::smatch m;
     std::string file, row, col, msg;
-    if (std::regex_match(line, m, mesa)) file = m[1], row = m[2], col = m[3], msg = m[4];
-    else if (std::regex_match(line, m, nvidia)) file = m[1], row = m[2], msg = m[3];
-    else if (std::regex_match(line, m, glslang)) file = m[1], row = m[2], msg = m[3];
-    else return line;
+    if (std::regex_match(line, m, mesa))
+        file = m[1], row = m[2], col = m[3], msg = m[4];
+    else if (std::regex_match(line, m, nvidia))
+        file = m[1], row = m[2], msg = m[3];
+    else if (std::regex_match(line, m, glslang))
+        file = m[1], row = m[2], msg = m[3];
+    else
+        return line;
     const long n = std::stol(row.substr(0, 9));
-    if (file == "1" || n < kHostHeadLine) return "the plugin's GLSL snippet, line " + row + (col.empty() ? "" : ", column " + col) + ": " + msg;
+    if (file == "1" || n < kHostHeadLine)
+        return "the plugin's GLSL snippet, line " + row + (col.empty() ? "" : ", column " + col) + ": " + msg;
     return "the host's code around the snippet (" + std::string(n >= kHostTailLine ? "after" : "before") + " it): " + msg;
 }
 
@@ -66,8 +71,7 @@ std::string glsl_float(double v) {
 // program instead of a uniform, so the compiler folds every expression
 // of the parameters (and of a colour every vertex shares) once, instead
 // of per fragment. Returns false for a type it does not bake.
-bool bake_declaration(std::ostringstream &decl, const hz_param_info *pi, const std::string &u, const double *v,
-                             const FragmentSpec &g) {
+bool bake_declaration(std::ostringstream &decl, const hz_param_info *pi, const std::string &u, const double *v, const FragmentSpec &g) {
     switch (pi->type) {
     case HZ_PARAM_FLOAT: decl << "const float " << u << " = " << glsl_float(v[0]) << ";\n"; return true;
     case HZ_PARAM_INT:
@@ -99,7 +103,9 @@ std::string fragment_program(const FragmentSpec &g) {
     if (!snippet) throw Error("shader '" + g.shader->info.id + "' gave no GLSL for this geometry");
     std::ostringstream s;
     s << "#version 410 core\n";
-    s << (g.geom == ProgramGeom::Mesh ? "#define HZ_GEOM_MESH 1\n" : g.geom == ProgramGeom::Tube ? "#define HZ_GEOM_TUBE 1\n" : "#define HZ_GEOM_LINE 1\n");
+    s << (g.geom == ProgramGeom::Mesh   ? "#define HZ_GEOM_MESH 1\n"
+          : g.geom == ProgramGeom::Tube ? "#define HZ_GEOM_TUBE 1\n"
+                                        : "#define HZ_GEOM_LINE 1\n");
     s << (dom == HZ_SHADE_LINE ? "#define HZ_DOMAIN_LINE 1\n" : "#define HZ_DOMAIN_SURFACE 1\n");
     if (sh->output == HZ_SHADER_OUTPUT_BRDF) s << "#define HZ_OUTPUT_BRDF 1\n";
     if (sh->output == HZ_SHADER_OUTPUT_EMISSION) s << "#define HZ_OUTPUT_EMISSION 1\n";
@@ -119,8 +125,9 @@ std::string fragment_program(const FragmentSpec &g) {
     s << "#define HZ_APPLY_LIGHTS";
     for (std::size_t i = 0; i < nl; ++i) {
         const bool point = i < ls.size() && ls[i].type == "point";
-        s << " p.l = " << (point ? "hz_safe_normalize(hz_light_vec[" + std::to_string(i) + "].xyz - v_pos, vec3(0.0))"
-                                          : "hz_light_vec[" + std::to_string(i) + "].xyz")
+        s << " p.l = "
+          << (point ? "hz_safe_normalize(hz_light_vec[" + std::to_string(i) + "].xyz - v_pos, vec3(0.0))"
+                    : "hz_light_vec[" + std::to_string(i) + "].xyz")
           << "; HZ_LIGHT_TERM(" << i << ")";
     }
     s << "\n";
@@ -150,8 +157,10 @@ std::string fragment_program(const FragmentSpec &g) {
         case HZ_PARAM_VEC3: decl << "uniform vec3 " << u << ";\n"; break;
         case HZ_PARAM_COLOR3:
             if (pi->name == g.albedo)
-                decl << "vec3 " << u << ";  // set from the object's colouring\n#define HZ_ALBEDO " << u << "\n#define HZ_ALBEDO_PER_VERTEX 1\n";
-            else decl << "uniform vec3 " << u << ";\n";
+                decl << "vec3 " << u << ";  // set from the object's colouring\n#define HZ_ALBEDO " << u
+                     << "\n#define HZ_ALBEDO_PER_VERTEX 1\n";
+            else
+                decl << "uniform vec3 " << u << ";\n";
             break;
         case HZ_PARAM_FLOAT_ARRAY: decl << "uniform float " << u << "[" << pi->components << "];\n"; break;
         default: break;
@@ -170,7 +179,7 @@ std::string check_fragment_program(const LoadedPlugin &shader, hz_shade_domain d
         const hz_param_info *pi = sh->get_param(i);
         for (uint32_t c = 0; c < pi->components; ++c)
             values.push_back(pi->type == HZ_PARAM_FLOAT_ARRAY ? (c < pi->default_array_count ? pi->default_array[c] : 0.0)
-                                                             : pi->default_value[std::min<uint32_t>(c, 3)]);
+                                                              : pi->default_value[std::min<uint32_t>(c, 3)]);
     }
     FragmentSpec f;
     f.shader = &shader;

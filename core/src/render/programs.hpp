@@ -21,14 +21,14 @@ enum class ProgramOutput { Hdr, Display, Debug };
 struct FragmentSpec {
     const LoadedPlugin *shader = nullptr;
     ProgramGeom geom = ProgramGeom::Mesh;
-    bool line_domain = false;            // the snippet's line domain (HZ_SHADE_LINE)
-    std::span<const double> values;      // the shader's parameter values, in schema order
-    std::string albedo;                  // the colour parameter the colouring drives ("" if none)
+    bool line_domain = false;                                 // the snippet's line domain (HZ_SHADE_LINE)
+    std::span<const double> values;                           // the shader's parameter values, in schema order
+    std::string albedo;                                       // the colour parameter the colouring drives ("" if none)
     std::optional<std::array<std::uint8_t, 4>> uniform_rgba;  // the colour every vertex has, if one
     bool refractive = false;
-    bool bake = true;                    // parameters as constants instead of uniforms
+    bool bake = true;  // parameters as constants instead of uniforms
     ProgramOutput output = ProgramOutput::Hdr;
-    int tone_curve = 0;                  // 0 ACES, 1 Reinhard, 2 none
+    int tone_curve = 0;  // 0 ACES, 1 Reinhard, 2 none
     bool env_on = false;
     std::vector<Light> lights;
 };

@@ -49,12 +49,21 @@ const std::map<std::string, std::vector<Stop>> &colormap_stops() {
     // viridis and inferno, Moreland's cool-warm); linear interpolation between.
     static const std::map<std::string, std::vector<Stop>> m = {
         {"viridis",
-         {{0.0, 0.267004, 0.004874, 0.329415}, {0.125, 0.282623, 0.140926, 0.457517}, {0.25, 0.253935, 0.265254, 0.529983},
-          {0.375, 0.206756, 0.371758, 0.553117}, {0.5, 0.163625, 0.471133, 0.558148}, {0.625, 0.127568, 0.566949, 0.550556},
-          {0.75, 0.134692, 0.658636, 0.517649}, {0.875, 0.477504, 0.821444, 0.318195}, {1.0, 0.993248, 0.906157, 0.143936}}},
+         {{0.0, 0.267004, 0.004874, 0.329415},
+          {0.125, 0.282623, 0.140926, 0.457517},
+          {0.25, 0.253935, 0.265254, 0.529983},
+          {0.375, 0.206756, 0.371758, 0.553117},
+          {0.5, 0.163625, 0.471133, 0.558148},
+          {0.625, 0.127568, 0.566949, 0.550556},
+          {0.75, 0.134692, 0.658636, 0.517649},
+          {0.875, 0.477504, 0.821444, 0.318195},
+          {1.0, 0.993248, 0.906157, 0.143936}}},
         {"inferno",
-         {{0.0, 0.001462, 0.000466, 0.013866}, {0.25, 0.341500, 0.062325, 0.429425}, {0.5, 0.735683, 0.215906, 0.330245},
-          {0.75, 0.978422, 0.557937, 0.034931}, {1.0, 0.988362, 0.998364, 0.644924}}},
+         {{0.0, 0.001462, 0.000466, 0.013866},
+          {0.25, 0.341500, 0.062325, 0.429425},
+          {0.5, 0.735683, 0.215906, 0.330245},
+          {0.75, 0.978422, 0.557937, 0.034931},
+          {1.0, 0.988362, 0.998364, 0.644924}}},
         {"coolwarm", {{0.0, 0.2298, 0.2987, 0.7537}, {0.5, 0.8654, 0.8654, 0.8654}, {1.0, 0.7057, 0.0156, 0.1502}}},
         {"gray", {{0.0, 0, 0, 0}, {1.0, 1, 1, 1}}},
         {"hot", {{0.0, 0, 0, 0}, {1.0 / 3, 1, 0, 0}, {2.0 / 3, 1, 1, 0}, {1.0, 1, 1, 1}}},
@@ -239,11 +248,11 @@ struct LineData {
     std::array<std::uint8_t, 4> solid{};
     std::string colormap;
     std::array<double, 2> range{0, 1};
-    const DataArray *per_vertex = nullptr;               // data colouring by a per-point array
-    std::vector<double> per_streamline;                  // ... or by a per-streamline array
-    std::vector<std::array<std::uint8_t, 4>> cluster;    // cluster colouring, per streamline
-    std::vector<float> radius;                           // per streamline
-    std::vector<float> highlight;                        // per streamline; empty: none
+    const DataArray *per_vertex = nullptr;             // data colouring by a per-point array
+    std::vector<double> per_streamline;                // ... or by a per-streamline array
+    std::vector<std::array<std::uint8_t, 4>> cluster;  // cluster colouring, per streamline
+    std::vector<float> radius;                         // per streamline
+    std::vector<float> highlight;                      // per streamline; empty: none
 };
 
 // Streamline geometry is cut into chunks of at most kChunkPoints input
@@ -256,15 +265,15 @@ constexpr std::uint64_t kChunkPoints = 1u << 18;
 constexpr std::uint32_t kRestart = 0xFFFFFFFFu;  // the primitive restart index
 
 struct LineChunk {
-    std::uint64_t a = 0, b = 0;   // streamlines [a, b) (of the object, or pieces [a, b) of its proxy)
-    std::uint64_t points = 0;     // input points
-    GLuint vao = 0, vbo = 0;      // resident geometry; 0: built and streamed when drawn
-    std::vector<GLint> firsts;    // per drawn streamline, into the chunk's vertices
+    std::uint64_t a = 0, b = 0;  // streamlines [a, b) (of the object, or pieces [a, b) of its proxy)
+    std::uint64_t points = 0;    // input points
+    GLuint vao = 0, vbo = 0;     // resident geometry; 0: built and streamed when drawn
+    std::vector<GLint> firsts;   // per drawn streamline, into the chunk's vertices
     std::vector<GLsizei> counts;
-    GLuint ebo = 0;               // the strips' indices (BuiltLines::indices)
+    GLuint ebo = 0;  // the strips' indices (BuiltLines::indices)
     GLsizei nb_indices = 0;
     std::uint64_t segments = 0, kept = 0, bytes = 0;
-    bool built = false;           // firsts/counts known
+    bool built = false;  // firsts/counts known
 };
 
 struct BuiltLines {
@@ -309,13 +318,13 @@ struct GpuObject {
     bool has_lod_proxy() const { return !proxy_chunks.empty(); }
     // shading
     const LoadedPlugin *shader = nullptr;
-    std::vector<double> values;       // schema order, every component
-    std::string albedo;               // name of the colour parameter the colouring drives ("" if none)
+    std::vector<double> values;  // schema order, every component
+    std::string albedo;          // name of the colour parameter the colouring drives ("" if none)
     // Every vertex has this colour (solid colouring, or data that happens to
     // be constant): with baked materials it is a constant of the program.
     std::optional<std::array<std::uint8_t, 4>> uniform_rgba;
     bool use_line_domain = false;
-    bool refractive = false;          // the snippet reads hz_scene_behind: drawn after the opaque objects
+    bool refractive = false;  // the snippet reads hz_scene_behind: drawn after the opaque objects
     // Programs by output (see Impl::Output), compiled when first needed.
     mutable Program *program = nullptr, *display_program = nullptr, *debug_program = nullptr;
     // slices
@@ -419,7 +428,7 @@ struct Renderer::Impl {
     // covers proxy_scale window pixels across, which keeps the picture's
     // coverage), then upscaled (bilinear) into `ldr`.
     Tex2dFbo lowres;
-    Tex2dFbo *out_ = &ldr;  // where the frame being drawn ends (ldr, or lowres for the proxy frame)
+    Tex2dFbo *out_ = &ldr;        // where the frame being drawn ends (ldr, or lowres for the proxy frame)
     bool hdr_frame_full = false;  // the last frame went through `resolved` at full size (read_hdr_image)
     std::unique_ptr<Program> composite;
     // Where shading programs write. Display: tonemapped, sRGB-encoded
@@ -520,7 +529,8 @@ struct Renderer::Impl {
 
     std::unique_ptr<Program> make_simple(const std::string &vs, const std::string &fs, const std::string &what) {
         auto p = std::make_unique<Program>();
-        p->id = link_program({compile_shader(GL_VERTEX_SHADER, vs, what + " (vertex)"), compile_shader(GL_FRAGMENT_SHADER, fs, what)}, what);
+        p->id =
+            link_program({compile_shader(GL_VERTEX_SHADER, vs, what + " (vertex)"), compile_shader(GL_FRAGMENT_SHADER, fs, what)}, what);
         p->fragment_source = fs;
         return p;
     }
@@ -539,9 +549,12 @@ struct Renderer::Impl {
         if (display) fs += "#define HZ_DISPLAY 1\n";
         fs += glsl::kDisplay;
         std::unique_ptr<Program> p;
-        if (which == Aux::Sky) p = make_simple(glsl::kFullscreenVS, fs + glsl::kSkyFS, "sky");
-        else if (which == Aux::Slices) p = make_simple(glsl::kSliceVS, fs + glsl::kSliceFS, "slices");
-        else p = make_simple(glsl::kFullscreenVS, fs + glsl::kTonemapFS, "tonemap");
+        if (which == Aux::Sky)
+            p = make_simple(glsl::kFullscreenVS, fs + glsl::kSkyFS, "sky");
+        else if (which == Aux::Slices)
+            p = make_simple(glsl::kSliceVS, fs + glsl::kSliceFS, "slices");
+        else
+            p = make_simple(glsl::kFullscreenVS, fs + glsl::kTonemapFS, "tonemap");
         Program &ref = *p;
         aux_programs[key] = std::move(p);
         return ref;
@@ -615,7 +628,8 @@ struct Renderer::Impl {
         glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MIN_FILTER, levels > 1 ? GL_LINEAR_MIPMAP_LINEAR : GL_LINEAR);
         glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
         glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MAX_LEVEL, levels - 1);
-        for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R}) glTexParameteri(GL_TEXTURE_CUBE_MAP, w, GL_CLAMP_TO_EDGE);
+        for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R})
+            glTexParameteri(GL_TEXTURE_CUBE_MAP, w, GL_CLAMP_TO_EDGE);
         return t;
     }
 
@@ -647,7 +661,8 @@ struct Renderer::Impl {
         const Environment &e = scene.environment;
         env_on = e.type != "none";
         const double rot = -e.rotation_deg * M_PI / 180.0;
-        env_rotation = glm::mat3(glm::vec3(std::cos(rot), std::sin(rot), 0), glm::vec3(-std::sin(rot), std::cos(rot), 0), glm::vec3(0, 0, 1));
+        env_rotation =
+            glm::mat3(glm::vec3(std::cos(rot), std::sin(rot), 0), glm::vec3(-std::sin(rot), std::cos(rot), 0), glm::vec3(0, 0, 1));
         if (!env_on) return;
         glDisable(GL_DEPTH_TEST);
         glDisable(GL_BLEND);
@@ -802,8 +817,10 @@ struct Renderer::Impl {
         if (it != programs.end()) return it->second.get();
         const std::string what = "shader '" + g.shader->info.id + "'";
         std::vector<GLuint> stages;
-        if (g.geom == Geom::Mesh) stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kMeshVS, what + " (mesh vertex stage)"));
-        else if (g.geom == Geom::Line) stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kLineVS, what + " (line vertex stage)"));
+        if (g.geom == Geom::Mesh)
+            stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kMeshVS, what + " (mesh vertex stage)"));
+        else if (g.geom == Geom::Line)
+            stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kLineVS, what + " (line vertex stage)"));
         else {
             stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kTubeVS, what + " (tube vertex stage)"));
             stages.push_back(compile_shader(GL_GEOMETRY_SHADER, glsl::kTubeGS, what + " (tube geometry stage)"));
@@ -899,10 +916,14 @@ struct Renderer::Impl {
         const std::uint64_t N = t.nb_streamlines();
         d->t = &t;
         const Coloring &c = o.coloring;
-        if (c.mode == "direction") d->mode = LineData::Mode::Direction;
-        else if (c.mode == "cluster") d->mode = LineData::Mode::Cluster;
-        else if (c.mode == "data") d->mode = LineData::Mode::Data;
-        else d->mode = LineData::Mode::Solid;
+        if (c.mode == "direction")
+            d->mode = LineData::Mode::Direction;
+        else if (c.mode == "cluster")
+            d->mode = LineData::Mode::Cluster;
+        else if (c.mode == "data")
+            d->mode = LineData::Mode::Data;
+        else
+            d->mode = LineData::Mode::Solid;
         d->solid = rgba8(c.color[0], c.color[1], c.color[2]);
         if (d->mode == LineData::Mode::Data) {
             const DataArray *a = nullptr;
@@ -911,12 +932,14 @@ struct Renderer::Impl {
             if (!a) {
                 std::string list;
                 for (const auto &x : t.arrays) list += (list.empty() ? "" : ", ") + x.name;
-                throw Error(o.name + ": color: no per-point or per-streamline array '" + c.array + "' (arrays: " + (list.empty() ? "none" : list) + ")");
+                throw Error(o.name + ": color: no per-point or per-streamline array '" + c.array +
+                            "' (arrays: " + (list.empty() ? "none" : list) + ")");
             }
             d->colormap = c.colormap;
             if (a->attach == HZ_ATTACH_VERTEX) {
                 d->per_vertex = a;
-                if (c.range) d->range = *c.range;
+                if (c.range)
+                    d->range = *c.range;
                 else {
                     double lo = INFINITY, hi = -INFINITY;
                     const std::size_t stride = dtype_size(a->dtype) * a->components;
@@ -924,7 +947,9 @@ struct Renderer::Impl {
                         const double v = value_at(a->bytes.data() + i * stride, a->dtype);
                         if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
                     }
-                    d->range = !(lo <= hi) ? std::array<double, 2>{0, 1} : lo == hi ? std::array<double, 2>{lo, lo + 1} : std::array<double, 2>{lo, hi};
+                    d->range = !(lo <= hi) ? std::array<double, 2>{0, 1}
+                               : lo == hi  ? std::array<double, 2>{lo, lo + 1}
+                                           : std::array<double, 2>{lo, hi};
                 }
             } else {
                 d->per_streamline = array_values(*a);
@@ -966,7 +991,8 @@ struct Renderer::Impl {
             std::all_of(d.cluster.begin(), d.cluster.end(), [&](const auto &c) { return c == d.cluster[0]; }))
             return d.cluster[0];
         if (d.mode == LineData::Mode::Data && !d.per_streamline.empty() &&
-            std::all_of(d.per_streamline.begin(), d.per_streamline.end(), [&](double v) { return v == d.per_streamline[0] || (std::isnan(v) && std::isnan(d.per_streamline[0])); })) {
+            std::all_of(d.per_streamline.begin(), d.per_streamline.end(),
+                        [&](double v) { return v == d.per_streamline[0] || (std::isnan(v) && std::isnan(d.per_streamline[0])); })) {
             const auto m = colormap(d.colormap, (d.per_streamline[0] - d.range[0]) / (d.range[1] - d.range[0]));
             return rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
         }
@@ -1013,7 +1039,8 @@ struct Renderer::Impl {
             out.segments += keep.size() - 1;
             out.kept += keep.size();
             std::array<std::uint8_t, 4> scol = d.solid;
-            if (d.mode == LineData::Mode::Cluster) scol = d.cluster[s];
+            if (d.mode == LineData::Mode::Cluster)
+                scol = d.cluster[s];
             else if (d.mode == LineData::Mode::Data && !d.per_vertex) {
                 const auto m = colormap(d.colormap, (d.per_streamline[s] - d.range[0]) / (d.range[1] - d.range[0]));
                 scol = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
@@ -1025,13 +1052,16 @@ struct Renderer::Impl {
                 const std::uint64_t i0 = i > sb ? i - 1 : i, i1 = i + 1 < e ? i + 1 : i;
                 float tx = P[i1 * 3] - P[i0 * 3], ty = P[i1 * 3 + 1] - P[i0 * 3 + 1], tz = P[i1 * 3 + 2] - P[i0 * 3 + 2];
                 const float len = std::sqrt(tx * tx + ty * ty + tz * tz);
-                if (len > 0 && std::isfinite(len)) tx /= len, ty /= len, tz /= len;
-                else tx = ty = tz = 0;
+                if (len > 0 && std::isfinite(len))
+                    tx /= len, ty /= len, tz /= len;
+                else
+                    tx = ty = tz = 0;
                 LineVertex v;
                 v.pos[0] = P[i * 3], v.pos[1] = P[i * 3 + 1], v.pos[2] = P[i * 3 + 2];
                 v.tangent = pack_snorm_2_10_10_10(tx, ty, tz);
                 std::array<std::uint8_t, 4> col = scol;
-                if (d.mode == LineData::Mode::Direction) col = {direction_lut(tx), direction_lut(ty), direction_lut(tz), 255};
+                if (d.mode == LineData::Mode::Direction)
+                    col = {direction_lut(tx), direction_lut(ty), direction_lut(tz), 255};
                 else if (d.per_vertex) {
                     const double val = value_at(d.per_vertex->bytes.data() + i * stride, d.per_vertex->dtype);
                     const auto m = colormap(d.colormap, (val - d.range[0]) / (d.range[1] - d.range[0]));
@@ -1144,10 +1174,10 @@ struct Renderer::Impl {
             const std::uint64_t a = c.a, b = c.b;
             const double tol = proxy ? g.proxy_tol_mm : g.tol_mm;
             pending.emplace(&c, std::async(std::launch::async, [this, d, pieces, a, b, tol] {
-                                auto out = spare_lines();
-                                build_lines(*d, pieces ? pieces->data() : nullptr, a, b, tol, *out);
-                                return out;
-                            }));
+                auto out = spare_lines();
+                build_lines(*d, pieces ? pieces->data() : nullptr, a, b, tol, *out);
+                return out;
+            }));
         }
     }
 
@@ -1177,8 +1207,10 @@ struct Renderer::Impl {
         if (!b) b = std::make_unique<BuiltLines>();
         return std::shared_ptr<BuiltLines>(b.release(), [this](BuiltLines *p) {
             std::lock_guard<std::mutex> lock(spare_mutex);
-            if (spare.size() < 8) spare.emplace_back(p);
-            else delete p;
+            if (spare.size() < 8)
+                spare.emplace_back(p);
+            else
+                delete p;
         });
     }
 
@@ -1263,9 +1295,7 @@ struct Renderer::Impl {
             if (settings.shell_proxy) {
                 g.shell_cancel = std::make_shared<std::atomic<bool>>(false);
                 g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod, cancel = g.shell_cancel,
-                                                          all = settings.shell_all_cores] {
-                    return shell_proxy(t, b, lod, *cancel, all);
-                });
+                                                          all = settings.shell_all_cores] { return shell_proxy(t, b, lod, *cancel, all); });
             }
         }
         // Small objects are built now, in parallel (the draw lists are then
@@ -1356,8 +1386,8 @@ struct Renderer::Impl {
                 const auto v = values_of(a->bytes.data() + k * es, a->dtype, a->count, es * a->components);
                 for (std::uint64_t i = 0; i < nv; ++i) {
                     const double x = std::isfinite(v[i]) ? v[i] : 0.0;
-                    rgb[i][std::size_t(k)] = c.tint[std::size_t(k)] *
-                                             (scale > 0 ? srgb_to_linear(std::clamp(x / scale, 0.0, 1.0)) : std::clamp(x, 0.0, 1.0));
+                    rgb[i][std::size_t(k)] =
+                        c.tint[std::size_t(k)] * (scale > 0 ? srgb_to_linear(std::clamp(x / scale, 0.0, 1.0)) : std::clamp(x, 0.0, 1.0));
                 }
             }
         }
@@ -1377,8 +1407,10 @@ struct Renderer::Impl {
             if (c.mode == "data") {
                 const auto cm = colormap(c.colormap, (data[i] - range[0]) / (range[1] - range[0]));
                 col = rgba8(srgb_to_linear(cm[0]), srgb_to_linear(cm[1]), srgb_to_linear(cm[2]));
-            } else if (c.mode == "rgb") col = rgba8(rgb[i][0], rgb[i][1], rgb[i][2]);
-            else col = rgba8(c.color[0], c.color[1], c.color[2]);
+            } else if (c.mode == "rgb")
+                col = rgba8(rgb[i][0], rgb[i][1], rgb[i][2]);
+            else
+                col = rgba8(c.color[0], c.color[1], c.color[2]);
             std::memcpy(v.rgba, col.data(), 4);
         }
         g.uniform_rgba = same_colour(verts);
@@ -1421,7 +1453,8 @@ struct Renderer::Impl {
         glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
         for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R}) glTexParameteri(GL_TEXTURE_3D, w, GL_CLAMP_TO_EDGE);
         // Window: given, else the 1st..99th percentile of the finite values.
-        if (o.window) g.window = *o.window;
+        if (o.window)
+            g.window = *o.window;
         else {
             std::vector<float> s;
             for (float x : f)
@@ -1467,7 +1500,8 @@ struct Renderer::Impl {
             if (std::isnan(at)) at = mid[axis];
             if (at < lo[axis] || at > hi[axis]) {
                 char msg[160];
-                std::snprintf(msg, sizeof msg, ": slice %c = %g mm lies outside the volume (%.1f to %.1f mm)", "xyz"[axis], at, lo[axis], hi[axis]);
+                std::snprintf(msg, sizeof msg, ": slice %c = %g mm lies outside the volume (%.1f to %.1f mm)", "xyz"[axis], at, lo[axis],
+                              hi[axis]);
                 throw Error(o.name + msg);
             }
             const int u = (axis + 1) % 3, w = (axis + 2) % 3;
@@ -1710,8 +1744,10 @@ struct Renderer::Impl {
         for (float &x : c) {
             double v = std::max(0.0, double(x)) * scene.exposure;
             const int curve = tone_curve();
-            if (curve == 0) v = (v * (2.51 * v + 0.03)) / (v * (2.43 * v + 0.59) + 0.14);
-            else if (curve == 1) v = v / (1.0 + v);
+            if (curve == 0)
+                v = (v * (2.51 * v + 0.03)) / (v * (2.43 * v + 0.59) + 0.14);
+            else if (curve == 1)
+                v = v / (1.0 + v);
             v = std::clamp(v, 0.0, 1.0);
             x = float(v <= 0.0031308 ? v * 12.92 : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055);
         }
@@ -1823,8 +1859,10 @@ struct Renderer::Impl {
     // level-of-detail proxy and the camera moves, the proxy frame (at
     // 1/proxy_scale of the size into lowres, upscaled into ldr).
     void frame(const View &v, int w, int h) {
-        if (interacting && any_lod_proxy()) proxy_frame(v, w, h);
-        else draw_scene(v, w, h);
+        if (interacting && any_lod_proxy())
+            proxy_frame(v, w, h);
+        else
+            draw_scene(v, w, h);
     }
 
     void proxy_frame(const View &v, int w, int h) {
@@ -1862,7 +1900,8 @@ void main() {
     vec4 f = texture(u_full, v_uv);
     o = vec4(mix(texture(u_proxy, v_uv).rgb, f.rgb, f.a), 1.0);
 }
-)glsl", "refinement composite");
+)glsl",
+                                    "refinement composite");
         glBindFramebuffer(GL_FRAMEBUFFER, 0);
         glViewport(0, 0, w, h);
         glDisable(GL_DEPTH_TEST);
@@ -1979,8 +2018,8 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
     I.scene = std::move(scene);
     I.settings = settings;
     I.env_on = I.scene.environment.type != "none";  // programs are specialised on it
-    I.display_direct = std::none_of(I.scene.objects.begin(), I.scene.objects.end(),
-                                    [&](const Object &o) { return o.visible && I.composited(o); });
+    I.display_direct =
+        std::none_of(I.scene.objects.begin(), I.scene.objects.end(), [&](const Object &o) { return o.visible && I.composited(o); });
     I.has_proxy.assign(I.scene.objects.size(), false);
     for (const auto &o : I.scene.objects)
         if (o.proxy_for && *o.proxy_for < I.has_proxy.size()) I.has_proxy[*o.proxy_for] = true;
@@ -2082,12 +2121,14 @@ Bounds scene_bounds(const Scene &s) {
         // tractogram's positions are not scanned again)
         if (o.kind == HZ_DATA_STREAMLINES)
             add(!o.data.bounds.empty ? o.data.bounds : bounds_of(o.data.tractogram.positions.data(), o.data.tractogram.nb_stored()));
-        else if (o.kind == HZ_DATA_MESH) add(bounds_of(o.data.mesh.vertices.data(), o.data.mesh.nb_vertices()));
+        else if (o.kind == HZ_DATA_MESH)
+            add(bounds_of(o.data.mesh.vertices.data(), o.data.mesh.nb_vertices()));
         else if (o.kind == HZ_DATA_VOLUME && o.data.volume.dims.size() >= 3) {
             const Volume &v = o.data.volume;
             float corners[24];
             for (int c = 0; c < 8; ++c) {
-                const double ijk[3] = {(c & 1) ? v.dims[0] - 0.5 : -0.5, (c & 2) ? v.dims[1] - 0.5 : -0.5, (c & 4) ? v.dims[2] - 0.5 : -0.5};
+                const double ijk[3] = {(c & 1) ? v.dims[0] - 0.5 : -0.5, (c & 2) ? v.dims[1] - 0.5 : -0.5,
+                                       (c & 4) ? v.dims[2] - 0.5 : -0.5};
                 for (int r = 0; r < 3; ++r)
                     corners[c * 3 + r] = float(v.voxel_to_ras[r * 4] * ijk[0] + v.voxel_to_ras[r * 4 + 1] * ijk[1] +
                                                v.voxel_to_ras[r * 4 + 2] * ijk[2] + v.voxel_to_ras[r * 4 + 3]);
@@ -2106,11 +2147,16 @@ View fit_view(const Scene &scene, const Camera &c, double aspect) {
     View v;
     v.fov_deg = c.fov_deg;
     glm::dvec3 dir(-1, 0, 0), up(0, 0, 1);
-    if (c.view == "right") dir = {1, 0, 0};
-    else if (c.view == "anterior") dir = {0, 1, 0};
-    else if (c.view == "posterior") dir = {0, -1, 0};
-    else if (c.view == "superior") dir = {0, 0, 1}, up = {0, 1, 0};
-    else if (c.view == "inferior") dir = {0, 0, -1}, up = {0, 1, 0};
+    if (c.view == "right")
+        dir = {1, 0, 0};
+    else if (c.view == "anterior")
+        dir = {0, 1, 0};
+    else if (c.view == "posterior")
+        dir = {0, -1, 0};
+    else if (c.view == "superior")
+        dir = {0, 0, 1}, up = {0, 1, 0};
+    else if (c.view == "inferior")
+        dir = {0, 0, -1}, up = {0, 1, 0};
     glm::dvec3 target = c.target ? to_dvec3(*c.target) : center;
     if (c.position) dir = glm::normalize(to_dvec3(*c.position) - target);
     if (c.position || c.target) up = to_dvec3(c.up);

@@ -88,8 +88,7 @@ Material parse_material(const json &j, const std::string &what, const std::strin
         for (auto it = p.begin(); it != p.end(); ++it) {
             std::vector<double> v;
             if (it.value().is_array())
-                for (std::size_t i = 0; i < it.value().size(); ++i)
-                    v.push_back(num(it.value()[i], what, where + ".params." + it.key()));
+                for (std::size_t i = 0; i < it.value().size(); ++i) v.push_back(num(it.value()[i], what, where + ".params." + it.key()));
             else if (it.value().is_boolean())
                 v.push_back(it.value().get<bool>() ? 1.0 : 0.0);
             else
@@ -136,9 +135,11 @@ Coloring parse_coloring(const json &j, const std::string &what, const std::strin
     if (j.contains("mode")) c.mode = str(j["mode"], what, where + ".mode", modes);
     if (j.contains("value")) c.color = vec<3>(j["value"], what, where + ".value");
     if (j.contains("array")) c.array = str(j["array"], what, where + ".array");
-    if (j.contains("colormap")) c.colormap = str(j["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
+    if (j.contains("colormap"))
+        c.colormap = str(j["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
     if (j.contains("range")) c.range = vec<2>(j["range"], what, where + ".range");
-    if (c.mode == "data" && c.array.empty()) fail(what, where, "mode 'data' needs 'array' (the name of a per-point or per-streamline array)");
+    if (c.mode == "data" && c.array.empty())
+        fail(what, where, "mode 'data' needs 'array' (the name of a per-point or per-streamline array)");
     if (c.mode == "rgb" && c.array.empty()) fail(what, where, "mode 'rgb' needs 'array' (the name of a per-vertex colour array)");
     return c;
 }
@@ -161,7 +162,8 @@ Dataset object_data(const Registry &reg, const json &o, const std::string &type,
         if (o.contains("phantom")) {
             const json &p = o["phantom"];
             check_keys(p, {"streamlines", "bundles", "seed"}, what, where + ".phantom");
-            if (p.contains("streamlines")) po.nb_streamlines = static_cast<std::uint64_t>(std::clamp(num(p["streamlines"], what, where), 0.0, 1e8));
+            if (p.contains("streamlines"))
+                po.nb_streamlines = static_cast<std::uint64_t>(std::clamp(num(p["streamlines"], what, where), 0.0, 1e8));
             if (p.contains("bundles")) po.nb_bundles = static_cast<std::uint32_t>(std::clamp(num(p["bundles"], what, where), 1.0, 1e4));
             if (p.contains("seed")) po.seed = static_cast<std::uint64_t>(num(p["seed"], what, where));
         }
@@ -202,8 +204,10 @@ void apply_file_material(Object &ob, bool has_material, bool has_color) {
     }
     if (!has_material) {
         ob.material.shader = "principled";
-        if (meta.count("material.metallicFactor")) ob.material.params["metallic"] = {std::clamp(std::atof(meta["material.metallicFactor"].c_str()), 0.0, 1.0)};
-        if (meta.count("material.roughnessFactor")) ob.material.params["roughness"] = {std::clamp(std::atof(meta["material.roughnessFactor"].c_str()), 0.0, 1.0)};
+        if (meta.count("material.metallicFactor"))
+            ob.material.params["metallic"] = {std::clamp(std::atof(meta["material.metallicFactor"].c_str()), 0.0, 1.0)};
+        if (meta.count("material.roughnessFactor"))
+            ob.material.params["roughness"] = {std::clamp(std::atof(meta["material.roughnessFactor"].c_str()), 0.0, 1.0)};
     }
 }
 
@@ -282,15 +286,17 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         Object ob;
         ob.name = type + " " + std::to_string(i);
         if (type == "streamlines") {
-            check_keys(o, {"type", "name", "file", "builtin", "phantom", "render", "radius", "color", "material", "clustering", "visible", "opacity",
-                           "include", "exclude", "min_length", "max_length"},
+            check_keys(o,
+                       {"type", "name", "file", "builtin", "phantom", "render", "radius", "color", "material", "clustering", "visible",
+                        "opacity", "include", "exclude", "min_length", "max_length"},
                        what, where);
             ob.coloring.mode = "direction";
         } else if (type == "surface") {
             check_keys(o, {"type", "name", "file", "builtin", "overlays", "color", "material", "visible", "opacity"}, what, where);
             ob.coloring.color = {0.85, 0.72, 0.68};
         } else {
-            check_keys(o, {"type", "name", "file", "builtin", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity"}, what, where);
+            check_keys(o, {"type", "name", "file", "builtin", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity"},
+                       what, where);
         }
         if (o.contains("name")) ob.name = str(o["name"], what, where + ".name");
         if (o.contains("visible")) {
@@ -310,9 +316,11 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (o.contains("clip_below") && !o["clip_below"].is_null()) ob.clip_below = num(o["clip_below"], what, where + ".clip_below");
         if (o.contains("window")) {
             ob.window = vec<2>(o["window"], what, where + ".window");
-            if (!((*ob.window)[1] > (*ob.window)[0])) fail(what, where + ".window", "must be [low, high] with high > low, not " + o["window"].dump());
+            if (!((*ob.window)[1] > (*ob.window)[0]))
+                fail(what, where + ".window", "must be [low, high] with high > low, not " + o["window"].dump());
         }
-        if (o.contains("colormap")) ob.slice_colormap = str(o["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
+        if (o.contains("colormap"))
+            ob.slice_colormap = str(o["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
         if (o.contains("clustering")) {
             const json &c = o["clustering"];
             check_keys(c, {"algorithm", "thresholds", "level", "width_by_size", "params"}, what, where + ".clustering");
@@ -390,18 +398,21 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             if (!o.contains("color")) colour_by_overlay(ob, added);
         }
 
-        if (type == "streamlines" && (o.contains("include") || o.contains("exclude") || o.contains("min_length") || o.contains("max_length"))) {
+        if (type == "streamlines" &&
+            (o.contains("include") || o.contains("exclude") || o.contains("min_length") || o.contains("max_length"))) {
             // The streamlines regions of interest and lengths select (the
             // rules of `horizon filter`; relative mask files from the scene's folder).
             FilterSpec f;
             for (const char *key : {"include", "exclude"}) {
                 if (!o.contains(key)) continue;
                 const json &list = o[key].is_string() ? json::array({o[key]}) : o[key];
-                if (!list.is_array()) fail(what, where + "." + key, "expected a region (sphere:X,Y,Z,R, box:..., or a mask file) or an array of them");
+                if (!list.is_array())
+                    fail(what, where + "." + key, "expected a region (sphere:X,Y,Z,R, box:..., or a mask file) or an array of them");
                 for (std::size_t k = 0; k < list.size(); ++k) {
                     const std::string at = where + "." + key + "[" + std::to_string(k) + "]";
                     std::string spec = str(list[k], what, at);
-                    if (spec.rfind("sphere:", 0) != 0 && spec.rfind("box:", 0) != 0 && fs::path(spec).is_relative()) spec = (base / spec).string();
+                    if (spec.rfind("sphere:", 0) != 0 && spec.rfind("box:", 0) != 0 && fs::path(spec).is_relative())
+                        spec = (base / spec).string();
                     try {
                         f.rois.push_back(parse_roi(reg, spec, std::string(key) == "include"));
                     } catch (const Error &e) {
@@ -429,7 +440,8 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             }
             if (!o.contains("render")) ob.render = "tubes";
         }
-        if (ob.coloring.mode == "cluster" && ob.kind != HZ_DATA_STREAMLINES) fail(what, where + ".color", "mode 'cluster' is for streamlines");
+        if (ob.coloring.mode == "cluster" && ob.kind != HZ_DATA_STREAMLINES)
+            fail(what, where + ".color", "mode 'cluster' is for streamlines");
         s.objects.push_back(std::move(ob));
     }
     return s;
@@ -450,7 +462,7 @@ namespace {
 
 // Smooth pseudo-random field (sum of oriented sines), deterministic.
 double gyri(double x, double y, double z) {
-    static const double dirs[][4] = {{0.8, 0.5, 0.3, 0.21}, {-0.3, 0.9, 0.3, 0.17}, {0.2, -0.4, 0.9, 0.19},
+    static const double dirs[][4] = {{0.8, 0.5, 0.3, 0.21},  {-0.3, 0.9, 0.3, 0.17},  {0.2, -0.4, 0.9, 0.19},
                                      {0.7, -0.7, 0.1, 0.23}, {-0.6, -0.2, 0.8, 0.15}, {0.1, 0.6, -0.8, 0.25}};
     double s = 0;
     for (const auto &d : dirs) s += std::sin(d[3] * (d[0] * x + d[1] * y + d[2] * z) + d[3] * 7.0);
@@ -485,11 +497,11 @@ Mesh make_cortex_mesh(int subdivisions) {
     subdivisions = std::clamp(subdivisions, 0, 7);
     // Icosphere.
     const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-    std::vector<Vec3> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
-                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
-    std::vector<std::array<std::uint32_t, 3>> f = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-                                                   {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
-                                                   {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+    std::vector<Vec3> v = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
+    std::vector<std::array<std::uint32_t, 3>> f = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                                   {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                                                   {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
     for (auto &p : v) {
         const double n = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
         for (auto &c : p) c /= n;
@@ -531,7 +543,7 @@ Mesh make_cortex_mesh(int subdivisions) {
             const double lateral = x * side;
             const double xs = lateral < 0 ? 0.25 * lateral : lateral;
             double X = side * (4.0 + 36.0 * (xs + 0.25)), Y = 88.0 * y;
-            double Z = (z < 0 ? 52.0 : 64.0) * z + 4.0;          // flatter base
+            double Z = (z < 0 ? 52.0 : 64.0) * z + 4.0;                                             // flatter base
             const double r = 1.0 + 0.045 * gyri(X, Y, Z) + 0.03 * gyri(2.1 * Y, 2.1 * Z, 2.1 * X);  // gyri and sulci
             const double cx = side * 22.0;
             X = cx + (X - cx) * r;
@@ -570,11 +582,11 @@ Volume make_head_volume(double voxel_mm) {
                 // Distance-like coordinate inside an ellipsoidal head.
                 const double r = std::sqrt((x / 72) * (x / 72) + (y / 92) * (y / 92) + ((z - 4) / 68) * ((z - 4) / 68));
                 double val = 0;
-                if (r < 1.08) val = 0.15;                                   // scalp/skull
-                if (r < 1.0) val = 0.35;                                    // CSF
-                if (r < 0.96) val = 0.55 + 0.1 * gyri(x, y, z);              // grey matter
-                if (r < 0.80 + 0.06 * gyri(1.3 * x, 1.3 * y, 1.3 * z)) val = 0.85; // white matter
-                const double vx = std::abs(x) - 6, vy = y / 2.2, vz = z - 8;  // lateral ventricles
+                if (r < 1.08) val = 0.15;                                           // scalp/skull
+                if (r < 1.0) val = 0.35;                                            // CSF
+                if (r < 0.96) val = 0.55 + 0.1 * gyri(x, y, z);                     // grey matter
+                if (r < 0.80 + 0.06 * gyri(1.3 * x, 1.3 * y, 1.3 * z)) val = 0.85;  // white matter
+                const double vx = std::abs(x) - 6, vy = y / 2.2, vz = z - 8;        // lateral ventricles
                 if (vx > 0 && vx * vx + vy * vy + vz * vz < 70) val = 0.2;
                 out[(k * d[1] + j) * d[0] + i] = static_cast<float>(1000.0 * val);
             }
@@ -590,7 +602,8 @@ ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const Clust
     // spec sets wins.
     for (const auto &s : schema)
         if (s.name == "mode" && s.enum_labels.size() > 1 && s.enum_labels[1] == "fast") settings["mode"] = {1.0};
-    if (!spec.thresholds.empty()) apply_shortcut(schema, id, "clustering.thresholds", {"thresholds", "threshold"}, spec.thresholds, settings);
+    if (!spec.thresholds.empty())
+        apply_shortcut(schema, id, "clustering.thresholds", {"thresholds", "threshold"}, spec.thresholds, settings);
     for (const auto &[k, v] : spec.params) settings[k] = v;
     const hz_clustering *c = plugin->clustering();
     hz_error err{};

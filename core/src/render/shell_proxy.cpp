@@ -57,8 +57,7 @@ void filter_axis(Grid &g, int ax, int r, bool dilate) {
             for (int k = 0; k < n; ++k) line[k] = g.v[idx(k)];
             for (int k = 0; k < n; ++k) {
                 std::uint8_t m = dilate ? 0 : 1;
-                for (int q = std::max(0, k - r); q <= std::min(n - 1, k + r); ++q)
-                    m = dilate ? std::max(m, line[q]) : std::min(m, line[q]);
+                for (int q = std::max(0, k - r); q <= std::min(n - 1, k + r); ++q) m = dilate ? std::max(m, line[q]) : std::min(m, line[q]);
                 out[idx(k)] = m;
             }
         }
@@ -78,14 +77,16 @@ std::vector<Piece> uniform_proxy(const Tractogram &t, double budget_points) {
     return out;
 }
 
-std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budget_points, const std::atomic<bool> &cancel,
-                               bool all_cores, int grid, int shell_voxels) {
+std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budget_points, const std::atomic<bool> &cancel, bool all_cores,
+                               int grid, int shell_voxels) {
     const std::uint64_t N = t.nb_streamlines();
     // On every core (someone waits for it), or on this thread alone (a
     // window's first frames need the other core).
     auto run_ranges = [&](std::uint64_t n, const std::function<void(std::uint64_t, std::uint64_t)> &fn) {
-        if (all_cores) parallel_ranges(n, 4096, fn);
-        else if (n) fn(0, n);
+        if (all_cores)
+            parallel_ranges(n, 4096, fn);
+        else if (n)
+            fn(0, n);
     };
     if (N == 0 || b.empty) return {};
     const float *P = t.positions.data();

@@ -39,7 +39,7 @@ std::vector<Piece> uniform_proxy(const Tractogram &t, double budget_points);
 // ranges) with `all_cores`, else on the calling thread: meant for a
 // background thread. `cancel` is polled; when set the result is empty.
 // Bounds `b` must hold every point (the reader's bounds).
-std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budget_points, const std::atomic<bool> &cancel,
-                               bool all_cores, int grid = 96, int shell_voxels = 4);
+std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budget_points, const std::atomic<bool> &cancel, bool all_cores,
+                               int grid = 96, int shell_voxels = 4);
 
 }  // namespace hz::core::render

@@ -22,9 +22,9 @@
 namespace qb {
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#  define QB_SEG_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#define QB_SEG_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
-#  define QB_SEG_CLONES
+#define QB_SEG_CLONES
 #endif
 
 namespace {
@@ -56,8 +56,8 @@ void walk_arcs(std::uint64_t n, std::uint32_t P, const double *arc, At at, float
             const double ratio = 1.0 - ((arc[k] - t) / (arc[k] - arc[k - 1]));
             const float *a = at(k - 1), *b = at(k);
             for (int d = 0; d < 3; ++d)
-                out[d * P + i] = static_cast<float>(static_cast<double>(a[d]) +
-                                                    ratio * static_cast<double>(static_cast<float>(b[d] - a[d])));
+                out[d * P + i] =
+                    static_cast<float>(static_cast<double>(a[d]) + ratio * static_cast<double>(static_cast<float>(b[d] - a[d])));
         }
         t += step;
         ++i;
@@ -124,13 +124,19 @@ void resample_pair(const float *pa, std::uint64_t na, float *fa, float *ga, cons
         ab[k] = y += sb[k];
         if (rev) rb[k] = v += sb[nb - k];
     }
-    walk_arcs(na, P, aa, [&](std::uint64_t k) { return pa + 3 * k; }, fa);
-    if (rev) walk_arcs(na, P, ra, [&](std::uint64_t k) { return pa + 3 * (na - 1 - k); }, ga);
+    walk_arcs(
+        na, P, aa, [&](std::uint64_t k) { return pa + 3 * k; }, fa);
+    if (rev)
+        walk_arcs(
+            na, P, ra, [&](std::uint64_t k) { return pa + 3 * (na - 1 - k); }, ga);
     L[0] = aa[na - 1];
     L[1] = 0.0;
     if (nb) {
-        walk_arcs(nb, P, ab, [&](std::uint64_t k) { return pb + 3 * k; }, fb);
-        if (rev) walk_arcs(nb, P, rb, [&](std::uint64_t k) { return pb + 3 * (nb - 1 - k); }, gb);
+        walk_arcs(
+            nb, P, ab, [&](std::uint64_t k) { return pb + 3 * k; }, fb);
+        if (rev)
+            walk_arcs(
+                nb, P, rb, [&](std::uint64_t k) { return pb + 3 * (nb - 1 - k); }, gb);
         L[1] = ab[nb - 1];
     }
 }
@@ -141,8 +147,10 @@ void resample_pair(const float *pa, std::uint64_t na, float *fa, float *ga, cons
 float fill_geom(const float *fd, const float *fg, std::uint32_t P, float *g) {
     detail::feature_box(fd, P, g, g + 3);
     detail::feature_mean(fd, P, g + 6);
-    if (fg != nullptr) detail::feature_mean(fg, P, g + 9);
-    else std::copy_n(g + 6, 3, g + 9);
+    if (fg != nullptr)
+        detail::feature_mean(fg, P, g + 9);
+    else
+        std::copy_n(g + 6, 3, g + 9);
     float m = 0.0f;
     for (std::uint32_t i = 0; i < 3 * P; ++i) m = std::max(m, std::fabs(fd[i]));
     return m;
@@ -212,8 +220,8 @@ bool extract_block(const Input &in, const std::uint64_t *idx, std::uint64_t begi
                 }
             }
             if (fast && !redo) continue;  // (resample_fast filled its geom)
-            max_abs = std::max(max_abs, fill_geom(fd_of(t), exact_flip ? flipped + (t - begin) * B : nullptr, P,
-                                                  geom + (t - begin) * Features::kGeom));
+            max_abs = std::max(
+                max_abs, fill_geom(fd_of(t), exact_flip ? flipped + (t - begin) * B : nullptr, P, geom + (t - begin) * Features::kGeom));
         }
     }
     return true;
@@ -285,7 +293,8 @@ namespace detail {
 
 void check_order(const std::vector<std::uint64_t> &order, std::uint64_t N) {
     if (order.empty()) return;  // file order
-    if (order.size() != N) throw InputError("ordering has " + std::to_string(order.size()) + " entries for " + std::to_string(N) + " streamlines");
+    if (order.size() != N)
+        throw InputError("ordering has " + std::to_string(order.size()) + " entries for " + std::to_string(N) + " streamlines");
     std::vector<bool> seen(N, false);
     for (auto i : order) {
         if (i >= N || seen[i]) throw InputError("ordering is not a permutation of the streamline indices");
@@ -379,16 +388,15 @@ Tree qbx_and_merge(const Input &in, const std::vector<double> &thresholds, std::
     // set_number_of_points(streamlines, P), then identity features: the
     // resampled points themselves, flipped by reversal.
     const Tree qbx = mode == Mode::Fast ? detail::run_qbx_streamed(in, P, thresholds, order, threads, cancel, progress)
-                                        : quickbundlesx(extract_features(in, P, threads, cancel, Resampling::DipyDirect), thresholds,
-                                                        order, mode, cancel, progress, threads);
+                                        : quickbundlesx(extract_features(in, P, threads, cancel, Resampling::DipyDirect), thresholds, order,
+                                                        mode, cancel, progress, threads);
     const std::uint32_t L = static_cast<std::uint32_t>(thresholds.size());
     std::vector<std::uint64_t> leaves;  // node ids of the last level, DFS order
     for (std::uint64_t k = 0; k < qbx.nb_nodes(); ++k)
         if (qbx.level[k] == L) leaves.push_back(k);
     const std::uint64_t K = leaves.size();
     std::vector<float> cents(K * P * 3);
-    for (std::uint64_t i = 0; i < K; ++i)
-        std::copy_n(&qbx.centroids[leaves[i] * P * 3], P * 3, &cents[i * P * 3]);
+    for (std::uint64_t i = 0; i < K; ++i) std::copy_n(&qbx.centroids[leaves[i] * P * 3], P * 3, &cents[i * P * 3]);
     const Features cf = identity_features(cents.data(), K, P);
     std::vector<std::uint64_t> morder = merge_order;
     if (morder.empty()) {

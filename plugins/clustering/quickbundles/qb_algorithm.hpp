@@ -17,7 +17,7 @@
 namespace qb {
 
 struct Input {
-    const float *positions = nullptr;    // V x 3
+    const float *positions = nullptr;        // V x 3
     const std::uint64_t *offsets = nullptr;  // N + 1
     std::uint64_t nb_streamlines = 0;
     // Vertices after each streamline that belong to none (a mapped TCK's
@@ -54,8 +54,10 @@ struct UninitAllocator : std::allocator<T> {
     UninitAllocator(const UninitAllocator<U> &) noexcept {}
     template <class U, class... Args>
     void construct(U *p, Args &&...args) {
-        if constexpr (sizeof...(Args) == 0) ::new (static_cast<void *>(p)) U;
-        else ::new (static_cast<void *>(p)) U(std::forward<Args>(args)...);
+        if constexpr (sizeof...(Args) == 0)
+            ::new (static_cast<void *>(p)) U;
+        else
+            ::new (static_cast<void *>(p)) U(std::forward<Args>(args)...);
     }
 };
 using FloatArray = std::vector<float, UninitAllocator<float>>;
@@ -133,15 +135,14 @@ Tree quickbundlesx(const Features &f, const std::vector<double> &thresholds, con
 // reaches it (the same tree as quickbundlesx(extract_features(in,
 // nb_points, .., Resampling::Fast), .., Mode::Fast, ..), with no array of
 // all the features).
-Tree quickbundlesx(const Input &in, std::uint32_t nb_points, const std::vector<double> &thresholds,
-                   const std::vector<std::uint64_t> &order, Mode mode, unsigned threads, const CancelFn &cancel,
-                   const ProgressFn &progress);
+Tree quickbundlesx(const Input &in, std::uint32_t nb_points, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order,
+                   Mode mode, unsigned threads, const CancelFn &cancel, const ProgressFn &progress);
 
 // Horizon's qbx_and_merge: resample to nb_points, QBX, then a one-threshold
 // QBX over the last level's centroids in `merge_order` (empty = identity);
 // one level of merged clusters below the root.
-Tree qbx_and_merge(const Input &in, const std::vector<double> &thresholds, std::uint32_t nb_points,
-                   const std::vector<std::uint64_t> &order, const std::vector<std::uint64_t> &merge_order, Mode mode,
-                   unsigned threads, const CancelFn &cancel, const ProgressFn &progress);
+Tree qbx_and_merge(const Input &in, const std::vector<double> &thresholds, std::uint32_t nb_points, const std::vector<std::uint64_t> &order,
+                   const std::vector<std::uint64_t> &merge_order, Mode mode, unsigned threads, const CancelFn &cancel,
+                   const ProgressFn &progress);
 
 }  // namespace qb

@@ -48,10 +48,10 @@ struct Node {
     Node *parent = nullptr;
     std::uint32_t level = 0;
     std::uint32_t slot = 0;  // this node's index in its parent's children
-    double threshold = 0;  // used to split its children
-    std::vector<float> c;  // the root's centroid (SoA, 3P + kTail floats)
-    std::uint32_t uid = 0;  // QBX: which stage's store holds it, and where
-    std::uint64_t out = 0;  // its position in the flattened tree (set by flatten)
+    double threshold = 0;    // used to split its children
+    std::vector<float> c;    // the root's centroid (SoA, 3P + kTail floats)
+    std::uint32_t uid = 0;   // QBX: which stage's store holds it, and where
+    std::uint64_t out = 0;   // its position in the flattened tree (set by flatten)
     // ... written by the stage that updates this node (the one that searched
     // its parent's children), on a cache line of its own: for a level-1 node
     // that is the main thread, for every streamline joining it, while the
@@ -73,9 +73,9 @@ struct Node {
         float box_c[3], box_r[3];
     };
     alignas(64) std::vector<Node *> children;  // creation order
-    std::vector<float> kid_c;  // children's centroids, SoA blocks of 3P floats, then kTail
-    std::vector<Kid> kids;  // parallel to `children`
-    std::vector<float> mx, my, mz;  // the children's mean points, one array per axis
+    std::vector<float> kid_c;                  // children's centroids, SoA blocks of 3P floats, then kTail
+    std::vector<Kid> kids;                     // parallel to `children`
+    std::vector<float> mx, my, mz;             // the children's mean points, one array per axis
     char pad_[64];
 
     const float *centroid(std::uint32_t P) const { return parent ? parent->kid_c.data() + std::size_t(slot) * 3 * P : c.data(); }
@@ -109,8 +109,7 @@ struct Paths {
 // Flattens the tree into the ABI layout (by level, DFS pre-order within a
 // level; centroids converted to xyz-interleaved). Members from the nodes'
 // `indices`, or from `paths` when given.
-Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &thresholds, std::uint32_t P,
-             const Paths *paths = nullptr);
+Tree flatten(const Node &root, std::uint32_t levels, const std::vector<double> &thresholds, std::uint32_t P, const Paths *paths = nullptr);
 
 // InputError unless `order` is empty (file order) or a permutation of 0..N-1.
 void check_order(const std::vector<std::uint64_t> &order, std::uint64_t N);
@@ -121,8 +120,8 @@ Tree run_qb(const Features &f, double threshold, const std::vector<std::uint64_t
             const ProgressFn &progress);
 // threads: 1 runs QBX on the calling thread alone; more (the default)
 // lets it use a second one (for at least 20 000 streamlines and 2 levels).
-Tree run_qbx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order, Mode mode,
-             unsigned threads, const CancelFn &cancel, const ProgressFn &progress);
+Tree run_qbx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order, Mode mode, unsigned threads,
+             const CancelFn &cancel, const ProgressFn &progress);
 
 // Fast mode's resampling (qb_resample.cpp, also dispatched per SIMD
 // target): for t in [begin, end), streamline s = idx[t] (idx NULL: s = t,

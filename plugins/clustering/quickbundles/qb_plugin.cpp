@@ -18,24 +18,48 @@ const double kQbxDefaults[] = {30, 25, 20, 15};
 const double kMergeDefaults[] = {40, 30, 25, 20, 15};
 
 constexpr hz_param_info param_float(const char *name, const char *label, const char *tip, double lo, double hi, double def) {
-    return {sizeof(hz_param_info), HZ_PARAM_FLOAT, name, label, "", "mm", tip, 0, 1, {lo, 0, 0, 0}, {hi, 0, 0, 0}, {def, 0, 0, 0},
-            nullptr, 0, nullptr};
+    return {sizeof(hz_param_info), HZ_PARAM_FLOAT, name,           label,   "", "mm",   tip, 0, 1,
+            {lo, 0, 0, 0},         {hi, 0, 0, 0},  {def, 0, 0, 0}, nullptr, 0,  nullptr};
 }
 constexpr hz_param_info param_int(const char *name, const char *label, const char *unit, const char *tip, double lo, double hi,
                                   double def) {
-    return {sizeof(hz_param_info), HZ_PARAM_INT, name, label, "", unit, tip, 0, 1, {lo, 0, 0, 0}, {hi, 0, 0, 0}, {def, 0, 0, 0},
-            nullptr, 0, nullptr};
+    return {sizeof(hz_param_info), HZ_PARAM_INT,  name,           label,   "", unit,   tip, 0, 1,
+            {lo, 0, 0, 0},         {hi, 0, 0, 0}, {def, 0, 0, 0}, nullptr, 0,  nullptr};
 }
 constexpr hz_param_info param_thresholds(uint32_t n, const double *defs) {
-    return {sizeof(hz_param_info), HZ_PARAM_FLOAT_ARRAY, "thresholds", "Thresholds", "", "mm",
-            "MDF distance threshold of each level, coarse to fine", 0, 16, {0, 0, 0, 0}, {1e6, 0, 0, 0}, {15, 0, 0, 0},
-            nullptr, n, defs};
+    return {sizeof(hz_param_info),
+            HZ_PARAM_FLOAT_ARRAY,
+            "thresholds",
+            "Thresholds",
+            "",
+            "mm",
+            "MDF distance threshold of each level, coarse to fine",
+            0,
+            16,
+            {0, 0, 0, 0},
+            {1e6, 0, 0, 0},
+            {15, 0, 0, 0},
+            nullptr,
+            n,
+            defs};
 }
 
 const char *const kModeLabels[] = {"exact", "fast", nullptr};
-const hz_param_info kModeParam = {sizeof(hz_param_info), HZ_PARAM_ENUM, "mode", "Mode", "", "",
-                                  "exact: DIPY's answers bit for bit; fast: float32 distances", 0, 1, {0, 0, 0, 0}, {1, 0, 0, 0},
-                                  {0, 0, 0, 0}, kModeLabels, 0, nullptr};
+const hz_param_info kModeParam = {sizeof(hz_param_info),
+                                  HZ_PARAM_ENUM,
+                                  "mode",
+                                  "Mode",
+                                  "",
+                                  "",
+                                  "exact: DIPY's answers bit for bit; fast: float32 distances",
+                                  0,
+                                  1,
+                                  {0, 0, 0, 0},
+                                  {1, 0, 0, 0},
+                                  {0, 0, 0, 0},
+                                  kModeLabels,
+                                  0,
+                                  nullptr};
 const hz_param_info kThreadsParam =
     param_int("threads", "Threads", "",
               "threads (0 = all cores): resampling uses them all, the QuickBundlesX search up to 2 (1: the calling thread alone); "
@@ -116,7 +140,8 @@ Clusterer &self(hz_clusterer *c) { return *reinterpret_cast<Clusterer *>(c); }
 const Clusterer &self(const hz_clusterer *c) { return *reinterpret_cast<const Clusterer *>(c); }
 
 hz_status HZ_ABI set_param(hz_clusterer *cl, const char *name, const double *v, uint32_t n, hz_error *err) {
-    if (cl == nullptr || name == nullptr || (v == nullptr && n > 0)) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "set_param: NULL argument");
+    if (cl == nullptr || name == nullptr || (v == nullptr && n > 0))
+        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "set_param: NULL argument");
     Clusterer &c = self(cl);
     c.has_result = false;
     const std::string key = name;
@@ -173,7 +198,7 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
                 c.tree = qb::quickbundlesx(input, c.nb_points, c.thresholds, order, c.mode, threads, cancel, progress);
             } else {
                 const qb::Features f = qb::extract_features(input, c.nb_points, threads, cancel,
-                                                               c.mode == qb::Mode::Exact ? qb::Resampling::Dipy : qb::Resampling::Fast);
+                                                            c.mode == qb::Mode::Exact ? qb::Resampling::Dipy : qb::Resampling::Fast);
                 c.tree = qb::quickbundles(f, c.thresholds[0], order, c.mode, cancel, progress);
             }
             c.has_result = true;
@@ -213,13 +238,12 @@ const hz_clustering kTables[] = {make_table<Algo::QB>(), make_table<Algo::QBX>()
 
 const char *const kInterfaces[] = {HZ_INTERFACE_CLUSTERING, nullptr};
 const hz_plugin_descriptor kDescriptors[] = {
-    {sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_CLUSTERING, "org.horizon.clustering.qb", "QuickBundles", "1.0.0",
-     "Horizon", "QuickBundles (Garyfallidis 2012), DIPY 1.6's exact labels and centroids", "MIT", kInterfaces},
+    {sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_CLUSTERING, "org.horizon.clustering.qb", "QuickBundles", "1.0.0", "Horizon",
+     "QuickBundles (Garyfallidis 2012), DIPY 1.6's exact labels and centroids", "MIT", kInterfaces},
     {sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_CLUSTERING, "org.horizon.clustering.qbx", "QuickBundlesX", "1.0.0",
-     "Horizon", "QuickBundlesX (Garyfallidis 2016): a tree of centroids, one level per threshold; DIPY 1.6 exact", "MIT",
-     kInterfaces},
-    {sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_CLUSTERING, "org.horizon.clustering.qbx_merge", "QBX and merge",
-     "1.0.0", "Horizon", "Horizon's qbx_and_merge: QuickBundlesX, then the last level's centroids merged", "MIT", kInterfaces},
+     "Horizon", "QuickBundlesX (Garyfallidis 2016): a tree of centroids, one level per threshold; DIPY 1.6 exact", "MIT", kInterfaces},
+    {sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_CLUSTERING, "org.horizon.clustering.qbx_merge", "QBX and merge", "1.0.0",
+     "Horizon", "Horizon's qbx_and_merge: QuickBundlesX, then the last level's centroids merged", "MIT", kInterfaces},
 };
 
 bool HZ_ABI init(const hz_host *, const char *) { return true; }

@@ -275,7 +275,7 @@ void ResampleFast(const Input &in, const std::uint64_t *idx, std::uint64_t begin
             const char *b = reinterpret_cast<const char *>(in.positions + 3 * in.offsets[s1 + 1]);
             const std::size_t bytes = static_cast<std::size_t>(b - a);
             for (std::size_t o = 0; o < std::min<std::size_t>(bytes, 1024); o += 64) hwy::Prefetch(a + o);  // (its start, and)
-            if (bytes >= 12) hwy::Prefetch(b - 12);  // (its last point)
+            if (bytes >= 12) hwy::Prefetch(b - 12);                                                         // (its last point)
         }
         if (scratch.size() < 4 * (n + 2 * N)) scratch.resize(4 * (n + 2 * N));
         lengths[t - begin] = resample_one(in.positions + 3 * in.offsets[s], n, P, direct + (t - begin) * P * 3,

@@ -91,8 +91,8 @@ HWY_INLINE V point_dists(D d, V cx, V cy, V cz, V x, V y, V z) {
 }
 
 template <class D, class V = hn::Vec<D>>
-HWY_INLINE void mdf_pair_lanes(D d, const float *HWY_RESTRICT c, const float *HWY_RESTRICT f, const float *HWY_RESTRICT g,
-                               std::uint32_t P, V &af, V &ag) {
+HWY_INLINE void mdf_pair_lanes(D d, const float *HWY_RESTRICT c, const float *HWY_RESTRICT f, const float *HWY_RESTRICT g, std::uint32_t P,
+                               V &af, V &ag) {
     const std::size_t N = hn::Lanes(d);
     af = hn::Zero(d);
     ag = hn::Zero(d);
@@ -195,7 +195,7 @@ struct ExactMetric {
     static double dist(const float *a, const float *b, std::uint32_t P, double bound) { return mdf_below(a, b, P, bound); }
     static constexpr double kBoundFactor = 1.0 - 1e-7;  // DIPY's value vs the real MDF
 };
-struct FastMetric {  // (its searches are search_fast's, below)
+struct FastMetric {                                     // (its searches are search_fast's, below)
     static constexpr double kBoundFactor = 1.0 - 1e-5;  // float32 sums of up to 1000 terms
 };
 template <class Metric>
@@ -222,8 +222,10 @@ inline void update_centroid_fast(float *c, std::uint64_t size, const float *e, s
 }
 template <class Metric>
 inline void update_centroid_as(float *c, std::uint64_t size, const float *e, std::uint32_t P) {
-    if constexpr (kFast<Metric>) update_centroid_fast(c, size, e, P);
-    else update_centroid(c, size, e, P);
+    if constexpr (kFast<Metric>)
+        update_centroid_fast(c, size, e, P);
+    else
+        update_centroid(c, size, e, P);
 }
 // Fast mode, 12 points, 16-lane targets: update_centroid_fast and then
 // box_and_mean's results, computed from the registers the update leaves
@@ -257,7 +259,6 @@ inline void update_with_box(float *c, std::uint64_t size, const float *e, std::u
     update_centroid_as<Metric>(c, size, e, P);
     box_and_mean(c, P, bc, br, mean);
 }
-
 
 // A rigorous lower bound on the distance DIPY computes, from mean points.
 // By the triangle inequality, the real-valued MDF is at least the distance
@@ -361,8 +362,10 @@ inline float next_float(float v) {
 }
 template <bool F32>
 inline double next_up(double v) {
-    if constexpr (F32) return next_float(static_cast<float>(v));
-    else return std::nextafter(v, std::numeric_limits<double>::infinity());
+    if constexpr (F32)
+        return next_float(static_cast<float>(v));
+    else
+        return std::nextafter(v, std::numeric_limits<double>::infinity());
 }
 
 // The candidates of one search: K clusters, each in two orientations, with
@@ -373,7 +376,7 @@ inline double next_up(double v) {
 struct Candidates {
     std::size_t K = 0;
     const float *la = nullptr, *lb = nullptr;
-    float min_lb = 0;  // the smallest of them
+    float min_lb = 0;         // the smallest of them
     bool interleaved = true;  // QBX keys; QB otherwise
     std::int64_t key(std::size_t k, bool flip) const {
         return interleaved ? static_cast<std::int64_t>(2 * k + flip) : static_cast<std::int64_t>(flip ? K + k : k);
@@ -394,8 +397,8 @@ struct Candidates {
 // The answer is therefore the one a full scan gives whenever that answer's
 // distance is below `cap`. Returns the key, or -1 when none qualified.
 template <class Metric, bool F32, class Centroid, class Tested>
-std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, double cap, const LowerBound &lbound,
-                        std::uint32_t P, Centroid centroid, Tested tested, double &best_out) {
+std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, double cap, const LowerBound &lbound, std::uint32_t P,
+                        Centroid centroid, Tested tested, double &best_out) {
     constexpr float kInf = std::numeric_limits<float>::infinity();
     double best = std::numeric_limits<double>::infinity();
     std::int64_t key = -1;
@@ -443,8 +446,10 @@ std::int64_t best_first(const Candidates &cs, const float *fd, const float *fg, 
     const float lim = lim_lo;
     const bool all = !(lim < kInf);
     for (std::size_t k = 0; k < K; ++k) {
-        if ((cs.la[k] < lim || all) && (k != first || first_flip)) [[unlikely]] consider(k, false);
-        if ((cs.lb[k] < lim || all) && (k != first || !first_flip)) [[unlikely]] consider(k, true);
+        if ((cs.la[k] < lim || all) && (k != first || first_flip)) [[unlikely]]
+            consider(k, false);
+        if ((cs.lb[k] < lim || all) && (k != first || !first_flip)) [[unlikely]]
+            consider(k, true);
     }
     best_out = best;
     return key;
@@ -464,8 +469,8 @@ constexpr std::size_t kSearchAll = 8;
 // Keys as in Candidates. Returns the key, or -1 when none was tested.
 template <bool F32, class Tested>
 std::int64_t search_fast(std::size_t K, bool interleaved, const float *kid_c, const float *mx, const float *my, const float *mz,
-                         const float *fd, const float *fg, const float mf[3], std::uint32_t P, const LowerBound &lbound,
-                         Tested tested, std::vector<float> &scratch, double &best_out) {
+                         const float *fd, const float *fg, const float mf[3], std::uint32_t P, const LowerBound &lbound, Tested tested,
+                         std::vector<float> &scratch, double &best_out) {
     constexpr float kInf = std::numeric_limits<float>::infinity();
     double best = std::numeric_limits<double>::infinity();
     std::int64_t key = -1;
@@ -480,7 +485,7 @@ std::int64_t search_fast(std::size_t K, bool interleaved, const float *kid_c, co
     // batch's distances do not wait for each other's comparisons, so the
     // CPU overlaps them.
     std::size_t batch[kSearchAll];
-    float sum[2 * kSearchAll];  // (sum_lanes4 fills four from an even j: up to sum[2 * kSearchAll - 1])
+    float sum[2 * kSearchAll];                         // (sum_lanes4 fills four from an even j: up to sum[2 * kSearchAll - 1])
     const float inv_p = 1.0f / static_cast<float>(P);  // (a product, not a division, per distance)
     const hn::ScalableTag<float> d;
     auto run = [&](std::size_t n) {
@@ -561,7 +566,7 @@ Tree qb_impl(const Features &f, double T, const std::vector<std::uint64_t> &orde
     const std::uint64_t N = f.count;
     check_order(order, N);
     const Order ord(order);
-    std::vector<float> C(kTail, 0.0f);  // K feature blocks, then kTail floats
+    std::vector<float> C(kTail, 0.0f);                             // K feature blocks, then kTail floats
     std::vector<float> mx, my, mz, la, lb, fg_buf(3 * P + kTail);  // the clusters' mean points; scratch
     LowerBound lbound;
     lbound.prepare(f);
@@ -816,8 +821,10 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
     // covers every streamline and centroid a search up to there involves.
     auto bound = [&](float max_abs) {
         LowerBound b;
-        if (streamed) b.prepare(max_abs, P, true);
-        else b.prepare(*src.f);
+        if (streamed)
+            b.prepare(max_abs, P, true);
+        else
+            b.prepare(*src.f);
         b.factor = Metric::kBoundFactor;
         return b;
     };
@@ -836,7 +843,7 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
     constexpr std::uint32_t kStageB = Paths::kStageB;  // uid tag of the worker's nodes
     // (Each on a cache line of its own: they are written by different threads.)
     alignas(64) std::atomic<std::uint64_t> published{0};  // main -> worker: handoff[0..published) is set
-    alignas(64) std::atomic<std::uint64_t> done{0};  // worker -> main: it has continued every streamline below this
+    alignas(64) std::atomic<std::uint64_t> done{0};       // worker -> main: it has continued every streamline below this
     alignas(64) std::atomic<bool> stop{false};
 
     // One thread's view of a streamline: its features in both orientations
@@ -893,7 +900,7 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
     std::unique_ptr<std::atomic<std::uint64_t>[]> slot_holds(new std::atomic<std::uint64_t>[nb_slots]);  // 1 + its block's b0; 0: none
     for (std::uint64_t k = 0; k < nb_slots; ++k) slot_holds[k].store(0, std::memory_order_relaxed);
     alignas(64) std::atomic<std::uint64_t> next_block{0};  // b0 of the first block nobody has claimed
-    std::atomic<float> feature_max{0.0f};  // the largest |coordinate| of the blocks published so far
+    std::atomic<float> feature_max{0.0f};                  // the largest |coordinate| of the blocks published so far
     constexpr std::uint64_t kNone = std::numeric_limits<std::uint64_t>::max();
     std::atomic<std::uint64_t> failed_at{kNone};  // b0 of the first block found invalid
     std::mutex error_mutex;
@@ -912,10 +919,10 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
             }
             return false;
         }
-        for (std::uint64_t r = r0; r < r0 + (end - b0); ++r) reverse_block(ring_direct.data() + r * P * 3, P, ring_flipped.data() + r * P * 3);
+        for (std::uint64_t r = r0; r < r0 + (end - b0); ++r)
+            reverse_block(ring_direct.data() + r * P * 3, P, ring_flipped.data() + r * P * 3);
         float cur = feature_max.load(std::memory_order_relaxed);
-        while (m > cur && !feature_max.compare_exchange_weak(cur, m, std::memory_order_relaxed)) {
-        }
+        while (m > cur && !feature_max.compare_exchange_weak(cur, m, std::memory_order_relaxed)) {}
         slot_holds[(b0 / kRingBlock) % nb_slots].store(b0 + 1, std::memory_order_release);
         return true;
     };
@@ -977,8 +984,10 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
                 if (progress) progress(double(it) / double(N));
             }
             if (streamed && it % kRingBlock == 0) {  // this block's features: published, or computed here
-                if (threaded) published.store(it, std::memory_order_release);  // (every step before `it` is handed off)
-                else replay(it, main_lane.fg.data());  // (every step before `it` is finished)
+                if (threaded)
+                    published.store(it, std::memory_order_release);  // (every step before `it` is handed off)
+                else
+                    replay(it, main_lane.fg.data());  // (every step before `it` is finished)
                 std::atomic<std::uint64_t> &slot = slot_holds[(it / kRingBlock) % nb_slots];
                 while (slot.load(std::memory_order_acquire) != it + 1) {
                     if (failed_at.load(std::memory_order_acquire) == it) {
@@ -1002,8 +1011,10 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
                 continue;
             }
             const std::uint64_t lag = it - worker_done;
-            if (!n1->deep_main && lag > kTakeLag && worker_done >= n1->last_sent) n1->deep_main = true;
-            else if (n1->deep_main && lag < kGiveLag) n1->deep_main = false;
+            if (!n1->deep_main && lag > kTakeLag && worker_done >= n1->last_sent)
+                n1->deep_main = true;
+            else if (n1->deep_main && lag < kGiveLag)
+                n1->deep_main = false;
             if (n1->deep_main) {
                 below(main_lane, it, n1, flip, store_a, 0);
                 handoff[it] = 0;
@@ -1031,8 +1042,7 @@ Tree qbx_impl(const Source &src, const std::vector<double> &t, const std::vector
 
 Tree RunQb(const Features &f, double T, const std::vector<std::uint64_t> &order, Mode mode, const CancelFn &cancel,
            const ProgressFn &progress) {
-    return mode == Mode::Exact ? qb_impl<ExactMetric>(f, T, order, cancel, progress)
-                               : qb_impl<FastMetric>(f, T, order, cancel, progress);
+    return mode == Mode::Exact ? qb_impl<ExactMetric>(f, T, order, cancel, progress) : qb_impl<FastMetric>(f, T, order, cancel, progress);
 }
 
 Tree RunQbx(const Features &f, const std::vector<double> &t, const std::vector<std::uint64_t> &order, Mode mode, unsigned threads,
@@ -1063,8 +1073,8 @@ Tree run_qb(const Features &f, double threshold, const std::vector<std::uint64_t
     return HWY_DYNAMIC_DISPATCH(RunQb)(f, threshold, order, mode, cancel, progress);
 }
 
-Tree run_qbx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order, Mode mode,
-             unsigned threads, const CancelFn &cancel, const ProgressFn &progress) {
+Tree run_qbx(const Features &f, const std::vector<double> &thresholds, const std::vector<std::uint64_t> &order, Mode mode, unsigned threads,
+             const CancelFn &cancel, const ProgressFn &progress) {
     return HWY_DYNAMIC_DISPATCH(RunQbx)(f, thresholds, order, mode, threads, cancel, progress);
 }
 

@@ -28,8 +28,7 @@ std::string inside(const std::string &input, const fs::path &joined, const std::
     for (; d != dir.end(); ++d, ++t)
         if (t == target.end() || *d != *t) throw IoError("companion file '" + name + "' lies outside the file's folder");
     struct stat st {};
-    if (::stat(target.c_str(), &st) != 0)
-        throw IoError("companion file '" + name + "' cannot be opened: " + std::strerror(errno));
+    if (::stat(target.c_str(), &st) != 0) throw IoError("companion file '" + name + "' cannot be opened: " + std::strerror(errno));
     if (!S_ISREG(st.st_mode)) throw IoError("companion file '" + name + "' is not a regular file");
     return target.string();
 }
@@ -39,7 +38,8 @@ std::string inside(const std::string &input, const fs::path &joined, const std::
 std::string companion_path(const std::string &input, const std::string &name) {
     if (name.empty()) throw IoError("an empty companion file name");
     const fs::path n(name);
-    if (n.is_absolute()) throw IoError("companion file '" + name + "' is an absolute path: only names relative to the file's folder are read");
+    if (n.is_absolute())
+        throw IoError("companion file '" + name + "' is an absolute path: only names relative to the file's folder are read");
     const fs::path in(input);
     return inside(input, (in.has_parent_path() ? in.parent_path() : fs::path(".")) / n, name);
 }

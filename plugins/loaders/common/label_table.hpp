@@ -52,11 +52,9 @@ struct Entry {
     std::int32_t index = 0;
     std::string name;
     std::int32_t r = 0, g = 0, b = 0, t = 0;
-    bool coloured = true;  // false: no colour given (r, g, b, t unused until assign_colours())
+    bool coloured = true;   // false: no colour given (r, g, b, t unused until assign_colours())
     bool assigned = false;  // (not coloured) r, g, b hold the colour assign_colours() chose
-    std::array<std::int32_t, 3> rgb() const {
-        return coloured || assigned ? std::array<std::int32_t, 3>{r, g, b} : generated_rgb(index);
-    }
+    std::array<std::int32_t, 3> rgb() const { return coloured || assigned ? std::array<std::int32_t, 3>{r, g, b} : generated_rgb(index); }
     std::uint8_t alpha() const { return coloured ? static_cast<std::uint8_t>(255 - t) : 255; }
     // FreeSurfer's per-vertex annotation value: r + g*256 + b*65536.
     std::uint32_t packed() const { return pack(rgb()); }
@@ -112,7 +110,8 @@ public:
         std::stable_sort(by_index_.begin(), by_index_.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
     }
     std::array<std::uint8_t, 4> operator()(std::int32_t index) const {
-        const auto it = std::lower_bound(by_index_.begin(), by_index_.end(), index, [](const auto &a, std::int32_t k) { return a.first < k; });
+        const auto it =
+            std::lower_bound(by_index_.begin(), by_index_.end(), index, [](const auto &a, std::int32_t k) { return a.first < k; });
         return it != by_index_.end() && it->first == index ? it->second : std::array<std::uint8_t, 4>{128, 128, 128, 0};
     }
 

@@ -8,7 +8,9 @@
 
 namespace fsurf {
 
-std::uint32_t be32(const unsigned char *p) { return (std::uint32_t(p[0]) << 24) | (std::uint32_t(p[1]) << 16) | (std::uint32_t(p[2]) << 8) | p[3]; }
+std::uint32_t be32(const unsigned char *p) {
+    return (std::uint32_t(p[0]) << 24) | (std::uint32_t(p[1]) << 16) | (std::uint32_t(p[2]) << 8) | p[3];
+}
 
 // A "new format" curv file: FF FF FF, then vnum, fnum, values per vertex = 1.
 bool looks_like_curv(const unsigned char *b, std::uint64_t size) {
@@ -80,11 +82,14 @@ static Surface parse_quad(const unsigned char *b, std::uint64_t size) {
         for (int k = 0; k < 4; ++k, pos += 3) {
             v[k] = be24(b + pos);
             if (v[k] >= nv)
-                throw FormatError("quad " + std::to_string(q) + " uses vertex " + std::to_string(v[k]) + ", outside [0, " + std::to_string(nv) + ")");
+                throw FormatError("quad " + std::to_string(q) + " uses vertex " + std::to_string(v[k]) + ", outside [0, " +
+                                  std::to_string(nv) + ")");
         }
         std::uint32_t *f = s.faces.data() + 6ull * q;
-        if (v[0] % 2 == 0) f[0] = v[0], f[1] = v[1], f[2] = v[3], f[3] = v[2], f[4] = v[3], f[5] = v[1];
-        else f[0] = v[0], f[1] = v[1], f[2] = v[2], f[3] = v[0], f[4] = v[2], f[5] = v[3];
+        if (v[0] % 2 == 0)
+            f[0] = v[0], f[1] = v[1], f[2] = v[3], f[3] = v[2], f[4] = v[3], f[5] = v[1];
+        else
+            f[0] = v[0], f[1] = v[1], f[2] = v[2], f[3] = v[0], f[4] = v[2], f[5] = v[3];
     }
     return s;
 }
@@ -109,7 +114,8 @@ Surface parse(const unsigned char *b, std::uint64_t size) {
     if (size - pos < 8) throw FormatError("file ends before the vertex and face counts");
     const auto vnum = static_cast<std::int32_t>(be32(b + pos)), fnum = static_cast<std::int32_t>(be32(b + pos + 4));
     pos += 8;
-    if (vnum < 0 || fnum < 0) throw FormatError("negative vertex or face count (" + std::to_string(vnum) + ", " + std::to_string(fnum) + ")");
+    if (vnum < 0 || fnum < 0)
+        throw FormatError("negative vertex or face count (" + std::to_string(vnum) + ", " + std::to_string(fnum) + ")");
     const std::uint64_t need = 12ull * static_cast<std::uint64_t>(vnum) + 12ull * static_cast<std::uint64_t>(fnum);
     if (need > size - pos)
         throw FormatError(std::to_string(vnum) + " vertices and " + std::to_string(fnum) + " faces need " + std::to_string(need) +
@@ -123,16 +129,20 @@ Surface parse(const unsigned char *b, std::uint64_t size) {
     for (std::size_t i = 0; i < s.faces.size(); ++i, pos += 4) {
         const auto f = static_cast<std::int32_t>(be32(b + pos));
         if (f < 0 || f >= vnum)
-            throw FormatError("face " + std::to_string(i / 3) + " uses vertex " + std::to_string(f) + ", outside [0, " + std::to_string(vnum) + ")");
+            throw FormatError("face " + std::to_string(i / 3) + " uses vertex " + std::to_string(f) + ", outside [0, " +
+                              std::to_string(vnum) + ")");
         s.faces[i] = static_cast<std::uint32_t>(f);
     }
     // Optional footer: tag 20 (or 2, 0, 20) then "key = value" lines.
     if (size - pos >= 4) {
         std::uint64_t q = pos;
         std::int32_t tag = static_cast<std::int32_t>(be32(b + q));
-        if (tag == 2 && size - q >= 12 && be32(b + q + 4) == 0 && be32(b + q + 8) == 20) q += 12;
-        else if (tag == 20) q += 4;
-        else q = size;
+        if (tag == 2 && size - q >= 12 && be32(b + q + 4) == 0 && be32(b + q + 8) == 20)
+            q += 12;
+        else if (tag == 20)
+            q += 4;
+        else
+            q = size;
         std::string text(reinterpret_cast<const char *>(b + q), static_cast<std::size_t>(size - q));
         std::size_t start = 0;
         while (start < text.size()) {
@@ -184,16 +194,18 @@ Annotation parse_annot(const unsigned char *b, std::uint64_t size) {
         const auto vno = static_cast<std::int32_t>(be32(b + pos));
         const std::uint32_t value = be32(b + pos + 4);
         pos += 8;
-        if (vno < 0 || vno >= vnum) throw FormatError("label pair " + std::to_string(i) + " names vertex " + std::to_string(vno) + " of " + std::to_string(vnum));
+        if (vno < 0 || vno >= vnum)
+            throw FormatError("label pair " + std::to_string(i) + " names vertex " + std::to_string(vno) + " of " + std::to_string(vnum));
         values[std::size_t(vno)] = value;
     }
     if (pos == size) throw FormatError("no colour table after the labels");
     if (i32("the colour-table flag") != 1) throw FormatError("the colour-table flag is not 1");
     const std::int32_t n = i32("the colour-table size");
     constexpr std::uint64_t kEntryMin = 24;  // index/length + r g b t, the least an entry takes
-    if (n > 0) {  // old format: entries 0..n-1
+    if (n > 0) {                             // old format: entries 0..n-1
         a.orig_table = text("the original table name");
-        if (std::uint64_t(n) > (size - pos) / 20) throw FormatError("colour table of " + std::to_string(n) + " entries is longer than the file");
+        if (std::uint64_t(n) > (size - pos) / 20)
+            throw FormatError("colour table of " + std::to_string(n) + " entries is longer than the file");
         for (std::int32_t i = 0; i < n; ++i) {
             AnnotEntry e;
             e.index = i;
@@ -231,7 +243,8 @@ Annotation parse_annot(const unsigned char *b, std::uint64_t size) {
     for (std::size_t i = 0; i < values.size(); ++i) {
         a.labels[i] = -1;
         if (values[i] == 0) continue;
-        const auto it = std::lower_bound(by_value.begin(), by_value.end(), values[i], [](const auto &x, std::uint32_t v) { return x.first < v; });
+        const auto it =
+            std::lower_bound(by_value.begin(), by_value.end(), values[i], [](const auto &x, std::uint32_t v) { return x.first < v; });
         if (it != by_value.end() && it->first == values[i]) a.labels[i] = it->second;
     }
     return a;

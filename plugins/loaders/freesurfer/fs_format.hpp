@@ -21,9 +21,9 @@ struct FormatError : std::runtime_error {
 };
 
 struct Surface {
-    bool curv = false;                // a curv file: per-vertex values only
-    bool quad = false;                // read from a quad surface (faces: each quad split in two)
-    std::vector<float> values;        // curv values
+    bool curv = false;          // a curv file: per-vertex values only
+    bool quad = false;          // read from a quad surface (faces: each quad split in two)
+    std::vector<float> values;  // curv values
     std::string created;
     std::vector<float> vertices;
     std::vector<std::uint32_t> faces;

@@ -35,11 +35,11 @@ namespace {
 
 constexpr const char *kId = "org.horizon.loader.freesurfer";
 
-using fsurf::FormatError;
-using fsurf::Surface;
 using fsurf::be32;
+using fsurf::FormatError;
 using fsurf::looks_like_curv;
 using fsurf::parse;
+using fsurf::Surface;
 
 struct Reader {
     std::string path;
@@ -105,7 +105,11 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: get_info: bad arguments");
     const Surface &s = as_reader(reader)->s;
     out->kind = HZ_DATA_MESH;
-    std::snprintf(out->format, sizeof out->format, as_reader(reader)->annot ? "freesurfer annot" : s.curv ? "freesurfer curv" : s.quad ? "freesurfer quads" : "freesurfer triangles");
+    std::snprintf(out->format, sizeof out->format,
+                  as_reader(reader)->annot ? "freesurfer annot"
+                  : s.curv                 ? "freesurfer curv"
+                  : s.quad                 ? "freesurfer quads"
+                                           : "freesurfer triangles");
     out->nb_arrays = as_reader(reader)->annot ? 2 : s.curv ? 1 : 0;
     out->nb_vertices = s.vertices.size() / 3;
     out->nb_faces = s.faces.size() / 3;
@@ -147,9 +151,12 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
             const std::int32_t l = r.a.labels[i];
             for (std::uint32_t c = 0; c < (index == 0 ? 1u : 4u); ++c) {
                 unsigned char *cell = hz::view_cell(*dst, i, c, index == 0 ? 4 : 1);
-                if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: read_array: destination too small", r.path.c_str());
-                if (index == 0) std::memcpy(cell, &l, 4);
-                else *cell = colour(l)[c];
+                if (cell == nullptr)
+                    return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: read_array: destination too small", r.path.c_str());
+                if (index == 0)
+                    std::memcpy(cell, &l, 4);
+                else
+                    *cell = colour(l)[c];
             }
         }
         return HZ_OK;
@@ -159,7 +166,8 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "freesurfer: %s: read_array: destination does not match", r.path.c_str());
     for (std::uint64_t i = 0; i < r.s.values.size(); ++i) {
         unsigned char *cell = hz::view_cell(*dst, i, 0, 4);
-        if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: read_array: destination too small", r.path.c_str());
+        if (cell == nullptr)
+            return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: read_array: destination too small", r.path.c_str());
         std::memcpy(cell, &r.s.values[i], 4);
     }
     return HZ_OK;
@@ -209,15 +217,19 @@ hz_status write_curv(const hz_write_request *req, const hz_dataset_view *data) {
         const hz_named_array &a = data->arrays[i];
         const bool fits = a.attach == HZ_ATTACH_VERTEX && a.components == 1 && (a.dtype == HZ_DTYPE_F32 || a.dtype == HZ_DTYPE_F64) &&
                           (data->mesh_nb_vertices == 0 || a.count == data->mesh_nb_vertices);
-        if (fits && pick == nullptr) pick = &a;
-        else if (req->on_dropped) req->on_dropped(req->ctx, ("array '" + std::string(a.name ? a.name : "") + "' (a curv file holds one per-vertex value)").c_str());
+        if (fits && pick == nullptr)
+            pick = &a;
+        else if (req->on_dropped)
+            req->on_dropped(req->ctx,
+                            ("array '" + std::string(a.name ? a.name : "") + "' (a curv file holds one per-vertex value)").c_str());
     }
     if (pick == nullptr) throw FormatError("a curv file needs a per-vertex array of one float value per vertex; this data has none");
     if (pick->count == 0 || pick->count > 0x7FFFFFFF) throw FormatError("curv files hold 1 to 2^31-1 values");
     if (data->mesh_nb_vertices > 0 && req->on_dropped) req->on_dropped(req->ctx, "the surface geometry (a curv file holds values only)");
     if (pick->dtype == HZ_DTYPE_F64 && req->on_dropped)
         req->on_dropped(req->ctx, ("the float64 precision of array '" + std::string(pick->name ? pick->name : "") +
-                                   "' (curv values are float32: rounded)").c_str());
+                                   "' (curv values are float32: rounded)")
+                                      .c_str());
     std::vector<unsigned char> out = {0xFF, 0xFF, 0xFF};
     auto put = [&](std::uint32_t v) { put_be32(out, v); };
     put(static_cast<std::uint32_t>(pick->count));
@@ -225,7 +237,7 @@ hz_status write_curv(const hz_write_request *req, const hz_dataset_view *data) {
     put(1);
     for (std::uint64_t i = 0; i < pick->count; ++i) {
         const float v = pick->dtype == HZ_DTYPE_F32 ? static_cast<const float *>(pick->data)[i]
-                                                     : static_cast<float>(static_cast<const double *>(pick->data)[i]);
+                                                    : static_cast<float>(static_cast<const double *>(pick->data)[i]);
         put(std::bit_cast<std::uint32_t>(v));
     }
     save(req->path, out);
@@ -249,7 +261,8 @@ hz_status write_annot(const hz_write_request *req, const hz_dataset_view *data) 
         }
         // The label colours ("<labels> rgba") are the colour table's.
         const bool colours = pick != nullptr && pick->name != nullptr && name == std::string(pick->name) + " rgba";
-        if (!colours && req->on_dropped) req->on_dropped(req->ctx, ("array '" + name + "' (an annotation holds one label per vertex)").c_str());
+        if (!colours && req->on_dropped)
+            req->on_dropped(req->ctx, ("array '" + name + "' (an annotation holds one label per vertex)").c_str());
     }
     if (pick == nullptr) throw FormatError("an annotation needs a per-vertex int32 label array; this data has none");
     if (pick->count == 0 || pick->count > 0x7FFFFFFF) throw FormatError("annotations hold 1 to 2^31-1 vertices");
@@ -258,10 +271,13 @@ hz_status write_annot(const hz_write_request *req, const hz_dataset_view *data) 
     for (uint32_t i = 0; i < data->nb_metadata; ++i) {
         const char *k = data->metadata[i].key, *v = data->metadata[i].value;
         if (k == nullptr || v == nullptr) continue;
-        if (auto e = hzlabel::parse(k, v)) table.push_back(std::move(*e));
-        else if (std::string(k) == "orig_table") orig_table = v;
+        if (auto e = hzlabel::parse(k, v))
+            table.push_back(std::move(*e));
+        else if (std::string(k) == "orig_table")
+            orig_table = v;
     }
-    if (table.empty()) throw FormatError("an annotation needs a colour table (header entries 'label <index>' = '<name> r g b t'); this data has none");
+    if (table.empty())
+        throw FormatError("an annotation needs a colour table (header entries 'label <index>' = '<name> r g b t'); this data has none");
     hzlabel::assign_colours(table);  // (labels without a colour: one no other label has)
     // index -> packed colour, the value stored per vertex
     std::vector<std::pair<std::int32_t, std::uint32_t>> packed;
@@ -299,15 +315,16 @@ hz_status write_annot(const hz_write_request *req, const hz_dataset_view *data) 
         if (l != -1) {
             const auto it = std::lower_bound(packed.begin(), packed.end(), std::pair{l, 0u});
             if (it == packed.end() || it->first != l)
-                throw FormatError("vertex " + std::to_string(i) + " has label " + std::to_string(l) + ", which the colour table does not define");
+                throw FormatError("vertex " + std::to_string(i) + " has label " + std::to_string(l) +
+                                  ", which the colour table does not define");
             value = it->second;
         }
         put(static_cast<std::uint32_t>(i));
         put(value);
     }
-    put(1);                                            // a colour table follows
-    put(static_cast<std::uint32_t>(-2));               // version 2
-    put(static_cast<std::uint32_t>(max_index + 1));    // largest index + 1
+    put(1);                                          // a colour table follows
+    put(static_cast<std::uint32_t>(-2));             // version 2
+    put(static_cast<std::uint32_t>(max_index + 1));  // largest index + 1
     put_text(orig_table);
     put(static_cast<std::uint32_t>(table.size()));
     for (const auto &e : table) {
@@ -335,7 +352,8 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         if (data->mesh_nb_vertices > 0x7FFFFFFF || data->mesh_nb_faces > 0x7FFFFFFF) throw FormatError("too many vertices or faces");
         for (uint32_t i = 0; i < data->nb_arrays && req->on_dropped; ++i)
             req->on_dropped(req->ctx, ("array '" + std::string(data->arrays[i].name ? data->arrays[i].name : "") +
-                                       "' (a FreeSurfer surface holds geometry only; overlays go in curv files)").c_str());
+                                       "' (a FreeSurfer surface holds geometry only; overlays go in curv files)")
+                                          .c_str());
         static const char *footer_keys[] = {"valid", "filename", "volume", "voxelsize", "xras", "yras", "zras", "cras"};
         std::string footer;
         for (uint32_t i = 0; i < data->nb_metadata; ++i) {
@@ -366,16 +384,40 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
     });
 }
 
-const char *const kExtensions[] = {"white", "pial",      "inflated", "sphere", "orig", "smoothwm", "midthickness",
-                                   "surf",  "curv",      "thickness", "sulc",  "area", "annot", nullptr};
+const char *const kExtensions[] = {"white", "pial", "inflated",  "sphere", "orig", "smoothwm", "midthickness",
+                                   "surf",  "curv", "thickness", "sulc",   "area", "annot",    nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 15, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, nullptr, read_array, nullptr, read_mesh, close, write, nullptr,
+    sizeof(hz_loader),
+    HZ_DATA_MESH,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
+    15,
+    kExtensions,
+    probe,
+    open,
+    get_info,
+    get_array_info,
+    visit_metadata,
+    nullptr,
+    read_array,
+    nullptr,
+    read_mesh,
+    close,
+    write,
+    nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "FreeSurfer surface", "1.0.0", "Horizon",
-    "FreeSurfer binary surfaces (lh.white, rh.pial, ...; triangle files with the volume-info footer, quad files read), curv overlays (lh.curv, lh.thickness, ...) and annotations (lh.aparc.annot)", "MIT", kInterfaces,
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_LOADER,
+    kId,
+    "FreeSurfer surface",
+    "1.0.0",
+    "Horizon",
+    "FreeSurfer binary surfaces (lh.white, rh.pial, ...; triangle files with the volume-info footer, quad files read), curv overlays "
+    "(lh.curv, lh.thickness, ...) and annotations (lh.aparc.annot)",
+    "MIT",
+    kInterfaces,
 };
 
 }  // namespace

@@ -31,19 +31,22 @@ enum class DT { U8, I8, I16, U16, I32, U32, F32, F64 };
 
 std::size_t dt_size(DT t) {
     switch (t) {
-    case DT::U8: case DT::I8: return 1;
-    case DT::I16: case DT::U16: return 2;
-    case DT::I32: case DT::U32: case DT::F32: return 4;
+    case DT::U8:
+    case DT::I8: return 1;
+    case DT::I16:
+    case DT::U16: return 2;
+    case DT::I32:
+    case DT::U32:
+    case DT::F32: return 4;
     case DT::F64: return 8;
     }
     return 0;
 }
 
 DT parse_dtype(const std::string &s) {
-    static const std::pair<const char *, DT> m[] = {{"NIFTI_TYPE_UINT8", DT::U8},   {"NIFTI_TYPE_INT8", DT::I8},
-                                                    {"NIFTI_TYPE_INT16", DT::I16},  {"NIFTI_TYPE_UINT16", DT::U16},
-                                                    {"NIFTI_TYPE_INT32", DT::I32},  {"NIFTI_TYPE_UINT32", DT::U32},
-                                                    {"NIFTI_TYPE_FLOAT32", DT::F32}, {"NIFTI_TYPE_FLOAT64", DT::F64}};
+    static const std::pair<const char *, DT> m[] = {
+        {"NIFTI_TYPE_UINT8", DT::U8},  {"NIFTI_TYPE_INT8", DT::I8},    {"NIFTI_TYPE_INT16", DT::I16},   {"NIFTI_TYPE_UINT16", DT::U16},
+        {"NIFTI_TYPE_INT32", DT::I32}, {"NIFTI_TYPE_UINT32", DT::U32}, {"NIFTI_TYPE_FLOAT32", DT::F32}, {"NIFTI_TYPE_FLOAT64", DT::F64}};
     for (const auto &[n, d] : m)
         if (s == n) return d;
     throw FormatError("DataType '" + s + "' is not a supported NIfTI type");
@@ -103,12 +106,36 @@ double load(const unsigned char *p, DT t, bool swap) {
     switch (t) {
     case DT::U8: return b[0];
     case DT::I8: return static_cast<std::int8_t>(b[0]);
-    case DT::I16: { std::int16_t v; std::memcpy(&v, b, 2); return v; }
-    case DT::U16: { std::uint16_t v; std::memcpy(&v, b, 2); return v; }
-    case DT::I32: { std::int32_t v; std::memcpy(&v, b, 4); return v; }
-    case DT::U32: { std::uint32_t v; std::memcpy(&v, b, 4); return v; }
-    case DT::F32: { float v; std::memcpy(&v, b, 4); return v; }
-    case DT::F64: { double v; std::memcpy(&v, b, 8); return v; }
+    case DT::I16: {
+        std::int16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+    }
+    case DT::U16: {
+        std::uint16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+    }
+    case DT::I32: {
+        std::int32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+    }
+    case DT::U32: {
+        std::uint32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+    }
+    case DT::F32: {
+        float v;
+        std::memcpy(&v, b, 4);
+        return v;
+    }
+    case DT::F64: {
+        double v;
+        std::memcpy(&v, b, 8);
+        return v;
+    }
     }
     return 0;
 }
@@ -203,8 +230,9 @@ Array read_array(const pugi::xml_node &da, std::size_t index, const fs::path &di
                 const int rc = uncompress(out.data(), &len, bytes.data(), static_cast<uLong>(bytes.size()));
                 if (rc == Z_BUF_ERROR) throw FormatError(at + ": compressed data is larger than Dims declare");
                 if (rc != Z_OK)
-                    throw FormatError(at + ": GZipBase64Binary payload is not a valid zlib (RFC 1950) stream" +
-                                      std::string(bytes.size() > 1 && bytes[0] == 0x1f && bytes[1] == 0x8b ? " (it is a gzip container)" : ""));
+                    throw FormatError(
+                        at + ": GZipBase64Binary payload is not a valid zlib (RFC 1950) stream" +
+                        std::string(bytes.size() > 1 && bytes[0] == 0x1f && bytes[1] == 0x8b ? " (it is a gzip container)" : ""));
                 out.resize(len);
                 bytes.swap(out);
             }
@@ -234,7 +262,8 @@ Array read_array(const pugi::xml_node &da, std::size_t index, const fs::path &di
             throw FormatError(at + ": Encoding '" + enc + "' is not supported");
         }
         if (bytes.size() != n * es)
-            throw FormatError(at + ": decoded " + std::to_string(bytes.size()) + " bytes, Dims and DataType require " + std::to_string(n * es));
+            throw FormatError(at + ": decoded " + std::to_string(bytes.size()) + " bytes, Dims and DataType require " +
+                              std::to_string(n * es));
         raw.resize(n);
         for (std::uint64_t i = 0; i < n; ++i) raw[i] = load(bytes.data() + i * es, a.dtype, swap);
     }
@@ -285,9 +314,13 @@ Surface read(const std::string &path) {
         // them. One with some of them takes 0 for a missing Red, Green or
         // Blue and 1 for Alpha. Components are clamped to [0, 1].
         l.coloured = lab.attribute("Red") || lab.attribute("Green") || lab.attribute("Blue") || lab.attribute("Alpha");
-        for (auto [attr, dst, def] : {std::tuple{"Red", &l.red, 0.0}, {"Green", &l.green, 0.0}, {"Blue", &l.blue, 0.0}, {"Alpha", &l.alpha, 1.0}}) {
+        for (auto [attr, dst, def] :
+             {std::tuple{"Red", &l.red, 0.0}, {"Green", &l.green, 0.0}, {"Blue", &l.blue, 0.0}, {"Alpha", &l.alpha, 1.0}}) {
             const pugi::xml_attribute a = lab.attribute(attr);
-            if (!a) { *dst = def; continue; }
+            if (!a) {
+                *dst = def;
+                continue;
+            }
             const std::string text = a.as_string();
             const double x = std::strtod(text.c_str(), &end);
             if (text.empty() || *end != '\0' || !std::isfinite(x))
@@ -301,8 +334,10 @@ Surface read(const std::string &path) {
     for (const auto &da : root.children("DataArray")) arrays.push_back(read_array(da, i++, fs::path(path).parent_path()));
     const Array *points = nullptr, *tris = nullptr;
     for (const auto &a : arrays) {
-        if (a.intent == "NIFTI_INTENT_POINTSET" && !points) points = &a;
-        else if (a.intent == "NIFTI_INTENT_TRIANGLE" && !tris) tris = &a;
+        if (a.intent == "NIFTI_INTENT_POINTSET" && !points)
+            points = &a;
+        else if (a.intent == "NIFTI_INTENT_TRIANGLE" && !tris)
+            tris = &a;
     }
     if (arrays.empty()) throw FormatError("no DataArray at all");
     // An overlay-only file (thickness, curvature, labels of a surface kept
@@ -420,8 +455,12 @@ void write(const std::string &path, const Surface &s, bool gz) {
         }
         if (xform) {
             pugi::xml_node m = da.append_child("CoordinateSystemTransformMatrix");
-            m.append_child("DataSpace").append_child(pugi::node_cdata).set_value(s.data_space.empty() ? "NIFTI_XFORM_SCANNER_ANAT" : s.data_space.c_str());
-            m.append_child("TransformedSpace").append_child(pugi::node_cdata).set_value(s.transformed_space.empty() ? "NIFTI_XFORM_SCANNER_ANAT" : s.transformed_space.c_str());
+            m.append_child("DataSpace")
+                .append_child(pugi::node_cdata)
+                .set_value(s.data_space.empty() ? "NIFTI_XFORM_SCANNER_ANAT" : s.data_space.c_str());
+            m.append_child("TransformedSpace")
+                .append_child(pugi::node_cdata)
+                .set_value(s.transformed_space.empty() ? "NIFTI_XFORM_SCANNER_ANAT" : s.transformed_space.c_str());
             std::ostringstream out;
             out.precision(17);
             for (int r = 0; r < 4; ++r) {

@@ -18,13 +18,13 @@ struct FormatError : std::runtime_error {
 
 // A per-vertex data array other than the geometry (shape, label, func...).
 struct Overlay {
-    std::string name;     // its Name meta value, else its intent
+    std::string name;  // its Name meta value, else its intent
     std::string intent;
-    bool integer = false; // integer data (labels, read as int32) vs FLOAT32/FLOAT64
+    bool integer = false;  // integer data (labels, read as int32) vs FLOAT32/FLOAT64
     std::uint32_t components = 1;
-    std::vector<float> values;        // FLOAT32 data, vertices x components
-    std::vector<double> values64;     // FLOAT64 data instead, when not empty (read and written as such)
-    std::vector<std::int32_t> labels; // integer data
+    std::vector<float> values;         // FLOAT32 data, vertices x components
+    std::vector<double> values64;      // FLOAT64 data instead, when not empty (read and written as such)
+    std::vector<std::int32_t> labels;  // integer data
 };
 
 // One entry of the file's LabelTable: a label key and its colour (0..1).
@@ -36,14 +36,14 @@ struct Label {
 };
 
 struct Surface {
-    std::vector<float> vertices;        // N x 3, as stored (mm in DataSpace)
-    std::vector<std::uint32_t> faces;   // M x 3, 0-based
-    std::array<double, 16> transform{}; // DataSpace -> TransformedSpace, identity if absent
+    std::vector<float> vertices;         // N x 3, as stored (mm in DataSpace)
+    std::vector<std::uint32_t> faces;    // M x 3, 0-based
+    std::array<double, 16> transform{};  // DataSpace -> TransformedSpace, identity if absent
     std::string data_space, transformed_space;
     std::vector<Overlay> overlays;
     std::vector<std::pair<std::string, std::string>> metadata;
-    std::vector<Label> labels;          // the LabelTable (keys of the NIFTI_INTENT_LABEL arrays)
-    std::uint64_t rows = 0;             // vertices the overlays describe (= vertices / 3 unless overlay-only)
+    std::vector<Label> labels;  // the LabelTable (keys of the NIFTI_INTENT_LABEL arrays)
+    std::uint64_t rows = 0;     // vertices the overlays describe (= vertices / 3 unless overlay-only)
     bool overlay_only() const { return vertices.empty() && faces.empty() && !overlays.empty(); }
 };
 

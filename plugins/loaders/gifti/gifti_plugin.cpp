@@ -140,7 +140,8 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
             const std::array<std::uint8_t, 4> rgba = colour(o.labels[i]);
             for (std::uint32_t c = 0; c < 4; ++c) {
                 unsigned char *cell = hz::view_cell(*dst, i, c, 1);
-                if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
+                if (cell == nullptr)
+                    return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
                 *cell = rgba[c];
             }
         }
@@ -154,9 +155,10 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
     for (std::uint64_t i = 0; i < rows; ++i)
         for (std::uint32_t c = 0; c < o.components; ++c) {
             unsigned char *cell = hz::view_cell(*dst, i, c, width);
-            if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
+            if (cell == nullptr)
+                return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
             const std::size_t k = i * o.components + c;
-            const void *src = o.integer ? static_cast<const void *>(&o.labels[k])
+            const void *src = o.integer    ? static_cast<const void *>(&o.labels[k])
                               : width == 8 ? static_cast<const void *>(&o.values64[k])
                                            : static_cast<const void *>(&o.values[k]);
             std::memcpy(cell, src, width);
@@ -181,12 +183,15 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         for (uint32_t i = 0; i < data->nb_metadata; ++i) {
             const std::string k = data->metadata[i].key ? data->metadata[i].key : "";
             const std::string v = data->metadata[i].value ? data->metadata[i].value : "";
-            if (k == "DataSpace") s.data_space = v;
-            else if (k == "TransformedSpace") s.transformed_space = v;
+            if (k == "DataSpace")
+                s.data_space = v;
+            else if (k == "TransformedSpace")
+                s.transformed_space = v;
             else if (auto e = hzlabel::parse(k, v)) {
                 // a label table entry (an annotation's, or a GIFTI LabelTable's) goes in the LabelTable
                 s.labels.push_back({e->index, e->name, e->r / 255.0, e->g / 255.0, e->b / 255.0, e->alpha() / 255.0, e->coloured});
-            } else s.metadata.emplace_back(k, v);
+            } else
+                s.metadata.emplace_back(k, v);
         }
         // No geometry: an overlay-only file, its rows set by the first per-vertex array.
         s.rows = data->mesh_nb_vertices;
@@ -226,7 +231,8 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                                                        return true;
                                                return false;
                                            }();
-                if (!label_colours && req->on_dropped) req->on_dropped(req->ctx, ("array '" + name + "' (type not stored in GIFTI)").c_str());
+                if (!label_colours && req->on_dropped)
+                    req->on_dropped(req->ctx, ("array '" + name + "' (type not stored in GIFTI)").c_str());
                 continue;
             }
             s.overlays.push_back(std::move(o));
@@ -239,13 +245,35 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 
 const char *const kExtensions[] = {"gii", nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 4096, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, nullptr, read_array, nullptr, read_mesh, close, write, nullptr,
+    sizeof(hz_loader),
+    HZ_DATA_MESH,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
+    4096,
+    kExtensions,
+    probe,
+    open,
+    get_info,
+    get_array_info,
+    visit_metadata,
+    nullptr,
+    read_array,
+    nullptr,
+    read_mesh,
+    close,
+    write,
+    nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "GIFTI", "1.0.0", "Horizon",
-    "GIFTI surfaces and per-vertex overlays (ASCII, Base64, GZipBase64, external; both endians; row/column major)", "MIT",
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_LOADER,
+    kId,
+    "GIFTI",
+    "1.0.0",
+    "Horizon",
+    "GIFTI surfaces and per-vertex overlays (ASCII, Base64, GZipBase64, external; both endians; row/column major)",
+    "MIT",
     kInterfaces,
 };
 

@@ -67,10 +67,22 @@ M4 node_matrix(const tinygltf::Node &n) {
     if (n.translation.size() == 3) t[12] = n.translation[0], t[13] = n.translation[1], t[14] = n.translation[2];
     if (n.rotation.size() == 4) {
         const double x = n.rotation[0], y = n.rotation[1], z = n.rotation[2], w = n.rotation[3];
-        r = {1 - 2 * (y * y + z * z), 2 * (x * y + z * w),     2 * (x * z - y * w),     0,
-             2 * (x * y - z * w),     1 - 2 * (x * x + z * z), 2 * (y * z + x * w),     0,
-             2 * (x * z + y * w),     2 * (y * z - x * w),     1 - 2 * (x * x + y * y), 0,
-             0,                       0,                       0,                       1};
+        r = {1 - 2 * (y * y + z * z),
+             2 * (x * y + z * w),
+             2 * (x * z - y * w),
+             0,
+             2 * (x * y - z * w),
+             1 - 2 * (x * x + z * z),
+             2 * (y * z + x * w),
+             0,
+             2 * (x * z + y * w),
+             2 * (y * z - x * w),
+             1 - 2 * (x * x + y * y),
+             0,
+             0,
+             0,
+             0,
+             1};
     }
     if (n.scale.size() == 3) s[0] = n.scale[0], s[5] = n.scale[1], s[10] = n.scale[2];
     return mul(t, mul(r, s));
@@ -86,9 +98,11 @@ struct AccessorReader {
         if (index < 0 || index >= int(m.accessors.size())) throw FormatError(std::string(what) + ": accessor index out of range");
         const tinygltf::Accessor &a = m.accessors[index];
         if (a.sparse.isSparse) throw FormatError(std::string(what) + ": sparse accessors are not supported");
-        if (a.bufferView < 0 || a.bufferView >= int(m.bufferViews.size())) throw FormatError(std::string(what) + ": accessor without a valid buffer view");
+        if (a.bufferView < 0 || a.bufferView >= int(m.bufferViews.size()))
+            throw FormatError(std::string(what) + ": accessor without a valid buffer view");
         const tinygltf::BufferView &bv = m.bufferViews[a.bufferView];
-        if (bv.buffer < 0 || bv.buffer >= int(m.buffers.size())) throw FormatError(std::string(what) + ": buffer view without a valid buffer");
+        if (bv.buffer < 0 || bv.buffer >= int(m.buffers.size()))
+            throw FormatError(std::string(what) + ": buffer view without a valid buffer");
         const auto &buf = m.buffers[bv.buffer].data;
         ncomp = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(a.type));
         comp_size = std::size_t(tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(a.componentType)));
@@ -113,23 +127,47 @@ struct AccessorReader {
     double get(std::size_t i, int c) const {
         const unsigned char *p = base + i * stride + std::size_t(c) * comp_size;
         switch (ctype) {
-        case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); return f; }
-        case TINYGLTF_COMPONENT_TYPE_DOUBLE: { double d; std::memcpy(&d, p, 8); return d; }
+        case TINYGLTF_COMPONENT_TYPE_FLOAT: {
+            float f;
+            std::memcpy(&f, p, 4);
+            return f;
+        }
+        case TINYGLTF_COMPONENT_TYPE_DOUBLE: {
+            double d;
+            std::memcpy(&d, p, 8);
+            return d;
+        }
         case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return normalized ? p[0] / 255.0 : p[0];
         case TINYGLTF_COMPONENT_TYPE_BYTE: return normalized ? std::max(-1.0, int8_t(p[0]) / 127.0) : int8_t(p[0]);
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { uint16_t v; std::memcpy(&v, p, 2); return normalized ? v / 65535.0 : v; }
-        case TINYGLTF_COMPONENT_TYPE_SHORT: { int16_t v; std::memcpy(&v, p, 2); return normalized ? std::max(-1.0, v / 32767.0) : v; }
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { uint32_t v; std::memcpy(&v, p, 4); return v; }
-        case TINYGLTF_COMPONENT_TYPE_INT: { int32_t v; std::memcpy(&v, p, 4); return v; }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
+            uint16_t v;
+            std::memcpy(&v, p, 2);
+            return normalized ? v / 65535.0 : v;
+        }
+        case TINYGLTF_COMPONENT_TYPE_SHORT: {
+            int16_t v;
+            std::memcpy(&v, p, 2);
+            return normalized ? std::max(-1.0, v / 32767.0) : v;
+        }
+        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
+            uint32_t v;
+            std::memcpy(&v, p, 4);
+            return v;
+        }
+        case TINYGLTF_COMPONENT_TYPE_INT: {
+            int32_t v;
+            std::memcpy(&v, p, 4);
+            return v;
+        }
         default: return 0;
         }
     }
 };
 
 struct Surface {
-    std::vector<float> vertices;       // RAS mm
+    std::vector<float> vertices;  // RAS mm
     std::vector<std::uint32_t> faces;
-    std::vector<float> colors;         // RGB per vertex, or empty
+    std::vector<float> colors;  // RGB per vertex, or empty
     std::vector<std::pair<std::string, std::string>> meta;
 };
 
@@ -160,7 +198,7 @@ bool uri_write(std::string *err, const std::string &, const std::vector<unsigned
 }
 
 Surface parse(const std::string &path) {
-    struct stat st{};
+    struct stat st {};
     if (::stat(path.c_str(), &st) != 0) throw IoError("cannot open: " + std::string(std::strerror(errno)));
     if (!S_ISREG(st.st_mode)) throw IoError("not a regular file");
     if (st.st_size < 12) throw FormatError("file is " + std::to_string(st.st_size) + " bytes: too short for glTF");
@@ -242,7 +280,8 @@ Surface parse(const std::string &path) {
                     if (idx.ncomp != 1 || idx.count % 3 != 0) throw FormatError("triangle indices are not a multiple of 3 scalars");
                     for (std::size_t i = 0; i < idx.count; ++i) {
                         const double k = idx.get(i, 0);
-                        if (!(k >= 0) || k >= double(pos.count)) throw FormatError("a face index is out of range (" + std::to_string(k) + ")");
+                        if (!(k >= 0) || k >= double(pos.count))
+                            throw FormatError("a face index is out of range (" + std::to_string(k) + ")");
                         s.faces.push_back(std::uint32_t(v0 + std::size_t(k)));
                     }
                 } else {
@@ -255,12 +294,15 @@ Surface parse(const std::string &path) {
         for (int c : n.children) visit(c, world, depth + 1);
     };
     std::vector<int> roots;
-    if (m.defaultScene >= 0 && m.defaultScene < int(m.scenes.size())) roots = m.scenes[m.defaultScene].nodes;
-    else if (!m.scenes.empty()) roots = m.scenes[0].nodes;
+    if (m.defaultScene >= 0 && m.defaultScene < int(m.scenes.size()))
+        roots = m.scenes[m.defaultScene].nodes;
+    else if (!m.scenes.empty())
+        roots = m.scenes[0].nodes;
     else
         for (int i = 0; i < int(m.nodes.size()); ++i) roots.push_back(i);
     for (int r : roots) visit(r, kI, 0);
-    if (s.faces.empty() && skipped == 0 && roots.empty() && !m.meshes.empty()) throw FormatError("meshes but no scene nodes instancing them");
+    if (s.faces.empty() && skipped == 0 && roots.empty() && !m.meshes.empty())
+        throw FormatError("meshes but no scene nodes instancing them");
     if (skipped) s.meta.emplace_back("skipped_primitives", std::to_string(skipped) + " non-triangle primitives");
     if (first_material >= 0 && first_material < int(m.materials.size())) {
         const auto &mat = m.materials[first_material];
@@ -288,8 +330,7 @@ long long hz_gltf_fuzz_parse(const std::string &path) {
             if (f >= s.vertices.size() / 3) __builtin_trap();  // faces are checked
         return static_cast<long long>(s.vertices.size() / 3);
     } catch (const FormatError &) {
-    } catch (const IoError &) {
-    }
+    } catch (const IoError &) {}
     return -1;
 }
 #endif
@@ -460,7 +501,8 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         mat.pbrMetallicRoughness.roughnessFactor = 0.5;
         mat.doubleSided = true;
         for (uint32_t i = 0; i < data->nb_metadata; ++i) {
-            const std::string k = data->metadata[i].key ? data->metadata[i].key : "", v = data->metadata[i].value ? data->metadata[i].value : "";
+            const std::string k = data->metadata[i].key ? data->metadata[i].key : "",
+                              v = data->metadata[i].value ? data->metadata[i].value : "";
             if (k == "material.baseColorFactor") {
                 std::vector<double> f;
                 char *end = nullptr;
@@ -471,9 +513,12 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                     p = end;
                 }
                 if (f.size() == 4) mat.pbrMetallicRoughness.baseColorFactor = f;
-            } else if (k == "material.metallicFactor") mat.pbrMetallicRoughness.metallicFactor = std::atof(v.c_str());
-            else if (k == "material.roughnessFactor") mat.pbrMetallicRoughness.roughnessFactor = std::atof(v.c_str());
-            else if (k == "material.name") mat.name = v;
+            } else if (k == "material.metallicFactor")
+                mat.pbrMetallicRoughness.metallicFactor = std::atof(v.c_str());
+            else if (k == "material.roughnessFactor")
+                mat.pbrMetallicRoughness.roughnessFactor = std::atof(v.c_str());
+            else if (k == "material.name")
+                mat.name = v;
         }
         m.materials.push_back(mat);
         prim.material = 0;
@@ -505,13 +550,36 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 
 const char *const kExtensions[] = {"gltf", "glb", nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 4096, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, nullptr, read_array, nullptr, read_mesh, close, write, nullptr,
+    sizeof(hz_loader),
+    HZ_DATA_MESH,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
+    4096,
+    kExtensions,
+    probe,
+    open,
+    get_info,
+    get_array_info,
+    visit_metadata,
+    nullptr,
+    read_array,
+    nullptr,
+    read_mesh,
+    close,
+    write,
+    nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "glTF 2.0", "1.0.0", "Horizon",
-    "glTF 2.0 triangle meshes (.gltf, .glb) with vertex colours and PBR factors, metres Y-up <-> RAS+ mm", "MIT", kInterfaces,
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_LOADER,
+    kId,
+    "glTF 2.0",
+    "1.0.0",
+    "Horizon",
+    "glTF 2.0 triangle meshes (.gltf, .glb) with vertex colours and PBR factors, metres Y-up <-> RAS+ mm",
+    "MIT",
+    kInterfaces,
 };
 
 }  // namespace

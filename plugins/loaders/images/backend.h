@@ -20,8 +20,8 @@ extern "C" {
 typedef struct hzimg_info {
     uint64_t width, height;
     uint32_t channels;
-    uint32_t dtype;        /* HZ_DTYPE_U8, U16 or F32 (what read() produces) */
-    char format[32];       /* "png", "openexr", ...                         */
+    uint32_t dtype;  /* HZ_DTYPE_U8, U16 or F32 (what read() produces) */
+    char format[32]; /* "png", "openexr", ...                         */
 } hzimg_info;
 
 typedef struct hzimg_backend {

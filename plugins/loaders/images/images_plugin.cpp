@@ -152,7 +152,8 @@ hz_status HZ_ABI read_volume(hz_reader *reader, const hz_array_view *dst, const 
         for (uint64_t y = 0; y < h; ++y)
             for (uint64_t x = 0; x < w; ++x)
                 for (uint64_t k = 0; k < c; ++k) {
-                    const int64_t off = int64_t(k) * dst->stride_bytes[0] + int64_t(x) * dst->stride_bytes[1] + int64_t(y) * dst->stride_bytes[2];
+                    const int64_t off =
+                        int64_t(k) * dst->stride_bytes[0] + int64_t(x) * dst->stride_bytes[1] + int64_t(y) * dst->stride_bytes[2];
                     if (off < 0 || uint64_t(off) + es > dst->capacity_bytes)
                         return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "images: %s: destination too small", r.path.c_str());
                     std::memcpy(static_cast<unsigned char *>(dst->data) + off, &tmp[((y * w + x) * c + k) * es], es);
@@ -191,13 +192,36 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 
 const char *const kExtensions[] = {"png", "jpg", "jpeg", "exr", "hdr", "tif", "tiff", nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_IMAGE, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 16, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, nullptr, nullptr, read_volume, nullptr, close, write, nullptr,
+    sizeof(hz_loader),
+    HZ_DATA_IMAGE,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
+    16,
+    kExtensions,
+    probe,
+    open,
+    get_info,
+    get_array_info,
+    visit_metadata,
+    nullptr,
+    nullptr,
+    read_volume,
+    nullptr,
+    close,
+    write,
+    nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "Images (OpenImageIO)", "1.0.0", "Horizon",
-    "PNG, JPEG, OpenEXR, Radiance HDR and TIFF images: environment maps, textures, rendered frames", "MIT", kInterfaces,
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_LOADER,
+    kId,
+    "Images (OpenImageIO)",
+    "1.0.0",
+    "Horizon",
+    "PNG, JPEG, OpenEXR, Radiance HDR and TIFF images: environment maps, textures, rendered frames",
+    "MIT",
+    kInterfaces,
 };
 
 }  // namespace

@@ -19,10 +19,16 @@ namespace fs = std::filesystem;
 
 std::size_t dtype_size(DType t) {
     switch (t) {
-    case DType::U8: case DType::I8: return 1;
-    case DType::U16: case DType::I16: return 2;
-    case DType::U32: case DType::I32: case DType::F32: return 4;
-    case DType::U64: case DType::I64: case DType::F64: return 8;
+    case DType::U8:
+    case DType::I8: return 1;
+    case DType::U16:
+    case DType::I16: return 2;
+    case DType::U32:
+    case DType::I32:
+    case DType::F32: return 4;
+    case DType::U64:
+    case DType::I64:
+    case DType::F64: return 8;
     case DType::RGB24: return 3;
     case DType::RGBA32: return 4;
     }
@@ -37,9 +43,12 @@ T rd(const unsigned char *p, bool swap) {
     U u;
     std::memcpy(&u, p, sizeof u);
     if (swap) {
-        if constexpr (sizeof(T) == 2) u = __builtin_bswap16(u);
-        else if constexpr (sizeof(T) == 4) u = __builtin_bswap32(u);
-        else u = __builtin_bswap64(u);
+        if constexpr (sizeof(T) == 2)
+            u = __builtin_bswap16(u);
+        else if constexpr (sizeof(T) == 4)
+            u = __builtin_bswap32(u);
+        else
+            u = __builtin_bswap64(u);
     }
     return std::bit_cast<T>(u);
 }
@@ -174,8 +183,10 @@ void parse(const unsigned char *b, std::uint64_t size, Header &h, bool single) {
     case 1280: h.dtype = DType::U64; break;
     case 128: h.dtype = DType::RGB24; break;
     case 2304: h.dtype = DType::RGBA32; break;
-    case 32: case 1536: case 1792: case 2048:
-        throw FormatError("datatype " + std::to_string(h.datatype_code) + " (complex or float128) is not supported");
+    case 32:
+    case 1536:
+    case 1792:
+    case 2048: throw FormatError("datatype " + std::to_string(h.datatype_code) + " (complex or float128) is not supported");
     default: throw FormatError("unknown datatype code " + std::to_string(h.datatype_code));
     }
     if (h.nb_voxels > std::numeric_limits<std::uint64_t>::max() / 8) throw FormatError("absurd size");
@@ -207,9 +218,9 @@ void parse(const unsigned char *b, std::uint64_t size, Header &h, bool single) {
         const double bq = quat[0], cq = quat[1], dq = quat[2];
         const double a2 = 1.0 - (bq * bq + cq * cq + dq * dq);
         const double a = a2 > 0 ? std::sqrt(a2) : 0.0;
-        const double R[9] = {a * a + bq * bq - cq * cq - dq * dq, 2 * (bq * cq - a * dq), 2 * (bq * dq + a * cq),
-                             2 * (bq * cq + a * dq), a * a + cq * cq - bq * bq - dq * dq, 2 * (cq * dq - a * bq),
-                             2 * (bq * dq - a * cq), 2 * (cq * dq + a * bq), a * a + dq * dq - bq * bq - cq * cq};
+        const double R[9] = {a * a + bq * bq - cq * cq - dq * dq, 2 * (bq * cq - a * dq), 2 * (bq * dq + a * cq), 2 * (bq * cq + a * dq),
+                             a * a + cq * cq - bq * bq - dq * dq, 2 * (cq * dq - a * bq), 2 * (bq * dq - a * cq), 2 * (cq * dq + a * bq),
+                             a * a + dq * dq - bq * bq - cq * cq};
         double qfac = pix[0];
         if (qfac != 1 && qfac != -1) qfac = 1;
         const double z[3] = {std::fabs(pix[1]), std::fabs(pix[2]), std::fabs(pix[3]) * qfac};
@@ -244,7 +255,8 @@ int probe(const unsigned char *b, std::uint64_t size) {
     }
     if (size >= 12) {
         for (bool sw : {false, true})
-            if (rd<std::int32_t>(b, sw) == 540 && (std::memcmp(b + 4, "n+2\0\r\n\032\n", 8) == 0 || std::memcmp(b + 4, "ni2\0\r\n\032\n", 8) == 0))
+            if (rd<std::int32_t>(b, sw) == 540 &&
+                (std::memcmp(b + 4, "n+2\0\r\n\032\n", 8) == 0 || std::memcmp(b + 4, "ni2\0\r\n\032\n", 8) == 0))
                 return 100;
     }
     if (size >= 2 && b[0] == 0x1f && b[1] == 0x8b) return 20;  // gzip: maybe .nii.gz
@@ -252,8 +264,8 @@ int probe(const unsigned char *b, std::uint64_t size) {
 }
 
 struct Image::Impl {
-    std::unique_ptr<hzio::MappedFile> map;     // uncompressed data file
-    std::vector<unsigned char> inflated;       // gzipped data file
+    std::unique_ptr<hzio::MappedFile> map;  // uncompressed data file
+    std::vector<unsigned char> inflated;    // gzipped data file
     const unsigned char *data = nullptr;
 };
 
@@ -311,8 +323,8 @@ Image Image::open(const std::string &path) {
     return img;
 }
 
-void write(const std::string &path, const std::string &image_path, bool gz, DType dtype, const std::vector<std::uint64_t> &dims, const void *voxels,
-           const std::array<double, 16> &A, double slope, double inter) {
+void write(const std::string &path, const std::string &image_path, bool gz, DType dtype, const std::vector<std::uint64_t> &dims,
+           const void *voxels, const std::array<double, 16> &A, double slope, double inter) {
     if (dims.empty() || dims.size() > 7) throw FormatError("NIfTI holds 1 to 7 dimensions");
     unsigned char h[352] = {};
     auto put16 = [&](int off, std::int16_t v) { std::memcpy(h + off, &v, 2); };
@@ -331,24 +343,23 @@ void write(const std::string &path, const std::string &image_path, bool gz, DTyp
         n *= dims[i];
     }
     for (std::size_t i = dims.size(); i < 7; ++i) put16(42 + 2 * static_cast<int>(i), 1);
-    static const std::pair<DType, std::int16_t> codes[] = {{DType::U8, 2},    {DType::I16, 4},   {DType::I32, 8},     {DType::F32, 16},
-                                                            {DType::F64, 64},  {DType::I8, 256},  {DType::U16, 512},   {DType::U32, 768},
-                                                            {DType::I64, 1024}, {DType::U64, 1280}, {DType::RGB24, 128}, {DType::RGBA32, 2304}};
+    static const std::pair<DType, std::int16_t> codes[] = {
+        {DType::U8, 2},    {DType::I16, 4},   {DType::I32, 8},    {DType::F32, 16},   {DType::F64, 64},    {DType::I8, 256},
+        {DType::U16, 512}, {DType::U32, 768}, {DType::I64, 1024}, {DType::U64, 1280}, {DType::RGB24, 128}, {DType::RGBA32, 2304}};
     for (const auto &[d, c] : codes)
         if (d == dtype) put16(70, c);
     put16(72, static_cast<std::int16_t>(8 * dtype_size(dtype)));
     putf(76, 1.0);  // qfac
-    for (int j = 0; j < 3; ++j)
-        putf(80 + 4 * j, std::sqrt(A[j] * A[j] + A[4 + j] * A[4 + j] + A[8 + j] * A[8 + j]));
+    for (int j = 0; j < 3; ++j) putf(80 + 4 * j, std::sqrt(A[j] * A[j] + A[4 + j] * A[4 + j] + A[8 + j] * A[8 + j]));
     for (int j = 3; j < 7; ++j) putf(80 + 4 * j, 1.0);
     const bool pair = !image_path.empty();
     putf(108, pair ? 0 : 352);
     const bool scaled = !(slope == 1 && inter == 0);
     putf(112, scaled ? slope : 0.0);  // slope 0: no scaling
     putf(116, scaled ? inter : 0.0);
-    h[123] = 10;                      // xyzt_units: mm and seconds
-    put16(252, 0);                    // qform_code: unknown (the sform carries the affine)
-    put16(254, 1);                    // sform_code: scanner
+    h[123] = 10;    // xyzt_units: mm and seconds
+    put16(252, 0);  // qform_code: unknown (the sform carries the affine)
+    put16(254, 1);  // sform_code: scanner
     for (int i = 0; i < 12; ++i) putf(280 + 4 * i, A[static_cast<std::size_t>(i)]);
     std::memcpy(h + 344, pair ? "ni1" : "n+1", 4);
     const std::uint64_t bytes = n * dtype_size(dtype);

@@ -62,8 +62,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         auto r = std::make_unique<Reader>();
         r->path = req->path;
         r->image = std::make_unique<nifti::Image>(nifti::Image::open(r->path));
-        for (const auto &w : r->image->header().warnings)
-            hz::log(host(), kId, HZ_LOG_WARN, r->path + ": " + w);
+        for (const auto &w : r->image->header().warnings) hz::log(host(), kId, HZ_LOG_WARN, r->path + ": " + w);
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
     });
@@ -146,7 +145,8 @@ hz_status HZ_ABI read_volume(hz_reader *reader, const hz_array_view *dst, const 
         // Destination axes: the image's, trailing ones merged into the last.
         if (dst->ndim < 1 || dst->ndim > 4) throw nifti::FormatError("read_volume: destination must have 1..4 axes");
         std::vector<std::uint64_t> dims(static_cast<std::size_t>(h.ndim));
-        for (int i = 0; i < h.ndim; ++i) dims[static_cast<std::size_t>(i)] = static_cast<std::uint64_t>(h.dims[static_cast<std::size_t>(i)]);
+        for (int i = 0; i < h.ndim; ++i)
+            dims[static_cast<std::size_t>(i)] = static_cast<std::uint64_t>(h.dims[static_cast<std::size_t>(i)]);
         while (dims.size() > dst->ndim) {
             const std::uint64_t last = dims.back();
             dims.pop_back();
@@ -224,8 +224,10 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                 throw nifti::FormatError("cannot derive the ." + other + " name from " + final_path);
             companion_final = final_path.substr(0, cut) + other + (gz ? ".gz" : "");
             const std::string companion_tmp = std::string(req->path) + "." + other;
-            if (named == "hdr") image_tmp = companion_tmp;
-            else header_tmp = companion_tmp, image_tmp = req->path;
+            if (named == "hdr")
+                image_tmp = companion_tmp;
+            else
+                header_tmp = companion_tmp, image_tmp = req->path;
         }
         const hz_array_view &vx = data->voxels;
         nifti::DType dt;
@@ -250,7 +252,8 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         for (uint32_t i = 0; i < data->nb_metadata && req->on_dropped; ++i) {
             const std::string k = data->metadata[i].key ? data->metadata[i].key : "";
             static const char *own[] = {"pixdim", "datatype", "vox_offset", "qform_code", "sform_code", "affine_source", "scaling"};
-            if (std::find(std::begin(own), std::end(own), k) == std::end(own)) req->on_dropped(req->ctx, ("header entry '" + k + "'").c_str());
+            if (std::find(std::begin(own), std::end(own), k) == std::end(own))
+                req->on_dropped(req->ctx, ("header entry '" + k + "'").c_str());
         }
         if (pair && req->add_companion(req->companion_ctx, (header_tmp == req->path ? image_tmp : header_tmp).c_str(),
                                        companion_final.c_str()) != HZ_OK)
@@ -262,13 +265,36 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 
 const char *const kExtensions[] = {"nii", "nii.gz", "hdr", "img", "hdr.gz", "img.gz", nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_VOLUME, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 548, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, nullptr, nullptr, read_volume, nullptr, close, write, nullptr,
+    sizeof(hz_loader),
+    HZ_DATA_VOLUME,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
+    548,
+    kExtensions,
+    probe,
+    open,
+    get_info,
+    get_array_info,
+    visit_metadata,
+    nullptr,
+    nullptr,
+    read_volume,
+    nullptr,
+    close,
+    write,
+    nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "NIfTI-1/2", "1.0.0", "Horizon",
-    "NIfTI-1 and NIfTI-2 volumes (.nii, .nii.gz, .hdr/.img pairs), both byte orders; writes all of these", "MIT", kInterfaces,
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_LOADER,
+    kId,
+    "NIfTI-1/2",
+    "1.0.0",
+    "Horizon",
+    "NIfTI-1 and NIfTI-2 volumes (.nii, .nii.gz, .hdr/.img pairs), both byte orders; writes all of these",
+    "MIT",
+    kInterfaces,
 };
 
 const hz_host *host() { return hz::single_plugin<kDescriptor, kLoader>::host(); }

@@ -75,8 +75,8 @@ bool is_role_property(std::string_view name) {
 }
 
 std::string ply_canonical_type(const std::string &t) {
-    static const std::pair<const char *, const char *> kAlias[] = {{"int8", "char"},   {"uint8", "uchar"}, {"int16", "short"},
-                                                                   {"uint16", "ushort"}, {"int32", "int"},   {"uint32", "uint"},
+    static const std::pair<const char *, const char *> kAlias[] = {{"int8", "char"},     {"uint8", "uchar"},   {"int16", "short"},
+                                                                   {"uint16", "ushort"}, {"int32", "int"},     {"uint32", "uint"},
                                                                    {"float32", "float"}, {"float64", "double"}};
     for (const auto &[a, c] : kAlias)
         if (t == a || t == c) return c;
@@ -127,7 +127,8 @@ PlyHeader check_ply_header(const unsigned char *data, std::uint64_t size) {
             PlyElement e;
             e.name = w[1];
             e.count = std::stoull(w[2]);
-            if (e.count > 0x7FFFFFFF) throw FormatError(where + ": element '" + e.name + "' declares " + w[2] + " records (at most 2^31-1)");
+            if (e.count > 0x7FFFFFFF)
+                throw FormatError(where + ": element '" + e.name + "' declares " + w[2] + " records (at most 2^31-1)");
             elements.push_back(e);
         } else if (w[0] == "property") {
             if (elements.empty()) throw FormatError(where + ": a property before any element");
@@ -155,7 +156,8 @@ PlyHeader check_ply_header(const unsigned char *data, std::uint64_t size) {
     if (elements.size() > 16) throw FormatError(std::to_string(elements.size()) + " elements declared (at most 16 are read)");
     for (const PlyElement &e : elements) {
         if (e.properties.empty()) throw FormatError("element '" + e.name + "' has no properties");
-        if (e.properties.size() > 64) throw FormatError("element '" + e.name + "' has " + std::to_string(e.properties.size()) + " properties (at most 64)");
+        if (e.properties.size() > 64)
+            throw FormatError("element '" + e.name + "' has " + std::to_string(e.properties.size()) + " properties (at most 64)");
     }
     const bool ascii = h.format == "ascii";
     const std::uint64_t body = size - h.header_bytes;
@@ -208,7 +210,9 @@ void decode_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_
         while (pos < size && data[pos] != ' ' && data[pos] != '\t' && data[pos] != '\r' && data[pos] != '\n') ++pos;
         return {reinterpret_cast<const char *>(data + start), std::size_t(pos - start)};
     };
-    auto is_signed = [](const std::string &t) { return t == "char" || t == "int8" || t == "short" || t == "int16" || t == "int" || t == "int32"; };
+    auto is_signed = [](const std::string &t) {
+        return t == "char" || t == "int8" || t == "short" || t == "int16" || t == "int" || t == "int32";
+    };
     // What each property is and where its values go, decided once per element.
     enum class Role { Skip, Coord, Colour, Extra, Indices };
     struct Kind {
@@ -273,8 +277,11 @@ void decode_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_
         int colour_axes = 0;
         for (const PlyProperty &p : e.properties) {
             const bool list = !p.count_type.empty();
-            Kind k{type_size(p.type), list ? type_size(p.count_type) : 0, is_signed(p.type), list && is_signed(p.count_type),
-                   is_float(p.type), list, Role::Skip, 0, nullptr, 1.0};
+            Kind k{type_size(p.type), list ? type_size(p.count_type) : 0,
+                   is_signed(p.type), list && is_signed(p.count_type),
+                   is_float(p.type),  list,
+                   Role::Skip,        0,
+                   nullptr,           1.0};
             if (vertex) {
                 static const char *const kCoord[] = {"x", "y", "z"}, *const kColour[] = {"red", "green", "blue"};
                 for (int a = 0; a < 3; ++a) {
@@ -329,13 +336,15 @@ void decode_ply_body(const PlyHeader &h, const unsigned char *data, std::uint64_
                     switch (k.role) {
                     case Role::Coord: out.vertices[3 * r + std::size_t(k.axis)] = static_cast<float>(v.d); break;
                     case Role::Colour:
-                        if (colours) out.colors[3 * r + std::size_t(k.axis)] = static_cast<float>(std::clamp(v.d / k.colour_scale, 0.0, 1.0));
+                        if (colours)
+                            out.colors[3 * r + std::size_t(k.axis)] = static_cast<float>(std::clamp(v.d / k.colour_scale, 0.0, 1.0));
                         break;
                     case Role::Extra:
                         if (ascii) {
                             if (k.is_float) {
                                 const float f = static_cast<float>(v.d);
-                                const auto *src = k.size == 4 ? reinterpret_cast<const unsigned char *>(&f) : reinterpret_cast<const unsigned char *>(&v.d);
+                                const auto *src = k.size == 4 ? reinterpret_cast<const unsigned char *>(&f)
+                                                              : reinterpret_cast<const unsigned char *>(&v.d);
                                 k.extra->bytes.insert(k.extra->bytes.end(), src, src + k.size);
                             } else {
                                 const auto u = static_cast<std::uint64_t>(v.i);  // little-endian host
@@ -398,8 +407,8 @@ static void check_obj_vertices(const unsigned char *data, std::uint64_t size) {
                 const char *start = (q < t && *q == '+') ? q + 1 : q;
                 const auto res = std::from_chars(start, t, x);
                 if (q == t || res.ec != std::errc() || res.ptr != t || !std::isfinite(x))
-                    throw FormatError("line " + std::to_string(lineno) + ": vertex coordinate '" + std::string(q, std::size_t(std::min<std::ptrdiff_t>(t - q, 40))) +
-                                      "' is not a finite number");
+                    throw FormatError("line " + std::to_string(lineno) + ": vertex coordinate '" +
+                                      std::string(q, std::size_t(std::min<std::ptrdiff_t>(t - q, 40))) + "' is not a finite number");
                 q = t;
             }
         }
@@ -435,8 +444,8 @@ Mesh read_obj(const unsigned char *data, std::uint64_t size) {
             for (unsigned c = 0; c < 3; ++c, ++k) {
                 const int v = s.mesh.indices[k].vertex_index;
                 if (v < 0 || std::uint64_t(v) >= nv)
-                    throw FormatError("face in '" + s.name + "' uses vertex " + std::to_string(std::int64_t(v) + 1) + " (1-based), outside 1.." +
-                                      std::to_string(nv));
+                    throw FormatError("face in '" + s.name + "' uses vertex " + std::to_string(std::int64_t(v) + 1) +
+                                      " (1-based), outside 1.." + std::to_string(nv));
                 out.faces.push_back(static_cast<std::uint32_t>(v));
             }
         }
@@ -499,7 +508,8 @@ void write_ply(const std::string &path, const WriteInput &in) {
     std::vector<unsigned> sizes;
     for (const auto &p : in.properties) {
         const unsigned n = type_size(p.type);
-        if (n == 0 || p.type != ply_canonical_type(p.type) || p.data == nullptr) throw FormatError("vertex property '" + p.name + "': bad type '" + p.type + "'");
+        if (n == 0 || p.type != ply_canonical_type(p.type) || p.data == nullptr)
+            throw FormatError("vertex property '" + p.name + "': bad type '" + p.type + "'");
         h += "property " + p.type + " " + p.name + "\n";
         sizes.push_back(n);
         rec += n;
@@ -537,7 +547,8 @@ void write_obj(const std::string &path, const WriteInput &in) {
     for (std::uint64_t i = 0; i < in.nb_vertices; ++i) {
         const float *v = in.vertices + 3 * i;
         int n = 0;
-        if (in.colors.empty()) n = std::snprintf(buf, sizeof buf, "v %.9g %.9g %.9g\n", v[0], v[1], v[2]);
+        if (in.colors.empty())
+            n = std::snprintf(buf, sizeof buf, "v %.9g %.9g %.9g\n", v[0], v[1], v[2]);
         else  // the vertex-colour extension (MeshLab, tinyobjloader): "v x y z r g b", colours in [0, 1]
             n = std::snprintf(buf, sizeof buf, "v %.9g %.9g %.9g %.9g %.9g %.9g\n", v[0], v[1], v[2], in.colors[4 * i] / 255.0,
                               in.colors[4 * i + 1] / 255.0, in.colors[4 * i + 2] / 255.0);

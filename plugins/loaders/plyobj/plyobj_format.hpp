@@ -34,8 +34,8 @@ struct FormatError : std::runtime_error {
 // the same name and type, and written back as a property.
 struct VertexProperty {
     std::string name;
-    std::string type;                    // canonical PLY type: char uchar short ushort int uint float double
-    std::vector<unsigned char> bytes;    // one value per vertex, host (little-endian) order
+    std::string type;                  // canonical PLY type: char uchar short ushort int uint float double
+    std::vector<unsigned char> bytes;  // one value per vertex, host (little-endian) order
 };
 
 // The size of a canonical or alias PLY type name (int8 ... float64), 0 if unknown.
@@ -47,10 +47,10 @@ std::string ply_canonical_type(const std::string &type);
 bool is_role_property(std::string_view name);
 
 struct Mesh {
-    std::vector<float> vertices;         // N x 3, as stored (RAS+ mm by convention)
-    std::vector<std::uint32_t> faces;    // M x 3, 0-based, < N
-    std::vector<float> colors;           // N x 3 in [0, 1], or empty
-    std::vector<VertexProperty> properties;  // PLY: the vertex element's other scalar properties, in file order
+    std::vector<float> vertices;                                // N x 3, as stored (RAS+ mm by convention)
+    std::vector<std::uint32_t> faces;                           // M x 3, 0-based, < N
+    std::vector<float> colors;                                  // N x 3 in [0, 1], or empty
+    std::vector<VertexProperty> properties;                     // PLY: the vertex element's other scalar properties, in file order
     std::vector<std::pair<std::string, std::string>> metadata;  // PLY comments, ignored elements
 };
 
@@ -67,8 +67,8 @@ struct PlyElement {
 // The declared layout of a PLY file's header (used to bound what a reader
 // may allocate, and to list comments).
 struct PlyHeader {
-    std::uint64_t header_bytes = 0;      // up to and including "end_header\n"
-    std::string format;                  // ascii | binary_little_endian | binary_big_endian
+    std::uint64_t header_bytes = 0;  // up to and including "end_header\n"
+    std::string format;              // ascii | binary_little_endian | binary_big_endian
     std::uint64_t vertices = 0, faces = 0;
     std::vector<std::string> comments;
     std::vector<std::string> other_elements;  // e.g. "edge 12"

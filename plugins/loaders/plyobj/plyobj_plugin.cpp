@@ -84,8 +84,8 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
 // Arrays: "color" first when the file has colours, then the PLY vertex properties.
 // Canonical PLY scalar types and the dtypes they read into (both directions).
 constexpr std::pair<const char *, hz_dtype> kPlyTypes[] = {
-    {"char", HZ_DTYPE_I8},  {"uchar", HZ_DTYPE_U8}, {"short", HZ_DTYPE_I16}, {"ushort", HZ_DTYPE_U16},
-    {"int", HZ_DTYPE_I32},  {"uint", HZ_DTYPE_U32}, {"float", HZ_DTYPE_F32}, {"double", HZ_DTYPE_F64},
+    {"char", HZ_DTYPE_I8}, {"uchar", HZ_DTYPE_U8}, {"short", HZ_DTYPE_I16}, {"ushort", HZ_DTYPE_U16},
+    {"int", HZ_DTYPE_I32}, {"uint", HZ_DTYPE_U32}, {"float", HZ_DTYPE_F32}, {"double", HZ_DTYPE_F64},
 };
 hz_dtype dtype_of(const std::string &ply_type) {
     for (const auto &[name, dtype] : kPlyTypes)
@@ -104,9 +104,7 @@ const plyobj::VertexProperty *property_at(const Reader &r, uint32_t index) {
     }
     return index < r.m.properties.size() ? &r.m.properties[index] : nullptr;
 }
-bool valid_array(const Reader &r, uint32_t index) {
-    return (index == 0 && !r.m.colors.empty()) || property_at(r, index) != nullptr;
-}
+bool valid_array(const Reader &r, uint32_t index) { return (index == 0 && !r.m.colors.empty()) || property_at(r, index) != nullptr; }
 
 hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
     if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: get_array_info: NULL");
@@ -139,7 +137,8 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
             return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "plyobj: %s: read_array: destination does not match", r.path.c_str());
         for (std::uint64_t i = 0; i < n; ++i) {
             unsigned char *cell = hz::view_cell(*dst, i, 0, size);
-            if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "plyobj: %s: read_array: destination too small", r.path.c_str());
+            if (cell == nullptr)
+                return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "plyobj: %s: read_array: destination too small", r.path.c_str());
             std::memcpy(cell, p->bytes.data() + i * size, size);
         }
         return HZ_OK;
@@ -150,7 +149,8 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
     for (std::uint64_t i = 0; i < n; ++i)
         for (std::uint32_t c = 0; c < 3; ++c) {
             unsigned char *cell = hz::view_cell(*dst, i, c, 4);
-            if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "plyobj: %s: read_array: destination too small", r.path.c_str());
+            if (cell == nullptr)
+                return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "plyobj: %s: read_array: destination too small", r.path.c_str());
             std::memcpy(cell, &r.m.colors[3 * i + c], 4);
         }
     return HZ_OK;
@@ -187,7 +187,8 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         const std::string ext = req->extension ? req->extension : "ply";
         const std::uint64_t nv = data->mesh_nb_vertices;
         if (nv == 0 || data->mesh_nb_faces == 0)
-            throw plyobj::FormatError("no surface to write (" + std::to_string(nv) + " vertices, " + std::to_string(data->mesh_nb_faces) + " faces)");
+            throw plyobj::FormatError("no surface to write (" + std::to_string(nv) + " vertices, " + std::to_string(data->mesh_nb_faces) +
+                                      " faces)");
         plyobj::WriteInput in;
         in.vertices = data->mesh_vertices, in.nb_vertices = nv, in.faces = data->mesh_faces, in.nb_faces = data->mesh_nb_faces;
         const hz_named_array *colour = nullptr;
@@ -197,8 +198,10 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             const bool is_float_colour = per_vertex && a.name != nullptr && std::string(a.name) == "color" && a.dtype == HZ_DTYPE_F32 &&
                                          (a.components == 3 || a.components == 4);
             const bool is_rgba8 = per_vertex && a.dtype == HZ_DTYPE_U8 && a.components == 4;
-            if (is_float_colour && (colour == nullptr || colour->dtype != HZ_DTYPE_F32)) colour = &a;
-            else if (is_rgba8 && colour == nullptr) colour = &a;
+            if (is_float_colour && (colour == nullptr || colour->dtype != HZ_DTYPE_F32))
+                colour = &a;
+            else if (is_rgba8 && colour == nullptr)
+                colour = &a;
         }
         // PLY: every other per-vertex scalar array whose name is a PLY word
         // (and not one of the properties written for geometry and colour)
@@ -232,29 +235,55 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                     if (colour->dtype == HZ_DTYPE_U8) {
                         in.colors[4 * i + c] = static_cast<const std::uint8_t *>(colour->data)[4 * i + c];
                     } else {
-                        const float x = c < colour->components ? static_cast<const float *>(colour->data)[colour->components * i + c] : 1.0f;
-                        in.colors[4 * i + c] = static_cast<std::uint8_t>(std::lround(std::clamp(std::isfinite(x) ? x : 0.0f, 0.0f, 1.0f) * 255));
+                        const float x =
+                            c < colour->components ? static_cast<const float *>(colour->data)[colour->components * i + c] : 1.0f;
+                        in.colors[4 * i + c] =
+                            static_cast<std::uint8_t>(std::lround(std::clamp(std::isfinite(x) ? x : 0.0f, 0.0f, 1.0f) * 255));
                     }
                 }
         }
         for (uint32_t i = 0; i < data->nb_metadata; ++i)
             if (data->metadata[i].key && data->metadata[i].value && std::string(data->metadata[i].key) == "comment")
                 in.comments.emplace_back(data->metadata[i].value);
-        if (ext == "obj") plyobj::write_obj(req->path, in);
-        else plyobj::write_ply(req->path, in);
+        if (ext == "obj")
+            plyobj::write_obj(req->path, in);
+        else
+            plyobj::write_ply(req->path, in);
         return HZ_OK;
     });
 }
 
 const char *const kExtensions[] = {"ply", "obj", nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_MESH, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE, 4096, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, nullptr, read_array, nullptr, read_mesh, close, write, nullptr,
+    sizeof(hz_loader),
+    HZ_DATA_MESH,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
+    4096,
+    kExtensions,
+    probe,
+    open,
+    get_info,
+    get_array_info,
+    visit_metadata,
+    nullptr,
+    read_array,
+    nullptr,
+    read_mesh,
+    close,
+    write,
+    nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "PLY and OBJ", "1.0.0", "Horizon",
-    "PLY (ASCII and binary, with scalar vertex properties) and Wavefront OBJ (tinyobjloader) triangle meshes with vertex colours, RAS+ mm", "MIT",
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_LOADER,
+    kId,
+    "PLY and OBJ",
+    "1.0.0",
+    "Horizon",
+    "PLY (ASCII and binary, with scalar vertex properties) and Wavefront OBJ (tinyobjloader) triangle meshes with vertex colours, RAS+ mm",
+    "MIT",
     kInterfaces,
 };
 

@@ -90,9 +90,7 @@ void for_each_triple(const unsigned char *p, std::uint64_t n_triples, DataType t
     }
 }
 
-std::uint64_t element_size(DataType t) {
-    return (t == DataType::Float32LE || t == DataType::Float32BE) ? 4 : 8;
-}
+std::uint64_t element_size(DataType t) { return (t == DataType::Float32LE || t == DataType::Float32BE) ? 4 : 8; }
 
 }  // namespace
 
@@ -121,8 +119,7 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size) {
         pos = end + 1;
         ++line_no;
         if (line_no == 1) {
-            if (trim(line) != kMagic)
-                throw FormatError("first line is not 'mrtrix tracks' (not a TCK file)");
+            if (trim(line) != kMagic) throw FormatError("first line is not 'mrtrix tracks' (not a TCK file)");
             continue;
         }
         if (line.find('\0') != std::string_view::npos)
@@ -136,8 +133,7 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size) {
         if (colon == std::string_view::npos) {
             // A continuation of the previous value (MRtrix writes multi-line
             // command_history this way); before any key it is an error.
-            if (h.entries.empty())
-                throw FormatError("header line " + std::to_string(line_no) + " has no 'key: value' form");
+            if (h.entries.empty()) throw FormatError("header line " + std::to_string(line_no) + " has no 'key: value' form");
             h.entries.back().second += "\n";
             h.entries.back().second += t;
             continue;
@@ -145,21 +141,24 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size) {
         std::string key(trim(t.substr(0, colon)));
         std::string value(trim(t.substr(colon + 1)));
         if (key == "datatype") {
-            if (value == "Float32LE") h.datatype = DataType::Float32LE;
-            else if (value == "Float32BE") h.datatype = DataType::Float32BE;
-            else if (value == "Float64LE") h.datatype = DataType::Float64LE;
-            else if (value == "Float64BE") h.datatype = DataType::Float64BE;
-            else throw FormatError("datatype '" + value + "' unsupported (Float32/Float64 LE/BE only)");
+            if (value == "Float32LE")
+                h.datatype = DataType::Float32LE;
+            else if (value == "Float32BE")
+                h.datatype = DataType::Float32BE;
+            else if (value == "Float64LE")
+                h.datatype = DataType::Float64LE;
+            else if (value == "Float64BE")
+                h.datatype = DataType::Float64BE;
+            else
+                throw FormatError("datatype '" + value + "' unsupported (Float32/Float64 LE/BE only)");
             have_datatype = true;
         } else if (key == "file") {
             // "file: . OFFSET": data in this file at OFFSET.
             const auto sp = value.find_first_of(" \t");
             std::string_view fname = trim(std::string_view(value).substr(0, sp));
             std::string_view off = sp == std::string::npos ? std::string_view{} : trim(std::string_view(value).substr(sp));
-            if (fname != ".")
-                throw FormatError("data in another file ('file: " + value + "') is unsupported");
-            if (!parse_u64(off, h.data_offset))
-                throw FormatError("'file: " + value + "' has no valid byte offset");
+            if (fname != ".") throw FormatError("data in another file ('file: " + value + "') is unsupported");
+            if (!parse_u64(off, h.data_offset)) throw FormatError("'file: " + value + "' has no valid byte offset");
             have_file = true;
         }
         h.entries.emplace_back(std::move(key), std::move(value));
@@ -178,8 +177,8 @@ Header parse_header(const unsigned char *bytes, std::uint64_t size) {
         throw FormatError("data offset " + std::to_string(h.data_offset) + " points inside the header (ends at byte " +
                           std::to_string(pos) + ")");
     if (h.data_offset > size)
-        throw FormatError("data offset " + std::to_string(h.data_offset) + " is past the end of the file (" +
-                          std::to_string(size) + " bytes)");
+        throw FormatError("data offset " + std::to_string(h.data_offset) + " is past the end of the file (" + std::to_string(size) +
+                          " bytes)");
     return h;
 }
 
@@ -236,7 +235,8 @@ struct Walk {
     void finish(std::uint64_t size, std::uint64_t avail, std::uint64_t triple_bytes) const {
         if (!error.empty()) throw FormatError(error);
         if (!terminated) {
-            if (avail % triple_bytes != 0) throw FormatError("data ends inside a point (file truncated at byte " + std::to_string(size) + ")");
+            if (avail % triple_bytes != 0)
+                throw FormatError("data ends inside a point (file truncated at byte " + std::to_string(size) + ")");
             throw FormatError("no 'Inf Inf Inf' terminator (file truncated?)");
         }
         L.trailing_bytes = size - L.end_offset;
@@ -281,7 +281,7 @@ void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header
     for (const auto &chunk : specials) flagged += chunk.size();
     w.L.delimiters.reserve(flagged);
     hzio::prefault_write(w.L.delimiters.data(), flagged * sizeof(std::uint64_t));
-    std::uint64_t next = 0;  // first triple not yet walked
+    std::uint64_t next = 0;          // first triple not yet walked
     std::uint64_t stop = n_triples;  // the triple that ended the walk (the terminator)
     for (auto &chunk : specials) {
         for (const std::uint64_t packed : chunk) {
@@ -349,8 +349,8 @@ Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, con
     return L;
 }
 
-void decode(const unsigned char *bytes, const Header &h, const Layout &L, float *positions, std::uint64_t *offsets,
-            const Tick &cancelled, const Release &release) {
+void decode(const unsigned char *bytes, const Header &h, const Layout &L, float *positions, std::uint64_t *offsets, const Tick &cancelled,
+            const Release &release) {
     const std::uint64_t es = element_size(h.datatype);
     const std::uint64_t n_triples = (L.end_offset - h.data_offset) / (3 * es);
     std::uint64_t v = 0, s = 0;

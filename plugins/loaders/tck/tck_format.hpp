@@ -17,14 +17,12 @@ namespace tck {
 // Every format problem is reported as this exception with a one-line message
 // (the plugin prefixes the file name). `io` marks operating-system failures.
 struct FormatError : std::runtime_error {
-    explicit FormatError(const std::string &m, bool io_error = false)
-        : std::runtime_error(m), io(io_error) {}
+    explicit FormatError(const std::string &m, bool io_error = false) : std::runtime_error(m), io(io_error) {}
     bool io;
 };
 
 enum class DataType { Float32LE, Float32BE, Float64LE, Float64BE };
 const char *to_string(DataType t);
-
 
 struct Header {
     std::vector<std::pair<std::string, std::string>> entries;  // file order, incl. repeats
@@ -53,8 +51,8 @@ using Release = std::function<void(std::uint64_t, std::uint64_t)>;
 struct Layout {
     std::uint64_t nb_streamlines = 0;
     std::uint64_t nb_vertices = 0;
-    std::uint64_t end_offset = 0;        // byte just after the Inf terminator
-    std::uint64_t trailing_bytes = 0;    // bytes after the terminator (ignored, as mrtrix does)
+    std::uint64_t end_offset = 0;      // byte just after the Inf terminator
+    std::uint64_t trailing_bytes = 0;  // bytes after the terminator (ignored, as mrtrix does)
     // Float32LE files: the triple index of every NaN delimiter, so decode()
     // copies the runs between them without looking at the data again.
     std::vector<std::uint64_t> delimiters;
@@ -73,15 +71,14 @@ struct Layout {
 // `cancelled` then runs on the calling thread with offset 0), and the rare
 // NaN/Inf triples are walked in order afterwards: the same rules, the same
 // first error.
-Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled = {},
-            const Release &release = {});
+Layout scan(const unsigned char *bytes, std::uint64_t size, const Header &h, const Tick &cancelled = {}, const Release &release = {});
 
 // Decodes positions (float32, RAS+ mm) and offsets (nb_streamlines + 1).
 // The buffers must hold layout.nb_vertices * 3 floats and
 // layout.nb_streamlines + 1 offsets.
 // Float32LE files are copied in parallel chunks of whole streamlines.
-void decode(const unsigned char *bytes, const Header &h, const Layout &layout, float *positions,
-            std::uint64_t *offsets, const Tick &cancelled = {}, const Release &release = {});
+void decode(const unsigned char *bytes, const Header &h, const Layout &layout, float *positions, std::uint64_t *offsets,
+            const Tick &cancelled = {}, const Release &release = {});
 
 // True when cancelled() stopped scan/decode.
 struct Cancelled {};
@@ -90,9 +87,8 @@ struct Cancelled {};
 // keys the writer owns (datatype, file, count); `count` is recomputed.
 // Streamline s is positions[offsets[s] .. offsets[s+1] - gap): gap 1 skips
 // the vertex after each (a mapped TCK's delimiter), whatever it holds.
-void write(const std::string &path, const float *positions, std::uint64_t nb_vertices,
-           const std::uint64_t *offsets, std::uint64_t nb_streamlines,
-           const std::vector<std::pair<std::string, std::string>> &metadata, std::uint32_t gap = 0);
+void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
+           std::uint64_t nb_streamlines, const std::vector<std::pair<std::string, std::string>> &metadata, std::uint32_t gap = 0);
 
 // Confidence that `head` starts a TCK file (0..100). Pure.
 int probe(const unsigned char *head, std::uint64_t size);

@@ -15,7 +15,7 @@ namespace {
 constexpr const char *kId = "org.horizon.test.tck-lying-bounds";
 #elif defined(TCK_FIXTURE_IGNORES_SIZES)  // tests/fixtures: vouching through dst->check whatever the struct sizes
 constexpr const char *kId = "org.horizon.test.tck-ignores-sizes";
-#elif defined(TCK_FIXTURE_IGNORES_GAP)  // tests/fixtures: HZ_LOADER_WRITES_GAP declared, the gap written as points
+#elif defined(TCK_FIXTURE_IGNORES_GAP)    // tests/fixtures: HZ_LOADER_WRITES_GAP declared, the gap written as points
 constexpr const char *kId = "org.horizon.test.tck-ignores-gap";
 #else
 constexpr const char *kId = "org.horizon.loader.tck";
@@ -76,8 +76,7 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         r->layout = tck::scan(r->file->data(), r->file->size(), r->header, tick(nullptr, *r->file), release(*r->file));
         for (const auto &w : r->header.warnings) log(HZ_LOG_WARN, r->path + ": " + w);
         if (r->layout.trailing_bytes != 0)
-            log(HZ_LOG_WARN, r->path + ": " + std::to_string(r->layout.trailing_bytes) +
-                                 " bytes after the Inf terminator ignored");
+            log(HZ_LOG_WARN, r->path + ": " + std::to_string(r->layout.trailing_bytes) + " bytes after the Inf terminator ignored");
         if (const auto count = tck::declared_count(r->header); count && *count != r->layout.nb_streamlines)
             log(HZ_LOG_WARN, r->path + ": the header says count " + std::to_string(*count) + " but the data hold " +
                                  std::to_string(r->layout.nb_streamlines) +
@@ -110,8 +109,7 @@ hz_status HZ_ABI get_array_info(hz_reader *, uint32_t index, hz_array_info *, hz
 }
 
 hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
-    if (reader == nullptr || visitor == nullptr)
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: visit_metadata: NULL");
+    if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: visit_metadata: NULL");
     for (const auto &[k, v] : as_reader(reader)->header.entries) visitor(ctx, k.c_str(), v.c_str());
     return HZ_OK;
 }
@@ -127,8 +125,7 @@ void vouch(const tck::Layout &L, double *lo, double *hi) {
 #endif
 }
 
-hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *dst, const hz_task *task,
-                                  hz_error *err) {
+hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *dst, const hz_task *task, hz_error *err) {
     if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: read_streamlines: NULL");
     Reader &r = *as_reader(reader);
     if ((dst->flags & HZ_STREAMLINES_OFFSETS_ONLY) != 0) {
@@ -148,12 +145,9 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
     if ((dst->positions == nullptr && r.layout.nb_vertices > 0) || dst->offsets == nullptr)
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: read_streamlines: NULL destination", r.path.c_str());
     if (dst->positions_capacity < 3 * r.layout.nb_vertices || dst->offsets_capacity < r.layout.nb_streamlines + 1)
-        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL,
-                              "tck: %s: destination holds %llu floats / %llu offsets, need %llu / %llu",
-                              r.path.c_str(), (unsigned long long)dst->positions_capacity,
-                              (unsigned long long)dst->offsets_capacity,
-                              (unsigned long long)(3 * r.layout.nb_vertices),
-                              (unsigned long long)(r.layout.nb_streamlines + 1));
+        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "tck: %s: destination holds %llu floats / %llu offsets, need %llu / %llu",
+                              r.path.c_str(), (unsigned long long)dst->positions_capacity, (unsigned long long)dst->offsets_capacity,
+                              (unsigned long long)(3 * r.layout.nb_vertices), (unsigned long long)(r.layout.nb_streamlines + 1));
     return run(err, r.path, [&]() -> hz_status {
         hz::report(task, 0.0, "decoding TCK");
         tck::decode(r.file->data(), r.header, r.layout, dst->positions, dst->offsets, tick(task, *r.file), release(*r.file));
@@ -206,19 +200,19 @@ void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
 hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
     if (req == nullptr || req->path == nullptr || data == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: write: NULL request or data");
-    if (data->kind != HZ_DATA_STREAMLINES)
-        return hz::set_errorf(err, HZ_E_UNSUPPORTED, "tck: %s: TCK holds streamlines only", req->path);
+    if (data->kind != HZ_DATA_STREAMLINES) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "tck: %s: TCK holds streamlines only", req->path);
     const hz_streamlines_view &s = data->streamlines;
     if (s.offsets == nullptr || (s.nb_vertices > 0 && s.positions == nullptr))
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: streamline view without data", req->path);
     for (uint32_t i = 0; i < data->nb_arrays; ++i) {
         const hz_named_array &a = data->arrays[i];
         if (req->on_dropped == nullptr) break;
-        const std::string what = std::string(a.attach == HZ_ATTACH_STREAMLINE ? "per-streamline" : "per-vertex") +
-                                 " array '" + (a.name ? a.name : "") + "' (TCK stores positions only)";
+        const std::string what = std::string(a.attach == HZ_ATTACH_STREAMLINE ? "per-streamline" : "per-vertex") + " array '" +
+                                 (a.name ? a.name : "") + "' (TCK stores positions only)";
         req->on_dropped(req->ctx, what.c_str());
     }
-    if (s.gap > 1) return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: streamlines with gap %u (0 or 1 expected)", req->path, s.gap);
+    if (s.gap > 1)
+        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: streamlines with gap %u (0 or 1 expected)", req->path, s.gap);
 #ifdef TCK_FIXTURE_IGNORES_GAP
     const std::uint32_t gap = 0;  // (declares HZ_LOADER_WRITES_GAP, then writes the delimiters as points)
 #else
@@ -259,8 +253,16 @@ const hz_loader kLoader = {
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "MRtrix TCK", "1.0.0", "Horizon",
-    "MRtrix3 .tck streamlines: Float32/Float64, both byte orders, read and write", "MIT", kInterfaces,
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_LOADER,
+    kId,
+    "MRtrix TCK",
+    "1.0.0",
+    "Horizon",
+    "MRtrix3 .tck streamlines: Float32/Float64, both byte orders, read and write",
+    "MIT",
+    kInterfaces,
 };
 
 const hz_host *host() { return hz::single_plugin<kDescriptor, kLoader>::host(); }

@@ -13,7 +13,6 @@ namespace tck::detail {
 // (index << 4 | nans << 2 | infs), its NaN and Inf component counts, in
 // file order; every other float is folded into lo[c] / hi[c] (c = x, y, z,
 // started by the caller, at +/-inf for an empty chunk).
-void scan_chunk(const unsigned char *data, std::uint64_t b, std::uint64_t e, std::vector<std::uint64_t> &out, float *lo,
-                float *hi);
+void scan_chunk(const unsigned char *data, std::uint64_t b, std::uint64_t e, std::vector<std::uint64_t> &out, float *lo, float *hi);
 
 }  // namespace tck::detail

@@ -112,7 +112,8 @@ std::vector<Column> decode_names(const unsigned char *p, std::uint32_t total, co
         if (nul != std::string::npos) {
             const std::string num = field.substr(nul + 1);
             if (num.empty() || num.size() > 3 || !std::all_of(num.begin(), num.end(), ::isdigit))
-                throw FormatError(std::string(what) + " name " + std::to_string(k) + " has bytes after its NUL that are not a column count");
+                throw FormatError(std::string(what) + " name " + std::to_string(k) +
+                                  " has bytes after its NUL that are not a column count");
             c.count = static_cast<std::uint32_t>(std::stoi(num));
         }
         if (c.count == 0) continue;
@@ -164,14 +165,16 @@ int probe(const unsigned char *head, std::uint64_t size) {
 }
 
 Header parse_header(const unsigned char *b, std::uint64_t size) {
-    if (size < kHeaderSize)
-        throw FormatError("file is " + std::to_string(size) + " bytes, shorter than the 1000-byte TrackVis header");
+    if (size < kHeaderSize) throw FormatError("file is " + std::to_string(size) + " bytes, shorter than the 1000-byte TrackVis header");
     if (std::memcmp(b, "TRACK", 5) != 0) throw FormatError("no 'TRACK' magic at offset 0 (not a TrackVis file)");
     Header h;
     const auto hs = load<std::int32_t>(b + 996, false);
-    if (hs == 1000) h.swap = false;
-    else if (load<std::int32_t>(b + 996, true) == 1000) h.swap = true;
-    else throw FormatError("hdr_size at offset 996 is " + std::to_string(hs) + ", expected 1000 (truncated or not TrackVis)");
+    if (hs == 1000)
+        h.swap = false;
+    else if (load<std::int32_t>(b + 996, true) == 1000)
+        h.swap = true;
+    else
+        throw FormatError("hdr_size at offset 996 is " + std::to_string(hs) + ", expected 1000 (truncated or not TrackVis)");
     const bool sw = h.swap;
     for (int i = 0; i < 3; ++i) {
         h.dim[i] = load<std::int16_t>(b + 6 + 2 * i, sw);
@@ -196,8 +199,10 @@ Header parse_header(const unsigned char *b, std::uint64_t size) {
             if (!std::isfinite(v)) throw FormatError("vox_to_ras holds a non-finite value");
         if (m[15] != 0) {  // [3][3] == 0: not recorded
             // A singular matrix would collapse every point (nibabel refuses it too).
-            const double det = m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) + m[2] * (m[4] * m[9] - m[5] * m[8]);
-            if (!(std::abs(det) > 1e-12)) throw FormatError("vox_to_ras is singular (its 3x3 part has determinant " + std::to_string(det) + ")");
+            const double det =
+                m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) + m[2] * (m[4] * m[9] - m[5] * m[8]);
+            if (!(std::abs(det) > 1e-12))
+                throw FormatError("vox_to_ras is singular (its 3x3 part has determinant " + std::to_string(det) + ")");
             h.vox_to_ras = m;
         }
     } else if (h.version != 1) {
@@ -291,12 +296,12 @@ struct Chain {
     State state = Walking;
     Fault fault = Fault::None;
     std::int32_t fault_n = 0;
-    std::vector<Hop> prefix;  // its first kPrefix record starts
+    std::vector<Hop> prefix;               // its first kPrefix record starts
     std::atomic<bool> prefix_done{false};  // (published to the chain before it, maybe on the other thread)
-    std::vector<Chunk> chunks;  // chain-relative starts of runs of about kChunkBytes
-    std::size_t target = 0;  // the chain this one is to meet
-    std::size_t next_hop = 0;  // the first of the target's prefix not yet passed
-    std::size_t join_at = 0;  // Joined: where, in the target's prefix
+    std::vector<Chunk> chunks;             // chain-relative starts of runs of about kChunkBytes
+    std::size_t target = 0;                // the chain this one is to meet
+    std::size_t next_hop = 0;              // the first of the target's prefix not yet passed
+    std::size_t join_at = 0;               // Joined: where, in the target's prefix
     // Stops, publishing its prefix.
     void stop(State st) {
         state = st;
@@ -359,7 +364,7 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                 while (ch.target < K) {
                     Chain &nx = chains[ch.target];
                     if (ch.pos < nx.start.load(std::memory_order_acquire)) break;  // (or not placed yet)
-                    if (!nx.prefix_done.load(std::memory_order_acquire)) {  // its prefix is not known yet: wait
+                    if (!nx.prefix_done.load(std::memory_order_acquire)) {         // its prefix is not known yet: wait
                         wait = true;
                         break;
                     }
@@ -370,7 +375,7 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                         break;
                     }
                     if (ch.next_hop < nx.prefix.size()) break;  // not there yet
-                    ++ch.target;  // passed them all: that chain's guess was wrong; aim at the next one
+                    ++ch.target;                                // passed them all: that chain's guess was wrong; aim at the next one
                     ch.next_hop = 0;
                 }
                 if (ch.state == Chain::Joined || wait) continue;
@@ -414,7 +419,7 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
     l.chunks.push_back({0, kHeaderSize, 0});
     std::size_t c = 0;
     std::uint64_t rs = 0, rv = 0, entry = kHeaderSize;  // where the path enters chain c (chain-relative counts)
-    std::uint64_t abs_s = 0, abs_v = 0;  // the same, counted from the header
+    std::uint64_t abs_s = 0, abs_v = 0;                 // the same, counted from the header
     for (;;) {
         const Chain &ch = chains[c];
         const std::uint64_t off_s = abs_s - rs, off_v = abs_v - rv;  // (modulo 2^64: chain-relative + off = absolute)
@@ -463,8 +468,8 @@ namespace {
 
 // One chunk of records; Swap: the file's byte order is not the host's.
 template <bool Swap>
-void decode_chunk(const unsigned char *b, const Header &h, const Chunk &from, const Chunk &to, float *positions,
-                  std::uint64_t *offsets, float *scalars, float *properties, Box &box) {
+void decode_chunk(const unsigned char *b, const Header &h, const Chunk &from, const Chunk &to, float *positions, std::uint64_t *offsets,
+                  float *scalars, float *properties, Box &box) {
     const Mat4 &A = h.to_rasmm;
     const std::uint32_t ns = h.n_scalars, np = h.n_properties;
     const std::uint64_t point_bytes = 4ull * (3 + ns);
@@ -480,23 +485,24 @@ void decode_chunk(const unsigned char *b, const Header &h, const Chunk &from, co
             if (!Swap && ns == 0) {  // contiguous xyz triples: the vector kernel, same values
                 bad = !detail::transform_points(reinterpret_cast<const float *>(rec), n, A.data(), out, box.lo, box.hi);
             } else
-            for (std::uint64_t i = 0; i < n; ++i) {
-                const unsigned char *p = rec + i * point_bytes;
-                const float x = load<float>(p, Swap), y = load<float>(p + 4, Swap), z = load<float>(p + 8, Swap);
-                bad |= unsigned(!(std::fabs(x) <= 3.4028235e38f)) | unsigned(!(std::fabs(y) <= 3.4028235e38f)) |
-                       unsigned(!(std::fabs(z) <= 3.4028235e38f));
-                for (int r = 0; r < 3; ++r) {
-                    const float o = static_cast<float>(A[4 * r] * x + A[4 * r + 1] * y + A[4 * r + 2] * z + A[4 * r + 3]);
-                    out[3 * i + r] = o;
-                    box.lo[r] = std::min(box.lo[r], o);
-                    box.hi[r] = std::max(box.hi[r], o);
+                for (std::uint64_t i = 0; i < n; ++i) {
+                    const unsigned char *p = rec + i * point_bytes;
+                    const float x = load<float>(p, Swap), y = load<float>(p + 4, Swap), z = load<float>(p + 8, Swap);
+                    bad |= unsigned(!(std::fabs(x) <= 3.4028235e38f)) | unsigned(!(std::fabs(y) <= 3.4028235e38f)) |
+                           unsigned(!(std::fabs(z) <= 3.4028235e38f));
+                    for (int r = 0; r < 3; ++r) {
+                        const float o = static_cast<float>(A[4 * r] * x + A[4 * r + 1] * y + A[4 * r + 2] * z + A[4 * r + 3]);
+                        out[3 * i + r] = o;
+                        box.lo[r] = std::min(box.lo[r], o);
+                        box.hi[r] = std::max(box.hi[r], o);
+                    }
                 }
-            }
             if (bad)
                 for (std::uint64_t i = 0; i < n; ++i)
                     for (int c = 0; c < 3; ++c)
                         if (!std::isfinite(load<float>(rec + i * point_bytes + 4 * c, Swap)))
-                            throw FormatError("streamline " + std::to_string(s) + " point " + std::to_string(i) + " has a non-finite coordinate");
+                            throw FormatError("streamline " + std::to_string(s) + " point " + std::to_string(i) +
+                                              " has a non-finite coordinate");
         }
         if (scalars)
             for (std::uint64_t i = 0; i < n; ++i)
@@ -516,14 +522,16 @@ void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout
     if (offsets) offsets[0] = 0;
     if (l.chunks.size() < 2) return;
     std::vector<Box> boxes(l.chunks.size() - 1);  // each chunk's, merged in the end
-    std::atomic<std::uint64_t> decoded{0};           // vertices, for the progress `cancelled` is given
+    std::atomic<std::uint64_t> decoded{0};        // vertices, for the progress `cancelled` is given
     const bool done = hzio::parallel_chunks(
         l.chunks.size() - 1,
         [&](std::size_t c) {
             const Chunk &from = l.chunks[c], &to = l.chunks[c + 1];
             if (positions) hzio::prefault_write(positions + 3 * from.vertex, 12 * (to.vertex - from.vertex));
-            if (h.swap) decode_chunk<true>(b, h, from, to, positions, offsets, scalars, properties, boxes[c]);
-            else decode_chunk<false>(b, h, from, to, positions, offsets, scalars, properties, boxes[c]);
+            if (h.swap)
+                decode_chunk<true>(b, h, from, to, positions, offsets, scalars, properties, boxes[c]);
+            else
+                decode_chunk<false>(b, h, from, to, positions, offsets, scalars, properties, boxes[c]);
             if (release) release(from.byte, to.byte);
             decoded += to.vertex - from.vertex;
         },
@@ -534,7 +542,7 @@ void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout
 }
 
 std::uint64_t write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
-           std::uint64_t nb_streamlines, const WriteSpec &spec) {
+                    std::uint64_t nb_streamlines, const WriteSpec &spec) {
     if (nb_streamlines > static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max()))
         throw FormatError("TRK holds at most 2^31-1 streamlines");
     unsigned char hdr[kHeaderSize] = {};

@@ -30,15 +30,15 @@ struct Column {
 };
 
 struct Header {
-    bool swap = false;          // file byte order differs from the host's
+    bool swap = false;  // file byte order differs from the host's
     std::int16_t dim[3] = {0, 0, 0};
     float voxel_size[3] = {0, 0, 0};
     std::int32_t version = 2;
-    std::string voxel_order;    // upper-cased; "LPS" when empty
-    Mat4 vox_to_ras{};          // identity for v1 or when not recorded
+    std::string voxel_order;  // upper-cased; "LPS" when empty
+    Mat4 vox_to_ras{};        // identity for v1 or when not recorded
     std::uint32_t n_scalars = 0, n_properties = 0;
     std::vector<Column> scalars, properties;
-    std::int32_t n_count = 0;   // 0 = unknown
+    std::int32_t n_count = 0;  // 0 = unknown
     std::vector<std::string> warnings;
     // voxmm -> RAS+ mm, nibabel's get_affine_trackvis_to_rasmm.
     Mat4 to_rasmm{};
@@ -100,13 +100,12 @@ struct Box {
         }
     }
 };
-void decode(const unsigned char *bytes, std::uint64_t size, const Header &h, const Layout &l, float *positions,
-            std::uint64_t *offsets, float *scalars, float *properties, const Tick &cancelled = {}, const Release &release = {},
-            Box *box = nullptr);
+void decode(const unsigned char *bytes, std::uint64_t size, const Header &h, const Layout &l, float *positions, std::uint64_t *offsets,
+            float *scalars, float *properties, const Tick &cancelled = {}, const Release &release = {}, Box *box = nullptr);
 
 // What write() needs beyond the streamlines.
 struct WriteSpec {
-    Mat4 vox_to_ras{};                 // reference grid voxel -> RAS+ mm
+    Mat4 vox_to_ras{};  // reference grid voxel -> RAS+ mm
     std::array<std::uint64_t, 3> dims{};
     std::vector<Column> scalars, properties;  // names and widths, <= 10 each, names <= 20 bytes incl. count
     const float *scalar_data = nullptr;       // V x sum(scalars.count)

@@ -131,8 +131,8 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         r.properties.resize(r.layout.nb_streamlines * r.header.n_properties);
         trk::Box box;
         trk::decode(r.file->data(), r.file->size(), r.header, r.layout, dst->positions, dst->offsets,
-                    r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, r.layout.nb_vertices),
-                    release(*r.file), &box);
+                    r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(),
+                    tick(task, r.layout.nb_vertices), release(*r.file), &box);
         r.extras_decoded = true;
         // decode() rejected every non-finite input coordinate and found the
         // bounds of what it wrote; the host need not read the copy again
@@ -161,7 +161,8 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
             r.scalars.resize(r.layout.nb_vertices * r.header.n_scalars);
             r.properties.resize(r.layout.nb_streamlines * r.header.n_properties);
             trk::decode(r.file->data(), r.file->size(), r.header, r.layout, nullptr, nullptr,
-                        r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(), tick(task, r.layout.nb_vertices), release(*r.file));
+                        r.scalars.empty() ? nullptr : r.scalars.data(), r.properties.empty() ? nullptr : r.properties.data(),
+                        tick(task, r.layout.nb_vertices), release(*r.file));
             r.extras_decoded = true;
         }
         const bool scalar = index < r.header.scalars.size();
@@ -177,7 +178,8 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
         for (std::uint64_t i = 0; i < rows; ++i)
             for (std::uint32_t c = 0; c < comps; ++c) {
                 unsigned char *cell = hz::view_cell(*dst, i, c, 4);
-                if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trk: %s: read_array: destination too small", r.path.c_str());
+                if (cell == nullptr)
+                    return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trk: %s: read_array: destination too small", r.path.c_str());
                 std::memcpy(cell, &src[i * width + first + c], 4);
             }
         return HZ_OK;
@@ -215,7 +217,8 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trk: write: NULL request or data");
     if (data->kind != HZ_DATA_STREAMLINES) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "trk: %s: TRK holds streamlines only", req->path);
     if (data->streamlines.gap > 1)
-        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "trk: %s: streamlines with gap %u (0 or 1 expected)", req->path, data->streamlines.gap);
+        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "trk: %s: streamlines with gap %u (0 or 1 expected)", req->path,
+                              data->streamlines.gap);
     return run(err, req->path, [&]() -> hz_status {
         const hz_streamlines_view &s = data->streamlines;
         trk::WriteSpec spec;
@@ -238,7 +241,8 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                               name.find('\0') == std::string::npos && to_float_columns(a, f);
             if (!fits) {
                 if (req->on_dropped)
-                    req->on_dropped(req->ctx, ("array '" + name + "' (TRK holds at most 10 float32 scalars/properties named in 20 bytes)").c_str());
+                    req->on_dropped(req->ctx,
+                                    ("array '" + name + "' (TRK holds at most 10 float32 scalars/properties named in 20 bytes)").c_str());
                 continue;
             }
             cols.push_back({name, a.components});
@@ -263,26 +267,52 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         for (uint32_t i = 0; i < data->nb_metadata && req->on_dropped; ++i) {
             const std::string k = data->metadata[i].key ? data->metadata[i].key : "";
             // TRK's own fields, and TCK's structural keys (meaningless once read, as the TRX writer treats them).
-            static const char *own[] = {"version", "dimensions", "voxel_sizes", "voxel_order", "n_count", "byte_order", "count", "datatype", "file"};
-            if (std::find(std::begin(own), std::end(own), k) == std::end(own)) req->on_dropped(req->ctx, ("header entry '" + k + "'").c_str());
+            static const char *own[] = {"version",    "dimensions", "voxel_sizes", "voxel_order", "n_count",
+                                        "byte_order", "count",      "datatype",    "file"};
+            if (std::find(std::begin(own), std::end(own), k) == std::end(own))
+                req->on_dropped(req->ctx, ("header entry '" + k + "'").c_str());
         }
         const std::uint64_t empty = trk::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, spec);
         if (empty > 0 && req->on_dropped)
             req->on_dropped(req->ctx, (std::to_string(empty) + " streamline" + (empty == 1 ? "" : "s") +
-                                       " without points (TRK readers cannot read them)").c_str());
+                                       " without points (TRK readers cannot read them)")
+                                          .c_str());
         return HZ_OK;
     });
 }
 
 const char *const kExtensions[] = {"trk", nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP, 1000, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, read_streamlines, read_array, nullptr, nullptr, close, write, nullptr,
+    sizeof(hz_loader),
+    HZ_DATA_STREAMLINES,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
+    1000,
+    kExtensions,
+    probe,
+    open,
+    get_info,
+    get_array_info,
+    visit_metadata,
+    read_streamlines,
+    read_array,
+    nullptr,
+    nullptr,
+    close,
+    write,
+    nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "TrackVis TRK", "1.0.0", "Horizon",
-    "TrackVis .trk v1/v2, both byte orders, scalars and properties; read and write in RAS+ mm", "MIT", kInterfaces,
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_LOADER,
+    kId,
+    "TrackVis TRK",
+    "1.0.0",
+    "Horizon",
+    "TrackVis .trk v1/v2, both byte orders, scalars and properties; read and write in RAS+ mm",
+    "MIT",
+    kInterfaces,
 };
 
 const hz_host *host() { return hz::single_plugin<kDescriptor, kLoader>::host(); }

@@ -62,7 +62,8 @@ bool TransformPoints(const float *HWY_RESTRICT in, std::uint64_t n, const double
         const VD X = hn::PromoteTo(dd, x), Y = hn::PromoteTo(dd, y), Z = hn::PromoteTo(dd, z);
         VF o[3];
         for (int r = 0; r < 3; ++r) {
-            o[r] = hn::DemoteTo(df, hn::Add(hn::Add(hn::Add(hn::Mul(a[4 * r], X), hn::Mul(a[4 * r + 1], Y)), hn::Mul(a[4 * r + 2], Z)), a[4 * r + 3]));
+            o[r] = hn::DemoteTo(
+                df, hn::Add(hn::Add(hn::Add(hn::Mul(a[4 * r], X), hn::Mul(a[4 * r + 1], Y)), hn::Mul(a[4 * r + 2], Z)), a[4 * r + 3]));
             mn[r] = hn::Min(mn[r], o[r]);
             mx[r] = hn::Max(mx[r], o[r]);
         }

@@ -20,15 +20,24 @@ namespace fs = std::filesystem;
 
 std::size_t dtype_size(DType t) {
     switch (t) {
-    case DType::I8: case DType::U8: case DType::Bit: return 1;
-    case DType::I16: case DType::U16: case DType::F16: return 2;
-    case DType::I32: case DType::U32: case DType::F32: return 4;
-    case DType::I64: case DType::U64: case DType::F64: return 8;
+    case DType::I8:
+    case DType::U8:
+    case DType::Bit: return 1;
+    case DType::I16:
+    case DType::U16:
+    case DType::F16: return 2;
+    case DType::I32:
+    case DType::U32:
+    case DType::F32: return 4;
+    case DType::I64:
+    case DType::U64:
+    case DType::F64: return 8;
     }
     return 0;
 }
 const char *dtype_name(DType t) {
-    static const char *n[] = {"int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64", "float16", "float32", "float64", "bit"};
+    static const char *n[] = {"int8",   "int16",  "int32",   "int64",   "uint8",   "uint16",
+                              "uint32", "uint64", "float16", "float32", "float64", "bit"};
     return n[static_cast<int>(t)];
 }
 
@@ -90,7 +99,8 @@ public:
         for (zip_int64_t i = 0; i < n; ++i) {
             zip_stat_t st;
             zip_stat_init(&st);
-            if (zip_stat_index(za_, static_cast<zip_uint64_t>(i), 0, &st) != 0 || !(st.valid & ZIP_STAT_NAME) || !(st.valid & ZIP_STAT_SIZE))
+            if (zip_stat_index(za_, static_cast<zip_uint64_t>(i), 0, &st) != 0 || !(st.valid & ZIP_STAT_NAME) ||
+                !(st.valid & ZIP_STAT_SIZE))
                 throw FormatError("zip entry " + std::to_string(i) + " cannot be read");
             index_[st.name] = static_cast<zip_uint64_t>(i);
             list_.push_back({st.name, st.size});
@@ -130,8 +140,7 @@ public:
         const zip_uint64_t idx = index_.at(e.path);
         if (zip_stat_index(za_, idx, 0, &st) != 0) return false;
         const zip_uint64_t need = ZIP_STAT_COMP_METHOD | ZIP_STAT_ENCRYPTION_METHOD | ZIP_STAT_CRC | ZIP_STAT_COMP_SIZE;
-        if ((st.valid & need) != need || st.comp_method != ZIP_CM_STORE || st.encryption_method != ZIP_EM_NONE ||
-            st.comp_size != e.bytes)
+        if ((st.valid & need) != need || st.comp_method != ZIP_CM_STORE || st.encryption_method != ZIP_EM_NONE || st.comp_size != e.bytes)
             return false;
         const hzio::MappedFile m(path_);
         std::uint64_t offset = 0;
@@ -164,8 +173,7 @@ private:
             --eocd;
         }
         std::uint64_t entries = le(z + eocd + 10, 2), cd_size = le(z + eocd + 12, 4), cd_offset = le(z + eocd + 16, 4);
-        if ((entries == 0xFFFF || cd_size == 0xFFFFFFFF || cd_offset == 0xFFFFFFFF) && eocd >= 20 &&
-            le(z + eocd - 20, 4) == 0x07064b50) {
+        if ((entries == 0xFFFF || cd_size == 0xFFFFFFFF || cd_offset == 0xFFFFFFFF) && eocd >= 20 && le(z + eocd - 20, 4) == 0x07064b50) {
             const std::uint64_t rec = le(z + eocd - 20 + 8, 8);
             if (rec > size || size - rec < 56 || le(z + rec, 4) != 0x06064b50) return false;
             entries = le(z + rec + 32, 8), cd_size = le(z + rec + 40, 8), cd_offset = le(z + rec + 48, 8);
@@ -195,8 +203,7 @@ private:
                     }
                     q += 4 + len;
                 }
-                if (method != 0 || comp != bytes || raw != bytes || local > size || size - local < 30 ||
-                    le(z + local, 4) != 0x04034b50)
+                if (method != 0 || comp != bytes || raw != bytes || local > size || size - local < 30 || le(z + local, 4) != 0x04034b50)
                     return false;
                 const std::uint64_t start = local + 30 + le(z + local + 26, 2) + le(z + local + 28, 2);
                 if (start > size || size - start < bytes) return false;
@@ -246,10 +253,10 @@ private:
 };
 
 bool parse_dtype(const std::string &s, DType &t) {
-    static const std::pair<const char *, DType> map[] = {
-        {"int8", DType::I8},    {"int16", DType::I16},  {"int32", DType::I32},    {"int64", DType::I64},
-        {"uint8", DType::U8},   {"uint16", DType::U16}, {"uint32", DType::U32},   {"uint64", DType::U64},
-        {"float16", DType::F16}, {"float32", DType::F32}, {"float64", DType::F64}, {"bit", DType::Bit}};
+    static const std::pair<const char *, DType> map[] = {{"int8", DType::I8},     {"int16", DType::I16},   {"int32", DType::I32},
+                                                         {"int64", DType::I64},   {"uint8", DType::U8},    {"uint16", DType::U16},
+                                                         {"uint32", DType::U32},  {"uint64", DType::U64},  {"float16", DType::F16},
+                                                         {"float32", DType::F32}, {"float64", DType::F64}, {"bit", DType::Bit}};
     for (const auto &[n, d] : map)
         if (s == n) {
             t = d;
@@ -397,10 +404,15 @@ File open(const std::string &path) {
             } else if (base == "offsets") {
                 if (have_offsets) throw FormatError("more than one offsets entry");
                 if (cols != 1) throw FormatError("offsets must have 1 column ('" + n.e.path + "')");
-                if (t != DType::U32 && t != DType::U64) throw FormatError("offsets must be uint32 or uint64, not " + std::string(dtype_name(t)));
-                if (n.e.bytes == (N + 1) * es) f.has_sentinel = true;
-                else if (n.e.bytes == N * es) f.has_sentinel = false;
-                else throw FormatError("'" + n.e.path + "' holds " + std::to_string(n.e.bytes / es) + " offsets for NB_STREAMLINES " + std::to_string(N));
+                if (t != DType::U32 && t != DType::U64)
+                    throw FormatError("offsets must be uint32 or uint64, not " + std::string(dtype_name(t)));
+                if (n.e.bytes == (N + 1) * es)
+                    f.has_sentinel = true;
+                else if (n.e.bytes == N * es)
+                    f.has_sentinel = false;
+                else
+                    throw FormatError("'" + n.e.path + "' holds " + std::to_string(n.e.bytes / es) + " offsets for NB_STREAMLINES " +
+                                      std::to_string(N));
                 f.offsets = n.e;
                 f.offsets_dtype = t;
                 have_offsets = true;
@@ -464,8 +476,7 @@ void read_streamlines(const File &f, float *positions, std::uint64_t *offsets, c
         if (N > 0 && offsets[0] != 0) throw FormatError("offsets[0] = " + std::to_string(offsets[0]) + ", expected 0");
         for (std::uint64_t i = 1; i <= N; ++i)
             if (offsets[i] < offsets[i - 1]) throw FormatError("offsets decrease at streamline " + std::to_string(i - 1));
-        if (offsets[N] != V)
-            throw FormatError("final offset " + std::to_string(offsets[N]) + " != NB_VERTICES " + std::to_string(V));
+        if (offsets[N] != V) throw FormatError("final offset " + std::to_string(offsets[N]) + " != NB_VERTICES " + std::to_string(V));
     }
     if (cancelled && cancelled()) throw Cancelled{};
     if (positions == nullptr) return;  // offsets only: the host mapped the positions
@@ -553,9 +564,7 @@ public:
         case ZIP_SOURCE_SUPPORTS:
             return zip_source_make_command_bitmap(ZIP_SOURCE_OPEN, ZIP_SOURCE_READ, ZIP_SOURCE_CLOSE, ZIP_SOURCE_STAT, ZIP_SOURCE_ERROR,
                                                   ZIP_SOURCE_FREE, -1);
-        default:
-            zip_error_set(&g->error_, ZIP_ER_OPNOTSUPP, 0);
-            return -1;
+        default: zip_error_set(&g->error_, ZIP_ER_OPNOTSUPP, 0); return -1;
         }
     }
 
@@ -581,7 +590,7 @@ void write(const std::string &path, const float *positions, std::uint64_t V_stor
         for (std::uint64_t i = 3 * offsets[s]; i < 3 * (offsets[s + 1] - gap); ++i)
             if (!std::isfinite(positions[i])) throw FormatError("non-finite coordinate at vertex " + std::to_string(i / 3 - s * gap));
     const std::uint64_t *stored = offsets;  // (into positions, gaps included)
-    std::vector<std::uint64_t> shifted;  // gap 1: offsets[s] - s, as written
+    std::vector<std::uint64_t> shifted;     // gap 1: offsets[s] - s, as written
     if (gap != 0) {
         shifted.resize(N + 1);
         for (std::uint64_t s = 0; s <= N; ++s) shifted[s] = offsets[s] - s * gap;
@@ -610,7 +619,9 @@ void write(const std::string &path, const float *positions, std::uint64_t V_stor
         }
         zip_set_file_compression(za, static_cast<zip_uint64_t>(idx), ZIP_CM_STORE, 0);  // stored: readers can map it
     };
-    auto add = [&](const std::string &name, const void *data, std::uint64_t bytes) { add_source(name, zip_source_buffer(za, data, bytes, 0)); };
+    auto add = [&](const std::string &name, const void *data, std::uint64_t bytes) {
+        add_source(name, zip_source_buffer(za, data, bytes, 0));
+    };
     try {
         // Positions first, their data at byte 64 of the file: a padding extra
         // field in the local header (id 0xD935, the one Android's zipalign

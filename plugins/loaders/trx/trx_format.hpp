@@ -26,14 +26,14 @@ const char *dtype_name(DType t);
 // Where an array lives and how to read its raw bytes (little-endian, C order).
 class Container;
 struct Entry {
-    std::string path;      // e.g. "dpv/fa.float32"
+    std::string path;  // e.g. "dpv/fa.float32"
     std::uint64_t bytes = 0;
 };
 
 enum class Kind { Dpv, Dps, Group, Dpg };
 struct Array {
     Kind kind;
-    std::string name;      // dpg: "<group>/<name>"
+    std::string name;  // dpg: "<group>/<name>"
     DType dtype;
     std::uint32_t cols = 1;
     std::uint64_t rows = 0;
@@ -51,7 +51,7 @@ struct File {
     bool has_positions = false;
     std::vector<Array> arrays;
     std::vector<std::pair<std::string, std::string>> header_extra;  // other header.json keys (as JSON text)
-    std::string container_kind;  // "zip" or "directory"
+    std::string container_kind;                                     // "zip" or "directory"
     File();
     File(File &&) noexcept;
     File &operator=(File &&) noexcept;
@@ -69,9 +69,9 @@ void read_streamlines(const File &f, float *positions, std::uint64_t *offsets, c
 
 // Where float32 positions lie in a file, for mapping them without a copy.
 struct Extent {
-    std::string file;           // the archive, or the directory's positions file
-    std::uint64_t offset = 0;   // byte offset of the first coordinate (a multiple of 4)
-    bool has_crc = false;       // zip entries: the stored CRC-32 of the bytes
+    std::string file;          // the archive, or the directory's positions file
+    std::uint64_t offset = 0;  // byte offset of the first coordinate (a multiple of 4)
+    bool has_crc = false;      // zip entries: the stored CRC-32 of the bytes
     std::uint32_t crc = 0;
 };
 // True, filling `out`, when the positions are float32 and stored as plain

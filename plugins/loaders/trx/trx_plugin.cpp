@@ -30,11 +30,13 @@ hz_dtype to_hz(trx::DType t) {
     case trx::DType::I16: return HZ_DTYPE_I16;
     case trx::DType::I32: return HZ_DTYPE_I32;
     case trx::DType::I64: return HZ_DTYPE_I64;
-    case trx::DType::U8: case trx::DType::Bit: return HZ_DTYPE_U8;
+    case trx::DType::U8:
+    case trx::DType::Bit: return HZ_DTYPE_U8;
     case trx::DType::U16: return HZ_DTYPE_U16;
     case trx::DType::U32: return HZ_DTYPE_U32;
     case trx::DType::U64: return HZ_DTYPE_U64;
-    case trx::DType::F16: case trx::DType::F32: return HZ_DTYPE_F32;  // float16 is widened
+    case trx::DType::F16:
+    case trx::DType::F32: return HZ_DTYPE_F32;  // float16 is widened
     case trx::DType::F64: return HZ_DTYPE_F64;
     }
     return HZ_DTYPE_UNKNOWN;
@@ -135,7 +137,8 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
         for (std::uint64_t i = 0; i < a.rows; ++i)
             for (std::uint32_t c = 0; c < a.cols; ++c) {
                 unsigned char *cell = hz::view_cell(*dst, i, c, es_out);
-                if (cell == nullptr) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trx: %s: read_array: destination too small", r.path.c_str());
+                if (cell == nullptr)
+                    return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trx: %s: read_array: destination too small", r.path.c_str());
                 const unsigned char *src = raw.data() + (i * a.cols + c) * es_in;
                 if (a.dtype == trx::DType::F16) {
                     std::uint16_t hbits;
@@ -183,7 +186,10 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             bool ok = !name.empty() && name.find('.') == std::string::npos && from_hz(a.dtype, w.dtype);
             switch (a.attach) {
             case HZ_ATTACH_VERTEX: ok = ok && a.count == s.nb_vertices && name.find('/') == std::string::npos; break;
-            case HZ_ATTACH_STREAMLINE: w.kind = trx::Kind::Dps; ok = ok && a.count == s.nb_streamlines && name.find('/') == std::string::npos; break;
+            case HZ_ATTACH_STREAMLINE:
+                w.kind = trx::Kind::Dps;
+                ok = ok && a.count == s.nb_streamlines && name.find('/') == std::string::npos;
+                break;
             case HZ_ATTACH_GROUP:
                 w.kind = trx::Kind::Group;
                 ok = ok && a.components == 1 && name.find('/') == std::string::npos && (a.dtype == HZ_DTYPE_U32 || a.dtype == HZ_DTYPE_U64);
@@ -195,7 +201,10 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                     w.dtype = trx::DType::U32;
                 }
                 break;
-            case HZ_ATTACH_GROUP_DATA: w.kind = trx::Kind::Dpg; ok = ok && a.count == 1 && std::count(name.begin(), name.end(), '/') == 1; break;
+            case HZ_ATTACH_GROUP_DATA:
+                w.kind = trx::Kind::Dpg;
+                ok = ok && a.count == 1 && std::count(name.begin(), name.end(), '/') == 1;
+                break;
             default: ok = false;
             }
             if (!ok) {
@@ -232,13 +241,36 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 
 const char *const kExtensions[] = {"trx", nullptr};
 const hz_loader kLoader = {
-    sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP, 4096, kExtensions, probe, open, get_info,
-    get_array_info, visit_metadata, read_streamlines, read_array, nullptr, nullptr, close, write, locate_positions,
+    sizeof(hz_loader),
+    HZ_DATA_STREAMLINES,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
+    4096,
+    kExtensions,
+    probe,
+    open,
+    get_info,
+    get_array_info,
+    visit_metadata,
+    read_streamlines,
+    read_array,
+    nullptr,
+    nullptr,
+    close,
+    write,
+    locate_positions,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, kId, "TRX", "1.0.0", "Horizon",
-    "TRX tractograms: zip (stored/deflated) and directory forms, dpv/dps/groups/dpg; writes stored zips", "MIT", kInterfaces,
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_LOADER,
+    kId,
+    "TRX",
+    "1.0.0",
+    "Horizon",
+    "TRX tractograms: zip (stored/deflated) and directory forms, dpv/dps/groups/dpg; writes stored zips",
+    "MIT",
+    kInterfaces,
 };
 
 }  // namespace

@@ -12,37 +12,37 @@
 namespace {
 
 constexpr hz_param_info color(const char *name, const char *label, const char *tip, double r, double g, double b) {
-    return {sizeof(hz_param_info), HZ_PARAM_COLOR3, name, label, "", "", tip, 0, 3, {0, 0, 0, 0}, {1, 1, 1, 0}, {r, g, b, 0}, nullptr, 0,
-            nullptr};
+    return {sizeof(hz_param_info), HZ_PARAM_COLOR3, name,         label,   "", "",     tip, 0, 3,
+            {0, 0, 0, 0},          {1, 1, 1, 0},    {r, g, b, 0}, nullptr, 0,  nullptr};
 }
 constexpr hz_param_info scalar(const char *name, const char *label, const char *tip, double lo, double hi, double def) {
-    return {sizeof(hz_param_info), HZ_PARAM_FLOAT, name, label, "", "", tip, HZ_PARAM_FLAG_LOG_SCALE, 1, {lo, 0, 0, 0},
-            {hi, 0, 0, 0}, {def, 0, 0, 0}, nullptr, 0, nullptr};
+    return {sizeof(hz_param_info), HZ_PARAM_FLOAT, name,           label,   "", "",     tip, HZ_PARAM_FLAG_LOG_SCALE, 1,
+            {lo, 0, 0, 0},         {hi, 0, 0, 0},  {def, 0, 0, 0}, nullptr, 0,  nullptr};
 }
 
 const hz_param_info kLambertParams[] = {color("albedo", "Albedo", "linear diffuse reflectance", 0.8, 0.8, 0.8)};
-const hz_param_info kBlinnParams[] = {
-    color("kd", "Diffuse", "diffuse colour", 0.6, 0.6, 0.6), color("ks", "Specular", "specular colour", 0.3, 0.3, 0.3),
-    color("ka", "Ambient", "ambient term, added as is", 0.02, 0.02, 0.02),
-    scalar("shininess", "Shininess", "Blinn exponent", 1, 10000, 32)};
-const hz_param_info kBlinnBrdfParams[] = {
-    color("kd", "Diffuse", "diffuse albedo", 0.6, 0.6, 0.6), color("ks", "Specular", "specular albedo", 0.3, 0.3, 0.3),
-    scalar("shininess", "Shininess", "Blinn exponent", 1, 10000, 32)};
-const hz_param_info kStallingParams[] = {
-    color("kd", "Diffuse", "diffuse colour", 0.7, 0.4, 0.2), color("ks", "Specular", "specular colour", 0.4, 0.4, 0.4),
-    color("ka", "Ambient", "ambient term, added as is", 0.02, 0.02, 0.02),
-    scalar("shininess", "Shininess", "specular exponent", 1, 10000, 32),
-    scalar("p_diffuse", "Diffuse exponent", "Zoeckler et al.'s exponent on L.N", 1, 100, 1)};
+const hz_param_info kBlinnParams[] = {color("kd", "Diffuse", "diffuse colour", 0.6, 0.6, 0.6),
+                                      color("ks", "Specular", "specular colour", 0.3, 0.3, 0.3),
+                                      color("ka", "Ambient", "ambient term, added as is", 0.02, 0.02, 0.02),
+                                      scalar("shininess", "Shininess", "Blinn exponent", 1, 10000, 32)};
+const hz_param_info kBlinnBrdfParams[] = {color("kd", "Diffuse", "diffuse albedo", 0.6, 0.6, 0.6),
+                                          color("ks", "Specular", "specular albedo", 0.3, 0.3, 0.3),
+                                          scalar("shininess", "Shininess", "Blinn exponent", 1, 10000, 32)};
+const hz_param_info kStallingParams[] = {color("kd", "Diffuse", "diffuse colour", 0.7, 0.4, 0.2),
+                                         color("ks", "Specular", "specular colour", 0.4, 0.4, 0.4),
+                                         color("ka", "Ambient", "ambient term, added as is", 0.02, 0.02, 0.02),
+                                         scalar("shininess", "Shininess", "specular exponent", 1, 10000, 32),
+                                         scalar("p_diffuse", "Diffuse exponent", "Zoeckler et al.'s exponent on L.N", 1, 100, 1)};
 const hz_param_info kMalloParams[] = {color("kd", "Diffuse", "diffuse albedo", 0.7, 0.4, 0.2)};
 const hz_param_info kFlatParams[] = {color("color", "Colour", "the radiance shown, unlit", 0.8, 0.8, 0.8)};
 
 // The surface models below skip normalising n, l, v where the host passes
 // them as unit vectors (HZ_UNIT_VECTORS) and select instead of branching
 // (llvmpipe pays for both sides of a branch).
-#define CLASSIC_UNIT_NLV \
-    "#ifdef HZ_UNIT_VECTORS\n" \
-    "    vec3 n = p.n, l = p.l, v = p.v;\n" \
-    "#else\n" \
+#define CLASSIC_UNIT_NLV                                                     \
+    "#ifdef HZ_UNIT_VECTORS\n"                                               \
+    "    vec3 n = p.n, l = p.l, v = p.v;\n"                                  \
+    "#else\n"                                                                \
     "    vec3 n = normalize(p.n), l = normalize(p.l), v = normalize(p.v);\n" \
     "#endif\n"
 const char kLambertGlsl[] = "vec3 hz_shade(HzShadePoint p) {\n" CLASSIC_UNIT_NLV R"glsl(
@@ -161,7 +161,7 @@ const hz_shader kShaders[] = {
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_SHADER, nullptr};
 #define HZ_DESC(id, name, text) \
-    {sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_SHADER, id, name, "1.0.0", "Horizon", text, "MIT", kInterfaces}
+    { sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_SHADER, id, name, "1.0.0", "Horizon", text, "MIT", kInterfaces }
 const hz_plugin_descriptor kDescriptors[] = {
     HZ_DESC("org.horizon.shader.lambert", "Lambert", "Lambertian diffuse BRDF, albedo / pi"),
     HZ_DESC("org.horizon.shader.blinn_phong", "Blinn-Phong", "classic Blinn-Phong: ambient + diffuse n.l + specular (n.h)^s"),

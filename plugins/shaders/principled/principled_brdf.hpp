@@ -15,8 +15,8 @@ using V3 = std::array<double, 3>;
 
 struct Params {
     V3 base_color{0.8, 0.8, 0.8};  // linear RGB
-    double subsurface = 0, metallic = 0, specular = 0.5, specular_tint = 0, roughness = 0.5, anisotropic = 0, sheen = 0,
-           sheen_tint = 0.5, clearcoat = 0, clearcoat_gloss = 1;
+    double subsurface = 0, metallic = 0, specular = 0.5, specular_tint = 0, roughness = 0.5, anisotropic = 0, sheen = 0, sheen_tint = 0.5,
+           clearcoat = 0, clearcoat_gloss = 1;
     // Cheaper or costlier variants of single terms (0 = the paper's model),
     // for the speed-accuracy chart: diffuse 1 = Lambert instead of Burley;
     // fresnel 1 = exact dielectric Fresnel (eta from F0) instead of Schlick;

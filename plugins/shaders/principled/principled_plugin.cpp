@@ -12,22 +12,36 @@ namespace {
 constexpr const char *kId = "org.horizon.shader.principled";
 
 constexpr hz_param_info unit(const char *name, const char *label, const char *group, const char *tip, double def) {
-    return {sizeof(hz_param_info), HZ_PARAM_FLOAT, name, label, group, "", tip, 0, 1, {0, 0, 0, 0}, {1, 0, 0, 0}, {def, 0, 0, 0},
-            nullptr, 0, nullptr};
+    return {sizeof(hz_param_info), HZ_PARAM_FLOAT, name,           label,   group, "",     tip, 0, 1,
+            {0, 0, 0, 0},          {1, 0, 0, 0},   {def, 0, 0, 0}, nullptr, 0,     nullptr};
 }
 
 const char *const kDiffuseModes[] = {"burley", "lambert", nullptr};
 const char *const kFresnelModes[] = {"schlick", "exact", nullptr};
 const char *const kVisibilityModes[] = {"separable", "height_correlated", nullptr};
 constexpr hz_param_info variant(const char *name, const char *label, const char *const *modes, const char *tip) {
-    return {sizeof(hz_param_info), HZ_PARAM_ENUM, name, label, "Approximations", "", tip, HZ_PARAM_FLAG_REQUIRES_RECOMPILE, 1,
-            {0, 0, 0, 0}, {1, 0, 0, 0}, {0, 0, 0, 0}, modes, 0, nullptr};
+    return {
+        sizeof(hz_param_info), HZ_PARAM_ENUM, name,  label, "Approximations", "", tip, HZ_PARAM_FLAG_REQUIRES_RECOMPILE, 1, {0, 0, 0, 0},
+        {1, 0, 0, 0},          {0, 0, 0, 0},  modes, 0,     nullptr};
 }
 
 // Schema order = the order of values in eval_reference's params.
 const hz_param_info kParams[] = {
-    {sizeof(hz_param_info), HZ_PARAM_COLOR3, "base_color", "Base colour", "Base", "", "linear RGB albedo", 0, 3, {0, 0, 0, 0},
-     {1, 1, 1, 0}, {0.8, 0.8, 0.8, 0}, nullptr, 0, nullptr},
+    {sizeof(hz_param_info),
+     HZ_PARAM_COLOR3,
+     "base_color",
+     "Base colour",
+     "Base",
+     "",
+     "linear RGB albedo",
+     0,
+     3,
+     {0, 0, 0, 0},
+     {1, 1, 1, 0},
+     {0.8, 0.8, 0.8, 0},
+     nullptr,
+     0,
+     nullptr},
     unit("subsurface", "Subsurface", "Base", "blend of Burley diffuse and its subsurface approximation", 0),
     unit("metallic", "Metallic", "Base", "0 dielectric, 1 metal", 0),
     unit("specular", "Specular", "Specular", "dielectric reflectance (0.5 = 4%)", 0.5),
@@ -299,14 +313,30 @@ hz_status HZ_ABI eval_function(const char *name, const double *a, uint32_t n, do
 }
 
 const hz_shader kShader = {
-    sizeof(hz_shader), HZ_SHADE_SURFACE, HZ_SHADER_OUTPUT_BRDF, HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL, "principled_", kParamCount,
-    get_param, glsl_source, eval_reference, kFunctions, eval_function,
+    sizeof(hz_shader),
+    HZ_SHADE_SURFACE,
+    HZ_SHADER_OUTPUT_BRDF,
+    HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL,
+    "principled_",
+    kParamCount,
+    get_param,
+    glsl_source,
+    eval_reference,
+    kFunctions,
+    eval_function,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_SHADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_SHADER, kId, "Principled BRDF", "1.0.0", "Horizon",
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_SHADER,
+    kId,
+    "Principled BRDF",
+    "1.0.0",
+    "Horizon",
     "The paper's principled BRDF (Burley 2012): subsurface, metallic, specular, tints, roughness, anisotropy, sheen, clearcoat",
-    "MIT", kInterfaces,
+    "MIT",
+    kInterfaces,
 };
 
 }  // namespace

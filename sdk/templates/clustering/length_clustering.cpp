@@ -16,8 +16,21 @@ namespace {
 constexpr const char *kId = "org.example.clustering.length";
 
 const hz_param_info kParams[] = {
-    {sizeof(hz_param_info), HZ_PARAM_FLOAT, "bin_width", "Bin width", "", "mm", "width of each length bin",
-     0, 1, {0.1, 0, 0, 0}, {1000, 0, 0, 0}, {10, 0, 0, 0}, nullptr, 0, nullptr},
+    {sizeof(hz_param_info),
+     HZ_PARAM_FLOAT,
+     "bin_width",
+     "Bin width",
+     "",
+     "mm",
+     "width of each length bin",
+     0,
+     1,
+     {0.1, 0, 0, 0},
+     {1000, 0, 0, 0},
+     {10, 0, 0, 0},
+     nullptr,
+     0,
+     nullptr},
 };
 
 struct Clusterer {
@@ -48,8 +61,7 @@ hz_status HZ_ABI set_param(hz_clusterer *c, const char *name, const double *valu
     return HZ_OK;
 }
 
-hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint64_t *ordering, const hz_task *task,
-                     hz_error *err) {
+hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint64_t *ordering, const hz_task *task, hz_error *err) {
     if (cl == nullptr || in == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "NULL argument");
     return hz::guard(err, [&]() -> hz_status {
         Clusterer &c = *reinterpret_cast<Clusterer *>(cl);
@@ -72,8 +84,9 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
                 const float *p = in->positions + 3 * v;
                 if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
                     throw hz::Error(HZ_E_FORMAT, "streamline " + std::to_string(s) + " has a non-finite coordinate");
-                if (v > in->offsets[s]) len += std::sqrt(double(p[0] - p[-3]) * (p[0] - p[-3]) + double(p[1] - p[-2]) * (p[1] - p[-2]) +
-                                                         double(p[2] - p[-1]) * (p[2] - p[-1]));
+                if (v > in->offsets[s])
+                    len += std::sqrt(double(p[0] - p[-3]) * (p[0] - p[-3]) + double(p[1] - p[-2]) * (p[1] - p[-2]) +
+                                     double(p[2] - p[-1]) * (p[2] - p[-1]));
                 sum[0] += p[0], sum[1] += p[1], sum[2] += p[2], sum[3] += 1;
             }
             const auto bin = static_cast<int64_t>(std::floor(len / c.bin_width));
@@ -130,8 +143,16 @@ const hz_clustering kClustering = {sizeof(hz_clustering), 1, get_param, create, 
 
 const char *const kInterfaces[] = {HZ_INTERFACE_CLUSTERING, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_CLUSTERING, kId, "Length bins (template)", "1.0.0",
-    "Example Vendor", "Groups streamlines by arc length: a starting point for clustering plugins", "MIT", kInterfaces,
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_CLUSTERING,
+    kId,
+    "Length bins (template)",
+    "1.0.0",
+    "Example Vendor",
+    "Groups streamlines by arc length: a starting point for clustering plugins",
+    "MIT",
+    kInterfaces,
 };
 
 bool HZ_ABI init(const hz_host *, const char *) { return true; }

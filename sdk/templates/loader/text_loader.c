@@ -23,7 +23,7 @@
 
 typedef struct reader {
     char *path;
-    float *positions;   /* parsed at open: the format is text */
+    float *positions; /* parsed at open: the format is text */
     uint64_t nb_vertices;
     uint64_t *offsets;
     uint64_t nb_streamlines;
@@ -196,8 +196,8 @@ static hz_status HZ_ABI read_streamlines(hz_reader *h, const hz_streamlines_dst 
        (all finite, these exact bounds), and the host then does not read its
        copy again. Only when the host's struct has the field and its check
        record has room; left alone otherwise (the host checks for itself). */
-    if (HZ_HAS_FIELD(dst, hz_streamlines_dst, check) && dst->check != NULL &&
-        dst->check->struct_size >= sizeof(hz_positions_check) && r->nb_vertices > 0) {
+    if (HZ_HAS_FIELD(dst, hz_streamlines_dst, check) && dst->check != NULL && dst->check->struct_size >= sizeof(hz_positions_check) &&
+        r->nb_vertices > 0) {
         double lo[3], hi[3];
         int finite = 1, d;
         for (d = 0; d < 3; ++d) lo[d] = hi[d] = r->positions[d];
@@ -249,15 +249,37 @@ static hz_status HZ_ABI write_file(const hz_write_request *req, const hz_dataset
 
 static const char *const k_extensions[] = {"hzt", NULL};
 static const hz_loader k_loader = {
-    sizeof(hz_loader), HZ_DATA_STREAMLINES, HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP, 8, k_extensions,
-    probe, open_file, get_info, get_array_info, visit_metadata, read_streamlines, NULL, NULL, NULL,
-    close_reader, write_file, NULL /* locate_positions (1.4): no zero-copy here */,
+    sizeof(hz_loader),
+    HZ_DATA_STREAMLINES,
+    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
+    8,
+    k_extensions,
+    probe,
+    open_file,
+    get_info,
+    get_array_info,
+    visit_metadata,
+    read_streamlines,
+    NULL,
+    NULL,
+    NULL,
+    close_reader,
+    write_file,
+    NULL /* locate_positions (1.4): no zero-copy here */,
 };
 
 static const char *const k_interfaces[] = {HZ_INTERFACE_LOADER, NULL};
 static const hz_plugin_descriptor k_descriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_LOADER, PLUGIN_ID, "Text streamlines (template)", "1.0.0",
-    "Example Vendor", "A tiny text streamline format: a starting point for loaders", "MIT", k_interfaces,
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_LOADER,
+    PLUGIN_ID,
+    "Text streamlines (template)",
+    "1.0.0",
+    "Example Vendor",
+    "A tiny text streamline format: a starting point for loaders",
+    "MIT",
+    k_interfaces,
 };
 
 static bool HZ_ABI init(const hz_host *host, const char *path) {

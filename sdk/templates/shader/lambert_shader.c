@@ -12,8 +12,21 @@
 #define PLUGIN_ID "org.example.shader.lambert"
 
 static const hz_param_info k_params[] = {
-    {sizeof(hz_param_info), HZ_PARAM_COLOR3, "albedo", "Albedo", "Material", "", "linear diffuse reflectance",
-     0, 3, {0, 0, 0, 0}, {1, 1, 1, 0}, {0.8, 0.8, 0.8, 0}, NULL, 0, NULL},
+    {sizeof(hz_param_info),
+     HZ_PARAM_COLOR3,
+     "albedo",
+     "Albedo",
+     "Material",
+     "",
+     "linear diffuse reflectance",
+     0,
+     3,
+     {0, 0, 0, 0},
+     {1, 1, 1, 0},
+     {0.8, 0.8, 0.8, 0},
+     NULL,
+     0,
+     NULL},
 };
 
 static const hz_param_info *HZ_ABI get_param(uint32_t index) {
@@ -57,14 +70,31 @@ static hz_status HZ_ABI eval_reference(const hz_shade_point *p, const double *pa
 }
 
 static const hz_shader k_shader = {
-    sizeof(hz_shader), HZ_SHADE_SURFACE, HZ_SHADER_OUTPUT_BRDF, HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL,
-    "lambert_", 1, get_param, glsl_source, eval_reference, NULL, NULL,
+    sizeof(hz_shader),
+    HZ_SHADE_SURFACE,
+    HZ_SHADER_OUTPUT_BRDF,
+    HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL,
+    "lambert_",
+    1,
+    get_param,
+    glsl_source,
+    eval_reference,
+    NULL,
+    NULL,
 };
 
 static const char *const k_interfaces[] = {HZ_INTERFACE_SHADER, NULL};
 static const hz_plugin_descriptor k_descriptor = {
-    sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_SHADER, PLUGIN_ID, "Lambert (template)", "1.0.0",
-    "Example Vendor", "Lambertian diffuse shading: a starting point for new models", "MIT", k_interfaces,
+    sizeof(hz_plugin_descriptor),
+    HZ_ABI_VERSION_INIT,
+    HZ_KIND_SHADER,
+    PLUGIN_ID,
+    "Lambert (template)",
+    "1.0.0",
+    "Example Vendor",
+    "Lambertian diffuse shading: a starting point for new models",
+    "MIT",
+    k_interfaces,
 };
 
 static bool HZ_ABI init(const hz_host *host, const char *path) {

@@ -88,7 +88,9 @@ public:
     Buffer(const Buffer &) = delete;
     Buffer &operator=(const Buffer &) = delete;
     Buffer(Buffer &&o) noexcept
-        : ptr_(std::exchange(o.ptr_, nullptr)), size_(std::exchange(o.size_, 0)), owner_(std::move(o.owner_)),
+        : ptr_(std::exchange(o.ptr_, nullptr)),
+          size_(std::exchange(o.size_, 0)),
+          owner_(std::move(o.owner_)),
           deferred_(std::move(o.deferred_)) {}
     Buffer &operator=(Buffer &&o) noexcept {
         if (this != &o) {
@@ -167,8 +169,7 @@ Bounds finite_bounds(const float *xyz, std::uint64_t nb_points, const std::strin
 // offsets[s+1] - 1 must be all NaN; every other coordinate must be finite.
 // offsets (N + 1 entries, non-decreasing, offsets[N] = nb_points) are
 // checked first. Throws Error naming `what`.
-Bounds delimited_bounds(const float *xyz, std::uint64_t nb_points, const std::uint64_t *offsets, std::uint64_t N,
-                        const std::string &what);
+Bounds delimited_bounds(const float *xyz, std::uint64_t nb_points, const std::uint64_t *offsets, std::uint64_t N, const std::string &what);
 // Runs fn(begin, end) over [0, n) split into contiguous ranges of at least
 // `grain` items, one per thread (the calling thread takes the first); the
 // first exception thrown by the lowest range is rethrown.
@@ -206,7 +207,7 @@ struct Tractogram {
     Buffer<std::uint64_t> offsets{0};
     std::uint32_t gap = 0;
     std::vector<DataArray> arrays;
-    Affine reference = kIdentity;           // reference grid voxel -> RAS+ mm
+    Affine reference = kIdentity;  // reference grid voxel -> RAS+ mm
     std::array<std::uint64_t, 3> reference_dims{};
 
     std::uint64_t nb_streamlines() const { return offsets.empty() ? 0 : offsets.size() - 1; }
@@ -262,8 +263,8 @@ struct Volume {
 // One file's content, whatever its kind.
 struct Dataset {
     hz_data_kind kind = 0;
-    std::string format;       // "tck Float32LE"
-    std::string loader_id;    // plugin that read it
+    std::string format;     // "tck Float32LE"
+    std::string loader_id;  // plugin that read it
     hz_space source_space = HZ_SPACE_UNKNOWN;
     std::vector<std::pair<std::string, std::string>> metadata;
     Tractogram tractogram;
@@ -294,6 +295,5 @@ std::vector<std::string> attach_overlay(Mesh &mesh, const Dataset &overlay, cons
 
 const char *kind_name(hz_data_kind k);
 const char *space_name(hz_space s);
-
 
 }  // namespace hz::core

@@ -100,8 +100,7 @@ void write_text_atomic(const fs::path &path, const std::string &text, bool force
 // directory, renamed over `path` on success, deleted on failure. Refuses to
 // overwrite an existing file unless `force`, and never overwrites `protect`
 // (the input). Parts the format cannot hold are appended to `dropped`.
-void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path, bool force,
-                   std::vector<std::string> *dropped, const fs::path &protect = {},
-                   const hz_task *task = nullptr);
+void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path, bool force, std::vector<std::string> *dropped,
+                   const fs::path &protect = {}, const hz_task *task = nullptr);
 
 }  // namespace hz::core

@@ -13,7 +13,7 @@ namespace hz::core {
 struct PhantomOptions {
     std::uint64_t nb_streamlines = 2000;
     std::uint32_t nb_bundles = 24;
-    double step_mm = 1.0;           // distance between consecutive points
+    double step_mm = 1.0;  // distance between consecutive points
     double min_length_mm = 20.0;
     double max_length_mm = 200.0;
     double bundle_radius_mm = 3.0;  // spread of streamlines around the bundle core

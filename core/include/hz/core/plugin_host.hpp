@@ -47,11 +47,11 @@ std::optional<std::string> elf_precheck(const fs::path &file);
 
 // Result of running a function in a forked child.
 struct ChildResult {
-    bool exited = false;     // exited normally
+    bool exited = false;  // exited normally
     int exit_code = -1;
-    int signal = 0;          // terminating signal, 0 if none
+    int signal = 0;  // terminating signal, 0 if none
     bool timed_out = false;
-    std::string output;      // what the child function returned
+    std::string output;            // what the child function returned
     std::string describe() const;  // "crashed (SIGSEGV)", "hung (> 10 s)", "exited with 3"
 };
 
@@ -144,8 +144,8 @@ fs::path default_trial_cache();
 class Registry {
 public:
     struct Options {
-        bool isolate = true;       // trial-load every file in a child first
-        double timeout_s = 10.0;   // per trial load
+        bool isolate = true;      // trial-load every file in a child first
+        double timeout_s = 10.0;  // per trial load
         // A JSON file of the plugin files whose trial load passed, each with
         // what identified it then (device, inode, size, modification and
         // change times), the same stamp of every shared library it needs

@@ -25,7 +25,7 @@ std::array<double, 16> view_projection(const View &v, int width, int height);
 
 struct PickHit {
     std::uint64_t streamline = 0;
-    double pixels = 0;  // screen distance from the point to the streamline's axis
+    double pixels = 0;    // screen distance from the point to the streamline's axis
     double depth_mm = 0;  // distance from the eye along the view axis there
 };
 

@@ -48,7 +48,7 @@ struct RenderSettings {
     // or 1 when the scene has more than 200k streamline segments (llvmpipe
     // rasterises multisampled lines about 5-8x slower).
     int samples = 0;
-    double lod_pixels = 0.5;         // streamline decimation tolerance in pixels (0 = keep every point)
+    double lod_pixels = 0.5;  // streamline decimation tolerance in pixels (0 = keep every point)
     // Every frame through the linear HDR target, also where the display
     // path would do (read_hdr_image: .exr and .hdr pictures).
     bool hdr_output = false;
@@ -95,7 +95,7 @@ struct FrameStats {
     bool proxy = false;                                   // a level-of-detail proxy was drawn
     int refine_step = 0;                                  // progressive: the step (0: a whole frame)
     std::uint64_t refine_remaining = 0;                   // progressive: chunks still to draw
-    int samples = 1;  // MSAA samples in use
+    int samples = 1;                                      // MSAA samples in use
 };
 
 class Renderer {

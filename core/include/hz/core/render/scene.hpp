@@ -40,16 +40,16 @@ struct Coloring {
 
 // Replace a tractogram by one level of a clustering tree (paper Fig. 5).
 struct ClusterSpec {
-    std::string algorithm = "qbx";    // a clustering plugin: its id, or the last part of it (qb, qbx, qbx_merge, ...)
-    std::vector<double> thresholds;   // empty: the plugin's defaults
+    std::string algorithm = "qbx";                      // a clustering plugin: its id, or the last part of it (qb, qbx, qbx_merge, ...)
+    std::vector<double> thresholds;                     // empty: the plugin's defaults
     std::map<std::string, std::vector<double>> params;  // the plugin's own parameters, by name (checked by its schema)
-    int level = 1;                    // 1 = coarsest; -1 = finest
-    bool width_by_size = true;        // tube radius grows with sqrt(cluster size)
+    int level = 1;                                      // 1 = coarsest; -1 = finest
+    bool width_by_size = true;                          // tube radius grows with sqrt(cluster size)
 };
 
 struct Object {
     std::string name;
-    hz_data_kind kind = 0;            // STREAMLINES, MESH or VOLUME (drawn as slices)
+    hz_data_kind kind = 0;  // STREAMLINES, MESH or VOLUME (drawn as slices)
     Dataset data;
     bool visible = true;
     // Level of detail: this object stands in for object `proxy_for` while the
@@ -57,8 +57,8 @@ struct Object {
     // is hidden otherwise; that object is hidden while moving.
     std::optional<std::size_t> proxy_for;
     // streamlines
-    std::string render = "lines";     // lines | tubes
-    double radius_mm = 0.4;           // tubes; with width_by_size: the radius of the median cluster
+    std::string render = "lines";  // lines | tubes
+    double radius_mm = 0.4;        // tubes; with width_by_size: the radius of the median cluster
     std::optional<ClusterSpec> clustering;
     // surfaces and streamlines
     Coloring coloring;
@@ -68,7 +68,7 @@ struct Object {
     std::optional<double> slice_x, slice_y, slice_z;
     std::optional<std::array<double, 2>> window;  // value range mapped to the colormap
     std::string slice_colormap = "gray";
-    std::optional<double> clip_below;             // values below are transparent (e.g. the background)
+    std::optional<double> clip_below;  // values below are transparent (e.g. the background)
 };
 
 struct Camera {
@@ -86,16 +86,16 @@ struct Light {
     Vec3 direction{0, 0, 1};           // directional: towards the light
     Vec3 position{0, 0, 0};            // point
     std::array<double, 3> color{1, 1, 1};
-    double intensity = 1.0;            // radiance scale (directional: irradiance at normal incidence)
-    bool camera_space = true;          // direction/position given in camera space (x right, y up, z back)
+    double intensity = 1.0;    // radiance scale (directional: irradiance at normal incidence)
+    bool camera_space = true;  // direction/position given in camera space (x right, y up, z back)
 };
 
 struct Environment {
-    std::string type = "studio";       // studio (procedural) | file | none
-    std::string path;                  // type = file: an equirectangular image (.hdr, .exr, .png)
+    std::string type = "studio";  // studio (procedural) | file | none
+    std::string path;             // type = file: an equirectangular image (.hdr, .exr, .png)
     double intensity = 0.5;
-    double rotation_deg = 0.0;         // about the superior (z) axis
-    bool visible = false;              // draw it as the background
+    double rotation_deg = 0.0;  // about the superior (z) axis
+    bool visible = false;       // draw it as the background
 };
 
 // Streamlines cropped to a slab: only what lies within `half` mm of the
@@ -111,11 +111,11 @@ struct Scene {
     std::vector<Object> objects;
     std::optional<Slab> slab;
     Camera camera;
-    std::vector<Light> lights;         // empty: a three-point rig (key, fill, rim)
+    std::vector<Light> lights;  // empty: a three-point rig (key, fill, rim)
     Environment environment;
     std::array<double, 3> background{0.02, 0.02, 0.025};  // linear RGB
     double exposure = 1.0;
-    std::string tonemap = "aces";      // aces | reinhard | none
+    std::string tonemap = "aces";  // aces | reinhard | none
 };
 
 // Parses a scene file, reading every data file it names (relative to the
@@ -133,17 +133,17 @@ void apply_file_material(Object &ob, bool has_material, bool has_color);
 // Built-in data for demos and tests (deterministic).
 Mesh make_cortex_mesh(int subdivisions = 5);
 Mesh make_sphere_mesh(double radius_mm, int nu, int nv);  // UV sphere at the origin   // two hemispheres around the phantom's box
-Volume make_head_volume(double voxel_mm = 2.0); // a T1-like synthetic volume, same frame
+Volume make_head_volume(double voxel_mm = 2.0);           // a T1-like synthetic volume, same frame
 
 // A clustering tree, copied out of the plugin (hz_cluster_tree_view).
 struct ClusterTree {
     std::uint32_t nb_levels = 0, nb_points = 0;
-    std::vector<double> thresholds;              // per level (1..nb_levels), mm; empty when the plugin reports none
-    std::vector<std::int64_t> parent;            // per node; -1 for the root
-    std::vector<std::uint32_t> level;            // per node; 0 for the root
-    std::vector<float> centroids;                // nodes x nb_points x 3
-    std::vector<std::uint64_t> member_offsets;   // nodes + 1
-    std::vector<std::uint64_t> members;          // streamline indices into the input
+    std::vector<double> thresholds;             // per level (1..nb_levels), mm; empty when the plugin reports none
+    std::vector<std::int64_t> parent;           // per node; -1 for the root
+    std::vector<std::uint32_t> level;           // per node; 0 for the root
+    std::vector<float> centroids;               // nodes x nb_points x 3
+    std::vector<std::uint64_t> member_offsets;  // nodes + 1
+    std::vector<std::uint64_t> members;         // streamline indices into the input
     std::uint64_t size(std::uint64_t node) const { return member_offsets[node + 1] - member_offsets[node]; }
 };
 
