@@ -30,6 +30,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstddef>
 #include <cstdio>
 
 namespace hz::core {
@@ -334,10 +335,15 @@ const char *core_interface(hz_plugin_kind k) {
     default: return nullptr;
     }
 }
+// The smallest table a plugin of this major may give: the table as ABI 1.0
+// defined it. Fields appended since (hz_loader.locate_positions in 1.4,
+// hz_shader.functions and eval_function in 1.2) are read only where
+// struct_size covers them (HZ_HAS_FIELD), so a plugin built against an
+// older 1.x header loads (tests/abi/v1_0).
 std::size_t core_interface_min_size(hz_plugin_kind k) {
     switch (k) {
-    case HZ_KIND_LOADER: return sizeof(hz_loader);
-    case HZ_KIND_SHADER: return sizeof(hz_shader);
+    case HZ_KIND_LOADER: return offsetof(hz_loader, locate_positions);
+    case HZ_KIND_SHADER: return offsetof(hz_shader, functions);
     case HZ_KIND_CLUSTERING: return sizeof(hz_clustering);
     default: return 0;
     }

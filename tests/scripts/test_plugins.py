@@ -6,7 +6,7 @@ import shutil
 import subprocess
 import unittest
 
-from hztest import BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, run, run_json
+from hztest import BUILD, BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, run, run_json
 
 BUNDLED_IDS = {"org.horizon.loader.tck", "org.horizon.loader.trk", "org.horizon.loader.trx", "org.horizon.loader.nifti",
                "org.horizon.shader.lambert", "org.horizon.shader.blinn_phong", "org.horizon.shader.line_stalling",
@@ -292,6 +292,39 @@ class PluginsTest(TempDirTest):
         mine = [p for p in j["plugins"] if p["file"].startswith(d)]
         self.assertEqual([(p["id"], p["file"]) for p in mine], [("org.example.shader.lambert", os.path.join(bundle, "tpl_lambert_shader.so"))])
         self.assertEqual([r["file"] for r in j["rejected"]], [os.path.join(d, "fx_no_entry.so")])
+
+    def test_plugins_built_against_abi_1_0(self):
+        """The SDK's loader and shader templates as first published, built
+        against the ABI 1.0 headers (tests/abi/v1_0): this host (1.x, x > 0)
+        loads them (their tables are shorter: fields appended since are read
+        only where struct_size covers them), reads and writes through the
+        loader, draws with the shader, and validate passes both. (A plugin
+        of a future major is refused with its reason: test_bad_plugin_dir.)"""
+        d = self.path("old")
+        os.mkdir(d)
+        for name in ("abi10_text_loader.so", "abi10_lambert_shader.so"):
+            shutil.copy(os.path.join(BUILD, "tests", "abi10", name), d)
+        env = {"HORIZON_PLUGIN_CACHE": "off"}
+        j = run_json("--plugin-dir", d, "plugins", "--json", env=env)
+        old = {p["id"]: (p["abi"], p["status"]) for p in j["plugins"] if p["file"].startswith(d)}
+        self.assertEqual(old, {"org.example.loader.hzt": ("1.0", "loaded"), "org.example.shader.lambert": ("1.0", "loaded")})
+        self.assertEqual(j["rejected"], [])
+        text = "hzt 1\n3\n1 2 3\n2 3.5 4\n3 4 5\n2\n0 0 0\n1 1 1\n"
+        with open(self.path("x.hzt"), "w") as f:
+            f.write(text)
+        for a, b in (("x.hzt", "x.tck"), ("x.tck", "y.hzt")):
+            p = run("--plugin-dir", d, "convert", self.path(a), self.path(b), env=env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+        with open(self.path("y.hzt")) as f:
+            self.assertEqual(f.read(), text)
+        scene = self.path("s.json")
+        with open(scene, "w") as f:
+            json.dump({"objects": [{"type": "surface", "builtin": "sphere", "material": {"shader": "org.example.shader.lambert"}}]}, f)
+        p = run("--plugin-dir", d, "render", scene, "-o", self.path("s.png"), "--size", "64x48", env={**env, "DISPLAY": ""}, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        for name in ("abi10_text_loader.so", "abi10_lambert_shader.so"):
+            p = run("validate", os.path.join(d, name), timeout=300)
+            self.assertEqual(p.returncode, 0, p.stdout)
 
     def test_a_trial_list_that_is_not_a_file_is_not_used(self):
         # A FIFO would block every command; a folder made every command fail.
