@@ -16,21 +16,23 @@ namespace {
 constexpr const char *kId = "org.example.clustering.length";
 
 const hz_param_info kParams[] = {
-    {sizeof(hz_param_info),
-     HZ_PARAM_FLOAT,
-     "bin_width",
-     "Bin width",
-     "",
-     "mm",
-     "width of each length bin",
-     0,
-     1,
-     {0.1, 0, 0, 0},
-     {1000, 0, 0, 0},
-     {10, 0, 0, 0},
-     nullptr,
-     0,
-     nullptr},
+    {
+        .struct_size = sizeof(hz_param_info),
+        .type = HZ_PARAM_FLOAT,
+        .name = "bin_width",
+        .label = "Bin width",
+        .group = "",
+        .unit = "mm",
+        .tooltip = "width of each length bin",
+        .flags = 0,
+        .components = 1,
+        .min_value = {0.1, 0, 0, 0},
+        .max_value = {1000, 0, 0, 0},
+        .default_value = {10, 0, 0, 0},
+        .enum_labels = nullptr,
+        .default_array_count = 0,
+        .default_array = nullptr,
+    },
 };
 
 struct Clusterer {
@@ -139,20 +141,29 @@ hz_status HZ_ABI get_result(const hz_clusterer *cl, hz_cluster_tree_view *out, h
 
 void HZ_ABI destroy(hz_clusterer *c) { delete reinterpret_cast<Clusterer *>(c); }
 
-const hz_clustering kClustering = {sizeof(hz_clustering), 1, get_param, create, set_param, run, get_result, destroy};
+const hz_clustering kClustering = {
+    .struct_size = sizeof(hz_clustering),
+    .param_count = 1,
+    .get_param = get_param,
+    .create = create,
+    .set_param = set_param,
+    .run = run,
+    .get_result = get_result,
+    .destroy = destroy,
+};
 
 const char *const kInterfaces[] = {HZ_INTERFACE_CLUSTERING, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor),
-    HZ_ABI_VERSION_INIT,
-    HZ_KIND_CLUSTERING,
-    kId,
-    "Length bins (template)",
-    "1.0.0",
-    "Example Vendor",
-    "Groups streamlines by arc length: a starting point for clustering plugins",
-    "MIT",
-    kInterfaces,
+    .struct_size = sizeof(hz_plugin_descriptor),
+    .abi = HZ_ABI_VERSION_INIT,
+    .kind = HZ_KIND_CLUSTERING,
+    .id = kId,
+    .name = "Length bins (template)",
+    .version = "1.0.0",
+    .vendor = "Example Vendor",
+    .description = "Groups streamlines by arc length: a starting point for clustering plugins",
+    .license = "MIT",
+    .interfaces = kInterfaces,
 };
 
 bool HZ_ABI init(const hz_host *, const char *) { return true; }
@@ -166,4 +177,12 @@ const void *HZ_ABI get_interface(const char *id, const char *iface) {
 
 }  // namespace
 
-HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
+HZ_DECLARE_PLUGIN_ENTRY = {
+    .struct_size = sizeof(hz_plugin_entry),
+    .abi = HZ_ABI_VERSION_INIT,
+    .init = init,
+    .deinit = deinit,
+    .get_plugin_count = count,
+    .get_plugin_descriptor = descriptor,
+    .get_interface = get_interface,
+};

@@ -249,37 +249,37 @@ static hz_status HZ_ABI write_file(const hz_write_request *req, const hz_dataset
 
 static const char *const k_extensions[] = {"hzt", NULL};
 static const hz_loader k_loader = {
-    sizeof(hz_loader),
-    HZ_DATA_STREAMLINES,
-    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
-    8,
-    k_extensions,
-    probe,
-    open_file,
-    get_info,
-    get_array_info,
-    visit_metadata,
-    read_streamlines,
-    NULL,
-    NULL,
-    NULL,
-    close_reader,
-    write_file,
-    NULL /* locate_positions (1.4): no zero-copy here */,
+    .struct_size = sizeof(hz_loader),
+    .data_kinds = HZ_DATA_STREAMLINES,
+    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
+    .probe_bytes = 8,
+    .extensions = k_extensions,
+    .probe = probe,
+    .open = open_file,
+    .get_info = get_info,
+    .get_array_info = get_array_info,
+    .visit_metadata = visit_metadata,
+    .read_streamlines = read_streamlines,
+    .read_array = NULL, /* no per-point or per-streamline arrays */
+    .read_volume = NULL,
+    .read_mesh = NULL,
+    .close = close_reader,
+    .write = write_file,
+    .locate_positions = NULL, /* (1.4) no zero-copy here */
 };
 
 static const char *const k_interfaces[] = {HZ_INTERFACE_LOADER, NULL};
 static const hz_plugin_descriptor k_descriptor = {
-    sizeof(hz_plugin_descriptor),
-    HZ_ABI_VERSION_INIT,
-    HZ_KIND_LOADER,
-    PLUGIN_ID,
-    "Text streamlines (template)",
-    "1.0.0",
-    "Example Vendor",
-    "A tiny text streamline format: a starting point for loaders",
-    "MIT",
-    k_interfaces,
+    .struct_size = sizeof(hz_plugin_descriptor),
+    .abi = HZ_ABI_VERSION_INIT,
+    .kind = HZ_KIND_LOADER,
+    .id = PLUGIN_ID,
+    .name = "Text streamlines (template)",
+    .version = "1.0.0",
+    .vendor = "Example Vendor",
+    .description = "A tiny text streamline format: a starting point for loaders",
+    .license = "MIT",
+    .interfaces = k_interfaces,
 };
 
 static bool HZ_ABI init(const hz_host *host, const char *path) {
@@ -295,4 +295,12 @@ static const void *HZ_ABI get_interface(const char *id, const char *iface) {
     return NULL;
 }
 
-HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
+HZ_DECLARE_PLUGIN_ENTRY = {
+    .struct_size = sizeof(hz_plugin_entry),
+    .abi = HZ_ABI_VERSION_INIT,
+    .init = init,
+    .deinit = deinit,
+    .get_plugin_count = count,
+    .get_plugin_descriptor = descriptor,
+    .get_interface = get_interface,
+};

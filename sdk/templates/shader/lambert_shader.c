@@ -12,21 +12,23 @@
 #define PLUGIN_ID "org.example.shader.lambert"
 
 static const hz_param_info k_params[] = {
-    {sizeof(hz_param_info),
-     HZ_PARAM_COLOR3,
-     "albedo",
-     "Albedo",
-     "Material",
-     "",
-     "linear diffuse reflectance",
-     0,
-     3,
-     {0, 0, 0, 0},
-     {1, 1, 1, 0},
-     {0.8, 0.8, 0.8, 0},
-     NULL,
-     0,
-     NULL},
+    {
+        .struct_size = sizeof(hz_param_info),
+        .type = HZ_PARAM_COLOR3,
+        .name = "albedo",
+        .label = "Albedo",
+        .group = "Material",
+        .unit = "",
+        .tooltip = "linear diffuse reflectance",
+        .flags = 0,
+        .components = 3,
+        .min_value = {0, 0, 0, 0},
+        .max_value = {1, 1, 1, 0},
+        .default_value = {0.8, 0.8, 0.8, 0},
+        .enum_labels = NULL,
+        .default_array_count = 0,
+        .default_array = NULL,
+    },
 };
 
 static const hz_param_info *HZ_ABI get_param(uint32_t index) {
@@ -70,31 +72,31 @@ static hz_status HZ_ABI eval_reference(const hz_shade_point *p, const double *pa
 }
 
 static const hz_shader k_shader = {
-    sizeof(hz_shader),
-    HZ_SHADE_SURFACE,
-    HZ_SHADER_OUTPUT_BRDF,
-    HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL,
-    "lambert_",
-    1,
-    get_param,
-    glsl_source,
-    eval_reference,
-    NULL,
-    NULL,
+    .struct_size = sizeof(hz_shader),
+    .domains = HZ_SHADE_SURFACE,
+    .output = HZ_SHADER_OUTPUT_BRDF,
+    .claims = HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL,
+    .glsl_prefix = "lambert_",
+    .param_count = 1,
+    .get_param = get_param,
+    .glsl_source = glsl_source,
+    .eval_reference = eval_reference,
+    .functions = NULL, /* no named building blocks (1.2) */
+    .eval_function = NULL,
 };
 
 static const char *const k_interfaces[] = {HZ_INTERFACE_SHADER, NULL};
 static const hz_plugin_descriptor k_descriptor = {
-    sizeof(hz_plugin_descriptor),
-    HZ_ABI_VERSION_INIT,
-    HZ_KIND_SHADER,
-    PLUGIN_ID,
-    "Lambert (template)",
-    "1.0.0",
-    "Example Vendor",
-    "Lambertian diffuse shading: a starting point for new models",
-    "MIT",
-    k_interfaces,
+    .struct_size = sizeof(hz_plugin_descriptor),
+    .abi = HZ_ABI_VERSION_INIT,
+    .kind = HZ_KIND_SHADER,
+    .id = PLUGIN_ID,
+    .name = "Lambert (template)",
+    .version = "1.0.0",
+    .vendor = "Example Vendor",
+    .description = "Lambertian diffuse shading: a starting point for new models",
+    .license = "MIT",
+    .interfaces = k_interfaces,
 };
 
 static bool HZ_ABI init(const hz_host *host, const char *path) {
@@ -110,4 +112,12 @@ static const void *HZ_ABI get_interface(const char *id, const char *iface) {
     return NULL;
 }
 
-HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
+HZ_DECLARE_PLUGIN_ENTRY = {
+    .struct_size = sizeof(hz_plugin_entry),
+    .abi = HZ_ABI_VERSION_INIT,
+    .init = init,
+    .deinit = deinit,
+    .get_plugin_count = count,
+    .get_plugin_descriptor = descriptor,
+    .get_interface = get_interface,
+};
