@@ -142,7 +142,7 @@ int main(int argc, char **argv) {
     auto *filter = app.add_subcommand("filter", "select streamlines by include / exclude regions and length (MRtrix3 tckedit's rules)");
     filter->add_option("input", fo.input, "tractogram")->required();
     filter
-        ->add_option("--include", fo.include,
+        ->add_option("--include,--roi", fo.include,
                      "a region each kept streamline must have a vertex in: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 (RAS+ mm) or a "
                      "mask volume (nonzero voxels); repeatable, all must be met")
         ->allow_extra_args(false);
@@ -200,9 +200,9 @@ int main(int argc, char **argv) {
     view->add_option("--algorithm", vwo.algorithm, "--explore with this clustering plugin (its id or the last part of it)")
         ->capture_default_str();
     view->add_option("--param", vwo.params, "NAME=VALUE, a parameter of the clustering plugin (repeatable)")->allow_extra_args(false);
-    view->add_option("--include", vwo.include,
+    view->add_option("--include,--roi", vwo.include,
                      "a region of interest the shown streamlines must meet: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or a mask file "
-                     "(repeatable; the window adds, moves and removes them too)")
+                     "(repeatable; the window adds, moves and removes them too; --roi is the same, as dipy_horizon's --roi_images)")
         ->allow_extra_args(false);
     view->add_option("--slab", vwo.slab, "crop the streamlines to a slab AXIS=CENTRE,HALF in mm, e.g. z=10,5 (the panel moves it)");
     view->add_option("--exclude", vwo.exclude, "a region the shown streamlines must not meet (same forms; repeatable)")

@@ -288,6 +288,10 @@ class FilterTest(unittest.TestCase):
         p = run("filter", "--include", c["include"][0], "--include", c["include"][1], self.tck, "--ids", "-")
         self.assertEqual(p.returncode, 0, p.stderr)
         self.assertEqual([int(x) for x in p.stdout.split()], reference(self.streamlines, **c))
+        # --roi (as dipy_horizon users type it) is --include.
+        p = run("filter", "--roi", c["include"][0], "--roi", c["include"][1], self.tck, "--ids", "-")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual([int(x) for x in p.stdout.split()], reference(self.streamlines, **c))
 
     def test_region_outside_the_data(self):
         out = self.path("outside.tck")

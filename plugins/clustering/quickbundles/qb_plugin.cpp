@@ -232,18 +232,57 @@ void HZ_ABI destroy(hz_clusterer *c) { delete reinterpret_cast<Clusterer *>(c); 
 
 template <Algo A>
 constexpr hz_clustering make_table() {
-    return {sizeof(hz_clustering), Kind<A>::count, get_param<A>, create<A>, set_param, run, get_result, destroy};
+    return {
+        .struct_size = sizeof(hz_clustering),
+        .param_count = Kind<A>::count,
+        .get_param = get_param<A>,
+        .create = create<A>,
+        .set_param = set_param,
+        .run = run,
+        .get_result = get_result,
+        .destroy = destroy,
+    };
 }
 const hz_clustering kTables[] = {make_table<Algo::QB>(), make_table<Algo::QBX>(), make_table<Algo::Merge>()};
 
 const char *const kInterfaces[] = {HZ_INTERFACE_CLUSTERING, nullptr};
 const hz_plugin_descriptor kDescriptors[] = {
-    {sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_CLUSTERING, "org.horizon.clustering.qb", "QuickBundles", "1.0.0", "Horizon",
-     "QuickBundles (Garyfallidis 2012), DIPY 1.6's exact labels and centroids", "MIT", kInterfaces},
-    {sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_CLUSTERING, "org.horizon.clustering.qbx", "QuickBundlesX", "1.0.0",
-     "Horizon", "QuickBundlesX (Garyfallidis 2016): a tree of centroids, one level per threshold; DIPY 1.6 exact", "MIT", kInterfaces},
-    {sizeof(hz_plugin_descriptor), HZ_ABI_VERSION_INIT, HZ_KIND_CLUSTERING, "org.horizon.clustering.qbx_merge", "QBX and merge", "1.0.0",
-     "Horizon", "Horizon's qbx_and_merge: QuickBundlesX, then the last level's centroids merged", "MIT", kInterfaces},
+    {
+        .struct_size = sizeof(hz_plugin_descriptor),
+        .abi = HZ_ABI_VERSION_INIT,
+        .kind = HZ_KIND_CLUSTERING,
+        .id = "org.horizon.clustering.qb",
+        .name = "QuickBundles",
+        .version = "1.0.0",
+        .vendor = "Horizon",
+        .description = "QuickBundles (Garyfallidis 2012), DIPY 1.6's exact labels and centroids",
+        .license = "MIT",
+        .interfaces = kInterfaces,
+    },
+    {
+        .struct_size = sizeof(hz_plugin_descriptor),
+        .abi = HZ_ABI_VERSION_INIT,
+        .kind = HZ_KIND_CLUSTERING,
+        .id = "org.horizon.clustering.qbx",
+        .name = "QuickBundlesX",
+        .version = "1.0.0",
+        .vendor = "Horizon",
+        .description = "QuickBundlesX (Garyfallidis 2016): a tree of centroids, one level per threshold; DIPY 1.6 exact",
+        .license = "MIT",
+        .interfaces = kInterfaces,
+    },
+    {
+        .struct_size = sizeof(hz_plugin_descriptor),
+        .abi = HZ_ABI_VERSION_INIT,
+        .kind = HZ_KIND_CLUSTERING,
+        .id = "org.horizon.clustering.qbx_merge",
+        .name = "QBX and merge",
+        .version = "1.0.0",
+        .vendor = "Horizon",
+        .description = "Horizon's qbx_and_merge: QuickBundlesX, then the last level's centroids merged",
+        .license = "MIT",
+        .interfaces = kInterfaces,
+    },
 };
 
 bool HZ_ABI init(const hz_host *, const char *) { return true; }
@@ -259,4 +298,12 @@ const void *HZ_ABI get_interface(const char *id, const char *iface) {
 
 }  // namespace
 
-HZ_DECLARE_PLUGIN_ENTRY = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
+HZ_DECLARE_PLUGIN_ENTRY = {
+    .struct_size = sizeof(hz_plugin_entry),
+    .abi = HZ_ABI_VERSION_INIT,
+    .init = init,
+    .deinit = deinit,
+    .get_plugin_count = count,
+    .get_plugin_descriptor = descriptor,
+    .get_interface = get_interface,
+};

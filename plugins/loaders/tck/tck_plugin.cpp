@@ -231,38 +231,38 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
 const char *const kExtensions[] = {"tck", nullptr};
 
 const hz_loader kLoader = {
-    sizeof(hz_loader),
-    HZ_DATA_STREAMLINES,
-    HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
-    64,
-    kExtensions,
-    probe,
-    open,
-    get_info,
-    get_array_info,
-    visit_metadata,
-    read_streamlines,
-    nullptr,  // read_array: TCK has no extra arrays
-    nullptr,  // read_volume
-    nullptr,  // read_mesh
-    close,
-    write,
-    locate_positions,
+    .struct_size = sizeof(hz_loader),
+    .data_kinds = HZ_DATA_STREAMLINES,
+    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
+    .probe_bytes = 64,
+    .extensions = kExtensions,
+    .probe = probe,
+    .open = open,
+    .get_info = get_info,
+    .get_array_info = get_array_info,
+    .visit_metadata = visit_metadata,
+    .read_streamlines = read_streamlines,
+    .read_array = nullptr,  // TCK has no extra arrays
+    .read_volume = nullptr,
+    .read_mesh = nullptr,
+    .close = close,
+    .write = write,
+    .locate_positions = locate_positions,
 };
 
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor),
-    HZ_ABI_VERSION_INIT,
-    HZ_KIND_LOADER,
-    kId,
-    "MRtrix TCK",
-    "1.0.0",
-    "Horizon",
-    "MRtrix3 .tck streamlines: Float32/Float64, both byte orders, read and write",
-    "MIT",
-    kInterfaces,
+    .struct_size = sizeof(hz_plugin_descriptor),
+    .abi = HZ_ABI_VERSION_INIT,
+    .kind = HZ_KIND_LOADER,
+    .id = kId,
+    .name = "MRtrix TCK",
+    .version = "1.0.0",
+    .vendor = "Horizon",
+    .description = "MRtrix3 .tck streamlines: Float32/Float64, both byte orders, read and write",
+    .license = "MIT",
+    .interfaces = kInterfaces,
 };
 
 const hz_host *host() { return hz::single_plugin<kDescriptor, kLoader>::host(); }

@@ -217,30 +217,31 @@ hz_status HZ_ABI eval_function(const char *name, const double *a, uint32_t n, do
 }
 
 const hz_shader kShader = {
-    sizeof(hz_shader),
-    HZ_SHADE_SURFACE,
-    HZ_SHADER_OUTPUT_BRDF,
-    HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL,
-    "glass_",
-    kParamCount,
-    get_param,
-    glsl_source,
-    eval_reference,
-    kFunctions,
-    eval_function,
+    .struct_size = sizeof(hz_shader),
+    .domains = HZ_SHADE_SURFACE,
+    .output = HZ_SHADER_OUTPUT_BRDF,
+    .claims = HZ_CLAIM_NONNEGATIVE | HZ_CLAIM_RECIPROCAL,
+    .glsl_prefix = "glass_",
+    .param_count = kParamCount,
+    .get_param = get_param,
+    .glsl_source = glsl_source,
+    .eval_reference = eval_reference,
+    .functions = kFunctions,
+    .eval_function = eval_function,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_SHADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
-    sizeof(hz_plugin_descriptor),
-    HZ_ABI_VERSION_INIT,
-    HZ_KIND_SHADER,
-    kId,
-    "Glass",
-    "1.0.0",
-    "Horizon",
-    "Glass: Fresnel reflection and refraction of the environment and the scene behind, Beer-Lambert absorption (paper Eq. 14)",
-    "MIT",
-    kInterfaces,
+    .struct_size = sizeof(hz_plugin_descriptor),
+    .abi = HZ_ABI_VERSION_INIT,
+    .kind = HZ_KIND_SHADER,
+    .id = kId,
+    .name = "Glass",
+    .version = "1.0.0",
+    .vendor = "Horizon",
+    .description =
+        "Glass: Fresnel reflection and refraction of the environment and the scene behind, Beer-Lambert absorption (paper Eq. 14)",
+    .license = "MIT",
+    .interfaces = kInterfaces,
 };
 
 }  // namespace
