@@ -1614,7 +1614,9 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
         // (read once the window is open, which shows the progress)
         return view_scene(reg, std::function<core::render::Scene()>([&] { return scene_from_inputs(reg, o.inputs, o.view, "view"); }), o);
     } catch (const core::Error &e) {
-        if (o.inputs.size() == 1) throw core::Error(o.inputs[0] + ": " + e.what());
+        // (a reading error names the file already)
+        if (o.inputs.size() == 1 && std::string_view(e.what()).find(o.inputs[0]) == std::string_view::npos)
+            throw core::Error(o.inputs[0] + ": " + e.what());
         throw;
     }
 }

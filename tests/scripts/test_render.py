@@ -623,6 +623,10 @@ class WindowTest(TempDirTest):
         p = xvfb_run([HORIZON, "view", self.path("lh.thickness")], env)
         self.assert_clean_error(p, "lh.thickness")
         self.assertIn("need their surface", p.stderr)
+        # A file that cannot be read: one line, naming it once.
+        p = xvfb_run([HORIZON, "view", self.path("missing.tck")], env)
+        self.assert_clean_error(p, "missing.tck")
+        self.assertEqual(p.stderr.count("missing.tck"), 1, p.stderr)
 
     def test_level_of_detail_while_moving(self):
         # A tractogram above --lod-points is drawn as a subsample of its
