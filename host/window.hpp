@@ -1,0 +1,242 @@
+// The window's machinery, apart from what it shows: the GLFW window's state
+// and input (App, its camera orbit, the callbacks), the panel's material
+// controls, screenshots, per-frame statistics (view --stats), and the panel
+// that shows a file being read. view.cpp builds the session on it.
+#pragma once
+
+#include "commands.hpp"
+
+#include <hz/core/io.hpp>
+#include <hz/core/render/renderer.hpp>
+
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace hz::host::win {
+
+namespace fs = std::filesystem;
+using core::render::Vec3;
+
+inline std::string glfw_error;
+inline void on_glfw_error(int, const char *msg) { glfw_error = msg ? msg : "unknown GLFW error"; }
+
+// Orbit camera around a target.
+struct Orbit {
+    Vec3 target{0, 0, 0};
+    double yaw = 0, pitch = 0, distance = 100, fov = 30;
+    Vec3 up{0, 0, 1};
+    void from_view(const core::render::View &v) {
+        target = v.target;
+        const double dx = v.eye[0] - v.target[0], dy = v.eye[1] - v.target[1], dz = v.eye[2] - v.target[2];
+        distance = std::sqrt(dx * dx + dy * dy + dz * dz);
+        yaw = std::atan2(dy, dx);
+        pitch = std::asin(std::clamp(dz / std::max(distance, 1e-9), -1.0, 1.0));
+        if (std::hypot(dx, dy) <= 1e-9 * distance) {
+            // Straight down (superior) or up (inferior): no yaw in the eye's
+            // position, so take it from the view's up vector, which the
+            // screen's up then follows (looking down, screen up is minus the
+            // eye's horizontal direction; looking up, plus it), and stay just
+            // short of the pole so that the z-up orbit keeps a defined roll.
+            const double sgn = dz > 0 ? -1.0 : 1.0;
+            yaw = std::atan2(sgn * v.up[1], sgn * v.up[0]);
+            pitch = (dz > 0 ? 1.0 : -1.0) * (M_PI / 2 - 1e-6);
+        }
+        fov = v.fov_deg;
+    }
+    core::render::View view(double radius) const {
+        core::render::View v;
+        v.target = target;
+        v.eye = {target[0] + distance * std::cos(pitch) * std::cos(yaw), target[1] + distance * std::cos(pitch) * std::sin(yaw),
+                 target[2] + distance * std::sin(pitch)};
+        v.up = up;
+        v.fov_deg = fov;
+        v.far_mm = distance + 2.5 * radius;
+        v.near_mm = std::max(v.far_mm * 1e-4, distance - 2.5 * radius);
+        return v;
+    }
+};
+
+struct App {
+    const core::Registry *reg = nullptr;
+    GLFWwindow *win = nullptr;
+    core::render::Renderer *r = nullptr;
+    Orbit orbit, home;
+    double radius = 100;
+    bool dragging = false, panning = false;
+    double last_x = 0, last_y = 0;
+    int shots = 0;
+    fs::path shot_dir = ".";
+    std::string pending_shot;
+    bool quit = false;
+    double last_motion = -1e9;  // glfwGetTime() of the last camera change
+    // glfwGetTime() of the last material change: the programs use uniforms
+    // from then until the values have stayed put for kBakeAfter seconds,
+    // then baked constants (one compile), faster per frame.
+    double last_material_edit = -1e9;
+    static constexpr double kBakeAfter = 0.75;
+    bool force_moving = false;  // scripts: `moving on|off`
+    std::uint64_t events = 0;   // input and window events so far (a frame is drawn only after one, or while busy)
+    bool loading = false;       // the data are being read: input waits (the window shows the progress)
+    // Scripts: `press LABEL` clicks a panel button through Dear ImGui's own
+    // input (the mouse moved over it, pressed, released: one frame each).
+    // The buttons drawn in the last frame, by label: their rectangles.
+    std::map<std::string, std::array<float, 4>> ui_buttons;
+    float press_at[2] = {0, 0};
+    int press_stage = -1;  // the frame of the press in progress (0..2), -1 when none
+    // A left press released within kClickPx of where it began is a click
+    // (picking); the orbit starts only once the cursor has left that circle,
+    // so a click does not turn the view under the point it picks.
+    static constexpr double kClickPx = 3.0;
+    double press_x = 0, press_y = 0;
+    bool orbit_started = false;
+    // The exploration's hooks (with --explore): a click at window
+    // coordinates, and keys it takes (returns true) before the camera's.
+    std::function<void(double, double, int)> on_click;  // (x, y, GLFW modifier bits)
+    std::function<bool(int, int)> on_key;
+    // A Ctrl+wheel turn (resizes the region of interest being edited).
+    std::function<void(double)> on_ctrl_scroll;
+    // A stroke drawn with Ctrl+drag (window points): picks the streamlines
+    // it crosses on release.
+    bool stroking = false;
+    std::vector<std::array<double, 2>> stroke;
+    std::function<void(const std::vector<std::array<double, 2>> &)> on_stroke;
+
+    void click(double x, double y, int mods = 0) {
+        if (on_click) on_click(x, y, mods);
+    }
+
+    void drag_to(double x, double y) {
+        if (dragging && !orbit_started) {
+            if (std::hypot(x - press_x, y - press_y) <= kClickPx) return;
+            orbit_started = true;
+        }
+        const double dx = x - last_x, dy = y - last_y;
+        if (dragging || panning) last_motion = glfwGetTime();
+        last_x = x, last_y = y;
+        if (panning) {
+            // Move the target in the view plane, in proportion to the distance.
+            const double s = orbit.distance * 0.0015;
+            const double cy = std::cos(orbit.yaw), sy = std::sin(orbit.yaw);
+            const Vec3 right = {-sy, cy, 0};
+            const Vec3 upv = {-std::sin(orbit.pitch) * cy, -std::sin(orbit.pitch) * sy, std::cos(orbit.pitch)};
+            for (int k = 0; k < 3; ++k) orbit.target[k] += s * (-dx * right[k] + dy * upv[k]);
+        } else if (dragging) {
+            orbit.yaw -= dx * 0.008;
+            orbit.pitch = std::clamp(orbit.pitch + dy * 0.008, -1.55, 1.55);
+        }
+    }
+    void scroll(double dy) {
+        last_motion = glfwGetTime();
+        orbit.distance = std::clamp(orbit.distance * std::pow(0.9, dy), radius * 0.05, radius * 50);
+    }
+    void key(int k, int mods = 0) {
+        if (on_key && on_key(k, mods)) return;
+        if (mods & GLFW_MOD_CONTROL) return;  // (Ctrl+S is not a screenshot)
+        if (k == GLFW_KEY_S)
+            pending_shot = (shot_dir / ("horizon-screenshot-" + std::to_string(++shots) + ".png")).string();
+        else if (k == GLFW_KEY_R)
+            orbit = home;
+        else if (k == GLFW_KEY_Q || k == GLFW_KEY_ESCAPE)
+            quit = true;
+    }
+};
+
+inline App *app_of(GLFWwindow *w) { return static_cast<App *>(glfwGetWindowUserPointer(w)); }
+
+// A progressive step's time budget: input is handled between steps.
+constexpr double kStepMs = 50.0;
+
+// This process's resident anonymous memory (RssAnon), MiB; file pages of
+// mapped inputs are not counted. -1 where /proc is not there.
+double rss_anon_mb();
+
+// The window's framebuffer size in pixels.
+std::pair<int, int> framebuffer_size(GLFWwindow *w);
+
+// `view --stats FILE.json`: every frame the window drew, what it drew and
+// how long it took (render, panel and buffer swap), for tests and the
+// benchmark. Kinds: "moving" (the level-of-detail proxy while the camera
+// moves), "refine" (a progressive step of a still frame, not complete),
+// "complete" (the step that completed it, or a frame drawn whole), "still"
+// (the kept image presented again, e.g. for the panel; no scene drawing).
+struct FrameLog {
+    nlohmann::json frames = nlohmann::json::array();
+    nlohmann::json loading;  // the frames that showed the data being read (load_in_window)
+    double peak_anon_mb = 0;
+    double first_frame_s = -1, first_complete_s = -1;
+    void add(const char *kind, const core::render::FrameStats &s, double ms) {
+        const double t = seconds_since_launch();
+        const double anon = rss_anon_mb();
+        peak_anon_mb = std::max(peak_anon_mb, anon);
+        if (first_frame_s < 0) first_frame_s = t;
+        if (first_complete_s < 0 && std::string(kind) == "complete") first_complete_s = t;
+        const bool drew = std::string(kind) != "still";
+        frames.push_back({{"t", t},
+                          {"ms", ms},
+                          {"kind", kind},
+                          {"step", drew ? s.refine_step : 0},
+                          {"chunks_left", s.refine_remaining},
+                          {"streamlines", drew ? s.streamlines_drawn : 0},
+                          {"points", drew ? s.points_drawn : 0},
+                          {"segments", drew ? s.segments_drawn : 0},
+                          {"triangles", drew ? s.triangles_drawn : 0},
+                          {"streamed_points", drew ? s.streamed_points : 0},
+                          {"proxy", drew && s.proxy},
+                          {"rss_anon_mb", anon}});
+    }
+    void write(const std::string &path, const core::render::Renderer &r, int w, int h) const {
+        std::uint64_t streamlines = 0, points = 0;
+        for (const auto &ob : r.scene().objects)
+            if (ob.kind == HZ_DATA_STREAMLINES && !ob.proxy_for && ob.visible)  // (not the hidden stand-ins of the region figures)
+                streamlines += ob.data.tractogram.nb_streamlines(), points += ob.data.tractogram.nb_vertices();
+        const nlohmann::json j = {{"window", {w, h}},
+                                  {"step_budget_ms", kStepMs},
+                                  {"streamlines", streamlines},
+                                  {"points", points},
+                                  {"streamlines_with_proxy", r.streamlines_with_proxy()},
+                                  {"first_frame_s", first_frame_s},
+                                  {"first_complete_s", first_complete_s},
+                                  {"peak_rss_anon_mb", peak_anon_mb},
+                                  {"gl", r.gl_description()},
+                                  {"loading", loading},
+                                  {"frames", frames}};
+        core::write_text_atomic(path, j.dump(1) + "\n", /*force=*/true);
+        std::printf("stats: %s (%zu frames)\n", path.c_str(), frames.size());
+        std::fflush(stdout);
+    }
+};
+
+// GLFW callbacks, installed before Dear ImGui's (which chains to them).
+void cb_button(GLFWwindow *w, int button, int action, int mods);
+void cb_cursor(GLFWwindow *w, double x, double y);
+void cb_scroll(GLFWwindow *w, double, double dy);
+void cb_char(GLFWwindow *w, unsigned int);
+void cb_refresh(GLFWwindow *w);
+void cb_key(GLFWwindow *w, int key, int, int action, int mods);
+
+// The material panel: one control per schema parameter.
+bool material_controls(const core::Registry &reg, const core::render::Object &o, core::render::Material &m);
+
+void save_screenshot(const core::Registry &reg, core::render::Renderer &r, const std::string &path, int w, int h);
+
+// Reads the scene (`make`) on another thread while the window shows what is
+// being read, how far and for how long (the innermost Progress), instead of
+// nothing: a 1M TRK takes seconds to decode. Input waits; closing the
+// window cancels the read (the command then ends with status 0). Returns
+// the scene, or nullopt when the window was closed; rethrows a read's error.
+std::optional<core::render::Scene> load_in_window(GLFWwindow *win, App &app, const std::function<core::render::Scene()> &make,
+                                                  nlohmann::json &log);
+
+}  // namespace hz::host::win
