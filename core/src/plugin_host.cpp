@@ -16,7 +16,6 @@
 #include <elf.h>
 #include <link.h>
 #include <set>
-#include <sys/sysmacros.h>
 #include <optional>
 #include <string_view>
 #include <sys/stat.h>
@@ -373,7 +372,10 @@ std::optional<FileId> path_id(const fs::path &f) {
 
 // The file mapped at `addr` in this process: the stat of its
 // /proc/self/map_files link (what a stat of the path gives, overlay file
-// systems included), else the device and inode /proc/self/maps shows.
+// systems included). nullopt when that link cannot be followed (it takes
+// CAP_SYS_ADMIN or CAP_CHECKPOINT_RESTORE on most kernels): the device and
+// inode /proc/self/maps shows are those of the layer below an overlay, not
+// what stat gives, so they cannot stand in.
 std::optional<FileId> mapped_id(const void *addr) {
     std::ifstream maps("/proc/self/maps");
     const auto a = reinterpret_cast<std::uintptr_t>(addr);
@@ -388,7 +390,7 @@ std::optional<FileId> mapped_id(const void *addr) {
         std::snprintf(link, sizeof link, "/proc/self/map_files/%lx-%lx", lo, hi);
         struct stat st {};
         if (::stat(link, &st) == 0) return FileId{static_cast<std::uint64_t>(st.st_dev), static_cast<std::uint64_t>(st.st_ino)};
-        return FileId{static_cast<std::uint64_t>(makedev(maj, min)), ino};
+        return std::nullopt;
     }
     return std::nullopt;
 }
@@ -428,8 +430,12 @@ Module::Module(const fs::path &file, std::optional<FileId> expect) : impl_(std::
                     "; this host supports ABI " + std::to_string(HZ_ABI_VERSION_MAJOR) + ".x");
     // The object mapped must be the inode the trial saw (a replacement
     // between the check above and dlopen): its constructors have run, but
-    // none of its code is called.
-    if (expect && mapped_id(entry_) != expect) throw Error(kReplaced);
+    // none of its code is called. (Where the mapping cannot be identified,
+    // the check of the path just before dlopen stands alone.)
+    if (expect) {
+        const auto mapped = mapped_id(entry_);
+        if (mapped && *mapped != *expect) throw Error(kReplaced);
+    }
     if (!e.init || !e.deinit || !e.get_plugin_count || !e.get_plugin_descriptor || !e.get_interface)
         throw Error("entry has a NULL function pointer");
     bool ok = false;

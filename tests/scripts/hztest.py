@@ -28,9 +28,19 @@ def environment(*args, env=None):
     if env:
         e.update(env)
     e["XDG_DATA_HOME"] = e.get("HZ_TEST_XDG", "/nonexistent-xdg")
-    if "ASAN_OPTIONS" in e and args and str(args[0]) in GL_COMMANDS:
+    if "ASAN_OPTIONS" in e and command_of(args) in GL_COMMANDS:
         e["ASAN_OPTIONS"] += ":detect_leaks=0"
     return e
+
+
+def command_of(args):
+    """The subcommand in a horizon command line (global options such as
+    `--plugin-dir D` may come before it)."""
+    args = [str(a) for a in args]
+    i = 0
+    while i < len(args) and args[i].startswith("-"):
+        i += 2 if args[i] in ("--plugin-dir", "--plugin-timeout") else 1
+    return args[i] if i < len(args) else None
 
 
 def run(*args, timeout=60, env=None):

@@ -142,8 +142,13 @@ TEST_CASE("the trial list: files that passed load without a child, in search ord
         CHECK(fs::path(r->rejected()[0].file).filename() == "b.so");
         // Once b.so is another inode, this process's dlopen() still returns
         // the b.so it loaded before under that name (glibc matches loaded
-        // objects by name): not the inode the trial saw, so it is refused.
-        CHECK_THAT(r->rejected()[0].reason, Catch::Contains(b_replaced ? "replaced after its trial" : "duplicate plugin id"));
+        // objects by name): not the inode the trial saw, so it is refused
+        // where the mapping can be identified (/proc/self/map_files: root),
+        // else rejected as the duplicate id it is.
+        if (b_replaced)
+            CHECK_THAT(r->rejected()[0].reason, Catch::Contains("replaced after its trial") || Catch::Contains("duplicate plugin id"));
+        else
+            CHECK_THAT(r->rejected()[0].reason, Catch::Contains("duplicate plugin id"));
         CHECK(fs::path(r->rejected()[1].file).filename() == "c.so");
         CHECK_THAT(r->rejected()[1].reason, Catch::Contains("SIGSEGV"));
         return r->trial_loads();
