@@ -6,7 +6,7 @@ import shutil
 import subprocess
 import unittest
 
-from hztest import BUILD, BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, run, run_json
+from hztest import BUILD, BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, environment, run, run_json
 
 BUNDLED_IDS = {"org.horizon.loader.tck", "org.horizon.loader.trk", "org.horizon.loader.trx", "org.horizon.loader.nifti",
                "org.horizon.shader.lambert", "org.horizon.shader.blinn_phong", "org.horizon.shader.line_stalling",
@@ -80,6 +80,51 @@ class PluginsTest(TempDirTest):
         text = run("--plugin-dir", d, "plugins", env=env).stdout
         self.assertIn("trial list", text)
         self.assertIn(lst, text)
+
+    def test_trial_list_cap_gone_files_and_default_place(self):
+        """The list keeps at most 256 entries (the newest), drops the entries
+        of files that are gone, and lives in $XDG_CACHE_HOME/horizon (else
+        ~/.cache/horizon) unless HORIZON_PLUGIN_CACHE says otherwise."""
+        def stamp(path):
+            st = os.stat(path)
+            return [st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns]
+        lst = self.path("trials.json")
+        fakes = self.path("fakes")
+        os.mkdir(fakes)
+        entries = []
+        for i in range(300):  # files that exist and are unchanged, as a real entry's are
+            f = os.path.join(fakes, f"p{i:03}.so")
+            with open(f, "w") as fh:
+                fh.write("x")
+            entries.append({"file": f, "stamp": stamp(f), "deps": [], "host": os.path.realpath(HORIZON), "host_stamp": stamp(HORIZON)})
+        gone = os.path.join(fakes, "gone.so")
+        entries.insert(250, {**entries[0], "file": gone})
+        with open(lst, "w") as fh:
+            json.dump({"format": "horizon-plugin-trials", "version": 2, "passed": entries}, fh)
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(TEMPLATES, "tpl_lambert_shader.so"), d)  # one new trial: the list is written again
+        run_json("--plugin-dir", d, "plugins", "--json", env={"HORIZON_PLUGIN_CACHE": lst})
+        with open(lst) as fh:
+            kept = [e["file"] for e in json.load(fh)["passed"]]
+        self.assertEqual(len(kept), 256)
+        self.assertNotIn(gone, kept)
+        # This command tried the lambert template and the bundled plugins
+        # (not on the list): they are the newest; the oldest fakes go.
+        new = [f for f in kept if not f.startswith(fakes)]
+        self.assertIn(os.path.join(d, "tpl_lambert_shader.so"), new)
+        fakes_kept = [f for f in kept if f.startswith(fakes)]
+        self.assertEqual(fakes_kept, [e["file"] for e in entries if e["file"] != gone][300 - (256 - len(new)):])
+        self.assertEqual(kept[-len(new):], new, "the new entries come last")
+        # The default place.
+        for env, where in (({"XDG_CACHE_HOME": self.path("xdg")}, self.path("xdg/horizon/plugin-trials.json")),
+                           ({"XDG_CACHE_HOME": "", "HOME": self.path("home")}, self.path("home/.cache/horizon/plugin-trials.json"))):
+            e = environment("plugins", env=env)
+            e.pop("HORIZON_PLUGIN_CACHE")
+            p = subprocess.run([HORIZON, "plugins", "--json"], capture_output=True, text=True, timeout=120, env=e)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            self.assertEqual(json.loads(p.stdout)["trial_list"], where)
+            self.assertTrue(os.path.isfile(where), where)
 
     def test_trial_list_is_invalidated_by_a_new_horizon(self):
         """Entries were vouched for by one build of `horizon`: another (an
