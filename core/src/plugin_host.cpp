@@ -111,7 +111,8 @@ std::optional<bool> exports_plugin_entry(std::ifstream &in, std::uintmax_t size,
     in.clear();
     in.seekg(static_cast<std::streamoff>(eh.e_shoff));
     if (!in.read(reinterpret_cast<char *>(sh.data()), static_cast<std::streamsize>(sh.size() * sizeof(Elf64_Shdr)))) return std::nullopt;
-    auto within = [&](const Elf64_Shdr &h) { return h.sh_offset <= size && h.sh_size <= size - h.sh_offset; };
+    // (a plugin's symbol tables are kilobytes: a bigger one is read by no one here; the trial load decides)
+    auto within = [&](const Elf64_Shdr &h) { return h.sh_offset <= size && h.sh_size <= size - h.sh_offset && h.sh_size <= (64u << 20); };
     auto read = [&](const Elf64_Shdr &h, std::vector<char> &out) {
         out.resize(h.sh_size);
         in.clear();
