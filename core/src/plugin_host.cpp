@@ -1008,7 +1008,7 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
         if (j.contains("deps") && j["deps"].is_array())
             for (const auto &d : j["deps"])
                 if (d.is_string()) deps.push_back(d.get<std::string>());
-        if (take_report(c.file, report, "trial load gave a malformed report", c.id()) && c.stamp) list.passed(c.key, *c.stamp, deps);
+        if (take_report(c.file, j, "trial load gave a malformed report", c.id()) && c.stamp) list.passed(c.key, *c.stamp, deps);
     }
     if (pid >= 0) end_child();
     list.save();
@@ -1020,9 +1020,8 @@ std::string Registry::trial_failure(const ChildResult &r) const {
     return "trial load " + r.describe() + " without a report";
 }
 
-bool Registry::take_report(const fs::path &file, const std::string &report, const std::string &if_malformed, std::optional<FileId> expect) {
-    const nlohmann::json j = nlohmann::json::parse(report, nullptr, false);
-    if (j.is_discarded() || !j.contains("ok") || !j["ok"].is_boolean()) {
+bool Registry::take_report(const fs::path &file, const nlohmann::json &j, const std::string &if_malformed, std::optional<FileId> expect) {
+    if (j.is_discarded() || !j.is_object() || !j.contains("ok") || !j["ok"].is_boolean()) {
         reject(file, if_malformed);
         return false;
     }
@@ -1046,7 +1045,7 @@ void Registry::add_file(const fs::path &file) {
         ++trial_loads_;
         const ChildResult r = run_in_child([&] { return trial_report(c.file, c.id(), 0); }, options_.timeout_s);
         if (r.timed_out || r.signal != 0) return reject(file, trial_failure(r));
-        take_report(file, r.output, trial_failure(r), c.id());
+        take_report(file, nlohmann::json::parse(r.output, nullptr, false), trial_failure(r), c.id());
         return;
     }
     load(file, c.id());

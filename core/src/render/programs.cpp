@@ -177,9 +177,7 @@ std::string check_fragment_program(const LoadedPlugin &shader, hz_shade_domain d
     std::vector<double> values;
     for (uint32_t i = 0; i < sh->param_count; ++i) {
         const hz_param_info *pi = sh->get_param(i);
-        for (uint32_t c = 0; c < pi->components; ++c)
-            values.push_back(pi->type == HZ_PARAM_FLOAT_ARRAY ? (c < pi->default_array_count ? pi->default_array[c] : 0.0)
-                                                              : pi->default_value[std::min<uint32_t>(c, 3)]);
+        for (uint32_t c = 0; c < pi->components; ++c) values.push_back(default_component(pi, c));
     }
     FragmentSpec f;
     f.shader = &shader;

@@ -33,6 +33,14 @@ struct FragmentSpec {
     std::vector<Light> lights;
 };
 
+// Component `c` of parameter `pi`'s default: default_value[c], or for a
+// FLOAT_ARRAY its default_array (default_value[0] past its end). The one
+// rule for a material's values (Renderer) and the validator's programs.
+inline double default_component(const hz_param_info *pi, std::uint32_t c) {
+    if (pi->type == HZ_PARAM_FLOAT_ARRAY) return c < pi->default_array_count ? pi->default_array[c] : pi->default_value[0];
+    return pi->default_value[c];
+}
+
 // The fragment program for `f`: the host's prelude and declarations, the
 // snippet (GLSL source string 1 from line 1; see with_snippet), the host's
 // main. Throws Error when the shader gives no GLSL for the domain.

@@ -755,8 +755,7 @@ struct Renderer::Impl {
             auto it = m.params.find(pi->name);
             const uint32_t comps = pi->components;
             for (uint32_t c = 0; c < comps; ++c) {
-                double v = pi->type == HZ_PARAM_FLOAT_ARRAY ? (c < pi->default_array_count ? pi->default_array[c] : pi->default_value[0])
-                                                            : pi->default_value[c];
+                double v = default_component(pi, c);
                 if (it != m.params.end()) {
                     if (it->second.size() != comps && !(pi->type == HZ_PARAM_FLOAT_ARRAY && it->second.size() <= comps))
                         throw Error(o.name + ": material: '" + pi->name + "' takes " + std::to_string(comps) + " value(s)");

@@ -12,6 +12,8 @@
 #include <hz/hz.h>
 #include <hz/core/data.hpp>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -188,7 +190,7 @@ private:
     // Acts on a trial load's JSON report: loads the file (returns true: the
     // trial passed), or rejects it with the plugin's reason, or with
     // `if_malformed` when the report is not one.
-    bool take_report(const fs::path &file, const std::string &report, const std::string &if_malformed,
+    bool take_report(const fs::path &file, const nlohmann::json &report, const std::string &if_malformed,
                      std::optional<FileId> expect = std::nullopt);
     std::string trial_failure(const ChildResult &r) const;  // why a trial load gave no report
 
