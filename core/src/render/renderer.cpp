@@ -1,6 +1,7 @@
 // The OpenGL renderer (see renderer.hpp).
 #include <hz/core/io.hpp>
 #include <hz/core/render/renderer.hpp>
+#include <hz/core/render/decimate.hpp>
 #include <hz/core/render/pick.hpp>
 
 #include "gl.hpp"
@@ -862,41 +863,6 @@ struct Renderer::Impl {
 
     // ----------------------------------------------------------------- upload
 
-    // Keeps the points a polyline needs within `tol` mm (greedy chord test,
-    // windows of at most 64 points), always the first and last.
-    static void decimate(const float *p, std::uint64_t n, double tol, std::vector<std::uint32_t> &keep) {
-        keep.clear();
-        if (n == 0) return;
-        keep.push_back(0);
-        if (n == 1) return;
-        if (tol <= 0) {
-            for (std::uint64_t i = 1; i < n; ++i) keep.push_back(std::uint32_t(i));
-            return;
-        }
-        const double tol2 = tol * tol;
-        std::uint64_t a = 0;
-        std::uint64_t j = 2;
-        while (j < n) {
-            // Can a..j be one chord?
-            const double ax = p[a * 3], ay = p[a * 3 + 1], az = p[a * 3 + 2];
-            const double dx = p[j * 3] - ax, dy = p[j * 3 + 1] - ay, dz = p[j * 3 + 2] - az;
-            const double dd = dx * dx + dy * dy + dz * dz;
-            bool ok = j - a <= 64;
-            for (std::uint64_t m = a + 1; ok && m < j; ++m) {
-                const double px = p[m * 3] - ax, py = p[m * 3 + 1] - ay, pz = p[m * 3 + 2] - az;
-                const double t = dd > 0 ? std::clamp((px * dx + py * dy + pz * dz) / dd, 0.0, 1.0) : 0.0;
-                const double ex = px - t * dx, ey = py - t * dy, ez = pz - t * dz;
-                ok = ex * ex + ey * ey + ez * ez <= tol2;
-            }
-            if (!ok) {
-                a = j - 1;
-                keep.push_back(std::uint32_t(a));
-            }
-            ++j;
-        }
-        keep.push_back(std::uint32_t(n - 1));
-    }
-
     // The colour all vertices share, if they share one.
     template <class Vertex>
     static std::optional<std::array<std::uint8_t, 4>> same_colour(const std::vector<Vertex> &verts) {
@@ -1006,7 +972,7 @@ struct Renderer::Impl {
             for (int i = 0; i <= 4096; ++i) t[i] = rgba8(srgb_to_linear(i / 4096.0), 0, 0)[0];
             return t;
         }();
-        return table[std::size_t(std::lround(std::min(std::abs(x), 1.0f) * 4096.0f))];
+        return table[std::size_t(std::min(std::abs(x), 1.0f) * 4096.0f + 0.5f)];  // (lround, without the call)
     }
 
     // The vertices of streamlines [a, b) of `d` (or of ids[a..b) when `ids`
