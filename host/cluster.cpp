@@ -80,7 +80,8 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     std::optional<Progress> reading(std::in_place, "reading " + o.input, !o.json);
     const core::Dataset ds = core::read_dataset(reg, o.input, reading->task());
     if (ds.kind != HZ_DATA_STREAMLINES) throw core::Error(o.input + ": not a tractogram");
-    // (A plugin older than ABI 1.5 gets a mapped TCK without its delimiters: copied here, while reading.)
+    // (A plugin that does not take delimiters (HZ_EXT_DELIMITED_STREAMLINES) gets a mapped TCK without
+    // them: copied here, while reading.)
     const core::Tractogram t = plugin->streamlines_for(ds.tractogram);
     // Taking the view makes the positions of an unaligned TCK (nibabel's
     // layout) aligned now: that copy is part of reading, not of clustering.

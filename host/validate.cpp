@@ -74,6 +74,67 @@ std::vector<Check> catalogue() {
                              return fail("declared interface '" + i + "' does not resolve");
                      return pass();
                  }});
+    c.push_back(
+        {"abi-extensions-served", 0,
+         "each extension the plugin lists (hz_extensions.h) is served whole: its table, struct_size and functions", [](const Ctx &x) {
+             const hz_plugin_entry &e = x.module.entry();
+             // The extensions this host knows: the smallest table and
+             // the kinds that may offer each.
+             struct Known {
+                 const char *id;
+                 std::size_t size;
+                 std::vector<hz_plugin_kind> kinds;
+             };
+             const Known known[] = {
+                 {HZ_EXT_MAPPED_POSITIONS, sizeof(hz_ext_mapped_positions), {HZ_KIND_LOADER}},
+                 {HZ_EXT_CHECKED_READ, sizeof(hz_ext_checked_read), {HZ_KIND_LOADER}},
+                 {HZ_EXT_DELIMITED_STREAMLINES, sizeof(hz_ext_delimited_streamlines), {HZ_KIND_LOADER, HZ_KIND_CLUSTERING}},
+             };
+             std::vector<std::string> offered, unknown;
+             for (std::size_t i = 1; i < x.plugin.interfaces.size(); ++i) {
+                 const std::string &id = x.plugin.interfaces[i];
+                 const Known *k = nullptr;
+                 for (const Known &c : known)
+                     if (id == c.id) k = &c;
+                 if (k == nullptr) {
+                     unknown.push_back(id);
+                     continue;
+                 }
+                 if (std::find(k->kinds.begin(), k->kinds.end(), x.plugin.kind) == k->kinds.end())
+                     return fail("lists '" + id + "', an extension for another kind of plugin than " +
+                                 core::plugin_kind_name(x.plugin.kind));
+                 const void *t = e.get_interface(x.plugin.id.c_str(), id.c_str());
+                 if (t == nullptr) return fail("lists '" + id + "' but get_interface() gives NULL for it");
+                 const std::uint32_t size = *static_cast<const std::uint32_t *>(t);
+                 if (size < k->size)
+                     return fail("'" + id + "' table struct_size " + std::to_string(size) + " < " + std::to_string(k->size));
+                 if (id == HZ_EXT_MAPPED_POSITIONS) {
+                     const auto *m = static_cast<const hz_ext_mapped_positions *>(t);
+                     if (!m->locate_positions || !m->read_offsets) return fail("'" + id + "' table with a NULL function");
+                 } else if (id == HZ_EXT_CHECKED_READ) {
+                     if (!static_cast<const hz_ext_checked_read *>(t)->read_streamlines_checked)
+                         return fail("'" + id + "' table with a NULL function");
+                 } else if (id == HZ_EXT_DELIMITED_STREAMLINES) {
+                     if (static_cast<const hz_ext_delimited_streamlines *>(t)->max_gap != 1)
+                         return fail("'" + id + "' max_gap " +
+                                     std::to_string(static_cast<const hz_ext_delimited_streamlines *>(t)->max_gap) + " (1 expected)");
+                 }
+                 offered.push_back(id);
+             }
+             // A served extension the descriptor does not list is never asked for.
+             for (const Known &k : known)
+                 if (std::find(x.plugin.interfaces.begin(), x.plugin.interfaces.end(), k.id) == x.plugin.interfaces.end() &&
+                     e.get_interface(x.plugin.id.c_str(), k.id) != nullptr)
+                     return fail(std::string("serves '") + k.id +
+                                 "' without listing it in its descriptor's interfaces (no host asks for it)");
+             std::string why = offered.empty() ? "offers none (the core table alone)" : "offers";
+             for (const auto &id : offered) why += " " + id;
+             if (!unknown.empty()) {
+                 why += "; ids this host does not know, ignored:";
+                 for (const auto &id : unknown) why += " " + id;
+             }
+             return pass(why);
+         }});
     add_loader_checks(c);
     add_shader_checks(c);
     add_clustering_checks(c);

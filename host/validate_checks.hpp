@@ -7,6 +7,8 @@
 
 #include <hz/core/plugin_host.hpp>
 
+#include <algorithm>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -49,6 +51,22 @@ inline const hz_shader &shader_of(const Ctx &c) {
 inline const hz_clustering &clustering_of(const Ctx &c) {
     return *static_cast<const hz_clustering *>(c.module.interface(c.plugin.id, HZ_INTERFACE_CLUSTERING));
 }
+
+// The table of extension `id` (hz_extensions.h) the checked plugin offers:
+// listed in its descriptor's interfaces, served, and at least sizeof(Table)
+// bytes; else NULL.
+template <class Table>
+const Table *extension_of(const Ctx &c, const char *id) {
+    const auto &ids = c.plugin.interfaces;
+    if (ids.empty() || std::find(ids.begin() + 1, ids.end(), id) == ids.end()) return nullptr;
+    const void *t = c.module.interface(c.plugin.id, id);
+    if (t == nullptr || *static_cast<const std::uint32_t *>(t) < sizeof(Table)) return nullptr;
+    return static_cast<const Table *>(t);
+}
+
+// `t` (gap 0) with one vertex holding `fill` after each streamline, as a
+// mapped TCK holds its NaN delimiters (gap 1). (validate_loaders.cpp)
+core::Tractogram with_gap(const core::Tractogram &t, float fill);
 
 // An hz_error ready to be filled by a plugin.
 inline hz_error new_error() {

@@ -181,6 +181,21 @@ void add_clustering_checks(std::vector<Check> &c) {
                          if (std::fabs(a.centroids[i] - b.centroids[i]) > 1e-6) return fail("two runs gave different centroids");
                      return pass();
                  }});
+    c.push_back({"clustering-delimited-input", HZ_KIND_CLUSTERING,
+                 "with HZ_EXT_DELIMITED_STREAMLINES offered, input with a NaN vertex after each streamline gives the same tree",
+                 [](const Ctx &x) {
+                     if (!extension_of<hz_ext_delimited_streamlines>(x, HZ_EXT_DELIMITED_STREAMLINES))
+                         return skip("does not offer HZ_EXT_DELIMITED_STREAMLINES");
+                     const core::Tractogram t = clustering_sample(x.opts.seed);
+                     Tree a, b;
+                     std::string msg;
+                     if (run_clustering(clustering_of(x), t, nullptr, a, msg) != HZ_OK) return fail(msg);
+                     if (run_clustering(clustering_of(x), with_gap(t, std::numeric_limits<float>::quiet_NaN()), nullptr, b, msg) != HZ_OK)
+                         return fail("with gap 1 (NaN delimiters): " + msg);
+                     if (a.parent != b.parent || a.offsets != b.offsets || a.members != b.members || a.centroids != b.centroids)
+                         return fail("gap 1 (NaN delimiters) gives another tree than the same streamlines without them");
+                     return pass(std::to_string(t.nb_streamlines()) + " streamlines, same tree with and without delimiters");
+                 }});
     c.push_back({"clustering-ordering", HZ_KIND_CLUSTERING,
                  "an explicit ordering is honoured: the same ordering gives the same tree, and the result is still a partition",
                  [](const Ctx &x) {

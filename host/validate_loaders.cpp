@@ -33,6 +33,24 @@ namespace hz::host::validation {
 
 using nlohmann::json;
 
+// `t` (gap 0) with one vertex holding `fill` after each streamline, as a
+// mapped TCK holds its NaN delimiters (gap 1).
+core::Tractogram with_gap(const core::Tractogram &t, float fill) {
+    std::vector<float> pos;
+    std::vector<std::uint64_t> off{0};
+    for (std::uint64_t s = 0; s < t.nb_streamlines(); ++s) {
+        pos.insert(pos.end(), t.positions.data() + 3 * t.begin(s), t.positions.data() + 3 * t.end(s));
+        pos.insert(pos.end(), {fill, fill, fill});
+        off.push_back(pos.size() / 3);
+    }
+    core::Tractogram g;
+    g.positions = core::Buffer<float>::copy_of(pos);
+    g.offsets = core::Buffer<std::uint64_t>::copy_of(off);
+    g.gap = 1;
+    g.reference = t.reference;
+    return g;
+}
+
 namespace {
 
 // ------------------------------------------------------------------ helpers
@@ -121,24 +139,6 @@ core::Tractogram sample_tractogram(std::uint64_t seed) {
     t.positions = core::Buffer<float>::copy_of(pos);
     t.offsets = core::Buffer<std::uint64_t>::copy_of(off);
     return t;
-}
-
-// `t` (gap 0) with one vertex holding `fill` after each streamline, as a
-// mapped TCK holds its NaN delimiters (gap 1).
-core::Tractogram with_gap(const core::Tractogram &t, float fill) {
-    std::vector<float> pos;
-    std::vector<std::uint64_t> off{0};
-    for (std::uint64_t s = 0; s < t.nb_streamlines(); ++s) {
-        pos.insert(pos.end(), t.positions.data() + 3 * t.begin(s), t.positions.data() + 3 * t.end(s));
-        pos.insert(pos.end(), {fill, fill, fill});
-        off.push_back(pos.size() / 3);
-    }
-    core::Tractogram g;
-    g.positions = core::Buffer<float>::copy_of(pos);
-    g.offsets = core::Buffer<std::uint64_t>::copy_of(off);
-    g.gap = 1;
-    g.reference = t.reference;
-    return g;
 }
 
 // Reads a streamline file through `l`; returns status, fills `t` and `msg`.
@@ -454,10 +454,11 @@ void add_loader_checks(std::vector<Check> &c) {
                      return pass(std::to_string(t.nb_streamlines()) + " streamlines");
                  }});
     c.push_back({"loader-writes-gap", HZ_KIND_LOADER,
-                 "a writer declaring HZ_LOADER_WRITES_GAP (1.8) skips the vertex after each streamline, NaN or not", [](const Ctx &x) {
+                 "a writer offering HZ_EXT_DELIMITED_STREAMLINES skips the vertex after each streamline, NaN or not", [](const Ctx &x) {
                      const hz_loader &l = loader_of(x);
-                     if (!(l.caps & HZ_LOADER_WRITES_GAP)) return skip("does not declare HZ_LOADER_WRITES_GAP");
-                     if (!writes_streamlines(l)) return fail("declares HZ_LOADER_WRITES_GAP without writing streamlines");
+                     if (!extension_of<hz_ext_delimited_streamlines>(x, HZ_EXT_DELIMITED_STREAMLINES))
+                         return skip("does not offer HZ_EXT_DELIMITED_STREAMLINES");
+                     if (!writes_streamlines(l)) return fail("offers HZ_EXT_DELIMITED_STREAMLINES without writing streamlines");
                      const core::Tractogram t = sample_tractogram(x.opts.seed);
                      for (const float fill : {std::numeric_limits<float>::quiet_NaN(), 1234.5f}) {
                          const std::string what = std::isnan(fill) ? "NaN" : "finite";
@@ -573,11 +574,13 @@ void add_loader_checks(std::vector<Check> &c) {
 
     c.push_back(
         {"loader-locate-positions", HZ_KIND_LOADER,
-         "locate_positions (1.4), when offered, names bytes equal to what read_streamlines gives, and offsets-only reads agree",
+         "HZ_EXT_MAPPED_POSITIONS, when offered, names bytes equal to what read_streamlines gives, and read_offsets agrees",
          [](const Ctx &x) {
              const hz_loader &l = loader_of(x);
-             if (!HZ_HAS_FIELD(&l, hz_loader, locate_positions) || !l.locate_positions) return skip("no locate_positions");
-             if (!l.read_streamlines) return fail("locate_positions without read_streamlines");
+             const auto *m = extension_of<hz_ext_mapped_positions>(x, HZ_EXT_MAPPED_POSITIONS);
+             if (m == nullptr) return skip("does not offer HZ_EXT_MAPPED_POSITIONS");
+             if (!m->locate_positions || !m->read_offsets) return fail("HZ_EXT_MAPPED_POSITIONS table with a NULL function");
+             if (!l.read_streamlines) return fail("HZ_EXT_MAPPED_POSITIONS without read_streamlines");
              std::string msg;
              const auto files = loader_samples(x, msg);
              if (files.empty()) return skip("no sample file");
@@ -588,38 +591,29 @@ void add_loader_checks(std::vector<Check> &c) {
              hz_reader *r = sample.r;
              const hz_dataset_info &info = sample.info;
              hz_error err = new_error();
-             // Asked without, then with, the delimited layout (1.5), then also
-             // offering to take vouched bounds (1.6), from a host of this size
-             // and of the 1.4 size: never a layout the host did not accept; a
-             // delimited extent holds each streamline's bytes followed by an
-             // all-NaN delimiter vertex; vouched bounds are the exact bounds.
+             {  // Offsets before any extent was located: refused, nothing written.
+                 std::vector<std::uint64_t> off(info.nb_streamlines + 1, 7);
+                 if (m->read_offsets(r, off.data(), off.size(), nullptr, &err) == HZ_OK)
+                     return fail("read_offsets answers HZ_OK before locate_positions");
+                 err = new_error();
+             }
+             // Asked without, then with, the delimited layout, then also
+             // offering to take vouched bounds, then also unaligned offsets:
+             // never a layout the host did not accept; a delimited extent
+             // holds each streamline's bytes followed by an all-NaN delimiter
+             // vertex; vouched bounds are the exact bounds.
              std::string how;
-             // Last, a host of 1.9 that also maps unaligned offsets.
              const hz_extent_flags kDelimited = HZ_EXTENT_DELIMITED, kChecked = HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED;
-             const std::pair<hz_extent_flags, std::uint32_t> asks[] = {{0, sizeof(hz_positions_extent)},
-                                                                       {kDelimited, sizeof(hz_positions_extent)},
-                                                                       {kChecked, HZ_POSITIONS_EXTENT_SIZE_1_4},
-                                                                       {kChecked, sizeof(hz_positions_extent)},
-                                                                       {kChecked | HZ_EXTENT_UNALIGNED, sizeof(hz_positions_extent)}};
-             for (const auto &[accepts, size] : asks) {
+             for (const hz_extent_flags accepts : {hz_extent_flags(0), kDelimited, kChecked, kChecked | HZ_EXTENT_UNALIGNED}) {
                  hz_positions_extent ext{};
-                 ext.struct_size = size;
+                 ext.struct_size = sizeof ext;
                  ext.accepts = accepts;
-                 constexpr double kUntouched = -12345.5;  // (past a 1.4-sized struct)
-                 for (int d = 0; d < 3; ++d) ext.bounds_min[d] = ext.bounds_max[d] = kUntouched;
-                 const hz_status st = l.locate_positions(r, &ext, &err);
+                 const hz_status st = m->locate_positions(r, &ext, &err);
                  if (st == HZ_E_UNSUPPORTED) {
                      if (accepts == 0)
                          how += " declines the plain layout;";
                      else if (accepts == kDelimited)
                          how += " declines the delimited layout too;";
-                     continue;
-                 }
-                 if (st == HZ_OK && size < sizeof ext) {
-                     if (ext.flags & HZ_EXTENT_CHECKED) return fail("vouches for bounds to a host whose struct has no room for them");
-                     for (int d = 0; d < 3; ++d)
-                         if (ext.bounds_min[d] != kUntouched || ext.bounds_max[d] != kUntouched)
-                             return fail("writes past the struct_size the host gave");
                      continue;
                  }
                  if (st != HZ_OK) return fail("status " + std::to_string(st) + ": " + err.message);
@@ -643,17 +637,15 @@ void add_loader_checks(std::vector<Check> &c) {
                  if ((ext.flags & HZ_EXTENT_HAS_CRC32) && crc32_z(0, reinterpret_cast<const Bytef *>(stored.data()), bytes) != ext.crc32)
                      return fail("the CRC-32 given does not match the located bytes");
                  core::Buffer<std::uint64_t> off(info.nb_streamlines + 1);
-                 hz_streamlines_dst dst{};
-                 dst.struct_size = sizeof dst;
-                 dst.flags = HZ_STREAMLINES_OFFSETS_ONLY;
-                 dst.offsets = off.data();
-                 dst.offsets_capacity = off.size();
-                 if (l.read_streamlines(r, &dst, nullptr, &err) != HZ_OK)
-                     return fail(std::string("an offsets-only read fails: ") + err.message);
+                 if (info.nb_streamlines > 0 && m->read_offsets(r, off.data(), off.size() - 1, nullptr, &err) == HZ_OK)
+                     return fail("read_offsets answers HZ_OK into a destination one entry short");
+                 err = new_error();
+                 if (m->read_offsets(r, off.data(), off.size(), nullptr, &err) != HZ_OK)
+                     return fail(std::string("read_offsets fails: ") + err.message);
                  if (!delimited) {
                      if (full.positions.size() * 4 != bytes || std::memcmp(stored.data(), full.positions.data(), bytes) != 0)
                          return fail("the located bytes differ from read_streamlines' positions");
-                     if (!std::equal(off.begin(), off.end(), full.offsets.begin())) return fail("offsets-only read gives other offsets");
+                     if (!std::equal(off.begin(), off.end(), full.offsets.begin())) return fail("read_offsets gives other offsets");
                      if (accepts == 0) how += " maps the plain layout;";
                      continue;
                  }
@@ -688,19 +680,22 @@ void add_loader_checks(std::vector<Check> &c) {
          }});
 
     c.push_back({"loader-vouched-positions", HZ_KIND_LOADER,
-                 "a vouch for the positions read_streamlines wrote (1.7), when given, is exact, and only given to a host with room for it",
+                 "HZ_EXT_CHECKED_READ, when offered, reads what read_streamlines reads and vouches exactly, only into a record with room",
                  [](const Ctx &x) {
                      const hz_loader &l = loader_of(x);
-                     if (!l.read_streamlines) return skip("no read_streamlines");
+                     const auto *cr = extension_of<hz_ext_checked_read>(x, HZ_EXT_CHECKED_READ);
+                     if (cr == nullptr) return skip("does not offer HZ_EXT_CHECKED_READ");
+                     if (!cr->read_streamlines_checked) return fail("HZ_EXT_CHECKED_READ table with a NULL function");
+                     if (!l.read_streamlines) return fail("HZ_EXT_CHECKED_READ without read_streamlines");
                      std::string msg;
                      const auto files = loader_samples(x, msg);
                      if (files.empty()) return skip("no sample file");
-                     // Each ask on a fresh reader: a host of this size, a host of the
-                     // 1.6 size (whose struct ends before `check`: a loader must not
-                     // look there), and a check record too small to write into.
-                     enum Ask { kFull, kOldHost, kShortCheck };
+                     core::Tractogram plain;
+                     if (read_with(l, files[0], plain, msg) != HZ_OK) return skip("sample does not read: " + msg);
+                     // Each ask on a fresh reader: a full check record, and one
+                     // whose struct_size has no room (the loader must not write it).
                      std::string how;
-                     for (const Ask ask : {kFull, kOldHost, kShortCheck}) {
+                     for (const bool room : {true, false}) {
                          const OpenedSample sample(l, files[0]);
                          if (!sample.error.empty()) return fail(sample.error);
                          const hz_dataset_info &info = sample.info;
@@ -711,30 +706,34 @@ void add_loader_checks(std::vector<Check> &c) {
                          t.offsets = core::Buffer<std::uint64_t>(info.nb_streamlines + 1);
                          constexpr double kUntouched = -12345.5;
                          hz_positions_check check{};
-                         check.struct_size = ask == kShortCheck ? sizeof check - 8 : sizeof check;
+                         check.struct_size = room ? sizeof check : sizeof check - 8;
                          for (int d = 0; d < 3; ++d) check.bounds_min[d] = check.bounds_max[d] = kUntouched;
                          hz_streamlines_dst dst{};
-                         dst.struct_size = ask == kOldHost ? HZ_STREAMLINES_DST_SIZE_1_4 : sizeof dst;
+                         dst.struct_size = sizeof dst;
                          dst.positions = t.positions.data();
                          dst.positions_capacity = t.positions.size();
                          dst.offsets = t.offsets.data();
                          dst.offsets_capacity = t.offsets.size();
-                         dst.check = &check;  // (past the struct of a 1.6-sized host)
-                         if (l.read_streamlines(sample.r, &dst, nullptr, &err) != HZ_OK)
-                             return skip(std::string("sample does not read: ") + err.message);
+                         if (cr->read_streamlines_checked(sample.r, &dst, &check, nullptr, &err) != HZ_OK)
+                             return fail(std::string("read_streamlines_checked fails where read_streamlines reads: ") + err.message);
+                         if (!std::equal(t.offsets.begin(), t.offsets.end(), plain.offsets.begin(), plain.offsets.end()) ||
+                             std::memcmp(t.positions.data(), plain.positions.data(), t.positions.size() * sizeof(float)) != 0)
+                             return fail("read_streamlines_checked writes other streamlines than read_streamlines");
                          bool touched = false;
                          for (int d = 0; d < 3; ++d) touched |= check.bounds_min[d] != kUntouched || check.bounds_max[d] != kUntouched;
-                         if (ask != kFull) {
-                             if (check.vouched != 0 || touched)
-                                 return fail(ask == kOldHost ? "writes through `check` for a host whose struct ends before it"
-                                                             : "writes a check record whose struct_size has no room for it");
+                         if (!room) {
+                             if (check.vouched != 0 || touched) return fail("writes a check record whose struct_size has no room for it");
                              continue;
                          }
                          if (check.vouched == 0) {
                              if (touched) return fail("writes bounds without vouching for them");
-                             return pass("does not vouch; the host checks what it wrote");
+                             how = "does not vouch for this sample; the host checks what it wrote";
+                             continue;
                          }
-                         if (info.nb_vertices == 0) return pass("vouches for an empty sample");
+                         if (info.nb_vertices == 0) {
+                             how = "vouches for an empty sample";
+                             continue;
+                         }
                          core::Bounds b;
                          try {
                              b = core::finite_bounds(t.positions.data(), info.nb_vertices, "the sample");
@@ -747,7 +746,7 @@ void add_loader_checks(std::vector<Check> &c) {
                                              ")");
                          how = "vouches for exact bounds";
                      }
-                     return pass(how + "; nothing for a host without room");
+                     return pass(how + "; nothing into a record without room");
                  }});
 }
 

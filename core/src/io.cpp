@@ -81,7 +81,7 @@ void verify_claim([[maybe_unused]] const Tractogram &t, [[maybe_unused]] const B
 #endif
 }
 
-// Zero-copy positions (ABI 1.4 locate_positions): maps `nb_vertices` x 3
+// Zero-copy positions (HZ_EXT_MAPPED_POSITIONS): maps `nb_vertices` x 3
 // float32 at ext.offset of ext.path copy-on-write (the data model may edit
 // them; the file never changes), verifies the zip CRC when the loader gave
 // one and the finiteness of every coordinate, and returns the bounds. The
@@ -388,13 +388,18 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
         Tractogram &t = ds.tractogram;
         std::copy(std::begin(info.voxel_to_ras), std::end(info.voxel_to_ras), t.reference.begin());
         std::copy(std::begin(info.ref_dims), std::end(info.ref_dims), t.reference_dims.begin());
-        // Zero-copy when the loader can say where float32 RAS+ mm positions lie.
+        // Zero-copy when the loader can say where float32 RAS+ mm positions
+        // lie (HZ_EXT_MAPPED_POSITIONS).
+        const auto *located = p.extension<hz_ext_mapped_positions>(HZ_EXT_MAPPED_POSITIONS);
+        if (located != nullptr && (located->locate_positions == nullptr || located->read_offsets == nullptr)) located = nullptr;
+        const auto *checked = p.extension<hz_ext_checked_read>(HZ_EXT_CHECKED_READ);
+        if (checked != nullptr && checked->read_streamlines_checked == nullptr) checked = nullptr;
         hz_positions_extent ext{};
         ext.struct_size = sizeof ext;
         ext.accepts = HZ_EXTENT_DELIMITED | HZ_EXTENT_CHECKED | HZ_EXTENT_UNALIGNED;
         bool mapped = false;
-        if (HZ_HAS_FIELD(l, hz_loader, locate_positions) && l->locate_positions != nullptr && info.nb_vertices > 0) {
-            st = l->locate_positions(g.r, &ext, &err);
+        if (located != nullptr && info.nb_vertices > 0) {
+            st = located->locate_positions(g.r, &ext, &err);
             if (st == HZ_OK)
                 mapped = true;
             else if (st != HZ_E_UNSUPPORTED)
@@ -412,9 +417,7 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
         dst.struct_size = sizeof dst;
         hz_positions_check check{};
         check.struct_size = sizeof check;
-        if (mapped) {
-            dst.flags = HZ_STREAMLINES_OFFSETS_ONLY;
-        } else {
+        if (!mapped) {
             {
                 const std::size_t n = 3 * info.nb_vertices;
                 if (n) {
@@ -425,12 +428,19 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
             }
             dst.positions = t.positions.data();
             dst.positions_capacity = t.positions.size();
-            dst.check = &check;  // (1.7: the loader may vouch for what it wrote)
         }
         dst.offsets = t.offsets.data();
         dst.offsets_capacity = t.offsets.size();
-        st = l->read_streamlines(g.r, &dst, task, &err);
-        if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines"));
+        if (mapped) {  // (the positions are mapped: only the offsets are read)
+            st = located->read_offsets(g.r, t.offsets.data(), t.offsets.size(), task, &err);
+            if (st != HZ_OK) throw Error(failure(err, st, path, "read_offsets"));
+        } else if (checked != nullptr) {  // (the loader may vouch for what it wrote)
+            st = checked->read_streamlines_checked(g.r, &dst, &check, task, &err);
+            if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines_checked"));
+        } else {
+            st = l->read_streamlines(g.r, &dst, task, &err);
+            if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines"));
+        }
         if (delimited) {
             t.positions = map_positions(ext, stored, path, ds.bounds);
             t.gap = 1;
@@ -565,10 +575,10 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
         view.mesh_nb_faces = ds.mesh.nb_faces();
         std::copy(ds.mesh.transform.begin(), ds.mesh.transform.end(), view.voxel_to_ras);
     }
-    // A mapped TCK keeps its delimiters (gap 1) for a writer that declares it
-    // takes them (ABI 1.8) and when no per-vertex array is indexed around
-    // them; other writers get a copy without them.
-    const bool pass_gap = ds.kind == HZ_DATA_STREAMLINES && (l->caps & HZ_LOADER_WRITES_GAP) &&
+    // A mapped TCK keeps its delimiters (gap 1) for a writer that takes them
+    // (HZ_EXT_DELIMITED_STREAMLINES) and when no per-vertex array is indexed
+    // around them; other writers get a copy without them.
+    const bool pass_gap = ds.kind == HZ_DATA_STREAMLINES && p.takes_gap() &&
                           std::none_of(ds.tractogram.arrays.begin(), ds.tractogram.arrays.end(),
                                        [](const DataArray &a) { return a.attach == HZ_ATTACH_VERTEX; });
     const Tractogram compact = ds.kind != HZ_DATA_STREAMLINES ? Tractogram{}

@@ -336,13 +336,14 @@ const char *core_interface(hz_plugin_kind k) {
     }
 }
 // The smallest table a plugin of this major may give: the table as ABI 1.0
-// defined it. Fields appended since (hz_loader.locate_positions in 1.4,
-// hz_shader.functions and eval_function in 1.2) are read only where
-// struct_size covers them (HZ_HAS_FIELD), so a plugin built against an
-// older 1.x header loads (tests/abi/v1_0).
+// defined it. Fields appended since (hz_shader.functions and eval_function
+// in 1.2) are read only where struct_size covers them (HZ_HAS_FIELD), so a
+// plugin built against an older 1.x header loads (tests/abi/v1_0). (The
+// loader table is the 1.0 table: what 1.4-1.9 appended to it a host of 1.10
+// never reads; those capabilities are extensions now, hz_extensions.h.)
 std::size_t core_interface_min_size(hz_plugin_kind k) {
     switch (k) {
-    case HZ_KIND_LOADER: return offsetof(hz_loader, locate_positions);
+    case HZ_KIND_LOADER: return offsetof(hz_loader, write) + sizeof(hz_loader::write);
     case HZ_KIND_SHADER: return offsetof(hz_shader, functions);
     case HZ_KIND_CLUSTERING: return sizeof(hz_clustering);
     default: return 0;
@@ -598,6 +599,15 @@ std::vector<PluginInfo> Module::plugins() const {
 
 const void *Module::interface(const std::string &plugin_id, const char *iface) const {
     return entry_->get_interface(plugin_id.c_str(), iface);
+}
+
+const void *LoadedPlugin::extension(const char *id, std::size_t min_size) const {
+    if (!module ||
+        std::find(info.interfaces.begin() + (info.interfaces.empty() ? 0 : 1), info.interfaces.end(), id) == info.interfaces.end())
+        return nullptr;
+    const void *t = module->interface(info.id, id);
+    if (t == nullptr || *static_cast<const std::uint32_t *>(t) < min_size) return nullptr;
+    return t;
 }
 
 // ---------------------------------------------------------------- registry

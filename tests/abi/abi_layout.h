@@ -1,5 +1,5 @@
 /*
- * Layout locks for the 1.0 ABI on LP64 (x86-64, AArch64): a field that moves
+ * Layout locks for the 1.x ABI on LP64 (x86-64, AArch64): a field that moves
  * or changes size breaks every plugin built before, so each is pinned here.
  * Included from a C and a C++ translation unit.
  */
@@ -29,16 +29,19 @@ HZ_SA(offsetof(hz_param_info, min_value) == 56, "param.min_value");
 HZ_SA(sizeof(hz_dataset_info) == 312, "hz_dataset_info");
 HZ_SA(offsetof(hz_dataset_info, voxel_to_ras) == 152, "info.voxel_to_ras");
 HZ_SA(offsetof(hz_loader, write) == 104, "loader.write (1.0 layout)");
-HZ_SA(offsetof(hz_loader, locate_positions) == 112, "loader.locate_positions (1.4)");
-HZ_SA(sizeof(hz_loader) == 120, "hz_loader (1.4)");
-HZ_SA(offsetof(hz_streamlines_dst, flags) == 4, "streamlines_dst.flags (1.4, was reserved0)");
-HZ_SA(offsetof(hz_streamlines_dst, check) == HZ_STREAMLINES_DST_SIZE_1_4, "streamlines_dst.check (1.7, appended)");
-HZ_SA(sizeof(hz_streamlines_dst) == 48, "hz_streamlines_dst (1.7)");
-HZ_SA(sizeof(hz_positions_check) == 56, "hz_positions_check (1.7)");
+HZ_SA(sizeof(hz_loader) == 112, "hz_loader (the 1.0 table, again since 1.10)");
+HZ_SA(offsetof(hz_streamlines_dst, reserved0) == 4, "streamlines_dst.reserved0");
+HZ_SA(sizeof(hz_streamlines_dst) == 40, "hz_streamlines_dst (the 1.0 struct, again since 1.10)");
+/* Extension tables (hz_extensions.h, since 1.10). */
+HZ_SA(sizeof(hz_positions_check) == 56, "hz_positions_check");
 HZ_SA(offsetof(hz_positions_extent, offset) == 16, "positions_extent.offset");
-HZ_SA(offsetof(hz_positions_extent, accepts) == 28, "positions_extent.accepts (1.5, was reserved0)");
-HZ_SA(offsetof(hz_positions_extent, bounds_min) == HZ_POSITIONS_EXTENT_SIZE_1_4, "positions_extent.bounds_min (1.6, appended)");
-HZ_SA(sizeof(hz_positions_extent) == 80, "hz_positions_extent (1.6)");
+HZ_SA(offsetof(hz_positions_extent, accepts) == 28, "positions_extent.accepts");
+HZ_SA(offsetof(hz_positions_extent, bounds_min) == 32, "positions_extent.bounds_min");
+HZ_SA(sizeof(hz_positions_extent) == 80, "hz_positions_extent");
+HZ_SA(offsetof(hz_ext_mapped_positions, locate_positions) == 8, "ext_mapped_positions.locate_positions");
+HZ_SA(sizeof(hz_ext_mapped_positions) == 24, "hz_ext_mapped_positions");
+HZ_SA(sizeof(hz_ext_checked_read) == 16, "hz_ext_checked_read");
+HZ_SA(sizeof(hz_ext_delimited_streamlines) == 8, "hz_ext_delimited_streamlines");
 HZ_SA(sizeof(hz_shade_point) == 136, "hz_shade_point");
 HZ_SA(offsetof(hz_shader, eval_reference) == 48, "shader.eval_reference (1.0 layout)");
 HZ_SA(sizeof(hz_shader) == 72, "hz_shader (1.2)");

@@ -53,12 +53,12 @@ class ClusterVsDipyTest(TempDirTest):
 
     def test_mapped_and_copied_tck_cluster_alike(self):
         # demo writes its TCK aligned, as MRtrix does: mapped with the NaN delimiters
-        # in place, which the plugin skips (ABI 1.5 gap); every DIPY comparison in this
+        # in place, which the plugin skips (hz.ext.delimited-streamlines/1); every DIPY comparison in this
         # class therefore runs on the mapped path.
         self.assertTrue(run_json("info", self.tck, "--json")["positions_mapped"])
         # The same streamlines with the data at an offset that is not a multiple of 4
         # (as nibabel writes them): mapped, and copied to aligned memory when the
-        # clustering plugin is handed them (ABI 1.9).
+        # clustering plugin is handed them (HZ_EXTENT_UNALIGNED).
         for pad in range(4):
             f = self.path("unaligned.tck")
             with open(f, "wb") as fh:

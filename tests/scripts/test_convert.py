@@ -43,7 +43,7 @@ class ConvertTest(TempDirTest):
     def test_mapped_tck_written_with_its_delimiters_skipped(self):
         # Horizon's own TCK (data on a multiple of 4 bytes) is mapped with its
         # NaN delimiters in place; the TCK, TRK and TRX writers take it as it
-        # is (ABI 1.8 HZ_LOADER_WRITES_GAP) and skip them. All must hold the
+        # is (hz.ext.delimited-streamlines/1) and skip them. All must hold the
         # same streamlines, the empty one included.
         import nibabel as nib
         b = self.path("b.tck")

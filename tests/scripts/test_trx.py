@@ -106,8 +106,8 @@ class TrxTest(TempDirTest):
         self.assertEqual(p.stderr.count("dropped"), 4)
 
     def test_zero_copy(self):
-        """Float32 positions stored as plain bytes at an aligned offset are mapped, not copied (ABI 1.4
-        locate_positions): Horizon's own files, the directory form, and other writers' zips when aligned.
+        """Float32 positions stored as plain bytes at an aligned offset are mapped, not copied
+        (hz.ext.mapped-positions/1): Horizon's own files, the directory form, and other writers' zips when aligned.
         Everything else is read as before, with the same answer."""
         rng = np.random.default_rng(12)
         sl = random_streamlines(40, rng, 2, 30)

@@ -7,7 +7,7 @@ import shutil
 import subprocess
 import unittest
 
-from hztest import BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, environment, run
+from hztest import BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, environment, make_tractogram, run
 
 
 def checks(report):
@@ -62,7 +62,8 @@ class ValidateTest(TempDirTest):
         # What may be skipped, and why: only checks that do not apply to the
         # plugin (a mesh loader reads no streamlines). A check skipped for
         # any other reason, or a new skip, fails here.
-        not_applicable = ("does not declare HZ_LOADER_WRITES_GAP", "does not write streamlines or volumes", "no locate_positions",
+        not_applicable = ("does not offer HZ_EXT_DELIMITED_STREAMLINES", "does not offer HZ_EXT_MAPPED_POSITIONS",
+                          "does not offer HZ_EXT_CHECKED_READ", "does not write streamlines or volumes",
                           "no read_streamlines", "reads neither streamlines nor volumes", "not claimed")
         for f in files:
             with self.subTest(plugin=os.path.basename(f)):
@@ -128,17 +129,17 @@ class ValidateTest(TempDirTest):
             self.assertEqual(c[name]["status"], "passed", name)
 
     def test_zero_copy_contract_is_checked(self):
-        # TRX offers locate_positions (ABI 1.4): the located bytes, CRC and offsets-only read are checked.
+        # TRX offers HZ_EXT_MAPPED_POSITIONS: the located bytes, CRC and read_offsets are checked.
         rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_trx.so"))
         self.assertEqual(checks(rep)["loader-locate-positions"]["status"], "passed")
         self.assertIn("maps the plain layout", checks(rep)["loader-locate-positions"]["reason"])
-        # TCK (ABI 1.5) maps only when the host accepts the delimited layout: each streamline's
+        # TCK maps only when the host accepts the delimited layout: each streamline's
         # bytes and its all-NaN delimiter are checked against a copying read.
         rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_tck.so"))
         c = checks(rep)["loader-locate-positions"]
         self.assertEqual(c["status"], "passed")
         self.assertEqual(c["reason"], "declines the plain layout; maps the delimited layout; vouches for exact bounds")
-        # (ABI 1.9) Given a TCK as nibabel writes it (data at byte 67), the loader offers
+        # Given a TCK as nibabel writes it (data at byte 67), the loader offers
         # the extent only to a host that accepts unaligned offsets, and flags it.
         import nibabel as nib
         import numpy as np
@@ -151,15 +152,16 @@ class ValidateTest(TempDirTest):
         self.assertEqual(c["status"], "passed", c)
         self.assertEqual(c["reason"], "declines the plain layout; declines the delimited layout too; maps an unaligned extent; "
                                       "vouches for exact bounds")
-        # (ABI 1.7) TCK and TRK vouch for the positions they copy (exact bounds, checked
-        # against the validator's own pass); TRX leaves its decoded copies to the host.
-        for name, reason in (("tck", "vouches for exact bounds"), ("trk", "vouches for exact bounds"),
-                             ("trx", "does not vouch; the host checks what it wrote")):
+        # TCK and TRK vouch for the positions they copy (HZ_EXT_CHECKED_READ: exact
+        # bounds, checked against the validator's own pass); TRX does not offer it and
+        # leaves its decoded copies to the host.
+        for name, status, reason in (("tck", "passed", "vouches for exact bounds"), ("trk", "passed", "vouches for exact bounds"),
+                                     ("trx", "skipped", "does not offer HZ_EXT_CHECKED_READ")):
             rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_%s.so" % name))
             c = checks(rep)["loader-vouched-positions"]
-            self.assertEqual(c["status"], "passed", (name, c))
+            self.assertEqual(c["status"], status, (name, c))
             self.assertTrue(c["reason"].startswith(reason), (name, c))
-        # (ABI 1.6) The same loader vouching for bounds 1 mm too wide fails exactly that check.
+        # The same loader vouching for bounds 1 mm too wide fails exactly that check.
         rc, rep = self.validate(os.path.join(FIXTURES, "fx_tck_lying_bounds.so"))
         self.assertEqual(rc, 1)
         failed = {c["check"]: c["reason"] for c in rep["checks"] if c["status"] == "failed"}
@@ -176,15 +178,41 @@ class ValidateTest(TempDirTest):
         self.assertIn(reason, failed[check])
 
     def test_vouch_past_struct_size_fails(self):
-        # ABI 1.7: a loader that writes through hz_streamlines_dst.check for a
-        # host whose struct ends before it (or into a check record too small).
+        # HZ_EXT_CHECKED_READ: a loader that writes into a check record whose
+        # struct_size has no room for it.
         self.assert_fails_only("fx_tck_ignores_sizes.so", "loader-vouched-positions",
-                               "writes through `check` for a host whose struct ends before it")
+                               "writes a check record whose struct_size has no room for it")
 
     def test_writer_ignoring_the_gap_fails(self):
-        # ABI 1.8: a loader that declares HZ_LOADER_WRITES_GAP but writes the
+        # HZ_EXT_DELIMITED_STREAMLINES: a loader that offers it but writes the
         # vertex after each streamline as a point.
         self.assert_fails_only("fx_tck_ignores_gap.so", "loader-writes-gap", "gap 1 (NaN gap vertices)")
+
+    def test_extensions_are_asked_for_only_when_listed(self):
+        # A loader serving extension tables its descriptor does not list: the
+        # validator fails it, naming the extension; the host never asks for
+        # them, so the file reads as through a plain 1.0 loader (a copy,
+        # checked by the host), with the same streamlines.
+        self.assert_fails_only("fx_tck_unlisted_extensions.so", "abi-extensions-served",
+                               "serves 'hz.ext.mapped-positions/1' without listing it")
+        d = self.path("unlisted")
+        os.makedirs(d)
+        shutil.copy(os.path.join(FIXTURES, "fx_tck_unlisted_extensions.so"), d)
+        plugins = json.loads(run("--plugin-dir", d, "plugins", "--json").stdout)
+        listed = {p["id"]: p["interfaces"] for p in plugins["plugins"]}
+        self.assertEqual(listed["org.horizon.test.tck-unlisted-extensions"], ["hz.loader/1"])
+        self.assertEqual(listed["org.horizon.loader.tck"],
+                         ["hz.loader/1", "hz.ext.mapped-positions/1", "hz.ext.checked-read/1", "hz.ext.delimited-streamlines/1"])
+        tck = self.path("x.tck")
+        make_tractogram(tck, 300, 5)
+        plain = json.loads(run("--plugin-dir", d, "info", tck, "--json").stdout)
+        mapped = json.loads(run("info", tck, "--json").stdout)
+        self.assertEqual(plain["loader"], "org.horizon.test.tck-unlisted-extensions")
+        self.assertFalse(plain["positions_mapped"])
+        self.assertEqual(mapped["loader"], "org.horizon.loader.tck")
+        self.assertTrue(mapped["positions_mapped"])
+        for k in ("nb_streamlines", "nb_vertices", "bbox_ras_mm"):
+            self.assertEqual(plain[k], mapped[k], k)
 
     def test_templates_pass(self):
         for f in sorted(glob.glob(os.path.join(TEMPLATES, "*.so"))):

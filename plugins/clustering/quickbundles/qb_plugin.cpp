@@ -180,7 +180,7 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
     c.has_result = false;
     return hz::guard(err, [&]() -> hz_status {
         try {
-            // (gap: ABI 1.5, zero from older hosts.)
+            // (gap: 0 or 1, as HZ_EXT_DELIMITED_STREAMLINES allows.)
             if (in->gap > 1) return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "run: gap %u (0 or 1 supported)", in->gap);
             const qb::Input input{in->positions, in->offsets, in->nb_streamlines, in->gap};
             std::vector<std::uint64_t> order;  // (empty: file order)
@@ -245,7 +245,12 @@ constexpr hz_clustering make_table() {
 }
 const hz_clustering kTables[] = {make_table<Algo::QB>(), make_table<Algo::QBX>(), make_table<Algo::Merge>()};
 
-const char *const kInterfaces[] = {HZ_INTERFACE_CLUSTERING, nullptr};
+// Every algorithm takes a mapped TCK as it is (HZ_EXT_DELIMITED_STREAMLINES).
+const hz_ext_delimited_streamlines kDelimited = {
+    .struct_size = sizeof(hz_ext_delimited_streamlines),
+    .max_gap = 1,
+};
+const char *const kInterfaces[] = {HZ_INTERFACE_CLUSTERING, HZ_EXT_DELIMITED_STREAMLINES, nullptr};
 const hz_plugin_descriptor kDescriptors[] = {
     {
         .struct_size = sizeof(hz_plugin_descriptor),
@@ -290,9 +295,12 @@ void HZ_ABI deinit() {}
 uint32_t HZ_ABI count() { return 3; }
 const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i < 3 ? &kDescriptors[i] : nullptr; }
 const void *HZ_ABI get_interface(const char *id, const char *iface) {
-    if (id == nullptr || iface == nullptr || std::strcmp(iface, HZ_INTERFACE_CLUSTERING) != 0) return nullptr;
+    if (id == nullptr || iface == nullptr) return nullptr;
     for (int i = 0; i < 3; ++i)
-        if (std::strcmp(id, kDescriptors[i].id) == 0) return &kTables[i];
+        if (std::strcmp(id, kDescriptors[i].id) == 0) {
+            if (std::strcmp(iface, HZ_INTERFACE_CLUSTERING) == 0) return &kTables[i];
+            if (std::strcmp(iface, HZ_EXT_DELIMITED_STREAMLINES) == 0) return &kDelimited;
+        }
     return nullptr;
 }
 

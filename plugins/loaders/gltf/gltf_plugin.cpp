@@ -566,7 +566,6 @@ const hz_loader kLoader = {
     .read_mesh = read_mesh,
     .close = close,
     .write = write,
-    .locate_positions = nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {

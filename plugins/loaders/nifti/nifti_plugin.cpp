@@ -281,7 +281,6 @@ const hz_loader kLoader = {
     .read_mesh = nullptr,
     .close = close,
     .write = write,
-    .locate_positions = nullptr,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {

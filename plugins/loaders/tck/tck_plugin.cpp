@@ -13,10 +13,12 @@ namespace {
 
 #if defined(TCK_FIXTURE_LYING_BOUNDS)  // tests/fixtures: the same loader vouching for bounds 1 mm too wide in x (mapped or copied)
 constexpr const char *kId = "org.horizon.test.tck-lying-bounds";
-#elif defined(TCK_FIXTURE_IGNORES_SIZES)  // tests/fixtures: vouching through dst->check whatever the struct sizes
+#elif defined(TCK_FIXTURE_IGNORES_SIZES)        // tests/fixtures: vouching through `check` whatever its struct_size
 constexpr const char *kId = "org.horizon.test.tck-ignores-sizes";
-#elif defined(TCK_FIXTURE_IGNORES_GAP)    // tests/fixtures: HZ_LOADER_WRITES_GAP declared, the gap written as points
+#elif defined(TCK_FIXTURE_IGNORES_GAP)          // tests/fixtures: HZ_EXT_DELIMITED_STREAMLINES offered, the gap written as points
 constexpr const char *kId = "org.horizon.test.tck-ignores-gap";
+#elif defined(TCK_FIXTURE_UNLISTED_EXTENSIONS)  // tests/fixtures: extension tables served but not listed
+constexpr const char *kId = "org.horizon.test.tck-unlisted-extensions";
 #else
 constexpr const char *kId = "org.horizon.loader.tck";
 #endif
@@ -125,23 +127,11 @@ void vouch(const tck::Layout &L, double *lo, double *hi) {
 #endif
 }
 
-hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *dst, const hz_task *task, hz_error *err) {
+// Decodes every streamline into the host's buffers; with `check`
+// (HZ_EXT_CHECKED_READ), vouches for what it wrote.
+hz_status read_into(hz_reader *reader, const hz_streamlines_dst *dst, hz_positions_check *check, const hz_task *task, hz_error *err) {
     if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: read_streamlines: NULL");
     Reader &r = *as_reader(reader);
-    if ((dst->flags & HZ_STREAMLINES_OFFSETS_ONLY) != 0) {
-        // After locate_positions(): offsets into the mapped span, delimiters included.
-        if (!r.mapped || dst->offsets == nullptr)
-            return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: offsets-only read without locate_positions", r.path.c_str());
-        if (dst->offsets_capacity < r.layout.nb_streamlines + 1)
-            return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "tck: %s: destination holds %llu offsets, need %llu", r.path.c_str(),
-                                  (unsigned long long)dst->offsets_capacity, (unsigned long long)(r.layout.nb_streamlines + 1));
-        if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
-        const auto &D = r.layout.delimiters;
-        hzio::prefault_write(dst->offsets, (r.layout.nb_streamlines + 1) * sizeof(std::uint64_t));  // (one call, not a fault a page)
-        dst->offsets[0] = 0;
-        for (std::uint64_t k = 0; k < r.layout.nb_streamlines; ++k) dst->offsets[k + 1] = D[k] + 1;
-        return HZ_OK;
-    }
     if ((dst->positions == nullptr && r.layout.nb_vertices > 0) || dst->offsets == nullptr)
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: read_streamlines: NULL destination", r.path.c_str());
     if (dst->positions_capacity < 3 * r.layout.nb_vertices || dst->offsets_capacity < r.layout.nb_streamlines + 1)
@@ -154,9 +144,7 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         // Float32LE data are copied as they are, and the scan read every
         // coordinate (finite outside the delimiters) and found their bounds.
 #ifndef TCK_FIXTURE_IGNORES_SIZES
-        hz_positions_check *check = hz::positions_check(dst);
-#else
-        hz_positions_check *check = dst->check;
+        if (check != nullptr && check->struct_size < sizeof(hz_positions_check)) check = nullptr;
 #endif
         if (check != nullptr && r.layout.has_bounds) {
             check->vouched = 1;
@@ -167,15 +155,26 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
     });
 }
 
-// Float32LE positions are already RAS+ mm float32 in the host's byte order:
-// the host maps them, the NaN delimiter after each streamline in place
-// (HZ_EXTENT_DELIMITED), when it accepts that layout.
+hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *dst, const hz_task *task, hz_error *err) {
+    return read_into(reader, dst, nullptr, task, err);
+}
+
+// HZ_EXT_CHECKED_READ.
+hz_status HZ_ABI read_streamlines_checked(hz_reader *reader, const hz_streamlines_dst *dst, hz_positions_check *check, const hz_task *task,
+                                          hz_error *err) {
+    if (check == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: read_streamlines_checked: NULL check");
+    return read_into(reader, dst, check, task, err);
+}
+
+// HZ_EXT_MAPPED_POSITIONS. Float32LE positions are already RAS+ mm float32
+// in the host's byte order: the host maps them, the NaN delimiter after each
+// streamline in place (HZ_EXTENT_DELIMITED), when it accepts that layout.
 hz_status HZ_ABI locate_positions(hz_reader *reader, hz_positions_extent *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr || out->struct_size < HZ_POSITIONS_EXTENT_SIZE_1_4)
+    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_positions_extent))
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: locate_positions: bad arguments");
     Reader &r = *as_reader(reader);
     const bool delimited_ok = (out->accepts & HZ_EXTENT_DELIMITED) != 0;
-    // (nibabel and DIPY write the data at byte 67: a host of ABI 1.9 maps it anyway.)
+    // (nibabel and DIPY write the data at byte 67: mapped all the same, when the host accepts it.)
     const bool unaligned = r.header.data_offset % 4 != 0;
     if (!delimited_ok || r.header.datatype != tck::DataType::Float32LE || std::endian::native != std::endian::little ||
         (unaligned && (out->accepts & HZ_EXTENT_UNALIGNED) == 0) || r.layout.nb_streamlines == 0 ||
@@ -187,11 +186,27 @@ hz_status HZ_ABI locate_positions(hz_reader *reader, hz_positions_extent *out, h
     out->crc32 = 0;
     // The scan read every coordinate: the walk rejected any NaN/Inf outside
     // an all-NaN delimiter, and the bounds came with it.
-    if ((out->accepts & HZ_EXTENT_CHECKED) != 0 && out->struct_size >= sizeof(hz_positions_extent) && r.layout.has_bounds) {
+    if ((out->accepts & HZ_EXTENT_CHECKED) != 0 && r.layout.has_bounds) {
         out->flags |= HZ_EXTENT_CHECKED;
         vouch(r.layout, out->bounds_min, out->bounds_max);
     }
     r.mapped = true;
+    return HZ_OK;
+}
+
+// HZ_EXT_MAPPED_POSITIONS: offsets into the mapped span, delimiters included.
+hz_status HZ_ABI read_offsets(hz_reader *reader, uint64_t *offsets, uint64_t capacity, const hz_task *task, hz_error *err) {
+    if (reader == nullptr || offsets == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: read_offsets: NULL");
+    Reader &r = *as_reader(reader);
+    if (!r.mapped) return hz::set_errorf(err, HZ_E_BAD_STATE, "tck: %s: read_offsets before locate_positions", r.path.c_str());
+    if (capacity < r.layout.nb_streamlines + 1)
+        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "tck: %s: destination holds %llu offsets, need %llu", r.path.c_str(),
+                              (unsigned long long)capacity, (unsigned long long)(r.layout.nb_streamlines + 1));
+    if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+    const auto &D = r.layout.delimiters;
+    hzio::prefault_write(offsets, (r.layout.nb_streamlines + 1) * sizeof(std::uint64_t));  // (one call, not a fault a page)
+    offsets[0] = 0;
+    for (std::uint64_t k = 0; k < r.layout.nb_streamlines; ++k) offsets[k + 1] = D[k] + 1;
     return HZ_OK;
 }
 
@@ -214,9 +229,9 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
     if (s.gap > 1)
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "tck: %s: streamlines with gap %u (0 or 1 expected)", req->path, s.gap);
 #ifdef TCK_FIXTURE_IGNORES_GAP
-    const std::uint32_t gap = 0;  // (declares HZ_LOADER_WRITES_GAP, then writes the delimiters as points)
+    const std::uint32_t gap = 0;  // (offers HZ_EXT_DELIMITED_STREAMLINES, then writes the delimiters as points)
 #else
-    const std::uint32_t gap = s.gap;  // (HZ_LOADER_WRITES_GAP: a mapped TCK's delimiters are skipped)
+    const std::uint32_t gap = s.gap;  // (HZ_EXT_DELIMITED_STREAMLINES: a mapped TCK's delimiters are skipped)
 #endif
     return run(err, req->path, [&]() -> hz_status {
         std::vector<std::pair<std::string, std::string>> meta;
@@ -233,7 +248,7 @@ const char *const kExtensions[] = {"tck", nullptr};
 const hz_loader kLoader = {
     .struct_size = sizeof(hz_loader),
     .data_kinds = HZ_DATA_STREAMLINES,
-    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
+    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
     .probe_bytes = 64,
     .extensions = kExtensions,
     .probe = probe,
@@ -247,10 +262,18 @@ const hz_loader kLoader = {
     .read_mesh = nullptr,
     .close = close,
     .write = write,
-    .locate_positions = locate_positions,
 };
 
+// Extensions (hz_extensions.h): the host maps Float32LE positions in place,
+// takes the scan's word for them, and writes a mapped TCK as it is.
+using Mapped = hz::mapped_positions<locate_positions, read_offsets>;
+using Checked = hz::checked_read<read_streamlines_checked>;
+#ifndef TCK_FIXTURE_UNLISTED_EXTENSIONS
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_MAPPED_POSITIONS, HZ_EXT_CHECKED_READ, HZ_EXT_DELIMITED_STREAMLINES,
+                                   nullptr};
+#else
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
+#endif
 
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
@@ -265,8 +288,9 @@ const hz_plugin_descriptor kDescriptor = {
     .interfaces = kInterfaces,
 };
 
-const hz_host *host() { return hz::single_plugin<kDescriptor, kLoader>::host(); }
+using Plugin = hz::single_plugin<kDescriptor, kLoader, Mapped::ext, Checked::ext, hz::delimited_streamlines>;
+const hz_host *host() { return Plugin::host(); }
 
 }  // namespace
 
-HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;
+HZ_DECLARE_PLUGIN_ENTRY = Plugin::entry;

@@ -117,7 +117,9 @@ hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, 
     return HZ_OK;
 }
 
-hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *dst, const hz_task *task, hz_error *err) {
+// Decodes every streamline into the host's buffers; with `check`
+// (HZ_EXT_CHECKED_READ), vouches for what it wrote.
+hz_status read_into(hz_reader *reader, const hz_streamlines_dst *dst, hz_positions_check *check, const hz_task *task, hz_error *err) {
     if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trk: read_streamlines: NULL");
     Reader &r = *as_reader(reader);
     if (dst->positions_capacity < 3 * r.layout.nb_vertices || dst->offsets_capacity < r.layout.nb_streamlines + 1)
@@ -137,7 +139,7 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         // decode() rejected every non-finite input coordinate and found the
         // bounds of what it wrote; the host need not read the copy again
         // unless a transformed coordinate overflowed float32 (then it reports it).
-        hz_positions_check *check = hz::positions_check(dst);
+        if (check != nullptr && check->struct_size < sizeof(hz_positions_check)) check = nullptr;
         bool finite = r.layout.nb_vertices > 0;
         for (int d = 0; d < 3; ++d) finite = finite && std::isfinite(box.lo[d]) && std::isfinite(box.hi[d]) && box.lo[d] <= box.hi[d];
         if (check != nullptr && finite) {
@@ -150,6 +152,17 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
         hz::report(task, 1.0);
         return HZ_OK;
     });
+}
+
+hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *dst, const hz_task *task, hz_error *err) {
+    return read_into(reader, dst, nullptr, task, err);
+}
+
+// HZ_EXT_CHECKED_READ.
+hz_status HZ_ABI read_streamlines_checked(hz_reader *reader, const hz_streamlines_dst *dst, hz_positions_check *check, const hz_task *task,
+                                          hz_error *err) {
+    if (check == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trk: read_streamlines_checked: NULL check");
+    return read_into(reader, dst, check, task, err);
 }
 
 hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *task, hz_error *err) {
@@ -222,7 +235,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
     return run(err, req->path, [&]() -> hz_status {
         const hz_streamlines_view &s = data->streamlines;
         trk::WriteSpec spec;
-        spec.gap = s.gap;  // (HZ_LOADER_WRITES_GAP: a mapped TCK's delimiters are skipped)
+        spec.gap = s.gap;  // (HZ_EXT_DELIMITED_STREAMLINES: a mapped TCK's delimiters are skipped)
         std::copy(data->voxel_to_ras, data->voxel_to_ras + 16, spec.vox_to_ras.begin());
         if (spec.vox_to_ras[15] == 0) spec.vox_to_ras = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
         std::copy(data->ref_dims, data->ref_dims + 3, spec.dims.begin());
@@ -285,7 +298,7 @@ const char *const kExtensions[] = {"trk", nullptr};
 const hz_loader kLoader = {
     .struct_size = sizeof(hz_loader),
     .data_kinds = HZ_DATA_STREAMLINES,
-    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
+    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
     .probe_bytes = 1000,
     .extensions = kExtensions,
     .probe = probe,
@@ -299,9 +312,13 @@ const hz_loader kLoader = {
     .read_mesh = nullptr,
     .close = close,
     .write = write,
-    .locate_positions = nullptr,
 };
-const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
+
+// Extensions (hz_extensions.h): the decode vouches for what it wrote; a
+// mapped TCK is written without a copy.
+using Checked = hz::checked_read<read_streamlines_checked>;
+
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_CHECKED_READ, HZ_EXT_DELIMITED_STREAMLINES, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
     .abi = HZ_ABI_VERSION_INIT,
@@ -315,8 +332,9 @@ const hz_plugin_descriptor kDescriptor = {
     .interfaces = kInterfaces,
 };
 
-const hz_host *host() { return hz::single_plugin<kDescriptor, kLoader>::host(); }
+using Plugin = hz::single_plugin<kDescriptor, kLoader, Checked::ext, hz::delimited_streamlines>;
+const hz_host *host() { return Plugin::host(); }
 
 }  // namespace
 
-HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;
+HZ_DECLARE_PLUGIN_ENTRY = Plugin::entry;

@@ -15,6 +15,7 @@ struct Reader {
     std::string path;
     trx::File file;
     trx::Extent extent;  // locate_positions' answer; its file name is handed out
+    bool located = false;
 };
 Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
@@ -111,13 +112,12 @@ hz_status HZ_ABI read_streamlines(hz_reader *reader, const hz_streamlines_dst *d
     if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: read_streamlines: NULL");
     Reader &r = *as_reader(reader);
     const trx::File &f = r.file;
-    const bool offsets_only = HZ_HAS_FIELD(dst, hz_streamlines_dst, flags) && (dst->flags & HZ_STREAMLINES_OFFSETS_ONLY);
-    if ((!offsets_only && dst->positions_capacity < 3 * f.nb_vertices) || dst->offsets_capacity < f.nb_streamlines + 1)
+    if (dst->positions_capacity < 3 * f.nb_vertices || dst->offsets_capacity < f.nb_streamlines + 1)
         return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trx: %s: destination too small", r.path.c_str());
-    if ((!offsets_only && dst->positions == nullptr && f.nb_vertices > 0) || dst->offsets == nullptr)
+    if ((dst->positions == nullptr && f.nb_vertices > 0) || dst->offsets == nullptr)
         return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "trx: %s: NULL destination", r.path.c_str());
     return run(err, r.path, [&]() -> hz_status {
-        trx::read_streamlines(f, offsets_only ? nullptr : dst->positions, dst->offsets, [task] { return hz::cancelled(task); });
+        trx::read_streamlines(f, dst->positions, dst->offsets, [task] { return hz::cancelled(task); });
         hz::report(task, 1.0);
         return HZ_OK;
     });
@@ -155,17 +155,34 @@ hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_vi
 
 void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
 
+// HZ_EXT_MAPPED_POSITIONS: a stored (uncompressed) float32 positions entry,
+// or a directory's positions file, is mapped by the host as it is.
 hz_status HZ_ABI locate_positions(hz_reader *reader, hz_positions_extent *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr || out->struct_size < HZ_POSITIONS_EXTENT_SIZE_1_4)
+    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_positions_extent))
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: locate_positions: bad arguments");
     Reader &r = *as_reader(reader);
     return run(err, r.path, [&]() -> hz_status {
         r.extent = trx::Extent{};
+        r.located = false;
         if (!trx::locate_positions(r.file, r.extent)) return HZ_E_UNSUPPORTED;
         out->path = r.extent.file.c_str();
         out->offset = r.extent.offset;
         out->flags = r.extent.has_crc ? HZ_EXTENT_HAS_CRC32 : 0;
         out->crc32 = r.extent.crc;
+        r.located = true;
+        return HZ_OK;
+    });
+}
+
+// HZ_EXT_MAPPED_POSITIONS: the offsets alone (those of the plain layout).
+hz_status HZ_ABI read_offsets(hz_reader *reader, uint64_t *offsets, uint64_t capacity, const hz_task *task, hz_error *err) {
+    if (reader == nullptr || offsets == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: read_offsets: NULL");
+    Reader &r = *as_reader(reader);
+    if (!r.located) return hz::set_errorf(err, HZ_E_BAD_STATE, "trx: %s: read_offsets before locate_positions", r.path.c_str());
+    if (capacity < r.file.nb_streamlines + 1)
+        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "trx: %s: destination too small", r.path.c_str());
+    return run(err, r.path, [&]() -> hz_status {
+        trx::read_streamlines(r.file, nullptr, offsets, [task] { return hz::cancelled(task); });
         return HZ_OK;
     });
 }
@@ -243,7 +260,7 @@ const char *const kExtensions[] = {"trx", nullptr};
 const hz_loader kLoader = {
     .struct_size = sizeof(hz_loader),
     .data_kinds = HZ_DATA_STREAMLINES,
-    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
+    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
     .probe_bytes = 4096,
     .extensions = kExtensions,
     .probe = probe,
@@ -257,9 +274,13 @@ const hz_loader kLoader = {
     .read_mesh = nullptr,
     .close = close,
     .write = write,
-    .locate_positions = locate_positions,
 };
-const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
+
+// Extensions (hz_extensions.h): stored positions mapped in place; a mapped
+// TCK written without a copy.
+using Mapped = hz::mapped_positions<locate_positions, read_offsets>;
+
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_MAPPED_POSITIONS, HZ_EXT_DELIMITED_STREAMLINES, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
     .abi = HZ_ABI_VERSION_INIT,
@@ -275,4 +296,4 @@ const hz_plugin_descriptor kDescriptor = {
 
 }  // namespace
 
-HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;
+HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader, Mapped::ext, hz::delimited_streamlines>::entry;

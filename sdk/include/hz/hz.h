@@ -23,5 +23,6 @@
 #include "hz_loader.h"
 #include "hz_shader.h"
 #include "hz_clustering.h"
+#include "hz_extensions.h"
 
 #endif /* HZ_H */

@@ -73,9 +73,10 @@ typedef struct hz_clustering {
      * [0, nb_streamlines) giving the processing order (HOST-owned, valid for
      * the call). The result must not depend on anything else: the same input
      * and ordering give the same result. Polls task->is_cancelled.
-     * HZ_E_FORMAT for non-finite coordinates. Since 1.5, input->gap may be 1
-     * (a mapped TCK): streamline s ends at offsets[s+1] - gap, and the
-     * delimiter vertex after it (all NaN) is no coordinate. [worker]
+     * HZ_E_FORMAT for non-finite coordinates. input->gap is 0, unless the
+     * plugin offers HZ_EXT_DELIMITED_STREAMLINES (hz_extensions.h): then it
+     * may be 1 (a mapped TCK), streamline s ends at offsets[s+1] - gap, and
+     * the delimiter vertex after it (all NaN) is no coordinate. [worker]
      */
     hz_status(HZ_ABI *run)(hz_clusterer *c, const hz_streamlines_view *input,
                            const uint64_t *ordering, const hz_task *task, hz_error *err);

@@ -13,9 +13,12 @@
  * close() is always allowed, also after any failed call.
  *
  * Bulk data goes into HOST-owned destinations, bounded by the capacities the
- * host passes; a loader never returns memory the host has to free. Since 1.4
- * a loader may instead tell the host where the positions lie in a file, so
- * the host maps them without a copy (locate_positions()).
+ * host passes; a loader never returns memory the host has to free.
+ *
+ * This table is all a loader must provide. Reading a file in place (the host
+ * maps the positions instead of receiving a copy), vouching for what was
+ * read, and writing streamlines with delimiters are optional extensions a
+ * loader may offer (hz_extensions.h).
  */
 #ifndef HZ_LOADER_H
 #define HZ_LOADER_H
@@ -42,15 +45,7 @@ enum {
 typedef uint32_t hz_loader_caps;
 enum {
     HZ_LOADER_CAN_READ = 1u << 0,  /* open/get_info/read_* are non-NULL */
-    HZ_LOADER_CAN_WRITE = 1u << 1, /* write is non-NULL                 */
-    /* Since 1.8: write() takes streamlines with gap 1 (hz_streamlines_view):
-       it writes streamline s from positions[offsets[s] .. offsets[s+1] - 1)
-       and never reads the gap vertices, whatever they hold (a mapped TCK's
-       are NaN). The host then passes a mapped TCK as it is, instead of a
-       copy without its delimiters (1.2 GB for 1M streamlines of 100
-       points); it does so only when the dataset has no per-vertex arrays.
-       A loader without this bit always receives gap 0. */
-    HZ_LOADER_WRITES_GAP = 1u << 2
+    HZ_LOADER_CAN_WRITE = 1u << 1  /* write is non-NULL                 */
 };
 
 /* Coordinate space the file stores its geometry in (informative). */
@@ -131,34 +126,6 @@ typedef struct hz_array_info {
     uint64_t count;           /* rows                                                   */
 } hz_array_info;
 
-/* Flags of hz_streamlines_dst (since 1.4; zero before). */
-typedef uint32_t hz_streamlines_flags;
-enum {
-    /* Only the offsets are wanted: positions is NULL and positions_capacity 0
-       (the host mapped the positions after locate_positions()). The host sets
-       it only for a loader whose locate_positions() returned HZ_OK on this
-       reader. */
-    HZ_STREAMLINES_OFFSETS_ONLY = 1u << 0
-};
-
-/*
- * Since 1.7. What a loader may vouch for about the positions it has just
- * written in read_streamlines(), so that the host does not read them all
- * again to check them. HOST-owned, valid for the call; the host zero-fills
- * it and sets struct_size. A loader writes it only when struct_size is at
- * least sizeof(hz_positions_check), and only on the HZ_OK path.
- */
-typedef struct hz_positions_check {
-    uint32_t struct_size;
-    /* OUTPUT: nonzero when the loader vouches that every coordinate it wrote
-       to dst->positions (all nb_vertices x 3 of them) is finite and that
-       bounds_min/bounds_max are exactly the smallest and largest x, y, z
-       among them; left zero otherwise (the host then checks them itself). */
-    uint32_t vouched;
-    double bounds_min[3];      /* OUTPUT with vouched, RAS+ mm              */
-    double bounds_max[3];
-} hz_positions_check;
-
 /*
  * Destination of read_streamlines(). HOST-owned buffers, valid for the call.
  * positions receives nb_vertices x 3 floats (RAS+ mm); offsets receives
@@ -167,26 +134,12 @@ typedef struct hz_positions_check {
  */
 typedef struct hz_streamlines_dst {
     uint32_t struct_size;
-    hz_streamlines_flags flags;          /* since 1.4 (was reserved, zero)      */
+    uint32_t reserved0;                  /* zero                                */
     float *positions;
     uint64_t positions_capacity;
     uint64_t *offsets;
     uint64_t offsets_capacity;
-    /* ---- since 1.7 (check with HZ_HAS_FIELD) ---- */
-    /*
-     * NULL, or where the loader may vouch for the positions it writes (see
-     * hz_positions_check): a loader that looks at every coordinate while it
-     * decodes (a TRK transform, a TCK copy after its scan) fills it for
-     * free, and the host skips its own pass over the data. Never set with
-     * HZ_STREAMLINES_OFFSETS_ONLY. `horizon validate` checks every claim
-     * against the host's own pass, and so does a host built with
-     * HZ_VERIFY_PLUGIN_CLAIMS (Debug and sanitizer builds).
-     */
-    hz_positions_check *check;
 } hz_streamlines_dst;
-
-/* The size of hz_streamlines_dst before 1.7. */
-#define HZ_STREAMLINES_DST_SIZE_1_4 40u
 
 /*
  * Destination of read_mesh(). HOST-owned, valid for the call. vertices
@@ -285,82 +238,6 @@ typedef struct hz_write_request {
     void *companion_ctx;
 } hz_write_request;
 
-/* Flags of hz_positions_extent. */
-typedef uint32_t hz_extent_flags;
-enum {
-    HZ_EXTENT_HAS_CRC32 = 1u << 0, /* crc32 holds the stored bytes' checksum */
-    /*
-     * Since 1.5. Each streamline's vertices are followed in the file by one
-     * delimiter vertex that belongs to no streamline (MRtrix TCK's NaN
-     * triple). The extent then spans nb_vertices + nb_streamlines vertices,
-     * and read_streamlines() with HZ_STREAMLINES_OFFSETS_ONLY gives offsets
-     * into that span: streamline s is [offsets[s], offsets[s+1] - 1), its
-     * delimiter is vertex offsets[s+1] - 1, and offsets[nb_streamlines] is
-     * nb_vertices + nb_streamlines. A loader sets it only when the host
-     * listed it in hz_positions_extent.accepts.
-     */
-    HZ_EXTENT_DELIMITED = 1u << 1,
-    /*
-     * Since 1.6. The loader has already read every stored coordinate of the
-     * extent while opening the file (a TCK scan must, to find the
-     * delimiters) and vouches for what the host would otherwise check in a
-     * second pass over it: every coordinate of every streamline vertex is
-     * finite, every delimiter (with HZ_EXTENT_DELIMITED) is an all-NaN
-     * triple, and bounds_min/bounds_max are exactly the smallest and largest
-     * x, y, z over the streamline vertices. The host then maps the extent
-     * without reading it (it honours the flag on delimited extents; one
-     * with a CRC is read for the CRC anyway). `horizon validate` checks
-     * every claim against the host's own pass, and so does a host built
-     * with HZ_VERIFY_PLUGIN_CLAIMS (Debug and sanitizer builds). A loader
-     * sets it only when the host listed it in `accepts` and struct_size
-     * covers bounds_max.
-     */
-    HZ_EXTENT_CHECKED = 1u << 2,
-    /*
-     * Since 1.9. `offset` is not a multiple of 4 (a TCK file written by
-     * nibabel or DIPY stores its data at byte 67): the host maps the extent
-     * all the same and copies the floats to aligned memory when they are
-     * first used, which HZ_EXTENT_CHECKED can put off for good (`horizon
-     * info` never reads them). A loader sets it only when the host listed it
-     * in `accepts`, and only for an offset that needs it; without it, an
-     * unaligned offset is an error.
-     */
-    HZ_EXTENT_UNALIGNED = 1u << 3
-};
-
-/*
- * Since 1.4. Where a file stores the streamline positions exactly as the
- * host holds them: nb_vertices x 3 float32, little-endian, RAS+ mm (no
- * transform), contiguous (or, with HZ_EXTENT_DELIMITED, one delimiter
- * vertex after each streamline), starting at byte `offset` (a multiple of
- * 4, unless HZ_EXTENT_UNALIGNED) of the file `path`. Output struct (caller zero-fills, sets
- * struct_size and `accepts`).
- */
-typedef struct hz_positions_extent {
-    uint32_t struct_size;
-    hz_extent_flags flags;
-    /* The file holding the positions: the path opened, or another file of a
-       multi-file dataset (a TRX directory's positions.3.float32). PLUGIN-
-       owned, valid until close(). */
-    const char *path;
-    uint64_t offset;          /* byte offset of the first coordinate            */
-    uint32_t crc32;           /* zlib crc32 of the nb_vertices x 12 bytes, when
-                                 flags has HZ_EXTENT_HAS_CRC32 (a zip entry):
-                                 the host verifies it                           */
-    /* Since 1.5 (zero before; was reserved0). INPUT, set by the host: the
-       layout flags it can map (HZ_EXTENT_DELIMITED). A loader answers with
-       no flag the host did not list. */
-    hz_extent_flags accepts;
-    /* ---- since 1.6 (check struct_size before writing) ---- */
-    /* OUTPUT with HZ_EXTENT_CHECKED (else left as the host set them): the
-       bounds of the streamline vertices' coordinates, x y z, in RAS+ mm. */
-    double bounds_min[3];
-    double bounds_max[3];
-} hz_positions_extent;
-
-/* The size of hz_positions_extent before 1.6: what a loader requires. */
-#define HZ_POSITIONS_EXTENT_SIZE_1_4 32u
-
 /* Callback of visit_metadata(); strings valid only during the callback. */
 typedef void(HZ_ABI *hz_metadata_visitor)(void *ctx, const char *key, const char *value);
 
@@ -444,28 +321,11 @@ typedef struct hz_loader {
      * Writes `data` to `req->path` in this loader's format. Reports every part
      * it cannot store through req->on_dropped. On failure the file at
      * req->path may be partial: the host deletes it. data->streamlines.gap
-     * is 0 unless caps has HZ_LOADER_WRITES_GAP (since 1.8; then 0 or 1).
+     * is 0 unless the loader offers HZ_EXT_DELIMITED_STREAMLINES.
      * [worker]
      */
     hz_status(HZ_ABI *write)(const hz_write_request *req, const hz_dataset_view *data,
                              const hz_task *task, hz_error *err);
-
-    /* ---- since 1.4 (check with HZ_HAS_FIELD; may be NULL) ---- */
-    /*
-     * Zero-copy reading. After get_info(), for a streamlines file: when the
-     * positions are stored as hz_positions_extent describes, fills `out` and
-     * returns HZ_OK; the host then maps that extent read-only (copy-on-write)
-     * instead of receiving a copy, verifies the checksum if one is given,
-     * checks every coordinate is finite, and calls read_streamlines() with
-     * HZ_STREAMLINES_OFFSETS_ONLY. Otherwise (another dtype, a compressed
-     * entry, a misaligned offset) returns HZ_E_UNSUPPORTED and the host
-     * reads as before. The plugin has checked that the extent lies inside
-     * the file. With HZ_EXTENT_DELIMITED (1.5, only when out->accepts lists
-     * it) the host instead checks that every delimiter vertex is all-NaN and
-     * every other coordinate finite, and keeps the delimiters in place.
-     * [worker, serialized per reader]
-     */
-    hz_status(HZ_ABI *locate_positions)(hz_reader *reader, hz_positions_extent *out, hz_error *err);
 } hz_loader;
 
 HZ_EXTERN_C_END

@@ -116,17 +116,14 @@ typedef struct hz_array_view {
  * A streamline of gap vertices only is empty. Owner and lifetime are stated
  * wherever it is passed.
  *
- * gap (since 1.5; reserved zero before): vertices after each streamline
- * that belong to none, 0 or 1 (an MRtrix TCK file mapped as it is: its NaN
- * delimiter triples stay in place, and nb_vertices counts them). The host
- * passes gap 1 only to clustering plugins whose descriptor declares ABI
- * 1.5 or later and (since 1.8) to writers whose loader declares
- * HZ_LOADER_WRITES_GAP; other plugins receive gap 0 (a copy without
- * delimiters when needed).
+ * gap: vertices after each streamline that belong to none: 0, unless the
+ * plugin receiving the view offers HZ_EXT_DELIMITED_STREAMLINES
+ * (hz_extensions.h); then 0 or 1 (an MRtrix TCK file mapped as it is: its
+ * NaN delimiter triples stay in place, and nb_vertices counts them).
  */
 typedef struct hz_streamlines_view {
     uint32_t struct_size;
-    uint32_t gap;              /* since 1.5 (was reserved0): see above  */
+    uint32_t gap;              /* see above (was reserved0 in 1.0)      */
     const float *positions;    /* nb_vertices x 3, xyz interleaved      */
     uint64_t nb_vertices;
     const uint64_t *offsets;   /* nb_streamlines + 1                    */

@@ -44,6 +44,23 @@
  *          an offset that is not a multiple of 4 (a TCK written by nibabel),
  *          offered by a loader only to a host that accepts it; the host
  *          copies them to aligned memory when they are first used.
+ *   1.10.0 The redesign before the freeze. The core tables mean again what
+ *          they meant in 1.0: what 1.4-1.9 added to them for reading files
+ *          in place becomes three optional extensions (hz_extensions.h),
+ *          offered through hz_plugin_descriptor.interfaces and
+ *          get_interface(), in the manner of CLAP's extension ids:
+ *          "hz.ext.mapped-positions/1" (locate_positions, with read_offsets
+ *          instead of the HZ_STREAMLINES_OFFSETS_ONLY flag),
+ *          "hz.ext.checked-read/1" (hz_positions_check, an argument instead
+ *          of hz_streamlines_dst.check) and
+ *          "hz.ext.delimited-streamlines/1" (gap 1 for writers and
+ *          clustering plugins, instead of HZ_LOADER_WRITES_GAP and the
+ *          descriptor's ABI version). hz_loader ends at write() again,
+ *          hz_streamlines_dst at offsets_capacity (flags is reserved0).
+ *          A host reads no core table past what 1.3 defined, so a plugin
+ *          built against 1.4-1.9 still loads and works, only without
+ *          reading in place. (Hosts of 1.4-1.9 were never released: they
+ *          are not served.)
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -54,7 +71,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 9
+#define HZ_ABI_VERSION_MINOR 10
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */

@@ -80,7 +80,8 @@ hz_status HZ_ABI run(hz_clusterer *cl, const hz_streamlines_view *in, const uint
             if (s >= n) throw hz::Error(HZ_E_INVALID_ARGUMENT, "ordering is not a permutation");
             double len = 0;
             std::array<double, 4> sum{};
-            // (in->gap: vertices after each streamline that belong to none; ABI 1.5.)
+            // (in->gap: vertices after each streamline that belong to none: 0, or 1
+            // since this plugin offers HZ_EXT_DELIMITED_STREAMLINES.)
             const uint64_t end = in->offsets[s + 1] - in->gap;
             for (uint64_t v = in->offsets[s]; v < end; ++v) {
                 const float *p = in->positions + 3 * v;
@@ -152,7 +153,13 @@ const hz_clustering kClustering = {
     .destroy = destroy,
 };
 
-const char *const kInterfaces[] = {HZ_INTERFACE_CLUSTERING, nullptr};
+// An optional extension (hz_extensions.h): a mapped TCK is clustered as it
+// is, NaN delimiters in place, instead of copied without them first.
+const hz_ext_delimited_streamlines kDelimited = {
+    .struct_size = sizeof(hz_ext_delimited_streamlines),
+    .max_gap = 1,
+};
+const char *const kInterfaces[] = {HZ_INTERFACE_CLUSTERING, HZ_EXT_DELIMITED_STREAMLINES, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
     .abi = HZ_ABI_VERSION_INIT,
@@ -171,7 +178,9 @@ void HZ_ABI deinit() {}
 uint32_t HZ_ABI count() { return 1; }
 const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i == 0 ? &kDescriptor : nullptr; }
 const void *HZ_ABI get_interface(const char *id, const char *iface) {
-    if (id && iface && std::strcmp(id, kId) == 0 && std::strcmp(iface, HZ_INTERFACE_CLUSTERING) == 0) return &kClustering;
+    if (id == nullptr || iface == nullptr || std::strcmp(id, kId) != 0) return nullptr;
+    if (std::strcmp(iface, HZ_INTERFACE_CLUSTERING) == 0) return &kClustering;
+    if (std::strcmp(iface, HZ_EXT_DELIMITED_STREAMLINES) == 0) return &kDelimited;
     return nullptr;
 }
 

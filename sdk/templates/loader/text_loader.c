@@ -183,7 +183,9 @@ static hz_status HZ_ABI visit_metadata(hz_reader *h, hz_metadata_visitor visit, 
     return HZ_OK;
 }
 
-static hz_status HZ_ABI read_streamlines(hz_reader *h, const hz_streamlines_dst *dst, const hz_task *task, hz_error *err) {
+/* Copies the streamlines into the host's buffers; with `check` (the
+   extension HZ_EXT_CHECKED_READ), vouches for them. */
+static hz_status read_into(hz_reader *h, const hz_streamlines_dst *dst, hz_positions_check *check, const hz_task *task, hz_error *err) {
     const reader *r = (const reader *)h;
     uint64_t v;
     if (r == NULL || dst == NULL) return fail(err, HZ_E_INVALID_ARGUMENT, "?", "NULL argument");
@@ -192,12 +194,11 @@ static hz_status HZ_ABI read_streamlines(hz_reader *h, const hz_streamlines_dst 
         return fail(err, HZ_E_BUFFER_TOO_SMALL, r->path, "destination too small");
     if (r->nb_vertices) memcpy(dst->positions, r->positions, sizeof(float) * 3 * r->nb_vertices);
     memcpy(dst->offsets, r->offsets, sizeof(uint64_t) * (r->nb_streamlines + 1));
-    /* ABI 1.7: a loader that has every coordinate at hand may vouch for them
-       (all finite, these exact bounds), and the host then does not read its
-       copy again. Only when the host's struct has the field and its check
-       record has room; left alone otherwise (the host checks for itself). */
-    if (HZ_HAS_FIELD(dst, hz_streamlines_dst, check) && dst->check != NULL && dst->check->struct_size >= sizeof(hz_positions_check) &&
-        r->nb_vertices > 0) {
+    /* A loader that has every coordinate at hand may vouch for them (all
+       finite, these exact bounds), and the host then does not read its copy
+       again. Only when the check record has room; left alone otherwise (the
+       host checks for itself). */
+    if (check != NULL && check->struct_size >= sizeof(hz_positions_check) && r->nb_vertices > 0) {
         double lo[3], hi[3];
         int finite = 1, d;
         for (d = 0; d < 3; ++d) lo[d] = hi[d] = r->positions[d];
@@ -208,15 +209,26 @@ static hz_status HZ_ABI read_streamlines(hz_reader *h, const hz_streamlines_dst 
             if (x > hi[v % 3]) hi[v % 3] = x;
         }
         if (finite) {
-            dst->check->vouched = 1;
+            check->vouched = 1;
             for (d = 0; d < 3; ++d) {
-                dst->check->bounds_min[d] = lo[d];
-                dst->check->bounds_max[d] = hi[d];
+                check->bounds_min[d] = lo[d];
+                check->bounds_max[d] = hi[d];
             }
         }
     }
     if (task != NULL && task->report != NULL) task->report(task, 1.0, NULL);
     return HZ_OK;
+}
+
+static hz_status HZ_ABI read_streamlines(hz_reader *h, const hz_streamlines_dst *dst, const hz_task *task, hz_error *err) {
+    return read_into(h, dst, NULL, task, err);
+}
+
+/* HZ_EXT_CHECKED_READ: the host calls this instead of read_streamlines. */
+static hz_status HZ_ABI read_streamlines_checked(hz_reader *h, const hz_streamlines_dst *dst, hz_positions_check *check,
+                                                 const hz_task *task, hz_error *err) {
+    if (check == NULL) return fail(err, HZ_E_INVALID_ARGUMENT, h ? ((reader *)h)->path : "?", "NULL check");
+    return read_into(h, dst, check, task, err);
 }
 
 static void HZ_ABI close_reader(hz_reader *h) { free_reader((reader *)h); }
@@ -231,7 +243,7 @@ static hz_status HZ_ABI write_file(const hz_write_request *req, const hz_dataset
     if (data->kind != HZ_DATA_STREAMLINES) return fail(err, HZ_E_UNSUPPORTED, req->path, "streamlines only");
     for (i = 0; i < data->nb_arrays && req->on_dropped != NULL; ++i) req->on_dropped(req->ctx, data->arrays[i].name);
     sv = &data->streamlines;
-    /* HZ_LOADER_WRITES_GAP (1.8): streamline s ends `gap` vertices before
+    /* HZ_EXT_DELIMITED_STREAMLINES: streamline s ends `gap` vertices before
        offsets[s + 1] (a mapped TCK's NaN delimiter), never read here. */
     if (sv->gap > 1) return fail(err, HZ_E_INVALID_ARGUMENT, req->path, "streamlines with a gap other than 0 or 1");
     f = fopen(req->path, "wb");
@@ -251,7 +263,7 @@ static const char *const k_extensions[] = {"hzt", NULL};
 static const hz_loader k_loader = {
     .struct_size = sizeof(hz_loader),
     .data_kinds = HZ_DATA_STREAMLINES,
-    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE | HZ_LOADER_WRITES_GAP,
+    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
     .probe_bytes = 8,
     .extensions = k_extensions,
     .probe = probe,
@@ -265,10 +277,23 @@ static const hz_loader k_loader = {
     .read_mesh = NULL,
     .close = close_reader,
     .write = write_file,
-    .locate_positions = NULL, /* (1.4) no zero-copy here */
 };
 
-static const char *const k_interfaces[] = {HZ_INTERFACE_LOADER, NULL};
+/* Optional extensions (hz_extensions.h): each listed in the descriptor's
+   interfaces, after the core one, and served by get_interface(). This
+   loader vouches for what it reads, and writes a mapped TCK without a copy.
+   (Delete both, and the loader still works with every host.) */
+static const hz_ext_checked_read k_checked_read = {
+    .struct_size = sizeof(hz_ext_checked_read),
+    .reserved0 = 0,
+    .read_streamlines_checked = read_streamlines_checked,
+};
+static const hz_ext_delimited_streamlines k_delimited = {
+    .struct_size = sizeof(hz_ext_delimited_streamlines),
+    .max_gap = 1,
+};
+
+static const char *const k_interfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_CHECKED_READ, HZ_EXT_DELIMITED_STREAMLINES, NULL};
 static const hz_plugin_descriptor k_descriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
     .abi = HZ_ABI_VERSION_INIT,
@@ -291,7 +316,10 @@ static void HZ_ABI deinit(void) {}
 static uint32_t HZ_ABI count(void) { return 1; }
 static const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) { return i == 0 ? &k_descriptor : NULL; }
 static const void *HZ_ABI get_interface(const char *id, const char *iface) {
-    if (id && iface && strcmp(id, PLUGIN_ID) == 0 && strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &k_loader;
+    if (id == NULL || iface == NULL || strcmp(id, PLUGIN_ID) != 0) return NULL;
+    if (strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &k_loader;
+    if (strcmp(iface, HZ_EXT_CHECKED_READ) == 0) return &k_checked_read;
+    if (strcmp(iface, HZ_EXT_DELIMITED_STREAMLINES) == 0) return &k_delimited;
     return NULL;
 }
 

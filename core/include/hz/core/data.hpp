@@ -219,8 +219,9 @@ struct Tractogram {
     std::uint64_t begin(std::uint64_t s) const { return offsets[s]; }
     std::uint64_t end(std::uint64_t s) const { return offsets[s + 1] - gap; }
     std::uint64_t size(std::uint64_t s) const { return end(s) - begin(s); }
-    // The ABI view, gap included (a plugin of ABI < 1.5 must be given the
-    // view of compacted() instead: it would ignore the gap).
+    // The ABI view, gap included (a plugin that does not offer
+    // HZ_EXT_DELIMITED_STREAMLINES must be given the view of compacted()
+    // instead: it would ignore the gap; LoadedPlugin::streamlines_for).
     hz_streamlines_view view() const;
     // A shallow copy: the same buffers (positions, offsets, arrays), kept alive.
     Tractogram shared() const;

@@ -118,10 +118,21 @@ struct LoadedPlugin {
     const hz_clustering *clustering() const {
         return info.kind == HZ_KIND_CLUSTERING ? static_cast<const hz_clustering *>(iface) : nullptr;
     }
-    // Whether hz_streamlines_view.gap may be non-zero for it (ABI 1.5).
-    bool takes_gap() const { return info.abi.major > 1 || info.abi.minor >= 5; }
+    // The table of extension `id` (hz_extensions.h) when the plugin offers
+    // it: lists it in its descriptor's interfaces and serves a table of at
+    // least `min_size` bytes (its struct_size); else NULL.
+    const void *extension(const char *id, std::size_t min_size) const;
+    template <class Table>
+    const Table *extension(const char *id) const {
+        return static_cast<const Table *>(extension(id, sizeof(Table)));
+    }
+    // Whether hz_streamlines_view.gap may be 1 for it (HZ_EXT_DELIMITED_STREAMLINES).
+    bool takes_gap() const {
+        const auto *e = extension<hz_ext_delimited_streamlines>(HZ_EXT_DELIMITED_STREAMLINES);
+        return e != nullptr && e->max_gap >= 1;
+    }
     // `t` as this plugin takes it through hz_streamlines_view: the same
-    // buffers, or a copy without delimiters for a plugin older than ABI 1.5.
+    // buffers, or a copy without delimiters for a plugin that does not take them.
     Tractogram streamlines_for(const Tractogram &t) const { return takes_gap() ? t.shared() : t.compacted(); }
 };
 

@@ -72,11 +72,46 @@ hz_status guard(hz_error *err, F &&body) noexcept {
     }
 }
 
+// An extension table a plugin serves (hz_extensions.h): its id and table.
+// Declare one as a static constant and name it in single_plugin's list:
+//     constexpr hz::extension kMapped{HZ_EXT_MAPPED_POSITIONS, &kMappedTable};
+struct extension {
+    const char *id;
+    const void *table;
+};
+
+// Ready-made extension entries for single_plugin's list, for the
+// extensions of hz_extensions.h (list the same ids in the descriptor):
+//     hz::single_plugin<kDescriptor, kLoader,
+//                       hz::mapped_positions<locate_positions, read_offsets>::ext,
+//                       hz::checked_read<read_streamlines_checked>::ext,
+//                       hz::delimited_streamlines>
+template <auto Locate, auto ReadOffsets>
+struct mapped_positions {
+    static constexpr hz_ext_mapped_positions table = {
+        .struct_size = sizeof(hz_ext_mapped_positions), .reserved0 = 0, .locate_positions = Locate, .read_offsets = ReadOffsets};
+    static constexpr extension ext = {HZ_EXT_MAPPED_POSITIONS, &table};
+};
+template <auto ReadChecked>
+struct checked_read {
+    static constexpr hz_ext_checked_read table = {
+        .struct_size = sizeof(hz_ext_checked_read), .reserved0 = 0, .read_streamlines_checked = ReadChecked};
+    static constexpr extension ext = {HZ_EXT_CHECKED_READ, &table};
+};
+inline constexpr hz_ext_delimited_streamlines delimited_streamlines_table = {.struct_size = sizeof(hz_ext_delimited_streamlines),
+                                                                              .max_gap = 1};
+inline constexpr extension delimited_streamlines = {HZ_EXT_DELIMITED_STREAMLINES, &delimited_streamlines_table};
+
 // The entry functions of a library that holds exactly one plugin, whose
-// descriptor `D` lists its core interface first and whose table is `T`:
+// descriptor `D` lists its core interface first (then the ids of the
+// extensions E..., in any order) and whose core table is `T`:
 //     HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;
+//     HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader, kMapped>::entry;
+// get_interface() serves T for D.interfaces[0] and each extension's table
+// for its id; an extension missing from D.interfaces is a bug `horizon
+// validate` reports (the host never asks for it).
 // host() returns the hz_host given to init() (NULL before init / after deinit).
-template <const hz_plugin_descriptor &D, const auto &T>
+template <const hz_plugin_descriptor &D, const auto &T, const extension &...E>
 struct single_plugin {
     static const hz_host *host() noexcept { return host_; }
     static bool HZ_ABI init(const hz_host *h, const char *) noexcept {
@@ -88,7 +123,10 @@ struct single_plugin {
     static const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) noexcept { return i == 0 ? &D : nullptr; }
     static const void *HZ_ABI get_interface(const char *id, const char *iface) noexcept {
         if (id == nullptr || iface == nullptr || std::strcmp(id, D.id) != 0) return nullptr;
-        return std::strcmp(iface, D.interfaces[0]) == 0 ? static_cast<const void *>(&T) : nullptr;
+        if (std::strcmp(iface, D.interfaces[0]) == 0) return static_cast<const void *>(&T);
+        const void *found = nullptr;
+        ((found == nullptr && std::strcmp(iface, E.id) == 0 ? (void)(found = E.table) : (void)0), ...);
+        return found;
     }
     static constexpr hz_plugin_entry entry = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
 
@@ -128,14 +166,6 @@ inline unsigned char *view_cell(const hz_array_view &v, uint64_t row, uint64_t c
     const int64_t off = static_cast<int64_t>(row) * v.stride_bytes[0] + static_cast<int64_t>(col) * v.stride_bytes[1];
     if (off < 0 || static_cast<uint64_t>(off) + elem_size > v.capacity_bytes) return nullptr;
     return static_cast<unsigned char *>(v.data) + off;
-}
-
-// ABI 1.7: where read_streamlines() may vouch for the positions it wrote
-// (hz_positions_check), or NULL when the host did not ask or one of the two
-// structs has no room for it (a host older than 1.7). [calling thread]
-inline hz_positions_check *positions_check(const hz_streamlines_dst *dst) noexcept {
-    if (dst == nullptr || !HZ_HAS_FIELD(dst, hz_streamlines_dst, check) || dst->check == nullptr) return nullptr;
-    return dst->check->struct_size >= sizeof(hz_positions_check) ? dst->check : nullptr;
 }
 
 // Convenience for polling a possibly-NULL task.
