@@ -572,6 +572,57 @@ void add_loader_checks(std::vector<Check> &c) {
                      return pass();
                  }});
 
+    c.push_back({"loader-open-task", HZ_KIND_LOADER,
+                 "HZ_EXT_OPEN_TASK, when offered, opens as open() does, reports fractions in [0, 1] that never decrease, and stops "
+                 "when cancelled",
+                 [](const Ctx &x) {
+                     const hz_loader &l = loader_of(x);
+                     const auto *ot = extension_of<hz_ext_open_task>(x, HZ_EXT_OPEN_TASK);
+                     if (ot == nullptr) return skip("does not offer HZ_EXT_OPEN_TASK");
+                     if (!ot->open) return fail("HZ_EXT_OPEN_TASK table with a NULL function");
+                     std::string msg;
+                     const auto files = loader_samples(x, msg);
+                     if (files.empty()) return skip("no sample file");
+                     const OpenedSample plain(l, files[0]);
+                     if (!plain.error.empty()) return skip(plain.error);
+                     hz_open_request req{};
+                     req.struct_size = sizeof req;
+                     const std::string path = files[0].string();
+                     req.path = path.c_str();
+                     // Opened with a task: the same description, and sane reports.
+                     core::Task task;
+                     std::vector<double> reports;
+                     task.on_progress = [&](double f, const char *) { reports.push_back(f); };
+                     hz_error err = new_error();
+                     hz_reader *r = nullptr;
+                     if (ot->open(&req, task.get(), &r, &err) != HZ_OK || r == nullptr)
+                         return fail(std::string("open with a task fails where open() succeeds: ") + err.message);
+                     hz_dataset_info info{};
+                     info.struct_size = sizeof info;
+                     const hz_status st = l.get_info(r, &info, &err);
+                     l.close(r);
+                     if (st != HZ_OK) return fail(std::string("get_info after open with a task: ") + err.message);
+                     if (info.kind != plain.info.kind || info.nb_streamlines != plain.info.nb_streamlines ||
+                         info.nb_vertices != plain.info.nb_vertices || info.nb_faces != plain.info.nb_faces ||
+                         std::memcmp(info.dims, plain.info.dims, sizeof info.dims) != 0)
+                         return fail("open with a task describes the file otherwise than open()");
+                     for (std::size_t i = 0; i < reports.size(); ++i) {
+                         if (!(reports[i] >= 0 && reports[i] <= 1)) return fail("reports fraction " + std::to_string(reports[i]));
+                         if (i > 0 && reports[i] < reports[i - 1]) return fail("reported fractions decrease");
+                     }
+                     // And with a task cancelled before the call.
+                     core::Task cancelled;
+                     cancelled.cancel();
+                     err = new_error();
+                     r = nullptr;
+                     const hz_status cst = ot->open(&req, cancelled.get(), &r, &err);
+                     if (r != nullptr) l.close(r);
+                     if (cst != HZ_E_CANCELLED)
+                         return fail("status " + std::to_string(cst) + " instead of HZ_E_CANCELLED for a cancelled task");
+                     if (r != nullptr) return fail("a cancelled open gives a reader");
+                     return pass(std::to_string(reports.size()) + " progress reports; a cancelled task stops it");
+                 }});
+
     c.push_back(
         {"loader-locate-positions", HZ_KIND_LOADER,
          "HZ_EXT_MAPPED_POSITIONS, when offered, names bytes equal to what read_streamlines gives, and read_offsets agrees",

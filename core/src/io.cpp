@@ -364,8 +364,14 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
     req.struct_size = sizeof req;
     const std::string spath = path.string();
     req.path = spath.c_str();
-    hz_status st = l->open(&req, &g.r, &err);
+    // A loader whose open() reads the whole file takes the task there too
+    // (HZ_EXT_OPEN_TASK): progress and cancel from the first byte.
+    const auto *with_task = p.extension<hz_ext_open_task>(HZ_EXT_OPEN_TASK);
+    hz_status st = with_task != nullptr && with_task->open != nullptr ? with_task->open(&req, task, &g.r, &err) : l->open(&req, &g.r, &err);
     if (st != HZ_OK || g.r == nullptr) throw Error(failure(err, st, path, "open"));
+    // The next phase (allocation, then the decode, which reports its own
+    // fraction) starts with an unknown fraction, not the scan's 100 %.
+    if (task != nullptr && task->report != nullptr) task->report(task, -1.0, nullptr);
     hz_dataset_info info{};
     info.struct_size = sizeof info;
     st = l->get_info(g.r, &info, &err);

@@ -183,6 +183,29 @@ TEST_CASE("search path order: --plugin-dir, HORIZON_PLUGIN_PATH, user dir, bundl
     CHECK(p[4].filename() == "plugins");
 }
 
+TEST_CASE("opening a TCK reports the scan progress through the task: hz.ext.open-task/1") {
+    const Registry reg = bundled();
+    const fs::path d = scratch("open-progress");
+    Dataset ds = phantom_dataset(60000);
+    REQUIRE(ds.tractogram.nb_vertices() > 3u << 20);  // (more than three of the scan's 1M-triple chunks)
+    write_dataset(reg, ds, d / "a.tck", false, nullptr);
+    Task task;
+    std::vector<double> scanning;
+    double last = -1;
+    bool decreasing = false;
+    task.on_progress = [&](double f, const char *msg) {
+        if (msg != nullptr && std::string(msg) == "scanning TCK") scanning.push_back(f);
+        decreasing |= f < last && msg != nullptr && std::string(msg) == "scanning TCK";
+        if (msg != nullptr && std::string(msg) == "scanning TCK") last = f;
+    };
+    const Dataset back = read_dataset(reg, d / "a.tck", task.get());
+    CHECK(back.tractogram.nb_vertices() == ds.tractogram.nb_vertices());
+    REQUIRE(!scanning.empty());
+    CHECK(std::any_of(scanning.begin(), scanning.end(), [](double f) { return f > 0 && f < 1; }));
+    CHECK(!decreasing);
+    fs::remove_all(d);
+}
+
 TEST_CASE("read and write through the TCK plugin, selection by extension and by content") {
     const Registry reg = bundled();
     REQUIRE(reg.find("org.horizon.loader.tck") != nullptr);

@@ -7,6 +7,7 @@
 #include "tck_scan.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cerrno>
 #include <cmath>
@@ -262,6 +263,7 @@ void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header
         float lo[3], hi[3];
     };
     std::vector<Box> boxes(nchunks);
+    std::atomic<std::uint64_t> scanned{0};  // chunks done: the position `cancelled` is given
     const bool done = hzio::parallel_chunks(
         nchunks,
         [&](std::size_t c) {
@@ -271,8 +273,9 @@ void scan_f32le(const unsigned char *data, std::uint64_t n_triples, const Header
             std::fill(box.hi, box.hi + 3, -HUGE_VALF);
             detail::scan_chunk(data, b, e, specials[c], box.lo, box.hi);
             if (release) release(h.data_offset + 12 * b, h.data_offset + 12 * e);
+            scanned.fetch_add(1, std::memory_order_relaxed);
         },
-        [&] { return cancelled && cancelled(0); });
+        [&] { return cancelled && cancelled(h.data_offset + 12 * std::min(n_triples, scanned.load(std::memory_order_relaxed) * kChunk)); });
     if (!done) throw Cancelled{};
     // The delimiters are among the flagged triples: room for all of them at
     // once, rather than a growing vector that copies itself into fresh

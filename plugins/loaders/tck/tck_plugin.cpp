@@ -66,7 +66,17 @@ tck::Release release(const hzio::MappedFile &file) {
 
 int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return tck::probe(head, size); }
 
-hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
+// The scan's: tick()'s, reporting the share of the file scanned as well.
+tck::Tick scan_tick(const hz_task *task, const hzio::MappedFile &file) {
+    return [task, &file, inner = tick(task, file)](std::uint64_t pos) {
+        if (pos > 0 && file.size() > 0) hz::report(task, std::min(1.0, double(pos) / double(file.size())), "scanning TCK");
+        return inner(pos);
+    };
+}
+
+// Opens and scans the file (every triple: the counts, the delimiters, the
+// bounds); with a task (HZ_EXT_OPEN_TASK), reporting and cancellable.
+hz_status open_with(const hz_open_request *req, const hz_task *task, hz_reader **out, hz_error *err) {
     if (out != nullptr) *out = nullptr;
     if (req == nullptr || req->path == nullptr || out == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: open: NULL request, path or output");
@@ -75,7 +85,9 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         r->path = req->path;
         r->file = std::make_unique<hzio::MappedFile>(r->path);
         r->header = tck::parse_header(r->file->data(), r->file->size());
-        r->layout = tck::scan(r->file->data(), r->file->size(), r->header, tick(nullptr, *r->file), release(*r->file));
+        if (hz::cancelled(task)) throw tck::Cancelled{};
+        r->layout = tck::scan(r->file->data(), r->file->size(), r->header, scan_tick(task, *r->file), release(*r->file));
+        hz::report(task, 1.0, nullptr);
         for (const auto &w : r->header.warnings) log(HZ_LOG_WARN, r->path + ": " + w);
         if (r->layout.trailing_bytes != 0)
             log(HZ_LOG_WARN, r->path + ": " + std::to_string(r->layout.trailing_bytes) + " bytes after the Inf terminator ignored");
@@ -86,6 +98,11 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
     });
+}
+
+hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) { return open_with(req, nullptr, out, err); }
+hz_status HZ_ABI open_task(const hz_open_request *req, const hz_task *task, hz_reader **out, hz_error *err) {
+    return open_with(req, task, out, err);
 }
 
 Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
@@ -268,9 +285,10 @@ const hz_loader kLoader = {
 // takes the scan's word for them, and writes a mapped TCK as it is.
 using Mapped = hz::mapped_positions<locate_positions, read_offsets>;
 using Checked = hz::checked_read<read_streamlines_checked>;
+using OpenTask = hz::open_task<open_task>;
 #ifndef TCK_FIXTURE_UNLISTED_EXTENSIONS
-const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_MAPPED_POSITIONS, HZ_EXT_CHECKED_READ, HZ_EXT_DELIMITED_STREAMLINES,
-                                   nullptr};
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER,          HZ_EXT_MAPPED_POSITIONS, HZ_EXT_CHECKED_READ,
+                                   HZ_EXT_DELIMITED_STREAMLINES, HZ_EXT_OPEN_TASK,        nullptr};
 #else
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 #endif
@@ -288,7 +306,7 @@ const hz_plugin_descriptor kDescriptor = {
     .interfaces = kInterfaces,
 };
 
-using Plugin = hz::single_plugin<kDescriptor, kLoader, Mapped::ext, Checked::ext, hz::delimited_streamlines>;
+using Plugin = hz::single_plugin<kDescriptor, kLoader, Mapped::ext, Checked::ext, hz::delimited_streamlines, OpenTask::ext>;
 const hz_host *host() { return Plugin::host(); }
 
 }  // namespace

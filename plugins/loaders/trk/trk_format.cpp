@@ -402,7 +402,11 @@ Layout scan(const unsigned char *b, std::uint64_t size, const Header &h, const T
                 ++ch.s;
                 ch.v += static_cast<std::uint64_t>(n);
             }
-            if (t == 0 && (++rounds & 0x3FFF) == 0 && cancelled && cancelled(0)) stop.store(true, std::memory_order_relaxed);
+            // (Every chain moves one record a round: chain c0's share of its
+            // stretch is the whole scan's, given to `cancelled` as a file position.)
+            if (t == 0 && (++rounds & 0x3FFF) == 0 && cancelled &&
+                cancelled(std::min<std::uint64_t>(size, kHeaderSize + (chains[c0].pos - std::min(chains[c0].pos, kHeaderSize)) * K)))
+                stop.store(true, std::memory_order_relaxed);
             if (active && !moved) std::this_thread::yield();
         }
     };

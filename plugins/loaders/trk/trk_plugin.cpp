@@ -32,12 +32,8 @@ hz_status run(hz_error *err, const std::string &path, F &&body) {
     return hz::format_guard<trk::FormatError, hzio::IoError, trk::Cancelled>(err, "trk", path, body);
 }
 
-// Polls cancellation.
-trk::Tick tick(const hz_task *task) {
-    return [task](std::uint64_t) { return hz::cancelled(task); };
-}
-
-// The decode's: reports the fraction of `total` vertices decoded as well.
+// The decode's: polls cancellation and reports the fraction of `total`
+// vertices decoded.
 trk::Tick tick(const hz_task *task, std::uint64_t total) {
     return [task, total](std::uint64_t done) {
         if (done > 0 && total > 0) hz::report(task, std::min(1.0, double(done) / double(total)));
@@ -52,7 +48,9 @@ trk::Release release(const hzio::MappedFile &file) {
 
 int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return trk::probe(head, size); }
 
-hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
+// Opens and scans the file (every record: the counts and the chunk plan);
+// with a task (HZ_EXT_OPEN_TASK), reporting the share scanned and cancellable.
+hz_status open_with(const hz_open_request *req, const hz_task *task, hz_reader **out, hz_error *err) {
     if (out != nullptr) *out = nullptr;
     if (req == nullptr || req->path == nullptr || out == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trk: open: NULL request, path or output");
@@ -61,11 +59,22 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
         r->path = req->path;
         r->file = std::make_unique<hzio::MappedFile>(r->path);
         r->header = trk::parse_header(r->file->data(), r->file->size());
-        r->layout = trk::scan(r->file->data(), r->file->size(), r->header, tick(nullptr));
+        if (hz::cancelled(task)) throw trk::Cancelled{};
+        const std::uint64_t size = r->file->size();
+        r->layout = trk::scan(r->file->data(), size, r->header, [task, size](std::uint64_t pos) {
+            if (pos > 0 && size > 0) hz::report(task, std::min(1.0, double(pos) / double(size)), "scanning TRK");
+            return hz::cancelled(task);
+        });
+        hz::report(task, 1.0, nullptr);
         for (const auto &w : r->header.warnings) log(HZ_LOG_WARN, r->path + ": " + w);
         *out = reinterpret_cast<hz_reader *>(r.release());
         return HZ_OK;
     });
+}
+
+hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) { return open_with(req, nullptr, out, err); }
+hz_status HZ_ABI open_task(const hz_open_request *req, const hz_task *task, hz_reader **out, hz_error *err) {
+    return open_with(req, task, out, err);
 }
 
 // Extra arrays: one per scalar column group (per vertex), then one per
@@ -317,8 +326,9 @@ const hz_loader kLoader = {
 // Extensions (hz_extensions.h): the decode vouches for what it wrote; a
 // mapped TCK is written without a copy.
 using Checked = hz::checked_read<read_streamlines_checked>;
+using OpenTask = hz::open_task<open_task>;
 
-const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_CHECKED_READ, HZ_EXT_DELIMITED_STREAMLINES, nullptr};
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_CHECKED_READ, HZ_EXT_DELIMITED_STREAMLINES, HZ_EXT_OPEN_TASK, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
     .abi = HZ_ABI_VERSION_INIT,
@@ -332,7 +342,7 @@ const hz_plugin_descriptor kDescriptor = {
     .interfaces = kInterfaces,
 };
 
-using Plugin = hz::single_plugin<kDescriptor, kLoader, Checked::ext, hz::delimited_streamlines>;
+using Plugin = hz::single_plugin<kDescriptor, kLoader, Checked::ext, hz::delimited_streamlines, OpenTask::ext>;
 const hz_host *host() { return Plugin::host(); }
 
 }  // namespace

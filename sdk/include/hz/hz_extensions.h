@@ -25,6 +25,7 @@
  *   HZ_EXT_CHECKED_READ         loader: vouches for the positions it decodes
  *   HZ_EXT_DELIMITED_STREAMLINES loader (write()) and clustering (run()):
  *                               takes streamlines with a delimiter vertex after each
+ *   HZ_EXT_OPEN_TASK            loader: open() with a task (progress, cancel)
  *
  * Thread and ownership rules of the functions below are those of the core
  * loader functions they stand beside ([worker, serialized per reader]).
@@ -205,6 +206,32 @@ typedef struct hz_ext_delimited_streamlines {
     uint32_t struct_size;
     uint32_t max_gap; /* the largest gap the plugin takes: 1 */
 } hz_ext_delimited_streamlines;
+
+/* ============================================================ open task */
+
+/*
+ * "hz.ext.open-task/1" (loaders): open() with a task. A loader whose open()
+ * reads the whole file (a TCK or TRK scan: seconds for a 2 GB file, minutes
+ * from a slow disk) reports its progress through task->report and stops
+ * when task->is_cancelled; the host shows the one and offers the other
+ * (the window's loading panel, the progress line on a terminal).
+ */
+#define HZ_EXT_OPEN_TASK "hz.ext.open-task/1"
+
+/* The table of HZ_EXT_OPEN_TASK. */
+typedef struct hz_ext_open_task {
+    uint32_t struct_size;
+    uint32_t reserved0; /* zero */
+
+    /*
+     * open() as hz_loader.open describes it, and the same reader, polling
+     * `task` (HOST-owned, valid for the call, may be NULL): fractions
+     * reported are in [0, 1] and do not decrease; a cancelled task gives
+     * HZ_E_CANCELLED, *out NULL and nothing left open. The host calls it
+     * instead of hz_loader.open. [worker]
+     */
+    hz_status(HZ_ABI *open)(const hz_open_request *req, const hz_task *task, hz_reader **out, hz_error *err);
+} hz_ext_open_task;
 
 HZ_EXTERN_C_END
 

@@ -46,7 +46,7 @@
  *          copies them to aligned memory when they are first used.
  *   1.10.0 The redesign before the freeze. The core tables mean again what
  *          they meant in 1.0: what 1.4-1.9 added to them for reading files
- *          in place becomes three optional extensions (hz_extensions.h),
+ *          in place becomes optional extensions (hz_extensions.h),
  *          offered through hz_plugin_descriptor.interfaces and
  *          get_interface(), in the manner of CLAP's extension ids:
  *          "hz.ext.mapped-positions/1" (locate_positions, with read_offsets
@@ -55,7 +55,9 @@
  *          of hz_streamlines_dst.check) and
  *          "hz.ext.delimited-streamlines/1" (gap 1 for writers and
  *          clustering plugins, instead of HZ_LOADER_WRITES_GAP and the
- *          descriptor's ABI version). hz_loader ends at write() again,
+ *          descriptor's ABI version); and a fourth, "hz.ext.open-task/1"
+ *          (open() with a task: progress and cancel while a loader scans
+ *          the file). hz_loader ends at write() again,
  *          hz_streamlines_dst at offsets_capacity (flags is reserved0).
  *          A host reads no core table past what 1.3 defined, so a plugin
  *          built against 1.4-1.9 still loads and works, only without

@@ -98,6 +98,11 @@ struct checked_read {
         .struct_size = sizeof(hz_ext_checked_read), .reserved0 = 0, .read_streamlines_checked = ReadChecked};
     static constexpr extension ext = {HZ_EXT_CHECKED_READ, &table};
 };
+template <auto Open>
+struct open_task {
+    static constexpr hz_ext_open_task table = {.struct_size = sizeof(hz_ext_open_task), .reserved0 = 0, .open = Open};
+    static constexpr extension ext = {HZ_EXT_OPEN_TASK, &table};
+};
 inline constexpr hz_ext_delimited_streamlines delimited_streamlines_table = {.struct_size = sizeof(hz_ext_delimited_streamlines),
                                                                               .max_gap = 1};
 inline constexpr extension delimited_streamlines = {HZ_EXT_DELIMITED_STREAMLINES, &delimited_streamlines_table};
