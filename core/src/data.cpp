@@ -1,4 +1,5 @@
 #include <hz/core/data.hpp>
+#include <hz/cpp/plugin.hpp>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -303,24 +304,7 @@ Bounds finite_bounds(const float *xyz, std::uint64_t n, const std::string &what,
     return all;
 }
 
-std::size_t dtype_size(hz_dtype t) {
-    switch (t) {
-    case HZ_DTYPE_U8:
-    case HZ_DTYPE_I8: return 1;
-    case HZ_DTYPE_U16:
-    case HZ_DTYPE_I16:
-    case HZ_DTYPE_F16: return 2;
-    case HZ_DTYPE_U32:
-    case HZ_DTYPE_I32:
-    case HZ_DTYPE_F32: return 4;
-    case HZ_DTYPE_U64:
-    case HZ_DTYPE_I64:
-    case HZ_DTYPE_F64: return 8;
-    case HZ_DTYPE_RGB8: return 3;
-    case HZ_DTYPE_RGBA8: return 4;
-    default: return 0;
-    }
-}
+std::size_t dtype_size(hz_dtype t) { return hz::dtype_size(t); }  // (the SDK's helper: one table for both sides)
 
 const char *dtype_name(hz_dtype t) {
     switch (t) {

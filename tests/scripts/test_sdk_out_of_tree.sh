@@ -16,7 +16,7 @@ test -f "$work/sdk/include/hz/hz.h"
 test -f "$work/sdk/lib/cmake/HorizonSDK/HorizonSDKConfig.cmake"
 
 mkdir -p "$work/plugins"
-for kind in loader shader clustering; do
+for kind in loader loader_cpp shader clustering; do
   cp -r "$work/sdk/share/horizon/sdk/templates/$kind" "$work/src-$kind"
   cmake -S "$work/src-$kind" -B "$work/build-$kind" -DCMAKE_PREFIX_PATH="$work/sdk" -DCMAKE_BUILD_TYPE=Release > /dev/null
   cmake --build "$work/build-$kind" > /dev/null
@@ -24,7 +24,7 @@ for kind in loader shader clustering; do
 done
 
 listing=$("$HORIZON_BIN" --plugin-dir "$work/plugins" plugins --json)
-for id in org.example.loader.hzt org.example.shader.lambert org.example.clustering.length; do
+for id in org.example.loader.hzt org.example.loader.csv-streamlines org.example.shader.lambert org.example.clustering.length; do
   grep -q "\"id\": \"$id\"" <<< "$listing" || { echo "FAIL: $id not listed"; echo "$listing"; exit 1; }
 done
 python3 -c 'import json,sys; j=json.load(sys.stdin); assert not j["rejected"], j["rejected"]' <<< "$listing"
@@ -40,6 +40,20 @@ gl "$HORIZON_BIN" demo --out "$work/demo" --streamlines 50 --no-window > /dev/nu
 "$HORIZON_BIN" --plugin-dir "$work/plugins" convert "$work/p.hzt" "$work/back.tck"
 info_out=$("$HORIZON_BIN" --plugin-dir "$work/plugins" info "$work/p.hzt")
 grep -q "streamlines:   50" <<< "$info_out"
+# And the C++ one (the SDK's loader adapter): TCK -> .csv -> TCK, the same streamlines.
+"$HORIZON_BIN" --plugin-dir "$work/plugins" convert "$work/demo/phantom.tck" "$work/p.csv"
+"$HORIZON_BIN" --plugin-dir "$work/plugins" convert "$work/p.csv" "$work/back_csv.tck"
+/usr/bin/python3 - "$work/demo/phantom.tck" "$work/back_csv.tck" <<'PY'
+import sys
+import nibabel as nib
+import numpy as np
+a = nib.streamlines.load(sys.argv[1]).streamlines
+b = nib.streamlines.load(sys.argv[2]).streamlines
+assert len(a) == len(b) == 50, (len(a), len(b))
+for x, y in zip(a, b):
+    assert np.array_equal(x, y), "a streamline changed through CSV"
+print("C++ template loader: 50 streamlines through CSV, bit for bit")
+PY
 
 # A new shading model without rebuilding the core: a toon shader from
 # tests/fixtures, built against the installed SDK, passes validate and the

@@ -17,7 +17,7 @@
 #include "label_table.hpp"
 #include "mapped_file.hpp"
 
-#include <hz/cpp/plugin.hpp>
+#include <hz/cpp/loader.hpp>
 
 #include <algorithm>
 #include <array>
@@ -41,16 +41,6 @@ using fsurf::looks_like_curv;
 using fsurf::parse;
 using fsurf::Surface;
 
-struct Reader {
-    std::string path;
-    std::string array_name;  // curv, annot: named after the file
-    std::string rgba_name;   // annot: "<name> rgba"
-    Surface s;
-    bool annot = false;
-    fsurf::Annotation a;
-    std::vector<std::pair<std::string, std::string>> annot_meta;
-};
-
 bool is_annot_name(const std::string &path) { return path.size() > 6 && path.compare(path.size() - 6, 6, ".annot") == 0; }
 
 // lh.thickness -> "thickness"; a name without a dot is used whole.
@@ -61,14 +51,17 @@ std::string overlay_name(const std::string &path) {
     if (base.size() > 6 && base.compare(base.size() - 6, 6, ".annot") == 0) base.resize(base.size() - 6);
     return base.empty() ? "curv" : base;
 }
-Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
-template <class F>
-hz_status run(hz_error *err, const std::string &path, F &&body) {
-    return hz::format_guard<FormatError, hzio::IoError>(err, "freesurfer", path, body);
-}
+struct FsReader {
+    std::string array_name;  // curv, annot: named after the file
+    std::string rgba_name;   // annot: "<name> rgba"
+    Surface s;
+    bool annot = false;
+    fsurf::Annotation a;
+    std::vector<std::pair<std::string, std::string>> annot_meta;
+};
 
-int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *name) {
+int32_t fs_probe(const uint8_t *head, uint64_t size, const char *name) noexcept {
     if (size >= 3 && head[0] == 0xFF && head[1] == 0xFF && head[2] == 0xFE) return 90;
     if (looks_like_curv(head, size)) return 80;
     if (size >= 9 && head[0] == 0xFF && head[1] == 0xFF && (head[2] == 0xFF || head[2] == 0xFD)) return 80;  // quad surface
@@ -77,124 +70,78 @@ int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *name) {
     return 0;
 }
 
-hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
-    if (out != nullptr) *out = nullptr;
-    if (req == nullptr || req->path == nullptr || out == nullptr)
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: open: NULL request, path or output");
-    return run(err, req->path, [&]() -> hz_status {
-        auto r = std::make_unique<Reader>();
-        r->path = req->path;
-        const hzio::MappedFile m(r->path);
-        r->array_name = overlay_name(r->path);
-        if (is_annot_name(r->path)) {
-            r->annot = true;
-            r->a = fsurf::parse_annot(m.data(), m.size());
-            r->rgba_name = r->array_name + " rgba";
-            if (!r->a.orig_table.empty()) r->annot_meta.emplace_back("orig_table", r->a.orig_table);
-            for (const auto &e : r->a.table) r->annot_meta.emplace_back(hzlabel::key(e.index), hzlabel::value(e));
-        } else {
-            r->s = parse(m.data(), m.size());
-        }
-        *out = reinterpret_cast<hz_reader *>(r.release());
-        return HZ_OK;
-    });
+std::unique_ptr<FsReader> fs_open(const std::string &path, const hz_task *) {
+    auto r = std::make_unique<FsReader>();
+    const hzio::MappedFile m(path);
+    r->array_name = overlay_name(path);
+    if (is_annot_name(path)) {
+        r->annot = true;
+        r->a = fsurf::parse_annot(m.data(), m.size());
+        r->rgba_name = r->array_name + " rgba";
+        if (!r->a.orig_table.empty()) r->annot_meta.emplace_back("orig_table", r->a.orig_table);
+        for (const auto &e : r->a.table) r->annot_meta.emplace_back(hzlabel::key(e.index), hzlabel::value(e));
+    } else {
+        r->s = parse(m.data(), m.size());
+    }
+    return r;
 }
 
-hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_dataset_info))
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: get_info: bad arguments");
-    const Surface &s = as_reader(reader)->s;
-    out->kind = HZ_DATA_MESH;
-    std::snprintf(out->format, sizeof out->format,
-                  as_reader(reader)->annot ? "freesurfer annot"
-                  : s.curv                 ? "freesurfer curv"
-                  : s.quad                 ? "freesurfer quads"
-                                           : "freesurfer triangles");
-    out->nb_arrays = as_reader(reader)->annot ? 2 : s.curv ? 1 : 0;
-    out->nb_vertices = s.vertices.size() / 3;
-    out->nb_faces = s.faces.size() / 3;
+void fs_info(const FsReader &r, hz_dataset_info &out) {
+    const Surface &s = r.s;
+    out.kind = HZ_DATA_MESH;
+    std::snprintf(out.format, sizeof out.format,
+                  r.annot  ? "freesurfer annot"
+                  : s.curv ? "freesurfer curv"
+                  : s.quad ? "freesurfer quads"
+                           : "freesurfer triangles");
+    out.nb_arrays = r.annot ? 2 : s.curv ? 1 : 0;
+    out.nb_vertices = s.vertices.size() / 3;
+    out.nb_faces = s.faces.size() / 3;
     static const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-    std::memcpy(out->voxel_to_ras, identity, sizeof identity);
-    out->source_space = HZ_SPACE_SURFACE_RAS;
-    return HZ_OK;
+    std::memcpy(out.voxel_to_ras, identity, sizeof identity);
+    out.source_space = HZ_SPACE_SURFACE_RAS;
 }
 
-hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: get_array_info: NULL");
-    const Reader &r = *as_reader(reader);
-    if (r.annot && index < 2) {
-        out->attach = HZ_ATTACH_VERTEX;
-        out->name = index == 0 ? r.array_name.c_str() : r.rgba_name.c_str();
-        out->dtype = index == 0 ? HZ_DTYPE_I32 : HZ_DTYPE_U8;
-        out->components = index == 0 ? 1 : 4;
-        out->count = r.a.labels.size();
-        return HZ_OK;
+// Arrays: an annotation's labels and their colours; a curv file's values.
+void fs_array_info(const FsReader &r, uint32_t index, hz_array_info &out) {
+    out.attach = HZ_ATTACH_VERTEX;
+    if (r.annot) {
+        out.name = index == 0 ? r.array_name.c_str() : r.rgba_name.c_str();
+        out.dtype = index == 0 ? HZ_DTYPE_I32 : HZ_DTYPE_U8;
+        out.components = index == 0 ? 1 : 4;
+        out.count = r.a.labels.size();
+        return;
     }
-    if (!r.s.curv || index != 0) return hz::set_errorf(err, HZ_E_NOT_FOUND, "freesurfer: %s: no extra array %u", r.path.c_str(), index);
-    out->attach = HZ_ATTACH_VERTEX;
-    out->name = r.array_name.c_str();
-    out->dtype = HZ_DTYPE_F32;
-    out->components = 1;
-    out->count = r.s.values.size();
-    return HZ_OK;
+    out.name = r.array_name.c_str();
+    out.dtype = HZ_DTYPE_F32;
+    out.components = 1;
+    out.count = r.s.values.size();
 }
 
-hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
-    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: read_array: NULL");
-    const Reader &r = *as_reader(reader);
-    if (r.annot && index < 2) {
-        const std::uint64_t n = r.a.labels.size();
-        if (dst->dtype != (index == 0 ? HZ_DTYPE_I32 : HZ_DTYPE_U8) || dst->ndim < 1 || dst->shape[0] != n)
-            return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "freesurfer: %s: read_array: destination does not match", r.path.c_str());
+void fs_read_array(const FsReader &r, uint32_t index, void *dense, const hz_task *) {
+    if (!r.annot) {
+        std::memcpy(dense, r.s.values.data(), r.s.values.size() * sizeof(float));
+    } else if (index == 0) {
+        std::memcpy(dense, r.a.labels.data(), r.a.labels.size() * sizeof(std::int32_t));
+    } else {
         const hzlabel::Colours colour(r.a.table);
-        for (std::uint64_t i = 0; i < n; ++i) {
-            const std::int32_t l = r.a.labels[i];
-            for (std::uint32_t c = 0; c < (index == 0 ? 1u : 4u); ++c) {
-                unsigned char *cell = hz::view_cell(*dst, i, c, index == 0 ? 4 : 1);
-                if (cell == nullptr)
-                    return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: read_array: destination too small", r.path.c_str());
-                if (index == 0)
-                    std::memcpy(cell, &l, 4);
-                else
-                    *cell = colour(l)[c];
-            }
-        }
-        return HZ_OK;
+        auto *out = static_cast<std::uint8_t *>(dense);
+        for (std::size_t i = 0; i < r.a.labels.size(); ++i) std::memcpy(out + 4 * i, colour(r.a.labels[i]).data(), 4);
     }
-    if (!r.s.curv || index != 0) return hz::set_errorf(err, HZ_E_NOT_FOUND, "freesurfer: %s: no extra array %u", r.path.c_str(), index);
-    if (dst->dtype != HZ_DTYPE_F32 || dst->ndim < 1 || dst->shape[0] != r.s.values.size())
-        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "freesurfer: %s: read_array: destination does not match", r.path.c_str());
-    for (std::uint64_t i = 0; i < r.s.values.size(); ++i) {
-        unsigned char *cell = hz::view_cell(*dst, i, 0, 4);
-        if (cell == nullptr)
-            return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: read_array: destination too small", r.path.c_str());
-        std::memcpy(cell, &r.s.values[i], 4);
-    }
-    return HZ_OK;
 }
 
-hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
-    if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: visit_metadata: NULL");
-    const Surface &s = as_reader(reader)->s;
-    for (const auto &[k, v] : as_reader(reader)->annot_meta) visitor(ctx, k.c_str(), v.c_str());
-    if (s.curv || as_reader(reader)->annot) return HZ_OK;
-    visitor(ctx, s.quad ? "quad coordinates" : "created", s.created.c_str());
-    for (const auto &[k, v] : s.footer) visitor(ctx, k.c_str(), v.c_str());
-    return HZ_OK;
+void fs_metadata(const FsReader &r, hz_metadata_visitor visit, void *ctx) {
+    const Surface &s = r.s;
+    for (const auto &[k, v] : r.annot_meta) visit(ctx, k.c_str(), v.c_str());
+    if (s.curv || r.annot) return;
+    visit(ctx, s.quad ? "quad coordinates" : "created", s.created.c_str());
+    for (const auto &[k, v] : s.footer) visit(ctx, k.c_str(), v.c_str());
 }
 
-hz_status HZ_ABI read_mesh(hz_reader *reader, const hz_mesh_dst *dst, const hz_task *task, hz_error *err) {
-    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: read_mesh: NULL");
-    const Reader &r = *as_reader(reader);
-    if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
-    if (dst->vertices_capacity < r.s.vertices.size() || dst->faces_capacity < r.s.faces.size())
-        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "freesurfer: %s: destination too small", r.path.c_str());
-    if (!r.s.vertices.empty()) std::memcpy(dst->vertices, r.s.vertices.data(), r.s.vertices.size() * 4);
-    if (!r.s.faces.empty()) std::memcpy(dst->faces, r.s.faces.data(), r.s.faces.size() * 4);
-    return HZ_OK;
+void fs_read_mesh(FsReader &r, float *vertices, uint32_t *faces, const hz_task *) {
+    if (!r.s.vertices.empty()) std::memcpy(vertices, r.s.vertices.data(), r.s.vertices.size() * 4);
+    if (!r.s.faces.empty()) std::memcpy(faces, r.s.faces.data(), r.s.faces.size() * 4);
 }
-
-void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
 
 // Big-endian output, as every FreeSurfer file.
 void put_be32(std::vector<unsigned char> &out, std::uint32_t v) {
@@ -338,15 +285,19 @@ hz_status write_annot(const hz_write_request *req, const hz_dataset_view *data) 
     return HZ_OK;
 }
 
-hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
-    if (req == nullptr || req->path == nullptr || data == nullptr)
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "freesurfer: write: NULL request or data");
-    if (data->kind != HZ_DATA_MESH) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "freesurfer: %s: holds surfaces only", req->path);
-    return run(err, req->path, [&]() -> hz_status {
+void fs_write(const hz_write_request &request, const hz_dataset_view &view, const hz_task *) {
+    const hz_write_request *req = &request;
+    const hz_dataset_view *data = &view;
+    {
         const std::string ext = req->extension ? req->extension : "";
-        if (ext == "annot") return write_annot(req, data);
-        if (std::find(std::begin(kCurvExtensions), std::end(kCurvExtensions), ext) != std::end(kCurvExtensions))
-            return write_curv(req, data);
+        if (ext == "annot") {
+            write_annot(req, data);
+            return;
+        }
+        if (std::find(std::begin(kCurvExtensions), std::end(kCurvExtensions), ext) != std::end(kCurvExtensions)) {
+            write_curv(req, data);
+            return;
+        }
         if (data->mesh_nb_vertices == 0 && data->nb_arrays > 0)
             throw FormatError("no surface geometry to write (per-vertex values go in a curv file: lh.curv, lh.thickness, ...)");
         if (data->mesh_nb_vertices > 0x7FFFFFFF || data->mesh_nb_faces > 0x7FFFFFFF) throw FormatError("too many vertices or faces");
@@ -380,30 +331,31 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             out.insert(out.end(), footer.begin(), footer.end());
         }
         save(req->path, out);
-        return HZ_OK;
-    });
+    }
 }
 
 const char *const kExtensions[] = {"white", "pial", "inflated",  "sphere", "orig", "smoothwm", "midthickness",
                                    "surf",  "curv", "thickness", "sulc",   "area", "annot",    nullptr};
-const hz_loader kLoader = {
-    .struct_size = sizeof(hz_loader),
-    .data_kinds = HZ_DATA_MESH,
-    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
-    .probe_bytes = 15,
-    .extensions = kExtensions,
-    .probe = probe,
-    .open = open,
-    .get_info = get_info,
-    .get_array_info = get_array_info,
-    .visit_metadata = visit_metadata,
-    .read_streamlines = nullptr,
-    .read_array = read_array,
-    .read_volume = nullptr,
-    .read_mesh = read_mesh,
-    .close = close,
-    .write = write,
+
+// The format as the SDK's C++ loader adapter takes it (hz/cpp/loader.hpp).
+struct FreeSurfer {
+    static constexpr const char *prefix = "freesurfer";
+    static constexpr hz_data_kind kinds = HZ_DATA_MESH;
+    static constexpr uint32_t probe_bytes = 15;
+    static constexpr const char *const *extensions = kExtensions;
+    using FormatError = fsurf::FormatError;
+    using IoError = hzio::IoError;
+    using Reader = FsReader;
+    static constexpr auto probe = fs_probe;
+    static constexpr auto open = fs_open;
+    static constexpr auto info = fs_info;
+    static constexpr auto array_info = fs_array_info;
+    static constexpr auto read_array = fs_read_array;
+    static constexpr auto metadata = fs_metadata;
+    static constexpr auto read_mesh = fs_read_mesh;
+    static constexpr auto write = fs_write;
 };
+constexpr const hz_loader &kLoader = hz::loader<FreeSurfer>::table;
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),

@@ -1,9 +1,10 @@
-// hz.loader/1 adapter for GIFTI surfaces and overlays (gifti_format.hpp).
+// hz.loader/1 for GIFTI surfaces and overlays (gifti_format.hpp), through the
+// SDK's C++ loader adapter (hz/cpp/loader.hpp).
 #include "gifti_format.hpp"
 #include "label_table.hpp"
 #include "mapped_file.hpp"
 
-#include <hz/cpp/plugin.hpp>
+#include <hz/cpp/loader.hpp>
 
 #include <algorithm>
 #include <array>
@@ -14,39 +15,38 @@
 namespace {
 
 constexpr const char *kId = "org.horizon.loader.gifti";
+const char *const kExtensions[] = {"gii", nullptr};
 
-struct Reader {
-    std::string path;
-    gifti::Surface s;
-    // The LabelTable in 0..255 components, listed as header entries
-    // ("label <key>" = "<name> r g b t").
-    std::vector<hzlabel::Entry> labels;
-    // For each NIFTI_INTENT_LABEL overlay (when the file has a LabelTable):
-    // a derived uint8 x 4 array "<name> rgba", the colour of each vertex's
-    // label (unknown keys grey with alpha 0), listed after the overlays.
-    std::vector<std::size_t> rgba_of;  // overlay index of each derived array
-    std::vector<std::string> rgba_names;
-};
-Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
+struct Gifti {
+    static constexpr const char *prefix = "gifti";
+    static constexpr hz_data_kind kinds = HZ_DATA_MESH;
+    static constexpr uint32_t probe_bytes = 4096;
+    static constexpr const char *const *extensions = kExtensions;
+    using FormatError = gifti::FormatError;
+    using IoError = hzio::IoError;
 
-// How an overlay is presented: int32 labels, float64 as stored, or float32.
-hz_dtype dtype_of(const gifti::Overlay &o) { return o.integer ? HZ_DTYPE_I32 : o.values64.empty() ? HZ_DTYPE_F32 : HZ_DTYPE_F64; }
+    struct Reader {
+        gifti::Surface s;
+        // The LabelTable in 0..255 components, listed as header entries
+        // ("label <key>" = "<name> r g b t").
+        std::vector<hzlabel::Entry> labels;
+        // For each NIFTI_INTENT_LABEL overlay (when the file has a LabelTable):
+        // a derived uint8 x 4 array "<name> rgba", the colour of each vertex's
+        // label (unknown keys grey with alpha 0), listed after the overlays.
+        std::vector<std::size_t> rgba_of;  // overlay index of each derived array
+        std::vector<std::string> rgba_names;
+    };
 
-template <class F>
-hz_status run(hz_error *err, const std::string &path, F &&body) {
-    return hz::format_guard<gifti::FormatError, hzio::IoError>(err, "gifti", path, body);
-}
+    // How an overlay is presented: int32 labels, float64 as stored, or float32.
+    static hz_dtype dtype_of(const gifti::Overlay &o) {
+        return o.integer ? HZ_DTYPE_I32 : o.values64.empty() ? HZ_DTYPE_F32 : HZ_DTYPE_F64;
+    }
 
-int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return gifti::probe(head, size); }
+    static int32_t probe(const uint8_t *head, uint64_t size, const char *) noexcept { return gifti::probe(head, size); }
 
-hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
-    if (out != nullptr) *out = nullptr;
-    if (req == nullptr || req->path == nullptr || out == nullptr)
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: open: NULL request, path or output");
-    return run(err, req->path, [&]() -> hz_status {
+    static std::unique_ptr<Reader> open(const std::string &path, const hz_task *) {
         auto r = std::make_unique<Reader>();
-        r->path = req->path;
-        r->s = gifti::read(r->path);
+        r->s = gifti::read(path);
         for (const gifti::Label &l : r->s.labels) {
             hzlabel::Entry e;
             e.index = l.key;
@@ -63,116 +63,75 @@ hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err
                 r->rgba_names.push_back(o.name + " rgba");
             }
         }
-        *out = reinterpret_cast<hz_reader *>(r.release());
-        return HZ_OK;
-    });
-}
-
-hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_dataset_info))
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: get_info: bad arguments");
-    const gifti::Surface &s = as_reader(reader)->s;
-    out->kind = HZ_DATA_MESH;
-    std::snprintf(out->format, sizeof out->format, "gifti");
-    out->nb_vertices = s.vertices.size() / 3;
-    out->nb_faces = s.faces.size() / 3;
-    // The POINTSET's CoordinateSystemTransformMatrix (DataSpace ->
-    // TransformedSpace), kept so that a writer can restore it; vertices are
-    // used as stored (nibabel, Workbench).
-    std::copy(s.transform.begin(), s.transform.end(), out->voxel_to_ras);
-    out->source_space = HZ_SPACE_RASMM;
-    out->nb_arrays = static_cast<uint32_t>(s.overlays.size() + as_reader(reader)->rgba_of.size());
-    return HZ_OK;
-}
-
-hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: get_array_info: NULL");
-    const Reader &r = *as_reader(reader);
-    if (index >= r.s.overlays.size() && index - r.s.overlays.size() < r.rgba_of.size()) {
-        out->attach = HZ_ATTACH_VERTEX;
-        out->name = r.rgba_names[index - r.s.overlays.size()].c_str();
-        out->dtype = HZ_DTYPE_U8;
-        out->components = 4;
-        out->count = r.s.rows;
-        return HZ_OK;
+        return r;
     }
-    if (index >= r.s.overlays.size()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "gifti: %s: no extra array %u", r.path.c_str(), index);
-    const gifti::Overlay &o = r.s.overlays[index];
-    out->attach = HZ_ATTACH_VERTEX;
-    out->name = o.name.c_str();
-    out->dtype = dtype_of(o);
-    out->components = o.components;
-    out->count = r.s.rows;
-    return HZ_OK;
-}
 
-hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
-    if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: visit_metadata: NULL");
-    const gifti::Surface &s = as_reader(reader)->s;
-    for (const auto &[k, v] : s.metadata) visitor(ctx, k.c_str(), v.c_str());
-    for (const hzlabel::Entry &e : as_reader(reader)->labels) visitor(ctx, hzlabel::key(e.index).c_str(), hzlabel::value(e).c_str());
-    if (!s.data_space.empty()) visitor(ctx, "DataSpace", s.data_space.c_str());
-    if (!s.transformed_space.empty()) visitor(ctx, "TransformedSpace", s.transformed_space.c_str());
-    return HZ_OK;
-}
+    static void info(const Reader &r, hz_dataset_info &out) {
+        const gifti::Surface &s = r.s;
+        out.kind = HZ_DATA_MESH;
+        std::snprintf(out.format, sizeof out.format, "gifti");
+        out.nb_vertices = s.vertices.size() / 3;
+        out.nb_faces = s.faces.size() / 3;
+        // The POINTSET's CoordinateSystemTransformMatrix (DataSpace ->
+        // TransformedSpace), kept so that a writer can restore it; vertices are
+        // used as stored (nibabel, Workbench).
+        std::copy(s.transform.begin(), s.transform.end(), out.voxel_to_ras);
+        out.source_space = HZ_SPACE_RASMM;
+        out.nb_arrays = static_cast<uint32_t>(s.overlays.size() + r.rgba_of.size());
+    }
 
-hz_status HZ_ABI read_mesh(hz_reader *reader, const hz_mesh_dst *dst, const hz_task *task, hz_error *err) {
-    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: read_mesh: NULL");
-    const Reader &r = *as_reader(reader);
-    if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
-    if (dst->vertices_capacity < r.s.vertices.size() || dst->faces_capacity < r.s.faces.size())
-        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: destination too small", r.path.c_str());
-    if (!r.s.vertices.empty()) std::memcpy(dst->vertices, r.s.vertices.data(), r.s.vertices.size() * 4);
-    if (!r.s.faces.empty()) std::memcpy(dst->faces, r.s.faces.data(), r.s.faces.size() * 4);
-    return HZ_OK;
-}
+    // Arrays: the overlays, then the derived label colours.
+    static void array_info(const Reader &r, uint32_t index, hz_array_info &out) {
+        out.attach = HZ_ATTACH_VERTEX;
+        out.count = r.s.rows;
+        if (index >= r.s.overlays.size()) {
+            out.name = r.rgba_names[index - r.s.overlays.size()].c_str();
+            out.dtype = HZ_DTYPE_U8;
+            out.components = 4;
+            return;
+        }
+        const gifti::Overlay &o = r.s.overlays[index];
+        out.name = o.name.c_str();
+        out.dtype = dtype_of(o);
+        out.components = o.components;
+    }
 
-hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
-    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: read_array: NULL");
-    const Reader &r = *as_reader(reader);
-    const std::uint64_t rows = r.s.rows;
-    if (index >= r.s.overlays.size() && index - r.s.overlays.size() < r.rgba_of.size()) {
-        if (dst->dtype != HZ_DTYPE_U8 || dst->ndim < 1 || dst->shape[0] != rows)
-            return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "gifti: %s: read_array: destination does not match", r.path.c_str());
-        const gifti::Overlay &o = r.s.overlays[r.rgba_of[index - r.s.overlays.size()]];
-        const hzlabel::Colours colour(r.labels);
-        for (std::uint64_t i = 0; i < rows; ++i) {
-            const std::array<std::uint8_t, 4> rgba = colour(o.labels[i]);
-            for (std::uint32_t c = 0; c < 4; ++c) {
-                unsigned char *cell = hz::view_cell(*dst, i, c, 1);
-                if (cell == nullptr)
-                    return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
-                *cell = rgba[c];
+    static void read_array(const Reader &r, uint32_t index, void *dense, const hz_task *) {
+        const std::uint64_t rows = r.s.rows;
+        if (index >= r.s.overlays.size()) {
+            const gifti::Overlay &o = r.s.overlays[r.rgba_of[index - r.s.overlays.size()]];
+            const hzlabel::Colours colour(r.labels);
+            auto *out = static_cast<std::uint8_t *>(dense);
+            for (std::uint64_t i = 0; i < rows; ++i) {
+                const std::array<std::uint8_t, 4> rgba = colour(o.labels[i]);
+                std::memcpy(out + 4 * i, rgba.data(), 4);
             }
+            return;
         }
-        return HZ_OK;
+        const gifti::Overlay &o = r.s.overlays[index];
+        const std::uint64_t n = rows * o.components;
+        const void *src = o.integer            ? static_cast<const void *>(o.labels.data())
+                          : o.values64.empty() ? static_cast<const void *>(o.values.data())
+                                               : static_cast<const void *>(o.values64.data());
+        std::memcpy(dense, src, n * (o.values64.empty() ? 4 : 8));
     }
-    if (index >= r.s.overlays.size()) return hz::set_errorf(err, HZ_E_NOT_FOUND, "gifti: %s: no extra array %u", r.path.c_str(), index);
-    const gifti::Overlay &o = r.s.overlays[index];
-    if (dst->ndim != 2 || dst->shape[0] != rows || dst->shape[1] != o.components || dst->dtype != dtype_of(o))
-        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "gifti: %s: read_array: destination does not match", r.path.c_str());
-    const std::size_t width = o.values64.empty() ? 4 : 8;
-    for (std::uint64_t i = 0; i < rows; ++i)
-        for (std::uint32_t c = 0; c < o.components; ++c) {
-            unsigned char *cell = hz::view_cell(*dst, i, c, width);
-            if (cell == nullptr)
-                return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gifti: %s: read_array: destination too small", r.path.c_str());
-            const std::size_t k = i * o.components + c;
-            const void *src = o.integer    ? static_cast<const void *>(&o.labels[k])
-                              : width == 8 ? static_cast<const void *>(&o.values64[k])
-                                           : static_cast<const void *>(&o.values[k]);
-            std::memcpy(cell, src, width);
-        }
-    return HZ_OK;
-}
 
-void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
+    static void metadata(const Reader &r, hz_metadata_visitor visit, void *ctx) {
+        const gifti::Surface &s = r.s;
+        for (const auto &[k, v] : s.metadata) visit(ctx, k.c_str(), v.c_str());
+        for (const hzlabel::Entry &e : r.labels) visit(ctx, hzlabel::key(e.index).c_str(), hzlabel::value(e).c_str());
+        if (!s.data_space.empty()) visit(ctx, "DataSpace", s.data_space.c_str());
+        if (!s.transformed_space.empty()) visit(ctx, "TransformedSpace", s.transformed_space.c_str());
+    }
 
-hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
-    if (req == nullptr || req->path == nullptr || data == nullptr)
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gifti: write: NULL request or data");
-    if (data->kind != HZ_DATA_MESH) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "gifti: %s: GIFTI holds surfaces only", req->path);
-    return run(err, req->path, [&]() -> hz_status {
+    static void read_mesh(Reader &r, float *vertices, uint32_t *faces, const hz_task *) {
+        if (!r.s.vertices.empty()) std::memcpy(vertices, r.s.vertices.data(), r.s.vertices.size() * 4);
+        if (!r.s.faces.empty()) std::memcpy(faces, r.s.faces.data(), r.s.faces.size() * 4);
+    }
+
+    static void write(const hz_write_request &request, const hz_dataset_view &view, const hz_task *) {
+        const hz_write_request *req = &request;
+        const hz_dataset_view *data = &view;
         gifti::Surface s;
         s.vertices.assign(data->mesh_vertices, data->mesh_vertices + 3 * data->mesh_nb_vertices);
         s.faces.assign(data->mesh_faces, data->mesh_faces + 3 * data->mesh_nb_faces);
@@ -239,29 +198,10 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         }
         if (s.vertices.empty() && s.overlays.empty()) throw gifti::FormatError("nothing to write: no surface and no per-vertex array");
         gifti::write(req->path, s, true);
-        return HZ_OK;
-    });
-}
-
-const char *const kExtensions[] = {"gii", nullptr};
-const hz_loader kLoader = {
-    .struct_size = sizeof(hz_loader),
-    .data_kinds = HZ_DATA_MESH,
-    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
-    .probe_bytes = 4096,
-    .extensions = kExtensions,
-    .probe = probe,
-    .open = open,
-    .get_info = get_info,
-    .get_array_info = get_array_info,
-    .visit_metadata = visit_metadata,
-    .read_streamlines = nullptr,
-    .read_array = read_array,
-    .read_volume = nullptr,
-    .read_mesh = read_mesh,
-    .close = close,
-    .write = write,
+    }
 };
+constexpr const hz_loader &kLoader = hz::loader<Gifti>::table;
+
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),

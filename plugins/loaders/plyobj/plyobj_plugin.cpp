@@ -6,7 +6,7 @@
 #include "mapped_file.hpp"
 #include "plyobj_format.hpp"
 
-#include <hz/cpp/plugin.hpp>
+#include <hz/cpp/loader.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -18,17 +18,10 @@ namespace {
 
 constexpr const char *kId = "org.horizon.loader.plyobj";
 
-struct Reader {
-    std::string path;
+struct MeshReader {
     bool ply = true;
     plyobj::Mesh m;
 };
-Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
-
-template <class F>
-hz_status run(hz_error *err, const std::string &path, F &&body) {
-    return hz::format_guard<plyobj::FormatError, hzio::IoError>(err, "plyobj", path, body);
-}
 
 bool ends_with(const char *name, const char *ext) {
     if (name == nullptr) return false;
@@ -41,7 +34,7 @@ bool ends_with(const char *name, const char *ext) {
 
 bool is_ply(const uint8_t *h, uint64_t n) { return n >= 4 && std::memcmp(h, "ply", 3) == 0 && (h[3] == '\n' || h[3] == '\r'); }
 
-int32_t HZ_ABI probe(const uint8_t *h, uint64_t n, const char *name) {
+int32_t mesh_probe(const uint8_t *h, uint64_t n, const char *name) noexcept {
     if (is_ply(h, n)) return 95;
     // OBJ has no magic number: the name, and text whose first statement is an OBJ one.
     if (!ends_with(name, ".obj")) return 0;
@@ -50,35 +43,24 @@ int32_t HZ_ABI probe(const uint8_t *h, uint64_t n, const char *name) {
     return 60;
 }
 
-hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
-    if (out != nullptr) *out = nullptr;
-    if (req == nullptr || req->path == nullptr || out == nullptr)
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: open: NULL request, path or output");
-    return run(err, req->path, [&]() -> hz_status {
-        auto r = std::make_unique<Reader>();
-        r->path = req->path;
-        const hzio::MappedFile f(r->path);
-        // A .ply name is read as PLY (so a wrong magic says so), anything else by its content.
-        r->ply = is_ply(f.data(), f.size()) || ends_with(req->path, ".ply");
-        r->m = r->ply ? plyobj::read_ply(f.data(), f.size()) : plyobj::read_obj(f.data(), f.size());
-        *out = reinterpret_cast<hz_reader *>(r.release());
-        return HZ_OK;
-    });
+std::unique_ptr<MeshReader> mesh_open(const std::string &path, const hz_task *) {
+    auto r = std::make_unique<MeshReader>();
+    const hzio::MappedFile f(path);
+    // A .ply name is read as PLY (so a wrong magic says so), anything else by its content.
+    r->ply = is_ply(f.data(), f.size()) || ends_with(path.c_str(), ".ply");
+    r->m = r->ply ? plyobj::read_ply(f.data(), f.size()) : plyobj::read_obj(f.data(), f.size());
+    return r;
 }
 
-hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_dataset_info))
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: get_info: bad arguments");
-    const Reader &r = *as_reader(reader);
-    out->kind = HZ_DATA_MESH;
-    std::snprintf(out->format, sizeof out->format, r.ply ? "ply" : "obj");
-    out->nb_vertices = r.m.vertices.size() / 3;
-    out->nb_faces = r.m.faces.size() / 3;
+void mesh_info(const MeshReader &r, hz_dataset_info &out) {
+    out.kind = HZ_DATA_MESH;
+    std::snprintf(out.format, sizeof out.format, r.ply ? "ply" : "obj");
+    out.nb_vertices = r.m.vertices.size() / 3;
+    out.nb_faces = r.m.faces.size() / 3;
     static const double identity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-    std::memcpy(out->voxel_to_ras, identity, sizeof identity);
-    out->source_space = HZ_SPACE_RASMM;
-    out->nb_arrays = (r.m.colors.empty() ? 0 : 1) + static_cast<uint32_t>(r.m.properties.size());
-    return HZ_OK;
+    std::memcpy(out.voxel_to_ras, identity, sizeof identity);
+    out.source_space = HZ_SPACE_RASMM;
+    out.nb_arrays = (r.m.colors.empty() ? 0 : 1) + static_cast<uint32_t>(r.m.properties.size());
 }
 
 // Arrays: "color" first when the file has colours, then the PLY vertex properties.
@@ -97,93 +79,52 @@ const char *ply_type_of(hz_dtype dtype) {
         if (d == dtype) return name;
     return nullptr;
 }
-const plyobj::VertexProperty *property_at(const Reader &r, uint32_t index) {
+const plyobj::VertexProperty *property_at(const MeshReader &r, uint32_t index) {
     if (!r.m.colors.empty()) {
         if (index == 0) return nullptr;
         --index;
     }
     return index < r.m.properties.size() ? &r.m.properties[index] : nullptr;
 }
-bool valid_array(const Reader &r, uint32_t index) { return (index == 0 && !r.m.colors.empty()) || property_at(r, index) != nullptr; }
-
-hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: get_array_info: NULL");
-    const Reader &r = *as_reader(reader);
-    if (!valid_array(r, index)) return hz::set_errorf(err, HZ_E_NOT_FOUND, "plyobj: %s: no extra array %u", r.path.c_str(), index);
+void mesh_array_info(const MeshReader &r, uint32_t index, hz_array_info &out) {
+    out.attach = HZ_ATTACH_VERTEX;
     if (const plyobj::VertexProperty *p = property_at(r, index)) {
-        out->attach = HZ_ATTACH_VERTEX;
-        out->name = p->name.c_str();
-        out->dtype = dtype_of(p->type);
-        out->components = 1;
-        out->count = r.m.vertices.size() / 3;
-        return HZ_OK;
+        out.name = p->name.c_str();
+        out.dtype = dtype_of(p->type);
+        out.components = 1;
+        out.count = r.m.vertices.size() / 3;
+        return;
     }
-    out->attach = HZ_ATTACH_VERTEX;
-    out->name = "color";
-    out->dtype = HZ_DTYPE_F32;
-    out->components = 3;
-    out->count = r.m.colors.size() / 3;
-    return HZ_OK;
+    out.name = "color";
+    out.dtype = HZ_DTYPE_F32;
+    out.components = 3;
+    out.count = r.m.colors.size() / 3;
 }
 
-hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
-    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: read_array: NULL");
-    const Reader &r = *as_reader(reader);
-    if (!valid_array(r, index)) return hz::set_errorf(err, HZ_E_NOT_FOUND, "plyobj: %s: no extra array %u", r.path.c_str(), index);
-    if (const plyobj::VertexProperty *p = property_at(r, index)) {
-        const std::uint64_t n = r.m.vertices.size() / 3;
-        const unsigned size = plyobj::ply_type_size(p->type);
-        if (dst->dtype != dtype_of(p->type) || dst->ndim < 1 || dst->shape[0] != n)
-            return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "plyobj: %s: read_array: destination does not match", r.path.c_str());
-        for (std::uint64_t i = 0; i < n; ++i) {
-            unsigned char *cell = hz::view_cell(*dst, i, 0, size);
-            if (cell == nullptr)
-                return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "plyobj: %s: read_array: destination too small", r.path.c_str());
-            std::memcpy(cell, p->bytes.data() + i * size, size);
-        }
-        return HZ_OK;
-    }
-    const std::uint64_t n = r.m.colors.size() / 3;
-    if (dst->dtype != HZ_DTYPE_F32 || dst->ndim < 1 || dst->shape[0] != n)
-        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "plyobj: %s: read_array: destination does not match", r.path.c_str());
-    for (std::uint64_t i = 0; i < n; ++i)
-        for (std::uint32_t c = 0; c < 3; ++c) {
-            unsigned char *cell = hz::view_cell(*dst, i, c, 4);
-            if (cell == nullptr)
-                return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "plyobj: %s: read_array: destination too small", r.path.c_str());
-            std::memcpy(cell, &r.m.colors[3 * i + c], 4);
-        }
-    return HZ_OK;
+void mesh_read_array(const MeshReader &r, uint32_t index, void *dense, const hz_task *) {
+    if (const plyobj::VertexProperty *p = property_at(r, index))
+        std::memcpy(dense, p->bytes.data(), r.m.vertices.size() / 3 * plyobj::ply_type_size(p->type));
+    else
+        std::memcpy(dense, r.m.colors.data(), r.m.colors.size() * sizeof(float));
 }
 
-hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
-    if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: visit_metadata: NULL");
-    for (const auto &[k, v] : as_reader(reader)->m.metadata) visitor(ctx, k.c_str(), v.c_str());
-    return HZ_OK;
+void mesh_metadata(const MeshReader &r, hz_metadata_visitor visit, void *ctx) {
+    for (const auto &[k, v] : r.m.metadata) visit(ctx, k.c_str(), v.c_str());
 }
 
-hz_status HZ_ABI read_mesh(hz_reader *reader, const hz_mesh_dst *dst, const hz_task *task, hz_error *err) {
-    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: read_mesh: NULL");
-    const Reader &r = *as_reader(reader);
-    if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
-    if (dst->vertices_capacity < r.m.vertices.size() || dst->faces_capacity < r.m.faces.size())
-        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "plyobj: %s: destination too small", r.path.c_str());
-    std::memcpy(dst->vertices, r.m.vertices.data(), r.m.vertices.size() * 4);
-    std::memcpy(dst->faces, r.m.faces.data(), r.m.faces.size() * 4);
-    return HZ_OK;
+void mesh_read(MeshReader &r, float *vertices, uint32_t *faces, const hz_task *) {
+    std::memcpy(vertices, r.m.vertices.data(), r.m.vertices.size() * 4);
+    std::memcpy(faces, r.m.faces.data(), r.m.faces.size() * 4);
 }
-
-void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
 
 // Vertex colours from the data: "color" (float RGB or RGBA in [0, 1], from
 // glTF, PLY or OBJ), else a uint8 RGBA array (an annotation's or a label
 // GIFTI's "<labels> rgba"). PLY also keeps per-vertex scalar arrays as
 // vertex properties; every other array is reported as dropped.
-hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
-    if (req == nullptr || req->path == nullptr || data == nullptr)
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "plyobj: write: NULL request or data");
-    if (data->kind != HZ_DATA_MESH) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "plyobj: %s: holds meshes only", req->path);
-    return run(err, req->path, [&]() -> hz_status {
+void mesh_write(const hz_write_request &request, const hz_dataset_view &view, const hz_task *) {
+    const hz_write_request *req = &request;
+    const hz_dataset_view *data = &view;
+    {
         const std::string ext = req->extension ? req->extension : "ply";
         const std::uint64_t nv = data->mesh_nb_vertices;
         if (nv == 0 || data->mesh_nb_faces == 0)
@@ -249,29 +190,30 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             plyobj::write_obj(req->path, in);
         else
             plyobj::write_ply(req->path, in);
-        return HZ_OK;
-    });
+    }
 }
 
 const char *const kExtensions[] = {"ply", "obj", nullptr};
-const hz_loader kLoader = {
-    .struct_size = sizeof(hz_loader),
-    .data_kinds = HZ_DATA_MESH,
-    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
-    .probe_bytes = 4096,
-    .extensions = kExtensions,
-    .probe = probe,
-    .open = open,
-    .get_info = get_info,
-    .get_array_info = get_array_info,
-    .visit_metadata = visit_metadata,
-    .read_streamlines = nullptr,
-    .read_array = read_array,
-    .read_volume = nullptr,
-    .read_mesh = read_mesh,
-    .close = close,
-    .write = write,
+
+// The format as the SDK's C++ loader adapter takes it (hz/cpp/loader.hpp).
+struct PlyObj {
+    static constexpr const char *prefix = "plyobj";
+    static constexpr hz_data_kind kinds = HZ_DATA_MESH;
+    static constexpr uint32_t probe_bytes = 4096;
+    static constexpr const char *const *extensions = kExtensions;
+    using FormatError = plyobj::FormatError;
+    using IoError = hzio::IoError;
+    using Reader = MeshReader;
+    static constexpr auto probe = mesh_probe;
+    static constexpr auto open = mesh_open;
+    static constexpr auto info = mesh_info;
+    static constexpr auto array_info = mesh_array_info;
+    static constexpr auto read_array = mesh_read_array;
+    static constexpr auto metadata = mesh_metadata;
+    static constexpr auto read_mesh = mesh_read;
+    static constexpr auto write = mesh_write;
 };
+constexpr const hz_loader &kLoader = hz::loader<PlyObj>::table;
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),

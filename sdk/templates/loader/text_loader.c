@@ -9,7 +9,7 @@
  * It shows the whole contract: a pure probe, sizes checked against the file
  * before allocating, errors that name the file, cancellation, bounded
  * destinations and a writer that reports what it drops and skips the
- * delimiter after each streamline of a mapped TCK (HZ_LOADER_WRITES_GAP).
+ * delimiter after each streamline of a mapped TCK (HZ_EXT_DELIMITED_STREAMLINES).
  */
 #include <hz/hz.h>
 

@@ -173,6 +173,26 @@ inline unsigned char *view_cell(const hz_array_view &v, uint64_t row, uint64_t c
     return static_cast<unsigned char *>(v.data) + off;
 }
 
+// Bytes of one value of `d` (0 for HZ_DTYPE_UNKNOWN).
+inline std::size_t dtype_size(hz_dtype d) noexcept {
+    switch (d) {
+    case HZ_DTYPE_U8:
+    case HZ_DTYPE_I8: return 1;
+    case HZ_DTYPE_U16:
+    case HZ_DTYPE_I16:
+    case HZ_DTYPE_F16: return 2;
+    case HZ_DTYPE_U32:
+    case HZ_DTYPE_I32:
+    case HZ_DTYPE_F32: return 4;
+    case HZ_DTYPE_U64:
+    case HZ_DTYPE_I64:
+    case HZ_DTYPE_F64: return 8;
+    case HZ_DTYPE_RGB8: return 3;
+    case HZ_DTYPE_RGBA8: return 4;
+    default: return 0;
+    }
+}
+
 // Convenience for polling a possibly-NULL task.
 inline bool cancelled(const hz_task *task) noexcept {
     return task != nullptr && task->is_cancelled != nullptr && task->is_cancelled(task);
