@@ -79,7 +79,8 @@ struct Csv {
             if (point && !(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])))
                 throw FormatError(where + ": a coordinate is not finite");
             if (id != current) {
-                if (id != current + 1) throw FormatError(where + ": streamline " + std::to_string(id) + " after " + std::to_string(current));
+                if (id != current + 1)
+                    throw FormatError(where + ": streamline " + std::to_string(id) + " after " + std::to_string(current));
                 if (current >= 0) r->offsets.push_back(r->positions.size() / 3);
                 current = id;
             }
@@ -109,7 +110,8 @@ struct Csv {
     // Positions and offsets only: every other array is reported as dropped.
     static void write(const hz_write_request &req, const hz_dataset_view &data, const hz_task *task) {
         for (uint32_t i = 0; i < data.nb_arrays && req.on_dropped != nullptr; ++i)
-            req.on_dropped(req.ctx, ("array '" + std::string(data.arrays[i].name ? data.arrays[i].name : "") + "' (CSV keeps points only)").c_str());
+            req.on_dropped(req.ctx,
+                           ("array '" + std::string(data.arrays[i].name ? data.arrays[i].name : "") + "' (CSV keeps points only)").c_str());
         const hz_streamlines_view &s = data.streamlines;  // (gap 0: this plugin does not offer HZ_EXT_DELIMITED_STREAMLINES)
         std::FILE *f = std::fopen(req.path, "wb");
         if (f == nullptr) throw IoError(std::strerror(errno));

@@ -1,0 +1,225 @@
+// Streamline geometry on the CPU (line_geometry.hpp).
+#include "line_geometry.hpp"
+
+#include "colour.hpp"
+
+#include <hz/core/render/decimate.hpp>
+#include <hz/core/render/renderer.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace hz::core::render {
+
+std::vector<float> tube_radii(const Object &o) {
+    const Tractogram &t = o.data.tractogram;
+    const std::uint64_t N = t.nb_streamlines();
+    std::vector<float> radius(N, float(o.radius_mm));
+    if (o.clustering && o.clustering->width_by_size) {
+        for (const auto &x : t.arrays)
+            if (x.name == "cluster_size" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) {
+                std::vector<double> sz = array_values(x);
+                std::vector<double> sorted = sz;
+                std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+                const double med = sorted.empty() ? 1.0 : std::max(1.0, sorted[sorted.size() / 2]);
+                for (std::uint64_t i = 0; i < N; ++i)
+                    radius[i] = float(o.radius_mm * std::clamp(std::sqrt(std::max(sz[i], 1.0) / med), 0.35, 3.0));
+            }
+    }
+    return radius;
+}
+
+// The colouring of tractogram object `o`, resolved per streamline.
+std::shared_ptr<LineData> line_data(const Object &o) {
+    auto d = std::make_shared<LineData>();
+    const Tractogram &t = o.data.tractogram;
+    const std::uint64_t N = t.nb_streamlines();
+    d->t = &t;
+    const Coloring &c = o.coloring;
+    if (c.mode == "direction")
+        d->mode = LineData::Mode::Direction;
+    else if (c.mode == "cluster")
+        d->mode = LineData::Mode::Cluster;
+    else if (c.mode == "data")
+        d->mode = LineData::Mode::Data;
+    else
+        d->mode = LineData::Mode::Solid;
+    d->solid = rgba8(c.color[0], c.color[1], c.color[2]);
+    if (d->mode == LineData::Mode::Data) {
+        const DataArray *a = nullptr;
+        for (const auto &x : t.arrays)
+            if (x.name == c.array && (x.attach == HZ_ATTACH_VERTEX || x.attach == HZ_ATTACH_STREAMLINE)) a = &x;
+        if (!a) {
+            std::string list;
+            for (const auto &x : t.arrays) list += (list.empty() ? "" : ", ") + x.name;
+            throw Error(o.name + ": color: no per-point or per-streamline array '" + c.array +
+                        "' (arrays: " + (list.empty() ? "none" : list) + ")");
+        }
+        d->colormap = c.colormap;
+        if (a->attach == HZ_ATTACH_VERTEX) {
+            d->per_vertex = a;
+            if (c.range)
+                d->range = *c.range;
+            else {
+                double lo = INFINITY, hi = -INFINITY;
+                const std::size_t stride = dtype_size(a->dtype) * a->components;
+                for (std::uint64_t i = 0; i < a->count; ++i) {
+                    const double v = value_at(a->bytes.data() + i * stride, a->dtype);
+                    if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+                }
+                d->range = !(lo <= hi) ? std::array<double, 2>{0, 1}
+                           : lo == hi  ? std::array<double, 2>{lo, lo + 1}
+                                       : std::array<double, 2>{lo, hi};
+            }
+        } else {
+            d->per_streamline = array_values(*a);
+            d->range = c.range ? *c.range : finite_range(d->per_streamline);
+        }
+    }
+    if (d->mode == LineData::Mode::Cluster) {
+        // By a per-streamline "cluster_id" when present (stable while
+        // clusters are expanded or hidden), else by position.
+        std::vector<double> ids;
+        for (const auto &x : t.arrays)
+            if (x.name == "cluster_id" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) ids = array_values(x);
+        d->cluster.resize(N);
+        for (std::uint64_t s = 0; s < N; ++s) {
+            const double key = ids.empty() ? double(s) : ids[s];
+            const auto c = cluster_palette(key);
+            d->cluster[s] = rgba8(srgb_to_linear(c[0]), srgb_to_linear(c[1]), srgb_to_linear(c[2]));
+        }
+    }
+    d->radius = tube_radii(o);
+    // Highlighted streamlines (a per-streamline "highlight" array, e.g.
+    // the clusters selected in the window): their colour mixed towards
+    // white by the value, clamped to [0, 1].
+    for (const auto &x : t.arrays)
+        if (x.name == "highlight" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) {
+            const std::vector<double> h = array_values(x);
+            if (std::any_of(h.begin(), h.end(), [](double v) { return v > 0; })) d->highlight.assign(h.begin(), h.end());
+        }
+    return d;
+}
+
+// The colour every vertex of `d` has, if it is one (solid colouring, or
+// per-streamline colours that happen to be equal): with baked materials
+// it is a constant of the program.
+std::optional<std::array<std::uint8_t, 4>> uniform_colour(const LineData &d) {
+    if (!d.highlight.empty() || d.t->nb_vertices() == 0) return std::nullopt;
+    if (d.mode == LineData::Mode::Solid) return d.solid;
+    if (d.mode == LineData::Mode::Cluster && !d.cluster.empty() &&
+        std::all_of(d.cluster.begin(), d.cluster.end(), [&](const auto &c) { return c == d.cluster[0]; }))
+        return d.cluster[0];
+    if (d.mode == LineData::Mode::Data && !d.per_streamline.empty() &&
+        std::all_of(d.per_streamline.begin(), d.per_streamline.end(),
+                    [&](double v) { return v == d.per_streamline[0] || (std::isnan(v) && std::isnan(d.per_streamline[0])); })) {
+        const auto m = colormap(d.colormap, (d.per_streamline[0] - d.range[0]) / (d.range[1] - d.range[0]));
+        return rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
+    }
+    return std::nullopt;
+}
+
+// rgba8's quantisation of srgb_to_linear(|x|), x in [-1, 1], through a
+// table of 4097 entries (the direction colouring of every vertex).
+namespace {
+std::uint8_t direction_lut(float x) {
+    static const auto table = [] {
+        std::array<std::uint8_t, 4097> t{};
+        for (int i = 0; i <= 4096; ++i) t[i] = rgba8(srgb_to_linear(i / 4096.0), 0, 0)[0];
+        return t;
+    }();
+    return table[std::size_t(std::min(std::abs(x), 1.0f) * 4096.0f + 0.5f)];  // (lround, without the call)
+}
+
+}  // namespace
+
+void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::uint64_t b, double tol, BuiltLines &out) {
+    const Tractogram &t = *d.t;
+    const float *P = t.positions.data();
+    std::vector<std::uint32_t> keep;
+    out.verts.clear(), out.firsts.clear(), out.counts.clear(), out.indices.clear();
+    out.segments = out.kept = 0;
+    {
+        std::uint64_t pts = 0;
+        for (std::uint64_t k = a; k < b; ++k) pts += pieces ? pieces[k].count : t.size(k);
+        out.verts.reserve(pts);
+        out.firsts.reserve(b - a), out.counts.reserve(b - a);
+    }
+    std::size_t stride = 0;
+    if (d.per_vertex) stride = dtype_size(d.per_vertex->dtype) * d.per_vertex->components;
+    for (std::uint64_t k = a; k < b; ++k) {
+        const std::uint64_t s = pieces ? pieces[k].s : k;
+        const std::uint64_t sb = pieces ? t.begin(s) + pieces[k].first : t.begin(s);
+        const std::uint64_t e = pieces ? sb + pieces[k].count : t.end(s), n = e - sb;
+        if (n < 2) continue;
+        decimate(P + sb * 3, n, tol, keep);
+        out.firsts.push_back(GLint(out.verts.size()));
+        out.counts.push_back(GLsizei(keep.size()));
+        out.segments += keep.size() - 1;
+        out.kept += keep.size();
+        std::array<std::uint8_t, 4> scol = d.solid;
+        if (d.mode == LineData::Mode::Cluster)
+            scol = d.cluster[s];
+        else if (d.mode == LineData::Mode::Data && !d.per_vertex) {
+            const auto m = colormap(d.colormap, (d.per_streamline[s] - d.range[0]) / (d.range[1] - d.range[0]));
+            scol = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
+        }
+        const double hl = d.highlight.empty() ? 0.0 : std::min<double>(d.highlight[s], 1.0) * 0.75;
+        const float radius = d.radius[s];
+        for (std::uint32_t ki = 0; ki < keep.size(); ++ki) {
+            const std::uint64_t i = sb + keep[ki];
+            const std::uint64_t i0 = i > sb ? i - 1 : i, i1 = i + 1 < e ? i + 1 : i;
+            float tx = P[i1 * 3] - P[i0 * 3], ty = P[i1 * 3 + 1] - P[i0 * 3 + 1], tz = P[i1 * 3 + 2] - P[i0 * 3 + 2];
+            const float len = std::sqrt(tx * tx + ty * ty + tz * tz);
+            if (len > 0 && std::isfinite(len))
+                tx /= len, ty /= len, tz /= len;
+            else
+                tx = ty = tz = 0;
+            LineVertex v;
+            v.pos[0] = P[i * 3], v.pos[1] = P[i * 3 + 1], v.pos[2] = P[i * 3 + 2];
+            v.tangent = pack_snorm_2_10_10_10(tx, ty, tz);
+            std::array<std::uint8_t, 4> col = scol;
+            if (d.mode == LineData::Mode::Direction)
+                col = {direction_lut(tx), direction_lut(ty), direction_lut(tz), 255};
+            else if (d.per_vertex) {
+                const double val = value_at(d.per_vertex->bytes.data() + i * stride, d.per_vertex->dtype);
+                const auto m = colormap(d.colormap, (val - d.range[0]) / (d.range[1] - d.range[0]));
+                col = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
+            }
+            if (hl > 0)
+                for (int c = 0; c < 3; ++c) col[c] = std::uint8_t(std::lround(col[c] + (255 - col[c]) * hl));
+            std::memcpy(v.rgba, col.data(), 4);
+            v.radius = radius;
+            out.verts.push_back(v);
+        }
+    }
+    out.indices.clear();
+    out.indices.reserve(out.verts.size() + out.counts.size());
+    for (std::size_t k = 0; k < out.firsts.size(); ++k) {
+        for (GLsizei q = 0; q < out.counts[k]; ++q) out.indices.push_back(std::uint32_t(out.firsts[k] + q));
+        out.indices.push_back(kRestart);
+    }
+}
+
+// Chunks of at most kChunkPoints input points over streamlines [0, n)
+// (or over pieces[0..n)).
+std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::uint64_t n) {
+    std::vector<LineChunk> out;
+    LineChunk c;
+    for (std::uint64_t k = 0; k < n; ++k) {
+        const std::uint64_t pts = pieces ? pieces[k].count : t.size(k);
+        if (c.points > 0 && c.points + pts > kChunkPoints) {
+            c.b = k;
+            out.push_back(std::move(c));
+            c = LineChunk{};
+            c.a = k;
+        }
+        c.points += pts;
+    }
+    c.b = n;
+    if (c.b > c.a) out.push_back(std::move(c));
+    return out;
+}
+
+}  // namespace hz::core::render

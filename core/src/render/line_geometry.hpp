@@ -1,0 +1,93 @@
+// Streamline geometry on the CPU (private to the renderer): the vertex the
+// line and tube programs read, an object's colouring resolved per
+// streamline, and the decimated vertices of a chunk of streamlines, built on
+// any thread. The GL side (buffers, the ring, drawing) stays in renderer.cpp.
+#pragma once
+
+#include "gl.hpp"
+#include "shell_proxy.hpp"
+
+#include <hz/core/render/scene.hpp>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace hz::core::render {
+
+// A streamline vertex as the line and tube programs read it.
+struct LineVertex {
+    float pos[3];
+    std::uint32_t tangent;  // snorm 2_10_10_10
+    std::uint8_t rgba[4];   // linear colour
+    float radius;           // tube radius, mm
+};
+static_assert(sizeof(LineVertex) == 24);
+
+// What building the vertices of a run of streamlines reads: the object's
+// tractogram (its positions may be a mapping of the file) and its colouring
+// resolved per streamline. Shared with the threads that build chunks.
+struct LineData {
+    const Tractogram *t = nullptr;
+    enum class Mode { Direction, Solid, Data, Cluster } mode = Mode::Solid;
+    std::array<std::uint8_t, 4> solid{};
+    std::string colormap;
+    std::array<double, 2> range{0, 1};
+    const DataArray *per_vertex = nullptr;             // data colouring by a per-point array
+    std::vector<double> per_streamline;                // ... or by a per-streamline array
+    std::vector<std::array<std::uint8_t, 4>> cluster;  // cluster colouring, per streamline
+    std::vector<float> radius;                         // per streamline
+    std::vector<float> highlight;                      // per streamline; empty: none
+};
+
+// Streamline geometry is cut into chunks of at most kChunkPoints input
+// points: no GL buffer grows with the data (llvmpipe faults on vertex
+// buffers past 2^31 bytes; drivers cap buffer sizes), a frame can be drawn
+// a chunk at a time (progressive refinement), and chunks beyond the
+// renderer's memory budget are built again each frame into a ring buffer
+// instead of being kept.
+constexpr std::uint64_t kChunkPoints = 1u << 18;
+constexpr std::uint32_t kRestart = 0xFFFFFFFFu;  // the primitive restart index
+
+struct LineChunk {
+    std::uint64_t a = 0, b = 0;  // streamlines [a, b) (of the object, or pieces [a, b) of its proxy)
+    std::uint64_t points = 0;    // input points
+    GLuint vao = 0, vbo = 0;     // resident geometry; 0: built and streamed when drawn
+    std::vector<GLint> firsts;   // per drawn streamline, into the chunk's vertices
+    std::vector<GLsizei> counts;
+    GLuint ebo = 0;  // the strips' indices (BuiltLines::indices)
+    GLsizei nb_indices = 0;
+    std::uint64_t segments = 0, kept = 0, bytes = 0;
+    bool built = false;  // firsts/counts known
+};
+
+struct BuiltLines {
+    std::vector<LineVertex> verts;
+    std::vector<GLint> firsts;
+    std::vector<GLsizei> counts;
+    // One line strip per streamline, separated by kRestart: a chunk is one
+    // glDrawElements (llvmpipe sets up each draw of a glMultiDrawArrays
+    // separately: microseconds each, seconds for a million streamlines).
+    std::vector<std::uint32_t> indices;
+    std::uint64_t segments = 0, kept = 0;
+};
+
+// The colouring of tractogram object `o`, resolved per streamline.
+std::shared_ptr<LineData> line_data(const Object &o);
+// The colour every vertex of `d` has, if it is one (solid colouring, or
+// per-streamline colours that happen to be equal): with baked materials it
+// is a constant of the program.
+std::optional<std::array<std::uint8_t, 4>> uniform_colour(const LineData &d);
+// The vertices of streamlines [a, b) of `d`, or of pieces [a, b) of
+// `pieces`, decimated at `tol` mm (decimate.hpp), with their draw lists and
+// strip indices. Touches nothing but its arguments: chunks are built on
+// other threads.
+void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::uint64_t b, double tol, BuiltLines &out);
+// Chunks of at most kChunkPoints input points over streamlines [0, n) (or
+// over pieces[0..n)).
+std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::uint64_t n);
+
+}  // namespace hz::core::render
