@@ -36,7 +36,6 @@
 #include <cstddef>
 #include <cstdio>
 
-
 namespace hz::core {
 
 // --------------------------------------------------------------- children
@@ -181,6 +180,5 @@ ChildResult run_in_child(const std::function<std::string()> &fn, double timeout_
     reap(pid, deadline, r);
     return r;
 }
-
 
 }  // namespace hz::core

@@ -37,7 +37,6 @@
 #include <cstddef>
 #include <cstdio>
 
-
 namespace hz::core {
 
 // ---------------------------------------------------------------- ELF check
@@ -133,7 +132,6 @@ std::optional<std::string> elf_precheck(const fs::path &file) {
     if (exports_plugin_entry(in, size, eh) == false) return "not a Horizon plugin: no '" HZ_PLUGIN_ENTRY_SYMBOL "' symbol exported";
     return std::nullopt;
 }
-
 
 // ------------------------------------------------------------------ module
 
@@ -437,6 +435,5 @@ const void *LoadedPlugin::extension(const char *id, std::size_t min_size) const 
     if (t == nullptr || *static_cast<const std::uint32_t *>(t) < min_size) return nullptr;
     return t;
 }
-
 
 }  // namespace hz::core

@@ -1,0 +1,33 @@
+// What a click meets in the window: the world point under a window point,
+// for placing a region where the user clicks (a streamline, a centroid, a
+// surface or a slice, whichever is nearest along the ray). On the CPU, with
+// the camera the frame was drawn with. Threading: the window's thread.
+#pragma once
+
+#include "session.hpp"
+
+#include <hz/core/render/renderer.hpp>
+
+#include <array>
+#include <cstddef>
+#include <optional>
+
+namespace hz::host {
+
+struct ClickTarget {
+    const core::render::Scene *scene = nullptr;  // what the window draws
+    std::size_t object = 0;                      // the streamlines a click can meet: the session's, or the centroids
+    bool centroids = false;                      // `object` is an exploration's centroids (few: tested whole)
+    const Session *session = nullptr;            // the streamlines shown and their spatial grid (when not centroids)
+};
+
+// The world point (RAS+ mm) under window point (x, y) of a ww x wh window
+// whose framebuffer is fw x fh, seen with camera `v`: the nearest of the
+// picked streamline (within 6 pixels; its depth along the ray), the visible
+// meshes and the visible slices; nullopt over nothing. A session's
+// streamlines are tested through its spatial grid when it is built, front
+// to back (a million streamlines cost a few thousand tests).
+std::optional<std::array<double, 3>> point_under(const ClickTarget &target, int ww, int wh, int fw, int fh, double x, double y,
+                                                 const core::render::View &v);
+
+}  // namespace hz::host
