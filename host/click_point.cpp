@@ -50,8 +50,7 @@ std::optional<std::array<double, 3>> point_under(const ClickTarget &target, int 
                     const double reach = kTolerancePx * e * 2 * th / fh + 1e-3 + grid->cell / 2;
                     core::Bounds box;
                     box.empty = false;
-                    for (int i = 0; i < 3; ++i)
-                        box.min[i] = v.eye[i] + e * dir[i] - reach, box.max[i] = v.eye[i] + e * dir[i] + reach;
+                    for (int i = 0; i < 3; ++i) box.min[i] = v.eye[i] + e * dir[i] - reach, box.max[i] = v.eye[i] + e * dir[i] + reach;
                     grid->mark(box, step);
                 }
                 std::vector<std::uint64_t> near;  // (object indices: the object shows kept[i] as its streamline i)
@@ -63,8 +62,7 @@ std::optional<std::array<double, 3>> point_under(const ClickTarget &target, int 
                     }
                     seen[w] |= step[w];
                 }
-                if (!near.empty())
-                    hit = core::render::pick_streamline(ob.data.tractogram, radii, v, fw, fh, px, py, kTolerancePx, &near);
+                if (!near.empty()) hit = core::render::pick_streamline(ob.data.tractogram, radii, v, fw, fh, px, py, kTolerancePx, &near);
             }
         } else {
             hit = core::render::pick_streamline(ob.data.tractogram, radii, v, fw, fh, px, py, kTolerancePx);

@@ -116,6 +116,1006 @@ core::render::Slab parse_slab(const std::string &spec) {
 
 namespace {}  // namespace
 
+namespace {
+
+// One window over a scene: the editing session (regions, strokes, undo,
+// save) and the exploration of paper Fig. 5, what clicks, keys and strokes
+// do, the `--script` commands, the panel, and the frame loop. Lives while
+// the window shows the scene; its Renderer is the caller's.
+class Viewer {
+public:
+    Viewer(const core::Registry &reg, const ViewOptions &o, GLFWwindow *win, App &app, core::render::Renderer &r, int w0, int h0)
+        : reg(reg), o(o), win(win), app(app), r(r), w0(w0), h0(h0) {}
+    Viewer(const Viewer &) = delete;
+    Viewer &operator=(const Viewer &) = delete;
+    ~Viewer() {
+        app.on_click = nullptr;  // (they refer to this viewer)
+        app.on_key = nullptr;
+        app.on_ctrl_scroll = nullptr;
+        app.on_stroke = nullptr;
+        app.r = nullptr;
+    }
+
+    // The editing session over the first tractogram (object ti): the
+    // regions of interest that select its streamlines, undo / redo, save.
+    // With --explore (paper Fig. 5) it becomes QuickBundlesX centroids
+    // (object ci = ti) plus the streamlines expanded so far (si). Adds the
+    // regions' wire objects to `scene` and installs the input handlers.
+    void setup(core::render::Scene &scene) {
+        for (std::size_t i = 0; i < scene.objects.size() && !session; ++i) {
+            core::render::Object &ob = scene.objects[i];
+            if (ob.kind != HZ_DATA_STREAMLINES || ob.proxy_for) continue;
+            ti = i;
+            std::vector<core::Roi> rois = Session::rois_from_metadata(reg, ob.data.metadata);  // (a file saved by the window)
+            for (const std::string &spec : o.include) rois.push_back(core::parse_roi(reg, spec, true));
+            for (const std::string &spec : o.exclude) rois.push_back(core::parse_roi(reg, spec, false));
+            // A selection the window saved, reopened with --explore: its
+            // clusters as they were saved ("horizon_cluster" per streamline,
+            // "horizon_clusters" names), not a new clustering.
+            std::vector<std::int64_t> saved_label;
+            std::vector<std::string> saved_names;
+            if (o.explore) {
+                const core::Tractogram &t = ob.data.tractogram;
+                for (const auto &a : t.arrays)
+                    if (a.name == "horizon_cluster" && a.attach == HZ_ATTACH_STREAMLINE && a.count == t.nb_streamlines() &&
+                        a.components == 1) {
+                        saved_label.resize(a.count);
+                        for (std::uint64_t i = 0; i < a.count; ++i)
+                            saved_label[i] = std::int64_t(core::value_at(a.bytes.data() + i * core::dtype_size(a.dtype), a.dtype));
+                    }
+                for (const auto &[k, val] : ob.data.metadata)
+                    if (k == "horizon_clusters") {
+                        const nlohmann::json j = nlohmann::json::parse(val, nullptr, false);
+                        if (j.is_array())
+                            for (const auto &e : j) saved_names.push_back(e.is_string() ? e.get<std::string>() : "");
+                    }
+                if (saved_names.empty()) saved_label.clear();
+            }
+            std::unique_ptr<Explorer> explorer;
+            if (o.explore)
+                explorer = std::make_unique<Explorer>(reg, ob.data.tractogram.shared(), ob.name, explore_spec(reg, o), saved_label.empty());
+            if (explorer && !saved_label.empty()) explorer->restore_saved(saved_label, saved_names);
+            session = std::make_unique<Session>(reg, ob.data.tractogram.shared(), o.inputs, std::move(explorer));
+            ex = session->explorer();
+            for (auto &roi : rois) session->add_roi(std::move(roi));
+            if (!session->rois().empty()) session->apply(saved_label.empty());
+            if (ex) {
+                ci = i;
+                ob = ex->centroids_object();
+                si = scene.objects.size();
+                scene.objects.push_back(ex->streamlines_object());
+            } else if (!session->rois().empty()) {
+                ob.data.tractogram = core::subset_with_arrays(session->all(), session->kept(), true);
+            }
+            // The regions, drawn as wire figures: include green, exclude red.
+            for (bool include : {true, false}) {
+                core::render::Object w;
+                w.name = include ? "include regions" : "exclude regions";
+                w.kind = w.data.kind = HZ_DATA_STREAMLINES;
+                w.render = "tubes";
+                w.radius_mm = 0.35;
+                w.coloring.mode = "solid";
+                w.coloring.color = include ? std::array<double, 3>{0.15, 0.85, 0.3} : std::array<double, 3>{0.95, 0.2, 0.15};
+                w.material.shader = "flat";
+                (include ? wire_in : wire_out) = scene.objects.size();
+                scene.objects.push_back(std::move(w));
+            }
+        }
+        if (o.explore && !ex) throw core::Error("--explore needs a tractogram");
+        if (!session && (!o.include.empty() || !o.exclude.empty())) throw core::Error("--include and --exclude need a tractogram");
+        if (session) {
+            for (bool include : {true, false}) {
+                core::render::Object &w = scene.objects[include ? wire_in : wire_out];
+                w.data.tractogram = wires(include);
+                w.visible =
+                    std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
+            }
+            report(!session->rois().empty());
+        }
+
+        if (session) {
+            app.on_click = [this](double x, double y, int mods) { on_click(x, y, mods); };
+            app.on_key = [this](int k, int mods) { return on_key(k, mods); };
+            app.on_stroke = [this](const std::vector<std::array<double, 2>> &stroke) { on_stroke(stroke); };
+            app.on_ctrl_scroll = [this](double dy) { on_ctrl_scroll(dy); };
+        }
+    }
+
+    // Hands the scene to the renderer with the camera fitted to it, and
+    // reads the script.
+    void show(core::render::Scene scene, const core::render::RenderSettings &rs, const nlohmann::json &loading) {
+        const core::render::View v0 = core::render::fit_view(scene, scene.camera, double(w0) / h0);
+        const core::Bounds b = core::render::scene_bounds(scene);
+        scene_box = b;  // (the slab's range)
+        if (!o.slab.empty()) scene.slab = parse_slab(o.slab);
+        if (!b.empty)
+            app.radius =
+                0.5 * std::sqrt(std::pow(b.max[0] - b.min[0], 2) + std::pow(b.max[1] - b.min[1], 2) + std::pow(b.max[2] - b.min[2], 2));
+        r.set_scene(std::move(scene), v0, rs);
+        app.orbit.from_view(v0);
+        app.home = app.orbit;
+        // Level of detail (paper section 3.4): a tractogram of more than
+        // --lod-points points is drawn as a proxy of about that many points
+        // while the camera moves and first when it rests, then refined to
+        // full detail in steps of about kStepMs.
+        if (const std::uint64_t n = r.streamlines_with_proxy(); n > 0)
+            std::printf("level of detail: %llu streamlines drawn as a %s proxy of about %.0f points while moving, refined at rest\n",
+                        (unsigned long long)n, o.lod.lod_proxy.c_str(), o.lod.lod_points);
+        std::fflush(stdout);
+
+        if (!o.script.empty()) {
+            std::ifstream in(o.script);
+            if (!in) throw core::Error(o.script + ": cannot open the script");
+            for (std::string line; std::getline(in, line);)
+                if (!line.empty() && line[0] != '#') script.push_back(line);
+        }
+        exposure = float(r.scene().exposure);
+        for (const auto &ob : r.scene().objects) materials.push_back(ob.material);
+
+        log.loading = loading;
+    }
+
+    // Frames until the window closes (or the script quits), then the --stats file.
+    void loop() {
+        while (!glfwWindowShouldClose(win) && !app.quit) {
+            // Nothing to draw (a complete still image, no script, no
+            // motion to settle): sleep until an event, so that an idle
+            // window costs nothing; wake for the end of a motion or the
+            // material bake.
+            {
+                const double now = glfwGetTime();
+                const bool settling = now - app.last_motion < 0.25 || now - app.last_material_edit < App::kBakeAfter + 0.05;
+                const bool busy = r.refining() || !still.valid || app.dragging || app.panning || app.force_moving || wait > 0 ||
+                                  (session && session->selecting()) || queued_click || app.press_stage >= 0 ||
+                                  (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
+                                  (!o.script.empty() && o.exit_after_script && pc >= script.size());
+                if (busy)
+                    glfwPollEvents();
+                else if (settling || now < sleep_until)
+                    glfwWaitEventsTimeout(std::clamp(sleep_until - now, 0.005, 0.05));
+                else
+                    glfwWaitEventsTimeout(1.0);
+            }
+            // One script command per frame (wait N: N frames); a screenshot
+            // waits until the still image is complete (as a user would).
+            const bool hold_for_still =
+                pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving && (r.refining() || !still.valid);
+            if (wait > 0)
+                --wait;
+            else if (glfwGetTime() < sleep_until) {
+            } else if (app.press_stage >= 0) {  // a panel press takes its three frames
+            } else if (hold_for_still) {
+            } else if (pc < script.size()) {
+                // (Scripts are deterministic: a selection still being made in
+                // the background is waited for before the next command, but
+                // `wait` and `sleep` let frames go on meanwhile.)
+                const bool pause = script[pc].rfind("wait", 0) == 0 || script[pc].rfind("sleep", 0) == 0;
+                if (queued_click && !pause) session->wait_for_index(), process_queued_click();
+                if (session && session->selecting() && !pause) session->settle(), refresh(r, true);
+                run_script_line(script[pc++]);
+            } else if (!o.script.empty() && o.exit_after_script) {
+                app.quit = true;
+            }
+
+            if (session && session->poll()) {  // a selection made in the background
+                const auto t0 = std::chrono::steady_clock::now();
+                refresh(r, true);
+                spdlog::debug("selection shown: {:.0f} ms",
+                              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+            }
+            if (queued_click && session->grid_if_ready()) process_queued_click();
+            int fw, fh;
+            glfwGetFramebufferSize(win, &fw, &fh);
+            if (fw <= 0 || fh <= 0) continue;
+            const auto frame_t0 = std::chrono::steady_clock::now();
+            r.update_proxies(false);  // a shell proxy computed in the background
+            const bool moving = app.dragging || app.panning || glfwGetTime() - app.last_motion < 0.25 || app.force_moving;
+            r.set_interacting(moving);
+            const bool bake = glfwGetTime() - app.last_material_edit > App::kBakeAfter;
+            r.set_bake_materials(bake);
+            const core::render::View view = app.orbit.view(app.radius);
+            Still now;
+            now.valid = true;
+            for (int k = 0; k < 3; ++k) now.view[k] = view.eye[k], now.view[3 + k] = view.target[k], now.view[6 + k] = view.up[k];
+            now.view[9] = view.fov_deg, now.view[10] = view.near_mm, now.view[11] = view.far_mm;
+            now.w = fw, now.h = fh, now.generation = r.generation(), now.baked = bake;
+            const char *kind;
+            if (moving) {
+                // The proxy, drawn whole each frame; the still image is gone.
+                r.render_to_window(view, fw, fh);
+                still.valid = false;
+                kind = "moving";
+            } else if (!(still == now)) {
+                r.begin_progressive(view, fw, fh);
+                r.present(fw, fh);
+                still = now;
+                kind = r.refining() ? "refine" : "complete";
+            } else if (r.refining()) {
+                kind = r.progressive_step(kStepMs) ? "complete" : "refine";
+                r.present(fw, fh);
+            } else if (app.events != seen_events || !app.pending_shot.empty() || app.press_stage >= 0 || wait > 0 ||
+                       (pc < script.size() && glfwGetTime() >= sleep_until)) {
+                r.present(fw, fh);  // the kept still image (the panel is redrawn over it)
+                kind = "still";
+            } else {
+                continue;  // nothing changed: no frame at all
+            }
+            seen_events = app.events;
+            if (!app.pending_shot.empty()) {
+                save_screenshot(reg, r, app.pending_shot, fw, fh);
+                app.pending_shot.clear();
+            }
+
+            panel();
+            ImGui::Render();
+            ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+            glfwSwapBuffers(win);
+            log.add(kind, r.stats(), std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_t0).count());
+            // The regions' spatial index, a second after the first frame
+            // (the shell proxy's thread is then done, as a rule).
+            if (session && log.first_frame_s >= 0 && seconds_since_launch() > log.first_frame_s + 1.0) session->prepare_index();
+            if (first_frame) {
+                first_frame = false;
+                std::printf("first frame after %.2f s\n", seconds_since_launch());
+                std::fflush(stdout);
+            }
+        }
+        if (!o.stats.empty()) log.write(o.stats, r, framebuffer_size(win).first, framebuffer_size(win).second);
+    }
+
+private:
+    // A wire object's data: the regions of that kind, or a stand-in
+    // (hidden) when there is none.
+    core::Tractogram wires(bool include) {
+        core::Tractogram t = session->roi_wires(include);
+        if (t.nb_streamlines() == 0) {
+            t.positions = core::Buffer<float>{0, 0, 0, 0, 0, 0.01f};
+            t.offsets = core::Buffer<std::uint64_t>{0, 2};
+        }
+        return t;
+    }
+
+    void report(bool selection) {
+        if (ex) std::printf("explore: %s\n", ex->summary().c_str());
+        if (selection) std::printf("roi: %s (%.1f ms)\n", session->summary().c_str(), session->last_filter_ms());
+        std::fflush(stdout);
+    }
+
+    // After every edit: the objects that show the session again.
+    // Streamlines picked by a stroke are drawn lighter: a per-streamline
+    // "highlight" array over the object's streamlines, `ids` (indices
+    // into the session's tractogram).
+    void highlight(core::Tractogram &t, const std::vector<std::uint64_t> &ids) {
+        const auto &picked = session->picked();
+        if (picked.empty()) return;
+        std::vector<float> h(ids.size());
+        for (std::size_t i = 0; i < ids.size(); ++i) h[i] = std::binary_search(picked.begin(), picked.end(), ids[i]) ? 1.0f : 0.0f;
+        t.arrays.push_back(core::f32_array("highlight", HZ_ATTACH_STREAMLINE, h));
+    }
+
+    void refresh(core::render::Renderer &rr, bool selection_changed) {
+        if (ex) {
+            rr.replace_object(ci, ex->centroids_object());
+            core::render::Object so = ex->streamlines_object();
+            highlight(so.data.tractogram, ex->expanded());
+            rr.replace_object(si, std::move(so));
+        } else if (selection_changed) {
+            core::render::Object ob = styled_like(rr.scene().objects[ti]);
+            const bool everything = session->kept().size() == session->all().nb_streamlines();
+            ob.data.tractogram = everything ? session->all().shared() : core::subset_with_arrays(session->all(), session->kept(), true);
+            highlight(ob.data.tractogram, session->kept());
+            rr.replace_object(ti, std::move(ob));
+        }
+        for (bool include : {true, false}) {
+            const std::size_t k = include ? wire_in : wire_out;
+            core::render::Object w = styled_like(rr.scene().objects[k]);
+            const bool any =
+                std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
+            w.data.tractogram = wires(include);
+            rr.replace_object(k, std::move(w));
+            rr.set_visible(k, any);
+        }
+        report(selection_changed);
+    }
+
+    // An edit: recorded for undo, applied, shown; an error leaves the
+    // session as it was (and says why on stderr, or to the script).
+    void edit(const std::function<void()> &fn, bool selection_changes) {
+        session->record();
+        try {
+            fn();
+        } catch (const core::Error &) {
+            session->rollback();
+            throw;
+        }
+        refresh(r, selection_changes);
+    }
+
+    void edit_ui(const std::function<void()> &fn, bool selection_changes) {
+        try {
+            edit(fn, selection_changes);
+        } catch (const core::Error &e) {
+            std::fprintf(stderr, "horizon: %s\n", e.what());
+        }
+    }
+
+    void undo_redo(bool undo) {
+        if (!(undo ? session->undo() : session->redo())) {
+            std::printf("%s: nothing to %s\n", undo ? "undo" : "redo", undo ? "undo" : "redo");
+            std::fflush(stdout);
+            return;
+        }
+        refresh(r, true);
+    }
+
+    void save_to(const std::string &path, bool force) {
+        const std::string line = session->save(path, force);
+        std::printf("%s\n", line.c_str());
+        std::fflush(stdout);
+    }
+
+    // Ctrl+S: the next free horizon-selection-N.trx in the screenshot folder.
+    void save_next() {
+        std::error_code ec;
+        fs::path p;
+        do p = app.shot_dir / ("horizon-selection-" + std::to_string(++saves) + ".trx");
+        while (fs::exists(fs::symlink_status(p, ec)));
+        try {
+            save_to(p.string(), false);
+        } catch (const std::exception &e) {
+            std::fprintf(stderr, "horizon: %s\n", e.what());
+        }
+    }
+
+    // The world point under window point (x, y): the picked streamline's
+    // depth along the ray through it (nullopt over nothing).
+    // (v: the camera of the frame the click was made on.)
+    std::optional<std::array<double, 3>> point_under(double x, double y, const core::render::View &v) {
+        int ww, wh, fw, fh;
+        glfwGetWindowSize(win, &ww, &wh);
+        glfwGetFramebufferSize(win, &fw, &fh);
+        return host::point_under({&r.scene(), ex ? ci : ti, ex != nullptr, session.get()}, ww, wh, fw, fh, x, y, v);
+    }
+
+    // Interactive region edits select in the background (the window
+    // goes on drawing; the selection is shown when it is there).
+    void place_sphere(const std::array<double, 3> &c, double radius, bool include) {
+        core::Roi roi;
+        roi.shape = core::Roi::Shape::Sphere;
+        roi.center = c;
+        roi.radius = radius;
+        roi.include = include;
+        edit(
+            [&] {
+                session->add_roi(roi);
+                session->apply_in_background();
+            },
+            false);
+        active_roi = session->rois().size() - 1;
+    }
+
+    void process_queued_click() {
+        const QueuedClick q = *std::exchange(queued_click, std::nullopt);
+        const auto t0 = std::chrono::steady_clock::now();
+        const auto p = point_under(q.x, q.y, q.view);
+        spdlog::debug("pick for a region: {:.0f} ms",
+                      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        try {
+            if (p)
+                place_sphere(*p, 5.0, !(q.mods & GLFW_MOD_ALT));
+            else
+                std::printf("roi: nothing under (%.0f, %.0f) to place a region on\n", q.x, q.y), std::fflush(stdout);
+        } catch (const core::Error &e) {
+            std::fprintf(stderr, "horizon: %s\n", e.what());
+        }
+    }
+
+    // Ctrl+click: an include sphere (5 mm) where the click meets a
+    // streamline (or a centroid); a plain click picks a cluster.
+    void on_click(double x, double y, int mods) {
+        if (mods & GLFW_MOD_CONTROL) {
+            // A large tractogram is picked through the spatial
+            // index: until it is built, the click waits for it (the
+            // window goes on) instead of testing every streamline.
+            if (!ex && session->all().nb_streamlines() >= 100000 && !session->grid_if_ready()) {
+                session->prepare_index();
+                queued_click = QueuedClick{x, y, mods, app.orbit.view(app.radius)};
+                std::printf("roi: the click waits for the spatial index\n");
+                std::fflush(stdout);
+                return;
+            }
+            const auto p = point_under(x, y, app.orbit.view(app.radius));
+            if (!p) {
+                std::printf("roi: nothing under (%.0f, %.0f) to place a region on\n", x, y);
+                std::fflush(stdout);
+                return;
+            }
+            try {
+                place_sphere(*p, 5.0, !(mods & GLFW_MOD_ALT));
+            } catch (const core::Error &e) {
+                std::fprintf(stderr, "horizon: %s\n", e.what());
+            }
+            return;
+        }
+        if (!ex) return;
+        // Picking: the centroid under the cursor, on the CPU with the
+        // camera the frame is drawn with (cursor coordinates scaled to
+        // the framebuffer's pixels).
+        int ww, wh, fw, fh;
+        glfwGetWindowSize(win, &ww, &wh);
+        glfwGetFramebufferSize(win, &fw, &fh);
+        if (ww <= 0 || wh <= 0 || fw <= 0 || fh <= 0) return;
+        const core::render::Object &cen = r.scene().objects[ci];
+        const auto hit = core::render::pick_streamline(cen.data.tractogram, core::render::tube_radii(cen), app.orbit.view(app.radius), fw,
+                                                       fh, x * fw / ww, y * fh / wh);
+        if (!hit) {
+            std::printf("explore: no centroid under (%.0f, %.0f)\n", x, y);
+            std::fflush(stdout);
+            return;
+        }
+        const std::size_t k = hit->streamline;
+        ex->toggle(k);
+        std::printf("explore: %s #%zu %s (level %u, %llu streamlines)\n", ex->is_selected(k) ? "picked" : "unpicked", k,
+                    ex->path(ex->shown()[k]).c_str(), ex->level(ex->shown()[k]), (unsigned long long)ex->size(ex->shown()[k]));
+        refresh(r, false);
+    }
+
+    bool on_key(int k, int mods) {
+        if (mods & GLFW_MOD_CONTROL) {
+            if (k == GLFW_KEY_Z)
+                undo_redo(!(mods & GLFW_MOD_SHIFT));
+            else if (k == GLFW_KEY_Y)
+                undo_redo(false);
+            else if (k == GLFW_KEY_S)
+                save_next();
+            else
+                return false;
+            return true;
+        }
+        if (k == GLFW_KEY_K || k == GLFW_KEY_D || k == GLFW_KEY_I) {  // what a stroke picked: keep, delete, invert
+            edit_ui(
+                [&] {
+                    if (k == GLFW_KEY_K)
+                        session->keep_picked();
+                    else if (k == GLFW_KEY_D)
+                        session->delete_picked();
+                    else
+                        session->invert_picked();
+                },
+                true);
+            return true;
+        }
+        if (!ex) return false;
+        std::function<void()> fn;
+        if (k == GLFW_KEY_E)
+            fn = [&] { ex->expand_selected(); };
+        else if (k == GLFW_KEY_X)
+            fn = [&] {  // the selected clusters straight to their streamlines
+                if (ex->nb_selected() == 0) throw core::Error("no cluster selected (click a centroid)");
+                for (std::size_t rank = ex->shown().size(); rank-- > 0;)
+                    if (ex->is_selected(rank)) ex->expand_to_streamlines(rank);
+            };
+        else if (k == GLFW_KEY_H)
+            fn = [&] { ex->hide_selected(); };
+        else if (k == GLFW_KEY_A)
+            fn = [&] { ex->select_all(); };
+        else if (k == GLFW_KEY_C)
+            fn = [&] { ex->repeat(); };
+        else
+            return false;
+        edit_ui(fn, false);
+        return true;
+    }
+
+    // A stroke (Ctrl+drag, or `stroke X0 Y0 X1 Y1 ...`): picks the
+    // streamlines it crosses, and over an exploration the clusters
+    // whose centroid it crosses.
+    void on_stroke(const std::vector<std::array<double, 2>> &stroke) {
+        int ww, wh, fw, fh;
+        glfwGetWindowSize(win, &ww, &wh);
+        glfwGetFramebufferSize(win, &fw, &fh);
+        if (ww <= 0 || wh <= 0 || fw <= 0 || fh <= 0) return;
+        std::vector<std::array<double, 2>> px;
+        for (const auto &q : stroke) px.push_back({q[0] * fw / ww, q[1] * fh / wh});
+        const core::render::View v = app.orbit.view(app.radius);
+        const auto t0 = std::chrono::steady_clock::now();
+        std::vector<std::uint64_t> ids = core::render::streamlines_crossing(r.scene().objects[ex ? si : ti].data.tractogram, v, fw, fh, px);
+        const std::vector<std::uint64_t> &shown_ids = ex ? ex->expanded() : session->kept();
+        for (std::uint64_t &i : ids) i = shown_ids[i];  // (the object's streamline i is shown_ids[i])
+        std::vector<std::size_t> ranks;
+        if (ex)
+            for (std::uint64_t k : core::render::streamlines_crossing(r.scene().objects[ci].data.tractogram, v, fw, fh, px))
+                ranks.push_back(k);
+        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        edit_ui(
+            [&] {
+                session->pick(std::move(ids));
+                if (ex) ex->select_only(ranks);
+            },
+            true);
+        std::printf("stroke: %zu streamlines picked%s (%.0f ms)\n", session->picked().size(),
+                    ex ? (", " + std::to_string(ranks.size()) + " clusters selected").c_str() : "", ms);
+        std::fflush(stdout);
+    }
+
+    void on_ctrl_scroll(double dy) {
+        if (session->rois().empty()) return;
+        active_roi = std::min(active_roi, session->rois().size() - 1);
+        edit_ui(
+            [&] {
+                session->resize_roi(active_roi, std::pow(1.1, dy));
+                session->apply_in_background();
+            },
+            false);
+    }
+
+    // One line of the script (its number is pc).
+    void run_script_line(const std::string &line) {
+        std::istringstream cmd(line);
+        std::string op;
+        cmd >> op;
+        try {
+            if (op == "wait")
+                cmd >> wait;
+            else if (op == "sleep") {  // wall-clock seconds (frames go on meanwhile)
+                double sec = 0;
+                if (!(cmd >> sec) || !(sec >= 0)) throw core::Error("sleep needs seconds");
+                sleep_until = glfwGetTime() + sec;
+            } else if (op == "drag" || op == "pan") {
+                double x0, y0, x1, y1;
+                cmd >> x0 >> y0 >> x1 >> y1;
+                app.last_x = app.press_x = x0, app.last_y = app.press_y = y0;
+                app.orbit_started = false;
+                (op == "drag" ? app.dragging : app.panning) = true;
+                for (int s = 1; s <= 8; ++s) app.drag_to(x0 + (x1 - x0) * s / 8, y0 + (y1 - y0) * s / 8);
+                app.dragging = app.panning = false;
+            } else if (op == "click") {  // as a left press and release at window point (x, y) [ctrl] [alt]
+                double x, y;
+                if (!(cmd >> x >> y)) throw core::Error("click needs x y");
+                int mods = 0;
+                for (std::string m; cmd >> m;)
+                    mods |= m == "ctrl" ? GLFW_MOD_CONTROL : m == "alt" ? GLFW_MOD_ALT : m == "shift" ? GLFW_MOD_SHIFT : 0;
+                app.last_x = x, app.last_y = y;
+                app.click(x, y, mods);
+            } else if (op == "scroll") {
+                double d;
+                cmd >> d;
+                app.scroll(d);
+            } else if (op == "key") {  // key K, or with modifiers: key ctrl+z, key ctrl+shift+z
+                std::string k;
+                cmd >> k;
+                int mods = 0;
+                for (std::size_t plus; (plus = k.find('+')) != std::string::npos && plus + 1 < k.size(); k = k.substr(plus + 1)) {
+                    const std::string m = k.substr(0, plus);
+                    mods |= m == "ctrl" ? GLFW_MOD_CONTROL : m == "shift" ? GLFW_MOD_SHIFT : m == "alt" ? GLFW_MOD_ALT : 0;
+                }
+                if (k.empty()) throw core::Error("key needs a key");
+                app.key(k == "esc" ? GLFW_KEY_ESCAPE : GLFW_KEY_A + (std::toupper(k[0]) - 'A'), mods);
+            } else if (op == "screenshot") {
+                cmd >> app.pending_shot;
+            } else if (op == "shader" || op == "set") {
+                std::size_t obj;
+                cmd >> obj;
+                if (obj >= materials.size()) throw core::Error("no object " + std::to_string(obj));
+                if (op == "shader") {
+                    cmd >> materials[obj].shader;
+                    materials[obj].params.clear();
+                } else {
+                    std::string name;
+                    cmd >> name;
+                    std::vector<double> v;
+                    for (double x; cmd >> x;) v.push_back(x);
+                    materials[obj].params[name] = v;
+                }
+                app.last_material_edit = glfwGetTime();
+                r.set_bake_materials(false);
+                r.set_material(obj, materials[obj]);
+            } else if (op == "expand" || op == "hide" || op == "repeat" || op == "reset") {
+                if (!ex) throw core::Error(op + " needs --explore");
+                // expand K [streamlines], hide K: K a rank (0 = the
+                // largest shown) or a path (c2.1); repeat [T1 T2 ...]:
+                // thresholds in mm (default: fitted to what is shown).
+                std::string k, mode;
+                std::vector<double> thresholds;
+                if (op == "expand" || op == "hide") cmd >> k >> mode;
+                if (op == "repeat")
+                    for (double t; cmd >> t;) thresholds.push_back(t);
+                edit(
+                    [&] {
+                        if (op == "expand" && mode == "streamlines")
+                            ex->expand_to_streamlines(ex->rank_of(k));
+                        else if (op == "expand")
+                            ex->expand(ex->rank_of(k));
+                        else if (op == "hide")
+                            ex->hide(ex->rank_of(k));
+                        else if (op == "repeat")
+                            ex->repeat(thresholds);
+                        else
+                            ex->reset(&session->kept());
+                    },
+                    false);
+            } else if (op == "roi") {
+                // roi sphere X Y Z R [include|exclude], roi box X0 Y0 Z0 X1 Y1 Z1 [...],
+                // roi mask FILE [...], roi move K X Y Z, roi scale K F, roi flip K, roi remove K
+                if (!session) throw core::Error("roi needs a tractogram");
+                std::string what;
+                cmd >> what;
+                auto numbers = [&](int n) {
+                    std::string out;
+                    for (int i = 0; i < n; ++i) {
+                        std::string x;
+                        if (!(cmd >> x)) throw core::Error("roi " + what + " needs " + std::to_string(n) + " numbers");
+                        out += (i ? "," : "") + x;
+                    }
+                    return out;
+                };
+                if (what == "sphere" || what == "box" || what == "mask") {
+                    std::string spec;
+                    if (what == "mask")
+                        cmd >> spec;
+                    else
+                        spec = what + ":" + numbers(what == "sphere" ? 4 : 6);
+                    std::string mode = "include";
+                    cmd >> mode;
+                    if (mode != "include" && mode != "exclude") throw core::Error("roi: '" + mode + "' is neither include nor exclude");
+                    core::Roi roi = core::parse_roi(reg, spec, mode == "include");
+                    edit(
+                        [&] {
+                            session->add_roi(roi);
+                            session->apply();
+                        },
+                        true);
+                    active_roi = session->rois().size() - 1;
+                } else if (what == "move" || what == "scale" || what == "flip" || what == "remove") {
+                    std::size_t k = 0;
+                    if (!(cmd >> k)) throw core::Error("roi " + what + " needs a region number");
+                    std::array<double, 3> c{};
+                    double f = 1;
+                    if (what == "move" && !(cmd >> c[0] >> c[1] >> c[2])) throw core::Error("roi move needs K X Y Z");
+                    if (what == "scale" && !(cmd >> f)) throw core::Error("roi scale needs K FACTOR");
+                    edit(
+                        [&] {
+                            if (what == "move")
+                                session->move_roi(k, c);
+                            else if (what == "scale")
+                                session->resize_roi(k, f);
+                            else if (what == "flip")
+                                session->flip_roi(k);
+                            else
+                                session->remove_roi(k);
+                            session->apply();
+                        },
+                        true);
+                    active_roi = k;
+                } else {
+                    throw core::Error("roi: unknown '" + what + "' (sphere, box, mask, move, scale, flip, remove)");
+                }
+            } else if (op == "slab") {  // slab x|y|z CENTRE HALF, or slab off
+                std::string axis;
+                cmd >> axis;
+                if (axis == "off")
+                    r.set_slab(std::nullopt);
+                else {
+                    core::render::Slab sl;
+                    if (axis.size() != 1 || axis[0] < 'x' || axis[0] > 'z' || !(cmd >> sl.centre >> sl.half) || !(sl.half > 0))
+                        throw core::Error("slab needs x|y|z CENTRE HALF (mm, HALF > 0), or off");
+                    sl.axis = axis[0] - 'x';
+                    r.set_slab(sl);
+                }
+            } else if (op == "stroke") {  // stroke X0 Y0 X1 Y1 ...: window points
+                if (!session) throw core::Error("stroke needs a tractogram");
+                std::vector<std::array<double, 2>> pts;
+                for (double x, y; cmd >> x >> y;) pts.push_back({x, y});
+                if (pts.size() < 2) throw core::Error("stroke needs at least two points (X0 Y0 X1 Y1 ...)");
+                app.on_stroke(pts);
+            } else if (op == "picked") {  // picked keep|delete|invert
+                if (!session) throw core::Error("picked needs a tractogram");
+                std::string what;
+                cmd >> what;
+                if (what != "keep" && what != "delete" && what != "invert") throw core::Error("picked: keep, delete or invert");
+                edit(
+                    [&] {
+                        if (what == "keep")
+                            session->keep_picked();
+                        else if (what == "delete")
+                            session->delete_picked();
+                        else
+                            session->invert_picked();
+                    },
+                    true);
+            } else if (op == "undo" || op == "redo") {
+                if (!session) throw core::Error(op + " needs a tractogram");
+                undo_redo(op == "undo");
+            } else if (op == "save") {  // save PATH [force]
+                if (!session) throw core::Error("save needs a tractogram");
+                std::string path, force;
+                if (!(cmd >> path)) throw core::Error("save needs a file name");
+                cmd >> force;
+                save_to(path, force == "force");
+            } else if (op == "press") {
+                std::string label;
+                std::getline(cmd >> std::ws, label);
+                const auto b = app.ui_buttons.find(label);
+                if (b == app.ui_buttons.end()) throw core::Error("no button '" + label + "' on the panel");
+                app.press_at[0] = (b->second[0] + b->second[2]) / 2;
+                app.press_at[1] = (b->second[1] + b->second[3]) / 2;
+                app.press_stage = 0;
+            } else if (op == "moving") {
+                std::string v;
+                cmd >> v;
+                app.force_moving = v == "on";
+            } else if (op == "quit") {
+                app.quit = true;
+            } else {
+                throw core::Error("unknown command '" + op + "'");
+            }
+        } catch (const core::Error &e) {
+            throw core::Error(o.script + ": line " + std::to_string(pc) + ": " + e.what());
+        }
+    }
+
+    // The panel (Dear ImGui) over the frame, and the stroke being drawn.
+    void panel() {
+        ImGui_ImplOpenGL3_NewFrame();
+        ImGui_ImplGlfw_NewFrame();
+        if (app.press_stage >= 0) {  // (after the backend, which sets the real pointer's state)
+            ImGuiIO &io = ImGui::GetIO();
+            io.MousePos = ImVec2(app.press_at[0], app.press_at[1]);
+            io.MouseDown[0] = app.press_stage == 1;
+            if (++app.press_stage > 2) app.press_stage = -1;
+        }
+        ImGui::NewFrame();
+        app.ui_buttons.clear();
+        // A panel button that a script can press.
+        auto button = [&](const char *label) {
+            const bool pressed = ImGui::Button(label);
+            const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+            app.ui_buttons[label] = {lo.x, lo.y, hi.x, hi.y};
+            return pressed;
+        };
+        ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
+        ImGui::SetNextWindowSize(ImVec2(340, 0), ImGuiCond_FirstUseEver);
+        ImGui::Begin("Horizon");
+        ImGui::Text("%.0f ms/frame   %llu segments   %llu triangles", r.stats().draw_ms, (unsigned long long)r.stats().segments_drawn,
+                    (unsigned long long)r.stats().triangles_drawn);
+        if (r.refining())
+            ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "refining: %llu chunks to go",
+                               (unsigned long long)r.stats().refine_remaining);
+        else if (r.stats().proxy)
+            ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: level-of-detail subsample");
+        ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset");
+        if (ImGui::SliderFloat("exposure", &exposure, 0.05f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic)) r.set_exposure(exposure);
+        // What a panel control asks for, done after the panel (an edit:
+        // recorded for undo).
+        std::function<void()> act;
+        bool act_selects = false;
+        if (ex && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
+            ImGui::TextWrapped("%s", ex->summary().c_str());
+            ImGui::TextDisabled("click a centroid: select  E: expand  X: to streamlines  H: hide  A: all/none  C: cluster again");
+            if (button("Repeat: cluster what is shown")) act = [&] { ex->repeat(); };
+            ImGui::SameLine();
+            if (button("Reset")) act = [&] { ex->reset(&session->kept()); };
+            // Thresholds for the next repeat (mm, coarse to fine); empty:
+            // fitted to the extent of what is shown.
+            ImGui::SetNextItemWidth(140);
+            ImGui::InputText("##thresholds", thresholds_text, sizeof thresholds_text);
+            ImGui::SameLine();
+            if (button("Repeat with these thresholds")) {
+                std::vector<double> t;
+                std::istringstream in{std::string(thresholds_text)};
+                for (std::string item; std::getline(in >> std::ws, item, ',');)
+                    if (!item.empty()) t.push_back(std::strtod(item.c_str(), nullptr));
+                act = [&, t] {
+                    if (t.empty() || std::any_of(t.begin(), t.end(), [](double x) { return !(x > 0); }))
+                        throw core::Error("thresholds: positive numbers in mm, comma-separated (e.g. 20,10,5)");
+                    ex->repeat(t);
+                };
+            }
+            if (ImGui::IsItemHovered())
+                ImGui::SetTooltip("the thresholds of the last clustering: %s",
+                                  [&] {
+                                      std::string t;
+                                      for (double x : ex->state().thresholds)
+                                          t += (t.empty() ? "" : ", ") + std::to_string(int(std::lround(x)));
+                                      return t;
+                                  }()
+                                      .c_str());
+            if (ex->nb_selected() > 0) {
+                if (button("Expand selected")) act = [&] { ex->expand_selected(); };
+                ImGui::SameLine();
+                if (button("Hide selected")) act = [&] { ex->hide_selected(); };
+            }
+            // The legend: each cluster's colour, path, level and size.
+            const std::size_t n = std::min<std::size_t>(ex->shown().size(), 40);
+            for (std::size_t k = 0; k < n && !act; ++k) {
+                const std::uint64_t node = ex->shown()[k];
+                ImGui::PushID(int(100000 + k));
+                bool sel = ex->is_selected(k);
+                if (ImGui::Checkbox("##sel", &sel)) act = [&, k] { ex->toggle(k); };
+                ImGui::SameLine();
+                const auto rgb = core::render::cluster_palette(double(ex->colour(node)));
+                ImGui::ColorButton("##colour", ImVec4(float(rgb[0]), float(rgb[1]), float(rgb[2]), 1.0f), ImGuiColorEditFlags_NoTooltip,
+                                   ImVec2(12, 12));
+                ImGui::SameLine();
+                ImGui::Text("#%zu %s  level %u  %llu", k, ex->path(node).c_str(), ex->level(node), (unsigned long long)ex->size(node));
+                ImGui::SameLine();
+                if (ImGui::SmallButton("expand")) act = [&, k] { ex->expand(k); };
+                ImGui::SameLine();
+                if (ImGui::SmallButton("streamlines")) act = [&, k] { ex->expand_to_streamlines(k); };
+                ImGui::SameLine();
+                if (ImGui::SmallButton("hide")) act = [&, k] { ex->hide(k); };
+                ImGui::PopID();
+            }
+            if (ex->shown().size() > n) ImGui::TextDisabled("... and %zu smaller clusters", ex->shown().size() - n);
+        }
+        // (Under the exploration's panel, and closed at first there: the
+        // panel must fit small windows.)
+        if (session && ImGui::CollapsingHeader("Regions of interest", ex ? 0 : ImGuiTreeNodeFlags_DefaultOpen)) {
+            if (session->selecting())
+                ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "selecting...");
+            else
+                ImGui::Text("%llu of %llu streamlines selected (%.0f ms)", (unsigned long long)session->kept().size(),
+                            (unsigned long long)session->all().nb_streamlines(), session->last_filter_ms());
+            ImGui::TextDisabled(
+                "Ctrl+click: include sphere  Ctrl+Alt+click: exclude\nCtrl+wheel: resize  Ctrl+Z / Ctrl+Shift+Z: undo / redo  Ctrl+S: "
+                "save");
+            if (button("Add sphere")) {
+                const std::array<double, 3> c{app.orbit.target[0], app.orbit.target[1], app.orbit.target[2]};
+                act = [&, c] {
+                    core::Roi roi;
+                    roi.center = c, roi.radius = 10.0;
+                    session->add_roi(roi);
+                    session->apply_in_background();
+                    active_roi = session->rois().size() - 1;
+                };
+            }
+            ImGui::SameLine();
+            if (button("Undo")) undo_redo(true);
+            ImGui::SameLine();
+            if (button("Redo")) undo_redo(false);
+            ImGui::SameLine();
+            if (button("Save")) save_next();
+            ImGui::Text("%zu picked, %llu deleted", session->picked().size(), (unsigned long long)session->nb_deleted());
+            ImGui::TextDisabled("Ctrl+drag: a stroke picks what it crosses  K: keep  D: delete  I: invert");
+            if (!session->picked().empty() || (ex && ex->nb_selected() > 0)) {
+                if (button("Keep picked")) act = [&] { session->keep_picked(); }, act_selects = true;
+                ImGui::SameLine();
+                if (button("Delete picked")) act = [&] { session->delete_picked(); }, act_selects = true;
+                ImGui::SameLine();
+                if (button("Invert")) act = [&] { session->invert_picked(); }, act_selects = true;
+            }
+            for (std::size_t k = 0; k < session->rois().size() && !act; ++k) {
+                const core::Roi &roi = session->rois()[k];
+                ImGui::PushID(int(200000 + k));
+                bool include = roi.include;
+                if (ImGui::Checkbox("include", &include)) act = [&, k] { session->flip_roi(k), session->apply_in_background(); };
+                ImGui::SameLine();
+                ImGui::Text("#%zu %s", k, roi.spec().c_str());
+                if (roi.shape != core::Roi::Shape::Mask) {
+                    // Dragged: the region follows at once; the selection
+                    // is made again when the drag ends (one undo step).
+                    const auto centre =
+                        roi.shape == core::Roi::Shape::Sphere
+                            ? roi.center
+                            : std::array<double, 3>{(roi.lo[0] + roi.hi[0]) / 2, (roi.lo[1] + roi.hi[1]) / 2, (roi.lo[2] + roi.hi[2]) / 2};
+                    float c[3] = {float(centre[0]), float(centre[1]), float(centre[2])};
+                    if (ImGui::DragFloat3("centre (mm)", c, 0.25f)) {
+                        if (!roi_drag) session->record(), roi_drag = true;
+                        session->move_roi(k, {c[0], c[1], c[2]});
+                        active_roi = k;
+                        refresh(r, false);
+                    }
+                    if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply_in_background();
+                    float size = float(roi.shape == core::Roi::Shape::Sphere ? roi.radius : (roi.hi[0] - roi.lo[0]) / 2);
+                    if (ImGui::SliderFloat(roi.shape == core::Roi::Shape::Sphere ? "radius (mm)" : "half size x (mm)", &size, 0.5f, 60.0f,
+                                           "%.1f", ImGuiSliderFlags_Logarithmic)) {
+                        if (!roi_drag) session->record(), roi_drag = true;
+                        const double now = roi.shape == core::Roi::Shape::Sphere ? roi.radius : (roi.hi[0] - roi.lo[0]) / 2;
+                        session->resize_roi(k, size / std::max(now, 1e-6));
+                        active_roi = k;
+                        refresh(r, false);
+                    }
+                    if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply_in_background();
+                }
+                if (ImGui::SmallButton("remove")) act = [&, k] { session->remove_roi(k), session->apply_in_background(); };
+                ImGui::PopID();
+            }
+        }
+        if (act) edit_ui(act, act_selects);
+        if (session && ImGui::CollapsingHeader("Slab (crop streamlines)")) {
+            const auto &sb = scene_box;
+            std::optional<core::render::Slab> sl = r.scene().slab;
+            bool on = sl.has_value();
+            core::render::Slab v = sl.value_or(core::render::Slab{2, (sb.min[2] + sb.max[2]) / 2, 5});
+            bool changed = ImGui::Checkbox("crop to a slab", &on);
+            int axis = v.axis;
+            changed |= ImGui::Combo("axis", &axis, "x (left-right)\0y (posterior-anterior)\0z (inferior-superior)\0");
+            if (axis != v.axis) v.axis = axis, v.centre = (sb.min[axis] + sb.max[axis]) / 2;
+            float c = float(v.centre), h = float(v.half);
+            changed |= ImGui::SliderFloat("centre (mm)", &c, float(sb.min[v.axis]), float(sb.max[v.axis]), "%.1f");
+            changed |= ImGui::SliderFloat("half thickness (mm)", &h, 0.5f, 40.0f, "%.1f", ImGuiSliderFlags_Logarithmic);
+            v.centre = c, v.half = h;
+            if (changed) r.set_slab(on ? std::optional<core::render::Slab>(v) : std::nullopt);
+        }
+        for (std::size_t i = 0; i < r.scene().objects.size(); ++i) {
+            const auto &ob = r.scene().objects[i];
+            ImGui::PushID(int(i));
+            const bool open = ImGui::CollapsingHeader(ob.name.c_str(), i == 0 ? ImGuiTreeNodeFlags_DefaultOpen : 0);
+            {  // (a script opens or closes it as `press object I`)
+                const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+                app.ui_buttons["object " + std::to_string(i)] = {lo.x, lo.y, hi.x, hi.y};
+            }
+            if (open) {
+                bool vis = ob.visible;
+                if (ImGui::Checkbox("visible", &vis)) r.set_visible(i, vis);
+                {  // (a script presses it as `press visible I`)
+                    const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+                    app.ui_buttons["visible " + std::to_string(i)] = {lo.x, lo.y, hi.x, hi.y};
+                }
+                if (ob.kind != HZ_DATA_VOLUME && material_controls(reg, ob, materials[i])) {
+                    try {
+                        app.last_material_edit = glfwGetTime();
+                        r.set_bake_materials(false);
+                        r.set_material(i, materials[i]);
+                    } catch (const core::Error &e) {
+                        std::fprintf(stderr, "horizon: %s\n", e.what());
+                        materials[i] = ob.material;
+                    }
+                }
+            }
+            ImGui::PopID();
+        }
+        ImGui::End();
+        if (app.stroking && app.stroke.size() > 1) {  // the stroke being drawn
+            std::vector<ImVec2> pts;
+            for (const auto &q : app.stroke) pts.emplace_back(float(q[0]), float(q[1]));
+            ImGui::GetForegroundDrawList()->AddPolyline(pts.data(), int(pts.size()), IM_COL32(255, 220, 60, 230), 0, 2.0f);
+        }
+    }
+
+    const core::Registry &reg;
+    const ViewOptions &o;
+    GLFWwindow *win;
+    App &app;
+    core::render::Renderer &r;
+    int w0, h0;
+    std::unique_ptr<Session> session;
+    Explorer *ex = nullptr;
+    std::size_t ti = 0, ci = 0, si = 0, wire_in = 0, wire_out = 0;
+    int saves = 0;
+    std::size_t active_roi = 0;     // the region Ctrl+wheel resizes (the last placed or edited)
+    bool roi_drag = false;          // a panel drag of a region in progress (recorded once for undo)
+    char thresholds_text[64] = "";  // the panel's thresholds for the next repeat
+    struct QueuedClick {
+        double x, y;
+        int mods;
+        core::render::View view;
+    };
+    std::optional<QueuedClick> queued_click;  // a Ctrl+click waiting for the spatial index
+    core::Bounds scene_box;                   // (the slab's range)
+    std::vector<std::string> script;
+    std::size_t pc = 0;
+    int wait = 0;
+    double sleep_until = 0;
+    float exposure = 1;
+    std::vector<core::render::Material> materials;
+    // The still image: the view, size and scene generation it shows.
+    struct Still {
+        bool valid = false;
+        std::array<double, 12> view{};
+        int w = 0, h = 0;
+        std::uint64_t generation = 0;
+        bool baked = false;  // (the baked programs draw the same picture, faster: drawn again with them)
+        bool operator==(const Still &) const = default;
+    };
+    Still still;
+    FrameLog log;
+    std::uint64_t seen_events = ~0ull;
+    bool first_frame = true;
+};
+
+}  // namespace
+
 int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o) {
     auto shared = std::make_shared<core::render::Scene>(std::move(scene));
     return view_scene(reg, std::function<core::render::Scene()>([shared] { return std::move(*shared); }), o);
@@ -180,935 +1180,10 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
         // Baked materials, except while the material panel is being edited
         // (each new value would compile a program): see App::material_edited.
         rs.bake_materials = true;
-        // The editing session over the first tractogram (object ti): the
-        // regions of interest that select its streamlines, undo / redo, save.
-        // With --explore (paper Fig. 5) it becomes QuickBundlesX centroids
-        // (object ci = ti) plus the streamlines expanded so far (si).
-        std::unique_ptr<Session> session;
-        Explorer *ex = nullptr;
-        std::size_t ti = 0, ci = 0, si = 0, wire_in = 0, wire_out = 0;
-        for (std::size_t i = 0; i < scene.objects.size() && !session; ++i) {
-            core::render::Object &ob = scene.objects[i];
-            if (ob.kind != HZ_DATA_STREAMLINES || ob.proxy_for) continue;
-            ti = i;
-            std::vector<core::Roi> rois = Session::rois_from_metadata(reg, ob.data.metadata);  // (a file saved by the window)
-            for (const std::string &spec : o.include) rois.push_back(core::parse_roi(reg, spec, true));
-            for (const std::string &spec : o.exclude) rois.push_back(core::parse_roi(reg, spec, false));
-            // A selection the window saved, reopened with --explore: its
-            // clusters as they were saved ("horizon_cluster" per streamline,
-            // "horizon_clusters" names), not a new clustering.
-            std::vector<std::int64_t> saved_label;
-            std::vector<std::string> saved_names;
-            if (o.explore) {
-                const core::Tractogram &t = ob.data.tractogram;
-                for (const auto &a : t.arrays)
-                    if (a.name == "horizon_cluster" && a.attach == HZ_ATTACH_STREAMLINE && a.count == t.nb_streamlines() &&
-                        a.components == 1) {
-                        saved_label.resize(a.count);
-                        for (std::uint64_t i = 0; i < a.count; ++i)
-                            saved_label[i] = std::int64_t(core::value_at(a.bytes.data() + i * core::dtype_size(a.dtype), a.dtype));
-                    }
-                for (const auto &[k, val] : ob.data.metadata)
-                    if (k == "horizon_clusters") {
-                        const nlohmann::json j = nlohmann::json::parse(val, nullptr, false);
-                        if (j.is_array())
-                            for (const auto &e : j) saved_names.push_back(e.is_string() ? e.get<std::string>() : "");
-                    }
-                if (saved_names.empty()) saved_label.clear();
-            }
-            std::unique_ptr<Explorer> explorer;
-            if (o.explore)
-                explorer = std::make_unique<Explorer>(reg, ob.data.tractogram.shared(), ob.name, explore_spec(reg, o), saved_label.empty());
-            if (explorer && !saved_label.empty()) explorer->restore_saved(saved_label, saved_names);
-            session = std::make_unique<Session>(reg, ob.data.tractogram.shared(), o.inputs, std::move(explorer));
-            ex = session->explorer();
-            for (auto &roi : rois) session->add_roi(std::move(roi));
-            if (!session->rois().empty()) session->apply(saved_label.empty());
-            if (ex) {
-                ci = i;
-                ob = ex->centroids_object();
-                si = scene.objects.size();
-                scene.objects.push_back(ex->streamlines_object());
-            } else if (!session->rois().empty()) {
-                ob.data.tractogram = core::subset_with_arrays(session->all(), session->kept(), true);
-            }
-            // The regions, drawn as wire figures: include green, exclude red.
-            for (bool include : {true, false}) {
-                core::render::Object w;
-                w.name = include ? "include regions" : "exclude regions";
-                w.kind = w.data.kind = HZ_DATA_STREAMLINES;
-                w.render = "tubes";
-                w.radius_mm = 0.35;
-                w.coloring.mode = "solid";
-                w.coloring.color = include ? std::array<double, 3>{0.15, 0.85, 0.3} : std::array<double, 3>{0.95, 0.2, 0.15};
-                w.material.shader = "flat";
-                (include ? wire_in : wire_out) = scene.objects.size();
-                scene.objects.push_back(std::move(w));
-            }
-        }
-        if (o.explore && !ex) throw core::Error("--explore needs a tractogram");
-        if (!session && (!o.include.empty() || !o.exclude.empty())) throw core::Error("--include and --exclude need a tractogram");
-        // A wire object's data: the regions of that kind, or a stand-in
-        // (hidden) when there is none.
-        auto wires = [&](bool include) {
-            core::Tractogram t = session->roi_wires(include);
-            if (t.nb_streamlines() == 0) {
-                t.positions = core::Buffer<float>{0, 0, 0, 0, 0, 0.01f};
-                t.offsets = core::Buffer<std::uint64_t>{0, 2};
-            }
-            return t;
-        };
-        auto report = [&](bool selection) {
-            if (ex) std::printf("explore: %s\n", ex->summary().c_str());
-            if (selection) std::printf("roi: %s (%.1f ms)\n", session->summary().c_str(), session->last_filter_ms());
-            std::fflush(stdout);
-        };
-        // After every edit: the objects that show the session again.
-        // Streamlines picked by a stroke are drawn lighter: a per-streamline
-        // "highlight" array over the object's streamlines, `ids` (indices
-        // into the session's tractogram).
-        auto highlight = [&](core::Tractogram &t, const std::vector<std::uint64_t> &ids) {
-            const auto &picked = session->picked();
-            if (picked.empty()) return;
-            std::vector<float> h(ids.size());
-            for (std::size_t i = 0; i < ids.size(); ++i) h[i] = std::binary_search(picked.begin(), picked.end(), ids[i]) ? 1.0f : 0.0f;
-            t.arrays.push_back(core::f32_array("highlight", HZ_ATTACH_STREAMLINE, h));
-        };
-        auto refresh = [&](core::render::Renderer &rr, bool selection_changed) {
-            if (ex) {
-                rr.replace_object(ci, ex->centroids_object());
-                core::render::Object so = ex->streamlines_object();
-                highlight(so.data.tractogram, ex->expanded());
-                rr.replace_object(si, std::move(so));
-            } else if (selection_changed) {
-                core::render::Object ob = styled_like(rr.scene().objects[ti]);
-                const bool everything = session->kept().size() == session->all().nb_streamlines();
-                ob.data.tractogram = everything ? session->all().shared() : core::subset_with_arrays(session->all(), session->kept(), true);
-                highlight(ob.data.tractogram, session->kept());
-                rr.replace_object(ti, std::move(ob));
-            }
-            for (bool include : {true, false}) {
-                const std::size_t k = include ? wire_in : wire_out;
-                core::render::Object w = styled_like(rr.scene().objects[k]);
-                const bool any =
-                    std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
-                w.data.tractogram = wires(include);
-                rr.replace_object(k, std::move(w));
-                rr.set_visible(k, any);
-            }
-            report(selection_changed);
-        };
-        if (session) {
-            for (bool include : {true, false}) {
-                core::render::Object &w = scene.objects[include ? wire_in : wire_out];
-                w.data.tractogram = wires(include);
-                w.visible =
-                    std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
-            }
-            report(!session->rois().empty());
-        }
-        // An edit: recorded for undo, applied, shown; an error leaves the
-        // session as it was (and says why on stderr, or to the script).
-        auto edit = [&](const std::function<void()> &fn, bool selection_changes) {
-            session->record();
-            try {
-                fn();
-            } catch (const core::Error &) {
-                session->rollback();
-                throw;
-            }
-            refresh(r, selection_changes);
-        };
-        auto edit_ui = [&](const std::function<void()> &fn, bool selection_changes) {
-            try {
-                edit(fn, selection_changes);
-            } catch (const core::Error &e) {
-                std::fprintf(stderr, "horizon: %s\n", e.what());
-            }
-        };
-        auto undo_redo = [&](bool undo) {
-            if (!(undo ? session->undo() : session->redo())) {
-                std::printf("%s: nothing to %s\n", undo ? "undo" : "redo", undo ? "undo" : "redo");
-                std::fflush(stdout);
-                return;
-            }
-            refresh(r, true);
-        };
-        int saves = 0;
-        auto save_to = [&](const std::string &path, bool force) {
-            const std::string line = session->save(path, force);
-            std::printf("%s\n", line.c_str());
-            std::fflush(stdout);
-        };
-        // Ctrl+S: the next free horizon-selection-N.trx in the screenshot folder.
-        auto save_next = [&] {
-            std::error_code ec;
-            fs::path p;
-            do p = app.shot_dir / ("horizon-selection-" + std::to_string(++saves) + ".trx");
-            while (fs::exists(fs::symlink_status(p, ec)));
-            try {
-                save_to(p.string(), false);
-            } catch (const std::exception &e) {
-                std::fprintf(stderr, "horizon: %s\n", e.what());
-            }
-        };
-        // The world point under window point (x, y): the picked streamline's
-        // depth along the ray through it (nullopt over nothing).
-        // (v: the camera of the frame the click was made on.)
-        auto point_under = [&](double x, double y, const core::render::View &v) -> std::optional<std::array<double, 3>> {
-            int ww, wh, fw, fh;
-            glfwGetWindowSize(win, &ww, &wh);
-            glfwGetFramebufferSize(win, &fw, &fh);
-            return host::point_under({&r.scene(), ex ? ci : ti, ex != nullptr, session.get()}, ww, wh, fw, fh, x, y, v);
-        };
-        std::size_t active_roi = 0;     // the region Ctrl+wheel resizes (the last placed or edited)
-        bool roi_drag = false;          // a panel drag of a region in progress (recorded once for undo)
-        char thresholds_text[64] = "";  // the panel's thresholds for the next repeat
-        // Interactive region edits select in the background (the window
-        // goes on drawing; the selection is shown when it is there).
-        auto place_sphere = [&](const std::array<double, 3> &c, double radius, bool include) {
-            core::Roi roi;
-            roi.shape = core::Roi::Shape::Sphere;
-            roi.center = c;
-            roi.radius = radius;
-            roi.include = include;
-            edit(
-                [&] {
-                    session->add_roi(roi);
-                    session->apply_in_background();
-                },
-                false);
-            active_roi = session->rois().size() - 1;
-        };
-        struct QueuedClick {
-            double x, y;
-            int mods;
-            core::render::View view;
-        };
-        std::optional<QueuedClick> queued_click;  // a Ctrl+click waiting for the spatial index
-        auto process_queued_click = [&] {
-            const QueuedClick q = *std::exchange(queued_click, std::nullopt);
-            const auto t0 = std::chrono::steady_clock::now();
-            const auto p = point_under(q.x, q.y, q.view);
-            spdlog::debug("pick for a region: {:.0f} ms",
-                          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-            try {
-                if (p)
-                    place_sphere(*p, 5.0, !(q.mods & GLFW_MOD_ALT));
-                else
-                    std::printf("roi: nothing under (%.0f, %.0f) to place a region on\n", q.x, q.y), std::fflush(stdout);
-            } catch (const core::Error &e) {
-                std::fprintf(stderr, "horizon: %s\n", e.what());
-            }
-        };
-        if (session) {
-            // Ctrl+click: an include sphere (5 mm) where the click meets a
-            // streamline (or a centroid); a plain click picks a cluster.
-            app.on_click = [&](double x, double y, int mods) {
-                if (mods & GLFW_MOD_CONTROL) {
-                    // A large tractogram is picked through the spatial
-                    // index: until it is built, the click waits for it (the
-                    // window goes on) instead of testing every streamline.
-                    if (!ex && session->all().nb_streamlines() >= 100000 && !session->grid_if_ready()) {
-                        session->prepare_index();
-                        queued_click = QueuedClick{x, y, mods, app.orbit.view(app.radius)};
-                        std::printf("roi: the click waits for the spatial index\n");
-                        std::fflush(stdout);
-                        return;
-                    }
-                    const auto p = point_under(x, y, app.orbit.view(app.radius));
-                    if (!p) {
-                        std::printf("roi: nothing under (%.0f, %.0f) to place a region on\n", x, y);
-                        std::fflush(stdout);
-                        return;
-                    }
-                    try {
-                        place_sphere(*p, 5.0, !(mods & GLFW_MOD_ALT));
-                    } catch (const core::Error &e) {
-                        std::fprintf(stderr, "horizon: %s\n", e.what());
-                    }
-                    return;
-                }
-                if (!ex) return;
-                // Picking: the centroid under the cursor, on the CPU with the
-                // camera the frame is drawn with (cursor coordinates scaled to
-                // the framebuffer's pixels).
-                int ww, wh, fw, fh;
-                glfwGetWindowSize(win, &ww, &wh);
-                glfwGetFramebufferSize(win, &fw, &fh);
-                if (ww <= 0 || wh <= 0 || fw <= 0 || fh <= 0) return;
-                const core::render::Object &cen = r.scene().objects[ci];
-                const auto hit = core::render::pick_streamline(cen.data.tractogram, core::render::tube_radii(cen),
-                                                               app.orbit.view(app.radius), fw, fh, x * fw / ww, y * fh / wh);
-                if (!hit) {
-                    std::printf("explore: no centroid under (%.0f, %.0f)\n", x, y);
-                    std::fflush(stdout);
-                    return;
-                }
-                const std::size_t k = hit->streamline;
-                ex->toggle(k);
-                std::printf("explore: %s #%zu %s (level %u, %llu streamlines)\n", ex->is_selected(k) ? "picked" : "unpicked", k,
-                            ex->path(ex->shown()[k]).c_str(), ex->level(ex->shown()[k]), (unsigned long long)ex->size(ex->shown()[k]));
-                refresh(r, false);
-            };
-            app.on_key = [&](int k, int mods) {
-                if (mods & GLFW_MOD_CONTROL) {
-                    if (k == GLFW_KEY_Z)
-                        undo_redo(!(mods & GLFW_MOD_SHIFT));
-                    else if (k == GLFW_KEY_Y)
-                        undo_redo(false);
-                    else if (k == GLFW_KEY_S)
-                        save_next();
-                    else
-                        return false;
-                    return true;
-                }
-                if (k == GLFW_KEY_K || k == GLFW_KEY_D || k == GLFW_KEY_I) {  // what a stroke picked: keep, delete, invert
-                    edit_ui(
-                        [&] {
-                            if (k == GLFW_KEY_K)
-                                session->keep_picked();
-                            else if (k == GLFW_KEY_D)
-                                session->delete_picked();
-                            else
-                                session->invert_picked();
-                        },
-                        true);
-                    return true;
-                }
-                if (!ex) return false;
-                std::function<void()> fn;
-                if (k == GLFW_KEY_E)
-                    fn = [&] { ex->expand_selected(); };
-                else if (k == GLFW_KEY_X)
-                    fn = [&] {  // the selected clusters straight to their streamlines
-                        if (ex->nb_selected() == 0) throw core::Error("no cluster selected (click a centroid)");
-                        for (std::size_t rank = ex->shown().size(); rank-- > 0;)
-                            if (ex->is_selected(rank)) ex->expand_to_streamlines(rank);
-                    };
-                else if (k == GLFW_KEY_H)
-                    fn = [&] { ex->hide_selected(); };
-                else if (k == GLFW_KEY_A)
-                    fn = [&] { ex->select_all(); };
-                else if (k == GLFW_KEY_C)
-                    fn = [&] { ex->repeat(); };
-                else
-                    return false;
-                edit_ui(fn, false);
-                return true;
-            };
-            // A stroke (Ctrl+drag, or `stroke X0 Y0 X1 Y1 ...`): picks the
-            // streamlines it crosses, and over an exploration the clusters
-            // whose centroid it crosses.
-            app.on_stroke = [&](const std::vector<std::array<double, 2>> &stroke) {
-                int ww, wh, fw, fh;
-                glfwGetWindowSize(win, &ww, &wh);
-                glfwGetFramebufferSize(win, &fw, &fh);
-                if (ww <= 0 || wh <= 0 || fw <= 0 || fh <= 0) return;
-                std::vector<std::array<double, 2>> px;
-                for (const auto &q : stroke) px.push_back({q[0] * fw / ww, q[1] * fh / wh});
-                const core::render::View v = app.orbit.view(app.radius);
-                const auto t0 = std::chrono::steady_clock::now();
-                std::vector<std::uint64_t> ids =
-                    core::render::streamlines_crossing(r.scene().objects[ex ? si : ti].data.tractogram, v, fw, fh, px);
-                const std::vector<std::uint64_t> &shown_ids = ex ? ex->expanded() : session->kept();
-                for (std::uint64_t &i : ids) i = shown_ids[i];  // (the object's streamline i is shown_ids[i])
-                std::vector<std::size_t> ranks;
-                if (ex)
-                    for (std::uint64_t k : core::render::streamlines_crossing(r.scene().objects[ci].data.tractogram, v, fw, fh, px))
-                        ranks.push_back(k);
-                const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-                edit_ui(
-                    [&] {
-                        session->pick(std::move(ids));
-                        if (ex) ex->select_only(ranks);
-                    },
-                    true);
-                std::printf("stroke: %zu streamlines picked%s (%.0f ms)\n", session->picked().size(),
-                            ex ? (", " + std::to_string(ranks.size()) + " clusters selected").c_str() : "", ms);
-                std::fflush(stdout);
-            };
-            app.on_ctrl_scroll = [&](double dy) {
-                if (session->rois().empty()) return;
-                active_roi = std::min(active_roi, session->rois().size() - 1);
-                edit_ui(
-                    [&] {
-                        session->resize_roi(active_roi, std::pow(1.1, dy));
-                        session->apply_in_background();
-                    },
-                    false);
-            };
-        }
-        const core::render::View v0 = core::render::fit_view(scene, scene.camera, double(w0) / h0);
-        const core::Bounds b = core::render::scene_bounds(scene);
-        const core::Bounds scene_box = b;  // (the slab's range)
-        if (!o.slab.empty()) scene.slab = parse_slab(o.slab);
-        if (!b.empty)
-            app.radius =
-                0.5 * std::sqrt(std::pow(b.max[0] - b.min[0], 2) + std::pow(b.max[1] - b.min[1], 2) + std::pow(b.max[2] - b.min[2], 2));
-        r.set_scene(std::move(scene), v0, rs);
-        app.orbit.from_view(v0);
-        app.home = app.orbit;
-        // Level of detail (paper section 3.4): a tractogram of more than
-        // --lod-points points is drawn as a proxy of about that many points
-        // while the camera moves and first when it rests, then refined to
-        // full detail in steps of about kStepMs.
-        if (const std::uint64_t n = r.streamlines_with_proxy(); n > 0)
-            std::printf("level of detail: %llu streamlines drawn as a %s proxy of about %.0f points while moving, refined at rest\n",
-                        (unsigned long long)n, o.lod.lod_proxy.c_str(), o.lod.lod_points);
-        std::fflush(stdout);
-
-        std::vector<std::string> script;
-        if (!o.script.empty()) {
-            std::ifstream in(o.script);
-            if (!in) throw core::Error(o.script + ": cannot open the script");
-            for (std::string line; std::getline(in, line);)
-                if (!line.empty() && line[0] != '#') script.push_back(line);
-        }
-        std::size_t pc = 0;
-        int wait = 0;
-        double sleep_until = 0;
-        float exposure = float(r.scene().exposure);
-        std::vector<core::render::Material> materials;
-        for (const auto &ob : r.scene().objects) materials.push_back(ob.material);
-
-        // The still image: the view, size and scene generation it shows.
-        struct Still {
-            bool valid = false;
-            std::array<double, 12> view{};
-            int w = 0, h = 0;
-            std::uint64_t generation = 0;
-            bool baked = false;  // (the baked programs draw the same picture, faster: drawn again with them)
-            bool operator==(const Still &) const = default;
-        } still;
-        FrameLog log;
-        log.loading = loading;
-        std::uint64_t seen_events = ~0ull;
-        bool first_frame = true;
-        while (!glfwWindowShouldClose(win) && !app.quit) {
-            // Nothing to draw (a complete still image, no script, no
-            // motion to settle): sleep until an event, so that an idle
-            // window costs nothing; wake for the end of a motion or the
-            // material bake.
-            {
-                const double now = glfwGetTime();
-                const bool settling = now - app.last_motion < 0.25 || now - app.last_material_edit < App::kBakeAfter + 0.05;
-                const bool busy = r.refining() || !still.valid || app.dragging || app.panning || app.force_moving || wait > 0 ||
-                                  (session && session->selecting()) || queued_click || app.press_stage >= 0 ||
-                                  (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
-                                  (!o.script.empty() && o.exit_after_script && pc >= script.size());
-                if (busy)
-                    glfwPollEvents();
-                else if (settling || now < sleep_until)
-                    glfwWaitEventsTimeout(std::clamp(sleep_until - now, 0.005, 0.05));
-                else
-                    glfwWaitEventsTimeout(1.0);
-            }
-            // One script command per frame (wait N: N frames); a screenshot
-            // waits until the still image is complete (as a user would).
-            const bool hold_for_still =
-                pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving && (r.refining() || !still.valid);
-            if (wait > 0)
-                --wait;
-            else if (glfwGetTime() < sleep_until) {
-            } else if (app.press_stage >= 0) {  // a panel press takes its three frames
-            } else if (hold_for_still) {
-            } else if (pc < script.size()) {
-                // (Scripts are deterministic: a selection still being made in
-                // the background is waited for before the next command, but
-                // `wait` and `sleep` let frames go on meanwhile.)
-                const bool pause = script[pc].rfind("wait", 0) == 0 || script[pc].rfind("sleep", 0) == 0;
-                if (queued_click && !pause) session->wait_for_index(), process_queued_click();
-                if (session && session->selecting() && !pause) session->settle(), refresh(r, true);
-                std::istringstream cmd(script[pc++]);
-                std::string op;
-                cmd >> op;
-                try {
-                    if (op == "wait")
-                        cmd >> wait;
-                    else if (op == "sleep") {  // wall-clock seconds (frames go on meanwhile)
-                        double sec = 0;
-                        if (!(cmd >> sec) || !(sec >= 0)) throw core::Error("sleep needs seconds");
-                        sleep_until = glfwGetTime() + sec;
-                    } else if (op == "drag" || op == "pan") {
-                        double x0, y0, x1, y1;
-                        cmd >> x0 >> y0 >> x1 >> y1;
-                        app.last_x = app.press_x = x0, app.last_y = app.press_y = y0;
-                        app.orbit_started = false;
-                        (op == "drag" ? app.dragging : app.panning) = true;
-                        for (int s = 1; s <= 8; ++s) app.drag_to(x0 + (x1 - x0) * s / 8, y0 + (y1 - y0) * s / 8);
-                        app.dragging = app.panning = false;
-                    } else if (op == "click") {  // as a left press and release at window point (x, y) [ctrl] [alt]
-                        double x, y;
-                        if (!(cmd >> x >> y)) throw core::Error("click needs x y");
-                        int mods = 0;
-                        for (std::string m; cmd >> m;)
-                            mods |= m == "ctrl" ? GLFW_MOD_CONTROL : m == "alt" ? GLFW_MOD_ALT : m == "shift" ? GLFW_MOD_SHIFT : 0;
-                        app.last_x = x, app.last_y = y;
-                        app.click(x, y, mods);
-                    } else if (op == "scroll") {
-                        double d;
-                        cmd >> d;
-                        app.scroll(d);
-                    } else if (op == "key") {  // key K, or with modifiers: key ctrl+z, key ctrl+shift+z
-                        std::string k;
-                        cmd >> k;
-                        int mods = 0;
-                        for (std::size_t plus; (plus = k.find('+')) != std::string::npos && plus + 1 < k.size(); k = k.substr(plus + 1)) {
-                            const std::string m = k.substr(0, plus);
-                            mods |= m == "ctrl" ? GLFW_MOD_CONTROL : m == "shift" ? GLFW_MOD_SHIFT : m == "alt" ? GLFW_MOD_ALT : 0;
-                        }
-                        if (k.empty()) throw core::Error("key needs a key");
-                        app.key(k == "esc" ? GLFW_KEY_ESCAPE : GLFW_KEY_A + (std::toupper(k[0]) - 'A'), mods);
-                    } else if (op == "screenshot") {
-                        cmd >> app.pending_shot;
-                    } else if (op == "shader" || op == "set") {
-                        std::size_t obj;
-                        cmd >> obj;
-                        if (obj >= materials.size()) throw core::Error("no object " + std::to_string(obj));
-                        if (op == "shader") {
-                            cmd >> materials[obj].shader;
-                            materials[obj].params.clear();
-                        } else {
-                            std::string name;
-                            cmd >> name;
-                            std::vector<double> v;
-                            for (double x; cmd >> x;) v.push_back(x);
-                            materials[obj].params[name] = v;
-                        }
-                        app.last_material_edit = glfwGetTime();
-                        r.set_bake_materials(false);
-                        r.set_material(obj, materials[obj]);
-                    } else if (op == "expand" || op == "hide" || op == "repeat" || op == "reset") {
-                        if (!ex) throw core::Error(op + " needs --explore");
-                        // expand K [streamlines], hide K: K a rank (0 = the
-                        // largest shown) or a path (c2.1); repeat [T1 T2 ...]:
-                        // thresholds in mm (default: fitted to what is shown).
-                        std::string k, mode;
-                        std::vector<double> thresholds;
-                        if (op == "expand" || op == "hide") cmd >> k >> mode;
-                        if (op == "repeat")
-                            for (double t; cmd >> t;) thresholds.push_back(t);
-                        edit(
-                            [&] {
-                                if (op == "expand" && mode == "streamlines")
-                                    ex->expand_to_streamlines(ex->rank_of(k));
-                                else if (op == "expand")
-                                    ex->expand(ex->rank_of(k));
-                                else if (op == "hide")
-                                    ex->hide(ex->rank_of(k));
-                                else if (op == "repeat")
-                                    ex->repeat(thresholds);
-                                else
-                                    ex->reset(&session->kept());
-                            },
-                            false);
-                    } else if (op == "roi") {
-                        // roi sphere X Y Z R [include|exclude], roi box X0 Y0 Z0 X1 Y1 Z1 [...],
-                        // roi mask FILE [...], roi move K X Y Z, roi scale K F, roi flip K, roi remove K
-                        if (!session) throw core::Error("roi needs a tractogram");
-                        std::string what;
-                        cmd >> what;
-                        auto numbers = [&](int n) {
-                            std::string out;
-                            for (int i = 0; i < n; ++i) {
-                                std::string x;
-                                if (!(cmd >> x)) throw core::Error("roi " + what + " needs " + std::to_string(n) + " numbers");
-                                out += (i ? "," : "") + x;
-                            }
-                            return out;
-                        };
-                        if (what == "sphere" || what == "box" || what == "mask") {
-                            std::string spec;
-                            if (what == "mask")
-                                cmd >> spec;
-                            else
-                                spec = what + ":" + numbers(what == "sphere" ? 4 : 6);
-                            std::string mode = "include";
-                            cmd >> mode;
-                            if (mode != "include" && mode != "exclude")
-                                throw core::Error("roi: '" + mode + "' is neither include nor exclude");
-                            core::Roi roi = core::parse_roi(reg, spec, mode == "include");
-                            edit(
-                                [&] {
-                                    session->add_roi(roi);
-                                    session->apply();
-                                },
-                                true);
-                            active_roi = session->rois().size() - 1;
-                        } else if (what == "move" || what == "scale" || what == "flip" || what == "remove") {
-                            std::size_t k = 0;
-                            if (!(cmd >> k)) throw core::Error("roi " + what + " needs a region number");
-                            std::array<double, 3> c{};
-                            double f = 1;
-                            if (what == "move" && !(cmd >> c[0] >> c[1] >> c[2])) throw core::Error("roi move needs K X Y Z");
-                            if (what == "scale" && !(cmd >> f)) throw core::Error("roi scale needs K FACTOR");
-                            edit(
-                                [&] {
-                                    if (what == "move")
-                                        session->move_roi(k, c);
-                                    else if (what == "scale")
-                                        session->resize_roi(k, f);
-                                    else if (what == "flip")
-                                        session->flip_roi(k);
-                                    else
-                                        session->remove_roi(k);
-                                    session->apply();
-                                },
-                                true);
-                            active_roi = k;
-                        } else {
-                            throw core::Error("roi: unknown '" + what + "' (sphere, box, mask, move, scale, flip, remove)");
-                        }
-                    } else if (op == "slab") {  // slab x|y|z CENTRE HALF, or slab off
-                        std::string axis;
-                        cmd >> axis;
-                        if (axis == "off")
-                            r.set_slab(std::nullopt);
-                        else {
-                            core::render::Slab sl;
-                            if (axis.size() != 1 || axis[0] < 'x' || axis[0] > 'z' || !(cmd >> sl.centre >> sl.half) || !(sl.half > 0))
-                                throw core::Error("slab needs x|y|z CENTRE HALF (mm, HALF > 0), or off");
-                            sl.axis = axis[0] - 'x';
-                            r.set_slab(sl);
-                        }
-                    } else if (op == "stroke") {  // stroke X0 Y0 X1 Y1 ...: window points
-                        if (!session) throw core::Error("stroke needs a tractogram");
-                        std::vector<std::array<double, 2>> pts;
-                        for (double x, y; cmd >> x >> y;) pts.push_back({x, y});
-                        if (pts.size() < 2) throw core::Error("stroke needs at least two points (X0 Y0 X1 Y1 ...)");
-                        app.on_stroke(pts);
-                    } else if (op == "picked") {  // picked keep|delete|invert
-                        if (!session) throw core::Error("picked needs a tractogram");
-                        std::string what;
-                        cmd >> what;
-                        if (what != "keep" && what != "delete" && what != "invert") throw core::Error("picked: keep, delete or invert");
-                        edit(
-                            [&] {
-                                if (what == "keep")
-                                    session->keep_picked();
-                                else if (what == "delete")
-                                    session->delete_picked();
-                                else
-                                    session->invert_picked();
-                            },
-                            true);
-                    } else if (op == "undo" || op == "redo") {
-                        if (!session) throw core::Error(op + " needs a tractogram");
-                        undo_redo(op == "undo");
-                    } else if (op == "save") {  // save PATH [force]
-                        if (!session) throw core::Error("save needs a tractogram");
-                        std::string path, force;
-                        if (!(cmd >> path)) throw core::Error("save needs a file name");
-                        cmd >> force;
-                        save_to(path, force == "force");
-                    } else if (op == "press") {
-                        std::string label;
-                        std::getline(cmd >> std::ws, label);
-                        const auto b = app.ui_buttons.find(label);
-                        if (b == app.ui_buttons.end()) throw core::Error("no button '" + label + "' on the panel");
-                        app.press_at[0] = (b->second[0] + b->second[2]) / 2;
-                        app.press_at[1] = (b->second[1] + b->second[3]) / 2;
-                        app.press_stage = 0;
-                    } else if (op == "moving") {
-                        std::string v;
-                        cmd >> v;
-                        app.force_moving = v == "on";
-                    } else if (op == "quit") {
-                        app.quit = true;
-                    } else {
-                        throw core::Error("unknown command '" + op + "'");
-                    }
-                } catch (const core::Error &e) {
-                    throw core::Error(o.script + ": line " + std::to_string(pc) + ": " + e.what());
-                }
-            } else if (!o.script.empty() && o.exit_after_script) {
-                app.quit = true;
-            }
-
-            if (session && session->poll()) {  // a selection made in the background
-                const auto t0 = std::chrono::steady_clock::now();
-                refresh(r, true);
-                spdlog::debug("selection shown: {:.0f} ms",
-                              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-            }
-            if (queued_click && session->grid_if_ready()) process_queued_click();
-            int fw, fh;
-            glfwGetFramebufferSize(win, &fw, &fh);
-            if (fw <= 0 || fh <= 0) continue;
-            const auto frame_t0 = std::chrono::steady_clock::now();
-            r.update_proxies(false);  // a shell proxy computed in the background
-            const bool moving = app.dragging || app.panning || glfwGetTime() - app.last_motion < 0.25 || app.force_moving;
-            r.set_interacting(moving);
-            const bool bake = glfwGetTime() - app.last_material_edit > App::kBakeAfter;
-            r.set_bake_materials(bake);
-            const core::render::View view = app.orbit.view(app.radius);
-            Still now;
-            now.valid = true;
-            for (int k = 0; k < 3; ++k) now.view[k] = view.eye[k], now.view[3 + k] = view.target[k], now.view[6 + k] = view.up[k];
-            now.view[9] = view.fov_deg, now.view[10] = view.near_mm, now.view[11] = view.far_mm;
-            now.w = fw, now.h = fh, now.generation = r.generation(), now.baked = bake;
-            const char *kind;
-            if (moving) {
-                // The proxy, drawn whole each frame; the still image is gone.
-                r.render_to_window(view, fw, fh);
-                still.valid = false;
-                kind = "moving";
-            } else if (!(still == now)) {
-                r.begin_progressive(view, fw, fh);
-                r.present(fw, fh);
-                still = now;
-                kind = r.refining() ? "refine" : "complete";
-            } else if (r.refining()) {
-                kind = r.progressive_step(kStepMs) ? "complete" : "refine";
-                r.present(fw, fh);
-            } else if (app.events != seen_events || !app.pending_shot.empty() || app.press_stage >= 0 || wait > 0 ||
-                       (pc < script.size() && glfwGetTime() >= sleep_until)) {
-                r.present(fw, fh);  // the kept still image (the panel is redrawn over it)
-                kind = "still";
-            } else {
-                continue;  // nothing changed: no frame at all
-            }
-            seen_events = app.events;
-            if (!app.pending_shot.empty()) {
-                save_screenshot(reg, r, app.pending_shot, fw, fh);
-                app.pending_shot.clear();
-            }
-
-            ImGui_ImplOpenGL3_NewFrame();
-            ImGui_ImplGlfw_NewFrame();
-            if (app.press_stage >= 0) {  // (after the backend, which sets the real pointer's state)
-                ImGuiIO &io = ImGui::GetIO();
-                io.MousePos = ImVec2(app.press_at[0], app.press_at[1]);
-                io.MouseDown[0] = app.press_stage == 1;
-                if (++app.press_stage > 2) app.press_stage = -1;
-            }
-            ImGui::NewFrame();
-            app.ui_buttons.clear();
-            // A panel button that a script can press.
-            auto button = [&](const char *label) {
-                const bool pressed = ImGui::Button(label);
-                const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
-                app.ui_buttons[label] = {lo.x, lo.y, hi.x, hi.y};
-                return pressed;
-            };
-            ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
-            ImGui::SetNextWindowSize(ImVec2(340, 0), ImGuiCond_FirstUseEver);
-            ImGui::Begin("Horizon");
-            ImGui::Text("%.0f ms/frame   %llu segments   %llu triangles", r.stats().draw_ms, (unsigned long long)r.stats().segments_drawn,
-                        (unsigned long long)r.stats().triangles_drawn);
-            if (r.refining())
-                ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "refining: %llu chunks to go",
-                                   (unsigned long long)r.stats().refine_remaining);
-            else if (r.stats().proxy)
-                ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: level-of-detail subsample");
-            ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset");
-            if (ImGui::SliderFloat("exposure", &exposure, 0.05f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic)) r.set_exposure(exposure);
-            // What a panel control asks for, done after the panel (an edit:
-            // recorded for undo).
-            std::function<void()> act;
-            bool act_selects = false;
-            if (ex && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
-                ImGui::TextWrapped("%s", ex->summary().c_str());
-                ImGui::TextDisabled("click a centroid: select  E: expand  X: to streamlines  H: hide  A: all/none  C: cluster again");
-                if (button("Repeat: cluster what is shown")) act = [&] { ex->repeat(); };
-                ImGui::SameLine();
-                if (button("Reset")) act = [&] { ex->reset(&session->kept()); };
-                // Thresholds for the next repeat (mm, coarse to fine); empty:
-                // fitted to the extent of what is shown.
-                ImGui::SetNextItemWidth(140);
-                ImGui::InputText("##thresholds", thresholds_text, sizeof thresholds_text);
-                ImGui::SameLine();
-                if (button("Repeat with these thresholds")) {
-                    std::vector<double> t;
-                    std::istringstream in{std::string(thresholds_text)};
-                    for (std::string item; std::getline(in >> std::ws, item, ',');)
-                        if (!item.empty()) t.push_back(std::strtod(item.c_str(), nullptr));
-                    act = [&, t] {
-                        if (t.empty() || std::any_of(t.begin(), t.end(), [](double x) { return !(x > 0); }))
-                            throw core::Error("thresholds: positive numbers in mm, comma-separated (e.g. 20,10,5)");
-                        ex->repeat(t);
-                    };
-                }
-                if (ImGui::IsItemHovered())
-                    ImGui::SetTooltip("the thresholds of the last clustering: %s",
-                                      [&] {
-                                          std::string t;
-                                          for (double x : ex->state().thresholds)
-                                              t += (t.empty() ? "" : ", ") + std::to_string(int(std::lround(x)));
-                                          return t;
-                                      }()
-                                          .c_str());
-                if (ex->nb_selected() > 0) {
-                    if (button("Expand selected")) act = [&] { ex->expand_selected(); };
-                    ImGui::SameLine();
-                    if (button("Hide selected")) act = [&] { ex->hide_selected(); };
-                }
-                // The legend: each cluster's colour, path, level and size.
-                const std::size_t n = std::min<std::size_t>(ex->shown().size(), 40);
-                for (std::size_t k = 0; k < n && !act; ++k) {
-                    const std::uint64_t node = ex->shown()[k];
-                    ImGui::PushID(int(100000 + k));
-                    bool sel = ex->is_selected(k);
-                    if (ImGui::Checkbox("##sel", &sel)) act = [&, k] { ex->toggle(k); };
-                    ImGui::SameLine();
-                    const auto rgb = core::render::cluster_palette(double(ex->colour(node)));
-                    ImGui::ColorButton("##colour", ImVec4(float(rgb[0]), float(rgb[1]), float(rgb[2]), 1.0f), ImGuiColorEditFlags_NoTooltip,
-                                       ImVec2(12, 12));
-                    ImGui::SameLine();
-                    ImGui::Text("#%zu %s  level %u  %llu", k, ex->path(node).c_str(), ex->level(node), (unsigned long long)ex->size(node));
-                    ImGui::SameLine();
-                    if (ImGui::SmallButton("expand")) act = [&, k] { ex->expand(k); };
-                    ImGui::SameLine();
-                    if (ImGui::SmallButton("streamlines")) act = [&, k] { ex->expand_to_streamlines(k); };
-                    ImGui::SameLine();
-                    if (ImGui::SmallButton("hide")) act = [&, k] { ex->hide(k); };
-                    ImGui::PopID();
-                }
-                if (ex->shown().size() > n) ImGui::TextDisabled("... and %zu smaller clusters", ex->shown().size() - n);
-            }
-            // (Under the exploration's panel, and closed at first there: the
-            // panel must fit small windows.)
-            if (session && ImGui::CollapsingHeader("Regions of interest", ex ? 0 : ImGuiTreeNodeFlags_DefaultOpen)) {
-                if (session->selecting())
-                    ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "selecting...");
-                else
-                    ImGui::Text("%llu of %llu streamlines selected (%.0f ms)", (unsigned long long)session->kept().size(),
-                                (unsigned long long)session->all().nb_streamlines(), session->last_filter_ms());
-                ImGui::TextDisabled(
-                    "Ctrl+click: include sphere  Ctrl+Alt+click: exclude\nCtrl+wheel: resize  Ctrl+Z / Ctrl+Shift+Z: undo / redo  Ctrl+S: "
-                    "save");
-                if (button("Add sphere")) {
-                    const std::array<double, 3> c{app.orbit.target[0], app.orbit.target[1], app.orbit.target[2]};
-                    act = [&, c] {
-                        core::Roi roi;
-                        roi.center = c, roi.radius = 10.0;
-                        session->add_roi(roi);
-                        session->apply_in_background();
-                        active_roi = session->rois().size() - 1;
-                    };
-                }
-                ImGui::SameLine();
-                if (button("Undo")) undo_redo(true);
-                ImGui::SameLine();
-                if (button("Redo")) undo_redo(false);
-                ImGui::SameLine();
-                if (button("Save")) save_next();
-                ImGui::Text("%zu picked, %llu deleted", session->picked().size(), (unsigned long long)session->nb_deleted());
-                ImGui::TextDisabled("Ctrl+drag: a stroke picks what it crosses  K: keep  D: delete  I: invert");
-                if (!session->picked().empty() || (ex && ex->nb_selected() > 0)) {
-                    if (button("Keep picked")) act = [&] { session->keep_picked(); }, act_selects = true;
-                    ImGui::SameLine();
-                    if (button("Delete picked")) act = [&] { session->delete_picked(); }, act_selects = true;
-                    ImGui::SameLine();
-                    if (button("Invert")) act = [&] { session->invert_picked(); }, act_selects = true;
-                }
-                for (std::size_t k = 0; k < session->rois().size() && !act; ++k) {
-                    const core::Roi &roi = session->rois()[k];
-                    ImGui::PushID(int(200000 + k));
-                    bool include = roi.include;
-                    if (ImGui::Checkbox("include", &include)) act = [&, k] { session->flip_roi(k), session->apply_in_background(); };
-                    ImGui::SameLine();
-                    ImGui::Text("#%zu %s", k, roi.spec().c_str());
-                    if (roi.shape != core::Roi::Shape::Mask) {
-                        // Dragged: the region follows at once; the selection
-                        // is made again when the drag ends (one undo step).
-                        const auto centre = roi.shape == core::Roi::Shape::Sphere
-                                                ? roi.center
-                                                : std::array<double, 3>{(roi.lo[0] + roi.hi[0]) / 2, (roi.lo[1] + roi.hi[1]) / 2,
-                                                                        (roi.lo[2] + roi.hi[2]) / 2};
-                        float c[3] = {float(centre[0]), float(centre[1]), float(centre[2])};
-                        if (ImGui::DragFloat3("centre (mm)", c, 0.25f)) {
-                            if (!roi_drag) session->record(), roi_drag = true;
-                            session->move_roi(k, {c[0], c[1], c[2]});
-                            active_roi = k;
-                            refresh(r, false);
-                        }
-                        if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply_in_background();
-                        float size = float(roi.shape == core::Roi::Shape::Sphere ? roi.radius : (roi.hi[0] - roi.lo[0]) / 2);
-                        if (ImGui::SliderFloat(roi.shape == core::Roi::Shape::Sphere ? "radius (mm)" : "half size x (mm)", &size, 0.5f,
-                                               60.0f, "%.1f", ImGuiSliderFlags_Logarithmic)) {
-                            if (!roi_drag) session->record(), roi_drag = true;
-                            const double now = roi.shape == core::Roi::Shape::Sphere ? roi.radius : (roi.hi[0] - roi.lo[0]) / 2;
-                            session->resize_roi(k, size / std::max(now, 1e-6));
-                            active_roi = k;
-                            refresh(r, false);
-                        }
-                        if (ImGui::IsItemDeactivatedAfterEdit()) roi_drag = false, session->apply_in_background();
-                    }
-                    if (ImGui::SmallButton("remove")) act = [&, k] { session->remove_roi(k), session->apply_in_background(); };
-                    ImGui::PopID();
-                }
-            }
-            if (act) edit_ui(act, act_selects);
-            if (session && ImGui::CollapsingHeader("Slab (crop streamlines)")) {
-                const auto &sb = scene_box;
-                std::optional<core::render::Slab> sl = r.scene().slab;
-                bool on = sl.has_value();
-                core::render::Slab v = sl.value_or(core::render::Slab{2, (sb.min[2] + sb.max[2]) / 2, 5});
-                bool changed = ImGui::Checkbox("crop to a slab", &on);
-                int axis = v.axis;
-                changed |= ImGui::Combo("axis", &axis, "x (left-right)\0y (posterior-anterior)\0z (inferior-superior)\0");
-                if (axis != v.axis) v.axis = axis, v.centre = (sb.min[axis] + sb.max[axis]) / 2;
-                float c = float(v.centre), h = float(v.half);
-                changed |= ImGui::SliderFloat("centre (mm)", &c, float(sb.min[v.axis]), float(sb.max[v.axis]), "%.1f");
-                changed |= ImGui::SliderFloat("half thickness (mm)", &h, 0.5f, 40.0f, "%.1f", ImGuiSliderFlags_Logarithmic);
-                v.centre = c, v.half = h;
-                if (changed) r.set_slab(on ? std::optional<core::render::Slab>(v) : std::nullopt);
-            }
-            for (std::size_t i = 0; i < r.scene().objects.size(); ++i) {
-                const auto &ob = r.scene().objects[i];
-                ImGui::PushID(int(i));
-                const bool open = ImGui::CollapsingHeader(ob.name.c_str(), i == 0 ? ImGuiTreeNodeFlags_DefaultOpen : 0);
-                {  // (a script opens or closes it as `press object I`)
-                    const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
-                    app.ui_buttons["object " + std::to_string(i)] = {lo.x, lo.y, hi.x, hi.y};
-                }
-                if (open) {
-                    bool vis = ob.visible;
-                    if (ImGui::Checkbox("visible", &vis)) r.set_visible(i, vis);
-                    {  // (a script presses it as `press visible I`)
-                        const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
-                        app.ui_buttons["visible " + std::to_string(i)] = {lo.x, lo.y, hi.x, hi.y};
-                    }
-                    if (ob.kind != HZ_DATA_VOLUME && material_controls(reg, ob, materials[i])) {
-                        try {
-                            app.last_material_edit = glfwGetTime();
-                            r.set_bake_materials(false);
-                            r.set_material(i, materials[i]);
-                        } catch (const core::Error &e) {
-                            std::fprintf(stderr, "horizon: %s\n", e.what());
-                            materials[i] = ob.material;
-                        }
-                    }
-                }
-                ImGui::PopID();
-            }
-            ImGui::End();
-            if (app.stroking && app.stroke.size() > 1) {  // the stroke being drawn
-                std::vector<ImVec2> pts;
-                for (const auto &q : app.stroke) pts.emplace_back(float(q[0]), float(q[1]));
-                ImGui::GetForegroundDrawList()->AddPolyline(pts.data(), int(pts.size()), IM_COL32(255, 220, 60, 230), 0, 2.0f);
-            }
-            ImGui::Render();
-            ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
-            glfwSwapBuffers(win);
-            log.add(kind, r.stats(), std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_t0).count());
-            // The regions' spatial index, a second after the first frame
-            // (the shell proxy's thread is then done, as a rule).
-            if (session && log.first_frame_s >= 0 && seconds_since_launch() > log.first_frame_s + 1.0) session->prepare_index();
-            if (first_frame) {
-                first_frame = false;
-                std::printf("first frame after %.2f s\n", seconds_since_launch());
-                std::fflush(stdout);
-            }
-        }
-        if (!o.stats.empty()) log.write(o.stats, r, framebuffer_size(win).first, framebuffer_size(win).second);
-        app.on_click = nullptr;  // (they refer to r and ex, which end here)
-        app.on_key = nullptr;
-        app.on_ctrl_scroll = nullptr;
-        app.on_stroke = nullptr;
-        app.r = nullptr;
+        Viewer viewer(reg, o, win, app, r, w0, h0);
+        viewer.setup(scene);
+        viewer.show(std::move(scene), rs, loading);
+        viewer.loop();
     }
     ImGui_ImplOpenGL3_Shutdown();
     ImGui_ImplGlfw_Shutdown();
