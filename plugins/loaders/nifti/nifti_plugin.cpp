@@ -1,8 +1,9 @@
-// hz.loader/1 adapter for NIfTI-1/-2 volumes (nifti_format.hpp).
+// hz.loader/1 for NIfTI-1/-2 volumes (nifti_format.hpp), through the SDK's
+// C++ loader adapter (hz/cpp/loader.hpp).
 #include "mapped_file.hpp"
 #include "nifti_format.hpp"
 
-#include <hz/cpp/plugin.hpp>
+#include <hz/cpp/loader.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -14,16 +15,11 @@ namespace {
 constexpr const char *kId = "org.horizon.loader.nifti";
 const hz_host *host();
 
-struct Reader {
+struct NiiReader {
     std::string path;
     std::unique_ptr<nifti::Image> image;
 };
-Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
-
-template <class F>
-hz_status run(hz_error *err, const std::string &path, F &&body) {
-    return hz::format_guard<nifti::FormatError, hzio::IoError>(err, "nifti", path, body);
-}
+struct NiiCancelled {};
 
 hz_dtype to_hz(nifti::DType t) {
     switch (t) {
@@ -52,26 +48,19 @@ bool from_hz(hz_dtype t, nifti::DType &out) {
     return false;
 }
 
-int32_t HZ_ABI probe(const uint8_t *head, uint64_t size, const char *) { return nifti::probe(head, size); }
+int32_t nii_probe(const uint8_t *head, uint64_t size, const char *) noexcept { return nifti::probe(head, size); }
 
-hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
-    if (out != nullptr) *out = nullptr;
-    if (req == nullptr || req->path == nullptr || out == nullptr)
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "nifti: open: NULL request, path or output");
-    return run(err, req->path, [&]() -> hz_status {
-        auto r = std::make_unique<Reader>();
-        r->path = req->path;
-        r->image = std::make_unique<nifti::Image>(nifti::Image::open(r->path));
-        for (const auto &w : r->image->header().warnings) hz::log(host(), kId, HZ_LOG_WARN, r->path + ": " + w);
-        *out = reinterpret_cast<hz_reader *>(r.release());
-        return HZ_OK;
-    });
+std::unique_ptr<NiiReader> nii_open(const std::string &path, const hz_task *) {
+    auto r = std::make_unique<NiiReader>();
+    r->path = path;
+    r->image = std::make_unique<nifti::Image>(nifti::Image::open(r->path));
+    for (const auto &w : r->image->header().warnings) hz::log(host(), kId, HZ_LOG_WARN, r->path + ": " + w);
+    return r;
 }
 
-hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_dataset_info))
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "nifti: get_info: bad arguments");
-    const nifti::Header &h = as_reader(reader)->image->header();
+void nii_info(const NiiReader &r, hz_dataset_info &info) {
+    hz_dataset_info *out = &info;
+    const nifti::Header &h = r.image->header();
     out->kind = HZ_DATA_VOLUME;
     std::snprintf(out->format, sizeof out->format, "nifti%d%s%s", h.version, h.data_gz ? " gz" : "", h.swap ? " swapped" : "");
     out->dtype = to_hz(h.dtype);
@@ -82,16 +71,10 @@ hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err
     std::copy(h.affine.begin(), h.affine.end(), out->voxel_to_ras);
     for (int i = 0; i < 3; ++i) out->ref_dims[i] = i < h.ndim ? static_cast<uint64_t>(h.dims[static_cast<std::size_t>(i)]) : 1;
     out->source_space = HZ_SPACE_VOXEL;
-    return HZ_OK;
 }
 
-hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *, hz_error *err) {
-    return hz::set_errorf(err, HZ_E_NOT_FOUND, "nifti: %s: no extra array %u", reader ? as_reader(reader)->path.c_str() : "?", index);
-}
-
-hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
-    if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "nifti: visit_metadata: NULL");
-    const nifti::Header &h = as_reader(reader)->image->header();
+void nii_metadata(const NiiReader &r, hz_metadata_visitor visitor, void *ctx) {
+    const nifti::Header &h = r.image->header();
     char buf[256];
     std::snprintf(buf, sizeof buf, "%g %g %g %g", h.pixdim[1], h.pixdim[2], h.pixdim[3], h.pixdim[4]);
     visitor(ctx, "pixdim", buf);
@@ -102,7 +85,6 @@ hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, 
     visitor(ctx, "affine_source", h.affine_source.c_str());
     std::snprintf(buf, sizeof buf, "%.9g %.9g", h.scl_slope, h.scl_inter);
     visitor(ctx, "scaling", buf);
-    return HZ_OK;
 }
 
 template <class T>
@@ -132,12 +114,10 @@ double voxel_value(const unsigned char *p, nifti::DType t, bool swap) {
     }
 }
 
-hz_status HZ_ABI read_volume(hz_reader *reader, const hz_array_view *dst, const hz_task *task, hz_error *err) {
-    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "nifti: read_volume: NULL");
-    Reader &r = *as_reader(reader);
+void nii_read_volume(NiiReader &r, const hz_array_view &view, const hz_task *task) {
+    const hz_array_view *dst = &view;
     const nifti::Header &h = r.image->header();
-    return run(err, r.path, [&]() -> hz_status {
-        if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+    {
         const bool raw = dst->dtype == to_hz(h.dtype);
         const bool scaled = !raw && (dst->dtype == HZ_DTYPE_F32 || dst->dtype == HZ_DTYPE_F64) && h.dtype != nifti::DType::RGB24 &&
                             h.dtype != nifti::DType::RGBA32;
@@ -164,13 +144,13 @@ hz_status HZ_ABI read_volume(hz_reader *reader, const hz_array_view *dst, const 
             (span < 0 ? lo : hi) += span;
         }
         if (lo < 0 || static_cast<std::uint64_t>(hi) + out_size > dst->capacity_bytes)
-            return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "nifti: %s: destination too small", r.path.c_str());
+            throw hz::Error(HZ_E_BUFFER_TOO_SMALL, "nifti: " + r.path + ": destination too small");
         const unsigned char *src = r.image->data();
         auto *base = static_cast<unsigned char *>(dst->data);
         const bool swap_elems = h.swap && h.dtype != nifti::DType::RGB24 && h.dtype != nifti::DType::RGBA32;
         std::uint64_t idx[4] = {0, 0, 0, 0};
         for (std::uint64_t v = 0; v < h.nb_voxels; ++v, src += in_size) {
-            if ((v & 0xFFFFF) == 0 && hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
+            if ((v & 0xFFFFF) == 0 && hz::cancelled(task)) throw NiiCancelled{};
             std::int64_t off = 0;
             for (std::size_t i = 0; i < dims.size(); ++i) off += static_cast<std::int64_t>(idx[i]) * dst->stride_bytes[i];
             unsigned char *o = base + off;
@@ -192,17 +172,13 @@ hz_status HZ_ABI read_volume(hz_reader *reader, const hz_array_view *dst, const 
             }
         }
         hz::report(task, 1.0);
-        return HZ_OK;
-    });
+    }
 }
 
-void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
-
-hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
-    if (req == nullptr || req->path == nullptr || data == nullptr)
-        return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "nifti: write: NULL request or data");
-    if (data->kind != HZ_DATA_VOLUME) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "nifti: %s: NIfTI holds volumes only", req->path);
-    return run(err, req->path, [&]() -> hz_status {
+void nii_write(const hz_write_request &request, const hz_dataset_view &view, const hz_task *) {
+    const hz_write_request *req = &request;
+    const hz_dataset_view *data = &view;
+    {
         const std::string ext = req->extension ? req->extension : "nii";
         const bool pair = ext == "hdr" || ext == "img" || ext == "hdr.gz" || ext == "img.gz";
         if (ext != "nii" && ext != "nii.gz" && !pair) throw nifti::FormatError("writing ." + ext + " is not supported");
@@ -259,29 +235,29 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                                        companion_final.c_str()) != HZ_OK)
             throw nifti::FormatError("the host refused the companion file " + companion_final);
         nifti::write(header_tmp, image_tmp, gz, dt, dims, vx.data, aff, slope, inter);
-        return HZ_OK;
-    });
+    }
 }
 
 const char *const kExtensions[] = {"nii", "nii.gz", "hdr", "img", "hdr.gz", "img.gz", nullptr};
-const hz_loader kLoader = {
-    .struct_size = sizeof(hz_loader),
-    .data_kinds = HZ_DATA_VOLUME,
-    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
-    .probe_bytes = 548,
-    .extensions = kExtensions,
-    .probe = probe,
-    .open = open,
-    .get_info = get_info,
-    .get_array_info = get_array_info,
-    .visit_metadata = visit_metadata,
-    .read_streamlines = nullptr,
-    .read_array = nullptr,
-    .read_volume = read_volume,
-    .read_mesh = nullptr,
-    .close = close,
-    .write = write,
+
+// The format as the SDK's C++ loader adapter takes it (hz/cpp/loader.hpp).
+struct Nifti {
+    static constexpr const char *prefix = "nifti";
+    static constexpr hz_data_kind kinds = HZ_DATA_VOLUME;
+    static constexpr uint32_t probe_bytes = 548;
+    static constexpr const char *const *extensions = kExtensions;
+    using FormatError = nifti::FormatError;
+    using IoError = hzio::IoError;
+    using Cancelled = NiiCancelled;
+    using Reader = NiiReader;
+    static constexpr auto probe = nii_probe;
+    static constexpr auto open = nii_open;
+    static constexpr auto info = nii_info;
+    static constexpr auto metadata = nii_metadata;
+    static constexpr auto read_volume = nii_read_volume;
+    static constexpr auto write = nii_write;
 };
+constexpr const hz_loader &kLoader = hz::loader<Nifti>::table;
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
