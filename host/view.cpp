@@ -866,13 +866,6 @@ private:
         }
         ImGui::NewFrame();
         app.ui_buttons.clear();
-        // A panel button that a script can press.
-        auto button = [&](const char *label) {
-            const bool pressed = ImGui::Button(label);
-            const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
-            app.ui_buttons[label] = {lo.x, lo.y, hi.x, hi.y};
-            return pressed;
-        };
         ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
         ImGui::SetNextWindowSize(ImVec2(340, 0), ImGuiCond_FirstUseEver);
         ImGui::Begin("Horizon");
@@ -889,6 +882,29 @@ private:
         // recorded for undo).
         std::function<void()> act;
         bool act_selects = false;
+        explore_panel(act);
+        regions_panel(act, act_selects);
+        if (act) edit_ui(act, act_selects);
+        slab_panel();
+        objects_panel();
+        ImGui::End();
+        if (app.stroking && app.stroke.size() > 1) {  // the stroke being drawn
+            std::vector<ImVec2> pts;
+            for (const auto &q : app.stroke) pts.emplace_back(float(q[0]), float(q[1]));
+            ImGui::GetForegroundDrawList()->AddPolyline(pts.data(), int(pts.size()), IM_COL32(255, 220, 60, 230), 0, 2.0f);
+        }
+    }
+
+    // A panel button that a script can press.
+    bool button(const char *label) {
+        const bool pressed = ImGui::Button(label);
+        const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+        app.ui_buttons[label] = {lo.x, lo.y, hi.x, hi.y};
+        return pressed;
+    }
+
+    // The exploration: its clusters as a legend, and what to do with them.
+    void explore_panel(std::function<void()> &act) {
         if (ex && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
             ImGui::TextWrapped("%s", ex->summary().c_str());
             ImGui::TextDisabled("click a centroid: select  E: expand  X: to streamlines  H: hide  A: all/none  C: cluster again");
@@ -950,6 +966,10 @@ private:
         }
         // (Under the exploration's panel, and closed at first there: the
         // panel must fit small windows.)
+    }
+
+    // The regions of interest, the strokes' picks, undo, save.
+    void regions_panel(std::function<void()> &act, bool &act_selects) {
         if (session && ImGui::CollapsingHeader("Regions of interest", ex ? 0 : ImGuiTreeNodeFlags_DefaultOpen)) {
             if (session->selecting())
                 ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "selecting...");
@@ -1021,7 +1041,10 @@ private:
                 ImGui::PopID();
             }
         }
-        if (act) edit_ui(act, act_selects);
+    }
+
+    // Cropping streamlines to a slab.
+    void slab_panel() {
         if (session && ImGui::CollapsingHeader("Slab (crop streamlines)")) {
             const auto &sb = scene_box;
             std::optional<core::render::Slab> sl = r.scene().slab;
@@ -1037,6 +1060,10 @@ private:
             v.centre = c, v.half = h;
             if (changed) r.set_slab(on ? std::optional<core::render::Slab>(v) : std::nullopt);
         }
+    }
+
+    // Each object: visible, and its material's controls.
+    void objects_panel() {
         for (std::size_t i = 0; i < r.scene().objects.size(); ++i) {
             const auto &ob = r.scene().objects[i];
             ImGui::PushID(int(i));
@@ -1064,12 +1091,6 @@ private:
                 }
             }
             ImGui::PopID();
-        }
-        ImGui::End();
-        if (app.stroking && app.stroke.size() > 1) {  // the stroke being drawn
-            std::vector<ImVec2> pts;
-            for (const auto &q : app.stroke) pts.emplace_back(float(q[0]), float(q[1]));
-            ImGui::GetForegroundDrawList()->AddPolyline(pts.data(), int(pts.size()), IM_COL32(255, 220, 60, 230), 0, 2.0f);
         }
     }
 
