@@ -6,6 +6,7 @@
 
 #include "colour.hpp"
 #include "gl.hpp"
+#include "gpu_object.hpp"
 #include "line_geometry.hpp"
 #include "glsl.hpp"
 #include "programs.hpp"
@@ -93,9 +94,9 @@ GLuint link_program(const std::vector<GLuint> &shaders, const std::string &what)
     return p;
 }
 
-struct Program;
-void bind_sampler(Program &p, const char *name, int unit, GLenum target, GLuint tex);
+}  // namespace
 
+// A linked program and its uniform locations (declared in gpu_object.hpp).
 struct Program {
     GLuint id = 0;
     std::string fragment_source;
@@ -107,14 +108,14 @@ struct Program {
     }
 };
 
+namespace {
+
 // Binds `tex` to texture unit `unit` and points sampler `name` of the bound program `p` at it.
 void bind_sampler(Program &p, const char *name, int unit, GLenum target, GLuint tex) {
     glActiveTexture(GL_TEXTURE0 + unit);
     glBindTexture(target, tex);
     glUniform1i(p.loc(name), unit);
 }
-
-enum class Geom { Mesh, Tube, Line };
 
 struct Fbo {
     GLuint fbo = 0, color = 0, depth = 0;
@@ -163,54 +164,6 @@ struct Tex2dFbo {
         glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
         if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
     }
-};
-
-struct GpuObject {
-    std::size_t index = 0;
-    Geom geom = Geom::Mesh;
-    bool slices = false;
-    GLuint vao = 0, vbo = 0, ebo = 0;
-    std::vector<GLint> firsts;
-    std::vector<GLsizei> counts;
-    GLsizei index_count = 0;
-    std::uint64_t segments = 0, triangles = 0;
-    // streamlines: full detail in chunks, and the level-of-detail proxy
-    // drawn while the camera moves and as the first picture of a
-    // progressive frame: first a uniform subsample (immediate), replaced by
-    // the shell proxy (shell_proxy.hpp) when a background thread has
-    // computed it. An object small enough to be its own proxy has none.
-    std::shared_ptr<LineData> lines;
-    std::vector<LineChunk> chunks, proxy_chunks;
-    std::shared_ptr<const std::vector<Piece>> proxy;  // what the proxy draws
-    std::future<std::vector<Piece>> shell;            // the shell proxy, being computed
-    std::shared_ptr<std::atomic<bool>> shell_cancel;
-    ~GpuObject() {
-        if (shell_cancel) *shell_cancel = true;
-        if (shell.valid()) shell.wait();
-    }
-    GpuObject() = default;
-    GpuObject(GpuObject &&) = default;
-    GpuObject &operator=(GpuObject &&) = default;
-    std::uint64_t points_total = 0, streamlines = 0;
-    double tol_mm = 0, proxy_tol_mm = 0;  // the proxy is drawn at 1/proxy_scale of the size: decimated as much coarser
-    bool has_lod_proxy() const { return !proxy_chunks.empty(); }
-    // shading
-    const LoadedPlugin *shader = nullptr;
-    std::vector<double> values;  // schema order, every component
-    std::string albedo;          // name of the colour parameter the colouring drives ("" if none)
-    // Every vertex has this colour (solid colouring, or data that happens to
-    // be constant): with baked materials it is a constant of the program.
-    std::optional<std::array<std::uint8_t, 4>> uniform_rgba;
-    bool use_line_domain = false;
-    bool refractive = false;  // the snippet reads hz_scene_behind: drawn after the opaque objects
-    // Programs by output (see Impl::Output), compiled when first needed.
-    mutable Program *program = nullptr, *display_program = nullptr, *debug_program = nullptr;
-    // slices
-    GLuint volume_tex = 0, colormap_tex = 0;
-    GLsizei slice_vertices = 0;
-    glm::mat4 ras_to_tex{1.0f};
-    std::array<double, 2> window{0, 1};
-    Bounds bounds;
 };
 
 }  // namespace
@@ -692,17 +645,6 @@ struct Renderer::Impl {
 
     // ----------------------------------------------------------------- upload
 
-    // The colour all vertices share, if they share one.
-    template <class Vertex>
-    static std::optional<std::array<std::uint8_t, 4>> same_colour(const std::vector<Vertex> &verts) {
-        if (verts.empty()) return std::nullopt;
-        std::array<std::uint8_t, 4> c;
-        std::memcpy(c.data(), verts[0].rgba, 4);
-        for (const Vertex &v : verts)
-            if (std::memcmp(v.rgba, c.data(), 4) != 0) return std::nullopt;
-        return c;
-    }
-
     // Sets the vertex layout of the bound VAO for the bound buffer.
     static void line_attributes() {
         const GLsizei st = sizeof(LineVertex);
@@ -940,192 +882,6 @@ struct Renderer::Impl {
             changed = true;
         }
         return changed;
-    }
-
-    void upload_mesh(GpuObject &g, const Object &o) {
-        const Mesh &m = o.data.mesh;
-        const std::uint64_t nv = m.nb_vertices(), nf = m.nb_faces();
-        for (std::uint64_t i = 0; i < nf * 3; ++i)
-            if (m.faces[i] >= nv) throw Error(o.name + ": face index " + std::to_string(m.faces[i]) + " out of range");
-        // Area-weighted vertex normals.
-        std::vector<glm::vec3> nrm(nv, glm::vec3(0));
-        const float *V = m.vertices.data();
-        auto vp = [&](std::uint32_t i) { return glm::vec3(V[i * 3], V[i * 3 + 1], V[i * 3 + 2]); };
-        for (std::uint64_t f = 0; f < nf; ++f) {
-            const std::uint32_t a = m.faces[f * 3], b = m.faces[f * 3 + 1], c = m.faces[f * 3 + 2];
-            const glm::vec3 n = glm::cross(vp(b) - vp(a), vp(c) - vp(a));
-            if (!std::isfinite(n.x + n.y + n.z)) continue;
-            nrm[a] += n, nrm[b] += n, nrm[c] += n;
-        }
-        std::vector<double> data;
-        std::array<double, 2> range{0, 1};
-        const Coloring &c = o.coloring;
-        if (c.mode == "data") {
-            const DataArray *a = nullptr;
-            for (const auto &x : m.arrays)
-                if (x.name == c.array && x.attach == HZ_ATTACH_VERTEX && x.count == nv) a = &x;
-            if (!a) {
-                std::string list;
-                for (const auto &x : m.arrays) list += (list.empty() ? "" : ", ") + x.name;
-                throw Error(o.name + ": color: no per-vertex array '" + c.array + "' (arrays: " + (list.empty() ? "none" : list) + ")");
-            }
-            data = array_values(*a);
-            range = c.range ? *c.range : finite_range(data);
-        }
-        // Per-vertex colours ("rgb"): 8/16-bit values are sRGB-encoded (FreeSurfer annotation colours), float
-        // values linear in 0..1 (glTF COLOR_0).
-        std::vector<std::array<double, 3>> rgb;
-        if (c.mode == "rgb") {
-            const DataArray *a = nullptr;
-            for (const auto &x : m.arrays)
-                if (x.name == c.array && x.attach == HZ_ATTACH_VERTEX && x.count == nv && x.components >= 3) a = &x;
-            if (!a) throw Error(o.name + ": color: no per-vertex colour array '" + c.array + "' (3 or 4 components)");
-            const std::size_t es = dtype_size(a->dtype);
-            const double scale = a->dtype == HZ_DTYPE_U8 ? 255.0 : a->dtype == HZ_DTYPE_U16 ? 65535.0 : 0.0;
-            rgb.resize(nv);
-            for (int k = 0; k < 3; ++k) {
-                const auto v = values_of(a->bytes.data() + k * es, a->dtype, a->count, es * a->components);
-                for (std::uint64_t i = 0; i < nv; ++i) {
-                    const double x = std::isfinite(v[i]) ? v[i] : 0.0;
-                    rgb[i][std::size_t(k)] =
-                        c.tint[std::size_t(k)] * (scale > 0 ? srgb_to_linear(std::clamp(x / scale, 0.0, 1.0)) : std::clamp(x, 0.0, 1.0));
-                }
-            }
-        }
-        struct MV {
-            float pos[3];
-            float normal[3];
-            std::uint8_t rgba[4];
-        };
-        std::vector<MV> verts(nv);
-        for (std::uint64_t i = 0; i < nv; ++i) {
-            MV &v = verts[i];
-            for (int k = 0; k < 3; ++k) v.pos[k] = V[i * 3 + k];
-            const float l = glm::length(nrm[i]);
-            const glm::vec3 n = l > 0 ? nrm[i] / l : glm::vec3(0, 0, 1);
-            v.normal[0] = n.x, v.normal[1] = n.y, v.normal[2] = n.z;
-            std::array<std::uint8_t, 4> col;
-            if (c.mode == "data") {
-                const auto cm = colormap(c.colormap, (data[i] - range[0]) / (range[1] - range[0]));
-                col = rgba8(srgb_to_linear(cm[0]), srgb_to_linear(cm[1]), srgb_to_linear(cm[2]));
-            } else if (c.mode == "rgb")
-                col = rgba8(rgb[i][0], rgb[i][1], rgb[i][2]);
-            else
-                col = rgba8(c.color[0], c.color[1], c.color[2]);
-            std::memcpy(v.rgba, col.data(), 4);
-        }
-        g.uniform_rgba = same_colour(verts);
-        glGenVertexArrays(1, &g.vao);
-        glBindVertexArray(g.vao);
-        glGenBuffers(1, &g.vbo);
-        glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
-        glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(verts.size() * sizeof(MV)), verts.data(), GL_STATIC_DRAW);
-        glEnableVertexAttribArray(0);
-        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(MV), reinterpret_cast<void *>(0));
-        glEnableVertexAttribArray(1);
-        glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(MV), reinterpret_cast<void *>(12));
-        glEnableVertexAttribArray(2);
-        glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, sizeof(MV), reinterpret_cast<void *>(24));
-        glGenBuffers(1, &g.ebo);
-        glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g.ebo);
-        glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(nf * 3 * 4), m.faces.data(), GL_STATIC_DRAW);
-        g.index_count = GLsizei(nf * 3);
-        g.triangles = nf;
-        g.bounds = bounds_of(V, nv);
-    }
-
-    void upload_slices(GpuObject &g, const Object &o) {
-        const Volume &v = o.data.volume;
-        if (v.dims.size() < 3) throw Error(o.name + ": slices need a 3D volume");
-        GLint max3d = 0;
-        glGetIntegerv(GL_MAX_3D_TEXTURE_SIZE, &max3d);
-        const std::uint64_t X = v.dims[0], Y = v.dims[1], Z = v.dims[2];
-        if (X > std::uint64_t(max3d) || Y > std::uint64_t(max3d) || Z > std::uint64_t(max3d))
-            throw Error(o.name + ": volume larger than the GL 3D texture limit " + std::to_string(max3d));
-        // First 3D volume, scaled to float (read in place, no copy of the voxels).
-        const std::vector<double> vals = values_of(v.voxels.data(), v.dtype, X * Y * Z, dtype_size(v.dtype));
-        std::vector<float> f(vals.size());
-        for (std::size_t i = 0; i < vals.size(); ++i) f[i] = float(vals[i] * v.scale_slope + v.scale_inter);
-        glGenTextures(1, &g.volume_tex);
-        glBindTexture(GL_TEXTURE_3D, g.volume_tex);
-        glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-        glTexImage3D(GL_TEXTURE_3D, 0, GL_R32F, GLsizei(X), GLsizei(Y), GLsizei(Z), 0, GL_RED, GL_FLOAT, f.data());
-        glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-        glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R}) glTexParameteri(GL_TEXTURE_3D, w, GL_CLAMP_TO_EDGE);
-        // Window: given, else the 1st..99th percentile of the finite values.
-        if (o.window)
-            g.window = *o.window;
-        else {
-            std::vector<float> s;
-            for (float x : f)
-                if (std::isfinite(x)) s.push_back(x);
-            if (!s.empty()) {
-                std::nth_element(s.begin(), s.begin() + s.size() / 100, s.end());
-                const float lo = s[s.size() / 100];
-                std::nth_element(s.begin(), s.begin() + s.size() * 99 / 100, s.end());
-                g.window = {lo, std::max(s[s.size() * 99 / 100], lo + 1e-6f)};
-            }
-        }
-        // Colormap texture (sRGB table).
-        std::vector<std::uint8_t> lut(256 * 4);
-        for (int i = 0; i < 256; ++i) {
-            const auto cm = colormap(o.slice_colormap, i / 255.0);
-            const auto q = rgba8(cm[0], cm[1], cm[2]);
-            std::memcpy(&lut[i * 4], q.data(), 4);
-        }
-        glGenTextures(1, &g.colormap_tex);
-        glBindTexture(GL_TEXTURE_2D, g.colormap_tex);
-        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, 256, 1, 0, GL_RGBA, GL_UNSIGNED_BYTE, lut.data());
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-        // RAS -> texture coordinates, and the RAS bounding box of the grid.
-        glm::dmat4 A(1.0);
-        for (int r = 0; r < 4; ++r)
-            for (int cc = 0; cc < 4; ++cc) A[cc][r] = v.voxel_to_ras[r * 4 + cc];
-        const glm::dmat4 to_tex = glm::scale(glm::dmat4(1.0), glm::dvec3(1.0 / X, 1.0 / Y, 1.0 / Z)) *
-                                  glm::translate(glm::dmat4(1.0), glm::dvec3(0.5)) * glm::inverse(A);
-        g.ras_to_tex = glm::mat4(to_tex);
-        glm::dvec3 lo(INFINITY), hi(-INFINITY);
-        for (int corner = 0; corner < 8; ++corner) {
-            const glm::dvec4 ijk((corner & 1) ? X - 0.5 : -0.5, (corner & 2) ? Y - 0.5 : -0.5, (corner & 4) ? Z - 0.5 : -0.5, 1.0);
-            const glm::dvec3 p = glm::dvec3(A * ijk);
-            lo = glm::min(lo, p), hi = glm::max(hi, p);
-        }
-        g.bounds.empty = false;
-        for (int k = 0; k < 3; ++k) g.bounds.min[k] = lo[k], g.bounds.max[k] = hi[k];
-        const glm::dvec3 mid = (lo + hi) * 0.5;
-        std::vector<float> quads;
-        auto quad = [&](int axis, double at) {
-            if (std::isnan(at)) at = mid[axis];
-            if (at < lo[axis] || at > hi[axis]) {
-                char msg[160];
-                std::snprintf(msg, sizeof msg, ": slice %c = %g mm lies outside the volume (%.1f to %.1f mm)", "xyz"[axis], at, lo[axis],
-                              hi[axis]);
-                throw Error(o.name + msg);
-            }
-            const int u = (axis + 1) % 3, w = (axis + 2) % 3;
-            const double cu[4] = {lo[u], hi[u], hi[u], lo[u]}, cw[4] = {lo[w], lo[w], hi[w], hi[w]};
-            const int order[6] = {0, 1, 2, 0, 2, 3};
-            for (int k : order) {
-                glm::dvec3 p;
-                p[axis] = at, p[u] = cu[k], p[w] = cw[k];
-                quads.push_back(float(p.x)), quads.push_back(float(p.y)), quads.push_back(float(p.z));
-            }
-        };
-        if (o.slice_x) quad(0, *o.slice_x);
-        if (o.slice_y) quad(1, *o.slice_y);
-        if (o.slice_z) quad(2, *o.slice_z);
-        g.slice_vertices = GLsizei(quads.size() / 3);
-        g.triangles = g.slice_vertices / 3;
-        glGenVertexArrays(1, &g.vao);
-        glBindVertexArray(g.vao);
-        glGenBuffers(1, &g.vbo);
-        glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
-        glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(quads.size() * 4), quads.data(), GL_STATIC_DRAW);
-        glEnableVertexAttribArray(0);
-        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, nullptr);
     }
 
     // ------------------------------------------------------------------ frame

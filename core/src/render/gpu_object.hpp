@@ -1,0 +1,84 @@
+// What the renderer keeps of each scene object on the GPU (private to the
+// renderer): its buffers, its streamline chunks and level-of-detail proxy,
+// its shading, and for volumes its slices' textures; and the uploads of the
+// kinds that need no renderer state (meshes, slices).
+#pragma once
+
+#include "gl.hpp"
+#include "line_geometry.hpp"
+
+#include <hz/core/plugin_host.hpp>
+#include <hz/core/render/scene.hpp>
+
+#include <glm/glm.hpp>
+
+#include <array>
+#include <atomic>
+#include <future>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace hz::core::render {
+
+struct Program;  // (renderer.cpp)
+
+enum class Geom { Mesh, Tube, Line };
+
+struct GpuObject {
+    std::size_t index = 0;
+    Geom geom = Geom::Mesh;
+    bool slices = false;
+    GLuint vao = 0, vbo = 0, ebo = 0;
+    std::vector<GLint> firsts;
+    std::vector<GLsizei> counts;
+    GLsizei index_count = 0;
+    std::uint64_t segments = 0, triangles = 0;
+    // streamlines: full detail in chunks, and the level-of-detail proxy
+    // drawn while the camera moves and as the first picture of a
+    // progressive frame: first a uniform subsample (immediate), replaced by
+    // the shell proxy (shell_proxy.hpp) when a background thread has
+    // computed it. An object small enough to be its own proxy has none.
+    std::shared_ptr<LineData> lines;
+    std::vector<LineChunk> chunks, proxy_chunks;
+    std::shared_ptr<const std::vector<Piece>> proxy;  // what the proxy draws
+    std::future<std::vector<Piece>> shell;            // the shell proxy, being computed
+    std::shared_ptr<std::atomic<bool>> shell_cancel;
+    ~GpuObject() {
+        if (shell_cancel) *shell_cancel = true;
+        if (shell.valid()) shell.wait();
+    }
+    GpuObject() = default;
+    GpuObject(GpuObject &&) = default;
+    GpuObject &operator=(GpuObject &&) = default;
+    std::uint64_t points_total = 0, streamlines = 0;
+    double tol_mm = 0, proxy_tol_mm = 0;  // the proxy is drawn at 1/proxy_scale of the size: decimated as much coarser
+    bool has_lod_proxy() const { return !proxy_chunks.empty(); }
+    // shading
+    const LoadedPlugin *shader = nullptr;
+    std::vector<double> values;  // schema order, every component
+    std::string albedo;          // name of the colour parameter the colouring drives ("" if none)
+    // Every vertex has this colour (solid colouring, or data that happens to
+    // be constant): with baked materials it is a constant of the program.
+    std::optional<std::array<std::uint8_t, 4>> uniform_rgba;
+    bool use_line_domain = false;
+    bool refractive = false;  // the snippet reads hz_scene_behind: drawn after the opaque objects
+    // Programs by output (see Impl::Output), compiled when first needed.
+    mutable Program *program = nullptr, *display_program = nullptr, *debug_program = nullptr;
+    // slices
+    GLuint volume_tex = 0, colormap_tex = 0;
+    GLsizei slice_vertices = 0;
+    glm::mat4 ras_to_tex{1.0f};
+    std::array<double, 2> window{0, 1};
+    Bounds bounds;
+};
+
+// A mesh object: vertices with area-weighted normals and colours, faces.
+// GL objects g.vao/vbo/ebo are created and bound by the caller's context.
+void upload_mesh(GpuObject &g, const Object &o);
+// A volume's three slices: the volume as a 3D texture, its colour map, and
+// the slice quads.
+void upload_slices(GpuObject &g, const Object &o);
+
+}  // namespace hz::core::render
