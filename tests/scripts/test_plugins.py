@@ -371,6 +371,33 @@ class PluginsTest(TempDirTest):
             p = run("validate", os.path.join(d, name), timeout=300)
             self.assertEqual(p.returncode, 0, p.stdout)
 
+    def test_a_loader_built_against_abi_1_9(self):
+        """The SDK's C loader template as released with ABI 1.9 (tests/abi/v1_9),
+        whose tables carry what 1.10 moved into extensions (a locate_positions
+        slot, HZ_LOADER_WRITES_GAP, hz_streamlines_dst.check): this host loads
+        it, reads and writes through it, and gives it what a plain loader gets
+        (gap 0: a mapped TCK is copied without its delimiters first); validate
+        passes it."""
+        d = self.path("v19")
+        os.mkdir(d)
+        shutil.copy(os.path.join(BUILD, "tests", "abi19", "abi19_text_loader.so"), d)
+        env = {"HORIZON_PLUGIN_CACHE": "off"}
+        j = run_json("--plugin-dir", d, "plugins", "--json", env=env)
+        old = {p["id"]: (p["abi"], p["status"], p["interfaces"]) for p in j["plugins"] if p["file"].startswith(d)}
+        self.assertEqual(old, {"org.example.loader.hzt": ("1.9", "loaded", ["hz.loader/1"])})
+        text = "hzt 1\n3\n1 2 3\n2 3.5 4\n3 4 5\n0\n2\n0 0 0\n1 1 1\n"
+        with open(self.path("x.hzt"), "w") as f:
+            f.write(text)
+        # hzt -> TCK (ours, mapped when read back: delimiters in place) -> hzt.
+        for a, b in (("x.hzt", "x.tck"), ("x.tck", "y.hzt")):
+            p = run("--plugin-dir", d, "convert", self.path(a), self.path(b), env=env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertTrue(run_json("info", self.path("x.tck"), "--json")["positions_mapped"])
+        with open(self.path("y.hzt")) as f:
+            self.assertEqual(f.read(), text)
+        p = run("validate", os.path.join(d, "abi19_text_loader.so"), timeout=300)
+        self.assertEqual(p.returncode, 0, p.stdout)
+
     def test_a_trial_list_that_is_not_a_file_is_not_used(self):
         # A FIFO would block every command; a folder made every command fail.
         fifo, folder = self.path("fifo"), self.path("folder")
