@@ -27,7 +27,6 @@ std::optional<std::array<std::uint8_t, 4>> same_colour(const std::vector<Vertex>
     return c;
 }
 
-
 }  // namespace
 
 void upload_mesh(GpuObject &g, const Object &o) {
@@ -215,6 +214,5 @@ void upload_slices(GpuObject &g, const Object &o) {
     glEnableVertexAttribArray(0);
     glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, nullptr);
 }
-
 
 }  // namespace hz::core::render
