@@ -8,7 +8,7 @@
 // OpenImageIO's ~200 ms start-up.
 #include "backend.h"
 
-#include <hz/cpp/plugin.hpp>
+#include <hz/cpp/loader.hpp>
 
 #include <dlfcn.h>
 
@@ -68,7 +68,7 @@ const hzimg_backend &need_backend() {
     return *b;
 }
 
-int32_t HZ_ABI probe(const uint8_t *h, uint64_t n, const char *) {
+int32_t img_probe(const uint8_t *h, uint64_t n, const char *) noexcept {
     auto starts = [&](const char *m, std::size_t len) { return n >= len && std::memcmp(h, m, len) == 0; };
     if (starts("\x89PNG\r\n\x1a\n", 8)) return 100;
     if (starts("\xFF\xD8\xFF", 3)) return 90;
@@ -78,72 +78,47 @@ int32_t HZ_ABI probe(const uint8_t *h, uint64_t n, const char *) {
     return 0;
 }
 
-struct Reader {
+struct ImgReader {
     std::string path;
     hzimg_info info{};
 };
-Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
-template <class F>
-hz_status run(hz_error *err, const std::string &path, F &&body) noexcept {
-    return hz::format_guard<FormatError, IoError>(err, "images", path, body);
+std::unique_ptr<ImgReader> img_open(const std::string &path, const hz_task *) {
+    const hzimg_backend &b = need_backend();
+    auto r = std::make_unique<ImgReader>();
+    r->path = path;
+    char msg[512] = {};
+    if (b.info(path.c_str(), &r->info, msg, sizeof msg) != 0) throw FormatError(msg);
+    return r;
 }
 
-hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
-    if (out) *out = nullptr;
-    if (req == nullptr || req->path == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "images: open: NULL");
-    return run(err, req->path, [&]() -> hz_status {
-        const hzimg_backend &b = need_backend();
-        auto r = std::make_unique<Reader>();
-        r->path = req->path;
-        char msg[512] = {};
-        if (b.info(req->path, &r->info, msg, sizeof msg) != 0) throw FormatError(msg);
-        *out = reinterpret_cast<hz_reader *>(r.release());
-        return HZ_OK;
-    });
-}
-
-hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
-    if (reader == nullptr || out == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "images: get_info: NULL");
-    const Reader &r = *as_reader(reader);
-    out->kind = HZ_DATA_IMAGE;
-    std::snprintf(out->format, sizeof out->format, "%s", r.info.format);
-    out->dtype = r.info.dtype;
-    out->ndim = 3;
-    out->dims[0] = r.info.channels;
-    out->dims[1] = r.info.width;
-    out->dims[2] = r.info.height;
-    out->scale_slope = 1.0;
-    out->scale_inter = 0.0;
+void img_info(const ImgReader &r, hz_dataset_info &out) {
+    out.kind = HZ_DATA_IMAGE;
+    std::snprintf(out.format, sizeof out.format, "%s", r.info.format);
+    out.dtype = r.info.dtype;
+    out.ndim = 3;
+    out.dims[0] = r.info.channels;
+    out.dims[1] = r.info.width;
+    out.dims[2] = r.info.height;
+    out.scale_slope = 1.0;
+    out.scale_inter = 0.0;
     const double id[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-    std::memcpy(out->voxel_to_ras, id, sizeof id);
-    out->source_space = HZ_SPACE_UNKNOWN;
-    out->nb_arrays = 0;
-    return HZ_OK;
+    std::memcpy(out.voxel_to_ras, id, sizeof id);
+    out.source_space = HZ_SPACE_UNKNOWN;
+    out.nb_arrays = 0;
 }
 
-hz_status HZ_ABI get_array_info(hz_reader *, uint32_t, hz_array_info *, hz_error *err) {
-    return hz::set_error(err, HZ_E_NOT_FOUND, "images: no extra arrays");
-}
-
-hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
-    if (reader == nullptr || visitor == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "images: visit_metadata: NULL");
-    visitor(ctx, "format", as_reader(reader)->info.format);
-    return HZ_OK;
-}
+void img_metadata(const ImgReader &r, hz_metadata_visitor visit, void *ctx) { visit(ctx, "format", r.info.format); }
 
 std::size_t elem_size(uint32_t dtype) { return dtype == HZ_DTYPE_U8 ? 1 : dtype == HZ_DTYPE_U16 ? 2 : dtype == HZ_DTYPE_F32 ? 4 : 0; }
 
-hz_status HZ_ABI read_volume(hz_reader *reader, const hz_array_view *dst, const hz_task *task, hz_error *err) {
-    if (reader == nullptr || dst == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "images: read_volume: NULL");
-    const Reader &r = *as_reader(reader);
-    if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
-    if (dst->dtype != r.info.dtype)
-        return hz::set_errorf(err, HZ_E_DTYPE, "images: %s: pixels are read in their stored type only", r.path.c_str());
+void img_read_volume(ImgReader &r, const hz_array_view &view, const hz_task *) {
+    const hz_array_view *dst = &view;
+    if (dst->dtype != r.info.dtype) throw hz::Error(HZ_E_DTYPE, "images: " + r.path + ": pixels are read in their stored type only");
     const uint64_t c = r.info.channels, w = r.info.width, h = r.info.height;
     if (dst->ndim < 3 || dst->shape[0] != c || dst->shape[1] != w || dst->shape[2] != h)
-        return hz::set_errorf(err, HZ_E_INVALID_ARGUMENT, "images: %s: destination shape differs from the image", r.path.c_str());
-    return run(err, r.path, [&]() -> hz_status {
+        throw hz::Error(HZ_E_INVALID_ARGUMENT, "images: " + r.path + ": destination shape differs from the image");
+    {
         const hzimg_backend &b = need_backend();
         const std::size_t es = elem_size(r.info.dtype);
         std::vector<unsigned char> tmp(c * w * h * es);
@@ -155,19 +130,16 @@ hz_status HZ_ABI read_volume(hz_reader *reader, const hz_array_view *dst, const 
                     const int64_t off =
                         int64_t(k) * dst->stride_bytes[0] + int64_t(x) * dst->stride_bytes[1] + int64_t(y) * dst->stride_bytes[2];
                     if (off < 0 || uint64_t(off) + es > dst->capacity_bytes)
-                        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "images: %s: destination too small", r.path.c_str());
+                        throw hz::Error(HZ_E_BUFFER_TOO_SMALL, "images: " + r.path + ": destination too small");
                     std::memcpy(static_cast<unsigned char *>(dst->data) + off, &tmp[((y * w + x) * c + k) * es], es);
                 }
-        return HZ_OK;
-    });
+    }
 }
 
-void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
-
-hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
-    if (req == nullptr || req->path == nullptr || data == nullptr) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "images: write: NULL");
-    if (data->kind != HZ_DATA_IMAGE) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "images: %s: holds images only", req->path);
-    return run(err, req->path, [&]() -> hz_status {
+void img_write(const hz_write_request &request, const hz_dataset_view &view, const hz_task *) {
+    const hz_write_request *req = &request;
+    const hz_dataset_view *data = &view;
+    {
         const hz_array_view &v = data->voxels;
         const std::size_t es = elem_size(v.dtype);
         if (es == 0) throw FormatError("pixels must be uint8, uint16 or float32");
@@ -186,29 +158,28 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         if (ext == "jpg") ext = "jpeg";
         char msg[512] = {};
         if (need_backend().write(req->path, ext.c_str(), w, h, uint32_t(c), v.dtype, px.data(), msg, sizeof msg) != 0) throw IoError(msg);
-        return HZ_OK;
-    });
+    }
 }
 
 const char *const kExtensions[] = {"png", "jpg", "jpeg", "exr", "hdr", "tif", "tiff", nullptr};
-const hz_loader kLoader = {
-    .struct_size = sizeof(hz_loader),
-    .data_kinds = HZ_DATA_IMAGE,
-    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
-    .probe_bytes = 16,
-    .extensions = kExtensions,
-    .probe = probe,
-    .open = open,
-    .get_info = get_info,
-    .get_array_info = get_array_info,
-    .visit_metadata = visit_metadata,
-    .read_streamlines = nullptr,
-    .read_array = nullptr,
-    .read_volume = read_volume,
-    .read_mesh = nullptr,
-    .close = close,
-    .write = write,
+
+// The format as the SDK's C++ loader adapter takes it (hz/cpp/loader.hpp).
+struct Images {
+    static constexpr const char *prefix = "images";
+    static constexpr hz_data_kind kinds = HZ_DATA_IMAGE;
+    static constexpr uint32_t probe_bytes = 16;
+    static constexpr const char *const *extensions = kExtensions;
+    using FormatError = ::FormatError;
+    using IoError = ::IoError;
+    using Reader = ImgReader;
+    static constexpr auto probe = img_probe;
+    static constexpr auto open = img_open;
+    static constexpr auto info = img_info;
+    static constexpr auto metadata = img_metadata;
+    static constexpr auto read_volume = img_read_volume;
+    static constexpr auto write = img_write;
 };
+constexpr const hz_loader &kLoader = hz::loader<Images>::table;
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
