@@ -14,7 +14,7 @@
 // entries (material.baseColorFactor, material.metallicFactor, ...), which
 // `horizon render` uses for the principled model. Textures are not decoded.
 // Points, lines and strips, skins and morph targets are reported, not drawn.
-#include <hz/cpp/plugin.hpp>
+#include <hz/cpp/loader.hpp>
 
 #include <tiny_gltf.h>
 
@@ -337,103 +337,62 @@ long long hz_gltf_fuzz_parse(const std::string &path) {
 
 namespace {
 
-struct Reader {
-    std::string path;
+struct GltfReader {
     Surface s;
 };
-Reader *as_reader(hz_reader *r) { return reinterpret_cast<Reader *>(r); }
 
-template <class F>
-hz_status run(hz_error *err, const std::string &path, F &&body) noexcept {
-    return hz::format_guard<FormatError, IoError>(err, "gltf", path, body);
-}
-
-int32_t HZ_ABI probe(const uint8_t *h, uint64_t n, const char *name) {
+int32_t gltf_probe(const uint8_t *h, uint64_t n, const char *) noexcept {
     if (n >= 4 && std::memcmp(h, "glTF", 4) == 0) return 100;
     // JSON glTF: an object with "asset" near the start.
     std::string head(reinterpret_cast<const char *>(h), std::size_t(std::min<uint64_t>(n, 4096)));
     const auto p = head.find_first_not_of(" \t\r\n\xEF\xBB\xBF");
     if (p != std::string::npos && head[p] == '{' && head.find("\"asset\"") != std::string::npos) return 80;
-    (void)name;
     return 0;
 }
 
-hz_status HZ_ABI open(const hz_open_request *req, hz_reader **out, hz_error *err) {
-    if (out) *out = nullptr;
-    if (!req || !req->path || !out) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: open: NULL");
-    return run(err, req->path, [&]() -> hz_status {
-        auto r = std::make_unique<Reader>();
-        r->path = req->path;
-        r->s = parse(req->path);
-        *out = reinterpret_cast<hz_reader *>(r.release());
-        return HZ_OK;
-    });
+std::unique_ptr<GltfReader> gltf_open(const std::string &path, const hz_task *) {
+    auto r = std::make_unique<GltfReader>();
+    r->s = parse(path.c_str());
+    return r;
 }
 
-hz_status HZ_ABI get_info(hz_reader *reader, hz_dataset_info *out, hz_error *err) {
-    if (!reader || !out) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: get_info: NULL");
-    const Reader &r = *as_reader(reader);
-    out->kind = HZ_DATA_MESH;
-    std::snprintf(out->format, sizeof out->format, "gltf 2.0");
-    out->nb_vertices = r.s.vertices.size() / 3;
-    out->nb_faces = r.s.faces.size() / 3;
+void gltf_info(const GltfReader &r, hz_dataset_info &out) {
+    out.kind = HZ_DATA_MESH;
+    std::snprintf(out.format, sizeof out.format, "gltf 2.0");
+    out.nb_vertices = r.s.vertices.size() / 3;
+    out.nb_faces = r.s.faces.size() / 3;
     const double id[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-    std::memcpy(out->voxel_to_ras, id, sizeof id);
-    out->source_space = HZ_SPACE_RASMM;
-    out->nb_arrays = r.s.colors.empty() ? 0 : 1;
-    return HZ_OK;
+    std::memcpy(out.voxel_to_ras, id, sizeof id);
+    out.source_space = HZ_SPACE_RASMM;
+    out.nb_arrays = r.s.colors.empty() ? 0 : 1;
 }
 
-hz_status HZ_ABI get_array_info(hz_reader *reader, uint32_t index, hz_array_info *out, hz_error *err) {
-    if (!reader || !out) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: get_array_info: NULL");
-    const Reader &r = *as_reader(reader);
-    if (index != 0 || r.s.colors.empty()) return hz::set_error(err, HZ_E_NOT_FOUND, "gltf: no such array");
-    out->attach = HZ_ATTACH_VERTEX;
-    out->name = "color";
-    out->dtype = HZ_DTYPE_F32;
-    out->components = 3;
-    out->count = r.s.colors.size() / 3;
-    return HZ_OK;
+// The one array: COLOR_0 as "color", float RGB.
+void gltf_array_info(const GltfReader &r, uint32_t, hz_array_info &out) {
+    out.attach = HZ_ATTACH_VERTEX;
+    out.name = "color";
+    out.dtype = HZ_DTYPE_F32;
+    out.components = 3;
+    out.count = r.s.colors.size() / 3;
 }
 
-hz_status HZ_ABI read_array(hz_reader *reader, uint32_t index, const hz_array_view *dst, const hz_task *, hz_error *err) {
-    if (!reader || !dst) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: read_array: NULL");
-    const Reader &r = *as_reader(reader);
-    if (index != 0 || r.s.colors.empty()) return hz::set_error(err, HZ_E_NOT_FOUND, "gltf: no such array");
-    if (dst->dtype != HZ_DTYPE_F32) return hz::set_error(err, HZ_E_DTYPE, "gltf: colours are float32");
-    const std::size_t n = r.s.colors.size() / 3;
-    for (std::size_t i = 0; i < n; ++i)
-        for (int c = 0; c < 3; ++c) {
-            unsigned char *cell = hz::view_cell(*dst, i, std::uint64_t(c), 4);
-            if (!cell) return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gltf: %s: destination too small", r.path.c_str());
-            std::memcpy(cell, &r.s.colors[i * 3 + c], 4);
-        }
-    return HZ_OK;
+void gltf_read_array(const GltfReader &r, uint32_t, void *dense, const hz_task *) {
+    std::memcpy(dense, r.s.colors.data(), r.s.colors.size() * sizeof(float));
 }
 
-hz_status HZ_ABI visit_metadata(hz_reader *reader, hz_metadata_visitor visitor, void *ctx, hz_error *err) {
-    if (!reader || !visitor) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: visit_metadata: NULL");
-    for (const auto &[k, v] : as_reader(reader)->s.meta) visitor(ctx, k.c_str(), v.c_str());
-    return HZ_OK;
+void gltf_metadata(const GltfReader &r, hz_metadata_visitor visit, void *ctx) {
+    for (const auto &[k, v] : r.s.meta) visit(ctx, k.c_str(), v.c_str());
 }
 
-hz_status HZ_ABI read_mesh(hz_reader *reader, const hz_mesh_dst *dst, const hz_task *task, hz_error *err) {
-    if (!reader || !dst) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: read_mesh: NULL");
-    if (hz::cancelled(task)) return hz::set_error(err, HZ_E_CANCELLED, "cancelled");
-    const Reader &r = *as_reader(reader);
-    if (dst->vertices_capacity < r.s.vertices.size() || dst->faces_capacity < r.s.faces.size())
-        return hz::set_errorf(err, HZ_E_BUFFER_TOO_SMALL, "gltf: %s: destination too small", r.path.c_str());
-    if (!r.s.vertices.empty()) std::memcpy(dst->vertices, r.s.vertices.data(), r.s.vertices.size() * 4);
-    if (!r.s.faces.empty()) std::memcpy(dst->faces, r.s.faces.data(), r.s.faces.size() * 4);
-    return HZ_OK;
+void gltf_read_mesh(GltfReader &r, float *vertices, uint32_t *faces, const hz_task *) {
+    if (!r.s.vertices.empty()) std::memcpy(vertices, r.s.vertices.data(), r.s.vertices.size() * 4);
+    if (!r.s.faces.empty()) std::memcpy(faces, r.s.faces.data(), r.s.faces.size() * 4);
 }
 
-void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
-
-hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
-    if (!req || !req->path || !data) return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "gltf: write: NULL");
-    if (data->kind != HZ_DATA_MESH) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "gltf: %s: holds meshes only", req->path);
-    return run(err, req->path, [&]() -> hz_status {
+void gltf_write(const hz_write_request &request, const hz_dataset_view &view, const hz_task *) {
+    const hz_write_request *req = &request;
+    const hz_dataset_view *data = &view;
+    {
         const std::uint64_t nv = data->mesh_nb_vertices, nf = data->mesh_nb_faces;
         if (nv > 0xFFFFFFFFu || nf * 3 > 0xFFFFFFFFu) throw FormatError("too many vertices or faces");
         const float *colors = nullptr;
@@ -544,29 +503,30 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         } catch (const hzio::IoError &e) {
             throw IoError(e.what());
         }
-        return HZ_OK;
-    });
+    }
 }
 
 const char *const kExtensions[] = {"gltf", "glb", nullptr};
-const hz_loader kLoader = {
-    .struct_size = sizeof(hz_loader),
-    .data_kinds = HZ_DATA_MESH,
-    .caps = HZ_LOADER_CAN_READ | HZ_LOADER_CAN_WRITE,
-    .probe_bytes = 4096,
-    .extensions = kExtensions,
-    .probe = probe,
-    .open = open,
-    .get_info = get_info,
-    .get_array_info = get_array_info,
-    .visit_metadata = visit_metadata,
-    .read_streamlines = nullptr,
-    .read_array = read_array,
-    .read_volume = nullptr,
-    .read_mesh = read_mesh,
-    .close = close,
-    .write = write,
+
+// The format as the SDK's C++ loader adapter takes it (hz/cpp/loader.hpp).
+struct Gltf {
+    static constexpr const char *prefix = "gltf";
+    static constexpr hz_data_kind kinds = HZ_DATA_MESH;
+    static constexpr uint32_t probe_bytes = 4096;
+    static constexpr const char *const *extensions = kExtensions;
+    using FormatError = ::FormatError;
+    using IoError = ::IoError;
+    using Reader = GltfReader;
+    static constexpr auto probe = gltf_probe;
+    static constexpr auto open = gltf_open;
+    static constexpr auto info = gltf_info;
+    static constexpr auto array_info = gltf_array_info;
+    static constexpr auto read_array = gltf_read_array;
+    static constexpr auto metadata = gltf_metadata;
+    static constexpr auto read_mesh = gltf_read_mesh;
+    static constexpr auto write = gltf_write;
 };
+constexpr const hz_loader &kLoader = hz::loader<Gltf>::table;
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
