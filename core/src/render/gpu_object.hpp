@@ -18,11 +18,22 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace hz::core::render {
 
-struct Program;  // (renderer.cpp)
+// A linked program and its uniform locations, looked up once each.
+struct Program {
+    GLuint id = 0;
+    std::string fragment_source;
+    std::unordered_map<std::string, GLint> cache;
+    GLint loc(const std::string &name) {
+        auto it = cache.find(name);
+        if (it != cache.end()) return it->second;
+        return cache[name] = glGetUniformLocation(id, name.c_str());
+    }
+};
 
 enum class Geom { Mesh, Tube, Line };
 

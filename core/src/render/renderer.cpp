@@ -7,6 +7,7 @@
 #include "colour.hpp"
 #include "gl.hpp"
 #include "gpu_object.hpp"
+#include "image_lighting.hpp"
 #include "line_geometry.hpp"
 #include "glsl.hpp"
 #include "programs.hpp"
@@ -96,18 +97,6 @@ GLuint link_program(const std::vector<GLuint> &shaders, const std::string &what)
 
 }  // namespace
 
-// A linked program and its uniform locations (declared in gpu_object.hpp).
-struct Program {
-    GLuint id = 0;
-    std::string fragment_source;
-    std::unordered_map<std::string, GLint> cache;
-    GLint loc(const std::string &name) {
-        auto it = cache.find(name);
-        if (it != cache.end()) return it->second;
-        return cache[name] = glGetUniformLocation(id, name.c_str());
-    }
-};
-
 namespace {
 
 // Binds `tex` to texture unit `unit` and points sampler `name` of the bound program `p` at it.
@@ -196,15 +185,11 @@ struct Renderer::Impl {
     RenderSettings settings;
     std::vector<GpuObject> objects;
     std::map<std::string, std::unique_ptr<Program>> programs;
-    std::unique_ptr<Program> env_face, prefilter, irradiance, lut_prog;
     std::map<std::string, std::unique_ptr<Program>> aux_programs;  // sky, slices, tonemap by output and curve
     GLuint empty_vao = 0;
-    GLuint env_cube = 0, spec_cube = 0, diff_cube = 0, lut_tex = 0, black_cube = 0, black_tex = 0;
-    int spec_levels = 6;
-    bool env_on = false;
-    glm::mat3 env_rotation{1.0f};
-    Fbo msaa;          // the HDR path's multisampled RGBA16F target
-    Fbo msaa_display;  // the display path's multisampled RGBA8 target
+    std::unique_ptr<ImageLighting> ibl;  // the environment's lighting
+    Fbo msaa;                            // the HDR path's multisampled RGBA16F target
+    Fbo msaa_display;                    // the display path's multisampled RGBA8 target
     Tex2dFbo resolved, behind, ldr;
     // The level-of-detail frame: drawn at 1/settings.proxy_scale of the
     // window's size into `lowres` (fewer fragments; each subsample line
@@ -271,22 +256,8 @@ struct Renderer::Impl {
     explicit Impl(const Registry &r) : reg(r) {
         glGenVertexArrays(1, &empty_vao);
         glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
-        const std::string head = "#version 410 core\n";
-        env_face = make_simple(glsl::kFullscreenVS, head + glsl::kCubeCommon + glsl::kEnvSource + glsl::kEnvFaceFS, "environment");
-        prefilter = make_simple(glsl::kFullscreenVS, head + glsl::kCubeCommon + glsl::kPrefilterFS, "environment prefilter");
-        irradiance = make_simple(glsl::kFullscreenVS, head + glsl::kCubeCommon + glsl::kIrradianceFS, "environment irradiance");
-        lut_prog = make_simple(glsl::kFullscreenVS, head + glsl::kCubeCommon + glsl::kLutFS, "BRDF table");
-        // 1x1 black stand-ins so every sampler is always valid.
-        const float zero[4] = {0, 0, 0, 1};
-        glGenTextures(1, &black_cube);
-        glBindTexture(GL_TEXTURE_CUBE_MAP, black_cube);
-        for (int f = 0; f < 6; ++f) glTexImage2D(GL_TEXTURE_CUBE_MAP_POSITIVE_X + f, 0, GL_RGBA16F, 1, 1, 0, GL_RGBA, GL_FLOAT, zero);
-        glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-        glGenTextures(1, &black_tex);
-        glBindTexture(GL_TEXTURE_2D, black_tex);
-        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, 1, 1, 0, GL_RGBA, GL_FLOAT, zero);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-        make_lut();
+        ibl = std::make_unique<ImageLighting>(
+            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
     }
 
     ~Impl() {
@@ -296,10 +267,7 @@ struct Renderer::Impl {
         if (ring_ebo) glDeleteBuffers(1, &ring_ebo);
         for (auto &[k, p] : programs) glDeleteProgram(p->id);
         for (auto &[k, p] : aux_programs) glDeleteProgram(p->id);
-        for (auto *p : {&env_face, &prefilter, &irradiance, &lut_prog})
-            if (*p) glDeleteProgram((*p)->id);
-        GLuint texs[] = {env_cube, spec_cube, diff_cube, lut_tex, black_cube, black_tex};
-        glDeleteTextures(6, texs);
+        ibl.reset();
         glDeleteVertexArrays(1, &empty_vao);
         msaa.destroy();
         msaa_display.destroy();
@@ -381,138 +349,6 @@ struct Renderer::Impl {
         objects.clear();
     }
 
-    // ------------------------------------------------------------ environment
-
-    void render_cube(GLuint tex, int size, int level, Program &prog, const std::function<void()> &set) {
-        GLuint fbo = 0;
-        glGenFramebuffers(1, &fbo);
-        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-        glViewport(0, 0, size, size);
-        glUseProgram(prog.id);
-        set();
-        glUniform1f(prog.loc("u_size"), float(size));
-        glBindVertexArray(empty_vao);
-        for (int f = 0; f < 6; ++f) {
-            glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_CUBE_MAP_POSITIVE_X + f, tex, level);
-            glUniform1i(prog.loc("u_face"), f);
-            glDrawArrays(GL_TRIANGLES, 0, 3);
-        }
-        glDeleteFramebuffers(1, &fbo);
-    }
-
-    static GLuint new_cube(int size, int levels) {
-        GLuint t = 0;
-        glGenTextures(1, &t);
-        glBindTexture(GL_TEXTURE_CUBE_MAP, t);
-        for (int l = 0; l < levels; ++l)
-            for (int f = 0; f < 6; ++f)
-                glTexImage2D(GL_TEXTURE_CUBE_MAP_POSITIVE_X + f, l, GL_RGBA16F, std::max(1, size >> l), std::max(1, size >> l), 0, GL_RGBA,
-                             GL_FLOAT, nullptr);
-        glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MIN_FILTER, levels > 1 ? GL_LINEAR_MIPMAP_LINEAR : GL_LINEAR);
-        glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_MAX_LEVEL, levels - 1);
-        for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R})
-            glTexParameteri(GL_TEXTURE_CUBE_MAP, w, GL_CLAMP_TO_EDGE);
-        return t;
-    }
-
-    void make_lut() {
-        const int size = 64;
-        glGenTextures(1, &lut_tex);
-        glBindTexture(GL_TEXTURE_2D, lut_tex);
-        glTexImage2D(GL_TEXTURE_2D, 0, GL_RG16F, size, size, 0, GL_RG, GL_FLOAT, nullptr);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-        GLuint fbo = 0;
-        glGenFramebuffers(1, &fbo);
-        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, lut_tex, 0);
-        glViewport(0, 0, size, size);
-        glUseProgram(lut_prog->id);
-        glUniform1f(lut_prog->loc("u_size"), float(size));
-        glBindVertexArray(empty_vao);
-        glDrawArrays(GL_TRIANGLES, 0, 3);
-        glDeleteFramebuffers(1, &fbo);
-    }
-
-    void make_environment() {
-        const auto t0 = Clock::now();
-        for (GLuint *t : {&env_cube, &spec_cube, &diff_cube})
-            if (*t) glDeleteTextures(1, t), *t = 0;
-        const Environment &e = scene.environment;
-        env_on = e.type != "none";
-        const double rot = -e.rotation_deg * M_PI / 180.0;
-        env_rotation =
-            glm::mat3(glm::vec3(std::cos(rot), std::sin(rot), 0), glm::vec3(-std::sin(rot), std::cos(rot), 0), glm::vec3(0, 0, 1));
-        if (!env_on) return;
-        glDisable(GL_DEPTH_TEST);
-        glDisable(GL_BLEND);
-        GLuint equirect = 0;
-        if (e.type == "file") equirect = load_equirect(e.path);
-        const int env_size = 128, env_levels = 8;
-        env_cube = new_cube(env_size, env_levels);
-        render_cube(env_cube, env_size, 0, *env_face, [&] {
-            glUniform1i(env_face->loc("u_source"), equirect ? 1 : 0);
-            glActiveTexture(GL_TEXTURE0);
-            glBindTexture(GL_TEXTURE_2D, equirect ? equirect : black_tex);
-            glUniform1i(env_face->loc("u_equirect"), 0);
-        });
-        if (equirect) glDeleteTextures(1, &equirect);
-        glBindTexture(GL_TEXTURE_CUBE_MAP, env_cube);
-        glGenerateMipmap(GL_TEXTURE_CUBE_MAP);
-        glTexParameteri(GL_TEXTURE_CUBE_MAP, GL_TEXTURE_CUBE_MAP_SEAMLESS, GL_TRUE);
-        glEnable(GL_TEXTURE_CUBE_MAP_SEAMLESS);
-
-        const int spec_size = 128;
-        spec_cube = new_cube(spec_size, spec_levels);
-        for (int l = 0; l < spec_levels; ++l)
-            render_cube(spec_cube, spec_size >> l, l, *prefilter, [&] {
-                glActiveTexture(GL_TEXTURE0);
-                glBindTexture(GL_TEXTURE_CUBE_MAP, env_cube);
-                glUniform1i(prefilter->loc("u_env"), 0);
-                glUniform1f(prefilter->loc("u_roughness"), float(l) / float(spec_levels - 1));
-                glUniform1f(prefilter->loc("u_env_size"), float(env_size));
-            });
-        const int diff_size = 16;
-        diff_cube = new_cube(diff_size, 1);
-        render_cube(diff_cube, diff_size, 0, *irradiance, [&] {
-            glActiveTexture(GL_TEXTURE0);
-            glBindTexture(GL_TEXTURE_CUBE_MAP, env_cube);
-            glUniform1i(irradiance->loc("u_env"), 0);
-            glUniform1f(irradiance->loc("u_lod"), 3.0f);
-        });
-        glFinish();
-        stats.environment_ms = ms_since(t0);
-    }
-
-    GLuint load_equirect(const std::string &path) {
-        Dataset ds = read_dataset(reg, path);
-        if (ds.kind != HZ_DATA_IMAGE) throw Error(path + ": environment: not an image");
-        const Volume &im = ds.volume;  // dims = channels, width, height
-        if (im.dims.size() != 3 || im.dims[0] < 1 || im.dims[0] > 4) throw Error(path + ": environment: unsupported image layout");
-        const std::uint64_t c = im.dims[0], w = im.dims[1], h = im.dims[2];
-        std::vector<float> rgba(w * h * 4, 1.0f);
-        const std::vector<double> vals = values_of(im.voxels.data(), im.dtype, c * w * h, dtype_size(im.dtype));
-        const double scale = im.dtype == HZ_DTYPE_U8 ? 1.0 / 255 : im.dtype == HZ_DTYPE_U16 ? 1.0 / 65535 : 1.0;
-        const bool srgb = im.dtype == HZ_DTYPE_U8 || im.dtype == HZ_DTYPE_U16;
-        for (std::uint64_t i = 0; i < w * h; ++i)
-            for (std::uint64_t k = 0; k < 3; ++k) {
-                double v = vals[i * c + std::min(k, c - 1)] * scale;
-                rgba[i * 4 + k] = float(srgb ? srgb_to_linear(v) : (std::isfinite(v) ? std::max(v, 0.0) : 0.0));
-            }
-        GLuint t = 0;
-        glGenTextures(1, &t);
-        glBindTexture(GL_TEXTURE_2D, t);
-        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, GLsizei(w), GLsizei(h), 0, GL_RGBA, GL_FLOAT, rgba.data());
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
-        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-        return t;
-    }
-
     // --------------------------------------------------------------- programs
 
     // Resolves the material of `o` into shader + values; throws Error.
@@ -587,7 +423,7 @@ struct Renderer::Impl {
         f.bake = settings.bake_materials;
         f.output = out == Output::Debug ? ProgramOutput::Debug : out == Output::Display ? ProgramOutput::Display : ProgramOutput::Hdr;
         f.tone_curve = tone_curve();
-        f.env_on = env_on;
+        f.env_on = ibl->on;
         f.lights = lights();
         return fragment_program(f);
     }
@@ -944,20 +780,20 @@ struct Renderer::Impl {
 
     void bind_environment(Program &p, bool on) {
         glActiveTexture(GL_TEXTURE0);
-        glBindTexture(GL_TEXTURE_CUBE_MAP, on && spec_cube ? spec_cube : black_cube);
+        glBindTexture(GL_TEXTURE_CUBE_MAP, on && ibl->spec_cube ? ibl->spec_cube : ibl->black_cube);
         glActiveTexture(GL_TEXTURE1);
-        glBindTexture(GL_TEXTURE_CUBE_MAP, on && diff_cube ? diff_cube : black_cube);
+        glBindTexture(GL_TEXTURE_CUBE_MAP, on && ibl->diff_cube ? ibl->diff_cube : ibl->black_cube);
         glActiveTexture(GL_TEXTURE2);
-        glBindTexture(GL_TEXTURE_2D, lut_tex);
+        glBindTexture(GL_TEXTURE_2D, ibl->lut_tex);
         glActiveTexture(GL_TEXTURE3);
-        glBindTexture(GL_TEXTURE_2D, behind.tex ? behind.tex : black_tex);
+        glBindTexture(GL_TEXTURE_2D, behind.tex ? behind.tex : ibl->black_tex);
         glUniform1i(p.loc("hz_env_specular_map"), 0);
         glUniform1i(p.loc("hz_env_diffuse_map"), 1);
         glUniform1i(p.loc("hz_env_lut"), 2);
         glUniform1i(p.loc("hz_behind"), 3);
-        glUniform1f(p.loc("hz_env_intensity"), on && env_on ? float(scene.environment.intensity) : 0.0f);
-        glUniform1f(p.loc("hz_env_max_lod"), float(spec_levels - 1));
-        glUniformMatrix3fv(p.loc("hz_env_rotation"), 1, GL_FALSE, glm::value_ptr(env_rotation));
+        glUniform1f(p.loc("hz_env_intensity"), on && ibl->on ? float(scene.environment.intensity) : 0.0f);
+        glUniform1f(p.loc("hz_env_max_lod"), float(ImageLighting::spec_levels - 1));
+        glUniformMatrix3fv(p.loc("hz_env_rotation"), 1, GL_FALSE, glm::value_ptr(ibl->rotation));
     }
 
     // Which of a tractogram's geometry draw_object draws: every chunk, the
@@ -1119,17 +955,17 @@ struct Renderer::Impl {
         const auto bg = background_value();
         glClearColor(bg[0], bg[1], bg[2], 1.0f);
         glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-        if (env_on && scene.environment.visible) {
+        if (ibl->on && scene.environment.visible) {
             glDisable(GL_DEPTH_TEST);
             Program *sky = &aux(Aux::Sky, display_direct);
             glUseProgram(sky->id);
             glUniform1f(sky->loc("hz_exposure"), float(scene.exposure));
             const glm::mat4 inv(m.inv_view_proj);
             glUniformMatrix4fv(sky->loc("u_inv_view_proj"), 1, GL_FALSE, glm::value_ptr(inv));
-            glUniformMatrix3fv(sky->loc("u_rotation"), 1, GL_FALSE, glm::value_ptr(env_rotation));
+            glUniformMatrix3fv(sky->loc("u_rotation"), 1, GL_FALSE, glm::value_ptr(ibl->rotation));
             glUniform1f(sky->loc("u_intensity"), float(scene.environment.intensity));
             glActiveTexture(GL_TEXTURE0);
-            glBindTexture(GL_TEXTURE_CUBE_MAP, env_cube);
+            glBindTexture(GL_TEXTURE_CUBE_MAP, ibl->env_cube);
             glUniform1i(sky->loc("u_env"), 0);
             glBindVertexArray(empty_vao);
             glDrawArrays(GL_TRIANGLES, 0, 3);
@@ -1288,7 +1124,7 @@ void main() {
         clear_and_sky(refine.m, refine.target, w, h);
         glClearColor(0, 0, 0, 0);  // (alpha only: the background colour stays)
         glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_TRUE);
-        if (!(env_on && scene.environment.visible)) glClear(GL_COLOR_BUFFER_BIT);
+        if (!(ibl->on && scene.environment.visible)) glClear(GL_COLOR_BUFFER_BIT);
         glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
         for (auto &g : objects) {
             if (!drawn(g.index)) continue;
@@ -1374,7 +1210,7 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
     I.clear_objects();
     I.scene = std::move(scene);
     I.settings = settings;
-    I.env_on = I.scene.environment.type != "none";  // programs are specialised on it
+    I.ibl->on = I.scene.environment.type != "none";  // programs are specialised on it
     I.display_direct =
         std::none_of(I.scene.objects.begin(), I.scene.objects.end(), [&](const Object &o) { return o.visible && I.composited(o); });
     I.has_proxy.assign(I.scene.objects.size(), false);
@@ -1395,7 +1231,7 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
     I.stats.samples = std::clamp(I.settings.samples, 1, std::max(1, I.max_samples));
     glFinish();
     I.stats.upload_ms = ms_since(t0);
-    I.make_environment();
+    I.stats.environment_ms = I.ibl->build(I.reg, I.scene.environment);
 }
 
 void Renderer::set_material(std::size_t object, const Material &m) {
