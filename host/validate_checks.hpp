@@ -57,11 +57,7 @@ inline const hz_clustering &clustering_of(const Ctx &c) {
 // bytes; else NULL.
 template <class Table>
 const Table *extension_of(const Ctx &c, const char *id) {
-    const auto &ids = c.plugin.interfaces;
-    if (ids.empty() || std::find(ids.begin() + 1, ids.end(), id) == ids.end()) return nullptr;
-    const void *t = c.module.interface(c.plugin.id, id);
-    if (t == nullptr || *static_cast<const std::uint32_t *>(t) < sizeof(Table)) return nullptr;
-    return static_cast<const Table *>(t);
+    return static_cast<const Table *>(core::offered_extension(c.module, c.plugin, id, sizeof(Table)));
 }
 
 // `t` (gap 0) with one vertex holding `fill` after each streamline, as a

@@ -427,13 +427,16 @@ const void *Module::interface(const std::string &plugin_id, const char *iface) c
     return entry_->get_interface(plugin_id.c_str(), iface);
 }
 
-const void *LoadedPlugin::extension(const char *id, std::size_t min_size) const {
-    if (!module ||
-        std::find(info.interfaces.begin() + (info.interfaces.empty() ? 0 : 1), info.interfaces.end(), id) == info.interfaces.end())
+const void *offered_extension(const Module &module, const PluginInfo &info, const char *id, std::size_t min_size) {
+    if (info.interfaces.empty() || std::find(info.interfaces.begin() + 1, info.interfaces.end(), id) == info.interfaces.end())
         return nullptr;
-    const void *t = module->interface(info.id, id);
+    const void *t = module.interface(info.id, id);
     if (t == nullptr || *static_cast<const std::uint32_t *>(t) < min_size) return nullptr;
     return t;
+}
+
+const void *LoadedPlugin::extension(const char *id, std::size_t min_size) const {
+    return module ? offered_extension(*module, info, id, min_size) : nullptr;
 }
 
 }  // namespace hz::core

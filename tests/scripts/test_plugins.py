@@ -338,6 +338,17 @@ class PluginsTest(TempDirTest):
         self.assertEqual([(p["id"], p["file"]) for p in mine], [("org.example.shader.lambert", os.path.join(bundle, "tpl_lambert_shader.so"))])
         self.assertEqual([r["file"] for r in j["rejected"]], [os.path.join(d, "fx_no_entry.so")])
 
+    def assert_hzt_round_trip(self, plugin_dir, env, text):
+        """`text` as x.hzt, converted to x.tck and back to y.hzt through the
+        .hzt loader in `plugin_dir`: the same text."""
+        with open(self.path("x.hzt"), "w") as f:
+            f.write(text)
+        for a, b in (("x.hzt", "x.tck"), ("x.tck", "y.hzt")):
+            p = run("--plugin-dir", plugin_dir, "convert", self.path(a), self.path(b), env=env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+        with open(self.path("y.hzt")) as f:
+            self.assertEqual(f.read(), text)
+
     def test_plugins_built_against_abi_1_0(self):
         """The SDK's loader and shader templates as first published, built
         against the ABI 1.0 headers (tests/abi/v1_0): this host (1.x, x > 0)
@@ -354,14 +365,7 @@ class PluginsTest(TempDirTest):
         old = {p["id"]: (p["abi"], p["status"]) for p in j["plugins"] if p["file"].startswith(d)}
         self.assertEqual(old, {"org.example.loader.hzt": ("1.0", "loaded"), "org.example.shader.lambert": ("1.0", "loaded")})
         self.assertEqual(j["rejected"], [])
-        text = "hzt 1\n3\n1 2 3\n2 3.5 4\n3 4 5\n2\n0 0 0\n1 1 1\n"
-        with open(self.path("x.hzt"), "w") as f:
-            f.write(text)
-        for a, b in (("x.hzt", "x.tck"), ("x.tck", "y.hzt")):
-            p = run("--plugin-dir", d, "convert", self.path(a), self.path(b), env=env)
-            self.assertEqual(p.returncode, 0, p.stderr)
-        with open(self.path("y.hzt")) as f:
-            self.assertEqual(f.read(), text)
+        self.assert_hzt_round_trip(d, env, "hzt 1\n3\n1 2 3\n2 3.5 4\n3 4 5\n2\n0 0 0\n1 1 1\n")
         scene = self.path("s.json")
         with open(scene, "w") as f:
             json.dump({"objects": [{"type": "surface", "builtin": "sphere", "material": {"shader": "org.example.shader.lambert"}}]}, f)
@@ -385,16 +389,9 @@ class PluginsTest(TempDirTest):
         j = run_json("--plugin-dir", d, "plugins", "--json", env=env)
         old = {p["id"]: (p["abi"], p["status"], p["interfaces"]) for p in j["plugins"] if p["file"].startswith(d)}
         self.assertEqual(old, {"org.example.loader.hzt": ("1.9", "loaded", ["hz.loader/1"])})
-        text = "hzt 1\n3\n1 2 3\n2 3.5 4\n3 4 5\n0\n2\n0 0 0\n1 1 1\n"
-        with open(self.path("x.hzt"), "w") as f:
-            f.write(text)
         # hzt -> TCK (ours, mapped when read back: delimiters in place) -> hzt.
-        for a, b in (("x.hzt", "x.tck"), ("x.tck", "y.hzt")):
-            p = run("--plugin-dir", d, "convert", self.path(a), self.path(b), env=env)
-            self.assertEqual(p.returncode, 0, p.stderr)
+        self.assert_hzt_round_trip(d, env, "hzt 1\n3\n1 2 3\n2 3.5 4\n3 4 5\n0\n2\n0 0 0\n1 1 1\n")
         self.assertTrue(run_json("info", self.path("x.tck"), "--json")["positions_mapped"])
-        with open(self.path("y.hzt")) as f:
-            self.assertEqual(f.read(), text)
         p = run("validate", os.path.join(d, "abi19_text_loader.so"), timeout=300)
         self.assertEqual(p.returncode, 0, p.stdout)
 

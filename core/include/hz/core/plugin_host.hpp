@@ -109,6 +109,12 @@ private:
     bool initialised_ = false;
 };
 
+// The table of extension `id` (hz_extensions.h) that plugin `info` of
+// `module` offers: listed in its descriptor's interfaces after the core
+// interface, served by get_interface(), and at least `min_size` bytes (its
+// struct_size); else NULL. The host asks for no other.
+const void *offered_extension(const Module &module, const PluginInfo &info, const char *id, std::size_t min_size);
+
 struct LoadedPlugin {
     PluginInfo info;
     const void *iface = nullptr;  // the core interface table (hz_loader*, ...)
