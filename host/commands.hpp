@@ -87,6 +87,7 @@ struct RenderOptions {
     bool force = false;    // replace an existing output
     int frames = 1;        // frames to draw (timing: the median of frames 2..N)
     bool legend = false;   // list the clusters shown (colour, name, size) over the picture
+    std::string slab;      // AXIS=CENTRE,HALF or AXIS=CENTRE,points (replaces a scene file's slab)
     bool json = false;
 };
 
@@ -113,7 +114,7 @@ struct ViewOptions {
     std::vector<std::string> params;            // its --param NAME=VALUE
     std::string view;                           // a named camera view fitted to the scene (empty: the scene's own)
     std::vector<std::string> include, exclude;  // regions of interest over the first tractogram (as `filter` takes them)
-    std::string slab;                           // AXIS=CENTRE,HALF: streamlines cropped to a slab
+    std::string slab;                           // AXIS=CENTRE,HALF (cropped) or AXIS=CENTRE,points (crossings)
 };
 core::render::Slab parse_slab(const std::string &spec);
 

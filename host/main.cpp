@@ -181,6 +181,9 @@ int main(int argc, char **argv) {
         ->check(CLI::Range(1, 1000))
         ->capture_default_str();
     render->add_flag("--legend", ro.legend, "list the clusters shown (colour, name, size) over the top left of the picture");
+    render->add_option("--slab", ro.slab,
+                       "crop the streamlines to a slab AXIS=CENTRE,HALF in mm (e.g. z=10,5), or show them as points where they cross the "
+                       "plane: AXIS=CENTRE,points (e.g. z=10,points); replaces a scene file's slab");
     render->add_flag("--json", ro.json, "timings and counts as JSON");
     render->add_flag("-f,--force", ro.force, "replace an existing output image (never an input)");
 
@@ -204,7 +207,10 @@ int main(int argc, char **argv) {
                      "a region of interest the shown streamlines must meet: sphere:X,Y,Z,R, box:X0,Y0,Z0,X1,Y1,Z1 or a mask file "
                      "(repeatable; the window adds, moves and removes them too; --roi is the same, as dipy_horizon's --roi_images)")
         ->allow_extra_args(false);
-    view->add_option("--slab", vwo.slab, "crop the streamlines to a slab AXIS=CENTRE,HALF in mm, e.g. z=10,5 (the panel moves it)");
+    view->add_option(
+        "--slab", vwo.slab,
+        "crop the streamlines to a slab AXIS=CENTRE,HALF in mm, e.g. z=10,5, or show them as points where they cross the plane: "
+        "AXIS=CENTRE,points, e.g. z=10,points (the panel moves it)");
     view->add_option("--exclude", vwo.exclude, "a region the shown streamlines must not meet (same forms; repeatable)")
         ->allow_extra_args(false);
     add_lod_options(view, vwo.lod);

@@ -185,6 +185,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"points_drawn", s.points_drawn},
                             {"streamlines_drawn", s.streamlines_drawn},
                             {"streamed_points", s.streamed_points},
+                            {"slab_crossings", s.crossings_drawn},
                             {"proxy", s.proxy},
                             {"points_kept", s.points_drawn}};
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
@@ -192,7 +193,9 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
         std::printf("Wrote %s (%dx%d) in %.0f ms: context %.0f, upload %.0f, environment %.0f, first frame %.0f, read %.0f, write %.0f\n",
                     o.out.c_str(), w, h, ms_since(t0), ctx_ms, s.upload_ms, s.environment_ms, first_ms, s.readback_ms, write_ms);
         if (o.frames > 1) std::printf("  %d frames: median %.1f ms/frame\n", o.frames, frame_ms);
-        if (s.points_total)
+        if (s.crossings_drawn)
+            std::printf("  slab crossings drawn: %llu (where the streamlines cross the plane)\n", (unsigned long long)s.crossings_drawn);
+        else if (s.points_total)
             std::printf("  streamline points drawn: %llu of %llu (decimated at %.2f px%s)\n", (unsigned long long)s.points_drawn,
                         (unsigned long long)s.points_total, o.lod.lod_pixels, s.proxy ? "; the level-of-detail proxy" : "");
     }
@@ -208,7 +211,9 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     check_outputs({o.out}, o.inputs, o.force);
     RenderOptions opts = o;
     if (is_scene_file(o.inputs)) opts.scene = o.inputs[0];
+    const std::optional<core::render::Slab> slab = o.slab.empty() ? std::nullopt : std::optional(parse_slab(o.slab));
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");
+    if (slab) scene.slab = slab;
     try {
         return render_scene(reg, std::move(scene), opts);
     } catch (const core::Error &e) {

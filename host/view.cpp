@@ -102,15 +102,22 @@ void require_display(const std::vector<std::string> &inputs) {
 
 }  // namespace
 
-// "z=10,5": a slab along z, centred at 10 mm, 5 mm either side.
+// "z=10,5": a slab along z, centred at 10 mm, 5 mm either side;
+// "z=10,points": the points where streamlines cross the plane z = 10 mm.
 core::render::Slab parse_slab(const std::string &spec) {
     core::render::Slab sl;
     char axis = 0, eq = 0, comma = 0;
     std::istringstream in(spec);
-    if (!(in >> axis >> eq >> sl.centre >> comma >> sl.half) || eq != '=' || comma != ',' || axis < 'x' || axis > 'z' || !(sl.half > 0) ||
-        !std::isfinite(sl.centre) || !std::isfinite(sl.half) || in.peek() != EOF)
-        throw core::Error("--slab '" + spec + "': expected AXIS=CENTRE,HALF (x, y or z; mm; HALF > 0), e.g. z=10,5");
+    const bool points = spec.size() > 7 && spec.ends_with(",points");
+    if (points) in.str(spec.substr(0, spec.size() - 7));
+    const bool ok = points ? bool(in >> axis >> eq >> sl.centre) : bool(in >> axis >> eq >> sl.centre >> comma >> sl.half);
+    if (!ok || eq != '=' || (!points && comma != ',') || axis < 'x' || axis > 'z' || !(sl.half > 0) || !std::isfinite(sl.centre) ||
+        !std::isfinite(sl.half) || in.peek() != EOF)
+        throw core::Error("--slab '" + spec +
+                          "': expected AXIS=CENTRE,HALF (crop; x, y or z; mm; HALF > 0) or AXIS=CENTRE,points (where streamlines cross "
+                          "the plane), e.g. z=10,5 or z=10,points");
     sl.axis = axis - 'x';
+    sl.points = points;
     return sl;
 }
 
@@ -265,8 +272,8 @@ public:
             {
                 const double now = glfwGetTime();
                 const bool settling = now - app.last_motion < 0.25 || now - app.last_material_edit < App::kBakeAfter + 0.05;
-                const bool busy = r.refining() || !still.valid || app.dragging || app.panning || app.force_moving || wait > 0 ||
-                                  (session && session->selecting()) || queued_click || app.press_stage >= 0 ||
+                const bool busy = r.refining() || r.computing() || !still.valid || app.dragging || app.panning || app.force_moving ||
+                                  wait > 0 || (session && session->selecting()) || queued_click || app.press_stage >= 0 ||
                                   (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
                                   (!o.script.empty() && o.exit_after_script && pc >= script.size());
                 if (busy)
@@ -790,17 +797,30 @@ private:
                 } else {
                     throw core::Error("roi: unknown '" + what + "' (sphere, box, mask, move, scale, flip, remove)");
                 }
-            } else if (op == "slab") {  // slab x|y|z CENTRE HALF, or slab off
-                std::string axis;
+            } else if (op == "slab") {  // slab x|y|z CENTRE HALF, slab x|y|z CENTRE points [SIZE], or slab off
+                std::string axis, half;
                 cmd >> axis;
                 if (axis == "off")
                     r.set_slab(std::nullopt);
                 else {
                     core::render::Slab sl;
-                    if (axis.size() != 1 || axis[0] < 'x' || axis[0] > 'z' || !(cmd >> sl.centre >> sl.half) || !(sl.half > 0))
-                        throw core::Error("slab needs x|y|z CENTRE HALF (mm, HALF > 0), or off");
+                    const bool ok =
+                        axis.size() == 1 && axis[0] >= 'x' && axis[0] <= 'z' && (cmd >> sl.centre >> half) && std::isfinite(sl.centre);
+                    if (ok && half == "points") {
+                        sl.points = true;
+                        if (double px; cmd >> px) {
+                            if (!(px >= 1 && px <= 64)) throw core::Error("slab: the point size is in pixels, 1 to 64");
+                            sl.point_px = px;
+                        }
+                    } else {
+                        char *end = nullptr;
+                        sl.half = ok ? std::strtod(half.c_str(), &end) : 0;
+                        if (!ok || end == half.c_str() || *end || !(sl.half > 0) || !std::isfinite(sl.half))
+                            throw core::Error("slab needs x|y|z CENTRE HALF (mm, HALF > 0), x|y|z CENTRE points [SIZE], or off");
+                    }
                     sl.axis = axis[0] - 'x';
                     r.set_slab(sl);
+                    r.update_proxies(true);  // (scripts are deterministic: the crossings are there for the next command)
                 }
             } else if (op == "stroke") {  // stroke X0 Y0 X1 Y1 ...: window points
                 if (!session) throw core::Error("stroke needs a tractogram");
@@ -1046,11 +1066,14 @@ private:
     // Cropping streamlines to a slab.
     void slab_panel() {
         if (session && ImGui::CollapsingHeader("Slab (crop streamlines)")) {
+            if (r.computing()) ImGui::TextUnformatted("finding the crossings...");
             const auto &sb = scene_box;
             std::optional<core::render::Slab> sl = r.scene().slab;
             bool on = sl.has_value();
             core::render::Slab v = sl.value_or(core::render::Slab{2, (sb.min[2] + sb.max[2]) / 2, 5});
             bool changed = ImGui::Checkbox("crop to a slab", &on);
+            ImGui::SameLine();
+            changed |= ImGui::Checkbox("points where they cross its centre", &v.points);
             int axis = v.axis;
             changed |= ImGui::Combo("axis", &axis, "x (left-right)\0y (posterior-anterior)\0z (inferior-superior)\0");
             if (axis != v.axis) v.axis = axis, v.centre = (sb.min[axis] + sb.max[axis]) / 2;

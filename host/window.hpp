@@ -193,6 +193,7 @@ struct FrameLog {
                           {"segments", drew ? s.segments_drawn : 0},
                           {"triangles", drew ? s.triangles_drawn : 0},
                           {"streamed_points", drew ? s.streamed_points : 0},
+                          {"slab_crossings", drew ? s.crossings_drawn : 0},
                           {"proxy", drew && s.proxy},
                           {"rss_anon_mb", anon}});
     }

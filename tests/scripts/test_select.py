@@ -289,6 +289,59 @@ class SelectionWindowTest(TempDirTest):
             self.assertEqual(p.returncode, 1, bad)
             self.assertIn("--slab", p.stderr)
 
+    def test_slab_points_where_streamlines_cross(self):
+        # Each streamline shown only where it crosses the plane z = 0: as many
+        # points as the streamlines' sign changes in z (numpy on the file
+        # nibabel reads), seen from the side a thin band at the plane's
+        # height, the same from the window, the command line and a scene file.
+        pts = streamlines(self.tck)
+        expected = sum(int(np.count_nonzero((s[1:, 2] < 0) != (s[:-1, 2] < 0))) for s in pts)
+        self.assertGreater(expected, 100)
+        p = run("render", self.tck, "--slab", "z=0,points", "-o", self.path("p.png"), "--size", "480x320", "--json")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(json.loads(p.stdout)["slab_crossings"], expected)
+        p = run("render", self.tck, "-o", self.path("all.png"), "--size", "480x320")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        def drawn_of(path):
+            img = load(path)
+            return np.abs(img - img[-1, -1]).sum(axis=-1) > 30
+        pts_img, all_img = drawn_of(self.path("p.png")), drawn_of(self.path("all.png"))
+        rows = np.nonzero(pts_img.any(axis=1))[0]
+        self.assertLess(np.ptp(rows), 0.2 * np.ptp(np.nonzero(all_img.any(axis=1))[0]), "seen from the side, the crossings are a band")
+        self.assertGreater(pts_img.sum(), 200)
+        # From above: spread over the tractogram's cross-section, not a line.
+        p = run("render", self.tck, "--slab", "z=0,points", "--view", "superior", "-o", self.path("s.png"), "--size", "480x320")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        s_img = drawn_of(self.path("s.png"))
+        self.assertGreater(np.ptp(np.nonzero(s_img.any(axis=1))[0]), 5 * np.ptp(rows))
+        # A scene file's slab draws the same picture.
+        scene = self.path("points.json")
+        with open(scene, "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "file": self.tck}],
+                       "slab": {"axis": "z", "centre": 0, "show": "points", "point_size": 5}}, f)
+        p = run("render", scene, "-o", self.path("scene.png"), "--size", "480x320")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        np.testing.assert_array_equal(load(self.path("scene.png")), load(self.path("p.png")))
+        # The window: the script's slab command, then back to cropping.
+        p = self.window("slabpts", ["wait 2", "slab z 0 points", "wait 2", f"screenshot {self.path('w.png')}", "slab z 0 4", "wait 2",
+                                    f"screenshot {self.path('wc.png')}", "quit"])
+        self.assertEqual(p.returncode, 0, p.stderr)
+        w, wc = drawn_of(self.path("w.png")), drawn_of(self.path("wc.png"))
+        self.assertGreater(w.sum(), 200)
+        self.assertLess(np.ptp(np.nonzero(w.any(axis=1))[0]), 0.2 * np.ptp(np.nonzero(all_img.any(axis=1))[0]))
+        self.assertLess(w.sum(), wc.sum(), "points cover less than the cropped streamlines")
+        # Bad specs: one line naming what is wrong, nothing drawn.
+        for bad in ["z=0,pointz", "z=points", "q=0,points"]:
+            p = run("render", self.tck, "--slab", bad, "-o", self.path("bad.png"))
+            self.assertEqual(p.returncode, 1, bad)
+            self.assertIn("--slab", p.stderr)
+            self.assertFalse(os.path.exists(self.path("bad.png")))
+        with open(scene, "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "file": self.tck}], "slab": {"axis": "z", "centre": 0, "show": "dots"}}, f)
+        p = run("render", scene, "-o", self.path("bad.png"))
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("slab.show", p.stderr)
+
     def test_scene_file_regions(self):
         # A scene file's streamlines with regions and a length bound draw
         # exactly what `horizon filter` writes with the same regions.

@@ -1,6 +1,8 @@
 // Picking (core/render/pick.hpp): the streamline under a window point.
 #include <hz/core/render/pick.hpp>
 
+#include "polylines.hpp"
+
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -10,19 +12,6 @@ using namespace hz::core;
 using render::pick_streamline;
 
 namespace {
-
-Tractogram polylines(const std::vector<std::vector<float>> &lines) {
-    std::vector<float> pos;
-    std::vector<std::uint64_t> off{0};
-    for (const auto &l : lines) {
-        pos.insert(pos.end(), l.begin(), l.end());
-        off.push_back(pos.size() / 3);
-    }
-    Tractogram t;
-    t.positions = Buffer<float>::copy_of(pos);
-    t.offsets = Buffer<std::uint64_t>::copy_of(off);
-    return t;
-}
 
 // Looking down -z at the origin from 100 mm, 200 x 100 pixels: the origin is
 // at pixel (100, 50); 1 mm at depth 100 mm is 50 / tan(15 deg) / 100 pixels.

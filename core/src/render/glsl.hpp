@@ -85,6 +85,16 @@ void main() {
     p.n = n;
     p.t = hz_tangent_hint;
     p.b = cross(n, hz_tangent_hint);
+#elif defined(HZ_GEOM_POINT)
+    // A crossing of the slab's plane: a small sphere facing the camera,
+    // drawn on the point's square (gl_PointCoord: y down).
+    vec2 q = gl_PointCoord * 2.0 - 1.0;
+    float r2 = dot(q, q);
+    if (r2 > 1.0) discard;
+    p.n = transpose(hz_view_rotation) * vec3(q.x, -q.y, sqrt(1.0 - r2));
+    vec3 t = hz_safe_normalize(v_tangent, vec3(0.0, 0.0, 1.0));
+    p.t = hz_safe_normalize(t - dot(t, p.n) * p.n, hz_safe_normalize(cross(p.n, vec3(0.0, 0.0, 1.0)), vec3(1.0, 0.0, 0.0)));
+    p.b = cross(p.n, p.t);
 #elif defined(HZ_GEOM_TUBE)
     vec3 t = hz_safe_normalize(v_tangent, vec3(0.0, 0.0, 1.0));
     vec3 front = hz_safe_normalize(v_front, vn);
@@ -181,6 +191,32 @@ void main() {
     gl_Position = hz_view_proj * vec4(a_pos, 1.0);
     gl_ClipDistance[0] = dot(hz_clip[0], vec4(a_pos, 1.0));
     gl_ClipDistance[1] = dot(hz_clip[1], vec4(a_pos, 1.0));
+}
+)glsl";
+
+// The slab's crossings as points (GL_PROGRAM_POINT_SIZE): lifted
+// hz_point_lift mm towards the eye, so that a slice drawn in the same plane
+// does not hide them.
+inline constexpr const char *kPointVS = R"glsl(#version 410 core
+layout(location = 0) in vec3 a_pos;
+layout(location = 1) in vec4 a_tangent;
+layout(location = 2) in vec4 a_color;
+uniform mat4 hz_view_proj;
+uniform vec3 hz_eye;
+uniform float hz_point_px;
+uniform float hz_point_lift;
+out vec3 v_pos;
+out vec3 v_tangent;
+out vec4 v_color;
+void main() {
+    vec3 to_eye = hz_eye - a_pos;
+    float d = length(to_eye);
+    vec3 p = d > 0.0 ? a_pos + to_eye * (min(hz_point_lift, 0.5 * d) / d) : a_pos;
+    v_pos = p;
+    v_tangent = a_tangent.xyz;
+    v_color = a_color;
+    gl_Position = hz_view_proj * vec4(p, 1.0);
+    gl_PointSize = hz_point_px;
 }
 )glsl";
 

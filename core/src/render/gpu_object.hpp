@@ -35,7 +35,21 @@ struct Program {
     }
 };
 
-enum class Geom { Mesh, Tube, Line };
+enum class Geom { Mesh, Tube, Line, Point };  // (Point: only the slab's crossings are drawn as points)
+
+// Where a tractogram crosses the slab's plane (Slab::points): vertices in
+// GL buffers of at most kCrossingChunk each (about 20 ms of llvmpipe's time:
+// a step of a progressive frame), for the plane `axis` = `centre` of the
+// object's colouring `lines`.
+constexpr std::size_t kCrossingChunk = 1u << 16;
+struct Crossings {
+    std::vector<GLuint> vaos, vbos;
+    std::vector<GLsizei> counts;
+    std::uint64_t total = 0;
+    int axis = -1;
+    double centre = 0;
+    const LineData *lines = nullptr;
+};
 
 struct GpuObject {
     std::size_t index = 0;
@@ -56,9 +70,16 @@ struct GpuObject {
     std::shared_ptr<const std::vector<Piece>> proxy;  // what the proxy draws
     std::future<std::vector<Piece>> shell;            // the shell proxy, being computed
     std::shared_ptr<std::atomic<bool>> shell_cancel;
+    // The slab's crossings: those drawn, and those being computed on a
+    // background thread for the plane and colouring in `crossing_next`.
+    Crossings crossings, crossing_next;
+    std::future<std::vector<LineVertex>> crossing_job;
+    std::shared_ptr<std::atomic<bool>> crossing_cancel;
     ~GpuObject() {
         if (shell_cancel) *shell_cancel = true;
+        if (crossing_cancel) *crossing_cancel = true;
         if (shell.valid()) shell.wait();
+        if (crossing_job.valid()) crossing_job.wait();
     }
     GpuObject() = default;
     GpuObject(GpuObject &&) = default;
@@ -77,6 +98,7 @@ struct GpuObject {
     bool refractive = false;  // the snippet reads hz_scene_behind: drawn after the opaque objects
     // Programs by output (see Impl::Output), compiled when first needed.
     mutable Program *program = nullptr, *display_program = nullptr, *debug_program = nullptr;
+    mutable Program *point_programs[3] = {};  // the slab's crossings, by output
     // slices
     GLuint volume_tex = 0, colormap_tex = 0;
     GLsizei slice_vertices = 0;

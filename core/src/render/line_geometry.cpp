@@ -132,6 +132,42 @@ std::uint8_t direction_lut(float x) {
     return table[std::size_t(std::min(std::abs(x), 1.0f) * 4096.0f + 0.5f)];  // (lround, without the call)
 }
 
+// The colour of streamline s before per-point colouring, and how much it is
+// mixed towards white (the highlight).
+struct StreamlineColour {
+    std::array<std::uint8_t, 4> rgba;
+    double highlight;
+};
+StreamlineColour streamline_colour(const LineData &d, std::uint64_t s) {
+    StreamlineColour c{d.solid, d.highlight.empty() ? 0.0 : std::min<double>(d.highlight[s], 1.0) * 0.75};
+    if (d.mode == LineData::Mode::Cluster)
+        c.rgba = d.cluster[s];
+    else if (d.mode == LineData::Mode::Data && !d.per_vertex) {
+        const auto m = colormap(d.colormap, (d.per_streamline[s] - d.range[0]) / (d.range[1] - d.range[0]));
+        c.rgba = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
+    }
+    return c;
+}
+
+// The colour of input point i (unit tangent t) of a streamline coloured `sc`;
+// `stride`: bytes per value of the per-point array, if there is one.
+std::array<std::uint8_t, 4> point_colour(const LineData &d, const StreamlineColour &sc, std::uint64_t i, std::size_t stride, float tx,
+                                         float ty, float tz) {
+    std::array<std::uint8_t, 4> col = sc.rgba;
+    if (d.mode == LineData::Mode::Direction)
+        col = {direction_lut(tx), direction_lut(ty), direction_lut(tz), 255};
+    else if (d.per_vertex) {
+        const double val = value_at(d.per_vertex->bytes.data() + i * stride, d.per_vertex->dtype);
+        const auto m = colormap(d.colormap, (val - d.range[0]) / (d.range[1] - d.range[0]));
+        col = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
+    }
+    if (sc.highlight > 0)
+        for (int c = 0; c < 3; ++c) col[c] = std::uint8_t(std::lround(col[c] + (255 - col[c]) * sc.highlight));
+    return col;
+}
+
+std::size_t per_vertex_stride(const LineData &d) { return d.per_vertex ? dtype_size(d.per_vertex->dtype) * d.per_vertex->components : 0; }
+
 }  // namespace
 
 void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::uint64_t b, double tol, BuiltLines &out) {
@@ -146,8 +182,7 @@ void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::u
         out.verts.reserve(pts);
         out.firsts.reserve(b - a), out.counts.reserve(b - a);
     }
-    std::size_t stride = 0;
-    if (d.per_vertex) stride = dtype_size(d.per_vertex->dtype) * d.per_vertex->components;
+    const std::size_t stride = per_vertex_stride(d);
     for (std::uint64_t k = a; k < b; ++k) {
         const std::uint64_t s = pieces ? pieces[k].s : k;
         const std::uint64_t sb = pieces ? t.begin(s) + pieces[k].first : t.begin(s);
@@ -158,14 +193,7 @@ void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::u
         out.counts.push_back(GLsizei(keep.size()));
         out.segments += keep.size() - 1;
         out.kept += keep.size();
-        std::array<std::uint8_t, 4> scol = d.solid;
-        if (d.mode == LineData::Mode::Cluster)
-            scol = d.cluster[s];
-        else if (d.mode == LineData::Mode::Data && !d.per_vertex) {
-            const auto m = colormap(d.colormap, (d.per_streamline[s] - d.range[0]) / (d.range[1] - d.range[0]));
-            scol = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
-        }
-        const double hl = d.highlight.empty() ? 0.0 : std::min<double>(d.highlight[s], 1.0) * 0.75;
+        const StreamlineColour sc = streamline_colour(d, s);
         const float radius = d.radius[s];
         for (std::uint32_t ki = 0; ki < keep.size(); ++ki) {
             const std::uint64_t i = sb + keep[ki];
@@ -179,16 +207,7 @@ void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::u
             LineVertex v;
             v.pos[0] = P[i * 3], v.pos[1] = P[i * 3 + 1], v.pos[2] = P[i * 3 + 2];
             v.tangent = pack_snorm_2_10_10_10(tx, ty, tz);
-            std::array<std::uint8_t, 4> col = scol;
-            if (d.mode == LineData::Mode::Direction)
-                col = {direction_lut(tx), direction_lut(ty), direction_lut(tz), 255};
-            else if (d.per_vertex) {
-                const double val = value_at(d.per_vertex->bytes.data() + i * stride, d.per_vertex->dtype);
-                const auto m = colormap(d.colormap, (val - d.range[0]) / (d.range[1] - d.range[0]));
-                col = rgba8(srgb_to_linear(m[0]), srgb_to_linear(m[1]), srgb_to_linear(m[2]));
-            }
-            if (hl > 0)
-                for (int c = 0; c < 3; ++c) col[c] = std::uint8_t(std::lround(col[c] + (255 - col[c]) * hl));
+            const std::array<std::uint8_t, 4> col = point_colour(d, sc, i, stride, tx, ty, tz);
             std::memcpy(v.rgba, col.data(), 4);
             v.radius = radius;
             out.verts.push_back(v);
@@ -220,6 +239,42 @@ std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::
     c.b = n;
     if (c.b > c.a) out.push_back(std::move(c));
     return out;
+}
+
+void slab_crossings(const LineData &d, int axis, double centre, std::uint64_t a, std::uint64_t b, std::vector<LineVertex> &out,
+                    const std::atomic<bool> *cancel) {
+    const Tractogram &t = *d.t;
+    const float *P = t.positions.data();
+    const std::size_t stride = per_vertex_stride(d);
+    const float c = float(centre);
+    for (std::uint64_t s = a; s < b; ++s) {
+        if (cancel && (s & 4095) == 0 && cancel->load(std::memory_order_relaxed)) return;
+        const std::uint64_t sb = t.begin(s), e = t.end(s);
+        if (e - sb < 2) continue;
+        // Sides of the plane: below (< c) or not; a point exactly on the
+        // plane is on the upper side, so it is counted once.
+        bool below = P[sb * 3 + axis] < c;
+        for (std::uint64_t i = sb + 1; i < e; ++i) {
+            const bool now = P[i * 3 + axis] < c;
+            if (now == below) continue;
+            below = now;
+            const float *p0 = P + (i - 1) * 3, *p1 = P + i * 3;
+            const float u0 = p0[axis] - c, u1 = p1[axis] - c;
+            const float f = u0 / (u0 - u1);  // (u0 and u1 differ in sign: finite, in [0, 1])
+            float tx = p1[0] - p0[0], ty = p1[1] - p0[1], tz = p1[2] - p0[2];
+            const float len = std::sqrt(tx * tx + ty * ty + tz * tz);
+            if (!(len > 0) || !std::isfinite(len) || !std::isfinite(f)) continue;
+            tx /= len, ty /= len, tz /= len;
+            LineVertex v;
+            for (int k = 0; k < 3; ++k) v.pos[k] = p0[k] + f * (p1[k] - p0[k]);
+            v.pos[axis] = c;
+            v.tangent = pack_snorm_2_10_10_10(tx, ty, tz);
+            const std::array<std::uint8_t, 4> col = point_colour(d, streamline_colour(d, s), f < 0.5f ? i - 1 : i, stride, tx, ty, tz);
+            std::memcpy(v.rgba, col.data(), 4);
+            v.radius = d.radius[s];
+            out.push_back(v);
+        }
+    }
 }
 
 }  // namespace hz::core::render

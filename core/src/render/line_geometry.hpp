@@ -10,6 +10,7 @@
 #include <hz/core/render/scene.hpp>
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -86,6 +87,13 @@ std::optional<std::array<std::uint8_t, 4>> uniform_colour(const LineData &d);
 // strip indices. Touches nothing but its arguments: chunks are built on
 // other threads.
 void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::uint64_t b, double tol, BuiltLines &out);
+// Where streamlines [a, b) of `d` cross the plane x[axis] = centre (RAS+
+// mm): one vertex per crossing, appended to `out`: the crossing point, the
+// crossing segment's direction as its tangent, and the colour the streamline
+// has there (as build_lines colours it). Returns early, leaving `out`
+// partial, once `cancel` is set. Touches nothing but its arguments.
+void slab_crossings(const LineData &d, int axis, double centre, std::uint64_t a, std::uint64_t b, std::vector<LineVertex> &out,
+                    const std::atomic<bool> *cancel);
 // Chunks of at most kChunkPoints input points over streamlines [0, n) (or
 // over pieces[0..n)).
 std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::uint64_t n);

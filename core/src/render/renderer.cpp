@@ -23,6 +23,7 @@
 #include <chrono>
 #include <functional>
 #include <future>
+#include <random>
 #include <mutex>
 #include <thread>
 #include <cmath>
@@ -214,6 +215,9 @@ struct Renderer::Impl {
     double tol_mm = 0;  // streamline decimation tolerance of the current scene
 
     void release(GpuObject &o) {
+        if (o.crossing_cancel) *o.crossing_cancel = true;
+        if (o.crossing_job.valid()) o.crossing_job.wait(), o.crossing_job = {};
+        release_crossings(o.crossings);
         release_chunks(o.chunks);
         release_chunks(o.proxy_chunks);
         if (o.vao) glDeleteVertexArrays(1, &o.vao);
@@ -340,7 +344,13 @@ struct Renderer::Impl {
     // The program of `g` for `out`, compiled on first use.
     Program &program_for(const GpuObject &g, Output out) {
         Program *&slot = out == Output::Debug ? g.debug_program : out == Output::Display ? g.display_program : g.program;
-        if (!slot) slot = get_program(g, out);
+        if (!slot) slot = get_program(g, out, g.geom);
+        return *slot;
+    }
+    // The program of the slab's crossings of tractogram `g`.
+    Program &point_program_for(const GpuObject &g, Output out) {
+        Program *&slot = g.point_programs[int(out)];
+        if (!slot) slot = get_program(g, out, Geom::Point);
         return *slot;
     }
 
@@ -406,16 +416,22 @@ struct Renderer::Impl {
         g.values = std::move(values);
         g.albedo = albedo;
         g.program = g.display_program = g.debug_program = nullptr;
+        std::fill(std::begin(g.point_programs), std::end(g.point_programs), nullptr);
         // Compile now (errors surface here) for the output it will most
         // likely be drawn with.
         program_for(g, display_direct ? Output::Display : Output::Hdr);
     }
 
-    std::string fragment_source(const GpuObject &g, Output out) const {
+    std::string fragment_source(const GpuObject &g, Output out, Geom geom) const {
         FragmentSpec f;
         f.shader = g.shader;
-        f.geom = g.geom == Geom::Mesh ? ProgramGeom::Mesh : g.geom == Geom::Tube ? ProgramGeom::Tube : ProgramGeom::Line;
-        f.line_domain = g.use_line_domain;
+        f.geom = geom == Geom::Mesh    ? ProgramGeom::Mesh
+                 : geom == Geom::Tube  ? ProgramGeom::Tube
+                 : geom == Geom::Point ? ProgramGeom::Point
+                                       : ProgramGeom::Line;
+        // (A crossing is drawn as a small sphere: shaded as a surface where
+        // the shader can.)
+        f.line_domain = g.use_line_domain && !(geom == Geom::Point && (g.shader->shader()->domains & HZ_SHADE_SURFACE));
         f.values = g.values;
         f.albedo = g.albedo;
         f.uniform_rgba = g.uniform_rgba;
@@ -428,16 +444,18 @@ struct Renderer::Impl {
         return fragment_program(f);
     }
 
-    Program *get_program(const GpuObject &g, Output out) {
-        const std::string fs = fragment_source(g, out);
-        const std::string key = std::to_string(int(g.geom)) + "\n" + fs;
+    Program *get_program(const GpuObject &g, Output out, Geom geom) {
+        const std::string fs = fragment_source(g, out, geom);
+        const std::string key = std::to_string(int(geom)) + "\n" + fs;
         auto it = programs.find(key);
         if (it != programs.end()) return it->second.get();
         const std::string what = "shader '" + g.shader->info.id + "'";
         std::vector<GLuint> stages;
-        if (g.geom == Geom::Mesh)
+        if (geom == Geom::Mesh)
             stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kMeshVS, what + " (mesh vertex stage)"));
-        else if (g.geom == Geom::Line)
+        else if (geom == Geom::Point)
+            stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kPointVS, what + " (slab point vertex stage)"));
+        else if (geom == Geom::Line)
             stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kLineVS, what + " (line vertex stage)"));
         else {
             stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kTubeVS, what + " (tube vertex stage)"));
@@ -720,6 +738,113 @@ struct Renderer::Impl {
         return changed;
     }
 
+    // ------------------------------------------------------ slab crossings
+
+    // The slab shows where streamlines cross its plane (Slab::points).
+    bool crossing_mode() const { return scene.slab && scene.slab->points; }
+    // Crossings are points of a few pixels, each a quad to llvmpipe (about
+    // 0.3 us): above a quarter of lod_points of them, a tractogram's
+    // crossings have a proxy too, their first crossing_budget() (the
+    // crossings are shuffled: any prefix is a uniform subsample), and are
+    // refined chunk by chunk at rest.
+    std::uint64_t crossing_budget() const { return std::uint64_t(std::max(1000.0, settings.lod_points / 4)); }
+    // A tractogram drawn through its level-of-detail proxy while the
+    // camera moves and first at rest.
+    bool lod_proxy(const GpuObject &g) const {
+        return crossing_mode() ? g.geom != Geom::Mesh && g.crossings.total > crossing_budget() : g.has_lod_proxy();
+    }
+
+    static void release_crossings(Crossings &c) {
+        if (!c.vaos.empty()) glDeleteVertexArrays(GLsizei(c.vaos.size()), c.vaos.data());
+        if (!c.vbos.empty()) glDeleteBuffers(GLsizei(c.vbos.size()), c.vbos.data());
+        c = Crossings{};
+    }
+
+    // Draws the first `limit` crossings of chunks [k0, k1) (the program is bound).
+    void draw_crossings(const Crossings &c, std::size_t k0, std::size_t k1, std::uint64_t limit = UINT64_MAX) {
+        glEnable(GL_PROGRAM_POINT_SIZE);
+        for (std::size_t k = k0; k < k1 && k < c.vaos.size() && limit > 0; ++k) {
+            const GLsizei n = GLsizei(std::min<std::uint64_t>(std::uint64_t(c.counts[k]), limit));
+            glBindVertexArray(c.vaos[k]);
+            glDrawArrays(GL_POINTS, 0, n);
+            stats.crossings_drawn += std::uint64_t(n);
+            limit -= std::uint64_t(n);
+        }
+        glDisable(GL_PROGRAM_POINT_SIZE);
+    }
+
+    // Starts computing the crossings of every tractogram whose drawn or
+    // pending crossings are not those of the slab's plane (a background
+    // thread per object, on every core; a job for another plane is
+    // cancelled). Called whenever the slab or an object changes.
+    void schedule_crossings() {
+        if (!crossing_mode()) return;
+        const int axis = scene.slab->axis;
+        const double centre = scene.slab->centre;
+        for (GpuObject &g : objects) {
+            if (g.geom == Geom::Mesh || g.slices || !g.lines) continue;
+            const auto same = [&](const Crossings &c) { return c.axis == axis && c.centre == centre && c.lines == g.lines.get(); };
+            if (same(g.crossings) && !g.crossing_job.valid()) continue;
+            if (g.crossing_job.valid() && same(g.crossing_next)) continue;
+            if (g.crossing_cancel) *g.crossing_cancel = true;
+            g.crossing_cancel = std::make_shared<std::atomic<bool>>(false);
+            g.crossing_next = Crossings{};
+            g.crossing_next.axis = axis, g.crossing_next.centre = centre, g.crossing_next.lines = g.lines.get();
+            g.crossing_job = std::async(std::launch::async, [d = g.lines, axis, centre, cancel = g.crossing_cancel] {
+                const std::uint64_t n = d->t->nb_streamlines();
+                const unsigned T = std::clamp<unsigned>(std::thread::hardware_concurrency(), 1, 16);
+                std::vector<std::vector<LineVertex>> parts(T);
+                std::vector<std::thread> threads;
+                for (unsigned k = 0; k < T; ++k)
+                    threads.emplace_back([&, k] { slab_crossings(*d, axis, centre, n * k / T, n * (k + 1) / T, parts[k], cancel.get()); });
+                for (auto &th : threads) th.join();
+                std::vector<LineVertex> all;
+                if (*cancel) return all;
+                std::size_t total = 0;
+                for (const auto &p : parts) total += p.size();
+                all.reserve(total);
+                for (const auto &p : parts) all.insert(all.end(), p.begin(), p.end());
+                // (shuffled, the same way every time: the proxy is a prefix)
+                std::mt19937_64 rng(0x5eed);
+                std::shuffle(all.begin(), all.end(), rng);
+                return all;
+            });
+        }
+    }
+
+    // Adopts the crossings computed since the last call (with `wait`, once
+    // they are); true if what a frame shows changed.
+    bool adopt_crossings(bool wait) {
+        bool changed = false;
+        for (GpuObject &g : objects) {
+            if (!g.crossing_job.valid()) continue;
+            if (!wait && g.crossing_job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
+            std::vector<LineVertex> v = g.crossing_job.get();
+            if (*g.crossing_cancel) continue;
+            release_crossings(g.crossings);
+            g.crossings = g.crossing_next;
+            for (std::size_t a = 0; a < v.size(); a += kCrossingChunk) {
+                const std::size_t n = std::min<std::size_t>(kCrossingChunk, v.size() - a);
+                GLuint vao = 0, vbo = 0;
+                glGenVertexArrays(1, &vao);
+                glBindVertexArray(vao);
+                glGenBuffers(1, &vbo);
+                glBindBuffer(GL_ARRAY_BUFFER, vbo);
+                glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(n * sizeof(LineVertex)), v.data() + a, GL_STATIC_DRAW);
+                line_attributes();
+                g.crossings.vaos.push_back(vao), g.crossings.vbos.push_back(vbo), g.crossings.counts.push_back(GLsizei(n));
+            }
+            g.crossings.total = v.size();
+            changed = true;
+        }
+        if (changed) ++generation;
+        return changed;
+    }
+
+    bool computing_crossings() const {
+        return std::any_of(objects.begin(), objects.end(), [](const GpuObject &g) { return g.crossing_job.valid(); });
+    }
+
     // ------------------------------------------------------------------ frame
 
     struct Matrices {
@@ -802,7 +927,7 @@ struct Renderer::Impl {
     enum class LinesPart { Full, Proxy, None };
     // The part of a tractogram drawn in this frame: its proxy while
     // interacting (when it has one), else all of it.
-    LinesPart part_for(const GpuObject &g) const { return interacting && g.has_lod_proxy() ? LinesPart::Proxy : LinesPart::Full; }
+    LinesPart part_for(const GpuObject &g) const { return interacting && lod_proxy(g) ? LinesPart::Proxy : LinesPart::Full; }
 
     void draw_object(GpuObject &g, const Object &o, const Matrices &m, const View &v, bool debug, int w, int h,
                      LinesPart lines = LinesPart::Full) {
@@ -824,7 +949,10 @@ struct Renderer::Impl {
             stats.triangles_drawn += g.triangles;
             return;
         }
-        Program &p = program_for(g, debug ? Output::Debug : display_direct ? Output::Display : Output::Hdr);
+        // The slab's crossings stand for a tractogram's lines or tubes.
+        const bool points = g.geom != Geom::Mesh && crossing_mode();
+        const Output out = debug ? Output::Debug : display_direct ? Output::Display : Output::Hdr;
+        Program &p = points ? point_program_for(g, out) : program_for(g, out);
         glUseProgram(p.id);
         glUniform1f(p.loc("hz_exposure"), float(scene.exposure));
         glUniformMatrix4fv(p.loc("hz_view_proj"), 1, GL_FALSE, glm::value_ptr(m.view_proj));
@@ -835,7 +963,11 @@ struct Renderer::Impl {
         // The slab crops streamlines (two clip planes); the state stays for
         // the object's chunks drawn after this call and is reset by the
         // next object and at the end of the frame.
-        if (g.geom != Geom::Mesh) {
+        if (points) {
+            const double px = std::max(1.0, scene.slab->point_px * (out_ == &lowres ? 1.0 / std::max(1, settings.proxy_scale) : 1.0));
+            glUniform1f(p.loc("hz_point_px"), float(px));
+            glUniform1f(p.loc("hz_point_lift"), 0.5f);  // mm
+        } else if (g.geom != Geom::Mesh) {
             GLfloat planes[8] = {0, 0, 0, 1, 0, 0, 0, 1};
             if (scene.slab) {
                 const Slab &sl = *scene.slab;
@@ -844,7 +976,7 @@ struct Renderer::Impl {
             }
             glUniform4fv(p.loc("hz_clip"), 2, planes);
         }
-        set_clipping(g.geom != Geom::Mesh && scene.slab.has_value());
+        set_clipping(g.geom != Geom::Mesh && !points && scene.slab.has_value());
         {
             const glm::mat3 rot(glm::vec3(m.right.x, m.up.x, m.back.x), glm::vec3(m.right.y, m.up.y, m.back.y),
                                 glm::vec3(m.right.z, m.up.z, m.back.z));
@@ -853,6 +985,13 @@ struct Renderer::Impl {
         bind_lights(p, m, v, debug ? 1 : 8);
         bind_environment(p, !debug);
         set_material_uniforms(p, g);
+        if (points) {
+            if (lines == LinesPart::Full)
+                draw_crossings(g.crossings, 0, g.crossings.vaos.size());
+            else if (lines == LinesPart::Proxy)
+                draw_crossings(g.crossings, 0, g.crossings.vaos.size(), crossing_budget());
+            return;
+        }
         glBindVertexArray(g.vao);
         if (g.geom == Geom::Mesh) {
             glDrawElements(GL_TRIANGLES, g.index_count, GL_UNSIGNED_INT, nullptr);
@@ -1038,14 +1177,14 @@ struct Renderer::Impl {
 
     void reset_counters() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
-        stats.chunks_drawn = stats.streamed_points = 0;
+        stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = 0;
         stats.proxy = false;
         stats.refine_step = 0;
         stats.refine_remaining = 0;
     }
 
     bool any_lod_proxy() const {
-        return std::any_of(objects.begin(), objects.end(), [&](const GpuObject &g) { return drawn(g.index) && g.has_lod_proxy(); });
+        return std::any_of(objects.begin(), objects.end(), [&](const GpuObject &g) { return drawn(g.index) && lod_proxy(g); });
     }
 
     // A frame: at the window's size, or, when a tractogram drawn has a
@@ -1128,8 +1267,9 @@ void main() {
         glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
         for (auto &g : objects) {
             if (!drawn(g.index)) continue;
-            if (g.has_lod_proxy())
-                for (std::size_t k = 0; k < g.chunks.size(); ++k) refine.items.emplace_back(&g - objects.data(), k);
+            if (lod_proxy(g))
+                for (std::size_t k = 0, n = crossing_mode() ? g.crossings.vaos.size() : g.chunks.size(); k < n; ++k)
+                    refine.items.emplace_back(&g - objects.data(), k);
             else
                 draw_object(g, scene.objects[g.index], refine.m, v, false, w, h, LinesPart::Full);
         }
@@ -1137,6 +1277,7 @@ void main() {
         stats.proxy = true;
         stats.points_drawn += first.points_drawn, stats.streamlines_drawn += first.streamlines_drawn;
         stats.segments_drawn += first.segments_drawn, stats.chunks_drawn += first.chunks_drawn;
+        stats.crossings_drawn += first.crossings_drawn;
         refine.active = !refine.items.empty();
         refine.step = 1;
         stats.refine_remaining = refine.items.size();
@@ -1160,7 +1301,10 @@ void main() {
                 bound = oi;
             }
             const auto tc = Clock::now();
-            draw_chunk(g, false, k);
+            if (crossing_mode())
+                draw_crossings(g.crossings, k, k + 1);
+            else
+                draw_chunk(g, false, k);
             glFinish();
             ++refine.next;
             if (ms_since(t0) + ms_since(tc) > budget_ms) break;
@@ -1230,6 +1374,7 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
     }
     I.stats.samples = std::clamp(I.settings.samples, 1, std::max(1, I.max_samples));
     glFinish();
+    I.schedule_crossings();
     I.stats.upload_ms = ms_since(t0);
     I.stats.environment_ms = I.ibl->build(I.reg, I.scene.environment);
 }
@@ -1260,17 +1405,24 @@ void Renderer::replace_object(std::size_t i, Object o) {
             GpuObject fresh = I.upload(i);
             I.release(g);
             g = std::move(fresh);
+            I.schedule_crossings();
             return;
         }
 }
 
 void Renderer::set_interacting(bool on) { impl_->interacting = on; }
 
-bool Renderer::update_proxies(bool wait) { return impl_->adopt_shell_proxies(wait); }
+bool Renderer::update_proxies(bool wait) {
+    const bool crossings = impl_->adopt_crossings(wait);
+    return impl_->adopt_shell_proxies(wait) || crossings;
+}
+
+bool Renderer::computing() const { return impl_->computing_crossings(); }
 
 void Renderer::set_slab(std::optional<Slab> slab) {
     if (slab != impl_->scene.slab) ++impl_->generation;
     impl_->scene.slab = slab;
+    impl_->schedule_crossings();
 }
 
 void Renderer::set_exposure(double e) {
@@ -1286,7 +1438,10 @@ void Renderer::set_bake_materials(bool bake) {
     spdlog::debug("renderer: {} material programs", bake ? "baked" : "uniform");
     // Each object picks up its program for the new form when next drawn
     // (compiled then, or found among the programs already built).
-    for (GpuObject &g : I.objects) g.program = g.display_program = g.debug_program = nullptr;
+    for (GpuObject &g : I.objects) {
+        g.program = g.display_program = g.debug_program = nullptr;
+        std::fill(std::begin(g.point_programs), std::end(g.point_programs), nullptr);
+    }
 }
 
 void Renderer::set_visible(std::size_t object, bool visible) {
@@ -1374,6 +1529,7 @@ View fit_view(const Scene &scene, const Camera &c, double aspect) {
 void Renderer::render(const View &view, int width, int height) {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
+    I.adopt_crossings(true);  // (an offscreen frame shows the slab's crossings once computed)
     I.refine.active = false;
     I.reset_counters();
     I.frame(view, width, height);
@@ -1426,7 +1582,7 @@ std::uint64_t Renderer::generation() const { return impl_->generation; }
 std::uint64_t Renderer::streamlines_with_proxy() const {
     std::uint64_t n = 0;
     for (const auto &g : impl_->objects)
-        if (g.has_lod_proxy()) n += g.streamlines;
+        if (impl_->lod_proxy(g)) n += g.streamlines;
     return n;
 }
 

@@ -266,14 +266,16 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
     if (root.contains("background")) s.background = vec<3>(root["background"], what, "background");
     if (root.contains("exposure")) s.exposure = num_in(root["exposure"], what, "exposure", 1e-4, 1e4);
     if (root.contains("tonemap")) s.tonemap = str(root["tonemap"], what, "tonemap", {"aces", "reinhard", "none"});
-    if (root.contains("slab")) {  // {"axis": "x"|"y"|"z", "centre": mm, "half": mm}
+    if (root.contains("slab")) {  // {"axis": "x"|"y"|"z", "centre": mm, "half": mm, "show": "crop"|"points", "point_size": px}
         const json &j = root["slab"];
         if (!j.is_object()) fail(what, "slab", "expected an object {\"axis\", \"centre\", \"half\"}");
-        check_keys(j, {"axis", "centre", "half"}, what, "slab");
+        check_keys(j, {"axis", "centre", "half", "show", "point_size"}, what, "slab");
         Slab sl;
         if (j.contains("axis")) sl.axis = int(str(j["axis"], what, "slab.axis", {"x", "y", "z"})[0] - 'x');
         if (j.contains("centre")) sl.centre = num_in(j["centre"], what, "slab.centre", -1e5, 1e5);
         if (j.contains("half")) sl.half = num_in(j["half"], what, "slab.half", 0.0, 1e5, true);
+        if (j.contains("show")) sl.points = str(j["show"], what, "slab.show", {"crop", "points"}) == "points";
+        if (j.contains("point_size")) sl.point_px = num_in(j["point_size"], what, "slab.point_size", 1.0, 64.0);
         s.slab = sl;
     }
 

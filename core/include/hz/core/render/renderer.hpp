@@ -92,6 +92,7 @@ struct FrameStats {
     // Of the last frame or progressive step.
     std::uint64_t segments_drawn = 0, triangles_drawn = 0, points_drawn = 0, streamlines_drawn = 0;
     std::uint64_t chunks_drawn = 0, streamed_points = 0;  // streamed: built for this frame, not kept
+    std::uint64_t crossings_drawn = 0;                    // the slab's crossings drawn as points (Slab::points)
     bool proxy = false;                                   // a level-of-detail proxy was drawn
     int refine_step = 0;                                  // progressive: the step (0: a whole frame)
     std::uint64_t refine_remaining = 0;                   // progressive: chunks still to draw
@@ -120,7 +121,9 @@ public:
     // re-uploading only that object. Throws Error.
     void replace_object(std::size_t i, Object o);
     void set_exposure(double exposure);
-    // Crops the streamlines to a slab (Scene::slab), or not (nullopt).
+    // Crops the streamlines to a slab (Scene::slab), or not (nullopt). With
+    // Slab::points, the crossings of the plane are computed on background
+    // threads: update_proxies() adopts them (render() waits for them).
     void set_slab(std::optional<Slab> slab);
     // Switches RenderSettings::bake_materials. The window bakes once the
     // material panel has been left alone for a moment and goes back to
@@ -134,6 +137,9 @@ public:
     // all of them first. Returns true if a proxy changed (a proxy frame
     // shown now is out of date; a full-detail frame is not). GL thread.
     bool update_proxies(bool wait);
+    // Background work whose result update_proxies() adopts is under way
+    // (the slab's crossings, Slab::points): a window keeps polling.
+    bool computing() const;
     const Scene &scene() const;
 
     // Camera fitted to the visible objects for the scene's camera spec.

@@ -100,10 +100,15 @@ struct Environment {
 
 // Streamlines cropped to a slab: only what lies within `half` mm of the
 // plane axis = centre (RAS+ mm; axis 0 x, 1 y, 2 z) is drawn (mrview's
-// crop to slab). Surfaces and slices are not cropped.
+// crop to slab). Or, with `points`, each streamline is shown only where it
+// crosses the plane axis = centre: a shaded disc of `point_px` pixels across
+// per crossing, in the streamline's colour there (`half` is then unused).
+// Surfaces and slices are not cropped.
 struct Slab {
     int axis = 2;
     double centre = 0, half = 5;
+    bool points = false;
+    double point_px = 5;
     bool operator==(const Slab &) const = default;
 };
 
