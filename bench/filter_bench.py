@@ -5,9 +5,10 @@ realistic tractograms (hz-make-tractogram) and the same regions, in one run.
 For each case, both tools read the TCK, select, and write a TCK; the two
 outputs must hold the same bytes after their headers (same streamlines, same
 order, same coordinates), or the benchmark stops. Times are wall seconds,
-launch to exit, the median of --repeat runs, with `sync` before each run (so
-that one run's write-back does not land in the next); the input is in the
-page cache (one untimed read first). tckedit runs on every core (its
+launch to exit, the median of --repeat runs, with the previous run's output
+deleted and `sync` before each run (so that neither tool is charged for
+freeing the last run's output, and one run's write-back does not land in the
+next); the input is in the page cache (one untimed read first). tckedit runs on every core (its
 default), as Horizon does.
 
     /usr/bin/python3 bench/filter_bench.py [--sizes 100000,1000000] [--work DIR] [--repeat 3]
@@ -38,9 +39,11 @@ def data_bytes(path):
     raise SystemExit(f"{path}: no 'file:' line")
 
 
-def timed(cmd, repeat):
+def timed(cmd, repeat, out):
     times = []
     for _ in range(repeat):
+        if os.path.exists(out):
+            os.unlink(out)
         subprocess.run(["sync"], check=True)
         t0 = time.perf_counter()
         p = subprocess.run(cmd, capture_output=True, text=True)
@@ -132,10 +135,10 @@ def main():
             for kind, v in lengths:
                 h += [f"--{kind}-length", str(v)]
                 m += [f"-{kind}length", str(v)]
-            th, p = timed(h, args.repeat)
+            th, p = timed(h, args.repeat, ours)
             import json
             summary = json.loads(p.stdout)
-            tm, _ = timed(m, args.repeat)
+            tm, _ = timed(m, args.repeat, theirs)
             same = data_bytes(ours) == data_bytes(theirs)
             if not same:
                 raise SystemExit(f"{name} at {n}: the outputs differ")
@@ -148,7 +151,8 @@ def main():
     lines = ["# `horizon filter` against tckedit", "",
              f"{time.strftime('%Y-%m-%d')}, `bench/filter_bench.py`, this machine (2 cores, Debian 12), {version}.",
              "Realistic generated tractograms (hz-make-tractogram, seed 1: 100-400 points per streamline), TCK in, TCK out,",
-             "input in the page cache, `sync` before each run, median of " + str(args.repeat) + " runs, wall time launch to exit.",
+             "input in the page cache, the previous output deleted and `sync` before each run, median of " + str(args.repeat) +
+             " runs, wall time launch to exit.",
              "Both outputs hold the same bytes after their headers in every case (checked each run).", "",
              "| streamlines | case | selected | horizon s | tckedit s | ratio | horizon read / filter / write s |",
              "|---:|---|---:|---:|---:|---:|---|"]

@@ -459,6 +459,11 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
     std::vector<iovec> iov;
     iov.reserve(1024);
     std::vector<float> swapped;  // (big-endian machines: a byte-swapped copy of the pending runs)
+    // Writeback started every kKick bytes (sync_file_range, asynchronous):
+    // the disk writes while later runs are copied, and the fsync the host
+    // does before publishing the file finds most of it written.
+    constexpr std::uint64_t kKick = 32u << 20;
+    std::uint64_t written = 0, kicked = 0;
     auto flush = [&] {
         std::size_t k = 0;
         while (k < iov.size()) {
@@ -467,6 +472,11 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
             if (w < 0) {
                 if (errno == EINTR) continue;
                 throw FormatError(std::string("write failed: ") + std::strerror(errno), true);
+            }
+            written += std::uint64_t(w);
+            if (written - kicked >= kKick) {
+                (void)::sync_file_range(fd, off_t(kicked), off_t(written - kicked), SYNC_FILE_RANGE_WRITE);  // (a hint: errors ignored)
+                kicked = written;
             }
             // Advance past what was written (a short write resumes mid-piece).
             std::size_t left = std::size_t(w);
