@@ -38,6 +38,11 @@ void add_lod_options(CLI::App *cmd, LodOptions &lod) {
                     "tractogram shows; a uniform subsample until computed) or uniform")
         ->capture_default_str()
         ->check(CLI::IsMember({"shell", "uniform"}));
+    cmd->add_option("--lod-reproject", lod.lod_reproject,
+                    "while the camera moves, the last complete picture drawn again from the new camera (one point per NxN block, at "
+                    "its depth) under the proxy, which fills what it did not see")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"on", "off"}));
     cmd->add_option("--lod-scale", lod.lod_scale, "the proxy is drawn at 1/N of the size, then upscaled")
         ->capture_default_str()
         ->check(CLI::Range(1, 16));
@@ -195,7 +200,8 @@ int main(int argc, char **argv) {
     view->add_option(
         "--script", vwo.script,
         "drive the window from a script (wait N (frames), sleep S (seconds), drag, pan, scroll, click X Y [ctrl] [alt], key K|ctrl+K, set, "
-        "shader, moving on|off, expand K [streamlines], hide K, repeat [T...], reset, roi sphere|box|mask|move|scale|flip|remove ..., "
+        "shader, moving on|off, mark NAME, expand K [streamlines], hide K, repeat [T...], reset, roi "
+        "sphere|box|mask|move|scale|flip|remove ..., "
         "undo, redo, save PATH [force], press LABEL, screenshot, quit; see docs/rendering.md and docs/quality-control.md)");
     view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")->capture_default_str();
     view->add_option("--view", vwo.view, "initial camera view fitted to the scene (R returns to it)")->check(CLI::IsMember(named_views()));

@@ -864,6 +864,10 @@ private:
                 std::string v;
                 cmd >> v;
                 app.force_moving = v == "on";
+            } else if (op == "mark") {  // mark NAME: a record in --stats between frames (benchmarks, tests)
+                std::string name;
+                cmd >> name;
+                log.mark(name);
             } else if (op == "quit") {
                 app.quit = true;
             } else {

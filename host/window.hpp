@@ -176,6 +176,8 @@ struct FrameLog {
     nlohmann::json loading;  // the frames that showed the data being read (load_in_window)
     double peak_anon_mb = 0;
     double first_frame_s = -1, first_complete_s = -1;
+    // A named point in time among the frames (a script's `mark NAME`).
+    void mark(const std::string &name) { frames.push_back({{"t", seconds_since_launch()}, {"kind", "mark"}, {"name", name}}); }
     void add(const char *kind, const core::render::FrameStats &s, double ms) {
         const double t = seconds_since_launch();
         const double anon = rss_anon_mb();
@@ -194,6 +196,7 @@ struct FrameLog {
                           {"triangles", drew ? s.triangles_drawn : 0},
                           {"streamed_points", drew ? s.streamed_points : 0},
                           {"slab_crossings", drew ? s.crossings_drawn : 0},
+                          {"reprojected", drew ? s.reprojected_points : 0},
                           {"proxy", drew && s.proxy},
                           {"rss_anon_mb", anon}});
     }

@@ -664,6 +664,41 @@ class WindowTest(TempDirTest):
         self.assertNotIn("level of detail:", p.stdout)
         np.testing.assert_array_equal(load(self.path("plain.png")), rest)
 
+    def test_moving_frames_reproject_the_last_still(self):
+        # Once a still image is complete, the frames drawn while the camera
+        # moves draw it again from their camera (one point per 4x4 block at
+        # its depth) under the proxy: closer to the still than the proxy
+        # alone; and not once the camera has turned more than 15 degrees.
+        p = run("demo", "--out", self.path("d"), "--streamlines", "600", "--no-window", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+        errors, reprojected = {}, {}
+        for mode in ("on", "off"):
+            script, stats = self.path(mode + ".txt"), self.path(mode + ".json")
+            with open(script, "w") as f:
+                # (0.008 rad per dragged pixel: 5 px 2.3 degrees, 45 px more 23 degrees in all)
+                f.write("\n".join(["wait 1", f"screenshot {self.path('rest.png')}", "moving on", "wait 1",
+                                   f"screenshot {self.path('m0_' + mode + '.png')}", "drag 240 160 245 160", "wait 1", "mark small",
+                                   "drag 245 160 290 160", "wait 1", "mark turned", "wait 2", "mark large", "moving off", "quit"]) + "\n")
+            p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--lod-points", "4000", "--lod-reproject",
+                          mode, "--script", script, "--stats", stats], env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            # (at a quarter of the size, as bench/ compares level-of-detail pictures: both are drawn at 1/4)
+            down = lambda a: a[:320 // 4 * 4, :480].reshape(80, 4, 120, 4, -1).mean(axis=(1, 3))
+            errors[mode] = np.mean(np.abs(down(load(self.path("m0_" + mode + ".png"))) - down(load(self.path("rest.png")))))
+            frames = json.load(open(stats))["frames"]
+            marks = [f["t"] for f in frames if f["kind"] == "mark"]
+            moving = [f for f in frames if f["kind"] == "moving"]
+            reprojected[mode] = ([f["reprojected"] for f in moving if f["t"] < marks[0]],
+                                 [f["reprojected"] for f in moving if marks[1] < f["t"] < marks[2]])
+        small, large = reprojected["on"]
+        self.assertTrue(small and all(r > 50 for r in small), small)
+        self.assertTrue(large and all(r == 0 for r in large), large)
+        self.assertTrue(all(r == 0 for r in reprojected["off"][0] + reprojected["off"][1]))
+        self.assertLess(errors["on"], 0.6 * errors["off"], errors)
+
     def test_idle_window_draws_nothing(self):
         # Once the still image is complete, a window with no input draws no
         # frame at all (and sleeps in glfwWaitEvents: little CPU time).

@@ -11,6 +11,7 @@
 #include "line_geometry.hpp"
 #include "glsl.hpp"
 #include "programs.hpp"
+#include "reprojection.hpp"
 #include "shell_proxy.hpp"
 
 #include <glm/glm.hpp>
@@ -189,6 +190,8 @@ struct Renderer::Impl {
     std::map<std::string, std::unique_ptr<Program>> aux_programs;  // sky, slices, tonemap by output and curve
     GLuint empty_vao = 0;
     std::unique_ptr<ImageLighting> ibl;  // the environment's lighting
+    std::unique_ptr<Reprojection> warp;  // the last complete still, drawn again under the proxy while the camera moves
+    int frame_w = 0, frame_h = 0;        // the size of the frame being drawn (a proxy frame's full size)
     Fbo msaa;                            // the HDR path's multisampled RGBA16F target
     Fbo msaa_display;                    // the display path's multisampled RGBA8 target
     Tex2dFbo resolved, behind, ldr;
@@ -262,6 +265,8 @@ struct Renderer::Impl {
         glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
         ibl = std::make_unique<ImageLighting>(
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
+        warp = std::make_unique<Reprojection>(
+            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
     }
 
     ~Impl() {
@@ -272,6 +277,7 @@ struct Renderer::Impl {
         for (auto &[k, p] : programs) glDeleteProgram(p->id);
         for (auto &[k, p] : aux_programs) glDeleteProgram(p->id);
         ibl.reset();
+        warp.reset();
         glDeleteVertexArrays(1, &empty_vao);
         msaa.destroy();
         msaa_display.destroy();
@@ -1124,6 +1130,14 @@ struct Renderer::Impl {
         const Matrices m = matrices(v, w, h);
         const GLuint target = begin_frame(w, h);
         clear_and_sky(m, target, w, h);
+        // A proxy frame: the last complete still first, reprojected; the
+        // proxy then fills what it did not see.
+        if (out_ == &lowres && display_direct && settings.reproject &&
+            warp->usable(generation, frame_w, frame_h, to_dvec3(v.eye), to_dvec3(v.target))) {
+            warp->draw(m.view_proj, to_dvec3(v.eye), 1.5, 2.0);
+            stats.reprojected_points = warp->points();
+            opaque_state();
+        }
         // Pass 1: opaque. Pass 2: refractive objects, which composite the
         // opaque image behind them themselves. Pass 3: blended translucency.
         bool later = false;
@@ -1177,7 +1191,7 @@ struct Renderer::Impl {
 
     void reset_counters() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
-        stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = 0;
+        stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = 0;
         stats.proxy = false;
         stats.refine_step = 0;
         stats.refine_remaining = 0;
@@ -1198,6 +1212,7 @@ struct Renderer::Impl {
     }
 
     void proxy_frame(const View &v, int w, int h) {
+        frame_w = w, frame_h = h;
         const int s = std::max(1, settings.proxy_scale);
         const int pw = std::max(1, (w + s - 1) / s), ph = std::max(1, (h + s - 1) / s);
         lowres.ensure(pw, ph, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
@@ -1278,6 +1293,7 @@ void main() {
         stats.points_drawn += first.points_drawn, stats.streamlines_drawn += first.streamlines_drawn;
         stats.segments_drawn += first.segments_drawn, stats.chunks_drawn += first.chunks_drawn;
         stats.crossings_drawn += first.crossings_drawn;
+        stats.reprojected_points = first.reprojected_points;
         refine.active = !refine.items.empty();
         refine.step = 1;
         stats.refine_remaining = refine.items.size();
@@ -1312,8 +1328,27 @@ void main() {
         finish_frame(refine.target, refine.w, refine.h);
         stats.refine_step = ++refine.step;
         stats.refine_remaining = refine.items.size() - refine.next;
-        if (refine.next >= refine.items.size()) refine.active = false;
+        if (refine.next >= refine.items.size()) {
+            refine.active = false;
+            if (settings.reproject) capture_still();
+        }
         return !refine.active;
+    }
+
+    // Keeps the complete still (ldr, and the depth of the frame's target)
+    // for the reprojection of the next proxy frames.
+    void capture_still() {
+        if (!display_direct) return warp->clear();
+        GLuint depth_fbo = refine.target;
+        if (refine.target != ldr.fbo) {  // (multisampled: its depth resolved into ldr's)
+            ldr.ensure_depth();
+            glBindFramebuffer(GL_READ_FRAMEBUFFER, refine.target);
+            glBindFramebuffer(GL_DRAW_FRAMEBUFFER, ldr.fbo);
+            glBlitFramebuffer(0, 0, refine.w, refine.h, 0, 0, refine.w, refine.h, GL_DEPTH_BUFFER_BIT, GL_NEAREST);
+            depth_fbo = ldr.fbo;
+        }
+        warp->capture(ldr.fbo, depth_fbo, refine.w, refine.h, refine.m.inv_view_proj, std::max(1, settings.proxy_scale), generation,
+                      to_dvec3(refine.view.eye), to_dvec3(refine.view.target));
     }
 
     void tonemap_to(GLuint fbo, int w, int h) {

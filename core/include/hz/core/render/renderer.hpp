@@ -66,6 +66,11 @@ struct RenderSettings {
     bool shell_all_cores = false;
     // The proxy frame is drawn at 1/proxy_scale of the size, then upscaled.
     int proxy_scale = 4;
+    // A progressive frame, once complete, is kept (colour and depth, one
+    // point per proxy_scale x proxy_scale block), and proxy frames draw it
+    // again from their camera under the proxy, which fills what it did not
+    // see: while the camera turns, the picture stays the data's.
+    bool reproject = true;
     // Streamline geometry kept in GL buffers, all objects together (MiB);
     // chunks beyond it are built again each time they are drawn and
     // streamed through one ring buffer. No GL buffer is larger than one
@@ -93,6 +98,7 @@ struct FrameStats {
     std::uint64_t segments_drawn = 0, triangles_drawn = 0, points_drawn = 0, streamlines_drawn = 0;
     std::uint64_t chunks_drawn = 0, streamed_points = 0;  // streamed: built for this frame, not kept
     std::uint64_t crossings_drawn = 0;                    // the slab's crossings drawn as points (Slab::points)
+    std::uint64_t reprojected_points = 0;                 // a proxy frame: points of the last still drawn again (reproject)
     bool proxy = false;                                   // a level-of-detail proxy was drawn
     int refine_step = 0;                                  // progressive: the step (0: a whole frame)
     std::uint64_t refine_remaining = 0;                   // progressive: chunks still to draw
