@@ -5,12 +5,16 @@
 // This library is cheap to load: it does not link OpenImageIO. The first
 // open() or write() dlopen()s the backend images.backend/hz_images_oiio.so
 // next to this file (see backend.h), so `horizon info x.tck` never pays
-// OpenImageIO's ~200 ms start-up.
+// OpenImageIO's ~200 ms start-up (the relocations of its 261 libraries).
+// 8-bit PNGs, what `horizon render` writes, are written with libpng
+// here, without the backend: every render is a quarter of a second sooner.
 #include "backend.h"
+#include "files.hpp"
 
 #include <hz/cpp/loader.hpp>
 
 #include <dlfcn.h>
+#include <png.h>
 
 #include <cstring>
 #include <memory>
@@ -136,6 +140,29 @@ void img_read_volume(ImgReader &r, const hz_array_view &view, const hz_task *) {
     }
 }
 
+// An 8-bit PNG of `c` channels (gray, gray+alpha, RGB, RGBA), rows top to
+// bottom, through libpng's simplified API (zlib tuned for speed). (16-bit
+// PNGs go through the backend: the simplified API would mark them linear.)
+void write_png(const char *path, uint64_t w, uint64_t h, uint64_t c, const std::vector<unsigned char> &px) {
+    png_image img{};
+    img.version = PNG_IMAGE_VERSION;
+    img.width = png_uint_32(w);
+    img.height = png_uint_32(h);
+    img.format = c == 1 ? PNG_FORMAT_GRAY : c == 2 ? PNG_FORMAT_GA : c == 3 ? PNG_FORMAT_RGB : PNG_FORMAT_RGBA;
+    img.flags = PNG_IMAGE_FLAG_FAST;
+    // Encoded in memory, then written with every write checked (a full
+    // disk or `ulimit -f` named as the system names it).
+    png_alloc_size_t bytes = PNG_IMAGE_PNG_SIZE_MAX(img);  // (an upper bound: encoded once)
+    std::vector<unsigned char> file(bytes);
+    if (png_image_write_to_memory(&img, file.data(), &bytes, 0, px.data(), 0, nullptr) == 0)
+        throw FormatError(std::string("cannot encode the PNG: ") + img.message);
+    try {
+        hzio::write_file(path, file.data(), bytes);
+    } catch (const std::exception &e) {
+        throw IoError(e.what());
+    }
+}
+
 void img_write(const hz_write_request &request, const hz_dataset_view &view, const hz_task *) {
     const hz_write_request *req = &request;
     const hz_dataset_view *data = &view;
@@ -156,6 +183,7 @@ void img_write(const hz_write_request &request, const hz_dataset_view &view, con
                 }
         std::string ext = req->extension ? req->extension : "png";
         if (ext == "jpg") ext = "jpeg";
+        if (ext == "png" && v.dtype == HZ_DTYPE_U8) return write_png(req->path, w, h, c, px);
         char msg[512] = {};
         if (need_backend().write(req->path, ext.c_str(), w, h, uint32_t(c), v.dtype, px.data(), msg, sizeof msg) != 0) throw IoError(msg);
     }
