@@ -196,7 +196,7 @@ void main() {
 
 // The slab's crossings as points (GL_PROGRAM_POINT_SIZE): lifted
 // hz_point_lift mm towards the eye, so that a slice drawn in the same plane
-// does not hide them.
+// does not hide them. (Also the reprojected still's points: reprojection.cpp.)
 inline constexpr const char *kPointVS = R"glsl(#version 410 core
 layout(location = 0) in vec3 a_pos;
 layout(location = 1) in vec4 a_tangent;

@@ -1,6 +1,8 @@
 // The last complete frame, reprojected (reprojection.hpp).
 #include "reprojection.hpp"
 
+#include "glsl.hpp"
+
 #include <glm/gtc/type_ptr.hpp>
 
 #include <algorithm>
@@ -12,29 +14,13 @@ namespace hz::core::render {
 
 namespace {
 
+// The vertex stage is the slab crossings' (glsl::kPointVS: a point lifted
+// towards the eye); the colour is its attribute 2, the tangent unused.
 struct SplatVertex {
     float pos[3];
     std::uint8_t rgba[4];
 };
 static_assert(sizeof(SplatVertex) == 16);
-
-constexpr const char *kSplatVS = R"glsl(#version 410 core
-layout(location = 0) in vec3 a_pos;
-layout(location = 1) in vec4 a_color;
-uniform mat4 u_view_proj;
-uniform vec3 u_eye;
-uniform float u_point_px;
-uniform float u_lift;
-out vec4 v_color;
-void main() {
-    vec3 to_eye = u_eye - a_pos;
-    float d = length(to_eye);
-    vec3 p = d > 0.0 ? a_pos + to_eye * (min(u_lift, 0.5 * d) / d) : a_pos;
-    v_color = a_color;
-    gl_Position = u_view_proj * vec4(p, 1.0);
-    gl_PointSize = u_point_px;
-}
-)glsl";
 
 constexpr const char *kSplatFS = R"glsl(#version 410 core
 in vec4 v_color;
@@ -106,8 +92,8 @@ void Reprojection::capture(GLuint colour_fbo, GLuint depth_fbo, int w, int h, co
         glBindBuffer(GL_ARRAY_BUFFER, vbo_);
         glEnableVertexAttribArray(0);
         glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(SplatVertex), reinterpret_cast<void *>(0));
-        glEnableVertexAttribArray(1);
-        glVertexAttribPointer(1, 4, GL_UNSIGNED_BYTE, GL_TRUE, sizeof(SplatVertex), reinterpret_cast<void *>(12));
+        glEnableVertexAttribArray(2);
+        glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, sizeof(SplatVertex), reinterpret_cast<void *>(12));
     }
     glBindBuffer(GL_ARRAY_BUFFER, vbo_);
     glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(out.size() * sizeof(SplatVertex)), out.data(), GL_STATIC_DRAW);
@@ -119,12 +105,12 @@ void Reprojection::capture(GLuint colour_fbo, GLuint depth_fbo, int w, int h, co
 
 void Reprojection::draw(const glm::mat4 &view_proj, const glm::dvec3 &eye, double point_px, double lift_mm) {
     if (!valid_ || count_ == 0) return;
-    if (!program_) program_ = make_(kSplatVS, kSplatFS, "reprojection");
+    if (!program_) program_ = make_(glsl::kPointVS, kSplatFS, "reprojection");
     glUseProgram(program_->id);
-    glUniformMatrix4fv(program_->loc("u_view_proj"), 1, GL_FALSE, glm::value_ptr(view_proj));
-    glUniform3f(program_->loc("u_eye"), float(eye.x), float(eye.y), float(eye.z));
-    glUniform1f(program_->loc("u_point_px"), float(point_px));
-    glUniform1f(program_->loc("u_lift"), float(lift_mm));
+    glUniformMatrix4fv(program_->loc("hz_view_proj"), 1, GL_FALSE, glm::value_ptr(view_proj));
+    glUniform3f(program_->loc("hz_eye"), float(eye.x), float(eye.y), float(eye.z));
+    glUniform1f(program_->loc("hz_point_px"), float(point_px));
+    glUniform1f(program_->loc("hz_point_lift"), float(lift_mm));
     glEnable(GL_PROGRAM_POINT_SIZE);
     glBindVertexArray(vao_);
     glDrawArrays(GL_POINTS, 0, GLsizei(count_));
