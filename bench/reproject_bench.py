@@ -4,7 +4,8 @@ in the window, as a user turns the camera.
 
     /usr/bin/python3 bench/reproject_bench.py [--tck FILE] [--drags 0,6,12,30] [--out bench/results/reproject.md]
 
-For each drag (window pixels; the orbit turns 0.008 rad per pixel) and each
+For each drag (window pixels; the orbit turns 0.008 rad per pixel; a drag of
+at most 3 pixels is a click and turns nothing) and each
 mode, `horizon view --script` under Xvfb at 1280x800: the still image at the
 first camera completes, the camera turns by the drag while held moving
 (`moving on`), a screenshot of the moving frame is taken, then the camera
