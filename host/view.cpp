@@ -285,8 +285,9 @@ public:
             }
             // One script command per frame (wait N: N frames); a screenshot
             // waits until the still image is complete (as a user would).
-            const bool hold_for_still =
-                pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving && (r.refining() || !still.valid);
+            // (and for what the renderer computes in the background: the slab's crossings)
+            const bool hold_for_still = pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving &&
+                                        (r.refining() || r.computing() || !still.valid);
             if (wait > 0)
                 --wait;
             else if (glfwGetTime() < sleep_until) {
