@@ -797,19 +797,21 @@ struct Renderer::Impl {
             g.crossing_next = Crossings{};
             g.crossing_next.axis = axis, g.crossing_next.centre = centre, g.crossing_next.lines = g.lines.get();
             g.crossing_job = std::async(std::launch::async, [d = g.lines, axis, centre, cancel = g.crossing_cancel] {
-                const std::uint64_t n = d->t->nb_streamlines();
-                const unsigned T = std::clamp<unsigned>(std::thread::hardware_concurrency(), 1, 16);
-                std::vector<std::vector<LineVertex>> parts(T);
-                std::vector<std::thread> threads;
-                for (unsigned k = 0; k < T; ++k)
-                    threads.emplace_back([&, k] { slab_crossings(*d, axis, centre, n * k / T, n * (k + 1) / T, parts[k], cancel.get()); });
-                for (auto &th : threads) th.join();
+                std::mutex m;
+                std::vector<std::pair<std::uint64_t, std::vector<LineVertex>>> parts;
+                parallel_ranges(d->t->nb_streamlines(), 4096, [&](std::uint64_t from, std::uint64_t to) {
+                    std::vector<LineVertex> mine;
+                    slab_crossings(*d, axis, centre, from, to, mine, cancel.get());
+                    std::lock_guard<std::mutex> lock(m);
+                    parts.emplace_back(from, std::move(mine));
+                });
                 std::vector<LineVertex> all;
                 if (*cancel) return all;
+                std::sort(parts.begin(), parts.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
                 std::size_t total = 0;
-                for (const auto &p : parts) total += p.size();
+                for (const auto &p : parts) total += p.second.size();
                 all.reserve(total);
-                for (const auto &p : parts) all.insert(all.end(), p.begin(), p.end());
+                for (const auto &p : parts) all.insert(all.end(), p.second.begin(), p.second.end());
                 // (shuffled, the same way every time: the proxy is a prefix)
                 std::mt19937_64 rng(0x5eed);
                 std::shuffle(all.begin(), all.end(), rng);
