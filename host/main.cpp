@@ -34,10 +34,11 @@ void add_lod_options(CLI::App *cmd, LodOptions &lod) {
         ->capture_default_str()
         ->check(CLI::Range(1000.0, 1e12));
     cmd->add_option("--lod-proxy", lod.lod_proxy,
-                    "the proxy: shell (the streamlines' runs nearest the tractogram's outer surface, what a dense "
-                    "tractogram shows; a uniform subsample until computed) or uniform")
+                    "the proxy: volume (the streamlines as a volume of their density, colour and direction, ray-marched, under "
+                    "the shell's lines), shell (the streamlines' runs nearest the tractogram's outer surface, what a dense "
+                    "tractogram shows) or uniform; both computed in the background, a uniform subsample until then")
         ->capture_default_str()
-        ->check(CLI::IsMember({"shell", "uniform"}));
+        ->check(CLI::IsMember({"volume", "shell", "uniform"}));
     cmd->add_option("--lod-reproject", lod.lod_reproject,
                     "while the camera moves, the last complete picture drawn again from the new camera (one point per NxN block, at "
                     "its depth) under the proxy, which fills what it did not see")

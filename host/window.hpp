@@ -197,6 +197,7 @@ struct FrameLog {
                           {"streamed_points", drew ? s.streamed_points : 0},
                           {"slab_crossings", drew ? s.crossings_drawn : 0},
                           {"reprojected", drew ? s.reprojected_points : 0},
+                          {"fibre_volumes", drew ? s.volumes_drawn : 0},
                           {"proxy", drew && s.proxy},
                           {"rss_anon_mb", anon}});
     }

@@ -42,11 +42,77 @@ vec3 hz_scene_behind(vec2 offset_px) {
 
 // Host main() of every shading program, after the plugin snippet.
 inline constexpr const char *kShadeMain = R"glsl(
+#if defined(HZ_GEOM_VOLUME)
+// The fibre volume (a tractogram's proxy): the ray through this pixel,
+// composited front to back; then shaded once as a line, with the mean colour
+// of what it saw, at the point where it became half opaque, with the main
+// direction of the streamlines there.
+in vec3 v_ray_end;                 // where the ray meets the far plane
+uniform mat4 hz_view_proj;
+uniform vec3 hz_vol_origin;        // corner of voxel (0, 0, 0), mm
+uniform vec3 hz_vol_dim;           // voxels along x, y, z
+uniform float hz_vol_voxel;        // edge of a voxel, mm
+uniform float hz_px_angle;         // a full-size pixel's width per mm of distance
+uniform sampler3D hz_vol_colour;   // rgb x density, density (mm / mm^3)
+uniform sampler3D hz_vol_tangent;  // direction * 0.5 + 0.5, skip distance / 255
+vec3 v_pos;
+vec4 v_color;
+vec3 v_tangent;
+float hz_vol_alpha;
+void hz_vol_march(vec3 eye) {
+    vec3 d = normalize(v_ray_end - eye);
+    vec3 dd = mix(d, vec3(1e-12), lessThan(abs(d), vec3(1e-12)));
+    vec3 lo = hz_vol_origin, hi = hz_vol_origin + hz_vol_dim * hz_vol_voxel;
+    vec3 ta = (lo - eye) / dd, tb = (hi - eye) / dd;
+    vec3 tn = min(ta, tb), tf = max(ta, tb);
+    float t = max(max(max(tn.x, tn.y), tn.z), 0.0);
+    float t1 = min(min(tf.x, tf.y), tf.z);
+    float step = 1.0 * hz_vol_voxel;
+    float a_sum = 0.0;
+    vec3 c_sum = vec3(0.0), t_sum = vec3(0.0);
+    v_pos = eye + d * t;
+    v_tangent = vec3(0.0, 0.0, 1.0);
+    ivec3 top = ivec3(hz_vol_dim) - 1;
+    for (int i = 0; i < 256 && t < t1 && a_sum < 0.95; ++i) {
+        vec3 x = eye + d * t;
+        vec3 g = (x - hz_vol_origin) / hz_vol_voxel;
+        vec4 ts = texelFetch(hz_vol_tangent, clamp(ivec3(g), ivec3(0), top), 0);
+        float skip = ts.a * 255.0;
+        if (skip >= 3.0) {  // no streamline within skip - 1 voxels, nor in the samples' reach
+            t += (skip - 2.0) * hz_vol_voxel;
+            continue;
+        }
+        vec4 cd = texture(hz_vol_colour, g / hz_vol_dim);
+        float a = 1.0 - exp(-cd.a * hz_px_angle * t * step);
+        if (a > 0.0) {
+            if (a_sum < 0.5) v_pos = x;
+            // The directions seen, weighted as the colours (filtered: a
+            // block's lines, not one voxel's), each turned to agree with
+            // the sum so far (a direction has no sign).
+            vec3 e = texture(hz_vol_tangent, g / hz_vol_dim).xyz * (255.0 / 127.5) - 1.0;
+            t_sum += (1.0 - a_sum) * a * (dot(e, t_sum) < 0.0 ? -e : e);
+            c_sum += (1.0 - a_sum) * a * cd.rgb / max(cd.a, 1e-20);
+            a_sum += (1.0 - a_sum) * a;
+        }
+        t += step;
+    }
+    if (a_sum < 1.0 / 255.0) discard;
+    v_color = vec4(c_sum / a_sum, 1.0);
+    float tt = dot(t_sum, t_sum);
+    v_tangent = tt > 1e-30 ? t_sum * inversesqrt(tt) : vec3(0.0, 0.0, 1.0);
+    hz_vol_alpha = a_sum;
+    vec4 clip = hz_view_proj * vec4(v_pos, 1.0);
+    gl_FragDepth = clamp(0.5 * clip.z / clip.w + 0.5, 0.0, 1.0);
+}
+#define HZ_OUT_ALPHA (hz_opacity * hz_vol_alpha)
+#else
 in vec3 v_pos;
 in vec4 v_color;
+#define HZ_OUT_ALPHA hz_opacity
+#endif
 #if defined(HZ_GEOM_MESH)
 in vec3 v_normal;
-#else
+#elif !defined(HZ_GEOM_VOLUME)
 in vec3 v_tangent;
 #endif
 #if defined(HZ_GEOM_TUBE)
@@ -75,6 +141,9 @@ vec3 hz_safe_normalize(vec3 a, vec3 fallback) {
 }
 
 void main() {
+#if defined(HZ_GEOM_VOLUME)
+    hz_vol_march(hz_eye);
+#endif
     HzShadePoint p;
     vec3 vn = hz_safe_normalize(hz_eye - v_pos, vec3(0.0, 0.0, 1.0));
     p.v = vn;
@@ -150,9 +219,9 @@ void main() {
     o_v = vec4(p.v, 1.0);
     o_t = vec4(p.t, 1.0);
 #elif defined(HZ_DISPLAY)
-    o_color = vec4(hz_display(max(c, vec3(0.0))), hz_opacity);
+    o_color = vec4(hz_display(max(c, vec3(0.0))), HZ_OUT_ALPHA);
 #else
-    o_color = vec4(max(c, vec3(0.0)), hz_opacity);
+    o_color = vec4(max(c, vec3(0.0)), HZ_OUT_ALPHA);
 #endif
 }
 )glsl";
@@ -217,6 +286,19 @@ void main() {
     v_color = a_color;
     gl_Position = hz_view_proj * vec4(p, 1.0);
     gl_PointSize = hz_point_px;
+}
+)glsl";
+
+// The fibre volume's pass: a triangle over the whole viewport; each pixel's
+// ray ends on the far plane (hz_inv_view_proj: clip -> world).
+inline constexpr const char *kVolumeVS = R"glsl(#version 410 core
+uniform mat4 hz_inv_view_proj;
+out vec3 v_ray_end;
+void main() {
+    vec2 q = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2)) * 2.0 - 1.0;
+    vec4 w = hz_inv_view_proj * vec4(q, 1.0, 1.0);
+    v_ray_end = w.xyz / w.w;
+    gl_Position = vec4(q, 0.0, 1.0);
 }
 )glsl";
 

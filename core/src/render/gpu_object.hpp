@@ -35,7 +35,9 @@ struct Program {
     }
 };
 
-enum class Geom { Mesh, Tube, Line, Point };  // (Point: only the slab's crossings are drawn as points)
+// (Point: only the slab's crossings are drawn as points; Volume: only the
+// fibre volume, a tractogram's proxy, is drawn as a volume.)
+enum class Geom { Mesh, Tube, Line, Point, Volume };
 
 // Where a tractogram crosses the slab's plane (Slab::points): vertices in
 // GL buffers of at most kCrossingChunk each (about 20 ms of llvmpipe's time:
@@ -75,11 +77,23 @@ struct GpuObject {
     Crossings crossings, crossing_next;
     std::future<std::vector<LineVertex>> crossing_job;
     std::shared_ptr<std::atomic<bool>> crossing_cancel;
+    // The fibre volume (line_geometry.hpp), computed on a background thread
+    // and kept as two 3D textures: colour x density (RGBA16F, linear
+    // filtering) and direction + skip distance (RGBA8, fetched).
+    std::future<FibreVolume> fibre_job;
+    std::shared_ptr<std::atomic<bool>> fibre_cancel;
+    GLuint fibre_tex[2] = {0, 0};
+    std::array<int, 3> fibre_dim{};
+    std::array<float, 3> fibre_origin{};
+    float fibre_voxel_mm = 0;
+    bool has_fibre_volume() const { return fibre_tex[0] != 0; }
     ~GpuObject() {
         if (shell_cancel) *shell_cancel = true;
         if (crossing_cancel) *crossing_cancel = true;
+        if (fibre_cancel) *fibre_cancel = true;
         if (shell.valid()) shell.wait();
         if (crossing_job.valid()) crossing_job.wait();
+        if (fibre_job.valid()) fibre_job.wait();
     }
     GpuObject() = default;
     GpuObject(GpuObject &&) = default;
@@ -98,7 +112,8 @@ struct GpuObject {
     bool refractive = false;  // the snippet reads hz_scene_behind: drawn after the opaque objects
     // Programs by output (see Impl::Output), compiled when first needed.
     mutable Program *program = nullptr, *display_program = nullptr, *debug_program = nullptr;
-    mutable Program *point_programs[3] = {};  // the slab's crossings, by output
+    mutable Program *point_programs[3] = {};   // the slab's crossings, by output
+    mutable Program *volume_programs[3] = {};  // the fibre volume, by output
     // slices
     GLuint volume_tex = 0, colormap_tex = 0;
     GLsizei slice_vertices = 0;

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 namespace hz::core::render {
 
@@ -275,6 +276,139 @@ void slab_crossings(const LineData &d, int axis, double centre, std::uint64_t a,
             out.push_back(v);
         }
     }
+}
+
+
+FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double budget_points, unsigned threads,
+                         const std::atomic<bool> &cancel) {
+    FibreVolume v;
+    const Tractogram &t = *d.t;
+    const std::uint64_t N = t.nb_streamlines();
+    if (N == 0 || b.empty) return v;
+    double extent = 0;
+    for (int i = 0; i < 3; ++i) extent = std::max(extent, b.max[i] - b.min[i]);
+    const double vox = std::max(extent, 1e-3) / std::max(grid, 4);
+    // One empty voxel around the data: a ray's linear samples fade to zero
+    // inside the grid, and the skip distances have an outside to start from.
+    for (int i = 0; i < 3; ++i) {
+        v.dim[i] = int((b.max[i] - b.min[i]) / vox) + 3;
+        v.origin[i] = float(b.min[i] - vox);
+    }
+    v.voxel_mm = float(vox);
+    const std::size_t nvox = std::size_t(v.dim[0]) * v.dim[1] * v.dim[2];
+    // A uniform subsample by streamline hash above the budget, each
+    // streamline's weight scaled up to match.
+    const double keep = std::min(1.0, std::max(1.0, budget_points) / std::max(1.0, double(t.nb_vertices())));
+    const std::uint64_t cut = keep >= 1.0 ? std::numeric_limits<std::uint64_t>::max() : std::uint64_t(keep * 18446744073709551615.0);
+    const float weight = float(1.0 / keep);
+    const float *P = t.positions.data();
+    const std::size_t stride = per_vertex_stride(d);
+    const double inv = 1.0 / vox;
+    auto voxel_of = [&](float x, float y, float z) -> std::size_t {
+        const double f[3] = {(x - v.origin[0]) * inv, (y - v.origin[1]) * inv, (z - v.origin[2]) * inv};
+        int c[3];
+        for (int i = 0; i < 3; ++i) {
+            if (!(f[i] >= 0 && f[i] < v.dim[i])) return SIZE_MAX;
+            c[i] = int(f[i]);
+        }
+        return (std::size_t(c[2]) * v.dim[1] + c[1]) * v.dim[0] + c[0];
+    };
+    // Per voxel: length, length x colour (3), length x t t^T (6).
+    constexpr int kAcc = 10;
+    const unsigned parts = std::max(1u, std::min<unsigned>(threads, unsigned(std::min<std::uint64_t>(N, 64))));
+    std::vector<std::vector<float>> acc(parts);
+    parallel_ranges(parts, 1, [&](std::uint64_t p0, std::uint64_t p1) {
+        for (std::uint64_t part = p0; part < p1; ++part) {
+            std::vector<float> &a = acc[part];
+            a.assign(nvox * kAcc, 0.0f);
+            const std::uint64_t s0 = N * part / parts, s1 = N * (part + 1) / parts;
+            for (std::uint64_t s = s0; s < s1; ++s) {
+                if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return;
+                if (streamline_hash(s) >= cut) continue;
+                const std::uint64_t sb = t.begin(s), e = t.end(s);
+                if (e - sb < 2) continue;
+                const StreamlineColour sc = streamline_colour(d, s);
+                for (std::uint64_t i = sb; i + 1 < e; ++i) {
+                    const float *p = P + i * 3, *q = p + 3;
+                    float tx = q[0] - p[0], ty = q[1] - p[1], tz = q[2] - p[2];
+                    const float len = std::sqrt(tx * tx + ty * ty + tz * tz);
+                    if (!(len > 0) || !std::isfinite(len)) continue;
+                    const std::size_t k = voxel_of(0.5f * (p[0] + q[0]), 0.5f * (p[1] + q[1]), 0.5f * (p[2] + q[2]));
+                    if (k >= nvox) continue;
+                    tx /= len, ty /= len, tz /= len;
+                    const std::array<std::uint8_t, 4> col = point_colour(d, sc, i, stride, tx, ty, tz);
+                    const float w = len * weight, wc = w * (1.0f / 255.0f);
+                    float *o = a.data() + k * kAcc;
+                    o[0] += w;
+                    o[1] += wc * col[0], o[2] += wc * col[1], o[3] += wc * col[2];
+                    o[4] += w * tx * tx, o[5] += w * ty * ty, o[6] += w * tz * tz;
+                    o[7] += w * tx * ty, o[8] += w * tx * tz, o[9] += w * ty * tz;
+                }
+            }
+        }
+    });
+    if (cancel) return v;
+    for (unsigned part = 1; part < parts; ++part) {
+        for (std::size_t k = 0; k < nvox * kAcc; ++k) acc[0][k] += acc[part][k];
+        std::vector<float>().swap(acc[part]);
+    }
+    const std::vector<float> &a = acc[0];
+    v.colour_density.assign(nvox * 4, 0.0f);
+    v.tangent_skip.assign(nvox * 4, 0);
+    const double inv_volume = 1.0 / (vox * vox * vox);
+    std::vector<std::uint32_t> queue;
+    for (std::size_t k = 0; k < nvox; ++k) {
+        const float *o = a.data() + k * kAcc;
+        std::uint8_t *ts = v.tangent_skip.data() + k * 4;
+        if (!(o[0] > 0)) {
+            ts[0] = ts[1] = ts[2] = 128, ts[3] = 255;
+            continue;
+        }
+        const float density = float(o[0] * inv_volume);
+        for (int c = 0; c < 3; ++c) v.colour_density[k * 4 + c] = o[1 + c] / o[0] * density;
+        v.colour_density[k * 4 + 3] = density;
+        // The main direction: power iteration on the mean of t t^T, from
+        // the axis it is largest along.
+        const double m[3][3] = {{o[4], o[7], o[8]}, {o[7], o[5], o[9]}, {o[8], o[9], o[6]}};
+        const int big = o[4] >= o[5] && o[4] >= o[6] ? 0 : o[5] >= o[6] ? 1 : 2;
+        double e[3] = {0, 0, 0};
+        e[big] = 1;
+        for (int it = 0; it < 12; ++it) {
+            double f[3];
+            for (int r = 0; r < 3; ++r) f[r] = m[r][0] * e[0] + m[r][1] * e[1] + m[r][2] * e[2];
+            const double n = std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+            if (!(n > 0)) break;
+            for (int r = 0; r < 3; ++r) e[r] = f[r] / n;
+        }
+        // One sign for neighbours along a bundle (its largest component
+        // positive): the GPU filters directions between voxels.
+        const int top = std::abs(e[0]) >= std::abs(e[1]) && std::abs(e[0]) >= std::abs(e[2]) ? 0 : std::abs(e[1]) >= std::abs(e[2]) ? 1 : 2;
+        if (e[top] < 0) e[0] = -e[0], e[1] = -e[1], e[2] = -e[2];
+        for (int c = 0; c < 3; ++c) ts[c] = std::uint8_t(std::lround(std::clamp(e[c], -1.0, 1.0) * 127.5 + 127.5));
+        ts[3] = 0;
+        queue.push_back(std::uint32_t(k));
+    }
+    std::vector<float>().swap(acc[0]);
+    // Chebyshev distances to the voxels with streamlines: breadth first,
+    // 26-connected, from all of them at once.
+    const std::size_t sy = std::size_t(v.dim[0]), sz = sy * v.dim[1];
+    for (std::size_t q = 0; q < queue.size(); ++q) {
+        const std::size_t k = queue[q];
+        const int x = int(k % sy), y = int(k / sy % v.dim[1]), z = int(k / sz);
+        const std::uint8_t dk = v.tangent_skip[k * 4 + 3];
+        if (dk >= 254) continue;
+        for (int dz = -1; dz <= 1; ++dz)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const int X = x + dx, Y = y + dy, Z = z + dz;
+                    if (X < 0 || Y < 0 || Z < 0 || X >= v.dim[0] || Y >= v.dim[1] || Z >= v.dim[2]) continue;
+                    const std::size_t n = std::size_t(Z) * sz + std::size_t(Y) * sy + std::size_t(X);
+                    if (v.tangent_skip[n * 4 + 3] != 255 || v.colour_density[n * 4 + 3] > 0) continue;
+                    v.tangent_skip[n * 4 + 3] = std::uint8_t(dk + 1);
+                    queue.push_back(std::uint32_t(n));
+                }
+    }
+    return v;
 }
 
 }  // namespace hz::core::render

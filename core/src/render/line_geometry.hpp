@@ -94,6 +94,37 @@ void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::u
 // partial, once `cancel` is set. Touches nothing but its arguments.
 void slab_crossings(const LineData &d, int axis, double centre, std::uint64_t a, std::uint64_t b, std::vector<LineVertex> &out,
                     const std::atomic<bool> *cancel);
+// The fibre volume: the level-of-detail proxy of a dense tractogram as a
+// participating medium. Lines thinner than a pixel and too many to draw are,
+// seen from a distance, a cloud: each voxel keeps how much streamline passes
+// through it (mm per mm^3), their mean colour and their main direction, and
+// a ray through the voxels composites them front to back, each voxel as
+// opaque as its lines would cover of a pixel (1 - exp(-density x line width
+// x step)). That is the picture the full frame shows once averaged over a few
+// pixels, at any camera, for the cost of a pass over the picture.
+struct FibreVolume {
+    std::array<int, 3> dim{};        // voxels along x, y, z
+    std::array<float, 3> origin{};   // the corner of voxel (0, 0, 0), RAS+ mm
+    float voxel_mm = 1;              // edge of a voxel
+    // Per voxel (x fastest): linear r, g, b times the density, and the
+    // density (mm of streamline per mm^3): premultiplied, so that linear
+    // filtering between a full voxel and an empty one keeps the colour.
+    std::vector<float> colour_density;
+    // Per voxel: the main direction of its streamlines (the principal
+    // eigenvector of the mean of t t^T; sign-free) as x * 127.5 + 127.5,
+    // and the Chebyshev distance to the nearest voxel with streamlines,
+    // capped at 255 (0 in a voxel with streamlines): a ray skips empty space.
+    std::vector<std::uint8_t> tangent_skip;
+    bool empty() const { return colour_density.empty(); }
+};
+// The fibre volume of `d` (every streamline: all of them read when they hold
+// at most `budget_points` points, else a uniform subsample by streamline
+// hash, weighted up), on a grid of `grid` voxels along the longest side of
+// bounds `b` (which must hold every point). Runs on up to `threads` threads
+// (each with a grid of its own: about 40 bytes per voxel). Empty when
+// `cancel` is set. Touches nothing but its arguments.
+FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double budget_points, unsigned threads,
+                         const std::atomic<bool> &cancel);
 // Chunks of at most kChunkPoints input points over streamlines [0, n) (or
 // over pieces[0..n)).
 std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::uint64_t n);

@@ -14,7 +14,7 @@
 
 namespace hz::core::render {
 
-enum class ProgramGeom { Mesh, Tube, Line, Point };
+enum class ProgramGeom { Mesh, Tube, Line, Point, Volume };
 enum class ProgramOutput { Hdr, Display, Debug };
 
 // What a fragment program depends on.

@@ -223,6 +223,10 @@ struct Renderer::Impl {
         release_crossings(o.crossings);
         release_chunks(o.chunks);
         release_chunks(o.proxy_chunks);
+        if (o.fibre_cancel) *o.fibre_cancel = true;
+        if (o.fibre_job.valid()) o.fibre_job.wait(), o.fibre_job = {};
+        if (o.fibre_tex[0]) glDeleteTextures(2, o.fibre_tex);
+        o.fibre_tex[0] = o.fibre_tex[1] = 0;
         if (o.vao) glDeleteVertexArrays(1, &o.vao);
         if (o.vbo) glDeleteBuffers(1, &o.vbo);
         if (o.ebo) glDeleteBuffers(1, &o.ebo);
@@ -359,6 +363,12 @@ struct Renderer::Impl {
         if (!slot) slot = get_program(g, out, Geom::Point);
         return *slot;
     }
+    // The program of tractogram `g`'s fibre volume.
+    Program &volume_program_for(const GpuObject &g, Output out) {
+        Program *&slot = g.volume_programs[int(out)];
+        if (!slot) slot = get_program(g, out, Geom::Volume);
+        return *slot;
+    }
 
     void clear_objects() {
         for (auto &o : objects) release(o);
@@ -423,6 +433,7 @@ struct Renderer::Impl {
         g.albedo = albedo;
         g.program = g.display_program = g.debug_program = nullptr;
         std::fill(std::begin(g.point_programs), std::end(g.point_programs), nullptr);
+        std::fill(std::begin(g.volume_programs), std::end(g.volume_programs), nullptr);
         // Compile now (errors surface here) for the output it will most
         // likely be drawn with.
         program_for(g, display_direct ? Output::Display : Output::Hdr);
@@ -433,8 +444,9 @@ struct Renderer::Impl {
         f.shader = g.shader;
         f.geom = geom == Geom::Mesh    ? ProgramGeom::Mesh
                  : geom == Geom::Tube  ? ProgramGeom::Tube
-                 : geom == Geom::Point ? ProgramGeom::Point
-                                       : ProgramGeom::Line;
+                 : geom == Geom::Point  ? ProgramGeom::Point
+                 : geom == Geom::Volume ? ProgramGeom::Volume
+                                        : ProgramGeom::Line;
         // (A crossing is drawn as a small sphere: shaded as a surface where
         // the shader can.)
         f.line_domain = g.use_line_domain && !(geom == Geom::Point && (g.shader->shader()->domains & HZ_SHADE_SURFACE));
@@ -461,6 +473,8 @@ struct Renderer::Impl {
             stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kMeshVS, what + " (mesh vertex stage)"));
         else if (geom == Geom::Point)
             stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kPointVS, what + " (slab point vertex stage)"));
+        else if (geom == Geom::Volume)
+            stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kVolumeVS, what + " (fibre volume vertex stage)"));
         else if (geom == Geom::Line)
             stages.push_back(compile_shader(GL_VERTEX_SHADER, glsl::kLineVS, what + " (line vertex stage)"));
         else {
@@ -700,6 +714,7 @@ struct Renderer::Impl {
                 g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod, cancel = g.shell_cancel,
                                                           all = settings.shell_all_cores] { return shell_proxy(t, b, lod, *cancel, all); });
             }
+            schedule_fibre_volume(g);
         }
         // Small objects are built now, in parallel (the draw lists are then
         // known: MSAA is chosen from the segment count); large ones chunk
@@ -742,6 +757,87 @@ struct Renderer::Impl {
             changed = true;
         }
         return changed;
+    }
+
+    // -------------------------------------------------------- fibre volume
+
+    // A tractogram's proxy is its fibre volume (once computed; not with a
+    // slab, which the volume does not crop).
+    bool volume_proxy(const GpuObject &g) const {
+        return settings.fibre_volume && g.has_fibre_volume() && !scene.slab && !composited(g);
+    }
+
+    // Starts computing the fibre volume of tractogram `g` on a background
+    // thread (settings.fibre_volume; objects with a level-of-detail proxy).
+    void schedule_fibre_volume(GpuObject &g) {
+        if (!settings.fibre_volume || !settings.shell_proxy || !g.has_lod_proxy() || !g.lines) return;
+        g.fibre_cancel = std::make_shared<std::atomic<bool>>(false);
+        const unsigned threads = settings.shell_all_cores ? std::max(1u, std::thread::hardware_concurrency()) : 1u;
+        g.fibre_job = std::async(std::launch::async, [d = g.lines, b = g.bounds, grid = settings.fibre_grid, cancel = g.fibre_cancel,
+                                                      threads] { return fibre_volume(*d, b, grid, kFibrePoints, threads, *cancel); });
+    }
+    // Points read into a fibre volume, at most (a uniform subsample of the
+    // streamlines above: the density and colours are means over many).
+    static constexpr double kFibrePoints = 64e6;
+    static constexpr double kFibreWidth = 0.5;
+
+    // Uploads the fibre volumes computed since the last call (all of them,
+    // waiting, with `wait`). True if one was adopted.
+    bool adopt_fibre_volumes(bool wait) {
+        bool changed = false;
+        for (GpuObject &g : objects) {
+            if (!g.fibre_job.valid()) continue;
+            if (!wait && g.fibre_job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
+            FibreVolume fv = g.fibre_job.get();
+            if (fv.empty()) continue;
+            if (g.fibre_tex[0]) glDeleteTextures(2, g.fibre_tex);
+            glGenTextures(2, g.fibre_tex);
+            const GLenum formats[2] = {GL_RGBA16F, GL_RGBA8};
+            for (int k = 0; k < 2; ++k) {
+                glBindTexture(GL_TEXTURE_3D, g.fibre_tex[k]);
+                glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+                glTexImage3D(GL_TEXTURE_3D, 0, GLint(formats[k]), fv.dim[0], fv.dim[1], fv.dim[2], 0, GL_RGBA,
+                             k == 0 ? GL_FLOAT : GL_UNSIGNED_BYTE,
+                             k == 0 ? static_cast<const void *>(fv.colour_density.data()) : fv.tangent_skip.data());
+                const GLint filter = GL_LINEAR;  // (the skip distances are fetched, unfiltered)
+                glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, filter);
+                glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, filter);
+                for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R}) glTexParameteri(GL_TEXTURE_3D, w, GL_CLAMP_TO_EDGE);
+            }
+            glBindTexture(GL_TEXTURE_3D, 0);
+            g.fibre_dim = fv.dim, g.fibre_origin = fv.origin, g.fibre_voxel_mm = fv.voxel_mm;
+            changed = true;
+        }
+        return changed;
+    }
+
+    // Draws g's fibre volume with its bound program `p` (uniforms set but
+    // the volume's): one triangle over the viewport, blended over what is
+    // drawn (each pixel as opaque as the streamlines it crosses would cover),
+    // writing the depth where the ray became half opaque.
+    void draw_fibre_volume(GpuObject &g, Program &p, const glm::dmat4 &inv_view_proj, const View &v, bool debug) {
+        glUniformMatrix4fv(p.loc("hz_inv_view_proj"), 1, GL_FALSE, glm::value_ptr(glm::mat4(inv_view_proj)));
+        glUniform3f(p.loc("hz_vol_origin"), g.fibre_origin[0], g.fibre_origin[1], g.fibre_origin[2]);
+        glUniform3f(p.loc("hz_vol_dim"), float(g.fibre_dim[0]), float(g.fibre_dim[1]), float(g.fibre_dim[2]));
+        glUniform1f(p.loc("hz_vol_voxel"), g.fibre_voxel_mm);
+        // The streamlines' lines are a pixel wide in the full-size frame;
+        // kFibreWidth of that (calibrated on the scale benchmark: the
+        // volume's colours are means over everything in a voxel, and a
+        // thinner medium lets the layers behind the outermost show through
+        // as the full frame's gaps between lines do).
+        const double full_h = std::max(1, frame_h);
+        glUniform1f(p.loc("hz_px_angle"), float(kFibreWidth * 2.0 * std::tan(glm::radians(double(v.fov_deg)) / 2) / full_h));
+        bind_sampler(p, "hz_vol_colour", 6, GL_TEXTURE_3D, g.fibre_tex[0]);
+        bind_sampler(p, "hz_vol_tangent", 7, GL_TEXTURE_3D, g.fibre_tex[1]);
+        if (!debug) {
+            glEnable(GL_BLEND);
+            glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+        }
+        glBindVertexArray(empty_vao);
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+        if (!debug) glDisable(GL_BLEND);
+        stats.proxy = true;
+        ++stats.volumes_drawn;
     }
 
     // ------------------------------------------------------ slab crossings
@@ -932,7 +1028,9 @@ struct Renderer::Impl {
     // Which of a tractogram's geometry draw_object draws: every chunk, the
     // level-of-detail proxy, or none (the program is bound and its uniforms
     // set for the caller to draw chunks itself).
-    enum class LinesPart { Full, Proxy, None };
+    // (Volume: the fibre volume, drawn before the proxy's lines; see
+    // volume_proxy.)
+    enum class LinesPart { Full, Proxy, Volume, None };
     // The part of a tractogram drawn in this frame: its proxy while
     // interacting (when it has one), else all of it.
     LinesPart part_for(const GpuObject &g) const { return interacting && lod_proxy(g) ? LinesPart::Proxy : LinesPart::Full; }
@@ -957,10 +1055,12 @@ struct Renderer::Impl {
             stats.triangles_drawn += g.triangles;
             return;
         }
-        // The slab's crossings stand for a tractogram's lines or tubes.
+        // The slab's crossings stand for a tractogram's lines or tubes; its
+        // fibre volume for its proxy.
         const bool points = g.geom != Geom::Mesh && crossing_mode();
+        const bool volume = lines == LinesPart::Volume;
         const Output out = debug ? Output::Debug : display_direct ? Output::Display : Output::Hdr;
-        Program &p = points ? point_program_for(g, out) : program_for(g, out);
+        Program &p = volume ? volume_program_for(g, out) : points ? point_program_for(g, out) : program_for(g, out);
         glUseProgram(p.id);
         glUniform1f(p.loc("hz_exposure"), float(scene.exposure));
         glUniformMatrix4fv(p.loc("hz_view_proj"), 1, GL_FALSE, glm::value_ptr(m.view_proj));
@@ -984,7 +1084,7 @@ struct Renderer::Impl {
             }
             glUniform4fv(p.loc("hz_clip"), 2, planes);
         }
-        set_clipping(g.geom != Geom::Mesh && !points && scene.slab.has_value());
+        set_clipping(g.geom != Geom::Mesh && !points && !volume && scene.slab.has_value());
         {
             const glm::mat3 rot(glm::vec3(m.right.x, m.up.x, m.back.x), glm::vec3(m.right.y, m.up.y, m.back.y),
                                 glm::vec3(m.right.z, m.up.z, m.back.z));
@@ -993,6 +1093,10 @@ struct Renderer::Impl {
         bind_lights(p, m, v, debug ? 1 : 8);
         bind_environment(p, !debug);
         set_material_uniforms(p, g);
+        if (volume) {
+            draw_fibre_volume(g, p, m.inv_view_proj, v, debug);
+            return;
+        }
         if (points) {
             if (lines == LinesPart::Full)
                 draw_crossings(g.crossings, 0, g.crossings.vaos.size());
@@ -1005,7 +1109,17 @@ struct Renderer::Impl {
             glDrawElements(GL_TRIANGLES, g.index_count, GL_UNSIGNED_INT, nullptr);
             stats.triangles_drawn += g.triangles;
         } else if (lines == LinesPart::Proxy) {
+            // Over the fibre volume, the shell's lines are what a full frame
+            // shows of the outermost streamlines, each covering 1/scale of
+            // the proxy's pixel it crosses (it is a full-size pixel wide).
+            const bool over = volume_proxy(g) && !debug;
+            if (over) {
+                glUniform1f(p.loc("hz_opacity"), float(o.opacity / std::max(1, settings.proxy_scale)));
+                glEnable(GL_BLEND);
+                glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+            }
             for (std::size_t k = 0; k < g.proxy_chunks.size(); ++k) draw_chunk(g, true, k);
+            if (over) glDisable(GL_BLEND);
         } else if (lines == LinesPart::Full) {
             for (std::size_t k = 0; k < g.chunks.size(); ++k) draw_chunk(g, false, k);
         }
@@ -1150,7 +1264,9 @@ struct Renderer::Impl {
                 later = true;
                 continue;
             }
-            draw_object(g, o, m, v, false, w, h, part_for(g));
+            const LinesPart part = part_for(g);
+            if (part == LinesPart::Proxy && volume_proxy(g)) draw_object(g, o, m, v, false, w, h, LinesPart::Volume);
+            draw_object(g, o, m, v, false, w, h, part);
         }
         if (later) {
             behind.ensure(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT);
@@ -1193,7 +1309,7 @@ struct Renderer::Impl {
 
     void reset_counters() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
-        stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = 0;
+        stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = stats.volumes_drawn = 0;
         stats.proxy = false;
         stats.refine_step = 0;
         stats.refine_remaining = 0;
@@ -1451,7 +1567,8 @@ void Renderer::set_interacting(bool on) { impl_->interacting = on; }
 
 bool Renderer::update_proxies(bool wait) {
     const bool crossings = impl_->adopt_crossings(wait);
-    return impl_->adopt_shell_proxies(wait) || crossings;
+    const bool volumes = impl_->adopt_fibre_volumes(wait);
+    return impl_->adopt_shell_proxies(wait) || crossings || volumes;
 }
 
 bool Renderer::computing() const { return impl_->computing_crossings(); }
@@ -1478,6 +1595,7 @@ void Renderer::set_bake_materials(bool bake) {
     for (GpuObject &g : I.objects) {
         g.program = g.display_program = g.debug_program = nullptr;
         std::fill(std::begin(g.point_programs), std::end(g.point_programs), nullptr);
+        std::fill(std::begin(g.volume_programs), std::end(g.volume_programs), nullptr);
     }
 }
 

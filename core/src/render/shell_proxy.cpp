@@ -9,15 +9,14 @@
 
 namespace hz::core::render {
 
-namespace {
-
-// SplitMix64's finaliser: a streamline's place in a uniform order.
-std::uint64_t hash_of(std::uint64_t s) {
+std::uint64_t streamline_hash(std::uint64_t s) {
     std::uint64_t z = (s + 1) * 0x9E3779B97F4A7C15ull;
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
     return z ^ (z >> 31);
 }
+
+namespace {
 
 std::uint32_t clamp_count(std::uint64_t n) { return std::uint32_t(std::min<std::uint64_t>(n, 0xFFFFFFFFu)); }
 
@@ -72,7 +71,7 @@ std::vector<Piece> uniform_proxy(const Tractogram &t, double budget_points) {
     const double keep = std::min(1.0, std::max(1.0, budget_points) / std::max<double>(1.0, double(t.nb_vertices())));
     const std::uint64_t cut = keep >= 1.0 ? std::numeric_limits<std::uint64_t>::max() : std::uint64_t(keep * 18446744073709551615.0);
     for (std::uint64_t s = 0; s < N; ++s)
-        if (hash_of(s) < cut) out.push_back({s, 0, clamp_count(t.size(s))});
+        if (streamline_hash(s) < cut) out.push_back({s, 0, clamp_count(t.size(s))});
     if (out.empty() && N) out.push_back({0, 0, clamp_count(t.size(0))});
     return out;
 }
@@ -202,7 +201,7 @@ std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budg
     if (last < 256) {
         std::vector<std::pair<std::uint64_t, std::uint64_t>> layer;  // (hash, s)
         for (std::uint64_t s = 0; s < N; ++s)
-            if (min_depth[s] == last && in_shell[s] >= 2) layer.emplace_back(hash_of(s), s);
+            if (min_depth[s] == last && in_shell[s] >= 2) layer.emplace_back(streamline_hash(s), s);
         std::sort(layer.begin(), layer.end());
         for (const auto &[h, s] : layer) {
             if (taken >= budget_points) break;

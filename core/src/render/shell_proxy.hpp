@@ -15,6 +15,10 @@ struct Piece {
     std::uint32_t first = 0, count = 0;
 };
 
+// A streamline's place in a uniform order (SplitMix64's finaliser of s + 1):
+// the hash by which the proxies take uniform subsamples.
+std::uint64_t streamline_hash(std::uint64_t s);
+
 // A uniform subsample: every whole streamline whose hash falls below
 // budget_points / nb_vertices (in expectation `budget_points` points, the same
 // density everywhere). Reads only the offsets: immediate at any size.

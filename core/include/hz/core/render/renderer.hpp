@@ -61,6 +61,12 @@ struct RenderSettings {
     // adopted by update_proxies().
     double lod_points = 2e5;
     bool shell_proxy = true;
+    // With shell_proxy: the fibre volume (a volume of the streamlines'
+    // density, mean colour and main direction, ray-marched at the proxy's
+    // size) replaces the shell's lines once computed in the background, where
+    // no slab is set. The shell's lines stay for the slab and until then.
+    bool fibre_volume = true;
+    int fibre_grid = 128;  // voxels along the longest side
     // The shell proxy computed on every core (render --preview waits for
     // it) or on one (a window keeps a core for its first frames).
     bool shell_all_cores = false;
@@ -99,6 +105,7 @@ struct FrameStats {
     std::uint64_t chunks_drawn = 0, streamed_points = 0;  // streamed: built for this frame, not kept
     std::uint64_t crossings_drawn = 0;                    // the slab's crossings drawn as points (Slab::points)
     std::uint64_t reprojected_points = 0;                 // a proxy frame: points of the last still drawn again (reproject)
+    std::uint64_t volumes_drawn = 0;                      // a proxy frame: tractograms drawn as their fibre volume
     bool proxy = false;                                   // a level-of-detail proxy was drawn
     int refine_step = 0;                                  // progressive: the step (0: a whole frame)
     std::uint64_t refine_remaining = 0;                   // progressive: chunks still to draw
