@@ -198,7 +198,10 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
             std::printf("  slab crossings drawn: %llu (where the streamlines cross the plane)\n", (unsigned long long)s.crossings_drawn);
         else if (s.points_total)
             std::printf("  streamline points drawn: %llu of %llu (decimated at %.2f px%s)\n", (unsigned long long)s.points_drawn,
-                        (unsigned long long)s.points_total, o.lod.lod_pixels, s.volumes_drawn ? "; the level-of-detail proxy over its fibre volume" : s.proxy ? "; the level-of-detail proxy" : "");
+                        (unsigned long long)s.points_total, o.lod.lod_pixels,
+                        s.volumes_drawn ? "; the level-of-detail proxy over its fibre volume"
+                        : s.proxy       ? "; the level-of-detail proxy"
+                                        : "");
     }
     return 0;
 }

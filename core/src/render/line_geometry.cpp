@@ -278,7 +278,6 @@ void slab_crossings(const LineData &d, int axis, double centre, std::uint64_t a,
     }
 }
 
-
 FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double budget_points, unsigned threads,
                          const std::atomic<bool> &cancel) {
     FibreVolume v;

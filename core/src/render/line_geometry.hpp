@@ -103,9 +103,9 @@ void slab_crossings(const LineData &d, int axis, double centre, std::uint64_t a,
 // x step)). That is the picture the full frame shows once averaged over a few
 // pixels, at any camera, for the cost of a pass over the picture.
 struct FibreVolume {
-    std::array<int, 3> dim{};        // voxels along x, y, z
-    std::array<float, 3> origin{};   // the corner of voxel (0, 0, 0), RAS+ mm
-    float voxel_mm = 1;              // edge of a voxel
+    std::array<int, 3> dim{};       // voxels along x, y, z
+    std::array<float, 3> origin{};  // the corner of voxel (0, 0, 0), RAS+ mm
+    float voxel_mm = 1;             // edge of a voxel
     // Per voxel (x fastest): linear r, g, b times the density, and the
     // density (mm of streamline per mm^3): premultiplied, so that linear
     // filtering between a full voxel and an empty one keeps the colour.

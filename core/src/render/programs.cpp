@@ -103,11 +103,11 @@ std::string fragment_program(const FragmentSpec &g) {
     if (!snippet) throw Error("shader '" + g.shader->info.id + "' gave no GLSL for this geometry");
     std::ostringstream s;
     s << "#version 410 core\n";
-    s << (g.geom == ProgramGeom::Mesh    ? "#define HZ_GEOM_MESH 1\n"
-          : g.geom == ProgramGeom::Tube  ? "#define HZ_GEOM_TUBE 1\n"
-          : g.geom == ProgramGeom::Point ? "#define HZ_GEOM_POINT 1\n"
+    s << (g.geom == ProgramGeom::Mesh     ? "#define HZ_GEOM_MESH 1\n"
+          : g.geom == ProgramGeom::Tube   ? "#define HZ_GEOM_TUBE 1\n"
+          : g.geom == ProgramGeom::Point  ? "#define HZ_GEOM_POINT 1\n"
           : g.geom == ProgramGeom::Volume ? "#define HZ_GEOM_VOLUME 1\n"
-                                         : "#define HZ_GEOM_LINE 1\n");
+                                          : "#define HZ_GEOM_LINE 1\n");
     s << (dom == HZ_SHADE_LINE ? "#define HZ_DOMAIN_LINE 1\n" : "#define HZ_DOMAIN_SURFACE 1\n");
     if (sh->output == HZ_SHADER_OUTPUT_BRDF) s << "#define HZ_OUTPUT_BRDF 1\n";
     if (sh->output == HZ_SHADER_OUTPUT_EMISSION) s << "#define HZ_OUTPUT_EMISSION 1\n";

@@ -442,8 +442,8 @@ struct Renderer::Impl {
     std::string fragment_source(const GpuObject &g, Output out, Geom geom) const {
         FragmentSpec f;
         f.shader = g.shader;
-        f.geom = geom == Geom::Mesh    ? ProgramGeom::Mesh
-                 : geom == Geom::Tube  ? ProgramGeom::Tube
+        f.geom = geom == Geom::Mesh     ? ProgramGeom::Mesh
+                 : geom == Geom::Tube   ? ProgramGeom::Tube
                  : geom == Geom::Point  ? ProgramGeom::Point
                  : geom == Geom::Volume ? ProgramGeom::Volume
                                         : ProgramGeom::Line;
@@ -763,9 +763,7 @@ struct Renderer::Impl {
 
     // A tractogram's proxy is its fibre volume (once computed; not with a
     // slab, which the volume does not crop).
-    bool volume_proxy(const GpuObject &g) const {
-        return settings.fibre_volume && g.has_fibre_volume() && !scene.slab && !composited(g);
-    }
+    bool volume_proxy(const GpuObject &g) const { return settings.fibre_volume && g.has_fibre_volume() && !scene.slab && !composited(g); }
 
     // Starts computing the fibre volume of tractogram `g` on a background
     // thread (settings.fibre_volume; objects with a level-of-detail proxy).
@@ -802,7 +800,8 @@ struct Renderer::Impl {
                 const GLint filter = GL_LINEAR;  // (the skip distances are fetched, unfiltered)
                 glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, filter);
                 glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, filter);
-                for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R}) glTexParameteri(GL_TEXTURE_3D, w, GL_CLAMP_TO_EDGE);
+                for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R})
+                    glTexParameteri(GL_TEXTURE_3D, w, GL_CLAMP_TO_EDGE);
             }
             glBindTexture(GL_TEXTURE_3D, 0);
             g.fibre_dim = fv.dim, g.fibre_origin = fv.origin, g.fibre_voxel_mm = fv.voxel_mm;
