@@ -68,23 +68,24 @@ TEST_CASE("fibre volume: density, colour, direction and skip distance of known l
     CHECK(v.colour_density[a * 4 + 0] == Approx(1.0f));
     CHECK(v.colour_density[a * 4 + 1] == Approx(0.0f).margin(1e-6));
     CHECK(v.colour_density[a * 4 + 2] == Approx(0.0f).margin(1e-6));
-    CHECK(int(v.tangent_skip[a * 4 + 0]) == 255);
-    CHECK(int(v.tangent_skip[a * 4 + 1]) == 128);
-    CHECK(int(v.tangent_skip[a * 4 + 2]) == 128);
-    CHECK(int(v.tangent_skip[a * 4 + 3]) == 0);
+    CHECK(int(v.direction[a * 4 + 0]) == 255);
+    CHECK(int(v.direction[a * 4 + 1]) == 128);
+    CHECK(int(v.direction[a * 4 + 2]) == 128);
+    CHECK(int(v.direction[a * 4 + 3]) == 255);  // all along it
+    CHECK(int(v.skip[a]) == 0);
     // Line 1: blue, along z.
     const std::size_t b = at(8, 8, 6);
     CHECK(v.colour_density[b * 4 + 3] == Approx(1.0f));
     CHECK(v.colour_density[b * 4 + 2] == Approx(1.0f));
     CHECK(v.colour_density[b * 4 + 0] == Approx(0.0f).margin(1e-6));
-    CHECK(int(v.tangent_skip[b * 4 + 2]) == 255);
-    CHECK(int(v.tangent_skip[b * 4 + 0]) == 128);
+    CHECK(int(v.direction[b * 4 + 2]) == 255);
+    CHECK(int(v.direction[b * 4 + 0]) == 128);
     // Empty voxels: no density, and their Chebyshev distance to line 0 or 1.
     const std::size_t e1 = at(5, 4, 4), e2 = at(5, 3, 5), e3 = at(0, 12, 0);
     CHECK(v.colour_density[e1 * 4 + 3] == 0.0f);
-    CHECK(int(v.tangent_skip[e1 * 4 + 3]) == 1);
-    CHECK(int(v.tangent_skip[e2 * 4 + 3]) == 2);
-    CHECK(int(v.tangent_skip[e3 * 4 + 3]) == 8);  // to line 1's (8, 8, 1): max(8, 4, 1)
+    CHECK(int(v.skip[e1]) == 1);
+    CHECK(int(v.skip[e2]) == 2);
+    CHECK(int(v.skip[e3]) == 8);  // to line 1's (8, 8, 1): max(8, 4, 1)
     // All the length is there: 19 segments of 0.5 mm each.
     double total = 0;
     for (std::size_t k = 0; k < v.colour_density.size() / 4; ++k) total += v.colour_density[k * 4 + 3];

@@ -54,7 +54,8 @@ uniform vec3 hz_vol_dim;           // voxels along x, y, z
 uniform float hz_vol_voxel;        // edge of a voxel, mm
 uniform float hz_px_angle;         // a full-size pixel's width per mm of distance
 uniform sampler3D hz_vol_colour;   // rgb x density, density (mm / mm^3)
-uniform sampler3D hz_vol_tangent;  // direction * 0.5 + 0.5, skip distance / 255
+uniform sampler3D hz_vol_tangent;  // direction * 0.5 + 0.5, how many run along it
+uniform sampler3D hz_vol_skip;     // the Chebyshev distance to a voxel with streamlines / 255
 vec3 v_pos;
 vec4 v_color;
 vec3 v_tangent;
@@ -70,36 +71,52 @@ void hz_vol_march(vec3 eye) {
     float step = 1.0 * hz_vol_voxel;
     float a_sum = 0.0;
     vec3 c_sum = vec3(0.0), t_sum = vec3(0.0);
+    float along_sum = 0.0;
     v_pos = eye + d * t;
     v_tangent = vec3(0.0, 0.0, 1.0);
     ivec3 top = ivec3(hz_vol_dim) - 1;
     for (int i = 0; i < 256 && t < t1 && a_sum < 0.95; ++i) {
         vec3 x = eye + d * t;
         vec3 g = (x - hz_vol_origin) / hz_vol_voxel;
-        vec4 ts = texelFetch(hz_vol_tangent, clamp(ivec3(g), ivec3(0), top), 0);
-        float skip = ts.a * 255.0;
+        float skip = texelFetch(hz_vol_skip, clamp(ivec3(g), ivec3(0), top), 0).r * 255.0;
         if (skip >= 3.0) {  // no streamline within skip - 1 voxels, nor in the samples' reach
             t += (skip - 2.0) * hz_vol_voxel;
             continue;
         }
-        vec4 cd = texture(hz_vol_colour, g / hz_vol_dim);
-        float a = 1.0 - exp(-cd.a * hz_px_angle * t * step);
+        vec3 uvw = g / hz_vol_dim;
+        vec4 cd = texture(hz_vol_colour, uvw);
+        vec4 ts = texture(hz_vol_tangent, uvw);
+        vec3 e = ts.xyz * (255.0 / 127.5) - 1.0;
+        // A line of length L at angle theta to the ray covers w L sin(theta):
+        // sin^2 averaged over the voxel's directions, taken as lambda along
+        // e and the rest spread evenly around it.
+        float ee = dot(e, e);
+        float c2 = ee > 1e-12 ? dot(e, d) * dot(e, d) / ee : 0.0;
+        float lambda = ts.a / 1.5 + 1.0 / 3.0;
+        float along = lambda * c2 + 0.5 * (1.0 - lambda) * (1.0 - c2);
+        float a = 1.0 - exp(-cd.a * hz_px_angle * t * step * sqrt(max(1.0 - along, 0.0)));
         if (a > 0.0) {
             if (a_sum < 0.5) v_pos = x;
             // The directions seen, weighted as the colours (filtered: a
             // block's lines, not one voxel's), each turned to agree with
             // the sum so far (a direction has no sign).
-            vec3 e = texture(hz_vol_tangent, g / hz_vol_dim).xyz * (255.0 / 127.5) - 1.0;
             t_sum += (1.0 - a_sum) * a * (dot(e, t_sum) < 0.0 ? -e : e);
             c_sum += (1.0 - a_sum) * a * cd.rgb / max(cd.a, 1e-20);
+            along_sum += (1.0 - a_sum) * a * along;
             a_sum += (1.0 - a_sum) * a;
         }
         t += step;
     }
     if (a_sum < 1.0 / 255.0) discard;
     v_color = vec4(c_sum / a_sum, 1.0);
-    float tt = dot(t_sum, t_sum);
-    v_tangent = tt > 1e-30 ? t_sum * inversesqrt(tt) : vec3(0.0, 0.0, 1.0);
+    // Shaded as one line: the mean direction's azimuth around the ray, at
+    // the mean inclination of the lines seen (the mean of directions
+    // spread around the ray points along it, which no line seen does).
+    vec3 across = t_sum - dot(t_sum, d) * d;
+    float aa = dot(across, across);
+    across = aa > 1e-20 ? across * inversesqrt(aa) : normalize(cross(d, abs(d.z) < 0.9 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0)));
+    float cos_in = sqrt(clamp(along_sum / a_sum, 0.0, 1.0));
+    v_tangent = cos_in * (dot(t_sum, d) < 0.0 ? -d : d) + sqrt(1.0 - cos_in * cos_in) * across;
     hz_vol_alpha = a_sum;
     vec4 clip = hz_view_proj * vec4(v_pos, 1.0);
     gl_FragDepth = clamp(0.5 * clip.z / clip.w + 0.5, 0.0, 1.0);

@@ -78,11 +78,11 @@ struct GpuObject {
     std::future<std::vector<LineVertex>> crossing_job;
     std::shared_ptr<std::atomic<bool>> crossing_cancel;
     // The fibre volume (line_geometry.hpp), computed on a background thread
-    // and kept as two 3D textures: colour x density (RGBA16F, linear
-    // filtering) and direction + skip distance (RGBA8, fetched).
+    // and kept as three 3D textures: colour x density (RGBA16F) and
+    // direction (RGBA8), filtered, and the skip distance (R8), fetched.
     std::future<FibreVolume> fibre_job;
     std::shared_ptr<std::atomic<bool>> fibre_cancel;
-    GLuint fibre_tex[2] = {0, 0};
+    GLuint fibre_tex[3] = {0, 0, 0};
     std::array<int, 3> fibre_dim{};
     std::array<float, 3> fibre_origin{};
     float fibre_voxel_mm = 0;

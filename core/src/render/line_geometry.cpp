@@ -353,14 +353,16 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
     }
     const std::vector<float> &a = acc[0];
     v.colour_density.assign(nvox * 4, 0.0f);
-    v.tangent_skip.assign(nvox * 4, 0);
+    v.direction.assign(nvox * 4, 0);
+    v.skip.assign(nvox, 0);
     const double inv_volume = 1.0 / (vox * vox * vox);
     std::vector<std::uint32_t> queue;
     for (std::size_t k = 0; k < nvox; ++k) {
         const float *o = a.data() + k * kAcc;
-        std::uint8_t *ts = v.tangent_skip.data() + k * 4;
+        std::uint8_t *ts = v.direction.data() + k * 4;
         if (!(o[0] > 0)) {
-            ts[0] = ts[1] = ts[2] = 128, ts[3] = 255;
+            ts[0] = ts[1] = ts[2] = 128, ts[3] = 0;
+            v.skip[k] = 255;
             continue;
         }
         const float density = float(o[0] * inv_volume);
@@ -384,7 +386,11 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
         const int top = std::abs(e[0]) >= std::abs(e[1]) && std::abs(e[0]) >= std::abs(e[2]) ? 0 : std::abs(e[1]) >= std::abs(e[2]) ? 1 : 2;
         if (e[top] < 0) e[0] = -e[0], e[1] = -e[1], e[2] = -e[2];
         for (int c = 0; c < 3; ++c) ts[c] = std::uint8_t(std::lround(std::clamp(e[c], -1.0, 1.0) * 127.5 + 127.5));
-        ts[3] = 0;
+        double lambda = 0;  // e^T M e / trace M
+        for (int r = 0; r < 3; ++r) lambda += e[r] * (m[r][0] * e[0] + m[r][1] * e[1] + m[r][2] * e[2]);
+        lambda /= std::max(1e-30, m[0][0] + m[1][1] + m[2][2]);
+        ts[3] = std::uint8_t(std::lround(std::clamp((lambda - 1.0 / 3.0) * 1.5, 0.0, 1.0) * 255.0));
+        v.skip[k] = 0;
         queue.push_back(std::uint32_t(k));
     }
     std::vector<float>().swap(acc[0]);
@@ -394,7 +400,7 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
     for (std::size_t q = 0; q < queue.size(); ++q) {
         const std::size_t k = queue[q];
         const int x = int(k % sy), y = int(k / sy % v.dim[1]), z = int(k / sz);
-        const std::uint8_t dk = v.tangent_skip[k * 4 + 3];
+        const std::uint8_t dk = v.skip[k];
         if (dk >= 254) continue;
         for (int dz = -1; dz <= 1; ++dz)
             for (int dy = -1; dy <= 1; ++dy)
@@ -402,8 +408,8 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
                     const int X = x + dx, Y = y + dy, Z = z + dz;
                     if (X < 0 || Y < 0 || Z < 0 || X >= v.dim[0] || Y >= v.dim[1] || Z >= v.dim[2]) continue;
                     const std::size_t n = std::size_t(Z) * sz + std::size_t(Y) * sy + std::size_t(X);
-                    if (v.tangent_skip[n * 4 + 3] != 255 || v.colour_density[n * 4 + 3] > 0) continue;
-                    v.tangent_skip[n * 4 + 3] = std::uint8_t(dk + 1);
+                    if (v.skip[n] != 255) continue;
+                    v.skip[n] = std::uint8_t(dk + 1);
                     queue.push_back(std::uint32_t(n));
                 }
     }

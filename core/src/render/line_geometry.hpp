@@ -110,11 +110,16 @@ struct FibreVolume {
     // density (mm of streamline per mm^3): premultiplied, so that linear
     // filtering between a full voxel and an empty one keeps the colour.
     std::vector<float> colour_density;
-    // Per voxel: the main direction of its streamlines (the principal
-    // eigenvector of the mean of t t^T; sign-free) as x * 127.5 + 127.5,
-    // and the Chebyshev distance to the nearest voxel with streamlines,
-    // capped at 255 (0 in a voxel with streamlines): a ray skips empty space.
-    std::vector<std::uint8_t> tangent_skip;
+    // Per voxel: the main direction of its streamlines, e (the principal
+    // eigenvector of the mean of t t^T, the sign that makes its largest
+    // component positive), as e * 127.5 + 127.5, and how many run along it,
+    // its eigenvalue (1/3: every direction alike; 1: all along e) as
+    // (lambda - 1/3) * 1.5 * 255. A ray sees lines along it end-on.
+    std::vector<std::uint8_t> direction;
+    // Per voxel: the Chebyshev distance to the nearest voxel with
+    // streamlines, capped at 255 (0 in a voxel with streamlines): a ray
+    // skips empty space.
+    std::vector<std::uint8_t> skip;
     bool empty() const { return colour_density.empty(); }
 };
 // The fibre volume of `d` (every streamline: all of them read when they hold

@@ -225,8 +225,8 @@ struct Renderer::Impl {
         release_chunks(o.proxy_chunks);
         if (o.fibre_cancel) *o.fibre_cancel = true;
         if (o.fibre_job.valid()) o.fibre_job.wait(), o.fibre_job = {};
-        if (o.fibre_tex[0]) glDeleteTextures(2, o.fibre_tex);
-        o.fibre_tex[0] = o.fibre_tex[1] = 0;
+        if (o.fibre_tex[0]) glDeleteTextures(3, o.fibre_tex);
+        o.fibre_tex[0] = o.fibre_tex[1] = o.fibre_tex[2] = 0;
         if (o.vao) glDeleteVertexArrays(1, &o.vao);
         if (o.vbo) glDeleteBuffers(1, &o.vbo);
         if (o.ebo) glDeleteBuffers(1, &o.ebo);
@@ -788,16 +788,18 @@ struct Renderer::Impl {
             if (!wait && g.fibre_job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
             FibreVolume fv = g.fibre_job.get();
             if (fv.empty()) continue;
-            if (g.fibre_tex[0]) glDeleteTextures(2, g.fibre_tex);
-            glGenTextures(2, g.fibre_tex);
-            const GLenum formats[2] = {GL_RGBA16F, GL_RGBA8};
-            for (int k = 0; k < 2; ++k) {
+            if (g.fibre_tex[0]) glDeleteTextures(3, g.fibre_tex);
+            glGenTextures(3, g.fibre_tex);
+            // colour x density (linear), direction (linear), skip (fetched)
+            const GLenum formats[3] = {GL_RGBA16F, GL_RGBA8, GL_R8};
+            const GLenum layouts[3] = {GL_RGBA, GL_RGBA, GL_RED};
+            const void *texels[3] = {fv.colour_density.data(), fv.direction.data(), fv.skip.data()};
+            for (int k = 0; k < 3; ++k) {
                 glBindTexture(GL_TEXTURE_3D, g.fibre_tex[k]);
                 glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-                glTexImage3D(GL_TEXTURE_3D, 0, GLint(formats[k]), fv.dim[0], fv.dim[1], fv.dim[2], 0, GL_RGBA,
-                             k == 0 ? GL_FLOAT : GL_UNSIGNED_BYTE,
-                             k == 0 ? static_cast<const void *>(fv.colour_density.data()) : fv.tangent_skip.data());
-                const GLint filter = GL_LINEAR;  // (the skip distances are fetched, unfiltered)
+                glTexImage3D(GL_TEXTURE_3D, 0, GLint(formats[k]), fv.dim[0], fv.dim[1], fv.dim[2], 0, layouts[k],
+                             k == 0 ? GL_FLOAT : GL_UNSIGNED_BYTE, texels[k]);
+                const GLint filter = k == 2 ? GL_NEAREST : GL_LINEAR;
                 glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, filter);
                 glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, filter);
                 for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R})
@@ -828,6 +830,7 @@ struct Renderer::Impl {
         glUniform1f(p.loc("hz_px_angle"), float(kFibreWidth * 2.0 * std::tan(glm::radians(double(v.fov_deg)) / 2) / full_h));
         bind_sampler(p, "hz_vol_colour", 6, GL_TEXTURE_3D, g.fibre_tex[0]);
         bind_sampler(p, "hz_vol_tangent", 7, GL_TEXTURE_3D, g.fibre_tex[1]);
+        bind_sampler(p, "hz_vol_skip", 8, GL_TEXTURE_3D, g.fibre_tex[2]);
         if (!debug) {
             glEnable(GL_BLEND);
             glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
