@@ -12,9 +12,9 @@ this machine (llvmpipe), at 1280x800:
 - `horizon render` at full detail, end to end, and `render --preview`;
 - the level-of-detail chart: the proxy's error against the full-detail frame
   from the same camera (SSIM of the 4x-downsampled luminance, bench/imgmetrics.py)
-  against its frame time, for both proxies (--lod-proxy shell, uniform) and
+  against its frame time, for the three proxies (--lod-proxy volume, shell, uniform) and
   several --lod-points and --lod-scale, and from other cameras.
-Prints a Markdown table and writes bench/results/scale.md and docs/lod_chart.png.
+Prints a Markdown table (kept in bench/results/scale.md) and writes docs/lod_chart.png.
 """
 import argparse
 import json
@@ -94,7 +94,7 @@ def main():
 
     ref = imgmetrics.downsample(load(os.path.join(work, "full.png")), 4)
     chart = []
-    for proxy in ("shell", "uniform"):
+    for proxy in ("volume", "shell", "uniform"):
         for scale in (2, 4):
             for pts in (2e5, 5e5, 1e6):
                 out = os.path.join(work, f"p_{proxy}_{scale}_{pts:g}.png")
@@ -106,19 +106,19 @@ def main():
     views = []
     for view in ("superior", "anterior"):
         f = render(horizon, tck, os.path.join(work, f"full_{view}.png"), "--view", view)
-        for proxy in ("shell", "uniform"):
+        for proxy in ("volume", "shell", "uniform"):
             render(horizon, tck, os.path.join(work, f"p_{view}_{proxy}.png"), "--view", view, "--preview", "--lod-proxy", proxy)
         r = imgmetrics.downsample(load(os.path.join(work, f"full_{view}.png")), 4)
         views.append((view, *(imgmetrics.ssim(r, imgmetrics.downsample(load(os.path.join(work, f"p_{view}_{p}.png")), 4))
-                              for p in ("shell", "uniform"))))
+                              for p in ("volume", "shell", "uniform"))))
     head = f"{args.streamlines} streamlines ({full['points_total'] / 1e6:.0f}M points), {SIZE}, {full['gl']}"
     lines = ["# Scale benchmark", "", head, "", "| measure | value |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]
     lines += ["", "Level of detail: the proxy (`render --preview`) against the full-detail frame, same camera (left).", "",
               "| --lod-proxy | --lod-scale | --lod-points | frame ms (fastest of 4) | SSIM, 4x downsampled | MAE, 4x downsampled |",
               "|---|---|---|---|---|---|"]
     lines += [f"| {x} | {s} | {p:g} | {ms:.1f} | {ss:.3f} | {ma:.1f} |" for x, s, p, ms, ss, ma in chart]
-    lines += ["", "Other cameras, default proxy settings: SSIM, 4x downsampled.", "", "| view | shell | uniform |", "|---|---|---|"]
-    lines += [f"| {v} | {a:.3f} | {b:.3f} |" for v, a, b in views]
+    lines += ["", "Other cameras, default proxy settings: SSIM, 4x downsampled.", "", "| view | volume | shell | uniform |", "|---|---|---|---|"]
+    lines += [f"| {v} | {a:.3f} | {b:.3f} | {c:.3f} |" for v, a, b, c in views]
     text = "\n".join(lines) + "\n"
     print(text)
     try:
@@ -126,7 +126,7 @@ def main():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         fig, ax = plt.subplots(figsize=(6, 4))
-        for proxy, mark in (("shell", "o-"), ("uniform", "s--")):
+        for proxy, mark in (("volume", "^-"), ("shell", "o-"), ("uniform", "s--")):
             for scale in (2, 4):
                 pts = [c for c in chart if c[0] == proxy and c[1] == scale]
                 ax.plot([c[3] for c in pts], [c[4] for c in pts], mark, label=f"{proxy} proxy at 1/{scale} size")

@@ -668,36 +668,45 @@ class WindowTest(TempDirTest):
         # Once a still image is complete, the frames drawn while the camera
         # moves draw it again from their camera (one point per 4x4 block at
         # its depth) under the proxy: closer to the still than the proxy
-        # alone; and not once the camera has turned more than 15 degrees.
+        # alone; and not once the camera has turned more than 15 degrees
+        # (3 over a fibre volume, which alone is closer to the still sooner).
         p = run("demo", "--out", self.path("d"), "--streamlines", "600", "--no-window", env=NO_DISPLAY, timeout=180)
         self.assertEqual(p.returncode, 0, p.stderr)
         env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
-        errors, reprojected = {}, {}
-        for mode in ("on", "off"):
-            script, stats = self.path(mode + ".txt"), self.path(mode + ".json")
-            with open(script, "w") as f:
-                # (0.008 rad per dragged pixel: 5 px 2.3 degrees, 45 px more 23 degrees in all)
-                f.write("\n".join(["wait 1", f"screenshot {self.path('rest.png')}", "moving on", "wait 1",
-                                   f"screenshot {self.path('m0_' + mode + '.png')}", "drag 240 160 245 160", "wait 1", "mark small",
-                                   "drag 245 160 290 160", "wait 1", "mark turned", "wait 2", "mark large", "moving off", "quit"]) + "\n")
-            p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--lod-points", "4000", "--lod-reproject",
-                          mode, "--script", script, "--stats", stats], env)
-            self.assertEqual(p.returncode, 0, p.stderr)
-            # (at a quarter of the size, as bench/ compares level-of-detail pictures: both are drawn at 1/4)
-            down = lambda a: a[:320 // 4 * 4, :480].reshape(80, 4, 120, 4, -1).mean(axis=(1, 3))
-            errors[mode] = np.mean(np.abs(down(load(self.path("m0_" + mode + ".png"))) - down(load(self.path("rest.png")))))
-            frames = json.load(open(stats))["frames"]
-            marks = [f["t"] for f in frames if f["kind"] == "mark"]
-            moving = [f for f in frames if f["kind"] == "moving"]
-            reprojected[mode] = ([f["reprojected"] for f in moving if f["t"] < marks[0]],
-                                 [f["reprojected"] for f in moving if marks[1] < f["t"] < marks[2]])
-        small, large = reprojected["on"]
-        self.assertTrue(small and all(r > 50 for r in small), small)
-        self.assertTrue(large and all(r == 0 for r in large), large)
-        self.assertTrue(all(r == 0 for r in reprojected["off"][0] + reprojected["off"][1]))
-        self.assertLess(errors["on"], 0.6 * errors["off"], errors)
+        errors, reprojected, volumes = {}, {}, {}
+        for proxy in ("shell", "volume"):
+            for mode in ("on", "off"):
+                script, stats = self.path(mode + ".txt"), self.path(mode + ".json")
+                with open(script, "w") as f:
+                    # (0.008 rad per dragged pixel: 5 px 2.3 degrees, 45 px more 23 degrees in all)
+                    f.write("\n".join(["wait 1", f"screenshot {self.path('rest.png')}", "moving on", "wait 1",
+                                       f"screenshot {self.path('m0_' + mode + '.png')}", "drag 240 160 245 160", "wait 1", "mark small",
+                                       "drag 245 160 290 160", "wait 1", "mark turned", "wait 2", "mark large", "moving off", "quit"]) + "\n")
+                p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--lod-points", "4000", "--lod-proxy", proxy,
+                              "--lod-reproject", mode, "--script", script, "--stats", stats], env)
+                self.assertEqual(p.returncode, 0, p.stderr)
+                # (at a quarter of the size, as bench/ compares level-of-detail pictures: both are drawn at 1/4)
+                down = lambda a: a[:320 // 4 * 4, :480].reshape(80, 4, 120, 4, -1).mean(axis=(1, 3))
+                errors[proxy, mode] = np.mean(np.abs(down(load(self.path("m0_" + mode + ".png"))) - down(load(self.path("rest.png")))))
+                frames = json.load(open(stats))["frames"]
+                marks = [f["t"] for f in frames if f["kind"] == "mark"]
+                moving = [f for f in frames if f["kind"] == "moving"]
+                reprojected[proxy, mode] = ([f["reprojected"] for f in moving if f["t"] < marks[0]],
+                                            [f["reprojected"] for f in moving if marks[1] < f["t"] < marks[2]])
+                volumes[proxy, mode] = [f["fibre_volumes"] for f in moving]
+            small, large = reprojected[proxy, "on"]
+            self.assertTrue(small and all(r > 50 for r in small), (proxy, small))
+            self.assertTrue(large and all(r == 0 for r in large), (proxy, large))
+            self.assertTrue(all(r == 0 for r in reprojected[proxy, "off"][0] + reprojected[proxy, "off"][1]))
+        # The fibre volume is drawn where asked (it is computed while the still refines).
+        self.assertTrue(all(n == 1 for n in volumes["volume", "on"] + volumes["volume", "off"]), volumes)
+        self.assertTrue(all(n == 0 for n in volumes["shell", "on"] + volumes["shell", "off"]), volumes)
+        # Measured: shell 3.6 against 12.3; volume 3.6 against 5.4 (the volume alone is much closer already).
+        self.assertLess(errors["shell", "on"], 0.6 * errors["shell", "off"], errors)
+        self.assertLess(errors["volume", "on"], 0.85 * errors["volume", "off"], errors)
+        self.assertLess(errors["volume", "off"], 0.7 * errors["shell", "off"], errors)
 
     def test_idle_window_draws_nothing(self):
         # Once the still image is complete, a window with no input draws no

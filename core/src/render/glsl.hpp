@@ -68,20 +68,25 @@ void hz_vol_march(vec3 eye) {
     vec3 tn = min(ta, tb), tf = max(ta, tb);
     float t = max(max(max(tn.x, tn.y), tn.z), 0.0);
     float t1 = min(min(tf.x, tf.y), tf.z);
-    float step = 1.0 * hz_vol_voxel;
+    float step = 1.5 * hz_vol_voxel;
     float a_sum = 0.0;
     vec3 c_sum = vec3(0.0), t_sum = vec3(0.0);
     float along_sum = 0.0;
     v_pos = eye + d * t;
     v_tangent = vec3(0.0, 0.0, 1.0);
     ivec3 top = ivec3(hz_vol_dim) - 1;
-    for (int i = 0; i < 256 && t < t1 && a_sum < 0.95; ++i) {
+    float inv_max = 1.0 / max(max(abs(d.x), abs(d.y)), abs(d.z));
+    for (int i = 0; i < 256 && t < t1 && a_sum < 0.9; ++i) {
         vec3 x = eye + d * t;
         vec3 g = (x - hz_vol_origin) / hz_vol_voxel;
-        float skip = texelFetch(hz_vol_skip, clamp(ivec3(g), ivec3(0), top), 0).r * 255.0;
-        if (skip >= 3.0) {  // no streamline within skip - 1 voxels, nor in the samples' reach
-            t += (skip - 2.0) * hz_vol_voxel;
-            continue;
+        // Until the first streamlines: empty space skipped by its distance
+        // to them (none within skip - 1 voxels, nor in the samples' reach).
+        if (a_sum == 0.0) {
+            float skip = texelFetch(hz_vol_skip, clamp(ivec3(g), ivec3(0), top), 0).r * 255.0;
+            if (skip >= 3.0) {  // (a Chebyshev distance: along the ray, 1 / max |d_i| times farther)
+                t += (skip - 2.0) * hz_vol_voxel * inv_max;
+                continue;
+            }
         }
         vec3 uvw = g / hz_vol_dim;
         vec4 cd = texture(hz_vol_colour, uvw);

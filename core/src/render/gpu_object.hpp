@@ -70,7 +70,12 @@ struct GpuObject {
     std::shared_ptr<LineData> lines;
     std::vector<LineChunk> chunks, proxy_chunks;
     std::shared_ptr<const std::vector<Piece>> proxy;  // what the proxy draws
-    std::future<std::vector<Piece>> shell;            // the shell proxy, being computed
+    // Over a fibre volume the proxy's lines are half of them (the runs of
+    // the streamlines in the lower half of the hash order): `proxy` is
+    // `lines_over` then, else `lines_alone`.
+    std::shared_ptr<const std::vector<Piece>> lines_alone, lines_over;
+    bool proxy_over = false;
+    std::future<std::vector<Piece>> shell;  // the shell proxy, being computed
     std::shared_ptr<std::atomic<bool>> shell_cancel;
     // The slab's crossings: those drawn, and those being computed on a
     // background thread for the plane and colouring in `crossing_next`.

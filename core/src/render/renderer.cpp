@@ -707,7 +707,8 @@ struct Renderer::Impl {
         g.bounds = !o.data.bounds.empty ? o.data.bounds : bounds_of(t.positions.data(), t.nb_stored());
         const double lod = std::max(1.0, settings.lod_points);
         if (double(g.points_total) > lod) {
-            g.proxy = std::make_shared<const std::vector<Piece>>(uniform_proxy(t, lod));
+            set_proxy_lines(g, uniform_proxy(t, lod));
+            g.proxy = g.lines_alone;
             g.proxy_chunks = partition(t, g.proxy->data(), g.proxy->size());
             if (settings.shell_proxy) {
                 g.shell_cancel = std::make_shared<std::atomic<bool>>(false);
@@ -741,6 +742,36 @@ struct Renderer::Impl {
         }
     }
 
+    // The proxy's lines alone and over a fibre volume: there the first half
+    // of its points (the pieces come outermost first, or in hash order: the
+    // shell or uniform subsample of half the budget), which keeps the frame
+    // within its time with the volume's pass.
+    void set_proxy_lines(GpuObject &g, std::vector<Piece> pieces) {
+        std::vector<Piece> over;
+        if (settings.fibre_volume) {
+            std::uint64_t total = 0, taken = 0;
+            for (const Piece &p : pieces) total += p.count;
+            for (const Piece &p : pieces) {
+                if (2 * taken >= total) break;
+                over.push_back(p);
+                taken += p.count;
+            }
+        }
+        g.lines_alone = std::make_shared<const std::vector<Piece>>(std::move(pieces));
+        g.lines_over = over.empty() ? g.lines_alone : std::make_shared<const std::vector<Piece>>(std::move(over));
+    }
+    // Draws over g's fibre volume the lines meant for it, or the others
+    // once the volume is not drawn (a slab, a translucent material).
+    void sync_proxy_lines(GpuObject &g) {
+        const bool over = volume_proxy(g);
+        if (over == g.proxy_over || !g.lines_alone) return;
+        release_chunks(g.proxy_chunks);
+        g.proxy_over = over;
+        g.proxy = over ? g.lines_over : g.lines_alone;
+        g.proxy_chunks = partition(scene.objects[g.index].data.tractogram, g.proxy->data(), g.proxy->size());
+        build_proxy(g);
+    }
+
     // Replaces uniform proxies by their shell proxies where these are
     // computed (or, with `wait`, once they are). True if one changed.
     bool adopt_shell_proxies(bool wait) {
@@ -751,7 +782,8 @@ struct Renderer::Impl {
             std::vector<Piece> pieces = g.shell.get();
             if (pieces.empty()) continue;
             release_chunks(g.proxy_chunks);
-            g.proxy = std::make_shared<const std::vector<Piece>>(std::move(pieces));
+            set_proxy_lines(g, std::move(pieces));
+            g.proxy = g.proxy_over ? g.lines_over : g.lines_alone;
             g.proxy_chunks = partition(scene.objects[g.index].data.tractogram, g.proxy->data(), g.proxy->size());
             build_proxy(g);
             changed = true;
@@ -816,8 +848,9 @@ struct Renderer::Impl {
     // the volume's): one triangle over the viewport, blended over what is
     // drawn (each pixel as opaque as the streamlines it crosses would cover),
     // writing the depth where the ray became half opaque.
-    void draw_fibre_volume(GpuObject &g, Program &p, const glm::dmat4 &inv_view_proj, const View &v, bool debug) {
-        glUniformMatrix4fv(p.loc("hz_inv_view_proj"), 1, GL_FALSE, glm::value_ptr(glm::mat4(inv_view_proj)));
+    template <class M>
+    void draw_fibre_volume(GpuObject &g, Program &p, const M &m, const View &v, bool debug, int w, int h) {
+        glUniformMatrix4fv(p.loc("hz_inv_view_proj"), 1, GL_FALSE, glm::value_ptr(glm::mat4(m.inv_view_proj)));
         glUniform3f(p.loc("hz_vol_origin"), g.fibre_origin[0], g.fibre_origin[1], g.fibre_origin[2]);
         glUniform3f(p.loc("hz_vol_dim"), float(g.fibre_dim[0]), float(g.fibre_dim[1]), float(g.fibre_dim[2]));
         glUniform1f(p.loc("hz_vol_voxel"), g.fibre_voxel_mm);
@@ -835,8 +868,29 @@ struct Renderer::Impl {
             glEnable(GL_BLEND);
             glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
         }
-        glBindVertexArray(empty_vao);
-        glDrawArrays(GL_TRIANGLES, 0, 3);
+        // Only the pixels the grid's box covers march (the box's corners
+        // projected; all of them when one is behind the eye).
+        bool all = false;
+        glm::dvec2 lo(1e30), hi(-1e30);
+        for (int c = 0; c < 8 && !all; ++c) {
+            glm::dvec4 x(0, 0, 0, 1);
+            for (int i = 0; i < 3; ++i) x[i] = g.fibre_origin[i] + ((c >> i) & 1) * double(g.fibre_dim[i]) * g.fibre_voxel_mm;
+            const glm::dvec4 q = glm::dmat4(m.view_proj) * x;
+            if (!(q.w > 1e-6)) all = true;
+            const glm::dvec2 n(q.x / q.w, q.y / q.w);
+            lo = glm::min(lo, n), hi = glm::max(hi, n);
+        }
+        const int x0 = all ? 0 : std::clamp(int(std::floor((lo.x * 0.5 + 0.5) * w)) - 1, 0, w);
+        const int x1 = all ? w : std::clamp(int(std::ceil((hi.x * 0.5 + 0.5) * w)) + 1, 0, w);
+        const int y0 = all ? 0 : std::clamp(int(std::floor((lo.y * 0.5 + 0.5) * h)) - 1, 0, h);
+        const int y1 = all ? h : std::clamp(int(std::ceil((hi.y * 0.5 + 0.5) * h)) + 1, 0, h);
+        if (x1 > x0 && y1 > y0) {
+            glEnable(GL_SCISSOR_TEST);
+            glScissor(x0, y0, x1 - x0, y1 - y0);
+            glBindVertexArray(empty_vao);
+            glDrawArrays(GL_TRIANGLES, 0, 3);
+            glDisable(GL_SCISSOR_TEST);
+        }
         if (!debug) glDisable(GL_BLEND);
         stats.proxy = true;
         ++stats.volumes_drawn;
@@ -1096,7 +1150,7 @@ struct Renderer::Impl {
         bind_environment(p, !debug);
         set_material_uniforms(p, g);
         if (volume) {
-            draw_fibre_volume(g, p, m.inv_view_proj, v, debug);
+            draw_fibre_volume(g, p, m, v, debug, w, h);
             return;
         }
         if (points) {
@@ -1244,6 +1298,15 @@ struct Renderer::Impl {
         glDisable(GL_CULL_FACE);
     }
 
+    // How far the camera may turn from the last still for it to be drawn
+    // again (Reprojection::usable): less when a tractogram's proxy is its
+    // fibre volume, which alone is closer to the full frame sooner.
+    double reprojection_turn_deg() const {
+        for (const auto &g : objects)
+            if (drawn(g.index) && volume_proxy(g)) return Reprojection::kMaxTurnOverVolumeDeg;
+        return Reprojection::kMaxTurnDeg;
+    }
+
     void draw_scene(const View &v, int w, int h) {
         const Matrices m = matrices(v, w, h);
         const GLuint target = begin_frame(w, h);
@@ -1251,7 +1314,7 @@ struct Renderer::Impl {
         // A proxy frame: the last complete still first, reprojected; the
         // proxy then fills what it did not see.
         if (out_ == &lowres && display_direct && settings.reproject &&
-            warp->usable(generation, frame_w, frame_h, to_dvec3(v.eye), to_dvec3(v.target))) {
+            warp->usable(generation, frame_w, frame_h, to_dvec3(v.eye), to_dvec3(v.target), reprojection_turn_deg())) {
             warp->draw(m.view_proj, to_dvec3(v.eye), 1.5, 2.0);
             stats.reprojected_points = warp->points();
             opaque_state();
@@ -1267,6 +1330,7 @@ struct Renderer::Impl {
                 continue;
             }
             const LinesPart part = part_for(g);
+            if (part == LinesPart::Proxy) sync_proxy_lines(g);
             if (part == LinesPart::Proxy && volume_proxy(g)) draw_object(g, o, m, v, false, w, h, LinesPart::Volume);
             draw_object(g, o, m, v, false, w, h, part);
         }

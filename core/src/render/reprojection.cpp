@@ -40,13 +40,14 @@ Reprojection::~Reprojection() {
 
 void Reprojection::clear() { valid_ = false; }
 
-bool Reprojection::usable(std::uint64_t generation, int w, int h, const glm::dvec3 &eye, const glm::dvec3 &target) const {
+bool Reprojection::usable(std::uint64_t generation, int w, int h, const glm::dvec3 &eye, const glm::dvec3 &target,
+                          double max_turn_deg) const {
     if (!valid_ || count_ == 0 || generation != generation_ || w != w_ || h != h_) return false;
     const glm::dvec3 a = eye_ - target_, b = eye - target;
     const double la = glm::length(a), lb = glm::length(b);
     if (!(la > 0) || !(lb > 0) || lb > 1.2 * la || lb < la / 1.2) return false;
     const double c = glm::dot(a, b) / (la * lb);
-    return c >= std::cos(glm::radians(kMaxTurnDeg));
+    return c >= std::cos(glm::radians(max_turn_deg));
 }
 
 void Reprojection::capture(GLuint colour_fbo, GLuint depth_fbo, int w, int h, const glm::dmat4 &inv_view_proj, int scale,

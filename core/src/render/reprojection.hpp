@@ -38,12 +38,13 @@ public:
     // Drops the capture (the scene changed).
     void clear();
     // A capture of this generation for pictures of w x h is there, taken
-    // from a camera near this one: its direction within kMaxTurnDeg and its
-    // distance within 20 %. (Beyond, measured on a 100k whole-brain
-    // tractogram, what the still's blocks show has moved so much that the
-    // proxy alone is closer to the full-detail picture.)
-    bool usable(std::uint64_t generation, int w, int h, const glm::dvec3 &eye, const glm::dvec3 &target) const;
-    static constexpr double kMaxTurnDeg = 15.0;
+    // from a camera near this one: its direction within `max_turn_deg` and
+    // its distance within 20 %. (Beyond, what the still's blocks show has
+    // moved so much that the proxy alone is closer to the full-detail
+    // picture: measured at 1M, bench/results/reproject.md, past about 15
+    // degrees for the shell proxy and past about 3 for the fibre volume.)
+    bool usable(std::uint64_t generation, int w, int h, const glm::dvec3 &eye, const glm::dvec3 &target, double max_turn_deg) const;
+    static constexpr double kMaxTurnDeg = 15.0, kMaxTurnOverVolumeDeg = 3.0;
     // Draws the points into the bound framebuffer (display values, depth
     // tested), `point_px` pixels across, each moved `lift_mm` towards `eye`
     // so that it wins over the proxy's lines on the same surface.

@@ -70,8 +70,11 @@ std::vector<Piece> uniform_proxy(const Tractogram &t, double budget_points) {
     const std::uint64_t N = t.nb_streamlines();
     const double keep = std::min(1.0, std::max(1.0, budget_points) / std::max<double>(1.0, double(t.nb_vertices())));
     const std::uint64_t cut = keep >= 1.0 ? std::numeric_limits<std::uint64_t>::max() : std::uint64_t(keep * 18446744073709551615.0);
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> order;  // (hash, s): any prefix is uniform too
     for (std::uint64_t s = 0; s < N; ++s)
-        if (streamline_hash(s) < cut) out.push_back({s, 0, clamp_count(t.size(s))});
+        if (const std::uint64_t h = streamline_hash(s); h < cut) order.emplace_back(h, s);
+    std::sort(order.begin(), order.end());
+    for (const auto &[h, s] : order) out.push_back({s, 0, clamp_count(t.size(s))});
     if (out.empty() && N) out.push_back({0, 0, clamp_count(t.size(0))});
     return out;
 }
@@ -210,13 +213,19 @@ std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budg
         }
     }
     std::vector<std::uint32_t>().swap(in_shell);
+    // In the order they were chosen (outermost layer first, by hash within a
+    // layer): any prefix is the shell of a smaller budget.
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> order;  // ((depth, hash), s)
+    for (std::uint64_t s = 0; s < N; ++s)
+        if (chosen[s]) order.emplace_back((std::uint64_t(min_depth[s]) << 56) | (streamline_hash(s) >> 8), s);
+    std::sort(order.begin(), order.end());
     std::vector<std::uint8_t>().swap(min_depth);
 
     // 4. The chosen streamlines' runs of at least two points in the shell.
     std::vector<Piece> out;
-    for (std::uint64_t s = 0; s < N; ++s) {
-        if (!chosen[s]) continue;
-        if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return {};
+    for (std::size_t o = 0; o < order.size(); ++o) {
+        const std::uint64_t s = order[o].second;
+        if ((o & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return {};
         const std::uint64_t sb = t.begin(s), se = t.end(s);
         std::uint64_t run = sb;
         for (std::uint64_t i = sb; i <= se; ++i) {

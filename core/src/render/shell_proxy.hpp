@@ -21,7 +21,7 @@ std::uint64_t streamline_hash(std::uint64_t s);
 
 // A uniform subsample: every whole streamline whose hash falls below
 // budget_points / nb_vertices (in expectation `budget_points` points, the same
-// density everywhere). Reads only the offsets: immediate at any size.
+// density everywhere), in hash order (a prefix is a uniform subsample too). Reads only the offsets: immediate at any size.
 std::vector<Piece> uniform_proxy(const Tractogram &t, double budget_points);
 
 // The shell proxy. Seen from outside, a whole-brain tractogram of a million
@@ -38,7 +38,8 @@ std::vector<Piece> uniform_proxy(const Tractogram &t, double budget_points);
 //   3. streamlines are taken in order of their smallest depth (ties broken by
 //      a hash: uniform within a layer), and of each only the runs of at least
 //      two points within `shell_voxels` of the outside, until `budget_points`
-//      points are taken.
+//      points are taken. The runs come in that order: a prefix is the shell
+//      of a smaller budget.
 // Reads every point twice, on every core (std::thread over streamline
 // ranges) with `all_cores`, else on the calling thread: meant for a
 // background thread. `cancel` is polled; when set the result is empty.
