@@ -124,12 +124,15 @@ std::optional<std::array<std::uint8_t, 4>> uniform_colour(const LineData &d) {
 // rgba8's quantisation of srgb_to_linear(|x|), x in [-1, 1], through a
 // table of 4097 entries (the direction colouring of every vertex).
 namespace {
-std::uint8_t direction_lut(float x) {
+const std::array<std::uint8_t, 4097> &direction_table() {
     static const auto table = [] {
         std::array<std::uint8_t, 4097> t{};
         for (int i = 0; i <= 4096; ++i) t[i] = rgba8(srgb_to_linear(i / 4096.0), 0, 0)[0];
         return t;
     }();
+    return table;
+}
+std::uint8_t direction_lut(float x, const std::array<std::uint8_t, 4097> &table = direction_table()) {
     return table[std::size_t(std::min(std::abs(x), 1.0f) * 4096.0f + 0.5f)];  // (lround, without the call)
 }
 
@@ -302,9 +305,9 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
     const float weight = float(1.0 / keep);
     const float *P = t.positions.data();
     const std::size_t stride = per_vertex_stride(d);
-    const double inv = 1.0 / vox;
+    const float inv = float(1.0 / vox);
     auto voxel_of = [&](float x, float y, float z) -> std::size_t {
-        const double f[3] = {(x - v.origin[0]) * inv, (y - v.origin[1]) * inv, (z - v.origin[2]) * inv};
+        const float f[3] = {(x - v.origin[0]) * inv, (y - v.origin[1]) * inv, (z - v.origin[2]) * inv};
         int c[3];
         for (int i = 0; i < 3; ++i) {
             if (!(f[i] >= 0 && f[i] < v.dim[i])) return SIZE_MAX;
@@ -312,6 +315,7 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
         }
         return (std::size_t(c[2]) * v.dim[1] + c[1]) * v.dim[0] + c[0];
     };
+    const std::array<std::uint8_t, 4097> &lut = direction_table();
     // Per voxel: length, length x colour (3), length x t t^T (6).
     constexpr int kAcc = 10;
     const unsigned parts = std::max(1u, std::min<unsigned>(threads, unsigned(std::min<std::uint64_t>(N, 64))));
@@ -327,22 +331,45 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
                 const std::uint64_t sb = t.begin(s), e = t.end(s);
                 if (e - sb < 2) continue;
                 const StreamlineColour sc = streamline_colour(d, s);
+                const bool plain_direction = d.mode == LineData::Mode::Direction && !(sc.highlight > 0);
+                // The grid is larger than the caches and a streamline wanders
+                // through it: consecutive segments in one voxel are summed
+                // here first, and the voxel a few segments ahead is
+                // prefetched (its sums are read and written next).
+                constexpr std::uint64_t kAhead = 8;
+                std::size_t cur = SIZE_MAX;
+                float sum[kAcc] = {};
+                auto flush = [&] {
+                    if (cur >= nvox) return;
+                    float *o = a.data() + cur * kAcc;
+                    for (int c = 0; c < kAcc; ++c) o[c] += sum[c], sum[c] = 0.0f;
+                };
                 for (std::uint64_t i = sb; i + 1 < e; ++i) {
+                    if (i + kAhead + 1 < e) {
+                        const float *f = P + (i + kAhead) * 3;
+                        if (const std::size_t ka = voxel_of(0.5f * (f[0] + f[3]), 0.5f * (f[1] + f[4]), 0.5f * (f[2] + f[5])); ka < nvox)
+                            __builtin_prefetch(a.data() + ka * kAcc, 1), __builtin_prefetch(a.data() + ka * kAcc + kAcc - 1, 1);
+                    }
                     const float *p = P + i * 3, *q = p + 3;
                     float tx = q[0] - p[0], ty = q[1] - p[1], tz = q[2] - p[2];
                     const float len = std::sqrt(tx * tx + ty * ty + tz * tz);
                     if (!(len > 0) || !std::isfinite(len)) continue;
                     const std::size_t k = voxel_of(0.5f * (p[0] + q[0]), 0.5f * (p[1] + q[1]), 0.5f * (p[2] + q[2]));
                     if (k >= nvox) continue;
+                    if (k != cur) flush(), cur = k;
                     tx /= len, ty /= len, tz /= len;
-                    const std::array<std::uint8_t, 4> col = point_colour(d, sc, i, stride, tx, ty, tz);
+                    // (the direction colouring without a highlight: its table, inline)
+                    const std::array<std::uint8_t, 4> col =
+                        plain_direction
+                            ? std::array<std::uint8_t, 4>{direction_lut(tx, lut), direction_lut(ty, lut), direction_lut(tz, lut), 255}
+                            : point_colour(d, sc, i, stride, tx, ty, tz);
                     const float w = len * weight, wc = w * (1.0f / 255.0f);
-                    float *o = a.data() + k * kAcc;
-                    o[0] += w;
-                    o[1] += wc * col[0], o[2] += wc * col[1], o[3] += wc * col[2];
-                    o[4] += w * tx * tx, o[5] += w * ty * ty, o[6] += w * tz * tz;
-                    o[7] += w * tx * ty, o[8] += w * tx * tz, o[9] += w * ty * tz;
+                    sum[0] += w;
+                    sum[1] += wc * col[0], sum[2] += wc * col[1], sum[3] += wc * col[2];
+                    sum[4] += w * tx * tx, sum[5] += w * ty * ty, sum[6] += w * tz * tz;
+                    sum[7] += w * tx * ty, sum[8] += w * tx * tz, sum[9] += w * ty * tz;
                 }
+                flush();
             }
         }
     });

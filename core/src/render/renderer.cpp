@@ -793,9 +793,12 @@ struct Renderer::Impl {
 
     // -------------------------------------------------------- fibre volume
 
-    // A tractogram's proxy is its fibre volume (once computed; not with a
-    // slab, which the volume does not crop).
-    bool volume_proxy(const GpuObject &g) const { return settings.fibre_volume && g.has_fibre_volume() && !scene.slab && !composited(g); }
+    // A tractogram's proxy is its fibre volume (once computed; for lines,
+    // which it models a pixel wide; not with a slab, which it does not crop,
+    // nor translucent).
+    bool volume_proxy(const GpuObject &g) const {
+        return settings.fibre_volume && g.has_fibre_volume() && g.geom == Geom::Line && !scene.slab && !composited(g);
+    }
 
     // Starts computing the fibre volume of tractogram `g` on a background
     // thread (settings.fibre_volume; objects with a level-of-detail proxy).
