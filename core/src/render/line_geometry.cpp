@@ -298,11 +298,13 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
     }
     v.voxel_mm = float(vox);
     const std::size_t nvox = std::size_t(v.dim[0]) * v.dim[1] * v.dim[2];
-    // A uniform subsample by streamline hash above the budget, each
-    // streamline's weight scaled up to match.
-    const double keep = std::min(1.0, std::max(1.0, budget_points) / std::max(1.0, double(t.nb_vertices())));
-    const std::uint64_t cut = keep >= 1.0 ? std::numeric_limits<std::uint64_t>::max() : std::uint64_t(keep * 18446744073709551615.0);
-    const float weight = float(1.0 / keep);
+    // Above the budget every `every`-th segment of every streamline (from an
+    // offset its hash picks), weighted `every`: all streamlines stand in
+    // every voxel (a subsample of whole streamlines leaves the colours
+    // noisier for the same work).
+    const std::uint64_t every =
+        std::max<std::uint64_t>(1, std::uint64_t(std::ceil(double(t.nb_vertices()) / std::max(1.0, budget_points))));
+    const float weight = float(every);
     const float *P = t.positions.data();
     const std::size_t stride = per_vertex_stride(d);
     const float inv = float(1.0 / vox);
@@ -327,7 +329,6 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
             const std::uint64_t s0 = N * part / parts, s1 = N * (part + 1) / parts;
             for (std::uint64_t s = s0; s < s1; ++s) {
                 if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return;
-                if (streamline_hash(s) >= cut) continue;
                 const std::uint64_t sb = t.begin(s), e = t.end(s);
                 if (e - sb < 2) continue;
                 const StreamlineColour sc = streamline_colour(d, s);
@@ -344,9 +345,9 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
                     float *o = a.data() + cur * kAcc;
                     for (int c = 0; c < kAcc; ++c) o[c] += sum[c], sum[c] = 0.0f;
                 };
-                for (std::uint64_t i = sb; i + 1 < e; ++i) {
-                    if (i + kAhead + 1 < e) {
-                        const float *f = P + (i + kAhead) * 3;
+                for (std::uint64_t i = sb + (every > 1 ? streamline_hash(s) % every : 0); i + 1 < e; i += every) {
+                    if (i + kAhead * every + 1 < e) {
+                        const float *f = P + (i + kAhead * every) * 3;
                         if (const std::size_t ka = voxel_of(0.5f * (f[0] + f[3]), 0.5f * (f[1] + f[4]), 0.5f * (f[2] + f[5])); ka < nvox)
                             __builtin_prefetch(a.data() + ka * kAcc, 1), __builtin_prefetch(a.data() + ka * kAcc + kAcc - 1, 1);
                     }

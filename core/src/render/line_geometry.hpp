@@ -122,9 +122,8 @@ struct FibreVolume {
     std::vector<std::uint8_t> skip;
     bool empty() const { return colour_density.empty(); }
 };
-// The fibre volume of `d` (every streamline: all of them read when they hold
-// at most `budget_points` points, else a uniform subsample by streamline
-// hash, weighted up), on a grid of `grid` voxels along the longest side of
+// The fibre volume of `d` (every segment of every streamline when they hold
+// at most `budget_points` points, else every k-th, weighted k), on a grid of `grid` voxels along the longest side of
 // bounds `b` (which must hold every point). Runs on up to `threads` threads
 // (each with a grid of its own: about 40 bytes per voxel). Empty when
 // `cancel` is set. Touches nothing but its arguments.
