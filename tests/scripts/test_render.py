@@ -676,6 +676,9 @@ class WindowTest(TempDirTest):
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
         errors, reprojected, volumes = {}, {}, {}
+        # (600 streamlines are drawn as tubes, which keep the shell; the fibre volume models lines)
+        with open(self.path("lines.json"), "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "file": self.path("d/phantom.tck"), "render": "lines"}]}, f)
         for proxy in ("shell", "volume"):
             for mode in ("on", "off"):
                 script, stats = self.path(mode + ".txt"), self.path(mode + ".json")
@@ -684,7 +687,8 @@ class WindowTest(TempDirTest):
                     f.write("\n".join(["wait 1", f"screenshot {self.path('rest.png')}", "moving on", "wait 1",
                                        f"screenshot {self.path('m0_' + mode + '.png')}", "drag 240 160 245 160", "wait 1", "mark small",
                                        "drag 245 160 290 160", "wait 1", "mark turned", "wait 2", "mark large", "moving off", "quit"]) + "\n")
-                p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--lod-points", "4000", "--lod-proxy", proxy,
+                data = self.path("d/phantom.tck") if proxy == "shell" else self.path("lines.json")
+                p = xvfb_run([HORIZON, "view", data, "--size", "480x320", "--lod-points", "4000", "--lod-proxy", proxy,
                               "--lod-reproject", mode, "--script", script, "--stats", stats], env)
                 self.assertEqual(p.returncode, 0, p.stderr)
                 # (at a quarter of the size, as bench/ compares level-of-detail pictures: both are drawn at 1/4)
@@ -703,10 +707,9 @@ class WindowTest(TempDirTest):
         # The fibre volume is drawn where asked (it is computed while the still refines).
         self.assertTrue(all(n == 1 for n in volumes["volume", "on"] + volumes["volume", "off"]), volumes)
         self.assertTrue(all(n == 0 for n in volumes["shell", "on"] + volumes["shell", "off"]), volumes)
-        # Measured: shell 3.6 against 12.3; volume 3.6 against 5.4 (the volume alone is much closer already).
+        # Measured: shell (tubes) 3.6 against 12.3; volume (lines) 3.7 against 5.5 (the volume alone is closer already).
         self.assertLess(errors["shell", "on"], 0.6 * errors["shell", "off"], errors)
         self.assertLess(errors["volume", "on"], 0.85 * errors["volume", "off"], errors)
-        self.assertLess(errors["volume", "off"], 0.7 * errors["shell", "off"], errors)
 
     def test_idle_window_draws_nothing(self):
         # Once the still image is complete, a window with no input draws no
