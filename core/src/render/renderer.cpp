@@ -32,6 +32,10 @@
 #include <cstring>
 #include <optional>
 #include <map>
+
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 #include <numeric>
 #include <set>
 #include <sstream>
@@ -182,6 +186,7 @@ std::array<double, 16> view_projection(const View &v, int width, int height) {
 // ==================================================================== Impl
 
 struct Renderer::Impl {
+    struct Matrices;  // (a frame's camera matrices; below)
     const Registry &reg;
     Scene scene;
     RenderSettings settings;
@@ -803,14 +808,21 @@ struct Renderer::Impl {
     // Starts computing the fibre volume of tractogram `g` on a background
     // thread (settings.fibre_volume; objects with a level-of-detail proxy).
     void schedule_fibre_volume(GpuObject &g) {
-        if (!settings.fibre_volume || !settings.shell_proxy || !g.has_lod_proxy() || !g.lines) return;
+        if (!settings.fibre_volume || !settings.shell_proxy || !g.has_lod_proxy() || !g.lines || g.geom != Geom::Line) return;
         g.fibre_cancel = std::make_shared<std::atomic<bool>>(false);
-        const unsigned threads = settings.shell_all_cores ? std::max(1u, std::thread::hardware_concurrency()) : 1u;
-        g.fibre_job = std::async(std::launch::async, [d = g.lines, b = g.bounds, grid = settings.fibre_grid, cancel = g.fibre_cancel,
-                                                      threads] { return fibre_volume(*d, b, grid, kFibrePoints, threads, *cancel); });
+        // (each thread sums into a grid of its own, 48 MB at 128 voxels: at most 4)
+        const unsigned threads = settings.shell_all_cores ? std::clamp(std::thread::hardware_concurrency(), 1u, 4u) : 1u;
+        g.fibre_job =
+            std::async(std::launch::async, [d = g.lines, b = g.bounds, grid = settings.fibre_grid, cancel = g.fibre_cancel, threads] {
+                // In a window (one thread) below the frames' priority: on two
+                // cores it slowed the moving frames beside it from 25 to 42 ms;
+                // the shell is the proxy until it is done.
+                if (threads == 1) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
+                return fibre_volume(*d, b, grid, kFibrePoints, threads, *cancel);
+            });
     }
-    // Points read into a fibre volume, at most (a uniform subsample of the
-    // streamlines above: the density and colours are means over many).
+    // Points read into a fibre volume, at most (above, every k-th segment of
+    // every streamline: the density and colours are means over many).
     static constexpr double kFibrePoints = 64e6;
     static constexpr double kFibreWidth = 0.5;
 
@@ -851,8 +863,7 @@ struct Renderer::Impl {
     // the volume's): one triangle over the viewport, blended over what is
     // drawn (each pixel as opaque as the streamlines it crosses would cover),
     // writing the depth where the ray became half opaque.
-    template <class M>
-    void draw_fibre_volume(GpuObject &g, Program &p, const M &m, const View &v, bool debug, int w, int h) {
+    void draw_fibre_volume(GpuObject &g, Program &p, const Matrices &m, const View &v, bool debug, int w, int h) {
         glUniformMatrix4fv(p.loc("hz_inv_view_proj"), 1, GL_FALSE, glm::value_ptr(glm::mat4(m.inv_view_proj)));
         glUniform3f(p.loc("hz_vol_origin"), g.fibre_origin[0], g.fibre_origin[1], g.fibre_origin[2]);
         glUniform3f(p.loc("hz_vol_dim"), float(g.fibre_dim[0]), float(g.fibre_dim[1]), float(g.fibre_dim[2]));
