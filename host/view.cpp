@@ -865,6 +865,9 @@ private:
                 std::string v;
                 cmd >> v;
                 app.force_moving = v == "on";
+                // (scripts are deterministic: the proxies computed in the
+                // background, the fibre volume's included, are there first)
+                if (app.force_moving) r.update_proxies(true);
             } else if (op == "mark") {  // mark NAME: a record in --stats between frames (benchmarks, tests)
                 std::string name;
                 cmd >> name;
