@@ -422,25 +422,8 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
         queue.push_back(std::uint32_t(k));
     }
     std::vector<float>().swap(acc[0]);
-    // Chebyshev distances to the voxels with streamlines: breadth first,
-    // 26-connected, from all of them at once.
-    const std::size_t sy = std::size_t(v.dim[0]), sz = sy * v.dim[1];
-    for (std::size_t q = 0; q < queue.size(); ++q) {
-        const std::size_t k = queue[q];
-        const int x = int(k % sy), y = int(k / sy % v.dim[1]), z = int(k / sz);
-        const std::uint8_t dk = v.skip[k];
-        if (dk >= 254) continue;
-        for (int dz = -1; dz <= 1; ++dz)
-            for (int dy = -1; dy <= 1; ++dy)
-                for (int dx = -1; dx <= 1; ++dx) {
-                    const int X = x + dx, Y = y + dy, Z = z + dz;
-                    if (X < 0 || Y < 0 || Z < 0 || X >= v.dim[0] || Y >= v.dim[1] || Z >= v.dim[2]) continue;
-                    const std::size_t n = std::size_t(Z) * sz + std::size_t(Y) * sy + std::size_t(X);
-                    if (v.skip[n] != 255) continue;
-                    v.skip[n] = std::uint8_t(dk + 1);
-                    queue.push_back(std::uint32_t(n));
-                }
-    }
+    // Chebyshev distances to the voxels with streamlines.
+    chebyshev_steps(v.dim, v.skip, std::move(queue));
     return v;
 }
 

@@ -16,6 +16,27 @@ std::uint64_t streamline_hash(std::uint64_t s) {
     return z ^ (z >> 31);
 }
 
+void chebyshev_steps(const std::array<int, 3> &dim, std::vector<std::uint8_t> &d, std::vector<std::uint32_t> queue) {
+    // (the queue holds distance 0, then 1, ... in order)
+    const std::size_t sy = std::size_t(dim[0]), sz = sy * dim[1];
+    for (std::size_t q = 0; q < queue.size(); ++q) {
+        const std::size_t k = queue[q];
+        const int x = int(k % sy), y = int(k / sy % dim[1]), z = int(k / sz);
+        const std::uint8_t dk = d[k];
+        if (dk >= 254) continue;
+        for (int dz = -1; dz <= 1; ++dz)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const int X = x + dx, Y = y + dy, Z = z + dz;
+                    if (X < 0 || Y < 0 || Z < 0 || X >= dim[0] || Y >= dim[1] || Z >= dim[2]) continue;
+                    const std::size_t n = std::size_t(Z) * sz + std::size_t(Y) * sy + std::size_t(X);
+                    if (d[n] != 255) continue;
+                    d[n] = std::uint8_t(dk + 1);
+                    queue.push_back(std::uint32_t(n));
+                }
+    }
+}
+
 namespace {
 
 std::uint32_t clamp_count(std::uint64_t n) { return std::uint32_t(std::min<std::uint64_t>(n, 0xFFFFFFFFu)); }
@@ -147,25 +168,8 @@ std::vector<Piece> shell_proxy(const Tractogram &t, const Bounds &b, double budg
         if (z > 0) push_outside(x, y, z - 1);
         if (z + 1 < g.dim[2]) push_outside(x, y, z + 1);
     }
-    // Breadth-first from the whole outside at once: the queue holds depth 0,
-    // then 1, ... in order.
-    for (std::size_t q = 0; q < queue.size(); ++q) {
-        const std::size_t k = queue[q];
-        const int x = int(k % sy), y = int(k / sy % g.dim[1]), z = int(k / sz);
-        const std::uint8_t d = depth[k];
-        if (d >= 254) continue;
-        for (int dz = -1; dz <= 1; ++dz)
-            for (int dy = -1; dy <= 1; ++dy)
-                for (int dx = -1; dx <= 1; ++dx) {
-                    const int X = x + dx, Y = y + dy, Z = z + dz;
-                    if (X < 0 || Y < 0 || Z < 0 || X >= g.dim[0] || Y >= g.dim[1] || Z >= g.dim[2]) continue;
-                    const std::size_t n = g.at(X, Y, Z);
-                    if (depth[n] != 255) continue;
-                    depth[n] = std::uint8_t(d + 1);
-                    queue.push_back(std::uint32_t(n));
-                }
-    }
-    queue = {};
+    // Breadth-first from the whole outside at once.
+    chebyshev_steps(g.dim, depth, std::move(queue));
     auto depth_at = [&](std::uint64_t i) -> std::uint8_t {
         const std::size_t k = g.voxel(P + i * 3);
         return k < nvox ? depth[k] : 0;

@@ -2,6 +2,7 @@
 #pragma once
 #include <hz/core/data.hpp>
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <vector>
@@ -18,6 +19,13 @@ struct Piece {
 // A streamline's place in a uniform order (SplitMix64's finaliser of s + 1):
 // the hash by which the proxies take uniform subsamples.
 std::uint64_t streamline_hash(std::uint64_t s);
+
+// Steps from the nearest seed, 26-connected (the Chebyshev distance), on a
+// grid of dim[0] x dim[1] x dim[2] voxels (x fastest): `d` holds 0 at the
+// seeds, listed in `seeds`, and 255 elsewhere; on return every voxel within
+// 254 steps holds its distance (the rest stay 255). Breadth first from all
+// seeds at once.
+void chebyshev_steps(const std::array<int, 3> &dim, std::vector<std::uint8_t> &d, std::vector<std::uint32_t> seeds);
 
 // A uniform subsample: every whole streamline whose hash falls below
 // budget_points / nb_vertices (in expectation `budget_points` points, the same
