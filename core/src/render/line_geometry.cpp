@@ -345,17 +345,26 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
                     float *o = a.data() + cur * kAcc;
                     for (int c = 0; c < kAcc; ++c) o[c] += sum[c], sum[c] = 0.0f;
                 };
-                for (std::uint64_t i = sb + (every > 1 ? streamline_hash(s) % every : 0); i + 1 < e; i += every) {
-                    if (i + kAhead * every + 1 < e) {
-                        const float *f = P + (i + kAhead * every) * 3;
-                        if (const std::size_t ka = voxel_of(0.5f * (f[0] + f[3]), 0.5f * (f[1] + f[4]), 0.5f * (f[2] + f[5])); ka < nvox)
-                            __builtin_prefetch(a.data() + ka * kAcc, 1), __builtin_prefetch(a.data() + ka * kAcc + kAcc - 1, 1);
+                // The voxels of the next kAhead segments taken, each found
+                // once: when it is prefetched.
+                auto voxel_at = [&](std::uint64_t i) {
+                    const float *f = P + i * 3;
+                    return voxel_of(0.5f * (f[0] + f[3]), 0.5f * (f[1] + f[4]), 0.5f * (f[2] + f[5]));
+                };
+                std::size_t ahead[kAhead];
+                const std::uint64_t first = sb + (every > 1 ? streamline_hash(s) % every : 0);
+                for (std::uint64_t j = 0; j < kAhead; ++j) ahead[j] = first + j * every + 1 < e ? voxel_at(first + j * every) : SIZE_MAX;
+                for (std::uint64_t i = first, n = 0; i + 1 < e; i += every, ++n) {
+                    const std::size_t k = ahead[n % kAhead];
+                    if (const std::uint64_t next = i + kAhead * every; next + 1 < e) {
+                        const std::size_t ka = voxel_at(next);
+                        ahead[n % kAhead] = ka;
+                        if (ka < nvox) __builtin_prefetch(a.data() + ka * kAcc, 1), __builtin_prefetch(a.data() + ka * kAcc + kAcc - 1, 1);
                     }
                     const float *p = P + i * 3, *q = p + 3;
                     float tx = q[0] - p[0], ty = q[1] - p[1], tz = q[2] - p[2];
                     const float len = std::sqrt(tx * tx + ty * ty + tz * tz);
                     if (!(len > 0) || !std::isfinite(len)) continue;
-                    const std::size_t k = voxel_of(0.5f * (p[0] + q[0]), 0.5f * (p[1] + q[1]), 0.5f * (p[2] + q[2]));
                     if (k >= nvox) continue;
                     if (k != cur) flush(), cur = k;
                     tx /= len, ty /= len, tz /= len;

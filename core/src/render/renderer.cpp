@@ -770,9 +770,13 @@ struct Renderer::Impl {
     void sync_proxy_lines(GpuObject &g) {
         const bool over = volume_proxy(g);
         if (over == g.proxy_over || !g.lines_alone) return;
-        release_chunks(g.proxy_chunks);
         g.proxy_over = over;
-        g.proxy = over ? g.lines_over : g.lines_alone;
+        rebuild_proxy(g);
+    }
+    // g's proxy chunks, again, from the lines it draws now (proxy_over).
+    void rebuild_proxy(GpuObject &g) {
+        release_chunks(g.proxy_chunks);
+        g.proxy = g.proxy_over ? g.lines_over : g.lines_alone;
         g.proxy_chunks = partition(scene.objects[g.index].data.tractogram, g.proxy->data(), g.proxy->size());
         build_proxy(g);
     }
@@ -786,11 +790,8 @@ struct Renderer::Impl {
             if (!wait && g.shell.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
             std::vector<Piece> pieces = g.shell.get();
             if (pieces.empty()) continue;
-            release_chunks(g.proxy_chunks);
             set_proxy_lines(g, std::move(pieces));
-            g.proxy = g.proxy_over ? g.lines_over : g.lines_alone;
-            g.proxy_chunks = partition(scene.objects[g.index].data.tractogram, g.proxy->data(), g.proxy->size());
-            build_proxy(g);
+            rebuild_proxy(g);
             changed = true;
         }
         return changed;
@@ -859,6 +860,13 @@ struct Renderer::Impl {
         return changed;
     }
 
+    // "Over" blending of display colours by their alpha (the volume's
+    // coverage, the lines' over it), the target's alpha accumulated.
+    static void blend_over() {
+        glEnable(GL_BLEND);
+        glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+    }
+
     // Draws g's fibre volume with its bound program `p` (uniforms set but
     // the volume's): one triangle over the viewport, blended over what is
     // drawn (each pixel as opaque as the streamlines it crosses would cover),
@@ -878,10 +886,7 @@ struct Renderer::Impl {
         bind_sampler(p, "hz_vol_colour", 6, GL_TEXTURE_3D, g.fibre_tex[0]);
         bind_sampler(p, "hz_vol_tangent", 7, GL_TEXTURE_3D, g.fibre_tex[1]);
         bind_sampler(p, "hz_vol_skip", 8, GL_TEXTURE_3D, g.fibre_tex[2]);
-        if (!debug) {
-            glEnable(GL_BLEND);
-            glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-        }
+        if (!debug) blend_over();
         // Only the pixels the grid's box covers march (the box's corners
         // projected; all of them when one is behind the eye).
         bool all = false;
@@ -1185,8 +1190,7 @@ struct Renderer::Impl {
             const bool over = volume_proxy(g) && !debug;
             if (over) {
                 glUniform1f(p.loc("hz_opacity"), float(o.opacity / std::max(1, settings.proxy_scale)));
-                glEnable(GL_BLEND);
-                glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+                blend_over();
             }
             for (std::size_t k = 0; k < g.proxy_chunks.size(); ++k) draw_chunk(g, true, k);
             if (over) glDisable(GL_BLEND);
