@@ -67,11 +67,14 @@ struct LodOptions {
     int lod_scale = 4;                 // the proxy frame is drawn at 1/lod_scale of the size
     std::string lod_proxy = "volume";  // volume (the fibre volume under the shell), shell (the outer layer) or uniform
     std::string lod_reproject = "on";  // the last complete still drawn again under the proxy while the camera moves
+    std::string lod_occlusion = "on";  // full detail drawn brick by brick, nearest first, hidden bricks skipped (order: none skipped)
     void apply(core::render::RenderSettings &rs) const {
         rs.lod_pixels = lod_pixels, rs.lod_points = lod_points, rs.gpu_memory_mb = gpu_memory_mb, rs.proxy_scale = lod_scale;
         rs.shell_proxy = lod_proxy == "shell" || lod_proxy == "volume";
         rs.fibre_volume = lod_proxy == "volume";
         rs.reproject = lod_reproject == "on";
+        rs.occlusion = lod_occlusion != "off";
+        rs.occlusion_skip = lod_occlusion == "on";
     }
 };
 

@@ -44,6 +44,12 @@ void add_lod_options(CLI::App *cmd, LodOptions &lod) {
                     "its depth) under the proxy, which fills what it did not see")
         ->capture_default_str()
         ->check(CLI::IsMember({"on", "off"}));
+    cmd->add_option("--lod-occlusion", lod.lod_occlusion,
+                    "full-detail frames of large tractograms drawn brick by brick, nearest first, skipping the bricks hidden "
+                    "behind what is drawn (the same picture, a fraction of the fragments); order: the bricks in that order, "
+                    "none skipped (a check that skipping changes no pixel)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"on", "off", "order"}));
     cmd->add_option("--lod-scale", lod.lod_scale, "the proxy is drawn at 1/N of the size, then upscaled")
         ->capture_default_str()
         ->check(CLI::Range(1, 16));

@@ -94,6 +94,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     rs.samples = o.samples;
     o.lod.apply(rs);
     if (!o.preview) rs.shell_proxy = false;  // a full-detail frame draws no proxy
+    if (o.preview) rs.occlusion = false;     // and a proxy frame no full detail
     rs.shell_all_cores = true;               // --preview waits for it
     rs.bake_materials = true;                // a scene file's materials do not change while it renders
     // .exr and .hdr: the linear radiance before the tone curve (float), not
@@ -187,6 +188,8 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"streamed_points", s.streamed_points},
                             {"slab_crossings", s.crossings_drawn},
                             {"fibre_volumes", s.volumes_drawn},
+                            {"culled_chunks", s.culled_chunks},
+                            {"culled_points", s.culled_points},
                             {"proxy", s.proxy},
                             {"points_kept", s.points_drawn}};
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";

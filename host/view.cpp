@@ -339,7 +339,11 @@ public:
                 still = now;
                 kind = r.refining() ? "refine" : "complete";
             } else if (r.refining()) {
-                kind = r.progressive_step(kStepMs) ? "complete" : "refine";
+                // A step and the rest of its frame (presenting it, the
+                // panel, the swap) together within kStepMs.
+                const double ts = glfwGetTime();
+                kind = r.progressive_step(std::max(kStepMs / 4, kStepMs - frame_overhead_ms)) ? "complete" : "refine";
+                step_ms = 1000.0 * (glfwGetTime() - ts);
                 r.present(fw, fh);
             } else if (app.events != seen_events || !app.pending_shot.empty() || app.press_stage >= 0 || wait > 0 ||
                        (pc < script.size() && glfwGetTime() >= sleep_until)) {
@@ -358,7 +362,9 @@ public:
             ImGui::Render();
             ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
             glfwSwapBuffers(win);
-            log.add(kind, r.stats(), std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_t0).count());
+            const double frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_t0).count();
+            log.add(kind, r.stats(), frame_ms);
+            if (step_ms >= 0) frame_overhead_ms = std::clamp(frame_ms - step_ms, 0.0, kStepMs / 2), step_ms = -1;
             // The regions' spatial index, a second after the first frame
             // (the shell proxy's thread is then done, as a rule).
             if (session && log.first_frame_s >= 0 && seconds_since_launch() > log.first_frame_s + 1.0) session->prepare_index();
@@ -1163,6 +1169,9 @@ private:
     Still still;
     FrameLog log;
     std::uint64_t seen_events = ~0ull;
+    // A refinement frame: its step's time (-1: none this frame), and what
+    // the last one's frame took besides.
+    double step_ms = -1, frame_overhead_ms = 0;
     bool first_frame = true;
 };
 

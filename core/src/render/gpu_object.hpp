@@ -69,6 +69,15 @@ struct GpuObject {
     // computed it. An object small enough to be its own proxy has none.
     std::shared_ptr<LineData> lines;
     std::vector<LineChunk> chunks, proxy_chunks;
+    // Full detail cut into bricks (RenderSettings::occlusion): `chunks` are
+    // then over bricks->pieces (`full_pieces`, the same vector), brick k's
+    // chunks [brick_chunks[k], brick_chunks[k + 1]); else null.
+    std::shared_ptr<const Bricks> bricks;
+    std::shared_ptr<const std::vector<Piece>> full_pieces;
+    std::vector<std::size_t> brick_chunks;
+    std::future<Bricks> brick_job;  // the cut, being computed
+    std::shared_ptr<std::atomic<bool>> brick_cancel;
+    float max_radius_mm = 0;                          // the widest tube
     std::shared_ptr<const std::vector<Piece>> proxy;  // what the proxy draws
     // Over a fibre volume the proxy's lines are half of them (the runs of
     // the streamlines in the lower half of the hash order): `proxy` is
@@ -96,7 +105,9 @@ struct GpuObject {
         if (shell_cancel) *shell_cancel = true;
         if (crossing_cancel) *crossing_cancel = true;
         if (fibre_cancel) *fibre_cancel = true;
+        if (brick_cancel) *brick_cancel = true;
         if (shell.valid()) shell.wait();
+        if (brick_job.valid()) brick_job.wait();
         if (crossing_job.valid()) crossing_job.wait();
         if (fibre_job.valid()) fibre_job.wait();
     }

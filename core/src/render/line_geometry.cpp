@@ -225,14 +225,14 @@ void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::u
     }
 }
 
-// Chunks of at most kChunkPoints input points over streamlines [0, n)
+// Chunks of at most max_points input points over streamlines [0, n)
 // (or over pieces[0..n)).
-std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::uint64_t n) {
+std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::uint64_t n, std::uint64_t max_points) {
     std::vector<LineChunk> out;
     LineChunk c;
     for (std::uint64_t k = 0; k < n; ++k) {
         const std::uint64_t pts = pieces ? pieces[k].count : t.size(k);
-        if (c.points > 0 && c.points + pts > kChunkPoints) {
+        if (c.points > 0 && c.points + pts > max_points) {
             c.b = k;
             out.push_back(std::move(c));
             c = LineChunk{};
@@ -279,6 +279,142 @@ void slab_crossings(const LineData &d, int axis, double centre, std::uint64_t a,
             out.push_back(v);
         }
     }
+}
+
+namespace {
+
+// A grid of bricks over bounds b, and how streamlines are cut into its pieces.
+struct BrickGrid {
+    std::array<int, 3> dim{};
+    double edge = 1;
+    float inv = 1, lo[3] = {};
+    BrickGrid(const Bounds &b, int per_side) {
+        double extent = 0;
+        for (int i = 0; i < 3; ++i) extent = std::max(extent, b.max[i] - b.min[i]);
+        edge = std::max(extent, 1e-3) / std::max(per_side, 1);
+        for (int i = 0; i < 3; ++i) dim[i] = std::max(1, int(std::ceil((b.max[i] - b.min[i]) / edge))), lo[i] = float(b.min[i]);
+        inv = float(1.0 / edge);
+    }
+    std::size_t size() const { return std::size_t(dim[0]) * dim[1] * dim[2]; }
+    std::uint32_t brick_of(const float *p) const {
+        int c[3];
+        for (int i = 0; i < 3; ++i) c[i] = std::clamp(int((p[i] - lo[i]) * inv), 0, dim[i] - 1);  // (NaN: 0)
+        return std::uint32_t((std::size_t(c[2]) * dim[1] + c[1]) * dim[0] + c[0]);
+    }
+    // Calls f(brick, first, count) for each piece of streamline s of t.
+    template <class F>
+    void cut(const Tractogram &t, std::uint64_t s, F &&f) const {
+        const float *P = t.positions.data();
+        const std::uint64_t sb = t.begin(s), n = t.end(s) - sb;
+        if (n < 2) return;
+        std::uint64_t i0 = 0;
+        std::uint32_t k0 = brick_of(P + sb * 3);
+        for (std::uint64_t i = 1; i < n; ++i) {
+            const std::uint32_t k = brick_of(P + (sb + i) * 3);
+            if (k == k0) continue;
+            f(k0, i0, i - i0 + 1);
+            i0 = i, k0 = k;
+        }
+        if (n - i0 >= 2) f(k0, i0, n - i0);
+    }
+};
+
+}  // namespace
+
+int brick_side_for(const Tractogram &t, const Bounds &b, int min_side, int max_side, std::uint64_t max_pieces) {
+    const std::uint64_t N = t.nb_streamlines();
+    if (N == 0 || b.empty) return 0;
+    const std::uint64_t every = std::max<std::uint64_t>(1, N / 4096);
+    for (int side = max_side; side >= std::max(1, min_side); --side) {
+        const BrickGrid grid(b, side);
+        std::uint64_t pieces = 0, sampled = 0;
+        for (std::uint64_t s = every / 2; s < N; s += every, ++sampled)
+            grid.cut(t, s, [&](std::uint32_t, std::uint64_t, std::uint64_t) { ++pieces; });
+        if (double(pieces) * double(N) / double(std::max<std::uint64_t>(sampled, 1)) <= double(max_pieces)) return side;
+    }
+    return 0;
+}
+
+Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned threads, const std::atomic<bool> &cancel) {
+    Bricks out;
+    const std::uint64_t N = t.nb_streamlines();
+    if (N == 0 || b.empty) return out;
+    const BrickGrid grid(b, per_side);
+    out.dim = grid.dim;
+    const double edge = grid.edge;
+    const std::size_t nb = grid.size();
+    const float *P = t.positions.data();
+    auto cut = [&](std::uint64_t s, auto &&f) { grid.cut(t, s, f); };
+    const unsigned parts = std::max(1u, std::min<unsigned>(threads, unsigned(std::min<std::uint64_t>(N, 64))));
+    // Pass 1: pieces and bounds per brick, per part.
+    std::vector<std::vector<std::uint64_t>> count(parts);
+    std::vector<std::vector<std::array<float, 6>>> box(parts);
+    std::atomic<bool> stopped{false};
+    parallel_ranges(parts, 1, [&](std::uint64_t p0, std::uint64_t p1) {
+        for (std::uint64_t part = p0; part < p1; ++part) {
+            count[part].assign(nb, 0);
+            box[part].assign(nb, {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY});
+            const std::uint64_t s0 = N * part / parts, s1 = N * (part + 1) / parts;
+            for (std::uint64_t s = s0; s < s1; ++s) {
+                if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return stopped.store(true);
+                const std::uint64_t sb = t.begin(s);
+                cut(s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt) {
+                    ++count[part][k];
+                    // (its other points are in the brick's cell: the box
+                    // is the cell's, grown to its last)
+                    std::array<float, 6> &bx = box[part][k];
+                    const float *q = P + (sb + first + cnt - 1) * 3;
+                    for (int a = 0; a < 3; ++a) bx[a] = std::min(bx[a], q[a]), bx[3 + a] = std::max(bx[3 + a], q[a]);
+                });
+            }
+        }
+    });
+    if (stopped) return Bricks{};
+    // Where each part's pieces of each brick go: brick by brick, and within
+    // a brick part by part (streamline order).
+    std::vector<std::vector<std::uint64_t>> at(parts, std::vector<std::uint64_t>(nb));
+    out.begin.assign(nb + 1, 0);
+    out.box.assign(nb, {INFINITY, INFINITY, INFINITY, -INFINITY, -INFINITY, -INFINITY});
+    std::uint64_t total = 0;
+    for (std::size_t k = 0; k < nb; ++k) {
+        out.begin[k] = total;
+        for (unsigned part = 0; part < parts; ++part) {
+            at[part][k] = total;
+            total += count[part][k];
+            for (int a = 0; a < 3; ++a)
+                out.box[k][a] = std::min(out.box[k][a], box[part][k][a]),
+                out.box[k][3 + a] = std::max(out.box[k][3 + a], box[part][k][3 + a]);
+        }
+    }
+    out.begin[nb] = total;
+    for (int z = 0; z < out.dim[2]; ++z)
+        for (int y = 0; y < out.dim[1]; ++y)
+            for (int x = 0; x < out.dim[0]; ++x) {
+                const std::size_t k = (std::size_t(z) * out.dim[1] + y) * out.dim[0] + x;
+                if (out.begin[k] == out.begin[k + 1]) continue;
+                const int c[3] = {x, y, z};
+                for (int a = 0; a < 3; ++a) {
+                    out.box[k][a] = std::min(out.box[k][a], float(std::max(b.min[a], b.min[a] + c[a] * edge)));
+                    out.box[k][3 + a] = std::max(out.box[k][3 + a], float(std::min(b.max[a], b.min[a] + (c[a] + 1) * edge)));
+                }
+            }
+    count.clear(), box.clear();
+    out.pieces.resize(total);
+    // Pass 2: the pieces, in place.
+    parallel_ranges(parts, 1, [&](std::uint64_t p0, std::uint64_t p1) {
+        for (std::uint64_t part = p0; part < p1; ++part) {
+            std::vector<std::uint64_t> &a = at[part];
+            const std::uint64_t s0 = N * part / parts, s1 = N * (part + 1) / parts;
+            for (std::uint64_t s = s0; s < s1; ++s) {
+                if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return stopped.store(true);
+                cut(s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt) {
+                    out.pieces[a[k]++] = Piece{s, std::uint32_t(first), std::uint32_t(cnt)};
+                });
+            }
+        }
+    });
+    if (stopped) return Bricks{};
+    return out;
 }
 
 FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double budget_points, unsigned threads,

@@ -85,6 +85,21 @@ struct RenderSettings {
     // Tractograms of at most this many points are built when the scene is
     // set; larger ones chunk by chunk as they are first drawn.
     std::uint64_t eager_points = 8000000;
+    // Full-detail frames of tractograms above eager_points drawn brick by
+    // brick, nearest first, skipping the bricks hidden behind what is drawn
+    // (line_geometry.hpp: Bricks; occlusion.hpp). The picture is the same
+    // (up to which of two streamlines at the same depth wins a pixel); a
+    // dense whole-brain tractogram is most of its fragments behind its
+    // outer layer. The cut into bricks is one more pass over the points
+    // on a background thread when the scene is set (a window refines in
+    // streamline order until it is done), and 16 bytes per piece: the grid
+    // is the finest of at most brick_grid bricks along the longest side
+    // (and at least 8) whose pieces fit brick_memory_mb; none fits: the
+    // streamlines are drawn in their order.
+    bool occlusion = true;
+    bool occlusion_skip = true;  // false: bricks nearest first, none skipped (a check: the same picture)
+    int brick_grid = 12;
+    double brick_memory_mb = 768;
     // Material parameters, and a base colour shared by every vertex of an
     // object, become constants of the object's program instead of uniforms:
     // the GLSL compiler then folds everything computed from them, and
@@ -106,10 +121,14 @@ struct FrameStats {
     std::uint64_t crossings_drawn = 0;                    // the slab's crossings drawn as points (Slab::points)
     std::uint64_t reprojected_points = 0;                 // a proxy frame: points of the last still drawn again (reproject)
     std::uint64_t volumes_drawn = 0;                      // a proxy frame: tractograms drawn as their fibre volume
-    bool proxy = false;                                   // a level-of-detail proxy was drawn
-    int refine_step = 0;                                  // progressive: the step (0: a whole frame)
-    std::uint64_t refine_remaining = 0;                   // progressive: chunks still to draw
-    int samples = 1;                                      // MSAA samples in use
+    // Full-detail chunks hidden behind what was drawn, not drawn
+    // (RenderSettings::occlusion): how many, their input points, and the
+    // streamlines whose first piece they hold.
+    std::uint64_t culled_chunks = 0, culled_points = 0, culled_streamlines = 0;
+    bool proxy = false;                  // a level-of-detail proxy was drawn
+    int refine_step = 0;                 // progressive: the step (0: a whole frame)
+    std::uint64_t refine_remaining = 0;  // progressive: chunks still to draw
+    int samples = 1;                     // MSAA samples in use
 };
 
 class Renderer {
