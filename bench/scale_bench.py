@@ -49,14 +49,14 @@ def render(horizon, tck, out, *extra):
     return j
 
 
-def window(horizon, tck, work):
+def window(horizon, tck, work, *extra):
     script = os.path.join(work, "s.txt")
     with open(script, "w") as f:
         f.write("wait 3\ndrag 300 300 500 340\nwait 10\ndrag 500 340 300 300\nwait 10\n"
                 f"screenshot {os.path.join(work, 'still.png')}\nquit\n")
     stats = os.path.join(work, "stats.json")
     p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", horizon, "view", tck, "--size", SIZE, "--script", script,
-                        "--stats", stats], capture_output=True, text=True)
+                        "--stats", stats, *extra], capture_output=True, text=True)
     if p.returncode != 0:
         raise SystemExit(p.stderr)
     with open(stats) as f:
@@ -86,10 +86,19 @@ def main():
     rows.append(("window: moving frame, median / max (ms)", f"{np.median(moving):.0f} / {max(moving):.0f}"))
     rows.append(("window: refinement step, median / max (ms)", f"{np.median(steps):.0f} / {max(steps):.0f}"))
     rows.append(("window: peak anonymous memory (MB)", f"{w['peak_rss_anon_mb']:.0f}"))
+    # Occlusion culling (--lod-occlusion): the same, drawn in file order.
+    w_off = window(horizon, tck, work, "--lod-occlusion", "off")
+    rows.append(("window, --lod-occlusion off: launch to complete still image (s)",
+                 f"{w_off['first_complete_s']:.1f} ({w_off['first_complete_s'] / w['first_complete_s']:.1f}x on's)"))
 
     full = render(horizon, tck, os.path.join(work, "full.png"))
+    off = render(horizon, tck, os.path.join(work, "full_off.png"), "--lod-occlusion", "off")
     prev = render(horizon, tck, os.path.join(work, "preview.png"), "--preview")
-    rows.append(("render, full detail, end to end (s)", f"{full['wall_s']:.1f} ({full['points_drawn'] / 1e6:.0f}M points drawn)"))
+    rows.append(("render, full detail, end to end (s)",
+                 f"{full['wall_s']:.1f} ({full['points_drawn'] / 1e6:.0f}M points drawn, {full['culled_points'] / 1e6:.0f}M of "
+                 f"{full['points_total'] / 1e6:.0f}M hidden and skipped)"))
+    rows.append(("render, full detail, --lod-occlusion off (s)",
+                 f"{off['wall_s']:.1f} ({off['points_drawn'] / 1e6:.0f}M points drawn; {off['wall_s'] / full['wall_s']:.1f}x on's)"))
     rows.append(("render --preview, end to end (s)", f"{prev['wall_s']:.2f}"))
 
     ref = imgmetrics.downsample(load(os.path.join(work, "full.png")), 4)
