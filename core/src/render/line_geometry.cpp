@@ -344,7 +344,6 @@ Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned th
     const double edge = grid.edge;
     const std::size_t nb = grid.size();
     const float *P = t.positions.data();
-    auto cut = [&](std::uint64_t s, auto &&f) { grid.cut(t, s, f); };
     const unsigned parts = std::max(1u, std::min<unsigned>(threads, unsigned(std::min<std::uint64_t>(N, 64))));
     // Pass 1: pieces and bounds per brick, per part.
     std::vector<std::vector<std::uint64_t>> count(parts);
@@ -358,7 +357,7 @@ Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned th
             for (std::uint64_t s = s0; s < s1; ++s) {
                 if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return stopped.store(true);
                 const std::uint64_t sb = t.begin(s);
-                cut(s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt) {
+                grid.cut(t, s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt) {
                     ++count[part][k];
                     // (its other points are in the brick's cell: the box
                     // is the cell's, grown to its last)
@@ -407,7 +406,7 @@ Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned th
             const std::uint64_t s0 = N * part / parts, s1 = N * (part + 1) / parts;
             for (std::uint64_t s = s0; s < s1; ++s) {
                 if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return stopped.store(true);
-                cut(s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt) {
+                grid.cut(t, s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt) {
                     out.pieces[a[k]++] = Piece{s, std::uint32_t(first), std::uint32_t(cnt)};
                 });
             }

@@ -700,9 +700,14 @@ struct Renderer::Impl {
         stats.culled_streamlines += c.starts;
     }
 
-    // Occlusion culling (RenderSettings::occlusion): g's bricks in the order
-    // they are drawn from camera v, nearest centre first, as (chunk, brick).
-    static std::vector<std::pair<std::size_t, std::size_t>> brick_sequence(const GpuObject &g, const View &v) {
+    // A full-detail chunk to draw: chunk `chunk` of objects[object], in
+    // brick `brick` (SIZE_MAX: the object is not over bricks).
+    struct ChunkItem {
+        std::size_t object, chunk, brick;
+    };
+    // Occlusion culling (RenderSettings::occlusion): the chunks of g (objects[oi])
+    // in the order they are drawn from camera v, its bricks nearest centre first.
+    static std::vector<ChunkItem> brick_sequence(const GpuObject &g, std::size_t oi, const View &v) {
         const glm::dvec3 eye = to_dvec3(v.eye), ahead = glm::normalize(to_dvec3(v.target) - eye);
         std::vector<std::pair<double, std::size_t>> order;
         for (std::size_t b = 0; b < g.bricks->box.size(); ++b) {
@@ -712,10 +717,10 @@ struct Renderer::Impl {
             order.emplace_back(glm::dot(centre - eye, ahead), b);
         }
         std::sort(order.begin(), order.end());
-        std::vector<std::pair<std::size_t, std::size_t>> seq;
+        std::vector<ChunkItem> seq;
         seq.reserve(g.chunks.size());
         for (const auto &[d, b] : order)
-            for (std::size_t k = g.brick_chunks[b]; k < g.brick_chunks[b + 1]; ++k) seq.emplace_back(k, b);
+            for (std::size_t k = g.brick_chunks[b]; k < g.brick_chunks[b + 1]; ++k) seq.push_back({oi, k, b});
         return seq;
     }
     // Whether brick b of g is hidden behind `tiles` (empty: nothing yet).
@@ -743,6 +748,41 @@ struct Renderer::Impl {
     // readback waits for llvmpipe to finish what it was given).
     static std::uint64_t cull_refresh_points(const GpuObject &g) { return std::max<std::uint64_t>(kChunkPoints, g.points_total / 64); }
 
+    // Occlusion culling while full detail is drawn over bricks: the depth
+    // drawn so far as tiles, read back (with `read`) after every
+    // cull_refresh_points input points, and (with `skip` too) the chunks of
+    // bricks hidden behind it skipped.
+    struct Culling {
+        bool read = false, skip = false;
+        DepthTiles tiles;
+        std::uint64_t since = 0;
+    };
+    bool hidden(const ChunkItem &it, const Culling &c, const glm::mat4 &view_proj) const {
+        return c.skip && it.brick != SIZE_MAX && brick_hidden(objects[it.object], it.brick, c.tiles, view_proj);
+    }
+    // The chunks after items[i] of the same object still to be drawn (not
+    // hidden now: depth only comes nearer), one per core: built ahead.
+    void upcoming(const std::vector<ChunkItem> &items, std::size_t i, const Culling &c, const glm::mat4 &view_proj,
+                  std::vector<std::size_t> &next) const {
+        const std::size_t ahead = std::max(1u, std::thread::hardware_concurrency());
+        next.clear();
+        for (std::size_t j = i + 1; j < items.size() && next.size() < ahead && items[j].object == items[i].object; ++j)
+            if (!hidden(items[j], c, view_proj)) next.push_back(items[j].chunk);
+    }
+    // Counts `it` as drawn; true once the depth is due to be read back.
+    bool drew(const ChunkItem &it, Culling &c) const {
+        if (!c.read || it.brick == SIZE_MAX) return false;
+        const GpuObject &g = objects[it.object];
+        c.since += g.chunks[it.chunk].points;
+        return c.since >= cull_refresh_points(g);
+    }
+    // Reads the depth drawn so far back into c's tiles (none: multisampled,
+    // culling stops).
+    void refresh(Culling &c, int w, int h) {
+        c.since = 0;
+        if (!read_depth_tiles(c.tiles, w, h)) c.read = c.skip = false;
+    }
+
     // The full-detail chunks of g. Over bricks: nearest first, those hidden
     // behind what the frame has drawn skipped where `cull` (an opaque object
     // drawn into a single-sampled target with depth testing).
@@ -751,29 +791,20 @@ struct Renderer::Impl {
             for (std::size_t k = 0; k < g.chunks.size(); ++k) draw_chunk(g, false, k);
             return;
         }
-        const auto seq = brick_sequence(g, v);
-        const std::size_t ahead = std::max(1u, std::thread::hardware_concurrency());
+        const auto items = brick_sequence(g, std::size_t(&g - objects.data()), v);
         // (occlusion_skip off: the depth read back all the same, nothing
         // skipped: the check that skipping changes no pixel)
-        const bool skip = settings.occlusion_skip;
-        DepthTiles tiles;
-        std::uint64_t since = 0;
+        Culling c;
+        c.read = cull, c.skip = cull && settings.occlusion_skip;
         std::vector<std::size_t> next;
-        for (std::size_t i = 0; i < seq.size(); ++i) {
-            const auto [k, b] = seq[i];
-            if (cull && skip && brick_hidden(g, b, tiles, m.view_proj)) {
-                cull_chunk(g, k);
+        for (std::size_t i = 0; i < items.size(); ++i) {
+            if (hidden(items[i], c, m.view_proj)) {
+                cull_chunk(g, items[i].chunk);
                 continue;
             }
-            next.clear();
-            for (std::size_t j = i + 1; j < seq.size() && next.size() < ahead; ++j)
-                if (!(cull && skip && brick_hidden(g, seq[j].second, tiles, m.view_proj))) next.push_back(seq[j].first);
-            draw_chunk(g, false, k, &next);
-            since += g.chunks[k].points;
-            if (cull && since >= cull_refresh_points(g)) {
-                since = 0;
-                if (!read_depth_tiles(tiles, w, h)) cull = false;
-            }
+            upcoming(items, i, c, m.view_proj, next);
+            draw_chunk(g, false, items[i].chunk, &next);
+            if (drew(items[i], c)) refresh(c, w, h);
         }
     }
 
@@ -1555,17 +1586,10 @@ struct Renderer::Impl {
         int w = 0, h = 0;
         GLuint target = 0;
         Matrices m;
-        struct Item {
-            std::size_t object, chunk, brick;  // brick: of an object over bricks, else SIZE_MAX
-        };
-        std::vector<Item> items;  // to draw, from `next` on
+        std::vector<ChunkItem> items;  // to draw, from `next` on
         std::size_t next = 0;
         int step = 0;
-        // Occlusion culling: the depth drawn so far, read back every
-        // cull_refresh_points input points (`since`).
-        DepthTiles tiles;
-        std::uint64_t since = 0;
-        bool cull = false;
+        Culling culling;
     } refine;
 
     void reset_counters() {
@@ -1672,7 +1696,7 @@ void main() {
         refine.view = v, refine.w = w, refine.h = h;
         refine.m = matrices(v, w, h);
         refine.items.clear(), refine.next = 0;
-        refine.tiles = DepthTiles{}, refine.since = 0;
+        refine.culling = Culling{};
         refine.target = begin_frame(w, h);
         clear_and_sky(refine.m, refine.target, w, h);
         glClearColor(0, 0, 0, 0);  // (alpha only: the background colour stays)
@@ -1685,13 +1709,13 @@ void main() {
             if (!lod_proxy(g))
                 draw_object(g, scene.objects[g.index], refine.m, v, false, w, h, LinesPart::Full);
             else if (!crossing_mode() && g.bricks)
-                for (const auto &[k, b] : brick_sequence(g, v)) refine.items.push_back({oi, k, b});
+                for (const ChunkItem &it : brick_sequence(g, oi, v)) refine.items.push_back(it);
             else
                 for (std::size_t k = 0, n = crossing_mode() ? g.crossings.vaos.size() : g.chunks.size(); k < n; ++k)
                     refine.items.push_back({oi, k, SIZE_MAX});
         }
         finish_frame(refine.target, w, h);
-        refine.cull = settings.occlusion && settings.occlusion_skip && !crossing_mode();
+        refine.culling.read = refine.culling.skip = settings.occlusion && settings.occlusion_skip && !crossing_mode();
     }
 
     // One more step of the progressive frame, of about `budget_ms` (at
@@ -1717,47 +1741,38 @@ void main() {
         opaque_state();
         std::size_t bound = SIZE_MAX;
         std::vector<std::size_t> next;
-        const std::size_t ahead = std::max(1u, std::thread::hardware_concurrency());
+        Culling &c = refine.culling;
         // Timed (glFinish) in groups of at least half a brick's chunk:
         // bricks at the data's edges make many small ones.
         auto tg = Clock::now();
         std::uint64_t group = 0;
+        bool due = false;  // (the depth, to be read back after the group)
         while (refine.next < refine.items.size()) {
-            const auto [oi, k, brick] = refine.items[refine.next];
-            GpuObject &g = objects[oi];
-            const bool bricked = brick != SIZE_MAX && refine.cull;
-            if (bricked && brick_hidden(g, brick, refine.tiles, refine.m.view_proj)) {
-                cull_chunk(g, k);
+            const ChunkItem it = refine.items[refine.next];
+            GpuObject &g = objects[it.object];
+            if (hidden(it, c, refine.m.view_proj)) {
+                cull_chunk(g, it.chunk);
                 ++refine.next;
                 continue;
             }
-            if (oi != bound) {
+            if (it.object != bound) {
                 draw_object(g, scene.objects[g.index], refine.m, refine.view, false, refine.w, refine.h, LinesPart::None);
-                bound = oi;
+                bound = it.object;
             }
             if (crossing_mode()) {
-                draw_crossings(g.crossings, k, k + 1);
+                draw_crossings(g.crossings, it.chunk, it.chunk + 1);
                 group += kChunkPoints;
             } else {
-                next.clear();
-                for (std::size_t j = refine.next + 1; j < refine.items.size() && next.size() < ahead; ++j) {
-                    const auto &it = refine.items[j];
-                    if (it.object != oi) break;
-                    if (!(it.brick != SIZE_MAX && refine.cull && brick_hidden(g, it.brick, refine.tiles, refine.m.view_proj)))
-                        next.push_back(it.chunk);
-                }
-                draw_chunk(g, false, k, &next);
-                group += g.chunks[k].points;
-                if (bricked) refine.since += g.chunks[k].points;
+                upcoming(refine.items, refine.next, c, refine.m.view_proj, next);
+                draw_chunk(g, false, it.chunk, &next);
+                group += g.chunks[it.chunk].points;
+                due = drew(it, c) || due;
             }
             ++refine.next;
             if (group < kBrickChunkPoints / 2 && refine.next < refine.items.size()) continue;
             glFinish();
             group = 0;
-            if (bricked && refine.since >= cull_refresh_points(g)) {
-                refine.since = 0;
-                if (!read_depth_tiles(refine.tiles, refine.w, refine.h)) refine.cull = false;
-            }
+            if (due) refresh(c, refine.w, refine.h), due = false;
             // (the next group is taken to cost as much as this one)
             if (ms_since(t0) + ms_since(tg) > budget_ms) break;
             tg = Clock::now();
