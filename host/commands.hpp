@@ -65,11 +65,13 @@ struct LodOptions {
     double lod_points = 2e5;           // tractograms above this many points get a proxy of about this many
     double gpu_memory_mb = 768;        // streamline geometry kept in GL buffers; the rest is streamed
     int lod_scale = 4;                 // the proxy frame is drawn at 1/lod_scale of the size
+    int lod_volume_scale = 8;          // its fibre volume ray-marched down to 1/lod_volume_scale (rays <= 1.5 voxels apart)
     std::string lod_proxy = "volume";  // volume (the fibre volume under the shell), shell (the outer layer) or uniform
     std::string lod_reproject = "on";  // the last complete still drawn again under the proxy while the camera moves
     std::string lod_occlusion = "on";  // full detail drawn brick by brick, nearest first, hidden bricks skipped (order: none skipped)
     void apply(core::render::RenderSettings &rs) const {
         rs.lod_pixels = lod_pixels, rs.lod_points = lod_points, rs.gpu_memory_mb = gpu_memory_mb, rs.proxy_scale = lod_scale;
+        rs.volume_scale = lod_volume_scale;
         rs.shell_proxy = lod_proxy == "shell" || lod_proxy == "volume";
         rs.fibre_volume = lod_proxy == "volume";
         rs.reproject = lod_reproject == "on";

@@ -53,6 +53,11 @@ void add_lod_options(CLI::App *cmd, LodOptions &lod) {
     cmd->add_option("--lod-scale", lod.lod_scale, "the proxy is drawn at 1/N of the size, then upscaled")
         ->capture_default_str()
         ->check(CLI::Range(1, 16));
+    cmd->add_option("--lod-volume-scale", lod.lod_volume_scale,
+                    "the proxy's fibre volume is ray-marched at down to 1/N of the size (no smaller than the proxy's lines "
+                    "need, and its rays at most 1.5 voxels apart), then upscaled under those lines")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 64));
     cmd->add_option("--gpu-memory", lod.gpu_memory_mb,
                     "MiB of streamline geometry kept in GL buffers; the rest is rebuilt and streamed when drawn")
         ->capture_default_str()

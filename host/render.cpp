@@ -188,6 +188,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"streamed_points", s.streamed_points},
                             {"slab_crossings", s.crossings_drawn},
                             {"fibre_volumes", s.volumes_drawn},
+                            {"fibre_volume_rays", s.volume_rays},
                             {"culled_chunks", s.culled_chunks},
                             {"culled_points", s.culled_points},
                             {"proxy", s.proxy},

@@ -198,6 +198,7 @@ struct FrameLog {
                           {"slab_crossings", drew ? s.crossings_drawn : 0},
                           {"reprojected", drew ? s.reprojected_points : 0},
                           {"fibre_volumes", drew ? s.volumes_drawn : 0},
+                          {"fibre_volume_rays", drew ? s.volume_rays : 0},
                           {"culled_chunks", drew ? s.culled_chunks : 0},
                           {"culled_streamlines", drew ? s.culled_streamlines : 0},
                           {"proxy", drew && s.proxy},

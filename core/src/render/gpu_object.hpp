@@ -79,8 +79,8 @@ struct GpuObject {
     std::shared_ptr<std::atomic<bool>> brick_cancel;
     float max_radius_mm = 0;                          // the widest tube
     std::shared_ptr<const std::vector<Piece>> proxy;  // what the proxy draws
-    // Over a fibre volume the proxy's lines are half of them (the runs of
-    // the streamlines in the lower half of the hash order): `proxy` is
+    // Over a fibre volume the proxy's lines are 3/4 of them (the first
+    // runs: outermost first, or in hash order): `proxy` is
     // `lines_over` then, else `lines_alone`.
     std::shared_ptr<const std::vector<Piece>> lines_alone, lines_over;
     bool proxy_over = false;

@@ -132,7 +132,23 @@ struct Tex2dFbo {
         if (fbo) glDeleteFramebuffers(1, &fbo);
         if (tex) glDeleteTextures(1, &tex);
         if (depth) glDeleteRenderbuffers(1, &depth);
-        fbo = tex = depth = 0;
+        if (depth_tex) glDeleteTextures(1, &depth_tex);
+        fbo = tex = depth = depth_tex = 0;
+    }
+    // A depth texture instead (sampled by a later pass; NEAREST).
+    GLuint depth_tex = 0;
+    void ensure_depth_texture() {
+        if (depth_tex) return;
+        glGenTextures(1, &depth_tex);
+        glBindTexture(GL_TEXTURE_2D, depth_tex);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, width, height, 0, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, nullptr);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, depth_tex, 0);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
     }
     // A depth buffer, for drawing into this target directly.
     void ensure_depth() {
@@ -206,6 +222,13 @@ struct Renderer::Impl {
     // covers proxy_scale window pixels across, which keeps the picture's
     // coverage), then upscaled (bilinear) into `ldr`.
     Tex2dFbo lowres;
+    // In a proxy frame, the fibre volume is ray-marched smaller still (down
+    // to 1/settings.volume_scale of the window's size: it is smooth, and its
+    // rays are most of a proxy frame's time) into `volres` (premultiplied
+    // colour and the depth where each ray became half opaque), then drawn
+    // into the proxy's target by `volume_upscale` under the proxy's lines.
+    Tex2dFbo volres;
+    std::unique_ptr<Program> volume_upscale;
     Tex2dFbo *out_ = &ldr;        // where the frame being drawn ends (ldr, or lowres for the proxy frame)
     bool hdr_frame_full = false;  // the last frame went through `resolved` at full size (read_hdr_image)
     std::unique_ptr<Program> composite;
@@ -296,7 +319,9 @@ struct Renderer::Impl {
         behind.destroy();
         ldr.destroy();
         lowres.destroy();
+        volres.destroy();
         if (composite) glDeleteProgram(composite->id);
+        if (volume_upscale) glDeleteProgram(volume_upscale->id);
     }
 
     std::unique_ptr<Program> make_simple(const std::string &vs, const std::string &fs, const std::string &what) {
@@ -947,17 +972,17 @@ struct Renderer::Impl {
         }
     }
 
-    // The proxy's lines alone and over a fibre volume: there the first half
-    // of its points (the pieces come outermost first, or in hash order: the
-    // shell or uniform subsample of half the budget), which keeps the frame
-    // within its time with the volume's pass.
+    // The proxy's lines alone and over a fibre volume: there the first three
+    // quarters of its points (the pieces come outermost first, or in hash
+    // order: the shell or uniform subsample of 3/4 of the budget), which
+    // keeps the frame within its time with the volume's pass.
     void set_proxy_lines(GpuObject &g, std::vector<Piece> pieces) {
         std::vector<Piece> over;
         if (settings.fibre_volume) {
             std::uint64_t total = 0, taken = 0;
             for (const Piece &p : pieces) total += p.count;
             for (const Piece &p : pieces) {
-                if (2 * taken >= total) break;
+                if (4 * taken >= 3 * total) break;
                 over.push_back(p);
                 taken += p.count;
             }
@@ -1067,6 +1092,39 @@ struct Renderer::Impl {
         glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
     }
 
+    // The rectangle (normalised device coordinates) of g's fibre volume's
+    // box: its corners projected; `all` when one is behind the eye.
+    struct NdcRect {
+        glm::dvec2 lo{1e30}, hi{-1e30};
+        bool all = false;
+    };
+    static NdcRect fibre_box_ndc(const GpuObject &g, const Matrices &m) {
+        NdcRect r;
+        for (int c = 0; c < 8 && !r.all; ++c) {
+            glm::dvec4 x(0, 0, 0, 1);
+            for (int i = 0; i < 3; ++i) x[i] = g.fibre_origin[i] + ((c >> i) & 1) * double(g.fibre_dim[i]) * g.fibre_voxel_mm;
+            const glm::dvec4 q = glm::dmat4(m.view_proj) * x;
+            if (!(q.w > 1e-6)) r.all = true;
+            const glm::dvec2 n(q.x / q.w, q.y / q.w);
+            r.lo = glm::min(r.lo, n), r.hi = glm::max(r.hi, n);
+        }
+        return r;
+    }
+    // How much smaller than a w x h proxy frame g's fibre volume is
+    // ray-marched: at most volume_scale / proxy_scale times, and no more
+    // than keeps neighbouring rays within the marching step (1.5 voxels) of
+    // each other across the box's projection. (At 1280x800, a whole brain
+    // seen whole: 2; in a 640x400 window: 1, the proxy's own size.)
+    int volume_downscale(const GpuObject &g, const Matrices &m, int w, int h) const {
+        int k = std::max(1, settings.volume_scale / std::max(1, settings.proxy_scale));
+        const NdcRect r = fibre_box_ndc(g, m);
+        if (r.all) return k;
+        const double span_px = std::max((r.hi.x - r.lo.x) * 0.5 * w, (r.hi.y - r.lo.y) * 0.5 * h);
+        const double voxels = std::max({g.fibre_dim[0], g.fibre_dim[1], g.fibre_dim[2]});
+        while (k > 1 && span_px / k * 1.5 < voxels) --k;
+        return k;
+    }
+
     // Draws g's fibre volume with its bound program `p` (uniforms set but
     // the volume's): one triangle over the viewport, blended over what is
     // drawn (each pixel as opaque as the streamlines it crosses would cover),
@@ -1087,18 +1145,8 @@ struct Renderer::Impl {
         bind_sampler(p, "hz_vol_tangent", 7, GL_TEXTURE_3D, g.fibre_tex[1]);
         bind_sampler(p, "hz_vol_skip", 8, GL_TEXTURE_3D, g.fibre_tex[2]);
         if (!debug) blend_over();
-        // Only the pixels the grid's box covers march (the box's corners
-        // projected; all of them when one is behind the eye).
-        bool all = false;
-        glm::dvec2 lo(1e30), hi(-1e30);
-        for (int c = 0; c < 8 && !all; ++c) {
-            glm::dvec4 x(0, 0, 0, 1);
-            for (int i = 0; i < 3; ++i) x[i] = g.fibre_origin[i] + ((c >> i) & 1) * double(g.fibre_dim[i]) * g.fibre_voxel_mm;
-            const glm::dvec4 q = glm::dmat4(m.view_proj) * x;
-            if (!(q.w > 1e-6)) all = true;
-            const glm::dvec2 n(q.x / q.w, q.y / q.w);
-            lo = glm::min(lo, n), hi = glm::max(hi, n);
-        }
+        // Only the pixels the grid's box covers march.
+        const auto [lo, hi, all] = fibre_box_ndc(g, m);
         const int x0 = all ? 0 : std::clamp(int(std::floor((lo.x * 0.5 + 0.5) * w)) - 1, 0, w);
         const int x1 = all ? w : std::clamp(int(std::ceil((hi.x * 0.5 + 0.5) * w)) + 1, 0, w);
         const int y0 = all ? 0 : std::clamp(int(std::floor((lo.y * 0.5 + 0.5) * h)) - 1, 0, h);
@@ -1109,6 +1157,7 @@ struct Renderer::Impl {
             glBindVertexArray(empty_vao);
             glDrawArrays(GL_TRIANGLES, 0, 3);
             glDisable(GL_SCISSOR_TEST);
+            stats.volume_rays += std::uint64_t(x1 - x0) * std::uint64_t(y1 - y0);
         }
         if (!debug) glDisable(GL_BLEND);
         stats.proxy = true;
@@ -1525,6 +1574,58 @@ struct Renderer::Impl {
         return Reprojection::kMaxTurnDeg;
     }
 
+    // g's fibre volume into the proxy frame's `target` (w x h): directly, or
+    // ray-marched volume_downscale() times smaller into volres and drawn from
+    // there (bilinear colour, each pixel at the nearest depth of the four
+    // texels it reads), blended over what is drawn and depth-tested.
+    void draw_volume_proxy(GpuObject &g, const Object &o, const Matrices &m, const View &v, GLuint target, int w, int h) {
+        const int k = volume_downscale(g, m, w, h);
+        if (k < 2) {
+            draw_object(g, o, m, v, false, w, h, LinesPart::Volume);
+            return;
+        }
+        const int vw = std::max(1, (w + k - 1) / k), vh = std::max(1, (h + k - 1) / k);
+        volres.ensure(vw, vh, GL_RGBA16F, GL_RGBA, GL_FLOAT);
+        volres.ensure_depth_texture();
+        glBindFramebuffer(GL_FRAMEBUFFER, volres.fbo);
+        glViewport(0, 0, vw, vh);
+        glClearColor(0, 0, 0, 0);
+        glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+        opaque_state();
+        // (The same matrices: volres covers what the target does.)
+        draw_object(g, o, m, v, false, vw, vh, LinesPart::Volume);
+        if (!volume_upscale)
+            volume_upscale = make_simple(glsl::kFullscreenVS, R"glsl(#version 410 core
+in vec2 v_uv;
+uniform sampler2D u_colour, u_depth;
+out vec4 o;
+void main() {
+    vec2 uv = v_uv;
+    vec4 c = texture(u_colour, uv);
+    if (c.a < 1.0 / 255.0) discard;
+    ivec2 sz = textureSize(u_depth, 0);
+    vec2 q = uv * vec2(sz) - 0.5;
+    ivec2 i0 = clamp(ivec2(floor(q)), ivec2(0), sz - 1), i1 = clamp(i0 + 1, ivec2(0), sz - 1);
+    float d = min(min(texelFetch(u_depth, i0, 0).r, texelFetch(u_depth, ivec2(i1.x, i0.y), 0).r),
+                  min(texelFetch(u_depth, ivec2(i0.x, i1.y), 0).r, texelFetch(u_depth, i1, 0).r));
+    gl_FragDepth = d;
+    o = c;
+}
+)glsl",
+                                         "fibre volume upscale");
+        glBindFramebuffer(GL_FRAMEBUFFER, target);
+        glViewport(0, 0, w, h);
+        opaque_state();
+        glEnable(GL_BLEND);
+        glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);  // premultiplied
+        glUseProgram(volume_upscale->id);
+        bind_sampler(*volume_upscale, "u_colour", 0, GL_TEXTURE_2D, volres.tex);
+        bind_sampler(*volume_upscale, "u_depth", 1, GL_TEXTURE_2D, volres.depth_tex);
+        glBindVertexArray(empty_vao);
+        glDrawArrays(GL_TRIANGLES, 0, 3);
+        opaque_state();
+    }
+
     void draw_scene(const View &v, int w, int h) {
         const Matrices m = matrices(v, w, h);
         const GLuint target = begin_frame(w, h);
@@ -1549,7 +1650,7 @@ struct Renderer::Impl {
             }
             const LinesPart part = part_for(g);
             if (part == LinesPart::Proxy) sync_proxy_lines(g);
-            if (part == LinesPart::Proxy && volume_proxy(g)) draw_object(g, o, m, v, false, w, h, LinesPart::Volume);
+            if (part == LinesPart::Proxy && volume_proxy(g)) draw_volume_proxy(g, o, m, v, target, w, h);
             draw_object(g, o, m, v, false, w, h, part);
         }
         if (later) {
@@ -1595,6 +1696,7 @@ struct Renderer::Impl {
     void reset_counters() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
         stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = stats.volumes_drawn = 0;
+        stats.volume_rays = 0;
         stats.culled_chunks = stats.culled_points = stats.culled_streamlines = 0;
         stats.proxy = false;
         stats.refine_step = 0;

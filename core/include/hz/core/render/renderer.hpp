@@ -72,6 +72,11 @@ struct RenderSettings {
     bool shell_all_cores = false;
     // The proxy frame is drawn at 1/proxy_scale of the size, then upscaled.
     int proxy_scale = 4;
+    // A proxy frame's fibre volume is ray-marched smaller than the proxy,
+    // down to 1/volume_scale of the size while its rays stay within 1.5
+    // voxels (the marching step) of each other, then upscaled under the
+    // proxy's lines.
+    int volume_scale = 8;
     // A progressive frame, once complete, is kept (colour and depth, one
     // point per proxy_scale x proxy_scale block), and proxy frames draw it
     // again from their camera under the proxy, which fills what it did not
@@ -121,6 +126,7 @@ struct FrameStats {
     std::uint64_t crossings_drawn = 0;                    // the slab's crossings drawn as points (Slab::points)
     std::uint64_t reprojected_points = 0;                 // a proxy frame: points of the last still drawn again (reproject)
     std::uint64_t volumes_drawn = 0;                      // a proxy frame: tractograms drawn as their fibre volume
+    std::uint64_t volume_rays = 0;                        // ... and the rays marched through them (pixels of its box)
     // Full-detail chunks hidden behind what was drawn, not drawn
     // (RenderSettings::occlusion): how many, their input points, and the
     // streamlines whose first piece they hold.
