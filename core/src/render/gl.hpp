@@ -7,3 +7,14 @@
 #define GL_GLEXT_PROTOTYPES 1
 #endif
 #include <GL/glcorearb.h>
+
+namespace hz::core::render {
+// The bound 2D texture's filter (min and mag) and edges clamped: the
+// renderer's targets and lookup tables.
+inline void clamped_texture_2d(GLint filter) {
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+}
+}  // namespace hz::core::render
