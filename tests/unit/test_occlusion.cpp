@@ -48,32 +48,35 @@ TEST_CASE("bricks: every segment in exactly one piece, each piece in its brick's
     std::uint64_t segments = 0;
     for (std::uint64_t s = 0; s < t.nb_streamlines(); ++s) segments += t.size(s) > 1 ? t.size(s) - 1 : 0;
     const std::atomic<bool> go{false};
-    for (int side : {1, 2, 5, 7})
-        for (unsigned threads : {1u, 3u}) {
-            const Bricks b = bricks_of(t, cube(0, 40), side, threads, go);
-            REQUIRE(b.dim == std::array<int, 3>{side, side, side});
-            REQUIRE(b.begin.size() == b.box.size() + 1);
-            REQUIRE(b.begin.back() == b.pieces.size());
-            std::set<std::pair<std::uint64_t, std::uint64_t>> seen;  // (streamline, first segment)
-            std::uint64_t cut_segments = 0;
-            for (std::size_t k = 0; k < b.box.size(); ++k)
-                for (std::uint64_t i = b.begin[k]; i < b.begin[k + 1]; ++i) {
-                    const Piece &p = b.pieces[i];
-                    REQUIRE(p.count >= 2);
-                    cut_segments += p.count - 1;
-                    for (std::uint32_t q = 0; q + 1 < p.count; ++q) REQUIRE(seen.insert({p.s, p.first + q}).second);
-                    for (std::uint32_t q = 0; q < p.count; ++q) {
-                        const float *x = t.positions.data() + (t.begin(p.s) + p.first + q) * 3;
-                        for (int a = 0; a < 3; ++a) {
-                            REQUIRE(x[a] >= b.box[k][a]);
-                            REQUIRE(x[a] <= b.box[k][3 + a]);
+    // The data's bounds, and bounds a loader got wrong (points outside them
+    // on every side: still inside their pieces' boxes, never culled wrongly).
+    for (const Bounds &bounds : {cube(0, 40), cube(10, 30)})
+        for (int side : {1, 2, 5, 7})
+            for (unsigned threads : {1u, 3u}) {
+                const Bricks b = bricks_of(t, bounds, side, threads, go);
+                REQUIRE(b.dim == std::array<int, 3>{side, side, side});
+                REQUIRE(b.begin.size() == b.box.size() + 1);
+                REQUIRE(b.begin.back() == b.pieces.size());
+                std::set<std::pair<std::uint64_t, std::uint64_t>> seen;  // (streamline, first segment)
+                std::uint64_t cut_segments = 0;
+                for (std::size_t k = 0; k < b.box.size(); ++k)
+                    for (std::uint64_t i = b.begin[k]; i < b.begin[k + 1]; ++i) {
+                        const Piece &p = b.pieces[i];
+                        REQUIRE(p.count >= 2);
+                        cut_segments += p.count - 1;
+                        for (std::uint32_t q = 0; q + 1 < p.count; ++q) REQUIRE(seen.insert({p.s, p.first + q}).second);
+                        for (std::uint32_t q = 0; q < p.count; ++q) {
+                            const float *x = t.positions.data() + (t.begin(p.s) + p.first + q) * 3;
+                            for (int a = 0; a < 3; ++a) {
+                                REQUIRE(x[a] >= b.box[k][a]);
+                                REQUIRE(x[a] <= b.box[k][3 + a]);
+                            }
                         }
                     }
-                }
-            REQUIRE(cut_segments == segments);
-            // Within a brick, each streamline's pieces in streamline order.
-            if (side == 1) REQUIRE(b.pieces.size() == t.nb_streamlines() - (t.nb_streamlines() + 16) / 17);
-        }
+                REQUIRE(cut_segments == segments);
+                // Within a brick, each streamline's pieces in streamline order.
+                if (side == 1) REQUIRE(b.pieces.size() == t.nb_streamlines() - (t.nb_streamlines() + 16) / 17);
+            }
     std::atomic<bool> stop{true};
     REQUIRE(bricks_of(t, cube(0, 40), 4, 2, stop).empty());
 }

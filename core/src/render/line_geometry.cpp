@@ -296,26 +296,39 @@ struct BrickGrid {
         inv = float(1.0 / edge);
     }
     std::size_t size() const { return std::size_t(dim[0]) * dim[1] * dim[2]; }
-    std::uint32_t brick_of(const float *p) const {
+    // The brick of point p; `outside` set when p is outside the bounds (a
+    // loader's bounds are not trusted: it is counted in the edge's brick).
+    std::uint32_t brick_of(const float *p, bool &outside) const {
         int c[3];
-        for (int i = 0; i < 3; ++i) c[i] = std::clamp(int((p[i] - lo[i]) * inv), 0, dim[i] - 1);  // (NaN: 0)
+        for (int i = 0; i < 3; ++i) {
+            const float f = (p[i] - lo[i]) * inv;
+            outside |= !(f >= 0.0f && f < float(dim[i]));
+            c[i] = std::clamp(int(f), 0, dim[i] - 1);  // (NaN: 0)
+        }
         return std::uint32_t((std::size_t(c[2]) * dim[1] + c[1]) * dim[0] + c[0]);
     }
-    // Calls f(brick, first, count) for each piece of streamline s of t.
+    // Calls f(brick, first, count, outside) for each piece of streamline s
+    // of t: outside when one of the piece's points but its last is outside
+    // the brick's cell.
     template <class F>
     void cut(const Tractogram &t, std::uint64_t s, F &&f) const {
         const float *P = t.positions.data();
         const std::uint64_t sb = t.begin(s), n = t.end(s) - sb;
         if (n < 2) return;
         std::uint64_t i0 = 0;
-        std::uint32_t k0 = brick_of(P + sb * 3);
+        bool out0 = false;
+        std::uint32_t k0 = brick_of(P + sb * 3, out0);
         for (std::uint64_t i = 1; i < n; ++i) {
-            const std::uint32_t k = brick_of(P + (sb + i) * 3);
-            if (k == k0) continue;
-            f(k0, i0, i - i0 + 1);
-            i0 = i, k0 = k;
+            bool out = false;
+            const std::uint32_t k = brick_of(P + (sb + i) * 3, out);
+            if (k == k0) {
+                out0 |= out;
+                continue;
+            }
+            f(k0, i0, i - i0 + 1, out0);
+            i0 = i, k0 = k, out0 = out;
         }
-        if (n - i0 >= 2) f(k0, i0, n - i0);
+        if (n - i0 >= 2) f(k0, i0, n - i0, out0);
     }
 };
 
@@ -329,7 +342,7 @@ int brick_side_for(const Tractogram &t, const Bounds &b, int min_side, int max_s
         const BrickGrid grid(b, side);
         std::uint64_t pieces = 0, sampled = 0;
         for (std::uint64_t s = every / 2; s < N; s += every, ++sampled)
-            grid.cut(t, s, [&](std::uint32_t, std::uint64_t, std::uint64_t) { ++pieces; });
+            grid.cut(t, s, [&](std::uint32_t, std::uint64_t, std::uint64_t, bool) { ++pieces; });
         if (double(pieces) * double(N) / double(std::max<std::uint64_t>(sampled, 1)) <= double(max_pieces)) return side;
     }
     return 0;
@@ -357,13 +370,16 @@ Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned th
             for (std::uint64_t s = s0; s < s1; ++s) {
                 if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return stopped.store(true);
                 const std::uint64_t sb = t.begin(s);
-                grid.cut(t, s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt) {
+                grid.cut(t, s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt, bool outside) {
                     ++count[part][k];
-                    // (its other points are in the brick's cell: the box
-                    // is the cell's, grown to its last)
+                    // (its other points are in the brick's cell, unless
+                    // outside: the box is the cell's, grown to its last, or
+                    // to all of them)
                     std::array<float, 6> &bx = box[part][k];
-                    const float *q = P + (sb + first + cnt - 1) * 3;
-                    for (int a = 0; a < 3; ++a) bx[a] = std::min(bx[a], q[a]), bx[3 + a] = std::max(bx[3 + a], q[a]);
+                    for (std::uint64_t i = outside ? first : first + cnt - 1; i < first + cnt; ++i) {
+                        const float *q = P + (sb + i) * 3;
+                        for (int a = 0; a < 3; ++a) bx[a] = std::min(bx[a], q[a]), bx[3 + a] = std::max(bx[3 + a], q[a]);
+                    }
                 });
             }
         }
@@ -406,7 +422,7 @@ Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned th
             const std::uint64_t s0 = N * part / parts, s1 = N * (part + 1) / parts;
             for (std::uint64_t s = s0; s < s1; ++s) {
                 if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return stopped.store(true);
-                grid.cut(t, s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt) {
+                grid.cut(t, s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt, bool) {
                     out.pieces[a[k]++] = Piece{s, std::uint32_t(first), std::uint32_t(cnt)};
                 });
             }
