@@ -70,10 +70,9 @@ struct GpuObject {
     std::shared_ptr<LineData> lines;
     std::vector<LineChunk> chunks, proxy_chunks;
     // Full detail cut into bricks (RenderSettings::occlusion): `chunks` are
-    // then over bricks->pieces (`full_pieces`, the same vector), brick k's
-    // chunks [brick_chunks[k], brick_chunks[k + 1]); else null.
+    // then over bricks->pieces, brick k's chunks [brick_chunks[k],
+    // brick_chunks[k + 1]); else null.
     std::shared_ptr<const Bricks> bricks;
-    std::shared_ptr<const std::vector<Piece>> full_pieces;
     std::vector<std::size_t> brick_chunks;
     std::future<Bricks> brick_job;  // the cut, being computed
     std::shared_ptr<std::atomic<bool>> brick_cancel;

@@ -225,13 +225,15 @@ void build_lines(const LineData &d, const Piece *pieces, std::uint64_t a, std::u
     }
 }
 
-// Chunks of at most max_points input points over streamlines [0, n)
-// (or over pieces[0..n)).
-std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::uint64_t n, std::uint64_t max_points) {
+namespace {
+// Chunks of at most max_points input points over [0, n), item k of
+// points_of(k) points.
+template <class F>
+std::vector<LineChunk> partition_by(std::uint64_t n, std::uint64_t max_points, F &&points_of) {
     std::vector<LineChunk> out;
     LineChunk c;
     for (std::uint64_t k = 0; k < n; ++k) {
-        const std::uint64_t pts = pieces ? pieces[k].count : t.size(k);
+        const std::uint64_t pts = points_of(k);
         if (c.points > 0 && c.points + pts > max_points) {
             c.b = k;
             out.push_back(std::move(c));
@@ -243,6 +245,16 @@ std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::
     c.b = n;
     if (c.b > c.a) out.push_back(std::move(c));
     return out;
+}
+}  // namespace
+
+// Chunks of at most max_points input points over streamlines [0, n)
+// (or over pieces[0..n)).
+std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::uint64_t n, std::uint64_t max_points) {
+    return partition_by(n, max_points, [&](std::uint64_t k) -> std::uint64_t { return pieces ? pieces[k].count : t.size(k); });
+}
+std::vector<LineChunk> partition(const BrickPiece *pieces, std::uint64_t n, std::uint64_t max_points) {
+    return partition_by(n, max_points, [&](std::uint64_t k) -> std::uint64_t { return pieces[k].count(); });
 }
 
 void slab_crossings(const LineData &d, int axis, double centre, std::uint64_t a, std::uint64_t b, std::vector<LineVertex> &out,
@@ -332,17 +344,20 @@ struct BrickGrid {
     }
 };
 
+// The BrickPieces a run of cnt >= 2 points takes.
+std::uint64_t brick_pieces(std::uint64_t cnt) { return (cnt - 2) / (BrickPiece::kMaxPoints - 1) + 1; }
+
 }  // namespace
 
 int brick_side_for(const Tractogram &t, const Bounds &b, int min_side, int max_side, std::uint64_t max_pieces) {
     const std::uint64_t N = t.nb_streamlines();
-    if (N == 0 || b.empty) return 0;
+    if (N == 0 || N > std::numeric_limits<std::uint32_t>::max() || b.empty) return 0;
     const std::uint64_t every = std::max<std::uint64_t>(1, N / 4096);
     for (int side = max_side; side >= std::max(1, min_side); --side) {
         const BrickGrid grid(b, side);
         std::uint64_t pieces = 0, sampled = 0;
         for (std::uint64_t s = every / 2; s < N; s += every, ++sampled)
-            grid.cut(t, s, [&](std::uint32_t, std::uint64_t, std::uint64_t, bool) { ++pieces; });
+            grid.cut(t, s, [&](std::uint32_t, std::uint64_t, std::uint64_t cnt, bool) { pieces += brick_pieces(cnt); });
         if (double(pieces) * double(N) / double(std::max<std::uint64_t>(sampled, 1)) <= double(max_pieces)) return side;
     }
     return 0;
@@ -351,7 +366,7 @@ int brick_side_for(const Tractogram &t, const Bounds &b, int min_side, int max_s
 Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned threads, const std::atomic<bool> &cancel) {
     Bricks out;
     const std::uint64_t N = t.nb_streamlines();
-    if (N == 0 || b.empty) return out;
+    if (N == 0 || N > std::numeric_limits<std::uint32_t>::max() || b.empty) return out;
     const BrickGrid grid(b, per_side);
     out.dim = grid.dim;
     const double edge = grid.edge;
@@ -370,8 +385,9 @@ Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned th
             for (std::uint64_t s = s0; s < s1; ++s) {
                 if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return stopped.store(true);
                 const std::uint64_t sb = t.begin(s);
+                if (t.end(s) - sb > BrickPiece::kMaxFirst) return stopped.store(true);  // (a first point BrickPiece cannot hold)
                 grid.cut(t, s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt, bool outside) {
-                    ++count[part][k];
+                    count[part][k] += brick_pieces(cnt);
                     // (its other points are in the brick's cell, unless
                     // outside: the box is the cell's, grown to its last, or
                     // to all of them)
@@ -423,7 +439,9 @@ Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned th
             for (std::uint64_t s = s0; s < s1; ++s) {
                 if ((s & 4095) == 0 && cancel.load(std::memory_order_relaxed)) return stopped.store(true);
                 grid.cut(t, s, [&](std::uint32_t k, std::uint64_t first, std::uint64_t cnt, bool) {
-                    out.pieces[a[k]++] = Piece{s, std::uint32_t(first), std::uint32_t(cnt)};
+                    for (std::uint64_t j = 0; j + 1 < cnt; j += BrickPiece::kMaxPoints - 1)
+                        out.pieces[a[k]++] = BrickPiece(s, std::uint32_t(first + j),
+                                                        std::uint32_t(std::min<std::uint64_t>(cnt - j, BrickPiece::kMaxPoints)));
                 });
             }
         }

@@ -140,13 +140,26 @@ FibreVolume fibre_volume(const LineData &d, const Bounds &b, int grid, double bu
 // brick by brick from the nearest, and a brick whose bounds project behind
 // what is already drawn at every pixel they cover is skipped: it would not
 // change one pixel.
+// A piece of a brick in 8 bytes (a whole-brain tractogram has about 11
+// pieces per streamline at 12 bricks a side): its streamline, its first
+// point (below 2^24) and its number of points (2 to kMaxPoints: a longer run
+// is several pieces, each starting at the last point of the one before).
+struct BrickPiece {
+    static constexpr std::uint32_t kMaxPoints = 255, kMaxFirst = (1u << 24) - 1;
+    std::uint32_t s = 0, first_count = 0;
+    BrickPiece() = default;
+    BrickPiece(std::uint64_t s_, std::uint32_t first, std::uint32_t count) : s(std::uint32_t(s_)), first_count(first << 8 | count) {}
+    std::uint32_t first() const { return first_count >> 8; }
+    std::uint32_t count() const { return first_count & 0xFF; }
+    Piece piece() const { return Piece{s, first(), count()}; }
+};
 struct Bricks {
     std::array<int, 3> dim{};  // bricks along x, y, z (x fastest)
     // The pieces, brick by brick: each the run of points of one streamline
     // in one brick, and the next point (the segment leaving the brick is the
     // piece's: every segment is in exactly one piece). Brick k's pieces are
     // [begin[k], begin[k + 1]).
-    std::vector<Piece> pieces;
+    std::vector<BrickPiece> pieces;
     std::vector<std::uint64_t> begin;
     // Brick k's bounds: of its pieces' points (min x, y, z, max x, y, z);
     // min > max when it has none.
@@ -154,18 +167,21 @@ struct Bricks {
     bool empty() const { return pieces.empty(); }
 };
 // The bricks of `t` on a grid of `per_side` bricks along the longest side of
-// bounds `b` (which must hold every point), on up to `threads` threads. Two
-// passes over the points (count, then fill: no memory beyond the result, 16
-// bytes a piece). Empty when `cancel` is set.
+// bounds `b` (points outside them count in the bricks at its edges, whose
+// boxes grow to hold them), on up to `threads` threads. Two passes over the
+// points (count, then fill: no memory beyond the result, 8 bytes a piece).
+// Empty when `cancel` is set, and for what BrickPiece cannot hold (2^32
+// streamlines or more, a streamline of 2^24 points or more).
 Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned threads, const std::atomic<bool> &cancel);
 // The finest grid of at most `max_side` bricks along the longest side of
 // `b` whose pieces number at most `max_pieces`, estimated from a sample of
 // the streamlines (every k-th, about 4096 of them); 0 when even `min_side`
-// bricks would take more.
+// bricks would take more, or when bricks_of would give none.
 int brick_side_for(const Tractogram &t, const Bounds &b, int min_side, int max_side, std::uint64_t max_pieces);
 
 // Chunks of at most max_points input points over streamlines [0, n) (or
 // over pieces[0..n)).
 std::vector<LineChunk> partition(const Tractogram &t, const Piece *pieces, std::uint64_t n, std::uint64_t max_points = kChunkPoints);
+std::vector<LineChunk> partition(const BrickPiece *pieces, std::uint64_t n, std::uint64_t max_points);
 
 }  // namespace hz::core::render

@@ -246,7 +246,7 @@ struct Renderer::Impl {
         release_crossings(o.crossings);
         release_chunks(o.chunks);
         release_chunks(o.proxy_chunks);
-        o.bricks.reset(), o.full_pieces.reset(), o.brick_chunks.clear();
+        o.bricks.reset(), o.brick_chunks.clear();
         if (o.fibre_cancel) *o.fibre_cancel = true;
         if (o.fibre_job.valid()) o.fibre_job.wait(), o.fibre_job = {};
         if (o.fibre_tex[0]) glDeleteTextures(3, o.fibre_tex);
@@ -613,12 +613,13 @@ struct Renderer::Impl {
             LineChunk &c = cs[k];
             if (c.vbo || pending.count(&c)) continue;
             std::shared_ptr<LineData> d = g.lines;
-            std::shared_ptr<const std::vector<Piece>> pieces = proxy ? g.proxy : g.full_pieces;
+            std::shared_ptr<const std::vector<Piece>> pieces = proxy ? g.proxy : nullptr;
+            std::shared_ptr<const Bricks> br = proxy ? nullptr : g.bricks;
             const std::uint64_t a = c.a, b = c.b;
             const double tol = proxy ? g.proxy_tol_mm : g.tol_mm;
-            pending.emplace(&c, std::async(std::launch::async, [this, d, pieces, a, b, tol] {
+            pending.emplace(&c, std::async(std::launch::async, [this, d, pieces, br, a, b, tol] {
                 auto out = spare_lines();
-                build_lines(*d, pieces ? pieces->data() : nullptr, a, b, tol, *out);
+                build_chunk(*d, pieces.get(), br.get(), a, b, tol, *out);
                 return out;
             }));
         }
@@ -632,9 +633,21 @@ struct Renderer::Impl {
             return b;
         }
         auto b = spare_lines();
-        const std::vector<Piece> *pieces = proxy ? g.proxy.get() : g.full_pieces.get();
-        build_lines(*g.lines, pieces ? pieces->data() : nullptr, c.a, c.b, proxy ? g.proxy_tol_mm : g.tol_mm, *b);
+        build_chunk(*g.lines, proxy ? g.proxy.get() : nullptr, proxy ? nullptr : g.bricks.get(), c.a, c.b,
+                    proxy ? g.proxy_tol_mm : g.tol_mm, *b);
         return b;
+    }
+    // The vertices of items [a, b) of `pieces`, or of `bricks`' pieces, or
+    // of the streamlines.
+    static void build_chunk(const LineData &d, const std::vector<Piece> *pieces, const Bricks *bricks, std::uint64_t a, std::uint64_t b,
+                            double tol, BuiltLines &out) {
+        if (!bricks) {
+            build_lines(d, pieces ? pieces->data() : nullptr, a, b, tol, out);
+            return;
+        }
+        std::vector<Piece> p(b - a);  // (at most kBrickChunkPoints / 2 pieces)
+        for (std::uint64_t i = a; i < b; ++i) p[i - a] = bricks->pieces[i].piece();
+        build_lines(d, p.data(), 0, b - a, tol, out);
     }
 
     // Vertex buffers of built chunks are reused (a fresh 6 MB block for
@@ -892,7 +905,7 @@ struct Renderer::Impl {
     // (RenderSettings::occlusion), at the finest grid whose pieces fit the
     // budget; none: g is drawn in streamline order.
     void schedule_bricks(GpuObject &g, const Tractogram &t) {
-        const std::uint64_t max_pieces = std::uint64_t(std::max(0.0, settings.brick_memory_mb) * 1048576.0 / sizeof(Piece));
+        const std::uint64_t max_pieces = std::uint64_t(std::max(0.0, settings.brick_memory_mb) * 1048576.0 / sizeof(BrickPiece));
         const int side = brick_side_for(t, g.bounds, std::min(8, settings.brick_grid), settings.brick_grid, max_pieces);
         if (side == 0) {
             spdlog::debug("renderer: object {}: no bricks within {} MB, drawn in streamline order", g.index, settings.brick_memory_mb);
@@ -944,17 +957,16 @@ struct Renderer::Impl {
         for (std::size_t k = 0; k < br->box.size(); ++k) {
             first[k] = chunks.size();
             const std::uint64_t a = br->begin[k], n = br->begin[k + 1] - a;
-            for (LineChunk &c : partition(t, br->pieces.data() + a, n, kBrickChunkPoints)) {
+            for (LineChunk &c : partition(br->pieces.data() + a, n, kBrickChunkPoints)) {
                 c.a += a, c.b += a;
                 c.starts = 0;
-                for (std::uint64_t i = c.a; i < c.b; ++i) c.starts += br->pieces[i].first == 0;
+                for (std::uint64_t i = c.a; i < c.b; ++i) c.starts += br->pieces[i].first() == 0;
                 chunks.push_back(std::move(c));
             }
         }
         first.back() = chunks.size();
         g.chunks = std::move(chunks);
         g.brick_chunks = std::move(first);
-        g.full_pieces = std::shared_ptr<const std::vector<Piece>>(br, &br->pieces);
         g.bricks = std::move(br);
     }
 
