@@ -911,6 +911,7 @@ struct Renderer::Impl {
             spdlog::debug("renderer: object {}: no bricks within {} MB, drawn in streamline order", g.index, settings.brick_memory_mb);
             return;
         }
+        spdlog::debug("renderer: object {}: cut into bricks, {} along the longest side", g.index, side);
         g.brick_cancel = std::make_shared<std::atomic<bool>>(false);
         g.brick_job = std::async(std::launch::async,
                                  [t = t.shared(), b = g.bounds, side, cancel = g.brick_cancel, window = !settings.shell_all_cores] {

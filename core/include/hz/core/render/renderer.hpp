@@ -97,7 +97,7 @@ struct RenderSettings {
     // dense whole-brain tractogram is most of its fragments behind its
     // outer layer. The cut into bricks is one more pass over the points
     // on a background thread when the scene is set (a window refines in
-    // streamline order until it is done), and 16 bytes per piece: the grid
+    // streamline order until it is done), and 8 bytes per piece: the grid
     // is the finest of at most brick_grid bricks along the longest side
     // (and at least 8) whose pieces fit brick_memory_mb; none fits: the
     // streamlines are drawn in their order.
