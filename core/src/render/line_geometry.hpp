@@ -176,7 +176,7 @@ Bricks bricks_of(const Tractogram &t, const Bounds &b, int per_side, unsigned th
 // The finest grid of at most `max_side` bricks along the longest side of
 // `b` whose pieces number at most `max_pieces`, estimated from a sample of
 // the streamlines (every k-th, about 4096 of them); 0 when even `min_side`
-// bricks would take more, or when bricks_of would give none.
+// bricks would take more, or for 2^32 streamlines or more.
 int brick_side_for(const Tractogram &t, const Bounds &b, int min_side, int max_side, std::uint64_t max_pieces);
 
 // Chunks of at most max_points input points over streamlines [0, n) (or
