@@ -1,5 +1,6 @@
 #include "session.hpp"
 #include "commands.hpp"
+#include "progress.hpp"
 
 #include <hz/core/io.hpp>
 
@@ -18,9 +19,18 @@ namespace hz::host {
 
 Explorer::Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec, bool cluster_now)
     : reg_(reg), all_(std::move(all)), name_(std::move(name)), spec_(std::move(spec)) {
-    const core::Bounds b = all_.nb_stored() ? core::bounds_of(all_.positions.data(), all_.nb_stored()) : core::Bounds{};
-    all_diagonal_ = b.empty ? 0 : std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]);
-    if (cluster_now) reset();
+    if (cluster_now)
+        reset();
+    else
+        adopt({}, compute({}, spec_.thresholds), nullptr), s_.rounds = 0;
+}
+
+double Explorer::all_diagonal() const {
+    std::call_once(diagonal_once_, [this] {
+        const core::Bounds b = all_.nb_stored() ? core::bounds_of(all_.positions.data(), all_.nb_stored()) : core::Bounds{};
+        all_diagonal_ = b.empty ? 0 : std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]);
+    });
+    return all_diagonal_;
 }
 
 void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names) {
@@ -232,11 +242,11 @@ core::Bounds Explorer::extent(const std::vector<std::uint64_t> &ids) const {
 void Explorer::repeat(std::vector<double> thresholds) {
     std::vector<std::uint64_t> keep = shown_streamlines();
     if (keep.empty()) throw core::Error("nothing is shown to cluster again");
-    if (thresholds.empty() && !s_.thresholds.empty() && all_diagonal_ > 0) {
+    if (thresholds.empty() && !s_.thresholds.empty() && all_diagonal() > 0) {
         // A bundle isolated from a whole brain would be one cluster at the
         // whole brain's thresholds: scale them by its extent.
         const core::Bounds b = extent(keep);
-        const double scale = std::min(1.0, std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]) / all_diagonal_);
+        const double scale = std::min(1.0, std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]) / all_diagonal());
         for (double t : s_.thresholds) thresholds.push_back(std::max(1.0, t * scale));
         // Relative to the first clustering's thresholds, not the last ones.
         if (!spec_.thresholds.empty() && spec_.thresholds.size() == thresholds.size())
@@ -267,12 +277,20 @@ void Explorer::reset(const std::vector<std::uint64_t> *ids) {
 // cluster, largest first, takes the colour most of its streamlines had,
 // unless a larger one took it already; the rest get new colours.
 std::shared_ptr<const core::render::ClusterTree> Explorer::compute(const std::vector<std::uint64_t> &subset,
-                                                                   const std::vector<double> &thresholds) const {
+                                                                   const std::vector<double> &thresholds, const hz_task *task) const {
     core::render::ClusterSpec spec = spec_;
     spec.thresholds = thresholds;
     auto tree = std::make_shared<core::render::ClusterTree>();
-    if (!subset.empty())
-        *tree = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), spec);
+    // Every streamline (the first clustering): the tractogram itself, not a
+    // copy of it (at 1M streamlines, 2 GB).
+    const std::uint64_t n = all_.nb_streamlines();
+    const bool everything =
+        subset.size() == n && n > 0 && subset.front() == 0 && subset.back() == n - 1 &&
+        std::adjacent_find(subset.begin(), subset.end(), [](std::uint64_t a, std::uint64_t b) { return b != a + 1; }) == subset.end();
+    if (everything)
+        *tree = core::render::run_clustering(reg_, all_, spec, task);
+    else if (!subset.empty())
+        *tree = core::render::run_clustering(reg_, core::select_streamlines(all_, subset), spec, task);
     else {
         tree->parent = {-1}, tree->level = {0}, tree->member_offsets = {0, 0};
     }
@@ -542,10 +560,25 @@ void Session::apply_in_background() {
     pending_ = std::async(std::launch::async, [this, rois = rois_, deleted = deleted_, grid = grid_future_, t0] {
         Pending p;
         p.kept = select(rois, *deleted, grid);
-        if (ex_) p.tree = ex_->compute_first(p.kept);
+        if (ex_) {
+            Progress progress("clustering " + std::to_string(p.kept.size()) + " streamlines", true);
+            p.tree = ex_->compute_first(p.kept, progress.task());
+            (void)ex_->all_diagonal();  // (measured here, the first time, rather than at the first repeat)
+        }
         p.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         return p;
     });
+}
+
+bool Session::stop() {
+    if (!pending_.valid()) return false;
+    cancel_progress();
+    try {
+        (void)pending_.get();
+        return false;
+    } catch (const std::exception &) {  // (the plugin's "cancelled")
+        return true;
+    }
 }
 
 bool Session::selecting() const { return pending_.valid(); }

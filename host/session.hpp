@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <future>
 #include <map>
+#include <mutex>
 #include <memory>
 #include <set>
 #include <string>
@@ -48,9 +49,12 @@ public:
         std::shared_ptr<const std::vector<std::string>> names;  // per tree node: a saved name (restore_saved), or none
     };
 
-    // Clusters every streamline at once unless `cluster_now` is false (then
-    // restore_saved or reset must come next).
+    // Clusters every streamline at once unless `cluster_now` is false: then
+    // nothing is clustered (no cluster shown) until restore_saved, reset or
+    // adopt (Session::apply_in_background).
     Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec, bool cluster_now = true);
+    Explorer(const Explorer &) = delete;
+    Explorer &operator=(const Explorer &) = delete;
     // The clusters a selection was saved with (Session::save): per
     // streamline its cluster's index into `names` (-1: a streamline shown on
     // its own), one cluster per name, each drawn as the centroid the
@@ -95,13 +99,19 @@ public:
     // The first clustering of `ids` (every streamline when null).
     void reset(const std::vector<std::uint64_t> *ids = nullptr);
     // The same in two steps: the tree (any thread; reads only the
-    // tractogram), then adopted (colours from `before` where given, as
+    // tractogram; `task`, may be null, gets the progress and may cancel:
+    // then Error), then adopted (colours from `before` where given, as
     // repeat does; new ones otherwise).
     std::shared_ptr<const core::render::ClusterTree> compute(const std::vector<std::uint64_t> &subset,
-                                                             const std::vector<double> &thresholds) const;
-    std::shared_ptr<const core::render::ClusterTree> compute_first(const std::vector<std::uint64_t> &subset) const {
-        return compute(subset, spec_.thresholds);
+                                                             const std::vector<double> &thresholds, const hz_task *task = nullptr) const;
+    std::shared_ptr<const core::render::ClusterTree> compute_first(const std::vector<std::uint64_t> &subset,
+                                                                   const hz_task *task = nullptr) const {
+        return compute(subset, spec_.thresholds, task);
     }
+    // The diagonal of the whole tractogram's bounding box (mm), which
+    // scales a repeat's thresholds: measured once, on the first call (any
+    // thread; a pass over every point).
+    double all_diagonal() const;
     void adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const core::render::ClusterTree> tree,
                const std::unordered_map<std::uint64_t, std::uint64_t> *before);
 
@@ -125,7 +135,8 @@ private:
     core::Tractogram all_;
     std::string name_;
     core::render::ClusterSpec spec_;
-    double all_diagonal_ = 0;
+    mutable std::once_flag diagonal_once_;
+    mutable double all_diagonal_ = 0;
     State s_;
 };
 
@@ -194,7 +205,10 @@ public:
     // The same on a thread of its own (the window stays interactive):
     // poll() adopts the result once it is there (true then: show it
     // again); settle() waits for it. Every other call that reads or edits
-    // the selection settles first.
+    // the selection settles first. Over an exploration the clustering runs
+    // behind a Progress ("clustering N streamlines"): current_progress()
+    // shows it, and stop() or cancel_progress() stops it (the selection
+    // then stays the last one made).
     void apply_in_background();
     // Waits until the spatial index is built (started if it was not).
     void wait_for_index() {
@@ -209,6 +223,10 @@ public:
     }
     bool poll();
     void settle();
+    // Stops the selection or clustering in progress (cancel_progress: the
+    // clustering plugin sees its task cancelled) and waits for it; true
+    // when it stopped before its end (nothing is adopted either way).
+    bool stop();
     bool selecting() const;
 
     // Streamline selection by a stroke across the view. pick: the shown

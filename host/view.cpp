@@ -178,17 +178,31 @@ public:
                     }
                 if (saved_names.empty()) saved_label.clear();
             }
+            // A large tractogram is clustered in the background (QuickBundlesX
+            // over 10M streamlines takes half a minute): the window shows it
+            // as it would without --explore (level of detail, refinement
+            // held back) until the clusters replace it.
+            const bool later = o.explore && saved_label.empty() && ob.data.tractogram.nb_streamlines() >= kClusterLater;
             std::unique_ptr<Explorer> explorer;
             if (o.explore)
-                explorer = std::make_unique<Explorer>(reg, ob.data.tractogram.shared(), ob.name, explore_spec(reg, o), saved_label.empty());
+                explorer = std::make_unique<Explorer>(reg, ob.data.tractogram.shared(), ob.name, explore_spec(reg, o),
+                                                      saved_label.empty() && !later);
             if (explorer && !saved_label.empty()) explorer->restore_saved(saved_label, saved_names);
             session = std::make_unique<Session>(reg, ob.data.tractogram.shared(), o.inputs, std::move(explorer));
             ex = session->explorer();
             for (auto &roi : rois) session->add_roi(std::move(roi));
-            if (!session->rois().empty()) session->apply(saved_label.empty());
+            if (later)
+                session->apply_in_background(), awaiting_clusters = true;
+            else if (!session->rois().empty())
+                session->apply(saved_label.empty());
             if (ex) {
                 ci = i;
-                ob = ex->centroids_object();
+                if (awaiting_clusters) {
+                    std::printf("explore: clustering %llu streamlines in the background; the window shows them meanwhile\n",
+                                (unsigned long long)ob.data.tractogram.nb_streamlines());
+                } else {
+                    ob = ex->centroids_object();
+                }
                 si = scene.objects.size();
                 scene.objects.push_back(ex->streamlines_object());
             } else if (!session->rois().empty()) {
@@ -221,10 +235,19 @@ public:
         }
 
         if (session) {
-            app.on_click = [this](double x, double y, int mods) { on_click(x, y, mods); };
-            app.on_key = [this](int k, int mods) { return on_key(k, mods); };
-            app.on_stroke = [this](const std::vector<std::array<double, 2>> &stroke) { on_stroke(stroke); };
-            app.on_ctrl_scroll = [this](double dy) { on_ctrl_scroll(dy); };
+            // (until the first clusters are there, an edit would wait for
+            // them: the window says so instead, at once)
+            app.on_click = [this](double x, double y, int mods) { awaiting_clusters ? say_clustering() : on_click(x, y, mods); };
+            app.on_key = [this](int k, int mods) {
+                if (!awaiting_clusters) return on_key(k, mods);
+                if (!is_session_key(k, mods)) return false;
+                say_clustering();
+                return true;
+            };
+            app.on_stroke = [this](const std::vector<std::array<double, 2>> &stroke) {
+                awaiting_clusters ? say_clustering() : on_stroke(stroke);
+            };
+            app.on_ctrl_scroll = [this](double dy) { awaiting_clusters ? say_clustering() : on_ctrl_scroll(dy); };
         }
     }
 
@@ -272,13 +295,16 @@ public:
             {
                 const double now = glfwGetTime();
                 const bool settling = now - app.last_motion < 0.25 || now - app.last_material_edit < App::kBakeAfter + 0.05;
-                const bool busy = r.refining() || r.computing() || !still.valid || app.dragging || app.panning || app.force_moving ||
-                                  wait > 0 || (session && session->selecting()) || queued_click || app.press_stage >= 0 ||
+                // (a selection or clustering in the background is polled
+                // every 50 ms; the refinement waits for the first clusters)
+                const bool selecting = session && session->selecting();
+                const bool busy = (r.refining() && !awaiting_clusters) || r.computing() || !still.valid || app.dragging || app.panning ||
+                                  app.force_moving || wait > 0 || queued_click || app.press_stage >= 0 ||
                                   (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
                                   (!o.script.empty() && o.exit_after_script && pc >= script.size());
                 if (busy)
                     glfwPollEvents();
-                else if (settling || now < sleep_until)
+                else if (settling || selecting || now < sleep_until)
                     glfwWaitEventsTimeout(std::clamp(sleep_until - now, 0.005, 0.05));
                 else
                     glfwWaitEventsTimeout(1.0);
@@ -286,20 +312,25 @@ public:
             // One script command per frame (wait N: N frames); a screenshot
             // waits until the still image is complete (as a user would).
             // (and for what the renderer computes in the background: the slab's crossings)
+            // (Scripts are deterministic: a selection or clustering still
+            // being made in the background is waited for, and shown, before
+            // the next command, but `wait`, `sleep` and `nowait` let frames
+            // go on meanwhile.)
+            const bool pause = pc < script.size() && (script[pc].rfind("wait", 0) == 0 || script[pc].rfind("sleep", 0) == 0 ||
+                                                      script[pc].rfind("nowait ", 0) == 0);
+            const bool settle_now = pc < script.size() && !pause && wait == 0 && glfwGetTime() >= sleep_until && app.press_stage < 0 &&
+                                    session && session->selecting();
+            if (settle_now) session->settle(), refresh(r, true);
             const bool hold_for_still = pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving &&
                                         (r.refining() || r.computing() || !still.valid);
             if (wait > 0)
                 --wait;
             else if (glfwGetTime() < sleep_until) {
             } else if (app.press_stage >= 0) {  // a panel press takes its three frames
+            } else if (settle_now) {            // (the command runs next frame, over what was shown now)
             } else if (hold_for_still) {
             } else if (pc < script.size()) {
-                // (Scripts are deterministic: a selection still being made in
-                // the background is waited for before the next command, but
-                // `wait` and `sleep` let frames go on meanwhile.)
-                const bool pause = script[pc].rfind("wait", 0) == 0 || script[pc].rfind("sleep", 0) == 0;
                 if (queued_click && !pause) session->wait_for_index(), process_queued_click();
-                if (session && session->selecting() && !pause) session->settle(), refresh(r, true);
                 run_script_line(script[pc++]);
             } else if (!o.script.empty() && o.exit_after_script) {
                 app.quit = true;
@@ -338,7 +369,7 @@ public:
                 r.present(fw, fh);
                 still = now;
                 kind = r.refining() ? "refine" : "complete";
-            } else if (r.refining()) {
+            } else if (r.refining() && !awaiting_clusters) {
                 // A step and the rest of its frame (presenting it, the
                 // panel, the swap) together within kStepMs.
                 const double ts = glfwGetTime();
@@ -346,9 +377,11 @@ public:
                 step_ms = 1000.0 * (glfwGetTime() - ts);
                 r.present(fw, fh);
             } else if (app.events != seen_events || !app.pending_shot.empty() || app.press_stage >= 0 || wait > 0 ||
-                       (pc < script.size() && glfwGetTime() >= sleep_until)) {
+                       (pc < script.size() && glfwGetTime() >= sleep_until) ||
+                       (awaiting_clusters && glfwGetTime() >= next_progress_frame)) {
                 r.present(fw, fh);  // the kept still image (the panel is redrawn over it)
                 kind = "still";
+                next_progress_frame = glfwGetTime() + 0.25;  // (the clustering's progress in the panel)
             } else {
                 continue;  // nothing changed: no frame at all
             }
@@ -363,17 +396,25 @@ public:
             ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
             glfwSwapBuffers(win);
             const double frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_t0).count();
+            log.clustering = awaiting_clusters;
             log.add(kind, r.stats(), frame_ms);
             if (step_ms >= 0) frame_overhead_ms = std::clamp(frame_ms - step_ms, 0.0, kStepMs / 2), step_ms = -1;
             // The regions' spatial index, a second after the first frame
             // (the shell proxy's thread is then done, as a rule).
-            if (session && log.first_frame_s >= 0 && seconds_since_launch() > log.first_frame_s + 1.0) session->prepare_index();
+            // (After the first clusters, which the index would slow down.)
+            if (session && !awaiting_clusters && log.first_frame_s >= 0 && seconds_since_launch() > log.first_frame_s + 1.0)
+                session->prepare_index();
             if (first_frame) {
                 first_frame = false;
                 std::printf("first frame after %.2f s\n", seconds_since_launch());
                 std::fflush(stdout);
             }
         }
+        if (awaiting_clusters && session->stop()) {  // (closed before the clusters)
+            std::printf("explore: closed before the clusters were there; the clustering stopped\n");
+            std::fflush(stdout);
+        }
+        log.clusters_shown_s = clusters_shown_s;
         if (!o.stats.empty()) log.write(o.stats, r, framebuffer_size(win).first, framebuffer_size(win).second);
     }
 
@@ -390,8 +431,8 @@ private:
     }
 
     void report(bool selection) {
-        if (ex) std::printf("explore: %s\n", ex->summary().c_str());
-        if (selection) std::printf("roi: %s (%.1f ms)\n", session->summary().c_str(), session->last_filter_ms());
+        if (ex && !awaiting_clusters) std::printf("explore: %s\n", ex->summary().c_str());
+        if (selection && !awaiting_clusters) std::printf("roi: %s (%.1f ms)\n", session->summary().c_str(), session->last_filter_ms());
         std::fflush(stdout);
     }
 
@@ -408,8 +449,27 @@ private:
     }
 
     void refresh(core::render::Renderer &rr, bool selection_changed) {
+        const bool arrived = awaiting_clusters;
+        if (awaiting_clusters) {
+            if (session->selecting()) return;  // (the tractogram stays until its clusters are there)
+            awaiting_clusters = false;
+            if (ex->shown().empty() && session->all().nb_streamlines() > 0) {  // (failed or cancelled: said on stderr)
+                std::printf("explore: no clusters (the clustering did not finish); Reset in the panel clusters again\n");
+                std::fflush(stdout);
+                return;
+            }
+            clusters_shown_s = seconds_since_launch();
+            std::printf("explore: clusters shown %.2f s after launch\n", clusters_shown_s);
+        }
         if (ex) {
-            rr.replace_object(ci, ex->centroids_object());
+            // (the centroids keep the material the panel gave them; the
+            // first ones replace the tractogram's)
+            core::render::Object c = ex->centroids_object();
+            if (arrived)
+                materials[ci] = c.material;
+            else
+                c.material = materials[ci];
+            rr.replace_object(ci, std::move(c));
             core::render::Object so = ex->streamlines_object();
             highlight(so.data.tractogram, ex->expanded());
             rr.replace_object(si, std::move(so));
@@ -429,7 +489,7 @@ private:
             rr.replace_object(k, std::move(w));
             rr.set_visible(k, any);
         }
-        report(selection_changed);
+        report(selection_changed && !(arrived && session->rois().empty()));
     }
 
     // An edit: recorded for undo, applied, shown; an error leaves the
@@ -526,6 +586,23 @@ private:
 
     // Ctrl+click: an include sphere (5 mm) where the click meets a
     // streamline (or a centroid); a plain click picks a cluster.
+    // The keys on_key handles (the rest are the App's: S, R, Q, Esc).
+    bool is_session_key(int k, int mods) const {
+        if (mods & GLFW_MOD_CONTROL) return k == GLFW_KEY_Z || k == GLFW_KEY_Y || k == GLFW_KEY_S;
+        return k == GLFW_KEY_K || k == GLFW_KEY_D || k == GLFW_KEY_I ||
+               (ex && (k == GLFW_KEY_E || k == GLFW_KEY_X || k == GLFW_KEY_H || k == GLFW_KEY_A || k == GLFW_KEY_C));
+    }
+
+    // The answer to an edit while the first clustering runs.
+    void say_clustering() {
+        const ProgressState p = current_progress();
+        if (p.active && p.fraction >= 0)
+            std::printf("explore: still clustering (%.0f %%); the clusters can be picked once they show\n", 100 * p.fraction);
+        else
+            std::printf("explore: still clustering; the clusters can be picked once they show\n");
+        std::fflush(stdout);
+    }
+
     void on_click(double x, double y, int mods) {
         if (mods & GLFW_MOD_CONTROL) {
             // A large tractogram is picked through the spatial
@@ -669,6 +746,15 @@ private:
         std::string op;
         cmd >> op;
         try {
+            if (op == "nowait") {  // nowait CMD: input at once, as a user's, without waiting for a selection or clustering
+                std::string rest;
+                std::getline(cmd >> std::ws, rest);
+                const std::string what = rest.substr(0, rest.find(' '));
+                if (what != "click" && what != "key" && what != "scroll" && what != "drag" && what != "pan" && what != "stroke")
+                    throw core::Error("nowait takes an input command (click, key, scroll, drag, pan, stroke), not '" + what + "'");
+                run_script_line(rest);
+                return;
+            }
             if (op == "wait")
                 cmd >> wait;
             else if (op == "sleep") {  // wall-clock seconds (frames go on meanwhile)
@@ -939,6 +1025,16 @@ private:
 
     // The exploration: its clusters as a legend, and what to do with them.
     void explore_panel(std::function<void()> &act) {
+        if (ex && awaiting_clusters && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
+            const ProgressState p = current_progress();
+            ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "clustering %llu streamlines...",
+                               (unsigned long long)session->all().nb_streamlines());
+            char label[32];
+            std::snprintf(label, sizeof label, "%.0f %%", 100 * std::max(0.0, p.fraction));
+            ImGui::ProgressBar(p.active && p.fraction >= 0 ? float(p.fraction) : 0.0f, ImVec2(-1, 0), label);
+            ImGui::TextDisabled("the streamlines are shown meanwhile; their clusters replace them when done");
+            return;
+        }
         if (ex && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
             ImGui::TextWrapped("%s", ex->summary().c_str());
             ImGui::TextDisabled("click a centroid: select  E: expand  X: to streamlines  H: hide  A: all/none  C: cluster again");
@@ -1004,6 +1100,7 @@ private:
 
     // The regions of interest, the strokes' picks, undo, save.
     void regions_panel(std::function<void()> &act, bool &act_selects) {
+        if (awaiting_clusters) return;  // (its edits would wait for the clusters)
         if (session && ImGui::CollapsingHeader("Regions of interest", ex ? 0 : ImGuiTreeNodeFlags_DefaultOpen)) {
             if (session->selecting())
                 ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "selecting...");
@@ -1173,6 +1270,13 @@ private:
     // the last one's frame took besides.
     double step_ms = -1, frame_overhead_ms = 0;
     bool first_frame = true;
+    // The first clustering of a large tractogram runs in the background
+    // (Session::apply_in_background): the tractogram is shown meanwhile,
+    // unrefined, and edits wait for the clusters.
+    static constexpr std::uint64_t kClusterLater = 100000;
+    bool awaiting_clusters = false;
+    double clusters_shown_s = -1;    // (seconds after launch; the --stats file's)
+    double next_progress_frame = 0;  // (the panel's progress, redrawn 4 times a second)
 };
 
 }  // namespace

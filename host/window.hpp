@@ -176,6 +176,8 @@ struct FrameLog {
     nlohmann::json loading;  // the frames that showed the data being read (load_in_window)
     double peak_anon_mb = 0;
     double first_frame_s = -1, first_complete_s = -1;
+    double clusters_shown_s = -1;  // --explore: when the first clusters replaced the tractogram (-1: never, or at once)
+    bool clustering = false;       // the frames added now are drawn while the first clustering runs
     // A named point in time among the frames (a script's `mark NAME`).
     void mark(const std::string &name) { frames.push_back({{"t", seconds_since_launch()}, {"kind", "mark"}, {"name", name}}); }
     void add(const char *kind, const core::render::FrameStats &s, double ms) {
@@ -202,6 +204,7 @@ struct FrameLog {
                           {"culled_chunks", drew ? s.culled_chunks : 0},
                           {"culled_streamlines", drew ? s.culled_streamlines : 0},
                           {"proxy", drew && s.proxy},
+                          {"clustering", clustering},
                           {"rss_anon_mb", anon}});
     }
     void write(const std::string &path, const core::render::Renderer &r, int w, int h) const {
@@ -216,6 +219,7 @@ struct FrameLog {
                                   {"streamlines_with_proxy", r.streamlines_with_proxy()},
                                   {"first_frame_s", first_frame_s},
                                   {"first_complete_s", first_complete_s},
+                                  {"clusters_shown_s", clusters_shown_s},
                                   {"peak_rss_anon_mb", peak_anon_mb},
                                   {"gl", r.gl_description()},
                                   {"loading", loading},

@@ -234,6 +234,68 @@ class ScaleTest(unittest.TestCase):
         # The screenshot waited for the complete still frame.
         self.assertGreater((load(shot).max(axis=2) > 60).mean(), 0.15)
 
+    def test_explore_shows_the_tractogram_while_it_clusters(self):
+        """--explore on a large tractogram: QuickBundlesX runs in the
+        background; the window shows the tractogram at once (its proxy,
+        refinement held back), answers input at once, and the clusters
+        replace it when they are there. Closing it meanwhile stops the
+        clustering."""
+        self.assertTrue(shutil.which("xvfb-run"), "xvfb-run is needed (installed by .ci/bootstrap test)")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg",
+               "HORIZON_PLUGIN_CACHE": os.path.join(BUILD, "tests", "plugin-trials.json")}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # the GL driver's threads (see hztest.GL_COMMANDS)
+
+        def view(name, lines, *extra, timeout=1800):
+            script, stats = self.path(name + ".txt"), self.path(name + ".json")
+            with open(script, "w") as f:
+                f.write("\n".join(lines) + "\n")
+            p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.tck, "--explore", "--size",
+                                "640x400", "--script", script, "--stats", stats, *extra], capture_output=True, text=True,
+                               timeout=timeout, env=env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            with open(stats) as fh:
+                return p.stdout, json.load(fh)
+
+        shot = self.path("explore.png")
+        # (`nowait`: the input goes in at once, as a user's would; other
+        # commands wait for the clustering, which keeps scripts deterministic.)
+        out, j = view("explore", ["wait 2", "nowait key e", "nowait click 320 200", "nowait drag 300 200 380 220", "wait 5",
+                                  f"screenshot {shot}", "quit"])
+        self.assertIn(f"explore: clustering {N} streamlines in the background", out)
+        frames = [f for f in j["frames"] if f["kind"] != "mark"]
+        during = [f for f in frames if f["clustering"]]
+        after = [f for f in frames if not f["clustering"]]
+        self.assertGreater(len(during), 3, "frames went on while it clustered")
+        # The first picture is the tractogram's proxy, and nothing is
+        # refined until the clusters are there (the clustering gets the CPU).
+        self.assertTrue(frames[0]["clustering"])
+        self.assertTrue(frames[0]["proxy"])
+        self.assertGreater(frames[0]["points"], 0)
+        self.assertLess(frames[0]["points"], self.points / 20)
+        self.assertTrue(any(f["kind"] == "moving" for f in during), "the drag moved the view while it clustered")
+        for f in during:
+            self.assertEqual(f["step"], 0)
+            self.assertLess(f["points"], self.points / 20)
+        # Input during the clustering was answered at once, not queued.
+        self.assertEqual(out.count("explore: still clustering"), 2, out)
+        # Then the clusters: a few dozen centroids, refined to a complete still.
+        self.assertGreater(j["clusters_shown_s"], j["first_frame_s"])
+        self.assertTrue(after)
+        self.assertLess(j["streamlines"], 1000)
+        self.assertRegex(out, r"explore: \d+ clusters, 0 streamlines expanded, 1 clustering round")
+        self.assertIn("complete", [f["kind"] for f in after])
+        self.assertGreater((load(shot).max(axis=2) > 60).mean(), 0.05)
+        # (the tractogram itself is clustered, not a copy of it: 12 bytes a point)
+        self.assertLess(j["peak_rss_anon_mb"], 1536)
+
+        # Closed while it clusters (4 mm clusters: minutes of work): the
+        # clustering is cancelled and the window ends at once.
+        out, j = view("explore_quit", ["wait 2", "nowait key q"], "--param", "thresholds=30,20,10,4", timeout=300)
+        self.assertNotIn("clusters shown", out)
+        self.assertIn("explore: closed before the clusters were there; the clustering stopped", out)
+        self.assertTrue(all(f["clustering"] for f in j["frames"] if f["kind"] != "mark"))
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -241,7 +241,15 @@ struct Renderer::Impl {
     double tol_mm = 0;  // streamline decimation tolerance of the current scene
 
     void release(GpuObject &o) {
+        // Background work on the object stops first (its futures' ends are
+        // waited for: an abandoned cut of 10M streamlines into bricks kept
+        // a replace_object waiting 39 s).
+        if (o.brick_cancel) *o.brick_cancel = true;
+        if (o.shell_cancel) *o.shell_cancel = true;
         if (o.crossing_cancel) *o.crossing_cancel = true;
+        if (o.fibre_cancel) *o.fibre_cancel = true;
+        if (o.brick_job.valid()) o.brick_job.wait(), o.brick_job = {};
+        if (o.shell.valid()) o.shell.wait(), o.shell = {};
         if (o.crossing_job.valid()) o.crossing_job.wait(), o.crossing_job = {};
         release_crossings(o.crossings);
         release_chunks(o.chunks);

@@ -595,7 +595,7 @@ Volume make_head_volume(double voxel_mm) {
     return vol;
 }
 
-ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec) {
+ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec, const hz_task *task) {
     const LoadedPlugin *plugin = find_clustering(reg, spec.algorithm);
     const std::string id = plugin->info.id;
     const std::vector<ParamSpec> schema = schema_of(*plugin);
@@ -622,8 +622,8 @@ ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const Clust
             throw Error(id + ": parameter " + k + ": " + err.message);
     const Tractogram input = plugin->streamlines_for(t);
     const hz_streamlines_view view = input.view();
-    Task task;
-    if (c->run(obj, &view, nullptr, task.get(), &err) != HZ_OK) throw Error(id + ": " + err.message);
+    Task own;
+    if (c->run(obj, &view, nullptr, task ? task : own.get(), &err) != HZ_OK) throw Error(id + ": " + err.message);
     hz_cluster_tree_view v{};
     v.struct_size = sizeof v;
     if (c->get_result(obj, &v, &err) != HZ_OK) throw Error(id + ": " + err.message);

@@ -153,8 +153,10 @@ struct ClusterTree {
 };
 
 // Runs clustering plugin `spec.algorithm` (fast mode: for display) with
-// spec.thresholds over `t`. Throws Error.
-ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec);
+// spec.thresholds over `t`. `task` (may be null; not owned, alive for the
+// call) receives the plugin's progress and may cancel the run, which then
+// throws Error ("cancelled"). Throws Error.
+ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec, const hz_task *task = nullptr);
 
 // The first per-vertex array of `m` that holds colours (3 or 4 components:
 // uint8/uint16 sRGB-encoded, float linear 0..1), or "" (coloring mode "rgb");
