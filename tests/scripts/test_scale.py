@@ -260,7 +260,8 @@ class ScaleTest(unittest.TestCase):
         shot = self.path("explore.png")
         # (`nowait`: the input goes in at once, as a user's would; other
         # commands wait for the clustering, which keeps scripts deterministic.)
-        out, j = view("explore", ["wait 2", "nowait key e", "nowait click 320 200", "nowait drag 300 200 380 220", "wait 5",
+        # (`sleep`: frames go on, and sample the memory, while it clusters)
+        out, j = view("explore", ["wait 2", "nowait key e", "nowait click 320 200", "nowait drag 300 200 380 220", "sleep 8",
                                   f"screenshot {shot}", "quit"])
         self.assertIn(f"explore: clustering {N} streamlines in the background", out)
         frames = [f for f in j["frames"] if f["kind"] != "mark"]
@@ -289,12 +290,20 @@ class ScaleTest(unittest.TestCase):
         # (the tractogram itself is clustered, not a copy of it: 12 bytes a point)
         self.assertLess(j["peak_rss_anon_mb"], 1536)
 
-        # Closed while it clusters (4 mm clusters: minutes of work): the
-        # clustering is cancelled and the window ends at once.
-        out, j = view("explore_quit", ["wait 2", "nowait key q"], "--param", "thresholds=30,20,10,4", timeout=300)
+        # A long clustering (1 mm clusters of 100-point streamlines: 24 s of
+        # work at 1M streamlines, on two cores): for 6 s the window shows
+        # the proxy, unrefined, and redraws the panel's progress; closed,
+        # the clustering is cancelled and the window ends at once.
+        out, j = view("explore_quit", ["wait 2", "sleep 6", "nowait key q"], "--param", "thresholds=30,20,10,5,1", "--param",
+                      "nb_points=100", timeout=300)
         self.assertNotIn("clusters shown", out)
         self.assertIn("explore: closed before the clusters were there; the clustering stopped", out)
-        self.assertTrue(all(f["clustering"] for f in j["frames"] if f["kind"] != "mark"))
+        frames = [f for f in j["frames"] if f["kind"] != "mark"]
+        self.assertGreater(len(frames), 12)
+        for f in frames:
+            self.assertTrue(f["clustering"])
+            self.assertEqual(f["step"], 0)
+            self.assertLess(f["points"], self.points / 20)
 
 
 if __name__ == "__main__":
