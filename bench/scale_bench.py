@@ -8,7 +8,7 @@ this machine (llvmpipe), at 1280x800:
 - the window (`horizon view --stats` under Xvfb, a scripted drag then rest):
   launch to first frame, moving frame times, refinement steps, launch to the
   complete still image, peak anonymous memory (RssAnon: mapped file pages are
-  not counted);
+  not counted); with --explore, launch to the clusters shown;
 - `horizon render` at full detail, end to end, and `render --preview`;
 - the level-of-detail chart: the proxy's error against the full-detail frame
   from the same camera (SSIM of the 4x-downsampled luminance, bench/imgmetrics.py)
@@ -98,6 +98,15 @@ def main():
     rows.append(("window: moving frame over the fibre volume, once the still is complete, median / max (ms)",
                  f"{np.median(settled):.0f} / {max(settled):.0f} ({len(settled)} frames)"))
     # Occlusion culling (--lod-occlusion): the same, drawn in file order.
+    # --explore: QuickBundlesX in the background, the tractogram shown meanwhile
+    # (`sleep`: frames, which sample the memory, go on while it clusters).
+    we = window(horizon, tck, work, "--explore", moves=f"wait 2\nnowait key e\nsleep {max(6, 4 * args.streamlines // 1000000)}\n")
+    during = [f for f in we["frames"] if f.get("clustering")]
+    gap = max((b["t"] - a["t"] for a, b in zip(during, during[1:])), default=0)
+    rows.append(("window --explore: launch to first frame / to clusters shown (s)",
+                 f"{we['first_frame_s']:.2f} / {we['clusters_shown_s']:.1f}"))
+    rows.append(("window --explore: longest time between frames while clustering (ms); peak anonymous memory (MB)",
+                 f"{1000 * gap:.0f}; {we['peak_rss_anon_mb']:.0f}"))
     w_off = window(horizon, tck, work, "--lod-occlusion", "off")
     rows.append(("window, --lod-occlusion off: launch to complete still image (s)",
                  f"{w_off['first_complete_s']:.1f} ({w_off['first_complete_s'] / w['first_complete_s']:.1f}x on's)"))
