@@ -213,9 +213,12 @@ void Explorer::expand_node(std::uint64_t node, bool to_streamlines) {
         const std::vector<std::uint64_t> kids = children(node);
         for (std::size_t i = 0; i < kids.size(); ++i) s_.colour[kids[i]] = i == 0 ? s_.colour[node] : s_.next_colour++;
         s_.shown.insert(s_.shown.end(), kids.begin(), kids.end());
-    } else {
+    } else {  // (expanded stays ascending: every streamline expanded is the tractogram itself, not a copy)
+        const std::size_t before = s_.expanded.size();
         for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m)
             s_.expanded.push_back((*s_.subset)[t.members[m]]);
+        std::sort(s_.expanded.begin() + std::ptrdiff_t(before), s_.expanded.end());
+        std::inplace_merge(s_.expanded.begin(), s_.expanded.begin() + std::ptrdiff_t(before), s_.expanded.end());
     }
     sort();
 }
@@ -388,7 +391,10 @@ core::render::Object Explorer::streamlines_object() const {
     core::render::Object o;
     o.name = name_ + ": expanded streamlines";
     o.kind = o.data.kind = HZ_DATA_STREAMLINES;
-    o.data.tractogram = core::select_streamlines(all_, s_.expanded);
+    // Every streamline: the tractogram as it is; else a copy, which a large
+    // one keeps in a temporary file's pages rather than anonymous memory
+    // (a million streamlines expanded out of ten million: 2 GB).
+    o.data.tractogram = s_.expanded.size() == all_.nb_streamlines() ? all_.shared() : core::select_streamlines(all_, s_.expanded, true);
     o.render = "lines";
     o.coloring.mode = "direction";
     return o;
@@ -677,7 +683,7 @@ std::string Session::save(const std::string &path, bool force) {
     const std::vector<std::uint64_t> ids = shown(&cluster_of);
     core::Dataset out;
     out.kind = HZ_DATA_STREAMLINES;
-    out.tractogram = core::subset_with_arrays(all_, ids);
+    out.tractogram = core::subset_with_arrays(all_, ids, /*spill=*/true);  // (bounded memory whatever is saved)
     // Clusters: a TRX group per cluster shown (named by its path, which
     // TRX names cannot hold dots of), and each streamline's group index as
     // per-streamline data (-1: a streamline expanded on its own).

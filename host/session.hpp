@@ -40,7 +40,7 @@ public:
         std::shared_ptr<const core::render::ClusterTree> tree;
         std::shared_ptr<const std::vector<std::uint64_t>> subset;  // the streamlines clustered (tree members index it; shared by copies)
         std::vector<std::uint64_t> shown;                          // tree nodes shown, largest first
-        std::vector<std::uint64_t> expanded;                       // streamlines shown on their own
+        std::vector<std::uint64_t> expanded;                       // streamlines shown on their own (ascending)
         std::set<std::uint64_t> selected;                          // tree nodes, all shown
         std::vector<std::uint64_t> colour;                         // per tree node: its palette entry
         std::uint64_t next_colour = 0;
@@ -88,7 +88,7 @@ public:
     // Hides the selected clusters and drops the expanded streamlines in
     // `streamlines` (ascending).
     void drop_selected(const std::vector<std::uint64_t> &streamlines);
-    const std::vector<std::uint64_t> &expanded() const { return s_.expanded; }
+    const std::vector<std::uint64_t> &expanded() const { return s_.expanded; }  // (ascending)
     void expand(std::size_t rank);
     void expand_to_streamlines(std::size_t rank);
     void hide(std::size_t rank);

@@ -261,8 +261,9 @@ class ScaleTest(unittest.TestCase):
         # (`nowait`: the input goes in at once, as a user's would; other
         # commands wait for the clustering, which keeps scripts deterministic.)
         # (`sleep`: frames go on, and sample the memory, while it clusters)
+        # Then every cluster selected (A) and shown as its streamlines (X).
         out, j = view("explore", ["wait 2", "nowait key e", "nowait click 320 200", "nowait drag 300 200 380 220", "sleep 8",
-                                  f"screenshot {shot}", "quit"])
+                                  f"screenshot {shot}", "mark clusters", "key a", "key x", "wait 3", "quit"])
         self.assertIn(f"explore: clustering {N} streamlines in the background", out)
         frames = [f for f in j["frames"] if f["kind"] != "mark"]
         during = [f for f in frames if f["clustering"]]
@@ -283,10 +284,15 @@ class ScaleTest(unittest.TestCase):
         # Then the clusters: a few dozen centroids, refined to a complete still.
         self.assertGreater(j["clusters_shown_s"], j["first_frame_s"])
         self.assertTrue(after)
-        self.assertLess(j["streamlines"], 1000)
         self.assertRegex(out, r"explore: \d+ clusters, 0 streamlines expanded, 1 clustering round")
-        self.assertIn("complete", [f["kind"] for f in after])
+        mark = next(i for i, f in enumerate(j["frames"]) if f["kind"] == "mark")
+        self.assertIn("complete", [f["kind"] for f in j["frames"][:mark] if not f["clustering"]])
         self.assertGreater((load(shot).max(axis=2) > 60).mean(), 0.05)
+        # Every streamline expanded: the tractogram itself, drawn again with
+        # its level of detail (a copy would be 12 bytes a point more).
+        self.assertIn(f"explore: 0 clusters, {N} streamlines expanded", out)
+        self.assertEqual(j["streamlines"], N)
+        self.assertTrue(any(f["proxy"] for f in j["frames"][mark + 1:]))
         # (the tractogram itself is clustered, not a copy of it: 12 bytes a point)
         self.assertLess(j["peak_rss_anon_mb"], 1536)
 
