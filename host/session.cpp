@@ -242,37 +242,52 @@ core::Bounds Explorer::extent(const std::vector<std::uint64_t> &ids) const {
     return b;
 }
 
-void Explorer::repeat(std::vector<double> thresholds) {
-    std::vector<std::uint64_t> keep = shown_streamlines();
-    if (keep.empty()) throw core::Error("nothing is shown to cluster again");
+Explorer::Plan Explorer::plan_repeat(std::vector<double> thresholds) const {
+    Plan p;
+    p.subset = shown_streamlines();
+    if (p.subset.empty()) throw core::Error("nothing is shown to cluster again");
     if (thresholds.empty() && !s_.thresholds.empty() && all_diagonal() > 0) {
         // A bundle isolated from a whole brain would be one cluster at the
         // whole brain's thresholds: scale them by its extent.
-        const core::Bounds b = extent(keep);
+        const core::Bounds b = extent(p.subset);
         const double scale = std::min(1.0, std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]) / all_diagonal());
         for (double t : s_.thresholds) thresholds.push_back(std::max(1.0, t * scale));
         // Relative to the first clustering's thresholds, not the last ones.
         if (!spec_.thresholds.empty() && spec_.thresholds.size() == thresholds.size())
             for (std::size_t i = 0; i < thresholds.size(); ++i) thresholds[i] = std::max(1.0, spec_.thresholds[i] * scale);
     }
+    p.thresholds = std::move(thresholds);
     // Each streamline's colour now, so that the new clusters can keep them.
-    std::unordered_map<std::uint64_t, std::uint64_t> before;
+    p.colour_of.assign(all_.nb_streamlines(), kNoColour);
     const auto &t = *s_.tree;
     for (std::uint64_t node : s_.shown)
         for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m)
-            before[(*s_.subset)[t.members[m]]] = s_.colour[node];
-    cluster(std::move(keep), &before, thresholds);
+            p.colour_of[(*s_.subset)[t.members[m]]] = s_.colour[node];
+    return p;
+}
+
+Explorer::Plan Explorer::plan_reset(const std::vector<std::uint64_t> *ids) const {
+    Plan p;
+    if (ids)
+        p.subset = *ids;
+    else {
+        p.subset.resize(all_.nb_streamlines());
+        std::iota(p.subset.begin(), p.subset.end(), 0);
+    }
+    p.thresholds = spec_.thresholds;
+    return p;
+}
+
+void Explorer::repeat(std::vector<double> thresholds) {
+    Plan p = plan_repeat(std::move(thresholds));
+    auto tree = compute(p.subset, p.thresholds);
+    adopt(std::move(p.subset), std::move(tree), &p.colour_of);
 }
 
 void Explorer::reset(const std::vector<std::uint64_t> *ids) {
-    std::vector<std::uint64_t> every;
-    if (ids)
-        every = *ids;
-    else {
-        every.resize(all_.nb_streamlines());
-        std::iota(every.begin(), every.end(), 0);
-    }
-    cluster(std::move(every), nullptr, spec_.thresholds);
+    Plan p = plan_reset(ids);
+    auto tree = compute(p.subset, p.thresholds);
+    adopt(std::move(p.subset), std::move(tree), nullptr);
 }
 
 // QuickBundlesX (fast mode) over the streamlines `subset` of all_; shows
@@ -300,14 +315,8 @@ std::shared_ptr<const core::render::ClusterTree> Explorer::compute(const std::ve
     return tree;
 }
 
-void Explorer::cluster(std::vector<std::uint64_t> subset, const std::unordered_map<std::uint64_t, std::uint64_t> *before,
-                       const std::vector<double> &thresholds) {
-    auto tree = compute(subset, thresholds);
-    adopt(std::move(subset), std::move(tree), before);
-}
-
 void Explorer::adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const core::render::ClusterTree> tree,
-                     const std::unordered_map<std::uint64_t, std::uint64_t> *before) {
+                     const std::vector<std::uint64_t> *before) {
     if (before == nullptr) s_.next_colour = 0;  // (a first clustering)
     s_.names.reset();
     s_.tree = tree;
@@ -326,7 +335,7 @@ void Explorer::adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const co
         if (before != nullptr) {
             std::map<std::uint64_t, std::uint64_t> votes;
             for (std::uint64_t m = tree->member_offsets[node]; m < tree->member_offsets[node + 1]; ++m)
-                if (auto it = before->find((*s_.subset)[tree->members[m]]); it != before->end()) ++votes[it->second];
+                if (const std::uint64_t c = (*before)[(*s_.subset)[tree->members[m]]]; c != kNoColour) ++votes[c];
             std::uint64_t best = 0;
             for (const auto &[c, n] : votes)
                 if (n > best && !taken.count(c)) best = n, pick = c;
@@ -576,6 +585,21 @@ void Session::apply_in_background() {
     });
 }
 
+void Session::recluster_in_background(std::vector<double> thresholds, bool reset) {
+    settle();
+    if (!ex_) throw core::Error("nothing is being explored");
+    if (!reset && !ex_->anything_shown()) throw core::Error("nothing is shown to cluster again");
+    const auto t0 = std::chrono::steady_clock::now();
+    pending_ = std::async(std::launch::async, [this, thresholds = std::move(thresholds), reset, kept = kept_, t0] {
+        Pending p;
+        p.plan = std::make_unique<Explorer::Plan>(reset ? ex_->plan_reset(kept.get()) : ex_->plan_repeat(thresholds));
+        Progress progress("clustering " + std::to_string(p.plan->subset.size()) + " streamlines", true);
+        p.tree = ex_->compute(p.plan->subset, p.plan->thresholds, progress.task());
+        p.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        return p;
+    });
+}
+
 bool Session::stop() {
     if (!pending_.valid()) return false;
     cancel_progress();
@@ -599,10 +623,14 @@ void Session::settle() {
     if (!pending_.valid()) return;
     try {
         Pending p = pending_.get();
+        if (p.plan) {
+            ex_->adopt(std::move(p.plan->subset), std::move(p.tree), p.plan->colour_of.empty() ? nullptr : &p.plan->colour_of);
+            return;
+        }
         adopt(std::move(p.kept), std::move(p.tree));
         filter_ms_ = p.ms;
     } catch (const std::exception &e) {  // (the selection shown stays the last one made)
-        std::fprintf(stderr, "horizon: the selection failed: %s\n", e.what());
+        std::fprintf(stderr, "horizon: the selection or clustering failed: %s\n", e.what());
     }
 }
 

@@ -98,10 +98,24 @@ public:
     void repeat(std::vector<double> thresholds = {});
     // The first clustering of `ids` (every streamline when null).
     void reset(const std::vector<std::uint64_t> *ids = nullptr);
+    // What repeat or reset clusters: the streamlines, the thresholds, and
+    // for a repeat each streamline's colour now (per streamline of all(),
+    // kNoColour where none) for the new clusters to keep; empty for a
+    // reset (new colours). Any thread, while nothing edits the
+    // exploration; plan_repeat throws Error when nothing is shown.
+    struct Plan {
+        std::vector<std::uint64_t> subset;
+        std::vector<double> thresholds;
+        std::vector<std::uint64_t> colour_of;
+    };
+    static constexpr std::uint64_t kNoColour = ~std::uint64_t(0);
+    Plan plan_repeat(std::vector<double> thresholds) const;
+    Plan plan_reset(const std::vector<std::uint64_t> *ids) const;
+    bool anything_shown() const { return !s_.shown.empty() || !s_.expanded.empty(); }
     // The same in two steps: the tree (any thread; reads only the
     // tractogram; `task`, may be null, gets the progress and may cancel:
-    // then Error), then adopted (colours from `before` where given, as
-    // repeat does; new ones otherwise).
+    // then Error), then adopted (colours from `before`, a Plan's colour_of,
+    // where given, as repeat does; new ones otherwise).
     std::shared_ptr<const core::render::ClusterTree> compute(const std::vector<std::uint64_t> &subset,
                                                              const std::vector<double> &thresholds, const hz_task *task = nullptr) const;
     std::shared_ptr<const core::render::ClusterTree> compute_first(const std::vector<std::uint64_t> &subset,
@@ -113,7 +127,7 @@ public:
     // thread; a pass over every point).
     double all_diagonal() const;
     void adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const core::render::ClusterTree> tree,
-               const std::unordered_map<std::uint64_t, std::uint64_t> *before);
+               const std::vector<std::uint64_t> *before);
 
     // The streamlines shown (clusters' members and expanded ones), ascending,
     // and for each its cluster's path ("" for an expanded streamline).
@@ -127,8 +141,6 @@ private:
     void sort();
     std::vector<std::uint64_t> children(std::uint64_t node) const;
     void expand_node(std::uint64_t node, bool to_streamlines);
-    void cluster(std::vector<std::uint64_t> subset, const std::unordered_map<std::uint64_t, std::uint64_t> *before,
-                 const std::vector<double> &thresholds);
     core::Bounds extent(const std::vector<std::uint64_t> &ids) const;
 
     const core::Registry &reg_;
@@ -210,6 +222,11 @@ public:
     // shows it, and stop() or cancel_progress() stops it (the selection
     // then stays the last one made).
     void apply_in_background();
+    // Explorer::repeat (`thresholds` as there) or, with `reset`,
+    // Explorer::reset of what the regions select, the same way: on a
+    // thread of its own, poll() adopts, stop() stops it. Throws Error when
+    // nothing is shown to cluster again.
+    void recluster_in_background(std::vector<double> thresholds, bool reset);
     // Waits until the spatial index is built (started if it was not).
     void wait_for_index() {
         if (!grid_future_.valid()) prepare_index();
@@ -287,6 +304,7 @@ private:
         std::vector<std::uint64_t> kept;
         std::shared_ptr<const core::render::ClusterTree> tree;
         double ms = 0;
+        std::unique_ptr<Explorer::Plan> plan;  // (a repeat or reset: the selection stays)
     };
     std::future<Pending> pending_;
     std::vector<core::Roi> rois_;

@@ -192,13 +192,13 @@ public:
             ex = session->explorer();
             for (auto &roi : rois) session->add_roi(std::move(roi));
             if (later)
-                session->apply_in_background(), awaiting_clusters = true;
+                session->apply_in_background(), first_clusters = true;
             else if (!session->rois().empty())
                 session->apply(saved_label.empty());
             if (ex) {
                 ci = i;
-                if (awaiting_clusters) {
-                    std::printf("explore: clustering %llu streamlines in the background; the window shows them meanwhile\n",
+                if (first_clusters) {
+                    std::printf("clustering %llu streamlines in the background; the window shows them meanwhile\n",
                                 (unsigned long long)ob.data.tractogram.nb_streamlines());
                 } else {
                     ob = ex->centroids_object();
@@ -237,17 +237,17 @@ public:
         if (session) {
             // (until the first clusters are there, an edit would wait for
             // them: the window says so instead, at once)
-            app.on_click = [this](double x, double y, int mods) { awaiting_clusters ? say_clustering() : on_click(x, y, mods); };
+            app.on_click = [this](double x, double y, int mods) { clustering() ? say_clustering() : on_click(x, y, mods); };
             app.on_key = [this](int k, int mods) {
-                if (!awaiting_clusters) return on_key(k, mods);
+                if (!clustering()) return on_key(k, mods);
                 if (!is_session_key(k, mods)) return false;
                 say_clustering();
                 return true;
             };
             app.on_stroke = [this](const std::vector<std::array<double, 2>> &stroke) {
-                awaiting_clusters ? say_clustering() : on_stroke(stroke);
+                clustering() ? say_clustering() : on_stroke(stroke);
             };
-            app.on_ctrl_scroll = [this](double dy) { awaiting_clusters ? say_clustering() : on_ctrl_scroll(dy); };
+            app.on_ctrl_scroll = [this](double dy) { clustering() ? say_clustering() : on_ctrl_scroll(dy); };
         }
     }
 
@@ -298,7 +298,7 @@ public:
                 // (a selection or clustering in the background is polled
                 // every 50 ms; the refinement waits for the first clusters)
                 const bool selecting = session && session->selecting();
-                const bool busy = (r.refining() && !awaiting_clusters) || r.computing() || !still.valid || app.dragging || app.panning ||
+                const bool busy = (r.refining() && !holding_refinement()) || r.computing() || !still.valid || app.dragging || app.panning ||
                                   app.force_moving || wait > 0 || queued_click || app.press_stage >= 0 ||
                                   (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
                                   (!o.script.empty() && o.exit_after_script && pc >= script.size());
@@ -320,7 +320,7 @@ public:
                                                       script[pc].rfind("nowait ", 0) == 0);
             const bool settle_now = pc < script.size() && !pause && wait == 0 && glfwGetTime() >= sleep_until && app.press_stage < 0 &&
                                     session && session->selecting();
-            if (settle_now) session->settle(), refresh(r, true);
+            if (settle_now) session->settle(), refresh(r, !std::exchange(reclustering, false));
             const bool hold_for_still = pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving &&
                                         (r.refining() || r.computing() || !still.valid);
             if (wait > 0)
@@ -336,9 +336,9 @@ public:
                 app.quit = true;
             }
 
-            if (session && session->poll()) {  // a selection made in the background
+            if (session && session->poll()) {  // a selection or clustering made in the background
                 const auto t0 = std::chrono::steady_clock::now();
-                refresh(r, true);
+                refresh(r, !std::exchange(reclustering, false));
                 spdlog::debug("selection shown: {:.0f} ms",
                               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
             }
@@ -369,7 +369,7 @@ public:
                 r.present(fw, fh);
                 still = now;
                 kind = r.refining() ? "refine" : "complete";
-            } else if (r.refining() && !awaiting_clusters) {
+            } else if (r.refining() && !holding_refinement()) {
                 // A step and the rest of its frame (presenting it, the
                 // panel, the swap) together within kStepMs.
                 const double ts = glfwGetTime();
@@ -377,8 +377,7 @@ public:
                 step_ms = 1000.0 * (glfwGetTime() - ts);
                 r.present(fw, fh);
             } else if (app.events != seen_events || !app.pending_shot.empty() || app.press_stage >= 0 || wait > 0 ||
-                       (pc < script.size() && glfwGetTime() >= sleep_until) ||
-                       (awaiting_clusters && glfwGetTime() >= next_progress_frame)) {
+                       (pc < script.size() && glfwGetTime() >= sleep_until) || (clustering() && glfwGetTime() >= next_progress_frame)) {
                 r.present(fw, fh);  // the kept still image (the panel is redrawn over it)
                 kind = "still";
                 next_progress_frame = glfwGetTime() + 0.25;  // (the clustering's progress in the panel)
@@ -396,13 +395,13 @@ public:
             ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
             glfwSwapBuffers(win);
             const double frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_t0).count();
-            log.clustering = awaiting_clusters;
+            log.clustering = clustering();
             log.add(kind, r.stats(), frame_ms);
             if (step_ms >= 0) frame_overhead_ms = std::clamp(frame_ms - step_ms, 0.0, kStepMs / 2), step_ms = -1;
             // The regions' spatial index, a second after the first frame
             // (the shell proxy's thread is then done, as a rule).
             // (After the first clusters, which the index would slow down.)
-            if (session && !awaiting_clusters && log.first_frame_s >= 0 && seconds_since_launch() > log.first_frame_s + 1.0)
+            if (session && !first_clusters && log.first_frame_s >= 0 && seconds_since_launch() > log.first_frame_s + 1.0)
                 session->prepare_index();
             if (first_frame) {
                 first_frame = false;
@@ -410,8 +409,8 @@ public:
                 std::fflush(stdout);
             }
         }
-        if (awaiting_clusters && session->stop()) {  // (closed before the clusters)
-            std::printf("explore: closed before the clusters were there; the clustering stopped\n");
+        if (clustering() && session->stop()) {  // (closed before the clusters)
+            std::printf("closed before the clusters were there; the clustering stopped\n");
             std::fflush(stdout);
         }
         log.clusters_shown_s = clusters_shown_s;
@@ -431,8 +430,8 @@ private:
     }
 
     void report(bool selection) {
-        if (ex && !awaiting_clusters) std::printf("explore: %s\n", ex->summary().c_str());
-        if (selection && !awaiting_clusters) std::printf("roi: %s (%.1f ms)\n", session->summary().c_str(), session->last_filter_ms());
+        if (ex && !first_clusters) std::printf("explore: %s\n", ex->summary().c_str());
+        if (selection && !first_clusters) std::printf("roi: %s (%.1f ms)\n", session->summary().c_str(), session->last_filter_ms());
         std::fflush(stdout);
     }
 
@@ -449,19 +448,20 @@ private:
     }
 
     void refresh(core::render::Renderer &rr, bool selection_changed) {
-        const bool arrived = awaiting_clusters;
-        if (awaiting_clusters) {
-            if (session->selecting()) return;  // (the tractogram stays until its clusters are there)
-            awaiting_clusters = false;
-            if (ex->shown().empty() && session->all().nb_streamlines() > 0) {  // (failed or cancelled: said on stderr)
-                std::printf("explore: no clusters (the clustering did not finish); Reset in the panel clusters again\n");
-                std::fflush(stdout);
-                return;
+        // (the tractogram stays until its first clusters are there)
+        bool arrived = false;
+        if (first_clusters && !session->selecting()) {
+            if (ex->anything_shown() || session->all().nb_streamlines() == 0) {
+                first_clusters = false, arrived = true;
+                clusters_shown_s = seconds_since_launch();
+                std::printf("clusters shown %.2f s after launch\n", clusters_shown_s);
+            } else if (!said_no_clusters) {  // (failed or cancelled: said on stderr)
+                said_no_clusters = true;
+                std::printf("no clusters (the clustering did not finish); Reset in the panel clusters again\n");
             }
-            clusters_shown_s = seconds_since_launch();
-            std::printf("explore: clusters shown %.2f s after launch\n", clusters_shown_s);
+            std::fflush(stdout);
         }
-        if (ex) {
+        if (ex && !first_clusters) {
             // (the centroids keep the material the panel gave them; the
             // first ones replace the tractogram's)
             core::render::Object c = ex->centroids_object();
@@ -473,7 +473,7 @@ private:
             core::render::Object so = ex->streamlines_object();
             highlight(so.data.tractogram, ex->expanded());
             rr.replace_object(si, std::move(so));
-        } else if (selection_changed) {
+        } else if (!ex && selection_changed) {
             core::render::Object ob = styled_like(rr.scene().objects[ti]);
             const bool everything = session->kept().size() == session->all().nb_streamlines();
             ob.data.tractogram = everything ? session->all().shared() : core::subset_with_arrays(session->all(), session->kept(), true);
@@ -502,7 +502,7 @@ private:
             session->rollback();
             throw;
         }
-        refresh(r, selection_changes);
+        if (!(reclustering && session->selecting())) refresh(r, selection_changes);  // (a repeat shows when it is done)
     }
 
     void edit_ui(const std::function<void()> &fn, bool selection_changes) {
@@ -586,6 +586,21 @@ private:
 
     // Ctrl+click: an include sphere (5 mm) where the click meets a
     // streamline (or a centroid); a plain click picks a cluster.
+    // A clustering runs in the background (the first, a repeat, or over a
+    // new selection): edits wait for it, and the window says so at once.
+    bool clustering() const { return ex && session->selecting(); }
+    // The refinement waits for the first clusters (the CPU is theirs).
+    bool holding_refinement() const { return first_clusters && session->selecting(); }
+
+    // Repeat (thresholds: none, fitted to what is shown) or reset, in the
+    // background; the clusters shown stay until the new ones are there.
+    void recluster(std::vector<double> thresholds, bool reset) {
+        session->recluster_in_background(std::move(thresholds), reset);
+        reclustering = true, said_no_clusters = false;
+        std::printf("clustering again in the background\n");
+        std::fflush(stdout);
+    }
+
     // The keys on_key handles (the rest are the App's: S, R, Q, Esc).
     bool is_session_key(int k, int mods) const {
         if (mods & GLFW_MOD_CONTROL) return k == GLFW_KEY_Z || k == GLFW_KEY_Y || k == GLFW_KEY_S;
@@ -597,9 +612,9 @@ private:
     void say_clustering() {
         const ProgressState p = current_progress();
         if (p.active && p.fraction >= 0)
-            std::printf("explore: still clustering (%.0f %%); the clusters can be picked once they show\n", 100 * p.fraction);
+            std::printf("still clustering (%.0f %%); the clusters can be picked once they show\n", 100 * p.fraction);
         else
-            std::printf("explore: still clustering; the clusters can be picked once they show\n");
+            std::printf("still clustering; the clusters can be picked once they show\n");
         std::fflush(stdout);
     }
 
@@ -691,7 +706,7 @@ private:
         else if (k == GLFW_KEY_A)
             fn = [&] { ex->select_all(); };
         else if (k == GLFW_KEY_C)
-            fn = [&] { ex->repeat(); };
+            fn = [&] { recluster({}, false); };
         else
             return false;
         edit_ui(fn, false);
@@ -829,9 +844,9 @@ private:
                         else if (op == "hide")
                             ex->hide(ex->rank_of(k));
                         else if (op == "repeat")
-                            ex->repeat(thresholds);
+                            recluster(thresholds, false);
                         else
-                            ex->reset(&session->kept());
+                            recluster({}, true);
                     },
                     false);
             } else if (op == "roi") {
@@ -1025,22 +1040,22 @@ private:
 
     // The exploration: its clusters as a legend, and what to do with them.
     void explore_panel(std::function<void()> &act) {
-        if (ex && awaiting_clusters && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
+        if (ex && clustering() && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
             const ProgressState p = current_progress();
-            ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "clustering %llu streamlines...",
-                               (unsigned long long)session->all().nb_streamlines());
+            ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "%s...", p.active ? p.what.c_str() : "clustering");
             char label[32];
             std::snprintf(label, sizeof label, "%.0f %%", 100 * std::max(0.0, p.fraction));
             ImGui::ProgressBar(p.active && p.fraction >= 0 ? float(p.fraction) : 0.0f, ImVec2(-1, 0), label);
-            ImGui::TextDisabled("the streamlines are shown meanwhile; their clusters replace them when done");
+            ImGui::TextDisabled(first_clusters ? "the streamlines are shown meanwhile; their clusters replace them when done"
+                                               : "the clusters shown stay until the new ones are there");
             return;
         }
         if (ex && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
             ImGui::TextWrapped("%s", ex->summary().c_str());
             ImGui::TextDisabled("click a centroid: select  E: expand  X: to streamlines  H: hide  A: all/none  C: cluster again");
-            if (button("Repeat: cluster what is shown")) act = [&] { ex->repeat(); };
+            if (button("Repeat: cluster what is shown")) act = [&] { recluster({}, false); };
             ImGui::SameLine();
-            if (button("Reset")) act = [&] { ex->reset(&session->kept()); };
+            if (button("Reset")) act = [&] { recluster({}, true); };
             // Thresholds for the next repeat (mm, coarse to fine); empty:
             // fitted to the extent of what is shown.
             ImGui::SetNextItemWidth(140);
@@ -1054,7 +1069,7 @@ private:
                 act = [&, t] {
                     if (t.empty() || std::any_of(t.begin(), t.end(), [](double x) { return !(x > 0); }))
                         throw core::Error("thresholds: positive numbers in mm, comma-separated (e.g. 20,10,5)");
-                    ex->repeat(t);
+                    recluster(t, false);
                 };
             }
             if (ImGui::IsItemHovered())
@@ -1100,7 +1115,7 @@ private:
 
     // The regions of interest, the strokes' picks, undo, save.
     void regions_panel(std::function<void()> &act, bool &act_selects) {
-        if (awaiting_clusters) return;  // (its edits would wait for the clusters)
+        if (clustering()) return;  // (its edits would wait for the clusters)
         if (session && ImGui::CollapsingHeader("Regions of interest", ex ? 0 : ImGuiTreeNodeFlags_DefaultOpen)) {
             if (session->selecting())
                 ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "selecting...");
@@ -1274,7 +1289,9 @@ private:
     // (Session::apply_in_background): the tractogram is shown meanwhile,
     // unrefined, and edits wait for the clusters.
     static constexpr std::uint64_t kClusterLater = 100000;
-    bool awaiting_clusters = false;
+    bool first_clusters = false;     // the tractogram is shown (object ci) until its first clusters are there
+    bool said_no_clusters = false;   // (the first clustering failed: said once)
+    bool reclustering = false;       // (the clustering in the background is a repeat or reset: no new selection)
     double clusters_shown_s = -1;    // (seconds after launch; the --stats file's)
     double next_progress_frame = 0;  // (the panel's progress, redrawn 4 times a second)
 };
