@@ -235,8 +235,8 @@ public:
         }
 
         if (session) {
-            // (until the first clusters are there, an edit would wait for
-            // them: the window says so instead, at once)
+            // (while a clustering runs in the background, an edit would wait for
+            // it: the window says so instead, at once)
             app.on_click = [this](double x, double y, int mods) { clustering() ? say_clustering() : on_click(x, y, mods); };
             app.on_key = [this](int k, int mods) {
                 if (!clustering()) return on_key(k, mods);
@@ -608,7 +608,7 @@ private:
                (ex && (k == GLFW_KEY_E || k == GLFW_KEY_X || k == GLFW_KEY_H || k == GLFW_KEY_A || k == GLFW_KEY_C));
     }
 
-    // The answer to an edit while the first clustering runs.
+    // The answer to an edit while a clustering runs in the background.
     void say_clustering() {
         const ProgressState p = current_progress();
         if (p.active && p.fraction >= 0)
