@@ -41,6 +41,10 @@
 #include <future>
 #include <sstream>
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 namespace hz::host {
 
 namespace fs = std::filesystem;
@@ -237,17 +241,15 @@ public:
         if (session) {
             // (while a clustering runs in the background, an edit would wait for
             // it: the window says so instead, at once)
-            app.on_click = [this](double x, double y, int mods) { clustering() ? say_clustering() : on_click(x, y, mods); };
+            app.on_click = [this](double x, double y, int mods) { busy_editing() ? say_busy() : on_click(x, y, mods); };
             app.on_key = [this](int k, int mods) {
-                if (!clustering()) return on_key(k, mods);
+                if (!busy_editing()) return on_key(k, mods);
                 if (!is_session_key(k, mods)) return false;
-                say_clustering();
+                say_busy();
                 return true;
             };
-            app.on_stroke = [this](const std::vector<std::array<double, 2>> &stroke) {
-                clustering() ? say_clustering() : on_stroke(stroke);
-            };
-            app.on_ctrl_scroll = [this](double dy) { clustering() ? say_clustering() : on_ctrl_scroll(dy); };
+            app.on_stroke = [this](const std::vector<std::array<double, 2>> &stroke) { busy_editing() ? say_busy() : on_stroke(stroke); };
+            app.on_ctrl_scroll = [this](double dy) { busy_editing() ? say_busy() : on_ctrl_scroll(dy); };
         }
     }
 
@@ -295,9 +297,10 @@ public:
             {
                 const double now = glfwGetTime();
                 const bool settling = now - app.last_motion < 0.25 || now - app.last_material_edit < App::kBakeAfter + 0.05;
-                // (a selection or clustering in the background is polled
-                // every 50 ms; the refinement waits for the first clusters)
-                const bool selecting = session && session->selecting();
+                // (a selection, clustering or stroke in the background is
+                // polled every 50 ms; the refinement waits for the first
+                // clusters)
+                const bool selecting = (session && session->selecting()) || stroking();
                 const bool busy = (r.refining() && !holding_refinement()) || r.computing() || !still.valid || app.dragging || app.panning ||
                                   app.force_moving || wait > 0 || queued_click || app.press_stage >= 0 ||
                                   (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
@@ -319,8 +322,11 @@ public:
             const bool pause = pc < script.size() && (script[pc].rfind("wait", 0) == 0 || script[pc].rfind("sleep", 0) == 0 ||
                                                       script[pc].rfind("nowait ", 0) == 0);
             const bool settle_now = pc < script.size() && !pause && wait == 0 && glfwGetTime() >= sleep_until && app.press_stage < 0 &&
-                                    session && session->selecting();
-            if (settle_now) session->settle(), refresh(r, !std::exchange(reclustering, false));
+                                    session && (session->selecting() || stroking());
+            if (settle_now && stroking())
+                finish_stroke();
+            else if (settle_now)
+                session->settle(), refresh(r, !std::exchange(reclustering, false));
             const bool hold_for_still = pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving &&
                                         (r.refining() || r.computing() || !still.valid);
             if (wait > 0)
@@ -336,13 +342,14 @@ public:
                 app.quit = true;
             }
 
-            if (session && session->poll()) {  // a selection or clustering made in the background
+            if (stroking() && stroke_job.wait_for(std::chrono::seconds(0)) == std::future_status::ready) finish_stroke();
+            if (session && !stroking() && session->poll()) {  // a selection or clustering made in the background
                 const auto t0 = std::chrono::steady_clock::now();
                 refresh(r, !std::exchange(reclustering, false));
                 spdlog::debug("selection shown: {:.0f} ms",
                               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
             }
-            if (queued_click && session->grid_if_ready()) process_queued_click();
+            if (queued_click && !stroking() && session->grid_if_ready()) process_queued_click();
             int fw, fh;
             glfwGetFramebufferSize(win, &fw, &fh);
             if (fw <= 0 || fh <= 0) continue;
@@ -409,6 +416,7 @@ public:
                 std::fflush(stdout);
             }
         }
+        if (stroking()) stroke_job.wait();
         if (clustering() && session->stop()) {  // (closed before the clusters)
             std::printf("closed before the clusters were there; the clustering stopped\n");
             std::fflush(stdout);
@@ -589,6 +597,9 @@ private:
     // A clustering runs in the background (the first, a repeat, or over a
     // new selection): edits wait for it, and the window says so at once.
     bool clustering() const { return ex && session->selecting(); }
+    bool stroking() const { return stroke_job.valid(); }
+    // Edits wait for a clustering or a stroke's crossings.
+    bool busy_editing() const { return clustering() || stroking(); }
     // The refinement waits for the first clusters (the CPU is theirs).
     bool holding_refinement() const { return first_clusters && session->selecting(); }
 
@@ -608,8 +619,14 @@ private:
                (ex && (k == GLFW_KEY_E || k == GLFW_KEY_X || k == GLFW_KEY_H || k == GLFW_KEY_A || k == GLFW_KEY_C));
     }
 
-    // The answer to an edit while a clustering runs in the background.
-    void say_clustering() {
+    // The answer to an edit while a clustering runs in the background, or
+    // a stroke's crossings are being found.
+    void say_busy() {
+        if (stroking() && !clustering()) {
+            std::printf("still picking what the last stroke crossed\n");
+            std::fflush(stdout);
+            return;
+        }
         const ProgressState p = current_progress();
         if (p.active && p.fraction >= 0)
             std::printf("still clustering (%.0f %%); the clusters can be picked once they show\n", 100 * p.fraction);
@@ -716,6 +733,11 @@ private:
     // A stroke (Ctrl+drag, or `stroke X0 Y0 X1 Y1 ...`): picks the
     // streamlines it crosses, and over an exploration the clusters
     // whose centroid it crosses.
+    // The crossings are found on a thread of their own (a million
+    // streamlines: a second of projecting every point); finish_stroke()
+    // makes the edit once they are there. Nothing the window shows changes
+    // meanwhile: edits are answered "still picking", and a selection made
+    // in the background is adopted after the stroke.
     void on_stroke(const std::vector<std::array<double, 2>> &stroke) {
         int ww, wh, fw, fh;
         glfwGetWindowSize(win, &ww, &wh);
@@ -724,15 +746,28 @@ private:
         std::vector<std::array<double, 2>> px;
         for (const auto &q : stroke) px.push_back({q[0] * fw / ww, q[1] * fh / wh});
         const core::render::View v = app.orbit.view(app.radius);
-        const auto t0 = std::chrono::steady_clock::now();
-        std::vector<std::uint64_t> ids = core::render::streamlines_crossing(r.scene().objects[ex ? si : ti].data.tractogram, v, fw, fh, px);
+        stroke_t0 = std::chrono::steady_clock::now();
+        stroke_job = std::async(std::launch::async, [lines = r.scene().objects[ex ? si : ti].data.tractogram.shared(),
+                                                     centroids = ex ? r.scene().objects[ci].data.tractogram.shared() : core::Tractogram{},
+                                                     v, fw, fh, px, explore = ex != nullptr] {
+            // Below the frames' priority (its threads inherit it), as the
+            // renderer's background work is.
+            setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
+            StrokeHits h;
+            h.streamlines = core::render::streamlines_crossing(lines, v, fw, fh, px);
+            if (explore)
+                for (std::uint64_t k : core::render::streamlines_crossing(centroids, v, fw, fh, px)) h.ranks.push_back(k);
+            return h;
+        });
+    }
+
+    void finish_stroke() {
+        StrokeHits h = stroke_job.get();
+        std::vector<std::uint64_t> ids = std::move(h.streamlines);
+        const std::vector<std::size_t> &ranks = h.ranks;
         const std::vector<std::uint64_t> &shown_ids = ex ? ex->expanded() : session->kept();
         for (std::uint64_t &i : ids) i = shown_ids[i];  // (the object's streamline i is shown_ids[i])
-        std::vector<std::size_t> ranks;
-        if (ex)
-            for (std::uint64_t k : core::render::streamlines_crossing(r.scene().objects[ci].data.tractogram, v, fw, fh, px))
-                ranks.push_back(k);
-        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - stroke_t0).count();
         edit_ui(
             [&] {
                 session->pick(std::move(ids));
@@ -1019,7 +1054,10 @@ private:
         bool act_selects = false;
         explore_panel(act);
         regions_panel(act, act_selects);
-        if (act) edit_ui(act, act_selects);
+        if (act && busy_editing())
+            say_busy();
+        else if (act)
+            edit_ui(act, act_selects);
         slab_panel();
         objects_panel();
         ImGui::End();
@@ -1115,7 +1153,7 @@ private:
 
     // The regions of interest, the strokes' picks, undo, save.
     void regions_panel(std::function<void()> &act, bool &act_selects) {
-        if (clustering()) return;  // (its edits would wait for the clusters)
+        if (busy_editing()) return;  // (its edits would wait for the clusters or the stroke)
         if (session && ImGui::CollapsingHeader("Regions of interest", ex ? 0 : ImGuiTreeNodeFlags_DefaultOpen)) {
             if (session->selecting())
                 ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "selecting...");
@@ -1262,7 +1300,13 @@ private:
         core::render::View view;
     };
     std::optional<QueuedClick> queued_click;  // a Ctrl+click waiting for the spatial index
-    core::Bounds scene_box;                   // (the slab's range)
+    struct StrokeHits {
+        std::vector<std::uint64_t> streamlines;  // (indices into the object's streamlines)
+        std::vector<std::size_t> ranks;          // (the clusters whose centroids it crosses)
+    };
+    std::future<StrokeHits> stroke_job;  // a stroke's crossings, being found (on_stroke)
+    std::chrono::steady_clock::time_point stroke_t0;
+    core::Bounds scene_box;  // (the slab's range)
     std::vector<std::string> script;
     std::size_t pc = 0;
     int wait = 0;

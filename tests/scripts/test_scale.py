@@ -265,7 +265,7 @@ class ScaleTest(unittest.TestCase):
         # every cluster selected (A) and shown as its streamlines (X).
         out, j = view("explore", ["wait 2", "nowait key e", "nowait click 320 200", "nowait drag 300 200 380 220", "sleep 8",
                                   f"screenshot {shot}", "mark clusters", "key c", "wait 2", "nowait key a", "key a", "key x", "wait 3",
-                                  "quit"])
+                                  "stroke 80 200 560 220", "nowait key d", "sleep 1", "quit"])
         self.assertIn(f"clustering {N} streamlines in the background", out)
         mark = next(i for i, f in enumerate(j["frames"]) if f["kind"] == "mark")
         frames = j["frames"][:mark]
@@ -300,6 +300,10 @@ class ScaleTest(unittest.TestCase):
         self.assertIn(f"explore: 0 clusters, {N} streamlines expanded", out)
         self.assertEqual(j["streamlines"], N)
         self.assertTrue(any(f["proxy"] for f in j["frames"][mark + 1:]))
+        # A stroke across them: its crossings are found in the background
+        # (a million streamlines projected), input meanwhile answered at once.
+        self.assertIn("still picking what the last stroke crossed", out)
+        self.assertRegex(out, r"stroke: [1-9]\d* streamlines picked, 0 clusters selected")
         # (the tractogram itself is clustered, not a copy of it: 12 bytes a point)
         self.assertLess(j["peak_rss_anon_mb"], 1536)
 
