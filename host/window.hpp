@@ -15,13 +15,19 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <optional>
+#include <stop_token>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace hz::host::win {
@@ -172,6 +178,21 @@ std::pair<int, int> framebuffer_size(GLFWwindow *w);
 // "complete" (the step that completed it, or a frame drawn whole), "still"
 // (the kept image presented again, e.g. for the panel; no scene drawing).
 struct FrameLog {
+    // The peak of RssAnon is also sampled 20 times a second on a thread of
+    // its own: frames alone miss what happens while none is drawn.
+    FrameLog()
+        : sampler_([this](std::stop_token stop) {
+              std::mutex m;
+              std::unique_lock<std::mutex> lock(m);
+              std::condition_variable_any cv;  // (only to wait 50 ms, or less once stopped)
+              while (!stop.stop_requested()) {
+                  const double a = rss_anon_mb();
+                  for (double p = sampled_peak_mb_.load(); a > p && !sampled_peak_mb_.compare_exchange_weak(p, a);) {}
+                  cv.wait_for(lock, stop, std::chrono::milliseconds(50), [] { return false; });
+              }
+          }) {}
+    FrameLog(const FrameLog &) = delete;
+    FrameLog &operator=(const FrameLog &) = delete;
     nlohmann::json frames = nlohmann::json::array();
     nlohmann::json loading;  // the frames that showed the data being read (load_in_window)
     double peak_anon_mb = 0;
@@ -220,7 +241,7 @@ struct FrameLog {
                                   {"first_frame_s", first_frame_s},
                                   {"first_complete_s", first_complete_s},
                                   {"clusters_shown_s", clusters_shown_s},
-                                  {"peak_rss_anon_mb", peak_anon_mb},
+                                  {"peak_rss_anon_mb", std::max(peak_anon_mb, sampled_peak_mb_.load())},
                                   {"gl", r.gl_description()},
                                   {"loading", loading},
                                   {"frames", frames}};
@@ -228,6 +249,10 @@ struct FrameLog {
         std::printf("stats: %s (%zu frames)\n", path.c_str(), frames.size());
         std::fflush(stdout);
     }
+
+private:
+    std::atomic<double> sampled_peak_mb_{0};
+    std::jthread sampler_;  // (last: stopped and joined first)
 };
 
 // GLFW callbacks, installed before Dear ImGui's (which chains to them).

@@ -241,7 +241,9 @@ class ScaleTest(unittest.TestCase):
         replace it when they are there. Closing it meanwhile stops the
         clustering."""
         self.assertTrue(shutil.which("xvfb-run"), "xvfb-run is needed (installed by .ci/bootstrap test)")
-        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg",
+        # (HORIZON_SPILL_DIR=off: a copy would be anonymous memory, not a
+        # temporary file's pages, and show in the bound below)
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg", "HORIZON_SPILL_DIR": "off",
                "HORIZON_PLUGIN_CACHE": os.path.join(BUILD, "tests", "plugin-trials.json")}
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # the GL driver's threads (see hztest.GL_COMMANDS)
