@@ -58,11 +58,39 @@ GL_COMMANDS = {"render", "view", "shader-check", "demo"}
 
 def make_tractogram(path, n, seed, timeout=900):
     """A realistic whole-brain tractogram of n streamlines (bench's
-    hz-make-tractogram: 100-400 points each, 0.5-0.8 mm steps) at `path`."""
+    hz-make-tractogram: 100-400 points each, 0.5-0.8 mm steps) at `path`.
+
+    Large ones (100k streamlines or more: 20 s at 1M) are made once per
+    build tree and generator binary, kept read-only under
+    BUILD/tests/tractograms, and linked at `path` (the mutation check runs
+    the scale tests once a mutant)."""
     make = os.path.join(BUILD, "bin", "hz-make-tractogram")
-    p = subprocess.run([make, str(path), "--streamlines", str(n), "--seed", str(seed)], capture_output=True, text=True, timeout=timeout)
-    if p.returncode != 0:
-        raise AssertionError(f"hz-make-tractogram failed: {p.stderr}")
+
+    def generate(out):
+        p = subprocess.run([make, str(out), "--streamlines", str(n), "--seed", str(seed)], capture_output=True, text=True,
+                           timeout=timeout)
+        if p.returncode != 0:
+            raise AssertionError(f"hz-make-tractogram failed: {p.stderr}")
+
+    if n < 100000 or not BUILD:
+        generate(path)
+        return
+    st = os.stat(make)
+    cache = os.path.join(BUILD, "tests", "tractograms")
+    os.makedirs(cache, exist_ok=True)
+    kept = os.path.join(cache, f"brain_{n}_{seed}_{st.st_size}_{st.st_mtime_ns}.tck")
+    if not os.path.exists(kept):
+        for old in os.listdir(cache):  # made by an older generator
+            if old.startswith(f"brain_{n}_{seed}_"):
+                os.unlink(os.path.join(cache, old))
+        tmp = f"{kept}.{os.getpid()}.part"
+        generate(tmp)
+        os.chmod(tmp, 0o444)
+        os.replace(tmp, kept)
+    try:
+        os.link(kept, path)
+    except OSError:  # another file system
+        os.symlink(kept, path)
 
 
 def run_json(*args, **kw):

@@ -128,6 +128,95 @@ TEST_CASE("streamlines_crossing picks exactly what a stroke crosses", "[pick]") 
     CHECK(cross({{100, 50}}).empty());                                                      // (one point is no stroke)
 }
 
+namespace {
+
+// The reference of streamlines_crossing: every segment of every streamline
+// clipped to the near plane, projected and tested against every segment of
+// the stroke, nothing skipped.
+std::vector<std::uint64_t> crossing_reference(const Tractogram &t, const render::View &v, int w, int h,
+                                              const std::vector<std::array<double, 2>> &stroke) {
+    const auto m = render::view_projection(v, w, h);
+    auto clip = [&](const float *p) {
+        std::array<double, 4> c{};
+        for (int r = 0; r < 4; ++r) c[r] = m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r];
+        return c;
+    };
+    auto cross2 = [](double ax, double ay, double bx, double by, double cx, double cy) {
+        return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
+    };
+    auto meet = [&](double ax, double ay, double bx, double by, double cx, double cy, double dx, double dy) {
+        const double d1 = cross2(ax, ay, bx, by, cx, cy), d2 = cross2(ax, ay, bx, by, dx, dy);
+        const double d3 = cross2(cx, cy, dx, dy, ax, ay), d4 = cross2(cx, cy, dx, dy, bx, by);
+        return ((d1 > 0) != (d2 > 0) || d1 == 0 || d2 == 0) && ((d3 > 0) != (d4 > 0) || d3 == 0 || d4 == 0);
+    };
+    std::vector<std::uint64_t> out;
+    for (std::uint64_t s = 0; s < t.nb_streamlines(); ++s) {
+        bool hit = false;
+        for (std::uint64_t i = t.begin(s) + 1; i < t.end(s) && !hit; ++i) {
+            auto a = clip(&t.positions[3 * (i - 1)]), b = clip(&t.positions[3 * i]);
+            if (a[3] < v.near_mm && b[3] < v.near_mm) continue;
+            auto at = [](std::array<double, 4> p, std::array<double, 4> q, double f) {
+                for (int r = 0; r < 4; ++r) p[r] += (q[r] - p[r]) * f;
+                return p;
+            };
+            if (a[3] < v.near_mm) a = at(a, b, (v.near_mm - a[3]) / (b[3] - a[3]));
+            if (b[3] < v.near_mm) b = at(b, a, (v.near_mm - b[3]) / (a[3] - b[3]));
+            const double ax = (a[0] / a[3] * 0.5 + 0.5) * w, ay = (0.5 - a[1] / a[3] * 0.5) * h;
+            const double bx = (b[0] / b[3] * 0.5 + 0.5) * w, by = (0.5 - b[1] / b[3] * 0.5) * h;
+            for (std::size_t k = 1; k < stroke.size() && !hit; ++k)
+                hit = meet(ax, ay, bx, by, stroke[k - 1][0], stroke[k - 1][1], stroke[k][0], stroke[k][1]);
+        }
+        if (hit) out.push_back(s);
+    }
+    return out;
+}
+
+}  // namespace
+
+TEST_CASE("streamlines_crossing agrees with every segment tested, on random walks around the camera", "[pick]") {
+    // 400 random walks of 1-300 points (several of the blocks it classifies
+    // at a time) through a box that holds the eye: many segments cross the
+    // near plane or lie behind it.
+    std::uint64_t state = 12345;
+    auto uniform = [&] {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        return double(state >> 11) / double(1ull << 53);
+    };
+    std::vector<std::vector<float>> lines;
+    for (int s = 0; s < 400; ++s) {
+        std::vector<float> l;
+        double p[3] = {uniform() * 60 - 30, uniform() * 60 - 30, uniform() * 140 - 20};
+        const int n = 1 + int(uniform() * 300);
+        for (int i = 0; i < n; ++i) {
+            for (int k = 0; k < 3; ++k) l.push_back(float(p[k])), p[k] += uniform() * 3 - 1.5;
+        }
+        lines.push_back(l);
+    }
+    const Tractogram t = polylines(lines);
+    const auto v = down_z();  // (the eye at z = 100, inside the walks' box)
+    using P = std::array<double, 2>;
+    const std::vector<std::vector<P>> strokes = {{{20, 10}, {180, 90}},
+                                                 {{100, 5}, {100, 95}},
+                                                 {{30, 50}, {60, 20}, {150, 80}, {170, 30}},
+                                                 {{99, 49}, {101, 51}},
+                                                 {{-50, 50}, {250, 50}}};
+    std::size_t picked = 0;
+    for (const auto &stroke : strokes) {
+        const auto ours = render::streamlines_crossing(t, v, 200, 100, stroke);
+        CHECK(ours == crossing_reference(t, v, 200, 100, stroke));
+        picked += ours.size();
+    }
+    CHECK(picked > 100);               // (the strokes do cross many)
+    CHECK(picked < 5 * lines.size());  // (and not all of them)
+    // A segment from the left of the picture to a point just behind the
+    // eye, on its right: clipped, it runs off to the right across the
+    // centre (unclipped, both its ends would project to the left).
+    const Tractogram across = polylines({{-20, 0, 50, 5, 0, 101}});
+    const std::vector<P> centre = {{100, 40}, {100, 60}};
+    CHECK(render::streamlines_crossing(across, v, 200, 100, centre) == std::vector<std::uint64_t>{0});
+    CHECK(crossing_reference(across, v, 200, 100, centre) == std::vector<std::uint64_t>{0});
+}
+
 TEST_CASE("ray_mesh finds the nearest triangle along a ray", "[pick]") {
     Mesh m;
     // Two triangles across the z axis, at z = 10 and z = 30, and one beside it.
