@@ -174,9 +174,8 @@ std::vector<std::uint64_t> crossing_reference(const Tractogram &t, const render:
 }  // namespace
 
 TEST_CASE("streamlines_crossing agrees with every segment tested, on random walks around the camera", "[pick]") {
-    // 400 random walks of 1-300 points (several of the blocks it classifies
-    // at a time) through a box that holds the eye: many segments cross the
-    // near plane or lie behind it.
+    // 400 random walks of 1-300 points through a box that holds the eye:
+    // many segments cross the near plane or lie behind it.
     std::uint64_t state = 12345;
     auto uniform = [&] {
         state = state * 6364136223846793005ull + 1442695040888963407ull;

@@ -139,44 +139,15 @@ std::vector<std::uint64_t> streamlines_crossing(const Tractogram &t, const View 
                 if (segments_meet(ax, ay, bx, by, stroke[k - 1][0], stroke[k - 1][1], stroke[k][0], stroke[k][1])) return true;
             return false;
         };
-        // Each block of points is first classified against the stroke's
-        // box (a loop without branches, which the compiler vectorises):
-        // a segment whose ends both lie beyond one side of it, in front of
-        // the near plane, cannot meet it. Only the others (a small part
-        // of a tractogram for a stroke) are clipped and tested exactly.
-        constexpr std::uint64_t kBlock = 64;
-        std::array<unsigned char, kBlock + 1> code{};
-        const double m0 = m[0], m4 = m[4], m8 = m[8], m12 = m[12], m1 = m[1], m5 = m[5], m9 = m[9], m13 = m[13], m3 = m[3], m7 = m[7],
-                     m11 = m[11], m15 = m[15];
-        // (a margin: a segment within it of the box is tested exactly)
-        const double lx = lo[0] - 1e-6, hx = hi[0] + 1e-6, ly = lo[1] - 1e-6, hy = hi[1] + 1e-6;
         for (std::uint64_t s = from; s < to; ++s) {
             const std::uint64_t b = t.begin(s), e = t.end(s);
             if (b == e) continue;
-            if (e - b == 1) {
-                const Clip c = project(m, P + 3 * b);
-                if (crosses(c, c)) mine.push_back(s);
-                continue;
-            }
-            bool hit = false;
-            // Blocks overlap by one point: the segment between them.
-            for (std::uint64_t first = b; first + 1 < e && !hit; first += kBlock) {
-                const std::uint64_t count = std::min<std::uint64_t>(kBlock + 1, e - first);
-                const float *Q = P + 3 * first;
-                for (std::uint64_t i = 0; i < count; ++i) {
-                    const double x = Q[3 * i], y = Q[3 * i + 1], z = Q[3 * i + 2];
-                    const double cx = m0 * x + m4 * y + m8 * z + m12, cy = m1 * x + m5 * y + m9 * z + m13;
-                    const double cw = m3 * x + m7 * y + m11 * z + m15;
-                    const double sx = (cx / cw * 0.5 + 0.5) * width, sy = (0.5 - cy / cw * 0.5) * height;
-                    code[i] =
-                        static_cast<unsigned char>((sx < lx) | ((sx > hx) << 1) | ((sy < ly) << 2) | ((sy > hy) << 3) | ((cw < near) << 4));
-                }
-                for (std::uint64_t i = 1; i < count && !hit; ++i) {
-                    const unsigned a = code[i - 1], c = code[i];
-                    if (a & c & 16u) continue;                        // both behind the near plane
-                    if (!((a | c) & 16u) && (a & c & 15u)) continue;  // both beyond one side of the box
-                    hit = crosses(project(m, Q + 3 * (i - 1)), project(m, Q + 3 * i));
-                }
+            Clip prev = project(m, P + 3 * b);
+            bool hit = e - b == 1 && crosses(prev, prev);
+            for (std::uint64_t i = b + 1; i < e && !hit; ++i) {
+                const Clip cur = project(m, P + 3 * i);
+                hit = crosses(prev, cur);
+                prev = cur;
             }
             if (hit) mine.push_back(s);
         }

@@ -46,8 +46,8 @@ std::optional<PickHit> pick_streamline(const Tractogram &t, std::span<const floa
 // y), ascending: some segment of the streamline, projected with the
 // renderer's matrix and clipped to the near plane, meets some segment of the
 // stroke (touching counts). A single-point streamline crosses where its
-// point lies on the stroke. Runs on every core (a million streamlines in
-// about a second here).
+// point lies on the stroke. Runs on every core (a million streamlines,
+// 164M points: 0.4-0.7 s here, as long as reading them).
 std::vector<std::uint64_t> streamlines_crossing(const Tractogram &t, const View &v, int width, int height,
                                                 std::span<const std::array<double, 2>> stroke);
 
