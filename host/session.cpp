@@ -17,20 +17,26 @@ namespace hz::host {
 
 // ---------------------------------------------------------------- Explorer
 
-Explorer::Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec, bool cluster_now)
-    : reg_(reg), all_(std::move(all)), name_(std::move(name)), spec_(std::move(spec)) {
+Explorer::Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec, bool cluster_now,
+                   core::Bounds bounds)
+    : reg_(reg), all_(std::move(all)), name_(std::move(name)), spec_(std::move(spec)), all_bounds_(bounds) {
+    if (!all_bounds_.empty) std::call_once(bounds_once_, [] {});
     if (cluster_now)
         reset();
     else
         adopt({}, compute({}, spec_.thresholds), nullptr), s_.rounds = 0;
 }
 
-double Explorer::all_diagonal() const {
-    std::call_once(diagonal_once_, [this] {
-        const core::Bounds b = all_.nb_stored() ? core::bounds_of(all_.positions.data(), all_.nb_stored()) : core::Bounds{};
-        all_diagonal_ = b.empty ? 0 : std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]);
+const core::Bounds &Explorer::all_bounds() const {
+    std::call_once(bounds_once_, [this] {
+        if (all_.nb_stored()) all_bounds_ = core::bounds_of(all_.positions.data(), all_.nb_stored());
     });
-    return all_diagonal_;
+    return all_bounds_;
+}
+
+double Explorer::all_diagonal() const {
+    const core::Bounds &b = all_bounds();
+    return b.empty ? 0 : std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]);
 }
 
 void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names) {
@@ -84,6 +90,7 @@ void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::
     s_.tree = tree;
     s_.subset = std::make_shared<const std::vector<std::uint64_t>>(std::move(subset));
     s_.expanded = std::move(alone);
+    expanded_changed();
     for (std::size_t g = 0; g < G; ++g) s_.shown.push_back(g + 1);
     sort();
     s_.colour.assign(G + 1, 0);
@@ -192,12 +199,14 @@ void Explorer::select_only(const std::vector<std::size_t> &ranks) {
 void Explorer::keep_selected(const std::vector<std::uint64_t> &streamlines) {
     std::erase_if(s_.shown, [&](std::uint64_t node) { return !s_.selected.count(node); });
     std::erase_if(s_.expanded, [&](std::uint64_t s) { return !std::binary_search(streamlines.begin(), streamlines.end(), s); });
+    expanded_changed();
     s_.selected.clear();
 }
 
 void Explorer::drop_selected(const std::vector<std::uint64_t> &streamlines) {
     std::erase_if(s_.shown, [&](std::uint64_t node) { return s_.selected.count(node) != 0; });
     std::erase_if(s_.expanded, [&](std::uint64_t s) { return std::binary_search(streamlines.begin(), streamlines.end(), s); });
+    expanded_changed();
     s_.selected.clear();
 }
 
@@ -213,14 +222,47 @@ void Explorer::expand_node(std::uint64_t node, bool to_streamlines) {
         const std::vector<std::uint64_t> kids = children(node);
         for (std::size_t i = 0; i < kids.size(); ++i) s_.colour[kids[i]] = i == 0 ? s_.colour[node] : s_.next_colour++;
         s_.shown.insert(s_.shown.end(), kids.begin(), kids.end());
-    } else {  // (expanded stays ascending: every streamline expanded is the tractogram itself, not a copy)
-        const std::size_t before = s_.expanded.size();
-        for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m)
-            s_.expanded.push_back((*s_.subset)[t.members[m]]);
-        std::sort(s_.expanded.begin() + std::ptrdiff_t(before), s_.expanded.end());
-        std::inplace_merge(s_.expanded.begin(), s_.expanded.begin() + std::ptrdiff_t(before), s_.expanded.end());
+    } else {
+        add_members({node});
     }
     sort();
+}
+
+void Explorer::expand_selected_to_streamlines() {
+    if (s_.selected.empty()) throw core::Error("no cluster selected (click a centroid)");
+    const std::vector<std::uint64_t> nodes(s_.selected.begin(), s_.selected.end());
+    s_.selected.clear();
+    for (std::uint64_t node : nodes) std::erase(s_.shown, node);
+    add_members(nodes);  // (at once: a merge per cluster is seconds at 10M streamlines)
+}
+
+void Explorer::add_members(const std::vector<std::uint64_t> &nodes) {
+    // (expanded stays ascending: every streamline expanded is the
+    // tractogram itself, not a copy)
+    const auto &t = *s_.tree;
+    const auto &subset = *s_.subset;
+    std::uint64_t count = 0;
+    for (std::uint64_t node : nodes) count += t.member_offsets[node + 1] - t.member_offsets[node];
+    const std::uint64_t N = all_.nb_streamlines();
+    if (count * 8 < N) {  // a few: sorted, then merged
+        const std::size_t before = s_.expanded.size();
+        s_.expanded.reserve(before + count);
+        for (std::uint64_t node : nodes)
+            for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) s_.expanded.push_back(subset[t.members[m]]);
+        std::sort(s_.expanded.begin() + std::ptrdiff_t(before), s_.expanded.end());
+        std::inplace_merge(s_.expanded.begin(), s_.expanded.begin() + std::ptrdiff_t(before), s_.expanded.end());
+    } else {  // many (select all, then X: ten million): marked, then listed in order
+        std::vector<bool> mark(N);
+        for (std::uint64_t s : s_.expanded) mark[s] = true;
+        for (std::uint64_t node : nodes)
+            for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) mark[subset[t.members[m]]] = true;
+        const std::size_t total = s_.expanded.size() + count;
+        s_.expanded.clear();
+        s_.expanded.reserve(total);
+        for (std::uint64_t s = 0; s < N; ++s)
+            if (mark[s]) s_.expanded.push_back(s);
+    }
+    expanded_changed();
 }
 
 void Explorer::hide(std::size_t rank) {
@@ -325,6 +367,7 @@ void Explorer::adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const co
     s_.shown.clear();
     s_.selected.clear();
     s_.expanded.clear();
+    expanded_changed();
     for (std::uint64_t k = 0; k < tree->level.size(); ++k)
         if (tree->level[k] == 1) s_.shown.push_back(k);
     sort();
@@ -403,7 +446,12 @@ core::render::Object Explorer::streamlines_object() const {
     // Every streamline: the tractogram as it is; else a copy, which a large
     // one keeps in a temporary file's pages rather than anonymous memory
     // (a million streamlines expanded out of ten million: 2 GB).
-    o.data.tractogram = s_.expanded.size() == all_.nb_streamlines() ? all_.shared() : core::select_streamlines(all_, s_.expanded, true);
+    // (The bounds: a pass over ten million streamlines' points is seconds
+    // of the window's time.)
+    if (s_.expanded.size() == all_.nb_streamlines())
+        o.data.tractogram = all_.shared(), o.data.bounds = all_bounds();
+    else
+        o.data.tractogram = core::select_streamlines(all_, s_.expanded, true);
     o.render = "lines";
     o.coloring.mode = "direction";
     return o;
@@ -578,7 +626,7 @@ void Session::apply_in_background() {
         if (ex_) {
             Progress progress("clustering " + std::to_string(p.kept.size()) + " streamlines", true);
             p.tree = ex_->compute_first(p.kept, progress.task());
-            (void)ex_->all_diagonal();  // (measured here, the first time, rather than at the first repeat)
+            (void)ex_->all_bounds();  // (measured here, the first time, rather than at the first repeat)
         }
         p.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         return p;

@@ -47,12 +47,15 @@ public:
         int rounds = 0;
         std::vector<double> thresholds;                         // of the last clustering (mm per level)
         std::shared_ptr<const std::vector<std::string>> names;  // per tree node: a saved name (restore_saved), or none
+        std::uint64_t expanded_id = 0;                          // a new one whenever `expanded` changes (never reused by this Explorer)
     };
 
     // Clusters every streamline at once unless `cluster_now` is false: then
     // nothing is clustered (no cluster shown) until restore_saved, reset or
-    // adopt (Session::apply_in_background).
-    Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec, bool cluster_now = true);
+    // adopt (Session::apply_in_background). `bounds`: those of every point
+    // of `all`, when known (a loader's), else measured when first needed.
+    Explorer(const core::Registry &reg, core::Tractogram all, std::string name, core::render::ClusterSpec spec, bool cluster_now = true,
+             core::Bounds bounds = {});
     Explorer(const Explorer &) = delete;
     Explorer &operator=(const Explorer &) = delete;
     // The clusters a selection was saved with (Session::save): per
@@ -89,8 +92,14 @@ public:
     // `streamlines` (ascending).
     void drop_selected(const std::vector<std::uint64_t> &streamlines);
     const std::vector<std::uint64_t> &expanded() const { return s_.expanded; }  // (ascending)
+    // Equal ids: the same expanded streamlines (the window rebuilds their
+    // object, which may hold millions, only when this changes).
+    std::uint64_t expanded_id() const { return s_.expanded_id; }
     void expand(std::size_t rank);
     void expand_to_streamlines(std::size_t rank);
+    // Every selected cluster shown as its streamlines (X); throws Error when
+    // none is selected.
+    void expand_selected_to_streamlines();
     void hide(std::size_t rank);
     // Clusters again what is shown; thresholds (mm per level) given, or
     // when empty the last ones scaled by the extent of what is shown
@@ -122,9 +131,11 @@ public:
                                                                    const hz_task *task = nullptr) const {
         return compute(subset, spec_.thresholds, task);
     }
-    // The diagonal of the whole tractogram's bounding box (mm), which
-    // scales a repeat's thresholds: measured once, on the first call (any
-    // thread; a pass over every point).
+    // The whole tractogram's bounding box (its diagonal scales a repeat's
+    // thresholds; the object of every streamline expanded is given it):
+    // the constructor's, or measured once, on the first call (any thread; a
+    // pass over every point: seconds at 10M streamlines).
+    const core::Bounds &all_bounds() const;
     double all_diagonal() const;
     void adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const core::render::ClusterTree> tree,
                const std::vector<std::uint64_t> *before);
@@ -141,15 +152,19 @@ private:
     void sort();
     std::vector<std::uint64_t> children(std::uint64_t node) const;
     void expand_node(std::uint64_t node, bool to_streamlines);
+    // Adds the members of `nodes` to expanded (kept ascending).
+    void add_members(const std::vector<std::uint64_t> &nodes);
+    void expanded_changed() { s_.expanded_id = ++last_expanded_id_; }
     core::Bounds extent(const std::vector<std::uint64_t> &ids) const;
 
     const core::Registry &reg_;
     core::Tractogram all_;
     std::string name_;
     core::render::ClusterSpec spec_;
-    mutable std::once_flag diagonal_once_;
-    mutable double all_diagonal_ = 0;
+    mutable std::once_flag bounds_once_;
+    mutable core::Bounds all_bounds_;
     State s_;
+    std::uint64_t last_expanded_id_ = 0;
 };
 
 // Regions of interest over one tractogram, with undo / redo and saving.

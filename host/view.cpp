@@ -190,9 +190,10 @@ public:
             std::unique_ptr<Explorer> explorer;
             if (o.explore)
                 explorer = std::make_unique<Explorer>(reg, ob.data.tractogram.shared(), ob.name, explore_spec(reg, o),
-                                                      saved_label.empty() && !later);
+                                                      saved_label.empty() && !later, ob.data.bounds);
             if (explorer && !saved_label.empty()) explorer->restore_saved(saved_label, saved_names);
             session = std::make_unique<Session>(reg, ob.data.tractogram.shared(), o.inputs, std::move(explorer));
+            all_bounds = ob.data.bounds;
             ex = session->explorer();
             for (auto &roi : rois) session->add_roi(std::move(roi));
             if (later)
@@ -478,13 +479,20 @@ private:
             else
                 c.material = materials[ci];
             rr.replace_object(ci, std::move(c));
-            core::render::Object so = ex->streamlines_object();
-            highlight(so.data.tractogram, ex->expanded());
-            rr.replace_object(si, std::move(so));
+            // The expanded streamlines' object (up to the whole tractogram:
+            // its level of detail is prepared again) only when they or the
+            // streamlines picked changed, not on every click.
+            if (ex->expanded_id() != shown_expanded_id || session->picked() != shown_picked) {
+                core::render::Object so = ex->streamlines_object();
+                highlight(so.data.tractogram, ex->expanded());
+                rr.replace_object(si, std::move(so));
+                shown_expanded_id = ex->expanded_id(), shown_picked = session->picked();
+            }
         } else if (!ex && selection_changed) {
             core::render::Object ob = styled_like(rr.scene().objects[ti]);
             const bool everything = session->kept().size() == session->all().nb_streamlines();
             ob.data.tractogram = everything ? session->all().shared() : core::subset_with_arrays(session->all(), session->kept(), true);
+            if (everything) ob.data.bounds = all_bounds;  // (not measured again over every point)
             highlight(ob.data.tractogram, session->kept());
             rr.replace_object(ti, std::move(ob));
         }
@@ -713,11 +721,7 @@ private:
         if (k == GLFW_KEY_E)
             fn = [&] { ex->expand_selected(); };
         else if (k == GLFW_KEY_X)
-            fn = [&] {  // the selected clusters straight to their streamlines
-                if (ex->nb_selected() == 0) throw core::Error("no cluster selected (click a centroid)");
-                for (std::size_t rank = ex->shown().size(); rank-- > 0;)
-                    if (ex->is_selected(rank)) ex->expand_to_streamlines(rank);
-            };
+            fn = [&] { ex->expand_selected_to_streamlines(); };  // the selected clusters straight to their streamlines
         else if (k == GLFW_KEY_H)
             fn = [&] { ex->hide_selected(); };
         else if (k == GLFW_KEY_A)
@@ -1333,6 +1337,10 @@ private:
     // (Session::apply_in_background): the tractogram is shown meanwhile,
     // unrefined, and edits wait for the clusters.
     static constexpr std::uint64_t kClusterLater = 100000;
+    core::Bounds all_bounds;  // of the whole tractogram, as loaded (objects of all of it are given them)
+    // What the expanded streamlines' object (si) was last built from.
+    std::uint64_t shown_expanded_id = ~std::uint64_t(0);
+    std::vector<std::uint64_t> shown_picked;
     bool first_clusters = false;     // the tractogram is shown (object ci) until its first clusters are there
     bool said_no_clusters = false;   // (the first clustering failed: said once)
     bool reclustering = false;       // (the clustering in the background is a repeat or reset: no new selection)
