@@ -776,6 +776,18 @@ class WindowTest(TempDirTest):
         self.assertGreater(np.mean(np.abs(shots[0] - shots[1])), 0.5)
         self.assertGreater(np.mean(np.abs(shots[1] - shots[2])), 0.5)
 
+    def test_explore_every_cluster_to_streamlines(self):
+        # One small cluster shown as its streamlines, then every other one
+        # at once (A, X): all 400 streamlines expanded, each once, whichever
+        # way they are added (a few are sorted in; many are marked).
+        self.demo_400()
+        p, states = self.explore("all_x", ["wait 1", "expand 5 streamlines", "wait 1", "key a", "key x", "wait 1", "quit"])
+        self.assertEqual(p.returncode, 0, p.stderr)
+        import re
+        parsed = [tuple(map(int, re.findall(r"(\d+) clusters, (\d+) streamlines expanded, (\d+) clustering", l)[0])) for l in states]
+        self.assertTrue(0 < parsed[1][1] < 50, parsed)
+        self.assertEqual(parsed[-1], (0, 400, 1), states[-1])
+
     def test_explore_panel_buttons(self):
         # The panel's buttons, clicked through Dear ImGui's input (`press`):
         # A selects every cluster, "Expand selected" replaces each by its
