@@ -181,13 +181,17 @@ void Explorer::select_all() {
         s_.selected = std::set<std::uint64_t>(s_.shown.begin(), s_.shown.end());
 }
 
-void Explorer::expand_selected() {
+void Explorer::require_selected() const {
     if (s_.selected.empty()) throw core::Error("no cluster selected (click a centroid)");
+}
+
+void Explorer::expand_selected() {
+    require_selected();
     for (std::uint64_t node : std::exchange(s_.selected, {})) expand_node(node, false);
 }
 
 void Explorer::hide_selected() {
-    if (s_.selected.empty()) throw core::Error("no cluster selected (click a centroid)");
+    require_selected();
     for (std::uint64_t node : std::exchange(s_.selected, {})) std::erase(s_.shown, node);
 }
 
@@ -229,7 +233,7 @@ void Explorer::expand_node(std::uint64_t node, bool to_streamlines) {
 }
 
 void Explorer::expand_selected_to_streamlines() {
-    if (s_.selected.empty()) throw core::Error("no cluster selected (click a centroid)");
+    require_selected();
     const std::vector<std::uint64_t> nodes(s_.selected.begin(), s_.selected.end());
     s_.selected.clear();
     for (std::uint64_t node : nodes) std::erase(s_.shown, node);

@@ -152,6 +152,7 @@ private:
     void sort();
     std::vector<std::uint64_t> children(std::uint64_t node) const;
     void expand_node(std::uint64_t node, bool to_streamlines);
+    void require_selected() const;  // throws Error when no cluster is selected
     // Adds the members of `nodes` to expanded (kept ascending).
     void add_members(const std::vector<std::uint64_t> &nodes);
     void expanded_changed() { s_.expanded_id = ++last_expanded_id_; }
