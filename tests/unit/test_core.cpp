@@ -28,7 +28,7 @@ using namespace hz::core;
 namespace {
 
 fs::path scratch(const std::string &name) {
-    const fs::path d = fs::temp_directory_path() / ("hz_unit_" + name);
+    const fs::path d = fs::temp_directory_path() / ("hz_unit_" + name + "_" + std::to_string(::getpid()));
     fs::remove_all(d);
     fs::create_directories(d);
     return d;

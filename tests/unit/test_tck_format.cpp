@@ -12,6 +12,7 @@
 #include <fstream>
 #include <limits>
 #include <string>
+#include <unistd.h>
 #include <vector>
 
 namespace {
@@ -153,7 +154,7 @@ TEST_CASE("tck: every truncation of a valid file is rejected, never accepted as 
 }
 
 TEST_CASE("tck: write then read round-trips, offset stable when the header grows") {
-    const auto dir = std::filesystem::temp_directory_path() / "hz_unit_tck";
+    const auto dir = std::filesystem::temp_directory_path() / ("hz_unit_tck_" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
     const std::vector<float> pos = {1.5f, -2.25f, 3e5f, 4, 5, 6, 7, 8, 9};
     const std::vector<uint64_t> off = {0, 2, 2, 3};

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <unistd.h>
 #include <vector>
 
 namespace {
@@ -48,7 +49,8 @@ TEST_CASE(
         spec.properties = {{"id", 1}};
         spec.scalar_data = scal.data();
         spec.property_data = prop.data();
-        const std::string path = (std::filesystem::temp_directory_path() / "hz_unit_trk_chunks.trk").string();
+        const std::string path =
+            (std::filesystem::temp_directory_path() / ("hz_unit_trk_chunks_" + std::to_string(::getpid()) + ".trk")).string();
         trk::write(path, pos.data(), V, off.data(), N, spec);
         std::string file = slurp(path);
         std::filesystem::remove(path);
@@ -173,7 +175,8 @@ TEST_CASE("trk: the record walk in many chains gives exactly the single walk's l
         if (np) spec.properties = {{"p", static_cast<std::uint32_t>(np)}};
         spec.scalar_data = one_s.data();
         spec.property_data = one_p.data();
-        const std::string path = (std::filesystem::temp_directory_path() / "hz_unit_trk_chains.trk").string();
+        const std::string path =
+            (std::filesystem::temp_directory_path() / ("hz_unit_trk_chains_" + std::to_string(::getpid()) + ".trk")).string();
         trk::write(path, one_pos.data(), 1, one_off.data(), 1, spec);
         const std::string header = slurp(path).substr(0, 1000);
         std::filesystem::remove(path);
