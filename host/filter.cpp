@@ -86,11 +86,13 @@ int cmd_filter(const GlobalOptions &g, const FilterOptions &o) {
         out.kind = HZ_DATA_STREAMLINES;
         out.metadata = ds.metadata;
         out.metadata.emplace_back("horizon_filter", spec.describe());
-        // Every streamline kept: the input's own arrays (a mapped TCK's
-        // included), no copy.
-        out.tractogram = kept.size() == t.nb_streamlines() ? t.shared() : core::subset_with_arrays(t, kept);
+        // The input itself, with the streamlines kept (increasing): the
+        // writer reads them where they lie (hz.ext.write-selection/1), or
+        // write_dataset copies them out first. Every streamline kept: no
+        // selection at all.
+        out.tractogram = t.shared();
         std::vector<std::string> dropped;
-        core::write_dataset(reg, out, o.out, o.force, &dropped, o.input);
+        core::write_dataset(reg, out, o.out, o.force, &dropped, o.input, nullptr, kept.size() == t.nb_streamlines() ? nullptr : &kept);
         for (const auto &d : dropped) std::fprintf(stderr, "horizon: warning: %s: dropped %s\n", o.out.c_str(), d.c_str());
     }
     if (!o.ids.empty()) {

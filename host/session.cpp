@@ -763,33 +763,38 @@ std::string Session::save(const std::string &path, bool force) {
     const std::vector<std::uint64_t> ids = shown(&cluster_of);
     core::Dataset out;
     out.kind = HZ_DATA_STREAMLINES;
-    out.tractogram = core::subset_with_arrays(all_, ids, /*spill=*/true);  // (bounded memory whatever is saved)
+    // The whole tractogram and the streamlines shown (increasing): the
+    // writer reads those where they lie (hz.ext.write-selection/1), or
+    // write_dataset copies them out first (bounded memory whatever is saved).
+    // The arrays added here are indexed like the whole tractogram too.
+    out.tractogram = all_.shared();
     // Clusters: a TRX group per cluster shown (named by its path, which
     // TRX names cannot hold dots of), and each streamline's group index as
     // per-streamline data (-1: a streamline expanded on its own).
     std::vector<std::string> names;
-    std::map<std::string, std::vector<std::uint32_t>> members;
-    std::vector<std::int32_t> label(ids.size(), -1);
+    std::map<std::string, std::vector<std::uint64_t>> members;  // (renumbered to the file's streamlines as they are written)
+    std::vector<std::int32_t> label(ex_ ? all_.nb_streamlines() : 0, -1);
     for (std::size_t i = 0; i < ids.size(); ++i)
         if (!cluster_of[i].empty()) {
             auto [it, added] = members.try_emplace(cluster_of[i]);
             if (added) names.push_back(cluster_of[i]);
-            it->second.push_back(std::uint32_t(i));
+            it->second.push_back(ids[i]);
         }
     std::sort(names.begin(), names.end(),
               [&](const std::string &a, const std::string &b) { return members[a].size() > members[b].size(); });
     for (std::size_t g = 0; g < names.size(); ++g) {
-        for (std::uint32_t i : members[names[g]]) label[i] = std::int32_t(g);
+        for (std::uint64_t s : members[names[g]]) label[s] = std::int32_t(g);
         std::string gname = names[g];
         std::replace(gname.begin(), gname.end(), '.', '_');
-        core::DataArray a{gname, HZ_ATTACH_GROUP,          HZ_DTYPE_U32,
-                          1,     members[names[g]].size(), core::Buffer<std::byte>(members[names[g]].size() * 4)};
-        std::memcpy(a.bytes.data(), members[names[g]].data(), members[names[g]].size() * 4);
+        core::DataArray a{gname, HZ_ATTACH_GROUP,          HZ_DTYPE_U64,
+                          1,     members[names[g]].size(), core::Buffer<std::byte>(members[names[g]].size() * 8)};
+        std::memcpy(a.bytes.data(), members[names[g]].data(), members[names[g]].size() * 8);
         out.tractogram.arrays.push_back(std::move(a));
     }
     if (ex_) {
-        core::DataArray a{"horizon_cluster", HZ_ATTACH_STREAMLINE, HZ_DTYPE_I32, 1, ids.size(), core::Buffer<std::byte>(ids.size() * 4)};
-        std::memcpy(a.bytes.data(), label.data(), ids.size() * 4);
+        core::DataArray a{
+            "horizon_cluster", HZ_ATTACH_STREAMLINE, HZ_DTYPE_I32, 1, label.size(), core::Buffer<std::byte>(label.size() * 4)};
+        std::memcpy(a.bytes.data(), label.data(), label.size() * 4);
         out.tractogram.arrays.push_back(std::move(a));
     }
     nlohmann::json rois = nlohmann::json::array();
@@ -798,7 +803,7 @@ std::string Session::save(const std::string &path, bool force) {
     out.metadata.emplace_back("horizon_rois", rois.dump());
     if (ex_) out.metadata.emplace_back("horizon_clusters", nlohmann::json(names).dump());
     std::vector<std::string> dropped;
-    core::write_dataset(reg_, out, path, force, &dropped, inputs_.empty() ? std::string() : inputs_[0]);
+    core::write_dataset(reg_, out, path, force, &dropped, inputs_.empty() ? std::string() : inputs_[0], nullptr, &ids);
     std::string line = "saved " + std::to_string(ids.size()) + " streamlines";
     if (ex_) line += " in " + std::to_string(names.size()) + " clusters";
     line += ", " + std::to_string(rois_.size()) + " regions -> " + path;

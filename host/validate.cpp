@@ -90,6 +90,7 @@ std::vector<Check> catalogue() {
                  {HZ_EXT_CHECKED_READ, sizeof(hz_ext_checked_read), {HZ_KIND_LOADER}},
                  {HZ_EXT_DELIMITED_STREAMLINES, sizeof(hz_ext_delimited_streamlines), {HZ_KIND_LOADER, HZ_KIND_CLUSTERING}},
                  {HZ_EXT_OPEN_TASK, sizeof(hz_ext_open_task), {HZ_KIND_LOADER}},
+                 {HZ_EXT_WRITE_SELECTION, sizeof(hz_ext_write_selection), {HZ_KIND_LOADER}},
              };
              std::vector<std::string> offered, unknown;
              for (std::size_t i = 1; i < x.plugin.interfaces.size(); ++i) {
@@ -114,6 +115,9 @@ std::vector<Check> catalogue() {
                      if (!m->locate_positions || !m->read_offsets) return fail("'" + id + "' table with a NULL function");
                  } else if (id == HZ_EXT_OPEN_TASK) {
                      if (!static_cast<const hz_ext_open_task *>(t)->open) return fail("'" + id + "' table with a NULL function");
+                 } else if (id == HZ_EXT_WRITE_SELECTION) {
+                     if (!static_cast<const hz_ext_write_selection *>(t)->write_selection)
+                         return fail("'" + id + "' table with a NULL function");
                  } else if (id == HZ_EXT_CHECKED_READ) {
                      if (!static_cast<const hz_ext_checked_read *>(t)->read_streamlines_checked)
                          return fail("'" + id + "' table with a NULL function");

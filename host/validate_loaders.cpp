@@ -273,10 +273,12 @@ core::Volume sample_volume() {
 
 // Writes `v` with the plugin's own writer to scratch/sample.<first extension>;
 // returns the path, or empty with `msg` set.
-fs::path write_view(const Ctx &c, const hz_dataset_view &v, std::string &msg) {
+// With `selected`, through hz_ext_write_selection.write_selection instead.
+fs::path write_view(const Ctx &c, const hz_dataset_view &v, std::string &msg, const hz_ext_write_selection *selective = nullptr,
+                    const std::vector<std::uint64_t> *selected = nullptr) {
     const hz_loader &l = loader_of(c);
     const std::string ext = l.extensions && l.extensions[0] ? l.extensions[0] : "dat";
-    const fs::path out = c.scratch / ("sample." + ext);
+    const fs::path out = c.scratch / ((selected ? "selected." : "sample.") + ext);
     hz_write_request req{};
     req.struct_size = sizeof req;
     const std::string p = out.string();
@@ -285,7 +287,8 @@ fs::path write_view(const Ctx &c, const hz_dataset_view &v, std::string &msg) {
     req.final_path = p.c_str();  // written in place: companions stay where the plugin put them
     req.add_companion = [](void *, const char *t, const char *f) -> hz_status { return t && f ? HZ_OK : HZ_E_INVALID_ARGUMENT; };
     hz_error err = new_error();
-    const hz_status st = l.write(&req, &v, nullptr, &err);
+    const hz_status st = selected != nullptr ? selective->write_selection(&req, &v, selected->data(), selected->size(), nullptr, &err)
+                                             : l.write(&req, &v, nullptr, &err);
     if (st != HZ_OK) {
         msg = std::string("write failed (status ") + std::to_string(st) + "): " + err.message;
         return {};
@@ -471,6 +474,50 @@ void add_loader_checks(std::vector<Check> &c) {
                              return fail("written with gap 1 (" + what + " gap vertices), read back: " + msg);
                      }
                      return pass(std::to_string(t.nb_streamlines()) + " streamlines with NaN and with finite gap vertices");
+                 }});
+    c.push_back({"loader-writes-selection", HZ_KIND_LOADER,
+                 "a writer offering HZ_EXT_WRITE_SELECTION writes exactly the selected streamlines, in order", [](const Ctx &x) {
+                     const hz_loader &l = loader_of(x);
+                     const auto *ws = extension_of<hz_ext_write_selection>(x, HZ_EXT_WRITE_SELECTION);
+                     if (ws == nullptr) return skip("does not offer HZ_EXT_WRITE_SELECTION");
+                     if (!writes_streamlines(l)) return fail("offers HZ_EXT_WRITE_SELECTION without writing streamlines");
+                     const core::Tractogram t = sample_tractogram(x.opts.seed);
+                     const std::uint64_t N = t.nb_streamlines();
+                     // About half, at random, with the first and the last two
+                     // (the empty streamline and the single point); none; all.
+                     std::mt19937_64 rng(x.opts.seed + 7);
+                     std::vector<std::uint64_t> half{0};
+                     for (std::uint64_t s = 1; s + 2 < N; ++s)
+                         if (rng() % 2) half.push_back(s);
+                     half.insert(half.end(), {N - 2, N - 1});
+                     std::vector<std::uint64_t> all(N);
+                     std::iota(all.begin(), all.end(), std::uint64_t(0));
+                     const bool gap = extension_of<hz_ext_delimited_streamlines>(x, HZ_EXT_DELIMITED_STREAMLINES) != nullptr;
+                     const core::Tractogram delimited = with_gap(t, std::numeric_limits<float>::quiet_NaN());
+                     int written = 0;
+                     for (const std::vector<std::uint64_t> *sel : {&half, &all, static_cast<std::vector<std::uint64_t> *>(nullptr)}) {
+                         const std::vector<std::uint64_t> none;
+                         const std::vector<std::uint64_t> &ids = sel ? *sel : none;
+                         const std::string what = std::to_string(ids.size()) + " of " + std::to_string(N) + " streamlines";
+                         for (const core::Tractogram *src : {&t, gap ? &delimited : nullptr}) {
+                             if (src == nullptr) continue;
+                             hz_dataset_view v{};
+                             v.struct_size = sizeof v;
+                             v.kind = HZ_DATA_STREAMLINES;
+                             v.streamlines = src->view();
+                             std::copy(t.reference.begin(), t.reference.end(), v.voxel_to_ras);
+                             std::string msg;
+                             const fs::path p = write_view(x, v, msg, ws, &ids);
+                             const std::string how = what + (src->gap ? " (gap 1)" : "");
+                             if (p.empty()) return fail("writing " + how + ": " + msg);
+                             core::Tractogram back;
+                             if (read_with(l, p, back, msg) != HZ_OK) return fail("reading " + how + " back failed: " + msg);
+                             if (!same_tractogram(core::select_streamlines(t, ids), back, msg)) return fail(how + ", read back: " + msg);
+                             ++written;
+                         }
+                     }
+                     return pass(std::to_string(written) + " selections (about half, all, none" + (gap ? "; with and without gap" : "") +
+                                 ") of " + std::to_string(N) + " streamlines read back as selected");
                  }});
     c.push_back({"loader-malformed-survival", HZ_KIND_LOADER,
                  "truncated and corrupted samples fail cleanly (no crash, message, valid output when accepted)", [](const Ctx &x) {

@@ -510,8 +510,8 @@ std::vector<std::uint64_t> filter_streamlines(const Tractogram &t, const FilterS
     return out;
 }
 
-Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill) {
-    Tractogram out = select_streamlines(t, ids, spill);
+std::vector<DataArray> arrays_of_selection(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool gather_vertex_arrays) {
+    std::vector<DataArray> out_arrays;
     const std::uint64_t N = t.nb_streamlines();
     std::vector<std::int64_t> renumber;  // old index -> new, -1 when dropped (for groups)
     std::vector<std::string> kept_groups;
@@ -520,16 +520,20 @@ Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64
         if (a.attach == HZ_ATTACH_STREAMLINE && a.count == N) {
             DataArray c{a.name, a.attach, a.dtype, a.components, ids.size(), Buffer<std::byte>(ids.size() * row)};
             for (std::size_t i = 0; i < ids.size(); ++i) std::memcpy(c.bytes.data() + i * row, a.bytes.data() + ids[i] * row, row);
-            out.arrays.push_back(std::move(c));
+            out_arrays.push_back(std::move(c));
+        } else if (a.attach == HZ_ATTACH_VERTEX && t.gap == 0 && a.count == t.nb_vertices() && !gather_vertex_arrays) {
+            DataArray c{a.name, a.attach, a.dtype, a.components, a.count, a.bytes.shared()};
+            out_arrays.push_back(std::move(c));
         } else if (a.attach == HZ_ATTACH_VERTEX && t.gap == 0 && a.count == t.nb_vertices()) {
-            const std::uint64_t nv = out.nb_vertices();
+            std::uint64_t nv = 0;
+            for (std::uint64_t s : ids) nv += t.size(s);
             DataArray c{a.name, a.attach, a.dtype, a.components, nv, Buffer<std::byte>(nv * row)};
             std::uint64_t w = 0;
             for (std::uint64_t s : ids) {
                 std::memcpy(c.bytes.data() + w * row, a.bytes.data() + t.begin(s) * row, t.size(s) * row);
                 w += t.size(s);
             }
-            out.arrays.push_back(std::move(c));
+            out_arrays.push_back(std::move(c));
         } else if (a.attach == HZ_ATTACH_GROUP && a.components == 1 && (a.dtype == HZ_DTYPE_U32 || a.dtype == HZ_DTYPE_U64)) {
             if (renumber.empty()) {
                 renumber.assign(N, -1);
@@ -550,7 +554,7 @@ Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64
             if (members.empty()) continue;
             DataArray c{a.name, a.attach, HZ_DTYPE_U32, 1, members.size(), Buffer<std::byte>(members.size() * 4)};
             std::memcpy(c.bytes.data(), members.data(), members.size() * 4);
-            out.arrays.push_back(std::move(c));
+            out_arrays.push_back(std::move(c));
             kept_groups.push_back(a.name);
         }
     }
@@ -559,8 +563,14 @@ Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64
             const std::string group = a.name.substr(0, a.name.find('/'));
             if (std::find(kept_groups.begin(), kept_groups.end(), group) == kept_groups.end()) continue;
             DataArray c{a.name, a.attach, a.dtype, a.components, a.count, Buffer<std::byte>::copy_of(a.bytes.span())};
-            out.arrays.push_back(std::move(c));
+            out_arrays.push_back(std::move(c));
         }
+    return out_arrays;
+}
+
+Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill) {
+    Tractogram out = select_streamlines(t, ids, spill);
+    out.arrays = arrays_of_selection(t, ids, /*gather_vertex_arrays=*/true);
     return out;
 }
 

@@ -1,4 +1,5 @@
 #include <hz/core/io.hpp>
+#include <hz/core/filter.hpp>
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -525,8 +526,15 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
 }  // namespace
 
 void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path, bool force, std::vector<std::string> *dropped,
-                   const fs::path &protect, const hz_task *task) {
+                   const fs::path &protect, const hz_task *task, const std::vector<std::uint64_t> *selection) {
     std::error_code ec;
+    if (selection != nullptr) {
+        const std::uint64_t N = ds.kind == HZ_DATA_STREAMLINES ? ds.tractogram.nb_streamlines() : 0;
+        if (ds.kind != HZ_DATA_STREAMLINES) throw Error(path.string() + ": a selection of streamlines to write from data without any");
+        for (std::size_t k = 0; k < selection->size(); ++k)
+            if ((*selection)[k] >= N || (k > 0 && (*selection)[k] <= (*selection)[k - 1]))
+                throw Error(path.string() + ": the streamlines to write are not an increasing selection of the " + std::to_string(N));
+    }
     if (!protect.empty() && fs::exists(path, ec) && fs::equivalent(path, protect, ec))
         throw Error(path.string() + ": refusing to overwrite the input file");
     check_output_target(path);
@@ -534,6 +542,29 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     const LoadedPlugin &p = loader_for_write(reg, path, ds.kind);
     const hz_loader *l = p.loader();
     if (!(l->data_kinds & ds.kind)) throw Error(path.string() + ": " + p.info.name + " cannot hold " + kind_name(ds.kind) + " data");
+    // A selection goes to a writer that offers hz.ext.write-selection/1 with
+    // the whole tractogram (its streamlines and per-vertex arrays read where
+    // they lie). For another writer, or a mapped TCK's delimiters that it
+    // cannot take as they are, the selected streamlines are copied first (into a
+    // temporary file beyond kSpillBytes: bounded memory whatever is written).
+    const hz_ext_write_selection *selective = nullptr;
+    if (selection != nullptr) {
+        selective = p.extension<hz_ext_write_selection>(HZ_EXT_WRITE_SELECTION);
+        const bool vertex_arrays = std::any_of(ds.tractogram.arrays.begin(), ds.tractogram.arrays.end(),
+                                               [](const DataArray &a) { return a.attach == HZ_ATTACH_VERTEX; });
+        if (selective == nullptr || selective->write_selection == nullptr ||
+            (ds.tractogram.gap != 0 && (vertex_arrays || !p.takes_gap()))) {
+            Dataset copy;
+            copy.kind = ds.kind;
+            copy.format = ds.format;
+            copy.loader_id = ds.loader_id;
+            copy.source_space = ds.source_space;
+            copy.metadata = ds.metadata;
+            copy.tractogram = subset_with_arrays(ds.tractogram, *selection, /*spill=*/true);
+            write_dataset(reg, copy, path, force, dropped, protect, task);
+            return;
+        }
+    }
 
     const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
     if (!fs::is_directory(dir, ec)) throw Error(path.string() + ": directory " + dir.string() + " does not exist");
@@ -551,7 +582,11 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     std::vector<hz_metadata_entry> meta;
     for (const auto &[k, v] : ds.metadata) meta.push_back({k.c_str(), v.c_str()});
     std::vector<hz_named_array> arrays;
-    const std::vector<DataArray> &src_arrays = ds.kind == HZ_DATA_MESH ? ds.mesh.arrays : ds.tractogram.arrays;
+    const std::vector<DataArray> selected_arrays =
+        selective != nullptr ? arrays_of_selection(ds.tractogram, *selection, /*gather_vertex_arrays=*/false) : std::vector<DataArray>{};
+    const std::vector<DataArray> &src_arrays = ds.kind == HZ_DATA_MESH ? ds.mesh.arrays
+                                               : selective != nullptr  ? selected_arrays
+                                                                       : ds.tractogram.arrays;
     for (const auto &a : src_arrays) {
         hz_named_array na{};
         na.struct_size = sizeof na;
@@ -638,7 +673,8 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     };
     req.companion_ctx = &companions;
     hz_error err = make_error();
-    const hz_status st = l->write(&req, &view, task, &err);
+    const hz_status st = selective != nullptr ? selective->write_selection(&req, &view, selection->data(), selection->size(), task, &err)
+                                              : l->write(&req, &view, task, &err);
     if (st != HZ_OK) {
         std::string msg = err.message[0] ? err.message : ("write failed with status " + std::to_string(st));
         // Report the user's target, not our temporary name.

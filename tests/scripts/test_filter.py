@@ -239,6 +239,51 @@ class FilterTest(unittest.TestCase):
         self.assertEqual({g: sorted(m.tolist()) for g, m in part["groups"].items()}, expect)
         self.assertIn("horizon_filter", part["header"])
 
+    def test_carries_per_vertex_data_of_the_selection(self):
+        """Per-point scalars and per-streamline properties of a TRK (written
+        by nibabel) through a filter into TRK and TRX: exactly the selected
+        streamlines' rows, in order. (The writers read the selected
+        streamlines and their rows where they lie, hz.ext.write-selection/1.)"""
+        import nibabel as nib
+        from nibabel.streamlines.trk import TrkFile
+        sl = [np.asarray(s, np.float32) for s in self.streamlines[:4000]]
+        rng = np.random.default_rng(11)
+        fa = [rng.random((len(s), 1)).astype(np.float32) for s in sl]
+        curv = [rng.random((len(s), 2)).astype(np.float32) for s in sl]
+        length = rng.random((len(sl), 1)).astype(np.float32)
+        t = nib.streamlines.Tractogram(sl, data_per_point={"fa": fa, "curv": curv}, data_per_streamline={"length": length},
+                                       affine_to_rasmm=np.eye(4))
+        src = self.path("scalars.trk")
+        hdr = {nib.streamlines.Field.VOXEL_TO_RASMM: np.diag([2.0, 2.0, 2.0, 1.0]), nib.streamlines.Field.VOXEL_SIZES: (2, 2, 2),
+               nib.streamlines.Field.DIMENSIONS: (90, 108, 90)}
+        TrkFile(t, header=hdr).save(src)
+        region = "sphere:10,-20,15,20"
+        want = reference(sl, include=[region])
+        self.assertGreater(len(want), 50)
+        self.assertLess(len(want), len(sl) - 50)
+        out_trk, out_trx = self.path("scalars_picked.trk"), self.path("scalars_picked.trx")
+        for out in (out_trk, out_trx):
+            p = run("filter", src, "--include", region, "-o", out)
+            self.assertEqual(p.returncode, 0, p.stderr)
+        back = nib.streamlines.load(out_trk).tractogram
+        self.assertEqual(len(back.streamlines), len(want))
+        for j, i in enumerate(want):
+            np.testing.assert_allclose(back.streamlines[j], sl[i], atol=1e-3)
+            np.testing.assert_array_equal(back.data_per_point["fa"][j], fa[i])
+            np.testing.assert_array_equal(back.data_per_point["curv"][j], curv[i])
+        np.testing.assert_array_equal(back.data_per_streamline["length"], length[want])
+        x = self.read_trx(out_trx)
+        z = __import__("zipfile").ZipFile(out_trx)
+        dpv = {n[4:].split(".")[0]: n for n in z.namelist() if n.startswith("dpv/")}
+        self.assertEqual(sorted(dpv), ["curv", "fa"])
+        fa_back = np.frombuffer(z.read(dpv["fa"]), np.float32)
+        curv_back = np.frombuffer(z.read(dpv["curv"]), np.float32).reshape(-1, 2)
+        np.testing.assert_array_equal(fa_back, np.concatenate([fa[i][:, 0] for i in want]))
+        np.testing.assert_array_equal(curv_back, np.concatenate([curv[i] for i in want]))
+        np.testing.assert_array_equal(x["dps"]["length"], length[want, 0])
+        for j, i in enumerate(want):
+            np.testing.assert_allclose(x["streamline"](j), sl[i], atol=1e-3)
+
     def read_trx(self, path):
         import zipfile
         z = zipfile.ZipFile(path)

@@ -10,6 +10,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import time
 import unittest
 
 import numpy as np
@@ -60,6 +61,42 @@ class ScaleTest(unittest.TestCase):
         self.assertGreater(np.mean((steps >= 0.5) & (steps <= 1.0)), 0.95, "steps of 0.5-1 mm")
         self.assertGreater(steps.min(), 0.35)
         self.assertLess(steps.max(), 1.2)
+
+    def test_filter_writes_what_it_keeps_without_copying_it(self):
+        """`horizon filter` keeping most of the tractogram, into TCK and TRX:
+        the writers read the kept streamlines where they lie in the mapped
+        input (hz.ext.write-selection/1), so the anonymous memory stays far
+        below a copy of them (1.4 GB here; HORIZON_SPILL_DIR=off makes a copy
+        anonymous memory instead of a temporary file's pages)."""
+        for ext in ("tck", "trx"):
+            with self.subTest(ext):
+                out = self.path("kept." + ext)
+                cmd = [HORIZON, "filter", self.tck, "--exclude", "sphere:0,0,0,10", "-o", out, "--json"]
+                p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     env={**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg", "HORIZON_SPILL_DIR": "off"})
+                peak = 0
+                while p.poll() is None:  # RssAnon every 10 ms (the copy took seconds to fill and write)
+                    try:
+                        with open(f"/proc/{p.pid}/status") as f:
+                            for line in f:
+                                if line.startswith("RssAnon:"):
+                                    peak = max(peak, int(line.split()[1]) >> 10)
+                    except OSError:
+                        pass
+                    time.sleep(0.01)
+                stdout, stderr = p.communicate()
+                self.assertEqual(p.returncode, 0, stderr)
+                j = json.loads(stdout)
+                self.assertGreater(j["selected"], N // 2)
+                self.assertLess(j["selected"], N)
+                info = json.loads(run("info", out, "--json").stdout)
+                self.assertEqual(info["nb_streamlines"], j["selected"])
+                self.assertGreater(info["nb_vertices"], self.points // 2)
+                self.assertLess(info["nb_vertices"], self.points)
+                if not SANITIZED:  # (shadow memory is anonymous too)
+                    self.assertGreater(peak, 0)
+                    self.assertLess(peak, 400, "MB of anonymous memory")
+                os.remove(out)
 
     def test_render_draws_more_than_2gib_of_vertices(self):
         # Every point kept (--lod-pixels 0): more than 2^31 bytes of 24-byte

@@ -63,7 +63,8 @@ class ValidateTest(TempDirTest):
         # plugin (a mesh loader reads no streamlines). A check skipped for
         # any other reason, or a new skip, fails here.
         not_applicable = ("does not offer HZ_EXT_DELIMITED_STREAMLINES", "does not offer HZ_EXT_MAPPED_POSITIONS",
-                          "does not offer HZ_EXT_CHECKED_READ", "does not offer HZ_EXT_OPEN_TASK", "does not write streamlines or volumes",
+                          "does not offer HZ_EXT_CHECKED_READ", "does not offer HZ_EXT_OPEN_TASK",
+                          "does not offer HZ_EXT_WRITE_SELECTION", "does not write streamlines or volumes",
                           "no read_streamlines", "reads neither streamlines nor volumes", "not claimed")
         for f in files:
             with self.subTest(plugin=os.path.basename(f)):
@@ -125,7 +126,7 @@ class ValidateTest(TempDirTest):
         rc, rep = self.validate(os.path.join(BUNDLED, "hz_loader_tck.so"))
         c = checks(rep)
         for name in ["loader-probe-purity", "loader-roundtrip", "loader-malformed-survival",
-                     "loader-buffer-too-small", "loader-cancel", "exports-only-entry"]:
+                     "loader-buffer-too-small", "loader-cancel", "exports-only-entry", "loader-writes-selection"]:
             self.assertEqual(c[name]["status"], "passed", name)
 
     def test_zero_copy_contract_is_checked(self):
@@ -162,39 +163,41 @@ class ValidateTest(TempDirTest):
             self.assertEqual(c["status"], status, (name, c))
             self.assertTrue(c["reason"].startswith(reason), (name, c))
         # The same loader vouching for bounds 1 mm too wide fails exactly that check.
-        rc, rep = self.validate(os.path.join(FIXTURES, "fx_tck_lying_bounds.so"))
-        self.assertEqual(rc, 1)
-        failed = {c["check"]: c["reason"] for c in rep["checks"] if c["status"] == "failed"}
-        self.assertEqual(sorted(failed), ["loader-locate-positions", "loader-vouched-positions"], failed)
-        self.assertIn("vouches for bounds other than its positions' (x)", failed["loader-locate-positions"])
-        self.assertIn("vouches for bounds other than the positions it wrote (x)", failed["loader-vouched-positions"])
+        self.assert_fails_only("fx_tck_lying_bounds.so", {
+            "loader-locate-positions": "vouches for bounds other than its positions' (x)",
+            "loader-vouched-positions": "vouches for bounds other than the positions it wrote (x)"})
 
-    def assert_fails_only(self, fixture, check, reason):
-        """The validator fails `fixture` on `check` alone, with `reason` in its message."""
+    def assert_fails_only(self, fixture, reasons):
+        """The validator fails `fixture` on the checks of `reasons` alone, each
+        with its reason in its message."""
         rc, rep = self.validate(os.path.join(FIXTURES, fixture))
         self.assertEqual(rc, 1)
         failed = {c["check"]: c["reason"] for c in rep["checks"] if c["status"] == "failed"}
-        self.assertEqual(list(failed), [check], failed)
-        self.assertIn(reason, failed[check])
+        self.assertEqual(sorted(failed), sorted(reasons), failed)
+        for check, reason in reasons.items():
+            self.assertIn(reason, failed[check])
 
     def test_vouch_past_struct_size_fails(self):
         # HZ_EXT_CHECKED_READ: a loader that writes into a check record whose
         # struct_size has no room for it.
-        self.assert_fails_only("fx_tck_ignores_sizes.so", "loader-vouched-positions",
-                               "writes a check record whose struct_size has no room for it")
+        self.assert_fails_only("fx_tck_ignores_sizes.so",
+                               {"loader-vouched-positions": "writes a check record whose struct_size has no room for it"})
 
     def test_writer_ignoring_the_gap_fails(self):
         # HZ_EXT_DELIMITED_STREAMLINES: a loader that offers it but writes the
-        # vertex after each streamline as a point.
-        self.assert_fails_only("fx_tck_ignores_gap.so", "loader-writes-gap", "gap 1 (NaN gap vertices)")
+        # vertex after each streamline as a point. Both checks that give it
+        # streamlines with gap 1 fail it: its write() and its
+        # write_selection() (HZ_EXT_WRITE_SELECTION), and no other.
+        self.assert_fails_only("fx_tck_ignores_gap.so", {"loader-writes-gap": "gap 1 (NaN gap vertices)",
+                                                         "loader-writes-selection": "of 42 streamlines (gap 1)"})
 
     def test_extensions_are_asked_for_only_when_listed(self):
         # A loader serving extension tables its descriptor does not list: the
         # validator fails it, naming the extension; the host never asks for
         # them, so the file reads as through a plain 1.0 loader (a copy,
         # checked by the host), with the same streamlines.
-        self.assert_fails_only("fx_tck_unlisted_extensions.so", "abi-extensions-served",
-                               "serves 'hz.ext.mapped-positions/1' without listing it")
+        self.assert_fails_only("fx_tck_unlisted_extensions.so",
+                               {"abi-extensions-served": "serves 'hz.ext.mapped-positions/1' without listing it"})
         d = self.path("unlisted")
         os.makedirs(d)
         shutil.copy(os.path.join(FIXTURES, "fx_tck_unlisted_extensions.so"), d)
@@ -203,7 +206,7 @@ class ValidateTest(TempDirTest):
         self.assertEqual(listed["org.horizon.test.tck-unlisted-extensions"], ["hz.loader/1"])
         self.assertEqual(listed["org.horizon.loader.tck"],
                          ["hz.loader/1", "hz.ext.mapped-positions/1", "hz.ext.checked-read/1", "hz.ext.delimited-streamlines/1",
-                          "hz.ext.open-task/1"])
+                          "hz.ext.open-task/1", "hz.ext.write-selection/1"])
         tck = self.path("x.tck")
         make_tractogram(tck, 300, 5)
         plain = json.loads(run("--plugin-dir", d, "info", tck, "--json").stdout)

@@ -410,7 +410,9 @@ void decode(const unsigned char *bytes, const Header &h, const Layout &L, float 
 }
 
 void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
-           std::uint64_t nb_streamlines, const std::vector<std::pair<std::string, std::string>> &metadata, std::uint32_t gap) {
+           std::uint64_t nb_streamlines, const std::vector<std::pair<std::string, std::string>> &metadata, std::uint32_t gap,
+           const std::uint64_t *selection, std::uint64_t nb_selected) {
+    const std::uint64_t nb_written = selection != nullptr ? nb_selected : nb_streamlines;
     std::string head = "mrtrix tracks\n";
     for (const auto &[k, v] : metadata) {
         if (k == "datatype" || k == "file" || k == "count") continue;
@@ -425,7 +427,7 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
             start = nl == std::string::npos ? v.size() + 1 : nl + 1;
         } while (start <= v.size());
     }
-    head += "datatype: Float32LE\ncount: " + std::to_string(nb_streamlines) + "\n";
+    head += "datatype: Float32LE\ncount: " + std::to_string(nb_written) + "\n";
     // The offset is part of the header it points past: grow it until stable.
     // Like MRtrix's writer, the data start on a multiple of 4 bytes, so a
     // reader can map the floats in place.
@@ -506,7 +508,8 @@ void write(const std::string &path, const float *positions, std::uint64_t nb_ver
         if (iov.size() == 1024) flush();
     };
     add(head.data(), head.size());
-    for (std::uint64_t s = 0; s < nb_streamlines; ++s) {
+    for (std::uint64_t k = 0; k < nb_written; ++k) {
+        const std::uint64_t s = selection != nullptr ? selection[k] : k;
         const float *run = positions + 3 * offsets[s];
         const std::uint64_t n = 3 * (offsets[s + 1] - gap - offsets[s]);
         // Exponent bits all set: Inf or NaN (a test the compiler vectorises).

@@ -86,9 +86,11 @@ struct Cancelled {};
 // Writes a Float32LE TCK file. `metadata` entries are carried over except the
 // keys the writer owns (datatype, file, count); `count` is recomputed.
 // Streamline s is positions[offsets[s] .. offsets[s+1] - gap): gap 1 skips
-// the vertex after each (a mapped TCK's delimiter), whatever it holds.
+// the vertex after each (a mapped TCK's delimiter), whatever it holds. With
+// `selection`, the file holds streamlines selection[0 .. nb_selected) only.
 void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
-           std::uint64_t nb_streamlines, const std::vector<std::pair<std::string, std::string>> &metadata, std::uint32_t gap = 0);
+           std::uint64_t nb_streamlines, const std::vector<std::pair<std::string, std::string>> &metadata, std::uint32_t gap = 0,
+           const std::uint64_t *selection = nullptr, std::uint64_t nb_selected = 0);
 
 // Confidence that `head` starts a TCK file (0..100). Pure.
 int probe(const unsigned char *head, std::uint64_t size);

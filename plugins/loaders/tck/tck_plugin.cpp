@@ -229,7 +229,9 @@ hz_status HZ_ABI read_offsets(hz_reader *reader, uint64_t *offsets, uint64_t cap
 
 void HZ_ABI close(hz_reader *reader) { delete as_reader(reader); }
 
-hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
+// write() of all the streamlines, or (hz.ext.write-selection/1) of `selection` only.
+hz_status write_some(const hz_write_request *req, const hz_dataset_view *data, const std::uint64_t *selection, std::uint64_t nb_selected,
+                     hz_error *err) {
     if (req == nullptr || req->path == nullptr || data == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: write: NULL request or data");
     if (data->kind != HZ_DATA_STREAMLINES) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "tck: %s: TCK holds streamlines only", req->path);
@@ -255,10 +257,13 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         for (uint32_t i = 0; i < data->nb_metadata; ++i)
             if (data->metadata[i].key != nullptr && data->metadata[i].value != nullptr)
                 meta.emplace_back(data->metadata[i].key, data->metadata[i].value);
-        tck::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, meta, gap);
+        tck::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, meta, gap, selection, nb_selected);
         return HZ_OK;
     });
 }
+
+constexpr char kPrefix[] = "tck";
+using Writer = hz::selective_writer<write_some, kPrefix>;
 
 const char *const kExtensions[] = {"tck", nullptr};
 
@@ -278,7 +283,7 @@ const hz_loader kLoader = {
     .read_volume = nullptr,
     .read_mesh = nullptr,
     .close = close,
-    .write = write,
+    .write = Writer::write,
 };
 
 // Extensions (hz_extensions.h): the host maps Float32LE positions in place,
@@ -286,9 +291,15 @@ const hz_loader kLoader = {
 using Mapped = hz::mapped_positions<locate_positions, read_offsets>;
 using Checked = hz::checked_read<read_streamlines_checked>;
 using OpenTask = hz::open_task<open_task>;
+using WriteSelection = hz::write_selection<Writer::write_selection>;
 #ifndef TCK_FIXTURE_UNLISTED_EXTENSIONS
-const char *const kInterfaces[] = {HZ_INTERFACE_LOADER,          HZ_EXT_MAPPED_POSITIONS, HZ_EXT_CHECKED_READ,
-                                   HZ_EXT_DELIMITED_STREAMLINES, HZ_EXT_OPEN_TASK,        nullptr};
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER,
+                                   HZ_EXT_MAPPED_POSITIONS,
+                                   HZ_EXT_CHECKED_READ,
+                                   HZ_EXT_DELIMITED_STREAMLINES,
+                                   HZ_EXT_OPEN_TASK,
+                                   HZ_EXT_WRITE_SELECTION,
+                                   nullptr};
 #else
 const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, nullptr};
 #endif
@@ -306,7 +317,8 @@ const hz_plugin_descriptor kDescriptor = {
     .interfaces = kInterfaces,
 };
 
-using Plugin = hz::single_plugin<kDescriptor, kLoader, Mapped::ext, Checked::ext, hz::delimited_streamlines, OpenTask::ext>;
+using Plugin =
+    hz::single_plugin<kDescriptor, kLoader, Mapped::ext, Checked::ext, hz::delimited_streamlines, OpenTask::ext, WriteSelection::ext>;
 const hz_host *host() { return Plugin::host(); }
 
 }  // namespace

@@ -547,6 +547,8 @@ void decode(const unsigned char *b, std::uint64_t, const Header &h, const Layout
 
 std::uint64_t write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
                     std::uint64_t nb_streamlines, const WriteSpec &spec) {
+    const std::uint64_t *selection = spec.selection;
+    if (selection != nullptr) nb_streamlines = spec.nb_selected;  // (the streamlines written, k; each from source s)
     if (nb_streamlines > static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max()))
         throw FormatError("TRK holds at most 2^31-1 streamlines");
     unsigned char hdr[kHeaderSize] = {};
@@ -590,7 +592,10 @@ std::uint64_t write(const std::string &path, const float *positions, std::uint64
     // left out. Without, it is kept (valid TRK, as nibabel writes it).
     std::uint64_t empty = 0;
     if (!spec.properties.empty())
-        for (std::uint64_t s = 0; s < nb_streamlines; ++s) empty += offsets[s + 1] - spec.gap <= offsets[s];
+        for (std::uint64_t k = 0; k < nb_streamlines; ++k) {
+            const std::uint64_t s = selection != nullptr ? selection[k] : k;
+            empty += offsets[s + 1] - spec.gap <= offsets[s];
+        }
     store<std::int32_t>(hdr + 988, static_cast<std::int32_t>(nb_streamlines - empty));
     store<std::int32_t>(hdr + 992, 2);
     store<std::int32_t>(hdr + 996, 1000);
@@ -630,7 +635,8 @@ std::uint64_t write(const std::string &path, const float *positions, std::uint64
         store(buf.data() + used, v);
         used += 4;
     };
-    for (std::uint64_t s = 0; s < nb_streamlines && ok; ++s) {
+    for (std::uint64_t k = 0; k < nb_streamlines && ok; ++k) {
+        const std::uint64_t s = selection != nullptr ? selection[k] : k;
         const std::uint64_t end = offsets[s + 1] - spec.gap, n = end - offsets[s];
         if (n > static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max())) {
             std::fclose(fp);
@@ -653,7 +659,7 @@ std::uint64_t write(const std::string &path, const float *positions, std::uint64
             for (std::uint32_t k = 0; k < ns; ++k) put(spec.scalar_data[v * ns + k]);
         }
         room(4 * std::size_t(np));
-        for (std::uint32_t k = 0; k < np; ++k) put(spec.property_data[s * np + k]);
+        for (std::uint32_t c = 0; c < np; ++c) put(spec.property_data[k * np + c]);
     }
     if (ok && used != 0) ok = std::fwrite(buf.data(), 1, used, fp) == used;
     (void)nb_vertices;

@@ -114,6 +114,11 @@ struct WriteSpec {
     // mapped TCK's delimiters): streamline s is [offsets[s], offsets[s+1] -
     // gap); scalar rows are indexed like the positions.
     std::uint32_t gap = 0;
+    // When set, the file holds streamlines selection[0 .. nb_selected)
+    // only; property rows are then the selection's (row k for the file's
+    // streamline k), scalar rows still indexed like the positions.
+    const std::uint64_t *selection = nullptr;
+    std::uint64_t nb_selected = 0;
 };
 // Streamlines without points are left out when there are properties (TRK
 // readers, nibabel's among them, cannot read such a record then); returns

@@ -234,7 +234,9 @@ bool to_float_columns(const hz_named_array &a, std::vector<float> &out) {
     }
 }
 
-hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
+// write() of all the streamlines, or (hz.ext.write-selection/1) of `selection` only.
+hz_status write_some(const hz_write_request *req, const hz_dataset_view *data, const std::uint64_t *selection, std::uint64_t nb_selected,
+                     hz_error *err) {
     if (req == nullptr || req->path == nullptr || data == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trk: write: NULL request or data");
     if (data->kind != HZ_DATA_STREAMLINES) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "trk: %s: TRK holds streamlines only", req->path);
@@ -245,6 +247,9 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
         const hz_streamlines_view &s = data->streamlines;
         trk::WriteSpec spec;
         spec.gap = s.gap;  // (HZ_EXT_DELIMITED_STREAMLINES: a mapped TCK's delimiters are skipped)
+        spec.selection = selection;
+        spec.nb_selected = nb_selected;
+        const std::uint64_t nb_written = selection != nullptr ? nb_selected : s.nb_streamlines;  // (the property rows)
         std::copy(data->voxel_to_ras, data->voxel_to_ras + 16, spec.vox_to_ras.begin());
         if (spec.vox_to_ras[15] == 0) spec.vox_to_ras = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
         std::copy(data->ref_dims, data->ref_dims + 3, spec.dims.begin());
@@ -255,7 +260,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             const hz_named_array &a = data->arrays[i];
             const std::string name = a.name ? a.name : "";
             const bool vertex = a.attach == HZ_ATTACH_VERTEX && a.count == s.nb_vertices;
-            const bool streamline = a.attach == HZ_ATTACH_STREAMLINE && a.count == s.nb_streamlines;
+            const bool streamline = a.attach == HZ_ATTACH_STREAMLINE && a.count == nb_written;
             auto &cols = vertex ? spec.scalars : spec.properties;
             std::vector<float> f;
             const bool fits = (vertex || streamline) && cols.size() < 10 && !name.empty() &&
@@ -283,7 +288,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             return out;
         };
         const std::vector<float> scal = interleave(spec.scalars, sc, s.nb_vertices);
-        const std::vector<float> prop = interleave(spec.properties, pr, s.nb_streamlines);
+        const std::vector<float> prop = interleave(spec.properties, pr, nb_written);
         spec.scalar_data = scal.data();
         spec.property_data = prop.data();
         for (uint32_t i = 0; i < data->nb_metadata && req->on_dropped; ++i) {
@@ -303,6 +308,9 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
     });
 }
 
+constexpr char kPrefix[] = "trk";
+using Writer = hz::selective_writer<write_some, kPrefix>;
+
 const char *const kExtensions[] = {"trk", nullptr};
 const hz_loader kLoader = {
     .struct_size = sizeof(hz_loader),
@@ -320,15 +328,17 @@ const hz_loader kLoader = {
     .read_volume = nullptr,
     .read_mesh = nullptr,
     .close = close,
-    .write = write,
+    .write = Writer::write,
 };
 
 // Extensions (hz_extensions.h): the decode vouches for what it wrote; a
 // mapped TCK is written without a copy.
 using Checked = hz::checked_read<read_streamlines_checked>;
 using OpenTask = hz::open_task<open_task>;
+using WriteSelection = hz::write_selection<Writer::write_selection>;
 
-const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_CHECKED_READ, HZ_EXT_DELIMITED_STREAMLINES, HZ_EXT_OPEN_TASK, nullptr};
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_CHECKED_READ,    HZ_EXT_DELIMITED_STREAMLINES,
+                                   HZ_EXT_OPEN_TASK,    HZ_EXT_WRITE_SELECTION, nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
     .abi = HZ_ABI_VERSION_INIT,
@@ -342,7 +352,7 @@ const hz_plugin_descriptor kDescriptor = {
     .interfaces = kInterfaces,
 };
 
-using Plugin = hz::single_plugin<kDescriptor, kLoader, Checked::ext, hz::delimited_streamlines, OpenTask::ext>;
+using Plugin = hz::single_plugin<kDescriptor, kLoader, Checked::ext, hz::delimited_streamlines, OpenTask::ext, WriteSelection::ext>;
 const hz_host *host() { return Plugin::host(); }
 
 }  // namespace

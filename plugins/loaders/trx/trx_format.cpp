@@ -520,34 +520,39 @@ void read_array(const File &f, const Array &a, void *out) {
 
 namespace {
 
-// A libzip source yielding the positions of streamlines 0..N-1 without the
-// `gap` vertices after each: one run of bytes per streamline, read where
-// they lie (no copy of the whole array).
-class GapSource {
+// A libzip source yielding, for each streamline written (k = 0..N-1, the
+// stored streamline s = sel[k], or k without a selection), the rows
+// [off[s], off[s+1] - gap) of `base` (row_bytes each: 12 for positions): one
+// run of bytes per streamline, read where they lie (no copy of the whole
+// array). The positions without a mapped TCK's delimiters, or the kept
+// streamlines' positions and per-vertex rows.
+class RunSource {
 public:
-    GapSource(const float *p, const std::uint64_t *off, std::uint64_t N, std::uint32_t gap) : p_(p), off_(off), N_(N), gap_(gap) {
+    RunSource(const void *base, std::size_t row_bytes, const std::uint64_t *off, const std::uint64_t *sel, std::uint64_t N,
+              std::uint32_t gap, std::uint64_t bytes)
+        : p_(static_cast<const unsigned char *>(base)), row_(row_bytes), off_(off), sel_(sel), N_(N), gap_(gap), bytes_(bytes) {
         zip_error_init(&error_);
     }
-    ~GapSource() { zip_error_fini(&error_); }
-    std::uint64_t bytes() const { return 12 * (off_[N_] - std::uint64_t(gap_) * N_); }
+    ~RunSource() { zip_error_fini(&error_); }
 
     static zip_int64_t callback(void *ud, void *data, zip_uint64_t len, zip_source_cmd_t cmd) {
-        auto *g = static_cast<GapSource *>(ud);
+        auto *g = static_cast<RunSource *>(ud);
         switch (cmd) {
         case ZIP_SOURCE_OPEN:
-            g->s_ = 0;
+            g->k_ = 0;
             g->b_ = 0;
             return 0;
         case ZIP_SOURCE_READ: {
             auto *out = static_cast<unsigned char *>(data);
             zip_uint64_t done = 0;
-            while (done < len && g->s_ < g->N_) {
-                const std::uint64_t run = 12 * (g->off_[g->s_ + 1] - g->gap_ - g->off_[g->s_]);
+            while (done < len && g->k_ < g->N_) {
+                const std::uint64_t s = g->sel_ != nullptr ? g->sel_[g->k_] : g->k_;
+                const std::uint64_t run = g->row_ * (g->off_[s + 1] - g->gap_ - g->off_[s]);
                 const std::uint64_t take = std::min<std::uint64_t>(len - done, run - g->b_);
-                std::memcpy(out + done, reinterpret_cast<const unsigned char *>(g->p_ + 3 * g->off_[g->s_]) + g->b_, take);
+                std::memcpy(out + done, g->p_ + g->row_ * g->off_[s] + g->b_, take);
                 done += take;
                 g->b_ += take;
-                if (g->b_ == run) ++g->s_, g->b_ = 0;
+                if (g->b_ == run) ++g->k_, g->b_ = 0;
             }
             return static_cast<zip_int64_t>(done);
         }
@@ -555,7 +560,7 @@ public:
         case ZIP_SOURCE_STAT: {
             auto *st = static_cast<zip_stat_t *>(data);
             zip_stat_init(st);
-            st->size = g->bytes();
+            st->size = g->bytes_;
             st->valid |= ZIP_STAT_SIZE;
             return sizeof(*st);
         }
@@ -569,32 +574,43 @@ public:
     }
 
 private:
-    const float *p_;
-    const std::uint64_t *off_;
+    const unsigned char *p_;
+    std::size_t row_;
+    const std::uint64_t *off_, *sel_;
     std::uint64_t N_;
     std::uint32_t gap_;
-    std::uint64_t s_ = 0, b_ = 0;  // the streamline being read, and the bytes of it already given
+    std::uint64_t bytes_;
+    std::uint64_t k_ = 0, b_ = 0;  // the streamline being read, and the bytes of it already given
     zip_error_t error_;
 };
 
 }  // namespace
 
-void write(const std::string &path, const float *positions, std::uint64_t V_stored, const std::uint64_t *offsets, std::uint64_t N,
+void write(const std::string &path, const float *positions, std::uint64_t V_stored, const std::uint64_t *offsets, std::uint64_t N_stored,
            const std::array<double, 16> &aff, const std::array<std::uint64_t, 3> &dims, const std::vector<WriteArray> &arrays,
-           const std::vector<std::pair<std::string, std::string>> &header_extra, std::uint32_t gap) {
+           const std::vector<std::pair<std::string, std::string>> &header_extra, std::uint32_t gap, const std::uint64_t *selection,
+           std::uint64_t nb_selected) {
     if (gap > 1) throw FormatError("streamlines with gap " + std::to_string(gap) + " (0 or 1 expected)");
     for (const auto &a : arrays)
         if (gap != 0 && a.kind == Kind::Dpv) throw FormatError("per-vertex array '" + a.name + "' with delimited streamlines");
-    const std::uint64_t V = V_stored - std::uint64_t(gap) * N;  // the vertices written
-    for (std::uint64_t s = 0; s < N; ++s)
+    const std::uint64_t N = selection != nullptr ? nb_selected : N_stored;  // the streamlines written
+    auto source = [&](std::uint64_t k) { return selection != nullptr ? selection[k] : k; };
+    std::uint64_t V = 0;  // the vertices written
+    for (std::uint64_t k = 0; k < N; ++k) {
+        const std::uint64_t s = source(k);
         for (std::uint64_t i = 3 * offsets[s]; i < 3 * (offsets[s + 1] - gap); ++i)
             if (!std::isfinite(positions[i])) throw FormatError("non-finite coordinate at vertex " + std::to_string(i / 3 - s * gap));
+        V += offsets[s + 1] - gap - offsets[s];
+    }
+    (void)V_stored;
     const std::uint64_t *stored = offsets;  // (into positions, gaps included)
-    std::vector<std::uint64_t> shifted;     // gap 1: offsets[s] - s, as written
-    if (gap != 0) {
-        shifted.resize(N + 1);
-        for (std::uint64_t s = 0; s <= N; ++s) shifted[s] = offsets[s] - s * gap;
-        offsets = shifted.data();
+    std::vector<std::uint64_t> written;     // with a gap or a selection: the offsets as written
+    const bool runs = gap != 0 || selection != nullptr;
+    if (runs) {
+        written.resize(N + 1);
+        written[0] = 0;
+        for (std::uint64_t k = 0; k < N; ++k) written[k + 1] = written[k] + (offsets[source(k) + 1] - gap - offsets[source(k)]);
+        offsets = written.data();
     }
     nlohmann::json h = nlohmann::json::object();
     for (const auto &[k, v] : header_extra) {  // other formats' header entries, as extra keys (allowed by the spec)
@@ -622,20 +638,23 @@ void write(const std::string &path, const float *positions, std::uint64_t V_stor
     auto add = [&](const std::string &name, const void *data, std::uint64_t bytes) {
         add_source(name, zip_source_buffer(za, data, bytes, 0));
     };
+    // Rows per vertex (positions, dpv) of the streamlines written, where they lie.
+    auto add_runs = [&](const std::string &name, const void *data, std::size_t row_bytes, std::uint32_t g) {
+        auto *r = new RunSource(data, row_bytes, stored, selection, N, g, row_bytes * V);
+        zip_source_t *src = zip_source_function(za, &RunSource::callback, r);
+        if (src == nullptr) delete r;  // (otherwise the source owns it: ZIP_SOURCE_FREE)
+        add_source(name, src);
+    };
     try {
         // Positions first, their data at byte 64 of the file: a padding extra
         // field in the local header (id 0xD935, the one Android's zipalign
         // uses) makes 30 + 19 (name) + 4 + 11 = 64, so readers can map the
         // floats aligned. (A Zip64 local extra, 20 bytes, keeps the alignment.)
         const std::uint64_t pidx = static_cast<std::uint64_t>(zip_get_num_entries(za, 0));
-        if (gap == 0) {
+        if (!runs)
             add("positions.3.float32", positions, 3 * V * sizeof(float));
-        } else {
-            auto *g = new GapSource(positions, stored, N, gap);
-            zip_source_t *src = zip_source_function(za, &GapSource::callback, g);
-            if (src == nullptr) delete g;  // (otherwise the source owns it: ZIP_SOURCE_FREE)
-            add_source("positions.3.float32", src);
-        }
+        else
+            add_runs("positions.3.float32", positions, 3 * sizeof(float), gap);
         static const zip_uint8_t pad[11] = {};
         if (zip_file_extra_field_set(za, pidx, 0xD935, ZIP_EXTRA_FIELD_NEW, pad, sizeof pad, ZIP_FL_LOCAL) != 0)
             throw FormatError(std::string("zip: ") + zip_strerror(za));
@@ -658,7 +677,10 @@ void write(const std::string &path, const float *positions, std::uint64_t V_stor
             }
             if (seen[name]) throw FormatError("two arrays map to the entry '" + name + "'");
             seen[name] = true;
-            add(name, a.data, a.rows * a.cols * dtype_size(a.dtype));
+            if (a.kind == Kind::Dpv && selection != nullptr)
+                add_runs(name, a.data, a.cols * dtype_size(a.dtype), 0);
+            else
+                add(name, a.data, a.rows * a.cols * dtype_size(a.dtype));
         }
     } catch (...) {
         zip_discard(za);

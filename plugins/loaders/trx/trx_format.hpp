@@ -94,11 +94,14 @@ struct WriteArray {
 // Streamline s is positions[offsets[s] .. offsets[s+1] - gap): with gap 1
 // (a mapped TCK's delimiters) the positions entry is streamed into the zip
 // without the gap vertices, never read, and the offsets are shifted; no
-// per-vertex array may come with it.
+// per-vertex array may come with it. With `selection`, the zip holds the
+// streamlines selection[0 .. nb_selected) only, their positions and dpv rows
+// streamed from where they lie; dps, groups and dpg are then the
+// selection's already (as hz.ext.write-selection/1 passes them).
 void write(const std::string &path, const float *positions, std::uint64_t nb_vertices, const std::uint64_t *offsets,
            std::uint64_t nb_streamlines, const std::array<double, 16> &voxel_to_rasmm, const std::array<std::uint64_t, 3> &dims,
            const std::vector<WriteArray> &arrays, const std::vector<std::pair<std::string, std::string>> &header_extra,
-           std::uint32_t gap = 0);
+           std::uint32_t gap = 0, const std::uint64_t *selection = nullptr, std::uint64_t nb_selected = 0);
 
 int probe(const unsigned char *head, std::uint64_t size);
 

@@ -187,12 +187,15 @@ hz_status HZ_ABI read_offsets(hz_reader *reader, uint64_t *offsets, uint64_t cap
     });
 }
 
-hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) {
+// write() of all the streamlines, or (hz.ext.write-selection/1) of `selection` only.
+hz_status write_some(const hz_write_request *req, const hz_dataset_view *data, const std::uint64_t *selection, std::uint64_t nb_selected,
+                     hz_error *err) {
     if (req == nullptr || req->path == nullptr || data == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "trx: write: NULL request or data");
     if (data->kind != HZ_DATA_STREAMLINES) return hz::set_errorf(err, HZ_E_UNSUPPORTED, "trx: %s: TRX holds streamlines only", req->path);
     return run(err, req->path, [&]() -> hz_status {
         const hz_streamlines_view &s = data->streamlines;
+        const std::uint64_t nb_written = selection != nullptr ? nb_selected : s.nb_streamlines;  // (the dps rows)
         std::vector<trx::WriteArray> arrays;
         std::vector<std::vector<std::uint32_t>> narrowed;  // uint64 groups stored as uint32
         narrowed.reserve(data->nb_arrays);
@@ -205,7 +208,7 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
             case HZ_ATTACH_VERTEX: ok = ok && a.count == s.nb_vertices && name.find('/') == std::string::npos; break;
             case HZ_ATTACH_STREAMLINE:
                 w.kind = trx::Kind::Dps;
-                ok = ok && a.count == s.nb_streamlines && name.find('/') == std::string::npos;
+                ok = ok && a.count == nb_written && name.find('/') == std::string::npos;
                 break;
             case HZ_ATTACH_GROUP:
                 w.kind = trx::Kind::Group;
@@ -251,10 +254,14 @@ hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data,
                     extra.emplace_back(k, data->metadata[i].value);
                 }
             }
-        trx::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, aff, dims, arrays, extra, s.gap);
+        trx::write(req->path, s.positions, s.nb_vertices, s.offsets, s.nb_streamlines, aff, dims, arrays, extra, s.gap, selection,
+                   nb_selected);
         return HZ_OK;
     });
 }
+
+constexpr char kPrefix[] = "trx";
+using Writer = hz::selective_writer<write_some, kPrefix>;
 
 const char *const kExtensions[] = {"trx", nullptr};
 const hz_loader kLoader = {
@@ -273,14 +280,16 @@ const hz_loader kLoader = {
     .read_volume = nullptr,
     .read_mesh = nullptr,
     .close = close,
-    .write = write,
+    .write = Writer::write,
 };
 
 // Extensions (hz_extensions.h): stored positions mapped in place; a mapped
-// TCK written without a copy.
+// TCK, and the streamlines kept of any tractogram, written without a copy.
 using Mapped = hz::mapped_positions<locate_positions, read_offsets>;
+using WriteSelection = hz::write_selection<Writer::write_selection>;
 
-const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_MAPPED_POSITIONS, HZ_EXT_DELIMITED_STREAMLINES, nullptr};
+const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_MAPPED_POSITIONS, HZ_EXT_DELIMITED_STREAMLINES, HZ_EXT_WRITE_SELECTION,
+                                   nullptr};
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
     .abi = HZ_ABI_VERSION_INIT,
@@ -296,4 +305,4 @@ const hz_plugin_descriptor kDescriptor = {
 
 }  // namespace
 
-HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader, Mapped::ext, hz::delimited_streamlines>::entry;
+HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader, Mapped::ext, hz::delimited_streamlines, WriteSelection::ext>::entry;

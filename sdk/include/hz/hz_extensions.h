@@ -26,6 +26,8 @@
  *   HZ_EXT_DELIMITED_STREAMLINES loader (write()) and clustering (run()):
  *                               takes streamlines with a delimiter vertex after each
  *   HZ_EXT_OPEN_TASK            loader: open() with a task (progress, cancel)
+ *   HZ_EXT_WRITE_SELECTION      loader: writes chosen streamlines of a view,
+ *                               without the host copying them first (1.11)
  *
  * Thread and ownership rules of the functions below are those of the core
  * loader functions they stand beside ([worker, serialized per reader]).
@@ -232,6 +234,48 @@ typedef struct hz_ext_open_task {
      */
     hz_status(HZ_ABI *open)(const hz_open_request *req, const hz_task *task, hz_reader **out, hz_error *err);
 } hz_ext_open_task;
+
+/* ======================================================= write selection */
+
+/*
+ * "hz.ext.write-selection/1" (loaders that write streamlines; host support
+ * since ABI 1.11): write() of some of a view's streamlines. Saving the
+ * streamlines kept after cleaning a tractogram, or those a filter selects,
+ * is then a pass over the kept streamlines where they lie (a mapped input
+ * file) instead of a copy of them first: 19 GB at 10M streamlines of 175
+ * points. A host that has a selection and a writer without this extension
+ * copies the selected streamlines and calls write().
+ */
+#define HZ_EXT_WRITE_SELECTION "hz.ext.write-selection/1"
+
+/* The table of HZ_EXT_WRITE_SELECTION. */
+typedef struct hz_ext_write_selection {
+    uint32_t struct_size;
+    uint32_t reserved0; /* zero */
+
+    /*
+     * As hz_loader.write, of a file holding the streamlines
+     * selection[0 .. nb_selected) of data->streamlines, in that order:
+     *   - `selection` (HOST-owned, valid for the call) is strictly
+     *     increasing, every entry < data->streamlines.nb_streamlines;
+     *     nb_selected may be 0 (a file with no streamline), and `selection`
+     *     is then NULL or not read.
+     *   - data->streamlines is the whole view (its gap as for write(): 0
+     *     unless the loader offers HZ_EXT_DELIMITED_STREAMLINES).
+     *   - HZ_ATTACH_VERTEX arrays are the whole view's too (count =
+     *     data->streamlines.nb_vertices, rows indexed like the positions):
+     *     the writer takes the rows of the selected streamlines' vertices.
+     *   - Every other array is already the selection's: HZ_ATTACH_STREAMLINE
+     *     arrays have nb_selected rows, row k for the file's streamline k;
+     *     HZ_ATTACH_GROUP arrays list indices of the file's streamlines
+     *     (0 .. nb_selected); group data belong to the groups passed.
+     * The file must read back as write() would have written the same
+     * streamlines and arrays copied out beforehand; `horizon validate`
+     * checks that it does. [worker]
+     */
+    hz_status(HZ_ABI *write_selection)(const hz_write_request *req, const hz_dataset_view *data, const uint64_t *selection,
+                                       uint64_t nb_selected, const hz_task *task, hz_error *err);
+} hz_ext_write_selection;
 
 HZ_EXTERN_C_END
 

@@ -63,6 +63,9 @@
  *          built against 1.4-1.9 still loads and works, only without
  *          reading in place. (Hosts of 1.4-1.9 were never released: they
  *          are not served.)
+ *   1.11.0 A fifth extension, "hz.ext.write-selection/1": a writer writes
+ *          chosen streamlines of a view (the streamlines kept, a filter's
+ *          selection) without the host copying them first.
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -73,7 +76,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 10
+#define HZ_ABI_VERSION_MINOR 11
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */

@@ -129,4 +129,11 @@ std::vector<std::uint64_t> filter_streamlines(const Tractogram &t, const FilterS
 // `spill`: as select_streamlines'.
 Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill = false);
 
+// The arrays subset_with_arrays gives the streamlines `ids` (per-streamline
+// rows picked, groups renumbered, group data of the groups kept), except
+// that per-vertex arrays are shared whole, not gathered, unless
+// `gather_vertex_arrays`: rows indexed like t's positions, as a writer
+// offering hz.ext.write-selection/1 takes them.
+std::vector<DataArray> arrays_of_selection(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool gather_vertex_arrays);
+
 }  // namespace hz::core

@@ -100,7 +100,11 @@ void write_text_atomic(const fs::path &path, const std::string &text, bool force
 // directory, renamed over `path` on success, deleted on failure. Refuses to
 // overwrite an existing file unless `force`, and never overwrites `protect`
 // (the input). Parts the format cannot hold are appended to `dropped`.
+// With `selection` (strictly increasing indices of ds.tractogram's
+// streamlines), the file holds those streamlines with their arrays, as if
+// subset_with_arrays had copied them out first; a writer offering
+// hz.ext.write-selection/1 reads them where they lie instead.
 void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path, bool force, std::vector<std::string> *dropped,
-                   const fs::path &protect = {}, const hz_task *task = nullptr);
+                   const fs::path &protect = {}, const hz_task *task = nullptr, const std::vector<std::uint64_t> *selection = nullptr);
 
 }  // namespace hz::core

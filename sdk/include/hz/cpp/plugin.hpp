@@ -103,6 +103,47 @@ struct open_task {
     static constexpr hz_ext_open_task table = {.struct_size = sizeof(hz_ext_open_task), .reserved0 = 0, .open = Open};
     static constexpr extension ext = {HZ_EXT_OPEN_TASK, &table};
 };
+// Whether a selection given to hz_ext_write_selection.write_selection breaks
+// the contract a writer may rely on (entries strictly increasing and below
+// nb_streamlines; a NULL selection only with nb_selected 0). O(nb_selected);
+// any thread.
+inline bool selection_invalid(uint64_t nb_streamlines, const uint64_t *selection, uint64_t nb_selected) noexcept {
+    if (nb_selected == 0) return false;
+    if (selection == nullptr || nb_selected > nb_streamlines) return true;
+    for (uint64_t k = 0; k < nb_selected; ++k)
+        if (selection[k] >= nb_streamlines || (k > 0 && selection[k] <= selection[k - 1])) return true;
+    return false;
+}
+// hz_loader.write and hz_ext_write_selection.write_selection from one
+// function `Some` of both: hz_status Some(const hz_write_request *req, const
+// hz_dataset_view *data, const uint64_t *selection, uint64_t nb_selected,
+// hz_error *err), where `selection` NULL means every streamline and is
+// otherwise valid (checked here, HZ_E_INVALID_ARGUMENT otherwise; an empty
+// selection arrives as a non-NULL pointer with nb_selected 0). `prefix`
+// starts its error messages ("tck").
+//     .write = hz::selective_writer<write_some, kPrefix>::write,
+//     hz::write_selection<hz::selective_writer<write_some, kPrefix>::write_selection>::ext
+template <auto Some, const char *Prefix>
+struct selective_writer {
+    static hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *, hz_error *err) noexcept {
+        return Some(req, data, nullptr, 0, err);
+    }
+    static hz_status HZ_ABI write_selection(const hz_write_request *req, const hz_dataset_view *data, const uint64_t *selection,
+                                            uint64_t nb_selected, const hz_task *, hz_error *err) noexcept {
+        if (data != nullptr && selection_invalid(data->streamlines.nb_streamlines, selection, nb_selected))
+            return set_errorf(err, HZ_E_INVALID_ARGUMENT, "%s: %s: the selection is not increasing indices of the %llu streamlines", Prefix,
+                              req != nullptr && req->path != nullptr ? req->path : "",
+                              static_cast<unsigned long long>(data->streamlines.nb_streamlines));
+        static const uint64_t none = 0;
+        return Some(req, data, nb_selected ? selection : &none, nb_selected, err);
+    }
+};
+template <auto WriteSelection>
+struct write_selection {
+    static constexpr hz_ext_write_selection table = {
+        .struct_size = sizeof(hz_ext_write_selection), .reserved0 = 0, .write_selection = WriteSelection};
+    static constexpr extension ext = {HZ_EXT_WRITE_SELECTION, &table};
+};
 inline constexpr hz_ext_delimited_streamlines delimited_streamlines_table = {.struct_size = sizeof(hz_ext_delimited_streamlines),
                                                                               .max_gap = 1};
 inline constexpr extension delimited_streamlines = {HZ_EXT_DELIMITED_STREAMLINES, &delimited_streamlines_table};
