@@ -755,13 +755,15 @@ std::vector<std::uint64_t> Session::shown(std::vector<std::string> *cluster_of) 
     return *kept_;
 }
 
-std::string Session::save(const std::string &path, bool force) {
+Session::SaveJob Session::prepare_save(const std::string &path, bool force) {
     settle();
     check_outputs({path}, inputs_, force);
     core::loader_for_write(reg_, path);
     std::vector<std::string> cluster_of;
-    const std::vector<std::uint64_t> ids = shown(&cluster_of);
-    core::Dataset out;
+    SaveJob job;
+    job.ids = shown(&cluster_of);
+    const std::vector<std::uint64_t> &ids = job.ids;
+    core::Dataset &out = job.out;
     out.kind = HZ_DATA_STREAMLINES;
     // The whole tractogram and the streamlines shown (increasing): the
     // writer reads those where they lie (hz.ext.write-selection/1), or
@@ -802,11 +804,19 @@ std::string Session::save(const std::string &path, bool force) {
     out.metadata.emplace_back("horizon_source", inputs_.empty() ? std::string() : inputs_[0]);
     out.metadata.emplace_back("horizon_rois", rois.dump());
     if (ex_) out.metadata.emplace_back("horizon_clusters", nlohmann::json(names).dump());
+    job.path = path;
+    job.force = force;
+    job.protect = inputs_.empty() ? std::string() : inputs_[0];
+    job.line = "saved " + std::to_string(ids.size()) + " streamlines";
+    if (ex_) job.line += " in " + std::to_string(names.size()) + " clusters";
+    job.line += ", " + std::to_string(rois_.size()) + " regions -> " + path;
+    return job;
+}
+
+std::string Session::write_save(SaveJob &job) const {
     std::vector<std::string> dropped;
-    core::write_dataset(reg_, out, path, force, &dropped, inputs_.empty() ? std::string() : inputs_[0], nullptr, &ids);
-    std::string line = "saved " + std::to_string(ids.size()) + " streamlines";
-    if (ex_) line += " in " + std::to_string(names.size()) + " clusters";
-    line += ", " + std::to_string(rois_.size()) + " regions -> " + path;
+    core::write_dataset(reg_, job.out, job.path, job.force, &dropped, job.protect, nullptr, &job.ids);
+    std::string line = job.line;
     for (const auto &d : dropped) line += " (dropped " + d + ")";
     return line;
 }

@@ -203,6 +203,8 @@ public:
     const core::Tractogram &all() const { return all_; }
     const std::vector<core::Roi> &rois() const { return rois_; }
     const std::vector<std::uint64_t> &kept() const { return *kept_; }
+    // The same list, shared (it never changes: an edit makes a new one).
+    std::shared_ptr<const std::vector<std::uint64_t>> kept_shared() const { return kept_; }
     double last_filter_ms() const { return filter_ms_; }
 
     // Every edit: record() before it (the state undo returns to); an edit
@@ -283,7 +285,22 @@ public:
     // Writes what is shown to `path` (any streamline format; TRX holds a
     // group per shown cluster, the cluster paths as per-streamline data and
     // the regions in its header). Never over the input. Returns one line.
-    std::string save(const std::string &path, bool force);
+    // In two parts for a window that writes on a thread: prepare_save()
+    // takes what is shown now (and checks the target) on the calling
+    // thread; write_save() writes it, on any thread, reading nothing of the
+    // session but its tractogram, which never changes.
+    struct SaveJob {
+        core::Dataset out;               // the whole tractogram, with arrays indexed like it
+        std::vector<std::uint64_t> ids;  // the streamlines shown, increasing
+        std::string path, protect, line;
+        bool force = false;
+    };
+    SaveJob prepare_save(const std::string &path, bool force);
+    std::string write_save(SaveJob &job) const;
+    std::string save(const std::string &path, bool force) {
+        SaveJob job = prepare_save(path, force);
+        return write_save(job);
+    }
     // The regions found in a saved file's metadata ("horizon_rois"): what
     // reopening it restores.
     static std::vector<core::Roi> rois_from_metadata(const core::Registry &reg,

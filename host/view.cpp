@@ -38,7 +38,9 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <atomic>
 #include <future>
+#include <optional>
 #include <sstream>
 
 #include <sys/resource.h>
@@ -213,6 +215,7 @@ public:
             } else if (!session->rois().empty()) {
                 ob.data.tractogram = core::subset_with_arrays(session->all(), session->kept(), true);
             }
+            shown_kept = session->kept_shared();
             // The regions, drawn as wire figures: include green, exclude red.
             for (bool include : {true, false}) {
                 core::render::Object w;
@@ -301,7 +304,7 @@ public:
                 // (a selection, clustering or stroke in the background is
                 // polled every 50 ms; the refinement waits for the first
                 // clusters)
-                const bool selecting = (session && session->selecting()) || stroking();
+                const bool selecting = (session && session->selecting()) || stroking() || copying_kept() || saving();
                 const bool busy = (r.refining() && !holding_refinement()) || r.computing() || !still.valid || app.dragging || app.panning ||
                                   app.force_moving || wait > 0 || queued_click || app.press_stage >= 0 ||
                                   (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
@@ -323,11 +326,13 @@ public:
             const bool pause = pc < script.size() && (script[pc].rfind("wait", 0) == 0 || script[pc].rfind("sleep", 0) == 0 ||
                                                       script[pc].rfind("nowait ", 0) == 0);
             const bool settle_now = pc < script.size() && !pause && wait == 0 && glfwGetTime() >= sleep_until && app.press_stage < 0 &&
-                                    session && (session->selecting() || stroking());
+                                    session && (session->selecting() || stroking() || copying_kept() || saving());
             if (settle_now && stroking())
                 finish_stroke();
-            else if (settle_now)
+            else if (settle_now && session->selecting())
                 session->settle(), refresh(r, !std::exchange(reclustering, false));
+            if (settle_now && copying_kept()) finish_kept_copy(r);  // (the refresh above may have started it)
+            if (settle_now && saving()) finish_save();
             const bool hold_for_still = pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving &&
                                         (r.refining() || r.computing() || !still.valid);
             if (wait > 0)
@@ -344,6 +349,9 @@ public:
             }
 
             if (stroking() && stroke_job.wait_for(std::chrono::seconds(0)) == std::future_status::ready) finish_stroke();
+            if (copying_kept() && kept_copy->job.wait_for(std::chrono::seconds(0)) == std::future_status::ready) finish_kept_copy(r);
+            if (saving() && save_job.wait_for(std::chrono::seconds(0)) == std::future_status::ready) finish_save();
+            std::erase_if(kept_retired, [](const auto &f) { return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready; });
             if (session && !stroking() && session->poll()) {  // a selection or clustering made in the background
                 const auto t0 = std::chrono::steady_clock::now();
                 refresh(r, !std::exchange(reclustering, false));
@@ -418,6 +426,9 @@ public:
             }
         }
         if (stroking()) stroke_job.wait();
+        cancel_kept_copy();
+        kept_retired.clear();                   // (each stops at its next 1,024 streamlines)
+        if (saving()) finish_save();            // (a save asked for is finished, not lost)
         if (clustering() && session->stop()) {  // (closed before the clusters)
             std::printf("closed before the clusters were there; the clustering stopped\n");
             std::fflush(stdout);
@@ -489,12 +500,34 @@ private:
                 shown_expanded_id = ex->expanded_id(), shown_picked = session->picked();
             }
         } else if (!ex && selection_changed) {
-            core::render::Object ob = styled_like(rr.scene().objects[ti]);
-            const bool everything = session->kept().size() == session->all().nb_streamlines();
-            ob.data.tractogram = everything ? session->all().shared() : core::subset_with_arrays(session->all(), session->kept(), true);
-            if (everything) ob.data.bounds = all_bounds;  // (not measured again over every point)
-            highlight(ob.data.tractogram, session->kept());
-            rr.replace_object(ti, std::move(ob));
+            // The kept streamlines, copied for display (everything: the
+            // tractogram itself). A large copy (a region keeping most of ten
+            // million streamlines: 17 GB) is made on a thread, cancelled by a
+            // newer selection; the window shows the last one meanwhile.
+            cancel_kept_copy();
+            std::shared_ptr<const std::vector<std::uint64_t>> kept = session->kept_shared();
+            const core::Tractogram &all = session->all();
+            const bool everything = kept->size() == all.nb_streamlines();
+            std::uint64_t points = 0;
+            for (std::uint64_t s : *kept) points += all.size(s);
+            if (everything || points * 12 < kKeptCopyOnThread) {
+                show_kept(rr, kept, everything ? all.shared() : core::subset_with_arrays(all, *kept, true),
+                          everything ? all_bounds : core::Bounds{});
+            } else {
+                auto cancel = std::make_shared<std::atomic<bool>>(false);
+                kept_copy = KeptCopy{kept, cancel, std::async(std::launch::async, [&all, kept, cancel] {
+                                         setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);  // (below the frames)
+                                         KeptData d;
+                                         d.t = core::select_streamlines(all, *kept, true, cancel.get());
+                                         if (cancel->load()) return d;
+                                         d.t.arrays = core::arrays_of_selection(all, *kept, true);
+                                         d.bounds = core::bounds_of(d.t.positions.data(), d.t.nb_stored());  // (not on the window's thread)
+                                         return d;
+                                     })};
+                std::printf("copying the %zu streamlines kept for display (%.1f GB, in the background)\n", kept->size(),
+                            double(points) * 12 / 1e9);
+                std::fflush(stdout);
+            }
         }
         for (bool include : {true, false}) {
             const std::size_t k = include ? wire_in : wire_out;
@@ -538,9 +571,24 @@ private:
         refresh(r, true);
     }
 
+    // A save is written on a thread (10M streamlines: a minute of disk
+    // writes); the window goes on meanwhile, and says when it is done.
+    // What is saved is what was shown when it was asked for.
     void save_to(const std::string &path, bool force) {
-        const std::string line = session->save(path, force);
-        std::printf("%s\n", line.c_str());
+        if (saving()) throw core::Error("still saving " + save_path + "; save again when it is done");
+        auto job = std::make_shared<Session::SaveJob>(session->prepare_save(path, force));
+        save_path = path;
+        save_job = std::async(std::launch::async, [s = session.get(), job] { return s->write_save(*job); });
+    }
+    bool saving() const { return save_job.valid(); }
+    void finish_save() {
+        try {
+            const std::string line = save_job.get();
+            std::printf("%s\n", line.c_str());
+            log.mark("saved");
+        } catch (const std::exception &e) {
+            std::fprintf(stderr, "horizon: %s\n", e.what());
+        }
         std::fflush(stdout);
     }
 
@@ -606,6 +654,35 @@ private:
     // new selection): edits wait for it, and the window says so at once.
     bool clustering() const { return ex && session->selecting(); }
     bool stroking() const { return stroke_job.valid(); }
+    bool copying_kept() const { return kept_copy.has_value(); }
+
+    // Shows `t`, the streamlines `ids` of the session's tractogram, as the
+    // kept object (ti).
+    // (`bounds`: the tractogram's when known, not measured again here.)
+    void show_kept(core::render::Renderer &rr, std::shared_ptr<const std::vector<std::uint64_t>> ids, core::Tractogram t,
+                   const core::Bounds &bounds) {
+        core::render::Object ob = styled_like(rr.scene().objects[ti]);
+        ob.data.tractogram = std::move(t);
+        ob.data.bounds = bounds;
+        highlight(ob.data.tractogram, *ids);
+        rr.replace_object(ti, std::move(ob));
+        shown_kept = std::move(ids);
+    }
+    void finish_kept_copy(core::render::Renderer &rr) {
+        KeptCopy c = std::move(*kept_copy);
+        kept_copy.reset();
+        KeptData d = c.job.get();
+        show_kept(rr, c.ids, std::move(d.t), d.bounds);
+        std::printf("showing the %zu streamlines kept\n", c.ids->size());
+        log.mark("kept-shown");  // (in --stats: where the copy made meanwhile replaced the picture)
+        std::fflush(stdout);
+    }
+    void cancel_kept_copy() {
+        if (!kept_copy) return;
+        kept_copy->cancel->store(true);
+        kept_retired.push_back(std::move(kept_copy->job));
+        kept_copy.reset();
+    }
     // Edits wait for a clustering or a stroke's crossings.
     bool busy_editing() const { return clustering() || stroking(); }
     // The refinement waits for the first clusters (the CPU is theirs).
@@ -769,7 +846,7 @@ private:
         StrokeHits h = stroke_job.get();
         std::vector<std::uint64_t> ids = std::move(h.streamlines);
         const std::vector<std::size_t> &ranks = h.ranks;
-        const std::vector<std::uint64_t> &shown_ids = ex ? ex->expanded() : session->kept();
+        const std::vector<std::uint64_t> &shown_ids = ex ? ex->expanded() : *shown_kept;
         for (std::uint64_t &i : ids) i = shown_ids[i];  // (the object's streamline i is shown_ids[i])
         const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - stroke_t0).count();
         edit_ui(
@@ -1309,6 +1386,24 @@ private:
         std::vector<std::size_t> ranks;          // (the clusters whose centroids it crosses)
     };
     std::future<StrokeHits> stroke_job;  // a stroke's crossings, being found (on_stroke)
+    // The kept streamlines being copied for display (refresh), and copies
+    // a newer selection cancelled, finishing. shown_kept: the streamlines
+    // the kept object shows (indices into the session's tractogram).
+    static constexpr std::uint64_t kKeptCopyOnThread = std::uint64_t(256) << 20;  // bytes of positions
+    struct KeptData {
+        core::Tractogram t;
+        core::Bounds bounds;
+    };
+    struct KeptCopy {
+        std::shared_ptr<const std::vector<std::uint64_t>> ids;
+        std::shared_ptr<std::atomic<bool>> cancel;
+        std::future<KeptData> job;
+    };
+    std::optional<KeptCopy> kept_copy;
+    std::vector<std::future<KeptData>> kept_retired;
+    std::future<std::string> save_job;  // a save being written (save_to), to save_path
+    std::string save_path;
+    std::shared_ptr<const std::vector<std::uint64_t>> shown_kept;
     std::chrono::steady_clock::time_point stroke_t0;
     core::Bounds scene_box;  // (the slab's range)
     std::vector<std::string> script;

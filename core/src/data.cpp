@@ -340,7 +340,7 @@ DataArray f32_array(std::string name, hz_attach attach, const std::vector<float>
     return a;
 }
 
-Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill) {
+Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill, const std::atomic<bool> *cancel) {
     Tractogram out;
     out.offsets = Buffer<std::uint64_t>(ids.size() + 1);
     std::uint64_t nv = 0;
@@ -360,8 +360,10 @@ Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64
     const float *src = t.positions.data();
     float *dst = out.positions.data();
     parallel_ranges(ids.size(), 4096, [&](std::uint64_t from, std::uint64_t to) {
-        for (std::uint64_t i = from; i < to; ++i)
+        for (std::uint64_t i = from; i < to; ++i) {
+            if (cancel != nullptr && (i & 1023) == 0 && cancel->load(std::memory_order_relaxed)) return;
             std::memcpy(dst + out.offsets[i] * 3, src + t.begin(ids[i]) * 3, t.size(ids[i]) * 3 * sizeof(float));
+        }
     });
     out.reference = t.reference;
     out.reference_dims = t.reference_dims;

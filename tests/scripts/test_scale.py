@@ -7,6 +7,7 @@ memory), not timings: timings live in bench/scale_bench.py. Needs xvfb-run
 """
 import json
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -43,6 +44,23 @@ class ScaleTest(unittest.TestCase):
 
     def path(self, name):
         return os.path.join(self.tmp, name)
+
+    def window(self, name, lines):
+        """`view` of the tractogram at 640x400 under Xvfb, running the script
+        `lines`: the finished process and its --stats."""
+        self.assertTrue(shutil.which("xvfb-run"), "xvfb-run is needed (installed by .ci/bootstrap test)")
+        script, stats = self.path(name + ".txt"), self.path(name + ".json")
+        with open(script, "w") as f:
+            f.write("\n".join(lines) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg",
+               "HORIZON_PLUGIN_CACHE": os.path.join(BUILD, "tests", "plugin-trials.json")}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # the GL driver's threads (see hztest.GL_COMMANDS)
+        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.tck, "--size", "640x400",
+                            "--script", script, "--stats", stats], capture_output=True, text=True, timeout=1800, env=env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        with open(stats) as fh:
+            return p, json.load(fh)
 
     def test_generated_file_is_realistic(self):
         # 100-400 points per streamline, as nibabel reads it.
@@ -211,23 +229,39 @@ class ScaleTest(unittest.TestCase):
         self.assertGreater(score["volume_at_8"], score["volume_at_2"] - 0.02, score)
         self.assertGreater(imgmetrics.ssim(near["8"], near["2"]), 0.9, score)
 
+    def test_a_region_keeping_most_is_shown_and_saved_without_blocking(self):
+        """A region keeping most of the tractogram: the kept streamlines are
+        copied for display on a thread (1.9 GB here; 17 GB at 10M) while the
+        window goes on (a drag meanwhile is drawn), then shown; a save is
+        written on a thread too, and holds exactly the selection."""
+        out = self.path("region_kept.tck")
+        p, j = self.window("region", ["wait 2", "mark region", "roi sphere 0 0 0 40", "nowait drag 300 200 360 220", "sleep 3",
+                                      "mark save", f"save {out}", "nowait drag 360 220 300 200", "sleep 3", "quit"])
+        m = re.search(r"roi: 1 regions, (\d+) of (\d+) streamlines selected", p.stdout)
+        self.assertIsNotNone(m, p.stdout)
+        kept = int(m.group(1))
+        self.assertEqual(int(m.group(2)), N)
+        self.assertGreater(kept, N // 2)
+        self.assertLess(kept, N)
+        self.assertIn(f"copying the {kept} streamlines kept for display", p.stdout)
+        self.assertIn(f"showing the {kept} streamlines kept", p.stdout)
+        self.assertIn(f"saved {kept} streamlines, 1 regions -> {out}", p.stdout)
+        frames = j["frames"]
+        at = {f["name"]: i for i, f in enumerate(frames) if f["kind"] == "mark"}
+        self.assertLess(at["region"], at["kept-shown"])
+        self.assertLess(at["kept-shown"], at["save"])
+        self.assertLess(at["save"], at["saved"])
+        # Frames were drawn while the copy, then the save, were made.
+        drawn = lambda a, b: sum(1 for f in frames[at[a] + 1:at[b]] if f["kind"] != "mark")
+        self.assertGreater(drawn("region", "kept-shown"), 1)
+        self.assertGreater(drawn("save", "saved"), 1)
+        info = json.loads(run("info", out, "--json").stdout)
+        self.assertEqual(info["nb_streamlines"], kept)
+
     def test_window_opens_moves_rests_and_refines(self):
-        self.assertTrue(shutil.which("xvfb-run"), "xvfb-run is needed (installed by .ci/bootstrap test)")
-        script = self.path("s.txt")
         shot = self.path("rest.png")
-        with open(script, "w") as f:
-            f.write("\n".join(["wait 2", "drag 300 300 420 330", "wait 3", f"screenshot {shot}", "quit"]) + "\n")
-        stats = self.path("stats.json")
-        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg",
-               "HORIZON_PLUGIN_CACHE": os.path.join(BUILD, "tests", "plugin-trials.json")}
-        if "ASAN_OPTIONS" in env:
-            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # the GL driver's threads (see hztest.GL_COMMANDS)
-        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.tck, "--size", "640x400",
-                            "--script", script, "--stats", stats], capture_output=True, text=True, timeout=1800, env=env)
-        self.assertEqual(p.returncode, 0, p.stderr)
+        p, j = self.window("s", ["wait 2", "drag 300 300 420 330", "wait 3", f"screenshot {shot}", "quit"])
         self.assertIn("level of detail:", p.stdout)
-        with open(stats) as fh:
-            j = json.load(fh)
         frames = j["frames"]
         # While the file was read the window already showed its progress:
         # frames drawn from the start, each naming what was being read.

@@ -239,8 +239,11 @@ struct Tractogram {
 // The streamlines `ids` of `t`, in that order (positions only; indices < N).
 // With `spill`, a large selection's positions are allocate_spillable's (a
 // selection kept for display, e.g. a region's streamlines out of ten
-// million: page cache rather than the process's anonymous memory).
-Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill = false);
+// million: page cache rather than the process's anonymous memory). Once
+// `cancel` (when given) is set, the copy stops early: what is returned then
+// is to be discarded.
+Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill = false,
+                              const std::atomic<bool> *cancel = nullptr);
 
 // Triangle mesh, RAS+ mm.
 struct Mesh {
