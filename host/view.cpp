@@ -587,6 +587,7 @@ private:
             std::printf("%s\n", line.c_str());
             log.mark("saved");
         } catch (const std::exception &e) {
+            if (!o.script.empty()) throw core::Error(e.what());  // (a script whose save fails fails, as before)
             std::fprintf(stderr, "horizon: %s\n", e.what());
         }
         std::fflush(stdout);

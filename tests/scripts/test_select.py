@@ -405,7 +405,9 @@ class SelectionWindowTest(TempDirTest):
         for lines, words in [(["roi sphere 1 2 3"], "line 1: roi sphere needs 4 numbers"),
                              (["roi remove 3"], "line 1: no region 3"),
                              (["roi sphere 0 0 0 10 maybe"], "neither include nor exclude"),
-                             ([f"save {self.tck} force"], "refusing to overwrite the input")]:
+                             ([f"save {self.tck} force"], "refusing to overwrite the input"),
+                             # (written on a thread: its failure still fails the script)
+                             (["save /nonexistent-dir/kept.trx"], "/nonexistent-dir/kept.trx: directory /nonexistent-dir does not exist")]:
             with self.subTest(lines[0]):
                 with open(self.tck, "rb") as f:
                     before = f.read()
