@@ -58,7 +58,7 @@ public:
              core::Bounds bounds = {});
     Explorer(const Explorer &) = delete;
     Explorer &operator=(const Explorer &) = delete;
-    // The clusters a selection was saved with (Session::save): per
+    // The clusters a selection was saved with (Session::prepare_save): per
     // streamline its cluster's index into `names` (-1: a streamline shown on
     // its own), one cluster per name, each drawn as the centroid the
     // clustering plugin gives its streamlines at a threshold that keeps them
@@ -285,7 +285,7 @@ public:
     // Writes what is shown to `path` (any streamline format; TRX holds a
     // group per shown cluster, the cluster paths as per-streamline data and
     // the regions in its header). Never over the input. Returns one line.
-    // In two parts for a window that writes on a thread: prepare_save()
+    // In two parts, so that a window writes on a thread: prepare_save()
     // takes what is shown now (and checks the target) on the calling
     // thread; write_save() writes it, on any thread, reading nothing of the
     // session but its tractogram, which never changes.
@@ -297,10 +297,6 @@ public:
     };
     SaveJob prepare_save(const std::string &path, bool force);
     std::string write_save(SaveJob &job) const;
-    std::string save(const std::string &path, bool force) {
-        SaveJob job = prepare_save(path, force);
-        return write_save(job);
-    }
     // The regions found in a saved file's metadata ("horizon_rois"): what
     // reopening it restores.
     static std::vector<core::Roi> rois_from_metadata(const core::Registry &reg,

@@ -518,9 +518,8 @@ private:
                 kept_copy = KeptCopy{kept, cancel, std::async(std::launch::async, [&all, kept, cancel] {
                                          setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);  // (below the frames)
                                          KeptData d;
-                                         d.t = core::select_streamlines(all, *kept, true, cancel.get());
+                                         d.t = core::subset_with_arrays(all, *kept, true, cancel.get());
                                          if (cancel->load()) return d;
-                                         d.t.arrays = core::arrays_of_selection(all, *kept, true);
                                          d.bounds = core::bounds_of(d.t.positions.data(), d.t.nb_stored());  // (not on the window's thread)
                                          return d;
                                      })};

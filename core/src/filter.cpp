@@ -568,8 +568,9 @@ std::vector<DataArray> arrays_of_selection(const Tractogram &t, const std::vecto
     return out_arrays;
 }
 
-Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill) {
-    Tractogram out = select_streamlines(t, ids, spill);
+Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill, const std::atomic<bool> *cancel) {
+    Tractogram out = select_streamlines(t, ids, spill, cancel);
+    if (cancel != nullptr && cancel->load()) return out;
     out.arrays = arrays_of_selection(t, ids, /*gather_vertex_arrays=*/true);
     return out;
 }

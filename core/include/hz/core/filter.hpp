@@ -126,8 +126,9 @@ std::vector<std::uint64_t> filter_streamlines(const Tractogram &t, const FilterS
 // The streamlines `ids` of `t` in that order, with their per-vertex and
 // per-streamline arrays, and groups (TRX) narrowed to the streamlines kept
 // and renumbered; group data is kept for the groups that keep members.
-// `spill`: as select_streamlines'.
-Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill = false);
+// `spill` and `cancel`: as select_streamlines'.
+Tractogram subset_with_arrays(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill = false,
+                              const std::atomic<bool> *cancel = nullptr);
 
 // The arrays subset_with_arrays gives the streamlines `ids` (per-streamline
 // rows picked, groups renumbered, group data of the groups kept), except
