@@ -959,7 +959,6 @@ struct Renderer::Impl {
 
     // g's full detail as chunks over its bricks.
     void use_bricks(GpuObject &g, std::shared_ptr<const Bricks> br) {
-        const Tractogram &t = *g.lines->t;
         release_chunks(g.chunks);
         std::vector<LineChunk> chunks;
         std::vector<std::size_t> first(br->box.size() + 1, 0);
