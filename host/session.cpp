@@ -444,18 +444,21 @@ core::render::Object Explorer::centroids_object() const {
 }
 
 core::render::Object Explorer::streamlines_object() const {
-    core::render::Object o;
-    o.name = name_ + ": expanded streamlines";
-    o.kind = o.data.kind = HZ_DATA_STREAMLINES;
     // Every streamline: the tractogram as it is; else a copy, which a large
     // one keeps in a temporary file's pages rather than anonymous memory
     // (a million streamlines expanded out of ten million: 2 GB).
     // (The bounds: a pass over ten million streamlines' points is seconds
     // of the window's time.)
-    if (s_.expanded.size() == all_.nb_streamlines())
-        o.data.tractogram = all_.shared(), o.data.bounds = all_bounds();
-    else
-        o.data.tractogram = core::select_streamlines(all_, s_.expanded, true);
+    if (s_.expanded.size() == all_.nb_streamlines()) return streamlines_object(all_.shared(), all_bounds());
+    return streamlines_object(core::select_streamlines(all_, s_.expanded, true), core::Bounds{});
+}
+
+core::render::Object Explorer::streamlines_object(core::Tractogram t, const core::Bounds &bounds) const {
+    core::render::Object o;
+    o.name = name_ + ": expanded streamlines";
+    o.kind = o.data.kind = HZ_DATA_STREAMLINES;
+    o.data.tractogram = std::move(t);
+    o.data.bounds = bounds;
     o.render = "lines";
     o.coloring.mode = "direction";
     return o;

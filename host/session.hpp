@@ -145,7 +145,12 @@ public:
     std::vector<std::uint64_t> shown_streamlines(std::vector<std::string> *cluster_of = nullptr) const;
 
     core::render::Object centroids_object() const;
+    // The expanded streamlines' object: of expanded() (the tractogram itself
+    // when every streamline is expanded, else a copy), or drawing `t`, the
+    // streamlines expanded() at some time, copied on another thread
+    // (`bounds`: t's when known, else empty).
     core::render::Object streamlines_object() const;
+    core::render::Object streamlines_object(core::Tractogram t, const core::Bounds &bounds) const;
 
 private:
     std::uint64_t at(std::size_t rank) const;

@@ -212,10 +212,11 @@ public:
                 }
                 si = scene.objects.size();
                 scene.objects.push_back(ex->streamlines_object());
-            } else if (!session->rois().empty()) {
-                ob.data.tractogram = core::subset_with_arrays(session->all(), session->kept(), true);
+                shown_ids = std::make_shared<const std::vector<std::uint64_t>>(ex->expanded());
+            } else {
+                if (!session->rois().empty()) ob.data.tractogram = core::subset_with_arrays(session->all(), session->kept(), true);
+                shown_ids = session->kept_shared();
             }
-            shown_kept = session->kept_shared();
             // The regions, drawn as wire figures: include green, exclude red.
             for (bool include : {true, false}) {
                 core::render::Object w;
@@ -304,7 +305,7 @@ public:
                 // (a selection, clustering or stroke in the background is
                 // polled every 50 ms; the refinement waits for the first
                 // clusters)
-                const bool selecting = (session && session->selecting()) || stroking() || copying_kept() || saving();
+                const bool selecting = (session && session->selecting()) || stroking() || copying() || saving();
                 const bool busy = (r.refining() && !holding_refinement()) || r.computing() || !still.valid || app.dragging || app.panning ||
                                   app.force_moving || wait > 0 || queued_click || app.press_stage >= 0 ||
                                   (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
@@ -326,12 +327,12 @@ public:
             const bool pause = pc < script.size() && (script[pc].rfind("wait", 0) == 0 || script[pc].rfind("sleep", 0) == 0 ||
                                                       script[pc].rfind("nowait ", 0) == 0);
             const bool settle_now = pc < script.size() && !pause && wait == 0 && glfwGetTime() >= sleep_until && app.press_stage < 0 &&
-                                    session && (session->selecting() || stroking() || copying_kept() || saving());
+                                    session && (session->selecting() || stroking() || copying() || saving());
             if (settle_now && stroking())
                 finish_stroke();
             else if (settle_now && session->selecting())
                 session->settle(), refresh(r, !std::exchange(reclustering, false));
-            if (settle_now && copying_kept()) finish_kept_copy(r);  // (the refresh above may have started it)
+            if (settle_now && copying()) finish_copy(r);  // (the refresh above may have started it)
             if (settle_now && saving()) finish_save();
             const bool hold_for_still = pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving &&
                                         (r.refining() || r.computing() || !still.valid);
@@ -349,9 +350,9 @@ public:
             }
 
             if (stroking() && stroke_job.wait_for(std::chrono::seconds(0)) == std::future_status::ready) finish_stroke();
-            if (copying_kept() && kept_copy->job.wait_for(std::chrono::seconds(0)) == std::future_status::ready) finish_kept_copy(r);
+            if (copying() && display_copy->job.wait_for(std::chrono::seconds(0)) == std::future_status::ready) finish_copy(r);
             if (saving() && save_job.wait_for(std::chrono::seconds(0)) == std::future_status::ready) finish_save();
-            std::erase_if(kept_retired, [](const auto &f) { return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready; });
+            std::erase_if(copies_retired, [](const auto &f) { return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready; });
             if (session && !stroking() && session->poll()) {  // a selection or clustering made in the background
                 const auto t0 = std::chrono::steady_clock::now();
                 refresh(r, !std::exchange(reclustering, false));
@@ -426,8 +427,8 @@ public:
             }
         }
         if (stroking()) stroke_job.wait();
-        cancel_kept_copy();
-        kept_retired.clear();                   // (each stops at its next 1,024 streamlines)
+        cancel_copy();
+        copies_retired.clear();                 // (each stops at its next 1,024 streamlines)
         if (saving()) finish_save();            // (a save asked for is finished, not lost)
         if (clustering() && session->stop()) {  // (closed before the clusters)
             std::printf("closed before the clusters were there; the clustering stopped\n");
@@ -494,39 +495,12 @@ private:
             // its level of detail is prepared again) only when they or the
             // streamlines picked changed, not on every click.
             if (ex->expanded_id() != shown_expanded_id || session->picked() != shown_picked) {
-                core::render::Object so = ex->streamlines_object();
-                highlight(so.data.tractogram, ex->expanded());
-                rr.replace_object(si, std::move(so));
+                if (ex->expanded_id() != shown_expanded_id) expanded_ids = std::make_shared<const std::vector<std::uint64_t>>(ex->expanded());
+                display(rr, expanded_ids);
                 shown_expanded_id = ex->expanded_id(), shown_picked = session->picked();
             }
         } else if (!ex && selection_changed) {
-            // The kept streamlines, copied for display (everything: the
-            // tractogram itself). A large copy (a region keeping most of ten
-            // million streamlines: 17 GB) is made on a thread, cancelled by a
-            // newer selection; the window shows the last one meanwhile.
-            cancel_kept_copy();
-            std::shared_ptr<const std::vector<std::uint64_t>> kept = session->kept_shared();
-            const core::Tractogram &all = session->all();
-            const bool everything = kept->size() == all.nb_streamlines();
-            std::uint64_t points = 0;
-            for (std::uint64_t s : *kept) points += all.size(s);
-            if (everything || points * 12 < kKeptCopyOnThread) {
-                show_kept(rr, kept, everything ? all.shared() : core::subset_with_arrays(all, *kept, true),
-                          everything ? all_bounds : core::Bounds{});
-            } else {
-                auto cancel = std::make_shared<std::atomic<bool>>(false);
-                kept_copy = KeptCopy{kept, cancel, std::async(std::launch::async, [&all, kept, cancel] {
-                                         setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);  // (below the frames)
-                                         KeptData d;
-                                         d.t = core::subset_with_arrays(all, *kept, true, cancel.get());
-                                         if (cancel->load()) return d;
-                                         d.bounds = core::bounds_of(d.t.positions.data(), d.t.nb_stored());  // (not on the window's thread)
-                                         return d;
-                                     })};
-                std::printf("copying the %zu streamlines kept for display (%.1f GB, in the background)\n", kept->size(),
-                            double(points) * 12 / 1e9);
-                std::fflush(stdout);
-            }
+            display(rr, session->kept_shared());
         }
         for (bool include : {true, false}) {
             const std::size_t k = include ? wire_in : wire_out;
@@ -654,34 +628,70 @@ private:
     // new selection): edits wait for it, and the window says so at once.
     bool clustering() const { return ex && session->selecting(); }
     bool stroking() const { return stroke_job.valid(); }
-    bool copying_kept() const { return kept_copy.has_value(); }
+    bool copying() const { return display_copy.has_value(); }
 
-    // Shows `t`, the streamlines `ids` of the session's tractogram, as the
-    // kept object (ti).
-    // (`bounds`: the tractogram's when known, not measured again here.)
-    void show_kept(core::render::Renderer &rr, std::shared_ptr<const std::vector<std::uint64_t>> ids, core::Tractogram t,
-                   const core::Bounds &bounds) {
-        core::render::Object ob = styled_like(rr.scene().objects[ti]);
-        ob.data.tractogram = std::move(t);
-        ob.data.bounds = bounds;
-        highlight(ob.data.tractogram, *ids);
-        rr.replace_object(ti, std::move(ob));
-        shown_kept = std::move(ids);
-    }
-    void finish_kept_copy(core::render::Renderer &rr) {
-        KeptCopy c = std::move(*kept_copy);
-        kept_copy.reset();
-        KeptData d = c.job.get();
-        show_kept(rr, c.ids, std::move(d.t), d.bounds);
-        std::printf("showing the %zu streamlines kept\n", c.ids->size());
-        log.mark("kept-shown");  // (in --stats: where the copy made meanwhile replaced the picture)
+    // Shows the streamlines `ids` of the session's tractogram: the kept
+    // ones (object ti), or with --explore the expanded ones (si). Every
+    // streamline: the tractogram itself; the streamlines of the last copy
+    // made: that copy again (a stroke changes only what is highlighted);
+    // else a copy, which when large (a region keeping most of ten million
+    // streamlines: 17 GB) is made on a thread, cancelled by a newer one,
+    // the window showing the last picture meanwhile.
+    void display(core::render::Renderer &rr, std::shared_ptr<const std::vector<std::uint64_t>> ids) {
+        if (display_copy && (display_copy->ids == ids || *display_copy->ids == *ids)) return;  // (highlighted when it comes)
+        cancel_copy();
+        const core::Tractogram &all = session->all();
+        if (copied_ids && (copied_ids == ids || *copied_ids == *ids)) return show(rr, std::move(ids), copied.t.shared(), copied.bounds);
+        copied = CopyData{}, copied_ids.reset();  // (the object holds it while it shows it)
+        if (ids->size() == all.nb_streamlines()) return show(rr, std::move(ids), all.shared(), ex ? ex->all_bounds() : all_bounds);
+        std::uint64_t points = 0;
+        for (std::uint64_t s : *ids) points += all.size(s);
+        // (the kept streamlines carry their data; the expanded ones are
+        // coloured by direction)
+        auto copy = [&all, with_arrays = !ex](const std::vector<std::uint64_t> &v, const std::atomic<bool> *cancel) {
+            return with_arrays ? core::subset_with_arrays(all, v, true, cancel) : core::select_streamlines(all, v, true, cancel);
+        };
+        if (points * 12 < kCopyOnThread) {
+            copied = CopyData{copy(*ids, nullptr), core::Bounds{}}, copied_ids = ids;
+            return show(rr, std::move(ids), copied.t.shared(), copied.bounds);
+        }
+        auto cancel = std::make_shared<std::atomic<bool>>(false);
+        display_copy = Copy{ids, cancel, std::async(std::launch::async, [copy, ids, cancel] {
+                                setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);  // (below the frames)
+                                CopyData d;
+                                d.t = copy(*ids, cancel.get());
+                                if (cancel->load()) return d;
+                                d.bounds = core::bounds_of(d.t.positions.data(), d.t.nb_stored());  // (not on the window's thread)
+                                return d;
+                            })};
+        std::printf("copying the %zu streamlines %s for display (%.1f GB, in the background)\n", ids->size(), ex ? "expanded" : "kept",
+                    double(points) * 12 / 1e9);
         std::fflush(stdout);
     }
-    void cancel_kept_copy() {
-        if (!kept_copy) return;
-        kept_copy->cancel->store(true);
-        kept_retired.push_back(std::move(kept_copy->job));
-        kept_copy.reset();
+    // Shows `t`, the streamlines `ids` of the session's tractogram (bounds:
+    // t's when known, not measured again here).
+    void show(core::render::Renderer &rr, std::shared_ptr<const std::vector<std::uint64_t>> ids, core::Tractogram t,
+              const core::Bounds &bounds) {
+        core::render::Object ob = ex ? ex->streamlines_object(std::move(t), bounds) : styled_like(rr.scene().objects[ti]);
+        if (!ex) ob.data.tractogram = std::move(t), ob.data.bounds = bounds;
+        highlight(ob.data.tractogram, *ids);
+        rr.replace_object(ex ? si : ti, std::move(ob));
+        shown_ids = std::move(ids);
+    }
+    void finish_copy(core::render::Renderer &rr) {
+        Copy c = std::move(*display_copy);
+        display_copy.reset();
+        copied = c.job.get(), copied_ids = c.ids;
+        show(rr, c.ids, copied.t.shared(), copied.bounds);
+        std::printf("showing the %zu streamlines %s\n", c.ids->size(), ex ? "expanded" : "kept");
+        log.mark("copy-shown");  // (in --stats: where the copy made meanwhile replaced the picture)
+        std::fflush(stdout);
+    }
+    void cancel_copy() {
+        if (!display_copy) return;
+        display_copy->cancel->store(true);
+        copies_retired.push_back(std::move(display_copy->job));
+        display_copy.reset();
     }
     // Edits wait for a clustering or a stroke's crossings.
     bool busy_editing() const { return clustering() || stroking(); }
@@ -828,6 +838,7 @@ private:
         for (const auto &q : stroke) px.push_back({q[0] * fw / ww, q[1] * fh / wh});
         const core::render::View v = app.orbit.view(app.radius);
         stroke_t0 = std::chrono::steady_clock::now();
+        stroke_ids = shown_ids;  // (what the object crossed shows; a copy may replace it meanwhile)
         stroke_job = std::async(std::launch::async, [lines = r.scene().objects[ex ? si : ti].data.tractogram.shared(),
                                                      centroids = ex ? r.scene().objects[ci].data.tractogram.shared() : core::Tractogram{},
                                                      v, fw, fh, px, explore = ex != nullptr] {
@@ -846,8 +857,7 @@ private:
         StrokeHits h = stroke_job.get();
         std::vector<std::uint64_t> ids = std::move(h.streamlines);
         const std::vector<std::size_t> &ranks = h.ranks;
-        const std::vector<std::uint64_t> &shown_ids = ex ? ex->expanded() : *shown_kept;
-        for (std::uint64_t &i : ids) i = shown_ids[i];  // (the object's streamline i is shown_ids[i])
+        for (std::uint64_t &i : ids) i = (*stroke_ids)[i];  // (the object's streamline i is stroke_ids[i])
         const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - stroke_t0).count();
         edit_ui(
             [&] {
@@ -1386,24 +1396,28 @@ private:
         std::vector<std::size_t> ranks;          // (the clusters whose centroids it crosses)
     };
     std::future<StrokeHits> stroke_job;  // a stroke's crossings, being found (on_stroke)
-    // The kept streamlines being copied for display (refresh), and copies
-    // a newer selection cancelled, finishing. shown_kept: the streamlines
-    // the kept object shows (indices into the session's tractogram).
-    static constexpr std::uint64_t kKeptCopyOnThread = std::uint64_t(256) << 20;  // bytes of positions
-    struct KeptData {
+    // Streamlines copied for display (display): the copy being made on a
+    // thread, copies a newer one cancelled, finishing, and the last copy
+    // made, of copied_ids. shown_ids: the streamlines the kept or expanded
+    // object shows (indices into the session's tractogram); stroke_ids:
+    // those of the object a stroke being picked crossed.
+    static constexpr std::uint64_t kCopyOnThread = std::uint64_t(256) << 20;  // bytes of positions
+    struct CopyData {
         core::Tractogram t;
         core::Bounds bounds;
     };
-    struct KeptCopy {
+    struct Copy {
         std::shared_ptr<const std::vector<std::uint64_t>> ids;
         std::shared_ptr<std::atomic<bool>> cancel;
-        std::future<KeptData> job;
+        std::future<CopyData> job;
     };
-    std::optional<KeptCopy> kept_copy;
-    std::vector<std::future<KeptData>> kept_retired;
+    std::optional<Copy> display_copy;
+    std::vector<std::future<CopyData>> copies_retired;
+    std::shared_ptr<const std::vector<std::uint64_t>> copied_ids, expanded_ids;
+    CopyData copied;
     std::future<std::string> save_job;  // a save being written (save_to), to save_path
     std::string save_path;
-    std::shared_ptr<const std::vector<std::uint64_t>> shown_kept;
+    std::shared_ptr<const std::vector<std::uint64_t>> shown_ids, stroke_ids;
     std::chrono::steady_clock::time_point stroke_t0;
     core::Bounds scene_box;  // (the slab's range)
     std::vector<std::string> script;
