@@ -495,7 +495,8 @@ private:
             // its level of detail is prepared again) only when they or the
             // streamlines picked changed, not on every click.
             if (ex->expanded_id() != shown_expanded_id || session->picked() != shown_picked) {
-                if (ex->expanded_id() != shown_expanded_id) expanded_ids = std::make_shared<const std::vector<std::uint64_t>>(ex->expanded());
+                if (ex->expanded_id() != shown_expanded_id)
+                    expanded_ids = std::make_shared<const std::vector<std::uint64_t>>(ex->expanded());
                 display(rr, expanded_ids);
                 shown_expanded_id = ex->expanded_id(), shown_picked = session->picked();
             }
