@@ -274,7 +274,9 @@ class ScaleTest(unittest.TestCase):
         loading = j["loading"]
         self.assertGreaterEqual(loading["frames"], 1)
         self.assertEqual(len(loading["progress"]), loading["frames"])
-        self.assertLess(loading["progress"][0]["t"], 0.5)
+        # (under the sanitizers, beside the mutation check's compiles, a
+        # process start alone has taken 0.84 s)
+        self.assertLess(loading["progress"][0]["t"], 2.0 if SANITIZED else 0.5)
         self.assertLessEqual(loading["seconds"], j["first_frame_s"])
         for f in loading["progress"]:
             self.assertIn(f["what"], ("", "reading " + self.tck))
