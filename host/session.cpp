@@ -603,8 +603,7 @@ void Session::apply(bool recluster) {
     ensure_grid_future();
     std::vector<std::uint64_t> kept = select(rois_, *deleted_, grid_future_);
     if (ex_ && !recluster) {
-        kept_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(kept));
-        picked_ = std::make_shared<const std::vector<std::uint64_t>>();
+        adopt_kept(std::move(kept));
         filter_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
         return;
     }
@@ -613,13 +612,17 @@ void Session::apply(bool recluster) {
     filter_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-void Session::adopt(std::vector<std::uint64_t> kept, std::shared_ptr<const core::render::ClusterTree> tree) {
+void Session::adopt_kept(std::vector<std::uint64_t> kept) {
     kept_ = std::make_shared<const std::vector<std::uint64_t>>(std::move(kept));
     picked_ = std::make_shared<const std::vector<std::uint64_t>>();
+}
+
+void Session::adopt(std::vector<std::uint64_t> kept, std::shared_ptr<const core::render::ClusterTree> tree) {
+    adopt_kept(std::move(kept));
     if (ex_) ex_->adopt(*kept_, std::move(tree), nullptr);
 }
 
-void Session::apply_in_background() {
+void Session::apply_in_background(bool recluster) {
     settle();
     const auto t0 = std::chrono::steady_clock::now();
     if (!grid_future_.valid() && !rois_.empty()) {
@@ -627,10 +630,11 @@ void Session::apply_in_background() {
                            return std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_, 6.0, 0, &grid_cancel_));
                        }).share();
     }
-    pending_ = std::async(std::launch::async, [this, rois = rois_, deleted = deleted_, grid = grid_future_, t0] {
+    pending_ = std::async(std::launch::async, [this, rois = rois_, deleted = deleted_, grid = grid_future_, t0, recluster] {
         Pending p;
         p.kept = select(rois, *deleted, grid);
-        if (ex_) {
+        p.keep_clusters = ex_ && !recluster;
+        if (ex_ && recluster) {
             Progress progress("clustering " + std::to_string(p.kept.size()) + " streamlines", true);
             p.tree = ex_->compute_first(p.kept, progress.task());
             (void)ex_->all_bounds();  // (measured here, the first time, rather than at the first repeat)
@@ -682,7 +686,10 @@ void Session::settle() {
             ex_->adopt(std::move(p.plan->subset), std::move(p.tree), p.plan->colour_of.empty() ? nullptr : &p.plan->colour_of);
             return;
         }
-        adopt(std::move(p.kept), std::move(p.tree));
+        if (p.keep_clusters)
+            adopt_kept(std::move(p.kept));
+        else
+            adopt(std::move(p.kept), std::move(p.tree));
         filter_ms_ = p.ms;
     } catch (const std::exception &e) {  // (the selection shown stays the last one made)
         std::fprintf(stderr, "horizon: the selection or clustering failed: %s\n", e.what());

@@ -243,8 +243,8 @@ public:
     // the selection settles first. Over an exploration the clustering runs
     // behind a Progress ("clustering N streamlines"): current_progress()
     // shows it, and stop() or cancel_progress() stops it (the selection
-    // then stays the last one made).
-    void apply_in_background();
+    // then stays the last one made). `recluster`: as apply's.
+    void apply_in_background(bool recluster = true);
     // Explorer::repeat (`thresholds` as there) or, with `reset`,
     // Explorer::reset of what the regions select, the same way: on a
     // thread of its own, poll() adopts, stop() stops it. Throws Error when
@@ -316,6 +316,9 @@ private:
     State snapshot() const;
     std::vector<std::uint64_t> select(const std::vector<core::Roi> &rois, const std::vector<std::uint64_t> &deleted,
                                       const std::shared_future<std::shared_ptr<const core::StreamlineGrid>> &grid) const;
+    // The selection `kept`, nothing picked; adopt: over an exploration,
+    // clustered as `tree` too.
+    void adopt_kept(std::vector<std::uint64_t> kept);
     void adopt(std::vector<std::uint64_t> kept, std::shared_ptr<const core::render::ClusterTree> tree);
     void ensure_grid_future();
     // Throws Error when a stroke has picked nothing (no cluster selected either).
@@ -339,6 +342,7 @@ private:
         std::shared_ptr<const core::render::ClusterTree> tree;
         double ms = 0;
         std::unique_ptr<Explorer::Plan> plan;  // (a repeat or reset: the selection stays)
+        bool keep_clusters = false;            // (apply_in_background(false): the exploration stays)
     };
     std::future<Pending> pending_;
     std::vector<core::Roi> rois_;

@@ -188,7 +188,8 @@ public:
             // over 10M streamlines takes half a minute): the window shows it
             // as it would without --explore (level of detail, refinement
             // held back) until the clusters replace it.
-            const bool later = o.explore && saved_label.empty() && ob.data.tractogram.nb_streamlines() >= kClusterLater;
+            const bool large = ob.data.tractogram.nb_streamlines() >= kLater;
+            const bool later = o.explore && saved_label.empty() && large;
             std::unique_ptr<Explorer> explorer;
             if (o.explore)
                 explorer = std::make_unique<Explorer>(reg, ob.data.tractogram.shared(), ob.name, explore_spec(reg, o),
@@ -200,6 +201,8 @@ public:
             for (auto &roi : rois) session->add_roi(std::move(roi));
             if (later)
                 session->apply_in_background(), first_clusters = true;
+            else if (!session->rois().empty() && large)
+                session->apply_in_background(saved_label.empty()), first_selection = true;
             else if (!session->rois().empty())
                 session->apply(saved_label.empty());
             if (ex) {
@@ -210,13 +213,34 @@ public:
                 } else {
                     ob = ex->centroids_object();
                 }
+                // The expanded streamlines (a saved exploration's): the
+                // tractogram itself, a small copy, or drawn once copied on
+                // a thread (display, at the first frame).
                 si = scene.objects.size();
-                scene.objects.push_back(ex->streamlines_object());
-                shown_ids = std::make_shared<const std::vector<std::uint64_t>>(ex->expanded());
+                const auto &expanded = ex->expanded();
+                expanded_ids = std::make_shared<const std::vector<std::uint64_t>>(expanded);
+                shown_expanded_id = ex->expanded_id();
+                if (expanded.size() == session->all().nb_streamlines() || positions_bytes(expanded) < kCopyOnThread) {
+                    scene.objects.push_back(ex->streamlines_object());
+                    shown_ids = expanded_ids;
+                } else {
+                    scene.objects.push_back(ex->streamlines_object(core::Tractogram{}, core::Bounds{}));
+                    shown_ids = std::make_shared<const std::vector<std::uint64_t>>();
+                    display_at_first_frame = true;
+                }
             } else {
-                if (!session->rois().empty()) ob.data.tractogram = core::subset_with_arrays(session->all(), session->kept(), true);
+                // (a large tractogram's selection comes later: it is shown
+                // whole meanwhile)
+                if (!session->rois().empty() && !first_selection)
+                    ob.data.tractogram = core::subset_with_arrays(session->all(), session->kept(), true);
+                ob.provisional = first_selection;
                 shown_ids = session->kept_shared();
             }
+            if (first_selection && ex)
+                std::printf("selecting the streamlines the regions keep in the background\n");
+            else if (first_selection)
+                std::printf("selecting the streamlines the regions keep in the background; the window shows all %llu meanwhile\n",
+                            (unsigned long long)ob.data.tractogram.nb_streamlines());
             // The regions, drawn as wire figures: include green, exclude red.
             for (bool include : {true, false}) {
                 core::render::Object w;
@@ -240,7 +264,7 @@ public:
                 w.visible =
                     std::any_of(session->rois().begin(), session->rois().end(), [&](const core::Roi &x) { return x.include == include; });
             }
-            report(!session->rois().empty());
+            report(!session->rois().empty() && !first_selection);
         }
 
         if (session) {
@@ -353,7 +377,9 @@ public:
             if (copying() && display_copy->job.wait_for(std::chrono::seconds(0)) == std::future_status::ready) finish_copy(r);
             if (saving() && save_job.wait_for(std::chrono::seconds(0)) == std::future_status::ready) finish_save();
             std::erase_if(copies_retired, [](const auto &f) { return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready; });
+            if (std::exchange(display_at_first_frame, false)) display(r, expanded_ids);
             if (session && !stroking() && session->poll()) {  // a selection or clustering made in the background
+                first_selection = false;
                 const auto t0 = std::chrono::steady_clock::now();
                 refresh(r, !std::exchange(reclustering, false));
                 spdlog::debug("selection shown: {:.0f} ms",
@@ -630,6 +656,12 @@ private:
     bool clustering() const { return ex && session->selecting(); }
     bool stroking() const { return stroke_job.valid(); }
     bool copying() const { return display_copy.has_value(); }
+    // The bytes of the positions of the session's streamlines `ids`.
+    std::uint64_t positions_bytes(const std::vector<std::uint64_t> &ids) const {
+        std::uint64_t points = 0;
+        for (std::uint64_t s : ids) points += session->all().size(s);
+        return points * 12;
+    }
 
     // Shows the streamlines `ids` of the session's tractogram: the kept
     // ones (object ti), or with --explore the expanded ones (si). Every
@@ -645,14 +677,13 @@ private:
         if (copied_ids && (copied_ids == ids || *copied_ids == *ids)) return show(rr, std::move(ids), copied.t.shared(), copied.bounds);
         copied = CopyData{}, copied_ids.reset();  // (the object holds it while it shows it)
         if (ids->size() == all.nb_streamlines()) return show(rr, std::move(ids), all.shared(), ex ? ex->all_bounds() : all_bounds);
-        std::uint64_t points = 0;
-        for (std::uint64_t s : *ids) points += all.size(s);
+        const std::uint64_t bytes = positions_bytes(*ids);
         // (the kept streamlines carry their data; the expanded ones are
         // coloured by direction)
         auto copy = [&all, with_arrays = !ex](const std::vector<std::uint64_t> &v, const std::atomic<bool> *cancel) {
             return with_arrays ? core::subset_with_arrays(all, v, true, cancel) : core::select_streamlines(all, v, true, cancel);
         };
-        if (points * 12 < kCopyOnThread) {
+        if (bytes < kCopyOnThread) {
             copied = CopyData{copy(*ids, nullptr), core::Bounds{}}, copied_ids = ids;
             return show(rr, std::move(ids), copied.t.shared(), copied.bounds);
         }
@@ -666,7 +697,7 @@ private:
                                 return d;
                             })};
         std::printf("copying the %zu streamlines %s for display (%.1f GB, in the background)\n", ids->size(), ex ? "expanded" : "kept",
-                    double(points) * 12 / 1e9);
+                    double(bytes) / 1e9);
         std::fflush(stdout);
     }
     // Shows `t`, the streamlines `ids` of the session's tractogram (bounds:
@@ -694,10 +725,14 @@ private:
         copies_retired.push_back(std::move(display_copy->job));
         display_copy.reset();
     }
-    // Edits wait for a clustering or a stroke's crossings.
-    bool busy_editing() const { return clustering() || stroking(); }
-    // The refinement waits for the first clusters (the CPU is theirs).
-    bool holding_refinement() const { return first_clusters && session->selecting(); }
+    // Edits wait for a clustering, the first selection of a large
+    // tractogram, or a stroke's crossings.
+    bool busy_editing() const { return clustering() || selecting_first() || stroking(); }
+    bool selecting_first() const { return first_selection && session->selecting(); }
+    // The refinement waits for the first clusters or selection, and for a
+    // copy for display (the CPU is theirs; what it would refine is about to
+    // be replaced).
+    bool holding_refinement() const { return ((first_clusters || first_selection) && session->selecting()) || copying(); }
 
     // Repeat (thresholds: none, fitted to what is shown) or reset, in the
     // background; the clusters shown stay until the new ones are there.
@@ -720,6 +755,11 @@ private:
     void say_busy() {
         if (stroking() && !clustering()) {
             std::printf("still picking what the last stroke crossed\n");
+            std::fflush(stdout);
+            return;
+        }
+        if (selecting_first()) {
+            std::printf("still selecting the streamlines the regions keep; edits can be made once they show\n");
             std::fflush(stdout);
             return;
         }
@@ -1443,19 +1483,23 @@ private:
     // the last one's frame took besides.
     double step_ms = -1, frame_overhead_ms = 0;
     bool first_frame = true;
-    // The first clustering of a large tractogram runs in the background
-    // (Session::apply_in_background): the tractogram is shown meanwhile,
-    // unrefined, and edits wait for the clusters.
-    static constexpr std::uint64_t kClusterLater = 100000;
+    // The first clustering of a large tractogram, and the first selection
+    // of its regions, run in the background (Session::apply_in_background):
+    // the tractogram is shown meanwhile, unrefined, and edits wait for them.
+    static constexpr std::uint64_t kLater = 100000;
     core::Bounds all_bounds;  // of the whole tractogram, as loaded (objects of all of it are given them)
     // What the expanded streamlines' object (si) was last built from.
     std::uint64_t shown_expanded_id = ~std::uint64_t(0);
     std::vector<std::uint64_t> shown_picked;
-    bool first_clusters = false;     // the tractogram is shown (object ci) until its first clusters are there
-    bool said_no_clusters = false;   // (the first clustering failed: said once)
-    bool reclustering = false;       // (the clustering in the background is a repeat or reset: no new selection)
-    double clusters_shown_s = -1;    // (seconds after launch; the --stats file's)
-    double next_progress_frame = 0;  // (the panel's progress, redrawn 4 times a second)
+    bool first_clusters = false;  // the tractogram is shown (object ci) until its first clusters are there
+    // The regions' first selection of a large tractogram runs in the
+    // background too: the tractogram is shown whole meanwhile (plain view).
+    bool first_selection = false;
+    bool display_at_first_frame = false;  // (a saved exploration's expanded streamlines, copied on a thread)
+    bool said_no_clusters = false;        // (the first clustering failed: said once)
+    bool reclustering = false;            // (the clustering in the background is a repeat or reset: no new selection)
+    double clusters_shown_s = -1;         // (seconds after launch; the --stats file's)
+    double next_progress_frame = 0;       // (the panel's progress, redrawn 4 times a second)
 };
 
 }  // namespace

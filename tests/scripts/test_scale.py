@@ -47,9 +47,9 @@ class ScaleTest(unittest.TestCase):
     def path(self, name):
         return os.path.join(self.tmp, name)
 
-    def window(self, name, lines):
+    def window(self, name, lines, *extra):
         """`view` of the tractogram at 640x400 under Xvfb, running the script
-        `lines`: the finished process and its --stats."""
+        `lines` (options `extra`): the finished process and its --stats."""
         self.assertTrue(shutil.which("xvfb-run"), "xvfb-run is needed (installed by .ci/bootstrap test)")
         script, stats = self.path(name + ".txt"), self.path(name + ".json")
         with open(script, "w") as f:
@@ -59,7 +59,7 @@ class ScaleTest(unittest.TestCase):
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # the GL driver's threads (see hztest.GL_COMMANDS)
         p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.tck, "--size", "640x400",
-                            "--script", script, "--stats", stats], capture_output=True, text=True, timeout=1800, env=env)
+                            "--script", script, "--stats", stats, *extra], capture_output=True, text=True, timeout=1800, env=env)
         self.assertEqual(p.returncode, 0, p.stderr)
         with open(stats) as fh:
             return p, json.load(fh)
@@ -231,6 +231,20 @@ class ScaleTest(unittest.TestCase):
         self.assertGreater(score["volume_at_8"], score["volume_at_2"] - 0.02, score)
         self.assertGreater(imgmetrics.ssim(near["8"], near["2"]), 0.9, score)
 
+    def kept_by_the_sphere(self, p):
+        """How many streamlines the window's one region (a sphere keeping
+        most, not all) selected, from its `roi:` line; then it copied them
+        for display on a thread and showed them."""
+        m = re.search(r"roi: 1 regions, (\d+) of (\d+) streamlines selected", p.stdout)
+        self.assertIsNotNone(m, p.stdout)
+        kept = int(m.group(1))
+        self.assertEqual(int(m.group(2)), N)
+        self.assertGreater(kept, N // 2)
+        self.assertLess(kept, N)
+        self.assertIn(f"copying the {kept} streamlines kept for display", p.stdout)
+        self.assertIn(f"showing the {kept} streamlines kept", p.stdout)
+        return kept
+
     def test_a_region_keeping_most_is_shown_and_saved_without_blocking(self):
         """A region keeping most of the tractogram: the kept streamlines are
         copied for display on a thread (1.9 GB here; 17 GB at 10M) while the
@@ -240,14 +254,7 @@ class ScaleTest(unittest.TestCase):
         p, j = self.window("region", ["wait 2", "mark region", "roi sphere 0 0 0 40", "nowait drag 300 200 360 220", "sleep 3",
                                       "mark save", f"save {out}", "nowait drag 360 220 300 200", "sleep 3", "stroke 300 200 330 205",
                                       "quit"])
-        m = re.search(r"roi: 1 regions, (\d+) of (\d+) streamlines selected", p.stdout)
-        self.assertIsNotNone(m, p.stdout)
-        kept = int(m.group(1))
-        self.assertEqual(int(m.group(2)), N)
-        self.assertGreater(kept, N // 2)
-        self.assertLess(kept, N)
-        self.assertIn(f"copying the {kept} streamlines kept for display", p.stdout)
-        self.assertIn(f"showing the {kept} streamlines kept", p.stdout)
+        kept = self.kept_by_the_sphere(p)
         self.assertIn(f"saved {kept} streamlines, 1 regions -> {out}", p.stdout)
         # A stroke then picks some of them: highlighted, not copied again.
         self.assertRegex(p.stdout, r"stroke: [1-9]\d* streamlines picked")
@@ -263,6 +270,36 @@ class ScaleTest(unittest.TestCase):
         self.assertGreater(drawn("save", "saved"), 1)
         info = json.loads(run("info", out, "--json").stdout)
         self.assertEqual(info["nb_streamlines"], kept)
+
+    def test_regions_given_at_launch_do_not_hold_the_first_frame(self):
+        """`view --include` on a large tractogram: the window shows the whole
+        tractogram at once (its uniform proxy: no level-of-detail work for a
+        picture about to be replaced) and answers input while the regions'
+        first selection, then the copy of what they keep, are made in the
+        background (seconds at 1M, minutes at 10M); then it shows the
+        selection. Edits meanwhile are answered at once, not queued."""
+        p, j = self.window("launch_region", ["wait 2", "nowait drag 300 200 360 220", "nowait key d", "sleep 1", "mark asked",
+                                             "quit"], "--include", "sphere:0,0,0,40", "-v")
+        self.assertIn(f"selecting the streamlines the regions keep in the background; the window shows all {N} meanwhile",
+                      p.stdout)
+        kept = self.kept_by_the_sphere(p)
+        self.assertIn("still selecting the streamlines the regions keep; edits can be made once they show", p.stdout)
+        self.assertLess(p.stdout.index("level of detail:"), p.stdout.index("roi: 1 regions"))
+        self.assertEqual(j["streamlines"], kept + 3)  # (and the sphere's wire: three circles)
+        frames = j["frames"]
+        at = {f["name"]: i for i, f in enumerate(frames) if f["kind"] == "mark"}
+        # The first frames, drag included, came before the selection: the
+        # whole tractogram's uniform proxy (no fibre volume: not computed).
+        before = [f for f in frames[:at["copy-shown"]] if f["kind"] in ("refine", "moving")]  # (a "still" draws nothing new)
+        self.assertGreater(len([f for f in before if f["kind"] == "moving"]), 0)
+        for f in before:
+            self.assertTrue(f["proxy"])
+            self.assertEqual(f["fibre_volumes"], 0)
+            self.assertLess(f["points"], self.points / 20)
+        self.assertLess(j["first_frame_s"], frames[at["copy-shown"]]["t"])
+        self.assertLess(at["copy-shown"], at["asked"])
+        # Only the selection shown was cut into bricks (-v: the renderer's log).
+        self.assertEqual(p.stderr.count("cut into bricks"), 1, p.stderr)
 
     def test_window_opens_moves_rests_and_refines(self):
         shot = self.path("rest.png")

@@ -879,18 +879,18 @@ struct Renderer::Impl {
         // expectation a uniform subsample: the same density everywhere).
         g.bounds = !o.data.bounds.empty ? o.data.bounds : bounds_of(t.positions.data(), t.nb_stored());
         for (float r : g.lines->radius) g.max_radius_mm = std::max(g.max_radius_mm, r);
-        if (settings.occlusion && g.points_total > settings.eager_points) schedule_bricks(g, t);
+        if (settings.occlusion && g.points_total > settings.eager_points && !o.provisional) schedule_bricks(g, t);
         const double lod = std::max(1.0, settings.lod_points);
         if (double(g.points_total) > lod) {
             set_proxy_lines(g, uniform_proxy(t, lod));
             g.proxy = g.lines_alone;
             g.proxy_chunks = partition(t, g.proxy->data(), g.proxy->size());
-            if (settings.shell_proxy) {
+            if (settings.shell_proxy && !o.provisional) {
                 g.shell_cancel = std::make_shared<std::atomic<bool>>(false);
                 g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod, cancel = g.shell_cancel,
                                                           all = settings.shell_all_cores] { return shell_proxy(t, b, lod, *cancel, all); });
             }
-            schedule_fibre_volume(g);
+            if (!o.provisional) schedule_fibre_volume(g);
         }
         // Small objects are built now, in parallel (the draw lists are then
         // known: MSAA is chosen from the segment count); large ones chunk
@@ -911,24 +911,26 @@ struct Renderer::Impl {
 
     // Starts cutting g's streamlines into bricks on a background thread
     // (RenderSettings::occlusion), at the finest grid whose pieces fit the
-    // budget; none: g is drawn in streamline order.
+    // budget (chosen on that thread too: a sample of the streamlines cut at
+    // each grid, 0.1-0.2 s at 1M); none: g is drawn in streamline order.
     void schedule_bricks(GpuObject &g, const Tractogram &t) {
         const std::uint64_t max_pieces = std::uint64_t(std::max(0.0, settings.brick_memory_mb) * 1048576.0 / sizeof(BrickPiece));
-        const int side = brick_side_for(t, g.bounds, std::min(8, settings.brick_grid), settings.brick_grid, max_pieces);
-        if (side == 0) {
-            spdlog::debug("renderer: object {}: no bricks within {} MB, drawn in streamline order", g.index, settings.brick_memory_mb);
-            return;
-        }
-        spdlog::debug("renderer: object {}: cut into bricks, {} along the longest side", g.index, side);
         g.brick_cancel = std::make_shared<std::atomic<bool>>(false);
-        g.brick_job = std::async(std::launch::async,
-                                 [t = t.shared(), b = g.bounds, side, cancel = g.brick_cancel, window = !settings.shell_all_cores] {
-                                     // In a window below the frames' priority (its threads inherit
-                                     // it): on two cores, frames moved while it ran took 33-40 ms
-                                     // instead of 24-28; a window at rest waits for it, idle.
-                                     if (window) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
-                                     return bricks_of(t, b, side, std::max(1u, std::thread::hardware_concurrency()), *cancel);
-                                 });
+        g.brick_job =
+            std::async(std::launch::async, [t = t.shared(), b = g.bounds, cancel = g.brick_cancel, window = !settings.shell_all_cores,
+                                            index = g.index, grid = settings.brick_grid, max_pieces, mb = settings.brick_memory_mb] {
+                // In a window below the frames' priority (its threads inherit
+                // it): on two cores, frames moved while it ran took 33-40 ms
+                // instead of 24-28; a window at rest waits for it, idle.
+                if (window) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
+                const int side = brick_side_for(t, b, std::min(8, grid), grid, max_pieces);
+                if (side == 0) {
+                    spdlog::debug("renderer: object {}: no bricks within {} MB, drawn in streamline order", index, mb);
+                    return Bricks{};
+                }
+                spdlog::debug("renderer: object {}: cut into bricks, {} along the longest side", index, side);
+                return bricks_of(t, b, side, std::max(1u, std::thread::hardware_concurrency()), *cancel);
+            });
     }
 
     // Adopts the bricks of the objects whose cut is done (with `wait`, once

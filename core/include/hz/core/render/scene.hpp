@@ -56,6 +56,11 @@ struct Object {
     // camera moves (e.g. QuickBundlesX centroids of a large tractogram) and
     // is hidden otherwise; that object is hidden while moving.
     std::optional<std::size_t> proxy_for;
+    // Shown only until it is replaced (a tractogram shown whole while its
+    // regions' first selection is made): of its level of detail, only the
+    // uniform subsample, none of the work on other threads (shell, fibre
+    // volume, bricks) that would slow down what replaces it.
+    bool provisional = false;
     // streamlines
     std::string render = "lines";  // lines | tubes
     double radius_mm = 0.4;        // tubes; with width_by_size: the radius of the median cluster
