@@ -210,6 +210,7 @@ public:
                 if (first_clusters) {
                     std::printf("clustering %llu streamlines in the background; the window shows them meanwhile\n",
                                 (unsigned long long)ob.data.tractogram.nb_streamlines());
+                    ob.provisional = true;
                 } else {
                     ob = ex->centroids_object();
                 }

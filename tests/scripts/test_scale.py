@@ -372,6 +372,7 @@ class ScaleTest(unittest.TestCase):
                                 "640x400", "--script", script, "--stats", stats, *extra], capture_output=True, text=True,
                                timeout=timeout, env=env)
             self.assertEqual(p.returncode, 0, p.stderr)
+            self.log = p.stderr
             with open(stats) as fh:
                 return p.stdout, json.load(fh)
 
@@ -385,7 +386,7 @@ class ScaleTest(unittest.TestCase):
         # display on a thread, frames going on meanwhile.
         out, j = view("explore", ["wait 2", "nowait key e", "nowait click 320 200", "nowait drag 300 200 380 220", "sleep 8",
                                   f"screenshot {shot}", "mark clusters", "key c", "wait 2", "nowait key a", "key a", "key x", "wait 3",
-                                  "stroke 300 200 330 205", "nowait key d", "mark drop", "key d", "sleep 2", "quit"])
+                                  "stroke 300 200 330 205", "nowait key d", "mark drop", "key d", "sleep 2", "quit"], "-v")
         self.assertIn(f"clustering {N} streamlines in the background", out)
         mark = next(i for i, f in enumerate(j["frames"]) if f["kind"] == "mark")
         frames = j["frames"][:mark]
@@ -402,6 +403,13 @@ class ScaleTest(unittest.TestCase):
         for f in during:
             self.assertEqual(f["step"], 0)
             self.assertLess(f["points"], self.points / 20)
+            self.assertEqual(f["fibre_volumes"], 0)
+        # Nor is the tractogram shown meanwhile (object 0) given more level of
+        # detail (shell, fibre volume, bricks) than its uniform subsample:
+        # the clusters replace it (-v: the renderer's log). The expanded
+        # streamlines (object 1) are, once X shows them.
+        self.assertNotIn("object 0: cut into bricks", self.log)
+        self.assertIn("object 1: cut into bricks", self.log)
         # Input during the clustering was answered at once, not queued (and
         # during the repeat).
         self.assertEqual(out.count("still clustering"), 3, out)
