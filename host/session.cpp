@@ -580,6 +580,9 @@ std::vector<std::uint64_t> Session::select(const std::vector<core::Roi> &rois, c
         std::iota(kept.begin(), kept.end(), 0);
     } else {
         std::shared_ptr<const core::StreamlineGrid> grid = grid_future.valid() ? grid_future.get() : nullptr;
+        // (the session is closing: its grid was stopped, and a scan without
+        // it would take a second a million streamlines; nothing is adopted)
+        if (grid_cancel_.load()) return {};
         if (!grid) grid = std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_));
         core::FilterSpec f;
         f.rois = rois;
