@@ -300,7 +300,12 @@ public:
         // --lod-points points is drawn as a proxy of about that many points
         // while the camera moves and first when it rests, then refined to
         // full detail in steps of about kStepMs.
-        if (const std::uint64_t n = r.streamlines_with_proxy(); n > 0)
+        // (the tractogram shown until its clusters or its regions'
+        // selection replace it: a uniform subsample, not refined)
+        if (const std::uint64_t n = r.streamlines_with_proxy(); n > 0 && (first_clusters || (first_selection && !ex)))
+            std::printf("level of detail: %llu streamlines drawn as a uniform subsample of about %.0f points until the %s replace them\n",
+                        (unsigned long long)n, o.lod.lod_points, first_clusters ? "clusters" : "selected ones");
+        else if (n > 0)
             std::printf("level of detail: %llu streamlines drawn as a %s proxy of about %.0f points while moving, refined at rest\n",
                         (unsigned long long)n, o.lod.lod_proxy.c_str(), o.lod.lod_points);
         std::fflush(stdout);

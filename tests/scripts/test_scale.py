@@ -284,7 +284,8 @@ class ScaleTest(unittest.TestCase):
                       p.stdout)
         kept = self.kept_by_the_sphere(p)
         self.assertIn("still selecting the streamlines the regions keep; edits can be made once they show", p.stdout)
-        self.assertLess(p.stdout.index("level of detail:"), p.stdout.index("roi: 1 regions"))
+        shown = f"level of detail: {N} streamlines drawn as a uniform subsample of about 200000 points until the selected ones replace them"
+        self.assertLess(p.stdout.index(shown), p.stdout.index("roi: 1 regions"))
         self.assertEqual(j["streamlines"], kept + 3)  # (and the sphere's wire: three circles)
         frames = j["frames"]
         at = {f["name"]: i for i, f in enumerate(frames) if f["kind"] == "mark"}
@@ -388,6 +389,8 @@ class ScaleTest(unittest.TestCase):
                                   f"screenshot {shot}", "mark clusters", "key c", "wait 2", "nowait key a", "key a", "key x", "wait 3",
                                   "stroke 300 200 330 205", "nowait key d", "mark drop", "key d", "sleep 2", "quit"], "-v")
         self.assertIn(f"clustering {N} streamlines in the background", out)
+        self.assertIn(f"level of detail: {N} streamlines drawn as a uniform subsample of about 200000 points until the clusters replace "
+                      "them", out)
         mark = next(i for i, f in enumerate(j["frames"]) if f["kind"] == "mark")
         frames = j["frames"][:mark]
         during = [f for f in frames if f["clustering"]]
