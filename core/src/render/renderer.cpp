@@ -888,7 +888,12 @@ struct Renderer::Impl {
             if (settings.shell_proxy && !o.provisional) {
                 g.shell_cancel = std::make_shared<std::atomic<bool>>(false);
                 g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod, cancel = g.shell_cancel,
-                                                          all = settings.shell_all_cores] { return shell_proxy(t, b, lod, *cancel, all); });
+                                                          all = settings.shell_all_cores, index = g.index] {
+                    const auto t0 = Clock::now();
+                    std::vector<Piece> shell = shell_proxy(t, b, lod, *cancel, all);
+                    spdlog::debug("renderer: object {}: shell proxy ({:.2f} s)", index, ms_since(t0) / 1000);
+                    return shell;
+                });
             }
             if (!o.provisional) schedule_fibre_volume(g);
         }
@@ -916,21 +921,23 @@ struct Renderer::Impl {
     void schedule_bricks(GpuObject &g, const Tractogram &t) {
         const std::uint64_t max_pieces = std::uint64_t(std::max(0.0, settings.brick_memory_mb) * 1048576.0 / sizeof(BrickPiece));
         g.brick_cancel = std::make_shared<std::atomic<bool>>(false);
-        g.brick_job =
-            std::async(std::launch::async, [t = t.shared(), b = g.bounds, cancel = g.brick_cancel, window = !settings.shell_all_cores,
-                                            index = g.index, grid = settings.brick_grid, max_pieces, mb = settings.brick_memory_mb] {
-                // In a window below the frames' priority (its threads inherit
-                // it): on two cores, frames moved while it ran took 33-40 ms
-                // instead of 24-28; a window at rest waits for it, idle.
-                if (window) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
-                const int side = brick_side_for(t, b, std::min(8, grid), grid, max_pieces);
-                if (side == 0) {
-                    spdlog::debug("renderer: object {}: no bricks within {} MB, drawn in streamline order", index, mb);
-                    return Bricks{};
-                }
-                spdlog::debug("renderer: object {}: cut into bricks, {} along the longest side", index, side);
-                return bricks_of(t, b, side, std::max(1u, std::thread::hardware_concurrency()), *cancel);
-            });
+        g.brick_job = std::async(std::launch::async, [t = t.shared(), b = g.bounds, cancel = g.brick_cancel,
+                                                      window = !settings.shell_all_cores, index = g.index, grid = settings.brick_grid,
+                                                      max_pieces, mb = settings.brick_memory_mb] {
+            // In a window below the frames' priority (its threads inherit
+            // it): on two cores, frames moved while it ran took 33-40 ms
+            // instead of 24-28; a window at rest waits for it, idle.
+            if (window) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
+            const int side = brick_side_for(t, b, std::min(8, grid), grid, max_pieces);
+            if (side == 0) {
+                spdlog::debug("renderer: object {}: no bricks within {} MB, drawn in streamline order", index, mb);
+                return Bricks{};
+            }
+            const auto t0 = Clock::now();
+            Bricks br = bricks_of(t, b, side, std::max(1u, std::thread::hardware_concurrency()), *cancel);
+            spdlog::debug("renderer: object {}: cut into bricks, {} along the longest side ({:.2f} s)", index, side, ms_since(t0) / 1000);
+            return br;
+        });
     }
 
     // Adopts the bricks of the objects whose cut is done (with `wait`, once
@@ -1054,13 +1061,16 @@ struct Renderer::Impl {
         g.fibre_cancel = std::make_shared<std::atomic<bool>>(false);
         // (each thread sums into a grid of its own, 48 MB at 128 voxels: at most 4)
         const unsigned threads = settings.shell_all_cores ? std::clamp(std::thread::hardware_concurrency(), 1u, 4u) : 1u;
-        g.fibre_job =
-            std::async(std::launch::async, [d = g.lines, b = g.bounds, grid = settings.fibre_grid, cancel = g.fibre_cancel, threads] {
+        g.fibre_job = std::async(
+            std::launch::async, [d = g.lines, b = g.bounds, grid = settings.fibre_grid, cancel = g.fibre_cancel, threads, index = g.index] {
                 // In a window (one thread) below the frames' priority: on two
                 // cores it slowed the moving frames beside it from 25 to 42 ms;
                 // the shell is the proxy until it is done.
                 if (threads == 1) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
-                return fibre_volume(*d, b, grid, kFibrePoints, threads, *cancel);
+                const auto t0 = Clock::now();
+                FibreVolume fv = fibre_volume(*d, b, grid, kFibrePoints, threads, *cancel);
+                spdlog::debug("renderer: object {}: fibre volume ({:.2f} s)", index, ms_since(t0) / 1000);
+                return fv;
             });
     }
     // Points read into a fibre volume, at most (above, every k-th segment of
