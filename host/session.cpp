@@ -39,15 +39,17 @@ double Explorer::all_diagonal() const {
     return b.empty ? 0 : std::hypot(b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]);
 }
 
-void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names) {
+Explorer::Saved Explorer::compute_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names,
+                                        const hz_task *task) const {
     const std::size_t G = names.size();
     std::vector<std::vector<std::uint64_t>> groups(G);
-    std::vector<std::uint64_t> alone;
+    Saved out;
+    out.names = names;
     for (std::uint64_t s = 0; s < label.size(); ++s) {
         if (label[s] >= 0 && std::size_t(label[s]) < G)
             groups[std::size_t(label[s])].push_back(s);
         else
-            alone.push_back(s);
+            out.alone.push_back(s);
     }
     // One level under a root: node 0 the root, node g + 1 saved cluster g.
     auto tree = std::make_shared<core::render::ClusterTree>();
@@ -56,20 +58,22 @@ void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::
     tree->parent[0] = -1;
     tree->level.assign(G + 1, 1);
     tree->level[0] = 0;
-    std::vector<std::uint64_t> subset;
     tree->member_offsets = {0, 0};
     for (std::size_t g = 0; g < G; ++g) {
-        for (std::uint64_t s : groups[g]) tree->members.push_back(subset.size()), subset.push_back(s);
+        for (std::uint64_t s : groups[g]) tree->members.push_back(out.subset.size()), out.subset.push_back(s);
         tree->member_offsets.push_back(tree->members.size());
     }
     // Each cluster's centroid: the plugin's, over its streamlines alone, at
     // a threshold no two of them are apart by (one cluster).
     std::vector<double> huge;
     for (std::size_t l = 0; l < std::max<std::size_t>(1, spec_.thresholds.size()); ++l) huge.push_back(1e4);
+    std::uint64_t done = 0;
     for (std::size_t g = 0; g < G; ++g) {
+        if (task && task->is_cancelled(task)) throw core::Error("cancelled");
         std::vector<float> c;
         if (!groups[g].empty()) {
-            const auto t = core::render::run_clustering(reg_, core::select_streamlines(all_, groups[g]), [&] {
+            // (a large cluster's copy in a temporary file's pages)
+            const auto t = core::render::run_clustering(reg_, core::select_streamlines(all_, groups[g], /*spill=*/true), [&] {
                 core::render::ClusterSpec sp = spec_;
                 sp.thresholds = huge;
                 return sp;
@@ -85,11 +89,19 @@ void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::
         if (tree->centroids.empty()) tree->centroids.assign(std::size_t(tree->nb_points) * 3, 0.0f);  // (the root's)
         c.resize(std::size_t(tree->nb_points) * 3, 0.0f);
         tree->centroids.insert(tree->centroids.end(), c.begin(), c.end());
+        done += groups[g].size();
+        if (task && !out.subset.empty()) task->report(task, double(done) / double(out.subset.size()), nullptr);
     }
+    out.tree = std::move(tree);
+    return out;
+}
+
+void Explorer::adopt_saved(Saved saved) {
+    const std::size_t G = saved.names.size();
     s_ = State{};
-    s_.tree = tree;
-    s_.subset = std::make_shared<const std::vector<std::uint64_t>>(std::move(subset));
-    s_.expanded = std::move(alone);
+    s_.tree = std::move(saved.tree);
+    s_.subset = std::make_shared<const std::vector<std::uint64_t>>(std::move(saved.subset));
+    s_.expanded = std::move(saved.alone);
     expanded_changed();
     for (std::size_t g = 0; g < G; ++g) s_.shown.push_back(g + 1);
     sort();
@@ -97,7 +109,7 @@ void Explorer::restore_saved(const std::vector<std::int64_t> &label, const std::
     for (std::size_t g = 0; g < G; ++g) s_.colour[g + 1] = g;  // (as the saved file is coloured in a plain view)
     s_.next_colour = G;
     auto node_names = std::make_shared<std::vector<std::string>>(G + 1);
-    for (std::size_t g = 0; g < G; ++g) (*node_names)[g + 1] = names[g];
+    for (std::size_t g = 0; g < G; ++g) (*node_names)[g + 1] = std::move(saved.names[g]);
     s_.names = std::move(node_names);
     s_.rounds = 1;
 }
@@ -600,6 +612,14 @@ void Session::ensure_grid_future() {
     }
 }
 
+void Session::start_grid() {
+    if (!grid_future_.valid() && !rois_.empty()) {  // (on every core: a selection waits for it)
+        grid_future_ = std::async(std::launch::async, [this] {
+                           return std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_, 6.0, 0, &grid_cancel_));
+                       }).share();
+    }
+}
+
 void Session::apply(bool recluster) {
     settle();
     const auto t0 = std::chrono::steady_clock::now();
@@ -628,11 +648,7 @@ void Session::adopt(std::vector<std::uint64_t> kept, std::shared_ptr<const core:
 void Session::apply_in_background(bool recluster) {
     settle();
     const auto t0 = std::chrono::steady_clock::now();
-    if (!grid_future_.valid() && !rois_.empty()) {
-        grid_future_ = std::async(std::launch::async, [this] {
-                           return std::make_shared<const core::StreamlineGrid>(core::StreamlineGrid::of(all_, 6.0, 0, &grid_cancel_));
-                       }).share();
-    }
+    start_grid();
     pending_ = std::async(std::launch::async, [this, rois = rois_, deleted = deleted_, grid = grid_future_, t0, recluster] {
         Pending p;
         p.kept = select(rois, *deleted, grid);
@@ -662,6 +678,25 @@ void Session::recluster_in_background(std::vector<double> thresholds, bool reset
     });
 }
 
+void Session::restore_in_background(std::vector<std::int64_t> label, std::vector<std::string> names) {
+    settle();
+    if (!ex_) throw core::Error("nothing is being explored");
+    const auto t0 = std::chrono::steady_clock::now();
+    start_grid();
+    pending_ = std::async(std::launch::async, [this, label = std::move(label), names = std::move(names), rois = rois_, deleted = deleted_,
+                                               grid = grid_future_, t0] {
+        Pending p;
+        {
+            Progress progress("restoring " + std::to_string(names.size()) + " saved clusters", true);
+            p.saved = std::make_unique<Explorer::Saved>(ex_->compute_saved(label, names, progress.task()));
+        }
+        p.selected = !rois.empty();
+        if (p.selected) p.kept = select(rois, *deleted, grid), p.keep_clusters = true;
+        p.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        return p;
+    });
+}
+
 bool Session::stop() {
     if (!pending_.valid()) return false;
     cancel_progress();
@@ -685,6 +720,8 @@ void Session::settle() {
     if (!pending_.valid()) return;
     try {
         Pending p = pending_.get();
+        if (p.saved) ex_->adopt_saved(std::move(*p.saved));
+        if (!p.selected) return;
         if (p.plan) {
             ex_->adopt(std::move(p.plan->subset), std::move(p.tree), p.plan->colour_of.empty() ? nullptr : &p.plan->colour_of);
             return;

@@ -63,7 +63,20 @@ public:
     // its own), one cluster per name, each drawn as the centroid the
     // clustering plugin gives its streamlines at a threshold that keeps them
     // together. Expanding a saved cluster shows its streamlines.
-    void restore_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names);
+    void restore_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names) {
+        adopt_saved(compute_saved(label, names));
+    }
+    // The same in two steps: the clusters' tree and centroids (any thread;
+    // reads only the tractogram; `task`, may be null, gets the progress and
+    // may cancel: then Error), then adopted. At 1M streamlines the first
+    // takes about 2 s (each cluster's centroid is a run of the plugin).
+    struct Saved {
+        std::shared_ptr<const core::render::ClusterTree> tree;
+        std::vector<std::uint64_t> subset, alone;
+        std::vector<std::string> names;
+    };
+    Saved compute_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names, const hz_task *task = nullptr) const;
+    void adopt_saved(Saved saved);
 
     const core::Tractogram &all() const { return all_; }
     const State &state() const { return s_; }
@@ -250,6 +263,11 @@ public:
     // thread of its own, poll() adopts, stop() stops it. Throws Error when
     // nothing is shown to cluster again.
     void recluster_in_background(std::vector<double> thresholds, bool reset);
+    // Explorer::restore_saved (`label`, `names` as there), then, when there
+    // are regions, apply(false), the same way: on a thread of its own behind
+    // a Progress ("restoring N saved clusters"), poll() adopts, stop() stops
+    // it (nothing is then clustered: Reset clusters again).
+    void restore_in_background(std::vector<std::int64_t> label, std::vector<std::string> names);
     // Waits until the spatial index is built (started if it was not).
     void wait_for_index() {
         if (!grid_future_.valid()) prepare_index();
@@ -328,6 +346,7 @@ private:
     void delete_shown(const std::vector<std::uint64_t> &gone);
     void restore(const State &s);
     core::Roi &roi(std::size_t k);
+    void start_grid();  // the regions' spatial index, on a thread, if not started yet
 
     const core::Registry &reg_;
     core::Tractogram all_;
@@ -341,8 +360,10 @@ private:
         std::vector<std::uint64_t> kept;
         std::shared_ptr<const core::render::ClusterTree> tree;
         double ms = 0;
-        std::unique_ptr<Explorer::Plan> plan;  // (a repeat or reset: the selection stays)
-        bool keep_clusters = false;            // (apply_in_background(false): the exploration stays)
+        std::unique_ptr<Explorer::Plan> plan;    // (a repeat or reset: the selection stays)
+        bool keep_clusters = false;              // (apply_in_background(false): the exploration stays)
+        std::unique_ptr<Explorer::Saved> saved;  // (restore_in_background; `kept` too if `selected`)
+        bool selected = true;
     };
     std::future<Pending> pending_;
     std::vector<core::Roi> rois_;

@@ -188,19 +188,25 @@ public:
             // over 10M streamlines takes half a minute): the window shows it
             // as it would without --explore (level of detail, refinement
             // held back) until the clusters replace it.
+            // So is a saved exploration's (each saved cluster's centroid is
+            // a run of the plugin: 2 s at 1M).
             const bool large = ob.data.tractogram.nb_streamlines() >= kLater;
             const bool later = o.explore && saved_label.empty() && large;
+            const bool restore_later = o.explore && !saved_label.empty() && large;
+            const std::size_t saved_clusters = saved_names.size();
             std::unique_ptr<Explorer> explorer;
             if (o.explore)
                 explorer = std::make_unique<Explorer>(reg, ob.data.tractogram.shared(), ob.name, explore_spec(reg, o),
                                                       saved_label.empty() && !later, ob.data.bounds);
-            if (explorer && !saved_label.empty()) explorer->restore_saved(saved_label, saved_names);
+            if (explorer && !saved_label.empty() && !restore_later) explorer->restore_saved(saved_label, saved_names);
             session = std::make_unique<Session>(reg, ob.data.tractogram.shared(), o.inputs, std::move(explorer));
             all_bounds = ob.data.bounds;
             ex = session->explorer();
             for (auto &roi : rois) session->add_roi(std::move(roi));
             if (later)
                 session->apply_in_background(), first_clusters = true;
+            else if (restore_later)
+                session->restore_in_background(std::move(saved_label), std::move(saved_names)), first_clusters = restoring = true;
             else if (!session->rois().empty() && large)
                 session->apply_in_background(saved_label.empty()), first_selection = true;
             else if (!session->rois().empty())
@@ -208,8 +214,12 @@ public:
             if (ex) {
                 ci = i;
                 if (first_clusters) {
-                    std::printf("clustering %llu streamlines in the background; the window shows them meanwhile\n",
-                                (unsigned long long)ob.data.tractogram.nb_streamlines());
+                    if (restore_later)
+                        std::printf("restoring the %zu saved clusters in the background; the window shows the %llu streamlines meanwhile\n",
+                                    saved_clusters, (unsigned long long)ob.data.tractogram.nb_streamlines());
+                    else
+                        std::printf("clustering %llu streamlines in the background; the window shows them meanwhile\n",
+                                    (unsigned long long)ob.data.tractogram.nb_streamlines());
                     ob.provisional = true;
                 } else {
                     ob = ex->centroids_object();
@@ -770,7 +780,10 @@ private:
             return;
         }
         const ProgressState p = current_progress();
-        if (p.active && p.fraction >= 0)
+        if (first_clusters && restoring)
+            std::printf("still restoring the saved clusters (%.0f %%); they can be picked once they show\n",
+                        100 * std::max(0.0, p.fraction));
+        else if (p.active && p.fraction >= 0)
             std::printf("still clustering (%.0f %%); the clusters can be picked once they show\n", 100 * p.fraction);
         else
             std::printf("still clustering; the clusters can be picked once they show\n");
@@ -1498,6 +1511,7 @@ private:
     std::uint64_t shown_expanded_id = ~std::uint64_t(0);
     std::vector<std::uint64_t> shown_picked;
     bool first_clusters = false;  // the tractogram is shown (object ci) until its first clusters are there
+    bool restoring = false;       // (they are a saved exploration's, restored in the background)
     // The regions' first selection of a large tractogram runs in the
     // background too: the tractogram is shown whole meanwhile (plain view).
     bool first_selection = false;

@@ -47,9 +47,10 @@ class ScaleTest(unittest.TestCase):
     def path(self, name):
         return os.path.join(self.tmp, name)
 
-    def window(self, name, lines, *extra):
-        """`view` of the tractogram at 640x400 under Xvfb, running the script
-        `lines` (options `extra`): the finished process and its --stats."""
+    def window(self, name, lines, *extra, source=None):
+        """`view` of the tractogram (or `source`) at 640x400 under Xvfb,
+        running the script `lines` (options `extra`): the finished process
+        and its --stats."""
         self.assertTrue(shutil.which("xvfb-run"), "xvfb-run is needed (installed by .ci/bootstrap test)")
         script, stats = self.path(name + ".txt"), self.path(name + ".json")
         with open(script, "w") as f:
@@ -58,8 +59,8 @@ class ScaleTest(unittest.TestCase):
                "HORIZON_PLUGIN_CACHE": os.path.join(BUILD, "tests", "plugin-trials.json")}
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # the GL driver's threads (see hztest.GL_COMMANDS)
-        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.tck, "--size", "640x400",
-                            "--script", script, "--stats", stats, *extra], capture_output=True, text=True, timeout=1800, env=env)
+        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", source or self.tck, "--size",
+                            "640x400", "--script", script, "--stats", stats, *extra], capture_output=True, text=True, timeout=1800, env=env)
         self.assertEqual(p.returncode, 0, p.stderr)
         with open(stats) as fh:
             return p, json.load(fh)
@@ -301,6 +302,37 @@ class ScaleTest(unittest.TestCase):
         self.assertLess(at["copy-shown"], at["asked"])
         # Only the selection shown was cut into bricks (-v: the renderer's log).
         self.assertEqual(p.stderr.count("cut into bricks"), 1, p.stderr)
+
+    def test_a_saved_exploration_reopens_without_holding_the_first_frame(self):
+        """A saved exploration reopened with --explore: each saved cluster's
+        centroid is a run of the clustering plugin (2 s at 1M), made in the
+        background as a first clustering is: the window shows the tractogram
+        at once (its uniform proxy, no level-of-detail work), answers input,
+        then shows the clusters and expanded streamlines as they were saved."""
+        saved = self.path("explored.trx")
+        p, _ = self.window("explore_save", ["wait 2", "expand c1 streamlines", f"save {saved}", "quit"], "--explore")
+        last = [l for l in p.stdout.splitlines() if l.startswith("explore: ")][-1]
+        clusters, expanded = map(int, re.match(r"explore: (\d+) clusters, (\d+) streamlines expanded", last).groups())
+        self.assertGreater(clusters, 1)
+        self.assertGreater(expanded, 0)
+        p, j = self.window("explore_reopen", ["nowait key e", "nowait drag 300 200 360 220", "wait 2", "mark restored", "quit"],
+                           "--explore", "-v", source=saved)
+        self.assertIn(f"restoring the {clusters} saved clusters in the background; the window shows the {N} streamlines meanwhile",
+                      p.stdout)
+        self.assertIn("still restoring the saved clusters", p.stdout)
+        self.assertNotRegex(p.stdout, r"(?m)^clustering ")  # (not clustered again)
+        self.assertIn(f"explore: {clusters} clusters, {expanded} streamlines expanded, 1 clustering round", p.stdout)
+        self.assertGreater(j["clusters_shown_s"], j["first_frame_s"])
+        frames = j["frames"]
+        restored = next(i for i, f in enumerate(frames) if f["kind"] == "mark")
+        before = [f for f in frames[:restored] if f["t"] < j["clusters_shown_s"] and f["kind"] != "mark"]
+        self.assertTrue(before, "frames were drawn before the clusters")
+        for f in before:
+            self.assertTrue(f["proxy"])
+            self.assertEqual(f["step"], 0)
+            self.assertEqual(f["fibre_volumes"], 0)
+            self.assertLess(f["points"], self.points / 20)
+        self.assertNotIn("object 0: cut into bricks", p.stderr)
 
     def test_window_opens_moves_rests_and_refines(self):
         shot = self.path("rest.png")
