@@ -61,8 +61,9 @@ public:
     // The clusters a selection was saved with (Session::prepare_save): per
     // streamline its cluster's index into `names` (-1: a streamline shown on
     // its own), one cluster per name, each drawn as the centroid the
-    // clustering plugin gives its streamlines at a threshold that keeps them
-    // together. Expanding a saved cluster shows its streamlines.
+    // clustering plugin gives its streamlines (at most kCentroidSample of
+    // them) at a threshold that keeps them together. Expanding a saved
+    // cluster shows its streamlines.
     void restore_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names) {
         adopt_saved(compute_saved(label, names));
     }
@@ -76,6 +77,9 @@ public:
         std::vector<std::string> names;
     };
     Saved compute_saved(const std::vector<std::int64_t> &label, const std::vector<std::string> &names, const hz_task *task = nullptr) const;
+    // The streamlines a saved cluster's centroid is computed from, at most
+    // (evenly spaced through it; the centroid is a mean of them, drawn).
+    static constexpr std::uint64_t kCentroidSample = 20000;
     void adopt_saved(Saved saved);
 
     const core::Tractogram &all() const { return all_; }
