@@ -49,6 +49,16 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
+// fn()'s result; -v logs "renderer: object K: WHAT (S s)" (a level-of-detail
+// job's time, on its own thread).
+template <class F>
+auto timed_job(std::size_t object, const std::string &what, F &&fn) {
+    const auto t0 = Clock::now();
+    auto result = fn();
+    spdlog::debug("renderer: object {}: {} ({:.2f} s)", object, what, ms_since(t0) / 1000);
+    return result;
+}
+
 glm::dvec3 to_dvec3(const Vec3 &v) { return glm::dvec3(v[0], v[1], v[2]); }
 
 // ---------------------------------------------------------------- GL helpers
@@ -889,10 +899,7 @@ struct Renderer::Impl {
                 g.shell_cancel = std::make_shared<std::atomic<bool>>(false);
                 g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod, cancel = g.shell_cancel,
                                                           all = settings.shell_all_cores, index = g.index] {
-                    const auto t0 = Clock::now();
-                    std::vector<Piece> shell = shell_proxy(t, b, lod, *cancel, all);
-                    spdlog::debug("renderer: object {}: shell proxy ({:.2f} s)", index, ms_since(t0) / 1000);
-                    return shell;
+                    return timed_job(index, "shell proxy", [&] { return shell_proxy(t, b, lod, *cancel, all); });
                 });
             }
             if (!o.provisional) schedule_fibre_volume(g);
@@ -921,23 +928,21 @@ struct Renderer::Impl {
     void schedule_bricks(GpuObject &g, const Tractogram &t) {
         const std::uint64_t max_pieces = std::uint64_t(std::max(0.0, settings.brick_memory_mb) * 1048576.0 / sizeof(BrickPiece));
         g.brick_cancel = std::make_shared<std::atomic<bool>>(false);
-        g.brick_job = std::async(std::launch::async, [t = t.shared(), b = g.bounds, cancel = g.brick_cancel,
-                                                      window = !settings.shell_all_cores, index = g.index, grid = settings.brick_grid,
-                                                      max_pieces, mb = settings.brick_memory_mb] {
-            // In a window below the frames' priority (its threads inherit
-            // it): on two cores, frames moved while it ran took 33-40 ms
-            // instead of 24-28; a window at rest waits for it, idle.
-            if (window) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
-            const int side = brick_side_for(t, b, std::min(8, grid), grid, max_pieces);
-            if (side == 0) {
-                spdlog::debug("renderer: object {}: no bricks within {} MB, drawn in streamline order", index, mb);
-                return Bricks{};
-            }
-            const auto t0 = Clock::now();
-            Bricks br = bricks_of(t, b, side, std::max(1u, std::thread::hardware_concurrency()), *cancel);
-            spdlog::debug("renderer: object {}: cut into bricks, {} along the longest side ({:.2f} s)", index, side, ms_since(t0) / 1000);
-            return br;
-        });
+        g.brick_job =
+            std::async(std::launch::async, [t = t.shared(), b = g.bounds, cancel = g.brick_cancel, window = !settings.shell_all_cores,
+                                            index = g.index, grid = settings.brick_grid, max_pieces, mb = settings.brick_memory_mb] {
+                // In a window below the frames' priority (its threads inherit
+                // it): on two cores, frames moved while it ran took 33-40 ms
+                // instead of 24-28; a window at rest waits for it, idle.
+                if (window) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
+                const int side = brick_side_for(t, b, std::min(8, grid), grid, max_pieces);
+                if (side == 0) {
+                    spdlog::debug("renderer: object {}: no bricks within {} MB, drawn in streamline order", index, mb);
+                    return Bricks{};
+                }
+                return timed_job(index, fmt::format("cut into bricks, {} along the longest side", side),
+                                 [&] { return bricks_of(t, b, side, std::max(1u, std::thread::hardware_concurrency()), *cancel); });
+            });
     }
 
     // Adopts the bricks of the objects whose cut is done (with `wait`, once
@@ -1067,10 +1072,7 @@ struct Renderer::Impl {
                 // cores it slowed the moving frames beside it from 25 to 42 ms;
                 // the shell is the proxy until it is done.
                 if (threads == 1) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
-                const auto t0 = Clock::now();
-                FibreVolume fv = fibre_volume(*d, b, grid, kFibrePoints, threads, *cancel);
-                spdlog::debug("renderer: object {}: fibre volume ({:.2f} s)", index, ms_since(t0) / 1000);
-                return fv;
+                return timed_job(index, "fibre volume", [&] { return fibre_volume(*d, b, grid, kFibrePoints, threads, *cancel); });
             });
     }
     // Points read into a fibre volume, at most (above, every k-th segment of
