@@ -521,6 +521,15 @@ private:
             } else if (!said_no_clusters) {  // (failed or cancelled: said on stderr)
                 said_no_clusters = true;
                 std::printf("no clusters (the clustering did not finish); Reset in the panel clusters again\n");
+                // The tractogram stays, now as any tractogram is shown (its
+                // level of detail prepared, refined at rest), not as the
+                // stand-in it was while the clusters were expected.
+                // (once: a failed Reset finds it so already)
+                if (const core::render::Object &shown = rr.scene().objects[ci]; shown.provisional) {
+                    core::render::Object whole = styled_like(shown);
+                    whole.data.tractogram = shown.data.tractogram.shared(), whole.data.bounds = shown.data.bounds;
+                    rr.replace_object(ci, std::move(whole));
+                }
             }
             std::fflush(stdout);
         }

@@ -335,6 +335,32 @@ class ScaleTest(unittest.TestCase):
             self.assertLess(f["points"], self.points / 20)
         self.assertNotIn("object 0: cut into bricks", p.stderr)
 
+    def test_a_failed_first_clustering_leaves_the_tractogram_at_full_detail(self):
+        """--explore with a clustering plugin that fails halfway through: the
+        window says so, and the tractogram it showed meanwhile (a stand-in:
+        its uniform subsample, nothing prepared for it) is then shown as any
+        tractogram is: cut into bricks, its proxies computed, refined at rest
+        to a complete still."""
+        plugins = os.path.join(BUILD, "tests", "fixtures", "clustering-fails")
+        shot = self.path("failed.png")
+        p, j = self.window("explore_fails", ["wait 2", f"screenshot {shot}", "quit"], "--explore", "--algorithm",
+                           "org.horizon.test.clustering-fails", "--plugin-dir", plugins, "-v")
+        self.assertIn(f"clustering {N} streamlines in the background", p.stdout)
+        self.assertIn(f"gave up halfway through the {N} streamlines (a test fixture)", p.stderr)
+        self.assertIn("no clusters (the clustering did not finish)", p.stdout)
+        self.assertNotIn("clusters shown", p.stdout)
+        self.assertIn("object 0: cut into bricks", p.stderr)
+        self.assertIn("object 0: shell proxy", p.stderr)
+        frames = j["frames"]
+        self.assertIn("complete", [f["kind"] for f in frames])
+        refine = [f for f in frames if f["kind"] in ("refine", "complete") and f["step"] > 0]
+        self.assertTrue(refine, "refined at rest")
+        # The refinement drew the bricks nearest first, skipping hidden ones:
+        # the stand-in had none.
+        self.assertGreater(sum(f["culled_chunks"] for f in refine), 0)
+        self.assertEqual(sum(f["streamlines"] + f["culled_streamlines"] for f in refine), N)
+        self.assertGreater((load(shot).max(axis=2) > 60).mean(), 0.15)
+
     def test_window_opens_moves_rests_and_refines(self):
         shot = self.path("rest.png")
         p, j = self.window("s", ["wait 2", "drag 300 300 420 330", "wait 3", f"screenshot {shot}", "quit"])
