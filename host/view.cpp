@@ -738,7 +738,16 @@ private:
     void finish_copy(core::render::Renderer &rr) {
         Copy c = std::move(*display_copy);
         display_copy.reset();
-        copied = c.job.get(), copied_ids = c.ids;
+        try {
+            copied = c.job.get(), copied_ids = c.ids;
+        } catch (const std::exception &e) {  // (e.g. a copy that fits neither a temporary file nor the memory)
+            // What was shown stays shown (its object holds its data), and
+            // the session goes on: a save writes from the file, not a copy.
+            std::fprintf(stderr, "horizon: the %zu streamlines %s cannot be shown: %s\n", c.ids->size(), ex ? "expanded" : "kept",
+                         e.what());
+            log.mark("copy-failed");
+            return;
+        }
         show(rr, c.ids, copied.t.shared(), copied.bounds);
         std::printf("showing the %zu streamlines %s\n", c.ids->size(), ex ? "expanded" : "kept");
         log.mark("copy-shown");  // (in --stats: where the copy made meanwhile replaced the picture)

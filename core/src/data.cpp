@@ -3,10 +3,13 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <fstream>
+#include <limits>
 #include <mutex>
 #include <new>
 #include <string>
@@ -15,6 +18,7 @@
 
 #include <fcntl.h>
 #include <sys/mman.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 namespace hz::core {
@@ -45,6 +49,19 @@ void release_in_parallel(void *p, std::size_t bytes) noexcept {
 
 constexpr std::size_t kParallelRelease = std::size_t(64) << 20;
 
+// The memory the kernel reports can be had without swapping (MemAvailable
+// in /proc/meminfo), in bytes; SIZE_MAX when unknown.
+// HORIZON_MEMORY_AVAILABLE_MB overrides it (tests).
+std::size_t memory_available() {
+    if (const char *m = std::getenv("HORIZON_MEMORY_AVAILABLE_MB"); m && *m) return std::size_t(std::strtoull(m, nullptr, 10)) << 20;
+    std::ifstream in("/proc/meminfo");
+    for (std::string line; std::getline(in, line);)
+        if (line.rfind("MemAvailable:", 0) == 0) return std::size_t(std::strtoull(line.c_str() + 13, nullptr, 10)) << 10;
+    return std::numeric_limits<std::size_t>::max();
+}
+
+std::string gb(double bytes) { return fmt::format("{:.1f} GB", bytes / 1e9); }
+
 }  // namespace
 
 std::shared_ptr<void> allocate_uninitialised(std::size_t bytes) {
@@ -67,22 +84,35 @@ std::shared_ptr<void> allocate_spillable(std::size_t bytes) {
     if (bytes == 0 || bytes < from) return allocate_uninitialised(bytes);
     const char *env = std::getenv("HORIZON_SPILL_DIR");
     const std::string dir = env && *env ? env : "/var/tmp";
-    if (dir == "off") return allocate_uninitialised(bytes);
+    // Where no temporary file holds it, anonymous memory, if there is that
+    // much to be had: a block larger than the memory available would be
+    // swapped, or the process killed by the kernel later, half-way through
+    // its work; it is refused now instead, saying what to do.
+    auto in_memory = [&](const std::string &why) {
+        if (const std::size_t available = memory_available(); bytes > available)
+            throw Error(fmt::format("{} to hold: {}, and {} of memory are available (HORIZON_SPILL_DIR=DIR names a folder with room)",
+                                    gb(double(bytes)), why, gb(double(available))));
+        return allocate_uninitialised(bytes);
+    };
+    if (dir == "off") return in_memory("no temporary file (HORIZON_SPILL_DIR=off)");
     const int fd = ::open(dir.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
-    if (fd < 0) return allocate_uninitialised(bytes);
+    if (fd < 0) return in_memory(fmt::format("no temporary file in {} ({})", dir, std::strerror(errno)));
     // The blocks are reserved now (a full disk is found here, not as a
     // SIGBUS on a later write into the mapping).
-    if (::posix_fallocate(fd, 0, off_t(bytes)) != 0) {
+    if (const int rc = ::posix_fallocate(fd, 0, off_t(bytes)); rc != 0) {
+        struct statvfs fs {};
+        const double free_bytes = ::fstatvfs(fd, &fs) == 0 ? double(fs.f_bavail) * double(fs.f_frsize) : 0.0;
         ::close(fd);
-        return allocate_uninitialised(bytes);
+        return in_memory(fmt::format("{} has {} free ({})", dir, gb(free_bytes), std::strerror(rc)));
     }
     // Not populated here: the decode's threads fault the pages in as they
     // write them, in parallel (MAP_POPULATE did it on one thread first:
     // a 1M-streamline TRK, 2.1 GB of positions, opened in 1.9-4.5 s with
     // it and 0.9-1.0 s without, alternating runs).
     void *p = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    const int map_errno = errno;
     ::close(fd);  // (the mapping keeps the file; unlinked, it goes with it)
-    if (p == MAP_FAILED) return allocate_uninitialised(bytes);
+    if (p == MAP_FAILED) return in_memory(fmt::format("a temporary file in {} cannot be mapped ({})", dir, std::strerror(map_errno)));
     spdlog::debug("{} MB decoded into a temporary file in {}", bytes >> 20, dir);
     return std::shared_ptr<void>(p, [bytes](void *q) { ::munmap(q, bytes); });
 }

@@ -428,7 +428,12 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
             {
                 const std::size_t n = 3 * info.nb_vertices;
                 if (n) {
-                    std::shared_ptr<void> block = allocate_spillable(n * sizeof(float));
+                    std::shared_ptr<void> block;
+                    try {
+                        block = allocate_spillable(n * sizeof(float));
+                    } catch (const Error &e) {
+                        throw Error(path.string() + ": its decoded positions: " + e.what());
+                    }
                     float *p = static_cast<float *>(block.get());
                     t.positions = Buffer<float>(p, n, std::move(block));
                 }

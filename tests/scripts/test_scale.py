@@ -47,16 +47,16 @@ class ScaleTest(unittest.TestCase):
     def path(self, name):
         return os.path.join(self.tmp, name)
 
-    def window(self, name, lines, *extra, source=None):
+    def window(self, name, lines, *extra, source=None, env=None):
         """`view` of the tractogram (or `source`) at 640x400 under Xvfb,
-        running the script `lines` (options `extra`): the finished process
-        and its --stats."""
+        running the script `lines` (options `extra`, environment variables
+        `env` besides the test's): the finished process and its --stats."""
         self.assertTrue(shutil.which("xvfb-run"), "xvfb-run is needed (installed by .ci/bootstrap test)")
         script, stats = self.path(name + ".txt"), self.path(name + ".json")
         with open(script, "w") as f:
             f.write("\n".join(lines) + "\n")
         env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg",
-               "HORIZON_PLUGIN_CACHE": os.path.join(BUILD, "tests", "plugin-trials.json")}
+               "HORIZON_PLUGIN_CACHE": os.path.join(BUILD, "tests", "plugin-trials.json"), **(env or {})}
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # the GL driver's threads (see hztest.GL_COMMANDS)
         p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", source or self.tck, "--size",
@@ -232,10 +232,10 @@ class ScaleTest(unittest.TestCase):
         self.assertGreater(score["volume_at_8"], score["volume_at_2"] - 0.02, score)
         self.assertGreater(imgmetrics.ssim(near["8"], near["2"]), 0.9, score)
 
-    def kept_by_the_sphere(self, p):
+    def kept_by_the_sphere(self, p, shown=True):
         """How many streamlines the window's one region (a sphere keeping
         most, not all) selected, from its `roi:` line; then it copied them
-        for display on a thread and showed them."""
+        for display on a thread and (if `shown`) showed them."""
         m = re.search(r"roi: 1 regions, (\d+) of (\d+) streamlines selected", p.stdout)
         self.assertIsNotNone(m, p.stdout)
         kept = int(m.group(1))
@@ -243,7 +243,8 @@ class ScaleTest(unittest.TestCase):
         self.assertGreater(kept, N // 2)
         self.assertLess(kept, N)
         self.assertIn(f"copying the {kept} streamlines kept for display", p.stdout)
-        self.assertIn(f"showing the {kept} streamlines kept", p.stdout)
+        if shown:
+            self.assertIn(f"showing the {kept} streamlines kept", p.stdout)
         return kept
 
     def test_a_region_keeping_most_is_shown_and_saved_without_blocking(self):
@@ -271,6 +272,26 @@ class ScaleTest(unittest.TestCase):
         self.assertGreater(drawn("save", "saved"), 1)
         info = json.loads(run("info", out, "--json").stdout)
         self.assertEqual(info["nb_streamlines"], kept)
+
+    def test_a_copy_that_fits_nowhere_is_refused_and_the_window_goes_on(self):
+        """A region keeping most of the tractogram where no temporary file can
+        hold the copy for display (HORIZON_SPILL_DIR names no folder) and the
+        memory available is smaller than it: rather than a copy the kernel
+        would kill the process for later, one line says why, the window goes
+        on showing what it showed, and the selection is still saved (written
+        from the mapped file, not from a copy)."""
+        out = self.path("region_nowhere.tck")
+        p, j = self.window("nowhere", ["wait 2", "roi sphere 0 0 0 40", "sleep 3", "drag 300 200 360 220", f"save {out}", "quit"],
+                           env={"HORIZON_SPILL_DIR": "/nonexistent-spill", "HORIZON_MEMORY_AVAILABLE_MB": "64"})
+        kept = self.kept_by_the_sphere(p, shown=False)
+        self.assertRegex(p.stderr, rf"horizon: the {kept} streamlines kept cannot be shown: [\d.]+ GB to hold: no temporary file in "
+                         r"/nonexistent-spill \(No such file or directory\), and 0\.1 GB of memory are available")
+        self.assertNotIn("showing the", p.stdout)
+        self.assertIn(f"saved {kept} streamlines, 1 regions -> {out}", p.stdout)
+        frames = j["frames"]
+        failed = next(i for i, f in enumerate(frames) if f["kind"] == "mark" and f["name"] == "copy-failed")
+        self.assertTrue([f for f in frames[failed + 1:] if f["kind"] == "moving"], "the window went on (a drag drawn)")
+        self.assertEqual(json.loads(run("info", out, "--json").stdout)["nb_streamlines"], kept)
 
     def test_regions_given_at_launch_do_not_hold_the_first_frame(self):
         """`view --include` on a large tractogram: the window shows the whole

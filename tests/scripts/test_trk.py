@@ -108,6 +108,22 @@ class TrkTest(TempDirTest):
             self.assertEqual("decoded into a temporary file" in p.stderr, where == spill, p.stderr)
             self.assert_close(list(nib.streamlines.load(out).streamlines), ref)
         self.assertEqual(os.listdir(spill), [])
+        # Without a temporary file, memory is used only where the kernel
+        # reports that much available; otherwise one line says why, before
+        # the decode, and nothing is written.
+        out = self.path("s_nowhere.tck")
+        for where in (self.path("absent"), "off"):
+            env = {"HORIZON_SPILL_DIR": where, "HORIZON_SPILL_MIN_BYTES": "0", "HORIZON_MEMORY_AVAILABLE_MB": "0"}
+            p = run("convert", f, out, env=env)
+            self.assertEqual(p.returncode, 1, p.stderr)
+            line = p.stderr.strip()
+            self.assertNotIn("\n", line)
+            self.assertIn(f"{f}: its decoded positions: ", line)
+            self.assertIn("of memory are available (HORIZON_SPILL_DIR=DIR names a folder with room)", line)
+            self.assertIn("no temporary file in " + where if where != "off" else "no temporary file (HORIZON_SPILL_DIR=off)", line)
+            self.assertFalse(os.path.exists(out))
+        p = run("convert", f, out, env={"HORIZON_SPILL_DIR": spill, "HORIZON_SPILL_MIN_BYTES": "0", "HORIZON_MEMORY_AVAILABLE_MB": "0"})
+        self.assertEqual(p.returncode, 0, p.stderr)  # (a temporary file needs no memory)
 
     def test_tck_to_trk_to_tck(self):
         rng = np.random.default_rng(1)

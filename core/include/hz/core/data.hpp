@@ -34,9 +34,12 @@ std::shared_ptr<void> allocate_uninitialised(std::size_t bytes);
 // /var/tmp; "off" disables), so its pages are the page cache's: written back
 // and reclaimed under memory pressure instead of held as the process's
 // anonymous memory, as a mapped input file's are. Smaller arrays, or no
-// usable folder (absent, full, no O_TMPFILE): allocate_uninitialised.
-// Zero-filled where file-backed. HORIZON_SPILL_MIN_BYTES overrides
-// kSpillBytes (tests). Throws std::bad_alloc.
+// usable folder (absent, full, no O_TMPFILE): allocate_uninitialised, if
+// the kernel reports that much memory available (MemAvailable); otherwise
+// throws Error, one line: the size, why no temporary file holds it, the
+// memory available. Zero-filled where file-backed. HORIZON_SPILL_MIN_BYTES
+// overrides kSpillBytes and HORIZON_MEMORY_AVAILABLE_MB the memory
+// available (tests). Throws std::bad_alloc.
 inline constexpr std::size_t kSpillBytes = std::size_t(256) << 20;
 std::shared_ptr<void> allocate_spillable(std::size_t bytes);
 
