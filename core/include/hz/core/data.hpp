@@ -242,7 +242,8 @@ struct Tractogram {
 // The streamlines `ids` of `t`, in that order (positions only; indices < N).
 // With `spill`, a large selection's positions are allocate_spillable's (a
 // selection kept for display, e.g. a region's streamlines out of ten
-// million: page cache rather than the process's anonymous memory). Once
+// million: page cache rather than the process's anonymous memory; Error
+// when it fits neither a temporary file nor the memory available). Once
 // `cancel` (when given) is set, the copy stops early: what is returned then
 // is to be discarded.
 Tractogram select_streamlines(const Tractogram &t, const std::vector<std::uint64_t> &ids, bool spill = false,
