@@ -97,6 +97,14 @@ def main():
     settled = [f["ms"] for f in ws["frames"] if f["kind"] == "moving" and f["fibre_volumes"] > 0]
     rows.append(("window: moving frame over the fibre volume, once the still is complete, median / max (ms)",
                  f"{np.median(settled):.0f} / {max(settled):.0f} ({len(settled)} frames)"))
+    # The proxy's level the window chose for them (--lod-frame-ms 33), in order.
+    by_level = {}
+    for f in ws["frames"]:
+        if f["kind"] == "moving" and f["fibre_volumes"] > 0:
+            by_level.setdefault(f["proxy_level"], []).append(f["ms"])
+    rows.append(("window: those frames by proxy level (1/scale, points): frames, median ms",
+                 "; ".join(f"1/{ws['proxy_levels'][k][0]}, {ws['proxy_levels'][k][1]:g}: {len(v)}, {np.median(v):.0f}"
+                           for k, v in sorted(by_level.items()))))
     # Occlusion culling (--lod-occlusion): the same, drawn in file order.
     # --explore: QuickBundlesX in the background, the tractogram shown meanwhile
     # (`sleep`: frames, which sample the memory, go on while it clusters).
@@ -133,6 +141,13 @@ def main():
                            str(scale), "--frames", "5", *extra)
                 im = imgmetrics.downsample(load(out), 4)
                 chart.append((proxy, scale, pts, j["frame_ms_min"], imgmetrics.ssim(ref, im), imgmetrics.mae(ref, im)))
+    # The window's proxy levels (--lod-frame-ms picks one): each is the base
+    # level of these --lod-scale and --lod-points (proxy_levels in renderer.hpp).
+    for scale, pts in ((8, 1e5), (8, 2e5), (4, 2e5), (2, 2e5), (2, 4e5), (1, 4e5), (1, 8e5)):
+        out = os.path.join(work, f"p_level_{scale}_{pts:g}.png")
+        j = render(horizon, tck, out, "--preview", "--lod-points", f"{pts:g}", "--lod-scale", str(scale), "--frames", "5")
+        im = imgmetrics.downsample(load(out), 4)
+        chart.append(("volume, the window's levels", scale, pts, j["frame_ms_min"], imgmetrics.ssim(ref, im), imgmetrics.mae(ref, im)))
     # The shell is the same for every camera: the default proxy from other sides.
     views = []
     for view in ("superior", "anterior"):
@@ -161,6 +176,8 @@ def main():
             for scale in (2, 4):
                 pts = [c for c in chart if c[0] == proxy and c[1] == scale]
                 ax.plot([c[3] for c in pts], [c[4] for c in pts], mark, label=f"{proxy} proxy at 1/{scale} size")
+        levels = [c for c in chart if c[0] == "volume, the window's levels"]
+        ax.plot([c[3] for c in levels], [c[4] for c in levels], "D-", color="black", label="the window's proxy levels (volume)")
         ax.axvline(33, color="gray", ls="--", lw=0.8)
         ax.set_xlabel("frame time, ms (llvmpipe, 2 cores)")
         ax.set_ylabel("SSIM against full detail (4x downsampled)")

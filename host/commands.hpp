@@ -117,6 +117,7 @@ struct ViewOptions {
     std::string screenshot_dir = ".";
     LodOptions lod;
     std::string stats;                          // --stats FILE.json: per-frame times and what was drawn
+    double lod_frame_ms = 33;                   // moving frames kept within this by the proxy's level (0: the level fixed)
     bool explore = false;                       // Fig. 5: QuickBundlesX centroids, expand / hide / repeat
     std::string algorithm = "qbx";              // --explore's clustering plugin (id or last part)
     std::vector<std::string> params;            // its --param NAME=VALUE

@@ -232,6 +232,12 @@ int main(int argc, char **argv) {
     view->add_option("--exclude", vwo.exclude, "a region the shown streamlines must not meet (same forms; repeatable)")
         ->allow_extra_args(false);
     add_lod_options(view, vwo.lod);
+    view->add_option("--lod-frame-ms", vwo.lod_frame_ms,
+                     "while the camera moves, the proxy's level follows the frame times: coarser when frames take longer than "
+                     "this, finer while they take less (levels around --lod-scale and --lod-points: half and twice the size, "
+                     "up to 4x the points); 0: that level throughout")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 10000.0));
     view->add_option("--stats", vwo.stats, "write per-frame times and what each frame drew to this JSON file at exit");
 
     ShaderCheckOptions sco;

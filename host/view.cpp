@@ -15,6 +15,7 @@
 #include <hz/core/io.hpp>
 #include <hz/core/params.hpp>
 #include <hz/core/render/pick.hpp>
+#include <hz/core/render/proxy_governor.hpp>
 #include <hz/core/render/renderer.hpp>
 
 #define GLFW_INCLUDE_NONE
@@ -42,6 +43,7 @@
 #include <future>
 #include <optional>
 #include <sstream>
+#include <string_view>
 
 #include <sys/resource.h>
 #include <sys/syscall.h>
@@ -304,6 +306,7 @@ public:
             app.radius =
                 0.5 * std::sqrt(std::pow(b.max[0] - b.min[0], 2) + std::pow(b.max[1] - b.min[1], 2) + std::pow(b.max[2] - b.min[2], 2));
         r.set_scene(std::move(scene), v0, rs);
+        governor = core::render::ProxyGovernor(o.lod_frame_ms, r.proxy_level_count(), r.proxy_level());
         app.orbit.from_view(v0);
         app.home = app.orbit;
         // Level of detail (paper section 3.4): a tractogram of more than
@@ -419,7 +422,9 @@ public:
             now.w = fw, now.h = fh, now.generation = r.generation(), now.baked = bake;
             const char *kind;
             if (moving) {
-                // The proxy, drawn whole each frame; the still image is gone.
+                // The proxy, drawn whole each frame, at the governor's
+                // level; the still image is gone.
+                r.set_proxy_level(governor.level());
                 r.render_to_window(view, fw, fh);
                 still.valid = false;
                 kind = "moving";
@@ -456,6 +461,7 @@ public:
             const double frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_t0).count();
             log.clustering = clustering();
             log.add(kind, r.stats(), frame_ms);
+            if (std::string_view(kind) == "moving" && r.stats().proxy) governor.add(frame_ms);
             if (step_ms >= 0) frame_overhead_ms = std::clamp(frame_ms - step_ms, 0.0, kStepMs / 2), step_ms = -1;
             // The regions' spatial index, a second after the first frame
             // (the shell proxy's thread is then done, as a rule).
@@ -1515,6 +1521,9 @@ private:
     };
     Still still;
     FrameLog log;
+    // The proxy's level while the camera moves, from the moving frames'
+    // times (--lod-frame-ms); set up with the scene (show).
+    core::render::ProxyGovernor governor{0, 1, 0};
     std::uint64_t seen_events = ~0ull;
     // A refinement frame: its step's time (-1: none this frame), and what
     // the last one's frame took besides.

@@ -171,9 +171,16 @@ double rss_anon_mb();
 // The window's framebuffer size in pixels.
 std::pair<int, int> framebuffer_size(GLFWwindow *w);
 
+// The proxy's levels as [[scale, points], ...] (--stats).
+inline nlohmann::json proxy_levels_json(const core::render::Renderer &r) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto &l : r.proxy_levels()) out.push_back({l.scale, l.points});
+    return out;
+}
+
 // `view --stats FILE.json`: every frame the window drew, what it drew and
 // how long it took (render, panel and buffer swap), for tests and the
-// benchmark. Kinds: "moving" (the level-of-detail proxy while the camera
+// benchmark; a proxy frame's level (an index into "proxy_levels"). Kinds: "moving" (the level-of-detail proxy while the camera
 // moves), "refine" (a progressive step of a still frame, not complete),
 // "complete" (the step that completed it, or a frame drawn whole), "still"
 // (the kept image presented again, e.g. for the panel; no scene drawing).
@@ -225,6 +232,7 @@ struct FrameLog {
                           {"culled_chunks", drew ? s.culled_chunks : 0},
                           {"culled_streamlines", drew ? s.culled_streamlines : 0},
                           {"proxy", drew && s.proxy},
+                          {"proxy_level", drew && s.proxy ? s.proxy_level : -1},
                           {"clustering", clustering},
                           {"rss_anon_mb", anon}});
     }
@@ -238,6 +246,7 @@ struct FrameLog {
                                   {"streamlines", streamlines},
                                   {"points", points},
                                   {"streamlines_with_proxy", r.streamlines_with_proxy()},
+                                  {"proxy_levels", proxy_levels_json(r)},
                                   {"first_frame_s", first_frame_s},
                                   {"first_complete_s", first_complete_s},
                                   {"clusters_shown_s", clusters_shown_s},

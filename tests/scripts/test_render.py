@@ -664,21 +664,73 @@ class WindowTest(TempDirTest):
         self.assertNotIn("level of detail:", p.stdout)
         np.testing.assert_array_equal(load(self.path("plain.png")), rest)
 
+    def phantom_600(self):
+        """The 600-streamline phantom (d/phantom.tck; as tubes, the demo's
+        default) and a scene of it as lines (lines.json): the window's
+        environment."""
+        p = run("demo", "--out", self.path("d"), "--streamlines", "600", "--no-window", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        with open(self.path("lines.json"), "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "file": self.path("d/phantom.tck"), "render": "lines"}]}, f)
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+        return env
+
+    def test_proxy_level_follows_the_moving_frame_times(self):
+        # While the camera moves, the proxy's level follows the frames' times
+        # (--lod-frame-ms): within a budget no frame meets, down to the
+        # cheapest level; within one every frame meets, up to the finest,
+        # which draws more of the proxy at a larger size and looks more like
+        # the still image; with 0, the base level (--lod-scale, --lod-points)
+        # throughout.
+        env = self.phantom_600()
+        runs = {}
+        for budget in ("0.5", "10000", "0"):
+            script, stats = self.path(f"gov{budget}.txt"), self.path(f"gov{budget}.json")
+            shot = self.path(f"gov{budget}.png")
+            with open(script, "w") as f:
+                # (the last moving frame's picture: a screenshot while moving)
+                f.write("\n".join(["wait 1", f"screenshot {self.path('rest.png')}", "moving on", "wait 60", f"screenshot {shot}",
+                                   "moving off", "quit"]) + "\n")
+            # (without the reprojected still, which would hide the proxy's level)
+            p = xvfb_run([HORIZON, "view", self.path("lines.json"), "--size", "480x320", "--lod-points", "4000", "--lod-reproject",
+                          "off", "--lod-frame-ms", budget, "--script", script, "--stats", stats], env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            with open(stats) as fh:
+                j = json.load(fh)
+            self.assertEqual(j["proxy_levels"], [[8, 2000], [8, 4000], [4, 4000], [2, 4000], [2, 8000], [1, 8000], [1, 16000]])
+            moving = [f for f in j["frames"] if f["kind"] == "moving"]
+            self.assertGreater(len(moving), 50)
+            self.assertTrue(all(f["proxy"] for f in moving))
+            runs[budget] = ([f["proxy_level"] for f in moving], [f["points"] for f in moving], load(shot))
+        down, up, fixed = runs["0.5"][0], runs["10000"][0], runs["0"][0]
+        self.assertEqual(down[0], 2)
+        self.assertTrue(all(a >= b for a, b in zip(down, down[1:])), down)
+        self.assertEqual(down[-20:], [0] * 20, down)
+        self.assertTrue(all(a <= b for a, b in zip(up, up[1:])), up)
+        self.assertEqual(up[-10:], [6] * 10, up)
+        self.assertEqual(set(fixed), {2}, fixed)
+        # Each level draws its share of the proxy: the finest more points than the base, the cheapest fewer.
+        points = lambda k, level: [p for l, p in zip(*runs[k][:2]) if l == level]
+        self.assertGreater(min(points("10000", 6)), 1.5 * max(points("0", 2)))
+        self.assertLess(max(points("0.5", 0)), max(points("0", 2)))
+        # ... and looks more like the still image (compared at 1/4 of the size, as bench/ does).
+        rest = load(self.path("rest.png"))
+        down4 = lambda a: a[:320 // 4 * 4, :480].reshape(80, 4, 120, 4, -1).mean(axis=(1, 3))
+        err = {k: np.mean(np.abs(down4(runs[k][2]) - down4(rest))) for k in runs}
+        self.assertLess(err["10000"], err["0"], err)
+        self.assertLess(err["0"], err["0.5"], err)
+
     def test_moving_frames_reproject_the_last_still(self):
         # Once a still image is complete, the frames drawn while the camera
         # moves draw it again from their camera (one point per 4x4 block at
         # its depth) under the proxy: closer to the still than the proxy
         # alone; and not once the camera has turned more than 15 degrees
         # (3 over a fibre volume, which alone is closer to the still sooner).
-        p = run("demo", "--out", self.path("d"), "--streamlines", "600", "--no-window", env=NO_DISPLAY, timeout=180)
-        self.assertEqual(p.returncode, 0, p.stderr)
-        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
-        if "ASAN_OPTIONS" in env:
-            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
+        env = self.phantom_600()
         errors, reprojected, volumes = {}, {}, {}
-        # (600 streamlines are drawn as tubes, which keep the shell; the fibre volume models lines)
-        with open(self.path("lines.json"), "w") as f:
-            json.dump({"objects": [{"type": "streamlines", "file": self.path("d/phantom.tck"), "render": "lines"}]}, f)
+        # (600 streamlines are drawn as tubes, which keep the shell; the fibre volume models lines: lines.json)
         for proxy in ("shell", "volume"):
             for mode in ("on", "off"):
                 script, stats = self.path(mode + ".txt"), self.path(mode + ".json")

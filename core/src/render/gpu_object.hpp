@@ -76,13 +76,10 @@ struct GpuObject {
     std::vector<std::size_t> brick_chunks;
     std::future<Bricks> brick_job;  // the cut, being computed
     std::shared_ptr<std::atomic<bool>> brick_cancel;
-    float max_radius_mm = 0;                          // the widest tube
-    std::shared_ptr<const std::vector<Piece>> proxy;  // what the proxy draws
-    // Over a fibre volume the proxy's lines are 3/4 of them (the first
-    // runs: outermost first, or in hash order): `proxy` is
-    // `lines_over` then, else `lines_alone`.
-    std::shared_ptr<const std::vector<Piece>> lines_alone, lines_over;
-    bool proxy_over = false;
+    float max_radius_mm = 0;  // the widest tube
+    // What the proxy draws (outermost first, or in hash order): each
+    // proxy level a prefix of it (proxy_chunks: small chunks over it).
+    std::shared_ptr<const std::vector<Piece>> proxy;
     std::future<std::vector<Piece>> shell;  // the shell proxy, being computed
     std::shared_ptr<std::atomic<bool>> shell_cancel;
     // The slab's crossings: those drawn, and those being computed on a
@@ -114,7 +111,7 @@ struct GpuObject {
     GpuObject(GpuObject &&) = default;
     GpuObject &operator=(GpuObject &&) = default;
     std::uint64_t points_total = 0, streamlines = 0;
-    double tol_mm = 0, proxy_tol_mm = 0;  // the proxy is drawn at 1/proxy_scale of the size: decimated as much coarser
+    double tol_mm = 0, proxy_tol_mm = 0;  // the proxy is drawn at 1/scale of the size: decimated for its finest level's
     bool has_lod_proxy() const { return !proxy_chunks.empty(); }
     // shading
     const LoadedPlugin *shader = nullptr;

@@ -211,6 +211,11 @@ struct Renderer::Impl {
     const Registry &reg;
     Scene scene;
     RenderSettings settings;
+    // The proxy's levels (proxy_levels of the settings) and the one drawn.
+    std::vector<ProxyLevel> levels;
+    int level = 0;
+    int proxy_scale_now() const { return levels.empty() ? std::max(1, settings.proxy_scale) : levels[std::size_t(level)].scale; }
+    double proxy_points_now() const { return levels.empty() ? settings.lod_points : levels[std::size_t(level)].points; }
     std::vector<GpuObject> objects;
     std::map<std::string, std::unique_ptr<Program>> programs;
     std::map<std::string, std::unique_ptr<Program>> aux_programs;  // sky, slices, tonemap by output and curve
@@ -221,7 +226,7 @@ struct Renderer::Impl {
     Fbo msaa;                            // the HDR path's multisampled RGBA16F target
     Fbo msaa_display;                    // the display path's multisampled RGBA8 target
     Tex2dFbo resolved, behind, ldr;
-    // The level-of-detail frame: drawn at 1/settings.proxy_scale of the
+    // The level-of-detail frame: drawn at 1/proxy_scale_now() of the
     // window's size into `lowres` (fewer fragments; each subsample line
     // covers proxy_scale window pixels across, which keeps the picture's
     // coverage), then upscaled (bilinear) into `ldr`.
@@ -879,7 +884,7 @@ struct Renderer::Impl {
         g.lines = line_data(o);
         g.uniform_rgba = uniform_colour(*g.lines);
         g.tol_mm = tol_mm;
-        g.proxy_tol_mm = tol_mm * std::max(1, settings.proxy_scale);
+        g.proxy_tol_mm = tol_mm * proxy_scale_now();
         g.streamlines = N;
         g.points_total = t.nb_vertices();
         stats.points_total += g.points_total;
@@ -892,12 +897,13 @@ struct Renderer::Impl {
         if (settings.occlusion && g.points_total > settings.eager_points && !o.provisional) schedule_bricks(g, t);
         const double lod = std::max(1.0, settings.lod_points);
         if (double(g.points_total) > lod) {
-            set_proxy_lines(g, uniform_proxy(t, lod));
-            g.proxy = g.lines_alone;
-            g.proxy_chunks = partition(t, g.proxy->data(), g.proxy->size());
+            set_proxy_pieces(g, std::make_shared<const std::vector<Piece>>(uniform_proxy(t, lod)));
             if (settings.shell_proxy && !o.provisional) {
+                // (as many points as the finest level draws)
+                double most = lod;
+                for (const ProxyLevel &l : levels) most = std::max(most, l.points);
                 g.shell_cancel = std::make_shared<std::atomic<bool>>(false);
-                g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod, cancel = g.shell_cancel,
+                g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod = most, cancel = g.shell_cancel,
                                                           all = settings.shell_all_cores, index = g.index] {
                     return timed_job(index, "shell proxy", [&] { return shell_proxy(t, b, lod, *cancel, all); });
                 });
@@ -918,7 +924,7 @@ struct Renderer::Impl {
         } else {
             g.segments = g.points_total;  // (an upper bound until drawn)
         }
-        build_proxy(g);
+        if (g.has_lod_proxy()) build_proxy(g);
     }
 
     // Starts cutting g's streamlines into bricks on a background thread
@@ -1000,38 +1006,38 @@ struct Renderer::Impl {
         }
     }
 
-    // The proxy's lines alone and over a fibre volume: there the first three
-    // quarters of its points (the pieces come outermost first, or in hash
-    // order: the shell or uniform subsample of 3/4 of the budget), which
-    // keeps the frame within its time with the volume's pass.
-    void set_proxy_lines(GpuObject &g, std::vector<Piece> pieces) {
-        std::vector<Piece> over;
-        if (settings.fibre_volume) {
-            std::uint64_t total = 0, taken = 0;
-            for (const Piece &p : pieces) total += p.count;
-            for (const Piece &p : pieces) {
-                if (4 * taken >= 3 * total) break;
-                over.push_back(p);
-                taken += p.count;
-            }
-        }
-        g.lines_alone = std::make_shared<const std::vector<Piece>>(std::move(pieces));
-        g.lines_over = over.empty() ? g.lines_alone : std::make_shared<const std::vector<Piece>>(std::move(over));
-    }
-    // Draws over g's fibre volume the lines meant for it, or the others
-    // once the volume is not drawn (a slab, a translucent material).
-    void sync_proxy_lines(GpuObject &g) {
-        const bool over = volume_proxy(g);
-        if (over == g.proxy_over || !g.lines_alone) return;
-        g.proxy_over = over;
-        rebuild_proxy(g);
-    }
-    // g's proxy chunks, again, from the lines it draws now (proxy_over).
-    void rebuild_proxy(GpuObject &g) {
+    // g's proxy lines: `pieces` (outermost first, or in hash order: any
+    // prefix is the shell or uniform subsample of a smaller budget), in
+    // chunks small enough that a level draws about its share of them
+    // (proxy_points_now(), drawn_proxy_chunks()).
+    void set_proxy_pieces(GpuObject &g, std::shared_ptr<const std::vector<Piece>> pieces) {
         release_chunks(g.proxy_chunks);
-        g.proxy = g.proxy_over ? g.lines_over : g.lines_alone;
-        g.proxy_chunks = partition(scene.objects[g.index].data.tractogram, g.proxy->data(), g.proxy->size());
+        g.proxy = std::move(pieces);
+        g.proxy_tol_mm = tol_mm * proxy_scale_now();
+        const std::uint64_t chunk = std::max<std::uint64_t>(1024, std::uint64_t(settings.lod_points / 16));
+        g.proxy_chunks = partition(scene.objects[g.index].data.tractogram, g.proxy->data(), g.proxy->size(), chunk);
+    }
+    // g's proxy lines built again, decimated for the current level's scale
+    // (its tolerance is lod_pixels of the proxy's pixels), when it changed.
+    void sync_proxy_scale(GpuObject &g) {
+        if (!g.proxy || g.proxy_tol_mm == tol_mm * proxy_scale_now()) return;
+        const auto t0 = Clock::now();
+        set_proxy_pieces(g, g.proxy);
         build_proxy(g);
+        spdlog::debug("renderer: object {}: proxy decimated again for 1/{} of the size: {:.0f} ms", g.index, proxy_scale_now(),
+                      ms_since(t0));
+    }
+    // How many of g's proxy chunks the current level draws: its points,
+    // over a fibre volume 3/4 of them (which keeps the frame within its
+    // time with the volume's pass); at least one.
+    std::size_t drawn_proxy_chunks(const GpuObject &g, bool over) const {
+        const double target = proxy_points_now() * (over ? 0.75 : 1.0);
+        if (g.proxy_chunks.empty()) return 0;
+        std::size_t k = 1;
+        for (double before = double(g.proxy_chunks[0].points);
+             k < g.proxy_chunks.size() && before + 0.5 * double(g.proxy_chunks[k].points) < target; ++k)
+            before += double(g.proxy_chunks[k].points);
+        return k;
     }
 
     // Replaces uniform proxies by their shell proxies where these are
@@ -1043,8 +1049,8 @@ struct Renderer::Impl {
             if (!wait && g.shell.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
             std::vector<Piece> pieces = g.shell.get();
             if (pieces.empty()) continue;
-            set_proxy_lines(g, std::move(pieces));
-            rebuild_proxy(g);
+            set_proxy_pieces(g, std::make_shared<const std::vector<Piece>>(std::move(pieces)));
+            build_proxy(g);
             changed = true;
         }
         return changed;
@@ -1144,7 +1150,7 @@ struct Renderer::Impl {
     // each other across the box's projection. (At 1280x800, a whole brain
     // seen whole: 2; in a 640x400 window: 1, the proxy's own size.)
     int volume_downscale(const GpuObject &g, const Matrices &m, int w, int h) const {
-        int k = std::max(1, settings.volume_scale / std::max(1, settings.proxy_scale));
+        int k = std::max(1, settings.volume_scale / proxy_scale_now());
         const NdcRect r = fibre_box_ndc(g, m);
         if (r.all) return k;
         const double span_px = std::max((r.hi.x - r.lo.x) * 0.5 * w, (r.hi.y - r.lo.y) * 0.5 * h);
@@ -1424,7 +1430,7 @@ struct Renderer::Impl {
         // the object's chunks drawn after this call and is reset by the
         // next object and at the end of the frame.
         if (points) {
-            const double px = std::max(1.0, scene.slab->point_px * (out_ == &lowres ? 1.0 / std::max(1, settings.proxy_scale) : 1.0));
+            const double px = std::max(1.0, scene.slab->point_px * (out_ == &lowres ? 1.0 / proxy_scale_now() : 1.0));
             glUniform1f(p.loc("hz_point_px"), float(px));
             glUniform1f(p.loc("hz_point_lift"), 0.5f);  // mm
         } else if (g.geom != Geom::Mesh) {
@@ -1466,10 +1472,11 @@ struct Renderer::Impl {
             // the proxy's pixel it crosses (it is a full-size pixel wide).
             const bool over = volume_proxy(g) && !debug;
             if (over) {
-                glUniform1f(p.loc("hz_opacity"), float(o.opacity / std::max(1, settings.proxy_scale)));
+                glUniform1f(p.loc("hz_opacity"), float(o.opacity / proxy_scale_now()));
                 blend_over();
             }
-            for (std::size_t k = 0; k < g.proxy_chunks.size(); ++k) draw_chunk(g, true, k);
+            const std::size_t n = drawn_proxy_chunks(g, over);
+            for (std::size_t k = 0; k < n; ++k) draw_chunk(g, true, k);
             if (over) glDisable(GL_BLEND);
         } else if (lines == LinesPart::Full) {
             draw_full(g, v, m, w, h, settings.occlusion && !debug && !composited(g));
@@ -1662,7 +1669,8 @@ void main() {
         // proxy then fills what it did not see.
         if (out_ == &lowres && display_direct && settings.reproject &&
             warp->usable(generation, frame_w, frame_h, to_dvec3(v.eye), to_dvec3(v.target), reprojection_turn_deg())) {
-            warp->draw(m.view_proj, to_dvec3(v.eye), 1.5, 2.0);
+            // (one point per block of the scale it was captured at)
+            warp->draw(m.view_proj, to_dvec3(v.eye), 1.5 * warp->scale() / proxy_scale_now(), 2.0);
             stats.reprojected_points = warp->points();
             opaque_state();
         }
@@ -1677,7 +1685,7 @@ void main() {
                 continue;
             }
             const LinesPart part = part_for(g);
-            if (part == LinesPart::Proxy) sync_proxy_lines(g);
+            if (part == LinesPart::Proxy) sync_proxy_scale(g);
             if (part == LinesPart::Proxy && volume_proxy(g)) draw_volume_proxy(g, o, m, v, target, w, h);
             draw_object(g, o, m, v, false, w, h, part);
         }
@@ -1747,7 +1755,8 @@ void main() {
 
     void proxy_frame(const View &v, int w, int h) {
         frame_w = w, frame_h = h;
-        const int s = std::max(1, settings.proxy_scale);
+        const int s = proxy_scale_now();
+        stats.proxy_level = level;
         const int pw = std::max(1, (w + s - 1) / s), ph = std::max(1, (h + s - 1) / s);
         lowres.ensure(pw, ph, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
         lowres.ensure_depth();
@@ -1918,7 +1927,8 @@ void main() {
     }
 
     // Keeps the complete still (ldr, and the depth of the frame's target)
-    // for the reprojection of the next proxy frames.
+    // for the reprojection of the next proxy frames (in blocks of the base
+    // level's scale, whatever the level: drawn larger or smaller at others).
     void capture_still() {
         if (!display_direct) return warp->clear();
         GLuint depth_fbo = refine.target;
@@ -1971,6 +1981,8 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
     I.clear_objects();
     I.scene = std::move(scene);
     I.settings = settings;
+    I.levels = render::proxy_levels(settings.proxy_scale, settings.lod_points);
+    I.level = render::proxy_base_level(settings.proxy_scale, settings.lod_points);
     I.ibl->on = I.scene.environment.type != "none";  // programs are specialised on it
     I.display_direct =
         std::none_of(I.scene.objects.begin(), I.scene.objects.end(), [&](const Object &o) { return o.visible && I.composited(o); });
@@ -2028,6 +2040,42 @@ void Renderer::replace_object(std::size_t i, Object o) {
 }
 
 void Renderer::set_interacting(bool on) { impl_->interacting = on; }
+void Renderer::set_proxy_level(int level) {
+    Impl &I = *impl_;
+    if (!I.levels.empty()) I.level = std::clamp(level, 0, int(I.levels.size()) - 1);
+}
+int Renderer::proxy_level() const { return impl_->level; }
+int Renderer::proxy_level_count() const { return int(impl_->levels.size()); }
+const std::vector<ProxyLevel> &Renderer::proxy_levels() const { return impl_->levels; }
+
+std::vector<ProxyLevel> proxy_levels(int scale, double points) {
+    const ProxyLevel base{std::clamp(scale, 1, 16), std::max(1.0, points)};
+    std::vector<ProxyLevel> out;
+    // Coarser: twice the scale (at most 16), then half the points.
+    ProxyLevel l = base;
+    for (int i = 0; i < 2; ++i) {
+        if (i == 0 && l.scale * 2 <= 16)
+            l.scale *= 2;
+        else
+            l.points /= 2;
+        out.insert(out.begin(), l);
+    }
+    out.push_back(base);
+    // Finer: half the scale (down to 1) and twice the points in turn, up
+    // to 4 x the base's points.
+    l = base;
+    for (int i = 0;; ++i) {
+        if (i % 2 == 0 && l.scale > 1)
+            l.scale /= 2;
+        else if (l.points * 2 <= 4 * base.points)
+            l.points *= 2;
+        else
+            break;
+        out.push_back(l);
+    }
+    return out;
+}
+int proxy_base_level(int, double) { return 2; }
 
 bool Renderer::update_proxies(bool wait) {
     const bool crossings = impl_->adopt_crossings(wait);

@@ -100,7 +100,7 @@ void Reprojection::capture(GLuint colour_fbo, GLuint depth_fbo, int w, int h, co
     glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(out.size() * sizeof(SplatVertex)), out.data(), GL_STATIC_DRAW);
     count_ = out.size();
     generation_ = generation;
-    w_ = w, h_ = h;
+    w_ = w, h_ = h, scale_ = scale;
     valid_ = true;
 }
 

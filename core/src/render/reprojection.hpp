@@ -50,13 +50,14 @@ public:
     // so that it wins over the proxy's lines on the same surface.
     void draw(const glm::mat4 &view_proj, const glm::dvec3 &eye, double point_px, double lift_mm);
     std::uint64_t points() const { return count_; }
+    int scale() const { return scale_; }  // the capture's block size (pixels)
 
 private:
     MakeProgram make_;
     std::unique_ptr<Program> program_;
     GLuint vao_ = 0, vbo_ = 0;
     std::uint64_t count_ = 0, generation_ = 0;
-    int w_ = 0, h_ = 0;
+    int w_ = 0, h_ = 0, scale_ = 1;
     glm::dvec3 eye_{0.0}, target_{0.0};
     bool valid_ = false;
 };

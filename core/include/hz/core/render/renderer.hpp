@@ -71,6 +71,9 @@ struct RenderSettings {
     // it) or on one (a window keeps a core for its first frames).
     bool shell_all_cores = false;
     // The proxy frame is drawn at 1/proxy_scale of the size, then upscaled.
+    // These two are the proxy's base level; proxy_levels() builds coarser
+    // and finer ones around it, among which a window picks by its frame
+    // times (Renderer::set_proxy_level).
     int proxy_scale = 4;
     // A proxy frame's fibre volume is ray-marched smaller than the proxy,
     // down to 1/volume_scale of the size while its rays stay within 1.5
@@ -132,10 +135,28 @@ struct FrameStats {
     // streamlines whose first piece they hold.
     std::uint64_t culled_chunks = 0, culled_points = 0, culled_streamlines = 0;
     bool proxy = false;                  // a level-of-detail proxy was drawn
+    int proxy_level = 0;                 // ... at this level (Renderer::proxy_levels' index)
     int refine_step = 0;                 // progressive: the step (0: a whole frame)
     std::uint64_t refine_remaining = 0;  // progressive: chunks still to draw
     int samples = 1;                     // MSAA samples in use
 };
+
+// A level of the level-of-detail proxy: its frame drawn at 1/scale of the
+// size, with the first `points` input points of its lines (a prefix of the
+// shell proxy: its outermost runs; over a fibre volume 3/4 of them).
+struct ProxyLevel {
+    int scale = 4;
+    double points = 2e5;
+};
+// The proxy's levels, cheapest first, around the base (scale, points) of
+// RenderSettings::proxy_scale and lod_points: two coarser (twice the scale,
+// then half the points too) and finer ones, each halving the scale (down to
+// 1) or doubling the points in turn, up to 4 x lod_points. At (4, 2e5):
+// (8, 1e5) (8, 2e5) [(4, 2e5)] (2, 2e5) (2, 4e5) (1, 4e5) (1, 8e5). Each costs
+// about 1.3-1.8 times the one before (llvmpipe, 1280x800, bench/results).
+std::vector<ProxyLevel> proxy_levels(int scale, double points);
+// The index of the base level in proxy_levels()'s list (2).
+int proxy_base_level(int scale, double points);
 
 class Renderer {
 public:
@@ -170,6 +191,14 @@ public:
     // While interacting, objects with a level-of-detail proxy are replaced
     // by it (Object::proxy_for).
     void set_interacting(bool interacting);
+    // The proxy's level (proxy_levels(settings.proxy_scale, lod_points)'s
+    // index, clamped to it; set_scene starts at the base level): the window
+    // raises it while its moving frames are fast and lowers it when they
+    // are slow. Takes effect at the next proxy frame. GL thread.
+    void set_proxy_level(int level);
+    int proxy_level() const;
+    int proxy_level_count() const;
+    const std::vector<ProxyLevel> &proxy_levels() const;  // (of the scene's settings)
     // Adopts the level-of-detail proxies computed in the background since
     // the last call (RenderSettings::shell_proxy); with `wait`, waits for
     // all of them first. Returns true if a proxy changed (a proxy frame
