@@ -461,7 +461,11 @@ public:
             const double frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_t0).count();
             log.clustering = clustering();
             log.add(kind, r.stats(), frame_ms);
-            if (std::string_view(kind) == "moving" && r.stats().proxy) governor.add(frame_ms);
+            // (not the first moving frame after others: it also leaves the
+            // still image, e.g. allocates the proxy's target)
+            const bool moving_frame = std::string_view(kind) == "moving";
+            if (moving_frame && r.stats().proxy && std::exchange(moved_last_frame, true)) governor.add(frame_ms);
+            moved_last_frame = moving_frame;
             if (step_ms >= 0) frame_overhead_ms = std::clamp(frame_ms - step_ms, 0.0, kStepMs / 2), step_ms = -1;
             // The regions' spatial index, a second after the first frame
             // (the shell proxy's thread is then done, as a rule).
@@ -1524,6 +1528,7 @@ private:
     // The proxy's level while the camera moves, from the moving frames'
     // times (--lod-frame-ms); set up with the scene (show).
     core::render::ProxyGovernor governor{0, 1, 0};
+    bool moved_last_frame = false;
     std::uint64_t seen_events = ~0ull;
     // A refinement frame: its step's time (-1: none this frame), and what
     // the last one's frame took besides.

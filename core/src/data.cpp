@@ -60,7 +60,8 @@ std::size_t memory_available() {
     return std::numeric_limits<std::size_t>::max();
 }
 
-std::string gb(double bytes) { return fmt::format("{:.1f} GB", bytes / 1e9); }
+// (MB below a tenth of a GB, which would read "0.0 GB")
+std::string gb(double bytes) { return bytes < 1e8 ? fmt::format("{:.0f} MB", bytes / 1e6) : fmt::format("{:.1f} GB", bytes / 1e9); }
 
 }  // namespace
 

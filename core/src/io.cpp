@@ -565,7 +565,11 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
             copy.loader_id = ds.loader_id;
             copy.source_space = ds.source_space;
             copy.metadata = ds.metadata;
-            copy.tractogram = subset_with_arrays(ds.tractogram, *selection, /*spill=*/true);
+            try {
+                copy.tractogram = subset_with_arrays(ds.tractogram, *selection, /*spill=*/true);
+            } catch (const Error &e) {  // (a copy that fits nowhere: named by the file it was for)
+                throw Error(path.string() + ": the streamlines to write, copied first for " + p.info.name + ": " + e.what());
+            }
             write_dataset(reg, copy, path, force, dropped, protect, task);
             return;
         }

@@ -211,6 +211,41 @@ class PluginsTest(TempDirTest):
         p = run("cluster", tck, "--algorithm", "nope", "--labels", labels, "--force")
         self.assertIn("no clustering plugin has this id", p.stderr)
 
+    def test_a_third_party_writer_gets_a_copy_of_the_selection(self):
+        """`filter` into a format whose writer (the SDK's CSV template) does
+        not offer hz.ext.write-selection/1: the selected streamlines are
+        copied for it first, and written exactly; when that copy fits
+        nowhere (no temporary file, no memory reported), one line names the
+        output and says why, exit 1, nothing written."""
+        from hztest import tck_bytes
+        import numpy as np
+        rng = np.random.default_rng(5)
+        lines = [np.cumsum(rng.normal(size=(int(rng.integers(5, 40)), 3)), axis=0).astype(np.float32) for _ in range(300)]
+        tck = self.path("t.tck")
+        with open(tck, "wb") as f:
+            f.write(tck_bytes(lines))
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(TEMPLATES, "tpl_csv_loader.so"), d)
+        out = self.path("picked.csv")
+        p = run("--plugin-dir", d, "filter", tck, "--min-length", "30", "-o", out, "--json")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        want = [i for i, s in enumerate(lines) if np.linalg.norm(np.diff(s, axis=0), axis=1).sum() >= 30]
+        self.assertEqual(json.loads(p.stdout)["selected"], len(want))
+        self.assertGreater(len(want), 20)
+        self.assertLess(len(want), 280)
+        back = json.loads(run("--plugin-dir", d, "info", out, "--json").stdout)
+        self.assertEqual((back["nb_streamlines"], back["nb_vertices"]), (len(want), sum(len(lines[i]) for i in want)))
+        os.remove(out)
+        env = {"HORIZON_SPILL_DIR": "off", "HORIZON_SPILL_MIN_BYTES": "0", "HORIZON_MEMORY_AVAILABLE_MB": "0"}
+        p = run("--plugin-dir", d, "filter", tck, "--min-length", "30", "-o", out, env=env)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        line = p.stderr.strip()
+        self.assertNotIn("\n", line)
+        self.assertIn(f"{out}: the streamlines to write, copied first for ", line)
+        self.assertIn("no temporary file (HORIZON_SPILL_DIR=off)", line)
+        self.assertFalse(os.path.exists(out))
+
     def test_a_third_party_clustering_plugin_in_scenes_and_explore(self):
         from hztest import tck_bytes
         import numpy as np

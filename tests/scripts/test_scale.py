@@ -284,8 +284,8 @@ class ScaleTest(unittest.TestCase):
         p, j = self.window("nowhere", ["wait 2", "roi sphere 0 0 0 40", "sleep 3", "drag 300 200 360 220", f"save {out}", "quit"],
                            env={"HORIZON_SPILL_DIR": "/nonexistent-spill", "HORIZON_MEMORY_AVAILABLE_MB": "64"})
         kept = self.kept_by_the_sphere(p, shown=False)
-        self.assertRegex(p.stderr, rf"horizon: the {kept} streamlines kept cannot be shown: [\d.]+ GB to hold: no temporary file in "
-                         r"/nonexistent-spill \(No such file or directory\), and 0\.1 GB of memory are available")
+        self.assertRegex(p.stderr, rf"horizon: the {kept} streamlines kept cannot be shown: [\d.]+ [MG]B to hold: no temporary file in "
+                         r"/nonexistent-spill \(No such file or directory\), and 67 MB of memory are available")
         self.assertNotIn("showing the", p.stdout)
         self.assertIn(f"saved {kept} streamlines, 1 regions -> {out}", p.stdout)
         frames = j["frames"]

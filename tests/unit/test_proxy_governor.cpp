@@ -35,11 +35,12 @@ int feed(ProxyGovernor &g, int n, double ms) {
 }  // namespace
 
 TEST_CASE("proxy governor: slow frames go coarser, down to the cheapest level", "[lod]") {
+    constexpr int slow = ProxyGovernor::kSlowFrames;
     ProxyGovernor g(33, 7, 2);
-    CHECK(feed(g, 2, 50) == 2);  // (two slow frames are not yet a median of three)
+    CHECK(feed(g, slow - 1, 50) == 2);  // (not yet a median of kSlowFrames)
     CHECK(feed(g, 1, 50) == 1);
     CHECK(feed(g, 1, 50) == 1);  // (the first frame at a new level is not counted)
-    CHECK(feed(g, 3, 50) == 0);
+    CHECK(feed(g, slow, 50) == 0);
     CHECK(feed(g, 20, 50) == 0);
     // One slow frame among fast ones is not enough.
     ProxyGovernor h(33, 7, 2);
@@ -60,13 +61,13 @@ TEST_CASE("proxy governor: fast frames go finer, up to the finest level", "[lod]
 
 TEST_CASE("proxy governor: a level found too slow is on hold, longer each time", "[lod]") {
     ProxyGovernor g(33, 7, 2);
-    CHECK(feed(g, 8, 20) == 3);              // fast: tries level 3
-    CHECK(feed(g, 4, 40) == 2);              // too slow there: back
+    CHECK(feed(g, 8, 20) == 3);                               // fast: tries level 3
+    CHECK(feed(g, 1 + ProxyGovernor::kSlowFrames, 40) == 2);  // too slow there: back
     CHECK(g.hold(3) == ProxyGovernor::kHoldFrames);
     CHECK(feed(g, ProxyGovernor::kHoldFrames - 1, 20) == 2);  // fast, but 3 is on hold
     CHECK(g.hold(3) == 1);
-    CHECK(feed(g, 1, 20) == 3);              // the hold is over: tried again
-    CHECK(feed(g, 4, 40) == 2);              // slow again: held twice as long
+    CHECK(feed(g, 1, 20) == 3);                               // the hold is over: tried again
+    CHECK(feed(g, 1 + ProxyGovernor::kSlowFrames, 40) == 2);  // slow again: held twice as long
     CHECK(g.hold(3) == 2 * ProxyGovernor::kHoldFrames);
     CHECK(feed(g, 2 * ProxyGovernor::kHoldFrames - 1, 20) == 2);
     CHECK(feed(g, 1, 20) == 3);

@@ -14,7 +14,9 @@ double median_of_last(const std::deque<double> &v, std::size_t n) {
 }  // namespace
 
 ProxyGovernor::ProxyGovernor(double budget_ms, int levels, int start)
-    : budget_ms_(budget_ms), level_(std::clamp(start, 0, std::max(0, levels - 1))), hold_(std::size_t(std::max(1, levels)), 0),
+    : budget_ms_(budget_ms),
+      level_(std::clamp(start, 0, std::max(0, levels - 1))),
+      hold_(std::size_t(std::max(1, levels)), 0),
       next_hold_(std::size_t(std::max(1, levels)), kHoldFrames) {}
 
 int ProxyGovernor::hold(int level) const { return level >= 0 && std::size_t(level) < hold_.size() ? hold_[std::size_t(level)] : 0; }

@@ -21,8 +21,8 @@ public:
 
     // A moving frame drawn at level() took `ms` (all of it: the drawing,
     // the panel, the swap). Returns the level for the next moving frame:
-    //   - one coarser when the median of the last 3 frames at this level is
-    //     over the budget;
+    //   - one coarser when the median of the last 5 frames at this level is
+    //     over the budget (most of them are: not a spike or two);
     //   - one finer when the median of the last 8 is under 0.8 x the budget
     //     and that level is not on hold;
     //   - else the same.
@@ -35,15 +35,15 @@ public:
     // Moving frames before `level` may be tried again (0: it may).
     int hold(int level) const;
 
-    static constexpr int kSlowFrames = 3, kFastFrames = 8, kHoldFrames = 45, kMaxHoldFrames = 1440;
+    static constexpr int kSlowFrames = 5, kFastFrames = 8, kHoldFrames = 45, kMaxHoldFrames = 1440;
     static constexpr double kFastShare = 0.8;
 
 private:
     double budget_ms_;
     int level_;
-    bool settle_ = false;                   // the next frame is the first at a new level
-    std::deque<double> recent_;             // the last frames at this level
-    std::vector<int> hold_, next_hold_;     // per level: frames left on hold, the next hold
+    bool settle_ = false;                // the next frame is the first at a new level
+    std::deque<double> recent_;          // the last frames at this level
+    std::vector<int> hold_, next_hold_;  // per level: frames left on hold, the next hold
 };
 
 }  // namespace hz::core::render
