@@ -1753,7 +1753,9 @@ void main() {
             draw_scene(v, w, h);
     }
 
-    void proxy_frame(const View &v, int w, int h) {
+    // (upscaled into ldr, or with `to_window` straight into the window's
+    // framebuffer 0: one full-size copy less per moving frame)
+    void proxy_frame(const View &v, int w, int h, bool to_window = false) {
         frame_w = w, frame_h = h;
         const int s = proxy_scale_now();
         stats.proxy_level = level;
@@ -1771,10 +1773,11 @@ void main() {
         }
         out_ = &ldr;
         interacting = was;
-        ldr.ensure(w, h, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
+        if (!to_window) ldr.ensure(w, h, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
         glBindFramebuffer(GL_READ_FRAMEBUFFER, lowres.fbo);
-        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, ldr.fbo);
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, to_window ? 0 : ldr.fbo);
         glBlitFramebuffer(0, 0, pw, ph, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_LINEAR);
+        if (to_window) glBindFramebuffer(GL_FRAMEBUFFER, 0);
     }
 
     // The window's picture while refining: the full-detail image drawn so
@@ -2210,8 +2213,12 @@ void Renderer::render_to_window(const View &view, int width, int height) {
     const auto t0 = Clock::now();
     I.refine.active = false;
     I.reset_counters();
-    I.frame(view, width, height);
-    present(width, height);
+    if (I.interacting && I.any_lod_proxy()) {
+        I.proxy_frame(view, width, height, /*to_window=*/true);
+    } else {
+        I.frame(view, width, height);
+        present(width, height);
+    }
     I.stats.draw_ms = ms_since(t0);
 }
 
