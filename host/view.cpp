@@ -1616,6 +1616,7 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
         app.r = &r;
         core::render::RenderSettings rs;
         rs.width = w0, rs.height = h0, rs.samples = o.samples;
+        rs.proxy_levels = o.lod_frame_ms > 0;  // (moving frames pick one: ProxyGovernor)
         o.lod.apply(rs);
         // Baked materials, except while the material panel is being edited
         // (each new value would compile a program): see App::material_edited.

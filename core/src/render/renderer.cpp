@@ -1984,8 +1984,13 @@ void Renderer::set_scene(Scene scene, const View &view, const RenderSettings &se
     I.clear_objects();
     I.scene = std::move(scene);
     I.settings = settings;
-    I.levels = render::proxy_levels(settings.proxy_scale, settings.lod_points);
-    I.level = render::proxy_base_level(settings.proxy_scale, settings.lod_points);
+    if (settings.proxy_levels) {
+        I.levels = render::proxy_levels(settings.proxy_scale, settings.lod_points);
+        I.level = render::proxy_base_level(settings.proxy_scale, settings.lod_points);
+    } else {
+        I.levels = {ProxyLevel{std::clamp(settings.proxy_scale, 1, 16), std::max(1.0, settings.lod_points)}};
+        I.level = 0;
+    }
     I.ibl->on = I.scene.environment.type != "none";  // programs are specialised on it
     I.display_direct =
         std::none_of(I.scene.objects.begin(), I.scene.objects.end(), [&](const Object &o) { return o.visible && I.composited(o); });

@@ -71,10 +71,13 @@ struct RenderSettings {
     // it) or on one (a window keeps a core for its first frames).
     bool shell_all_cores = false;
     // The proxy frame is drawn at 1/proxy_scale of the size, then upscaled.
-    // These two are the proxy's base level; proxy_levels() builds coarser
-    // and finer ones around it, among which a window picks by its frame
-    // times (Renderer::set_proxy_level).
+    // These two are the proxy's base level; with proxy_levels,
+    // proxy_levels() builds coarser and finer ones around it, among which a
+    // window picks by its frame times (Renderer::set_proxy_level); without,
+    // the base is the only one (a headless render draws no moving frames:
+    // its shell is then computed for lod_points, not 4x as many).
     int proxy_scale = 4;
+    bool proxy_levels = false;
     // A proxy frame's fibre volume is ray-marched smaller than the proxy,
     // down to 1/volume_scale of the size while its rays stay within 1.5
     // voxels (the marching step) of each other, then upscaled under the
@@ -192,7 +195,8 @@ public:
     // by it (Object::proxy_for).
     void set_interacting(bool interacting);
     // The proxy's level (proxy_levels(settings.proxy_scale, lod_points)'s
-    // index, clamped to it; set_scene starts at the base level): the window
+    // index, clamped to it, with RenderSettings::proxy_levels; else 0, the
+    // base, the only one; set_scene starts at the base level): the window
     // raises it while its moving frames are fast and lowers it when they
     // are slow. Takes effect at the next proxy frame. GL thread.
     void set_proxy_level(int level);
