@@ -1223,8 +1223,9 @@ private:
         if (r.refining())
             ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "refining: %llu chunks to go",
                                (unsigned long long)r.stats().refine_remaining);
-        else if (r.stats().proxy)
-            ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: level-of-detail subsample");
+        else if (const auto &levels = r.proxy_levels(); r.stats().proxy && std::size_t(r.stats().proxy_level) < levels.size())
+            ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: level of detail at 1/%d of the size, %.0fk points",
+                               levels[std::size_t(r.stats().proxy_level)].scale, levels[std::size_t(r.stats().proxy_level)].points / 1e3);
         ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset");
         if (ImGui::SliderFloat("exposure", &exposure, 0.05f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic)) r.set_exposure(exposure);
         // What a panel control asks for, done after the panel (an edit:
