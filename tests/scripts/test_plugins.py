@@ -182,17 +182,23 @@ class PluginsTest(TempDirTest):
         self.assertRegex(text, r"mode +enum +exact\|fast +default exact")
         self.assertNotEqual(run("plugins", "no.such.plugin").returncode, 0)
 
-    def test_a_third_party_clustering_plugin_runs_from_cluster(self):
+    def tck_and_template(self, lines, template):
+        """`lines` written to t.tck, and a plugin folder holding the SDK
+        template `template`: their paths."""
         from hztest import tck_bytes
-        import numpy as np
-        rng = np.random.default_rng(3)
-        lines = [np.cumsum(rng.normal(size=(int(rng.integers(5, 80)), 3)), axis=0) for _ in range(200)]
         tck = self.path("t.tck")
         with open(tck, "wb") as f:
             f.write(tck_bytes(lines))
         d = self.path("plugins")
         os.mkdir(d)
-        shutil.copy(os.path.join(TEMPLATES, "tpl_length_clustering.so"), d)
+        shutil.copy(os.path.join(TEMPLATES, template), d)
+        return tck, d
+
+    def test_a_third_party_clustering_plugin_runs_from_cluster(self):
+        import numpy as np
+        rng = np.random.default_rng(3)
+        lines = [np.cumsum(rng.normal(size=(int(rng.integers(5, 80)), 3)), axis=0) for _ in range(200)]
+        tck, d = self.tck_and_template(lines, "tpl_length_clustering.so")
         labels = self.path("l.csv")
         p = run("cluster", tck, "--algorithm", "length", "--param", "bin_width=20", "--labels", labels, "--plugin-dir", d)
         self.assertEqual(p.returncode, 0, p.stderr)
@@ -217,16 +223,10 @@ class PluginsTest(TempDirTest):
         copied for it first, and written exactly; when that copy fits
         nowhere (no temporary file, no memory reported), one line names the
         output and says why, exit 1, nothing written."""
-        from hztest import tck_bytes
         import numpy as np
         rng = np.random.default_rng(5)
         lines = [np.cumsum(rng.normal(size=(int(rng.integers(5, 40)), 3)), axis=0).astype(np.float32) for _ in range(300)]
-        tck = self.path("t.tck")
-        with open(tck, "wb") as f:
-            f.write(tck_bytes(lines))
-        d = self.path("plugins")
-        os.mkdir(d)
-        shutil.copy(os.path.join(TEMPLATES, "tpl_csv_loader.so"), d)
+        tck, d = self.tck_and_template(lines, "tpl_csv_loader.so")
         out = self.path("picked.csv")
         p = run("--plugin-dir", d, "filter", tck, "--min-length", "30", "-o", out, "--json")
         self.assertEqual(p.returncode, 0, p.stderr)
@@ -247,15 +247,10 @@ class PluginsTest(TempDirTest):
         self.assertFalse(os.path.exists(out))
 
     def test_a_third_party_clustering_plugin_in_scenes_and_explore(self):
-        from hztest import tck_bytes
         import numpy as np
         rng = np.random.default_rng(4)
-        tck = self.path("t.tck")
-        with open(tck, "wb") as f:
-            f.write(tck_bytes([np.cumsum(rng.normal(size=(int(rng.integers(5, 80)), 3)), axis=0) for _ in range(100)]))
-        d = self.path("plugins")
-        os.mkdir(d)
-        shutil.copy(os.path.join(TEMPLATES, "tpl_length_clustering.so"), d)
+        tck, d = self.tck_and_template([np.cumsum(rng.normal(size=(int(rng.integers(5, 80)), 3)), axis=0) for _ in range(100)],
+                                       "tpl_length_clustering.so")
         scene = {"objects": [{"type": "streamlines", "file": tck, "clustering": {"algorithm": "length", "params": {"bin_width": 5}}}]}
         for params, ok, where in (({"bin_width": 5}, True, None), ({"bin_width": -1}, False, "objects[0].clustering.params.bin_width"),
                                   ({"width": 1}, False, "it has: bin_width")):

@@ -884,7 +884,6 @@ struct Renderer::Impl {
         g.lines = line_data(o);
         g.uniform_rgba = uniform_colour(*g.lines);
         g.tol_mm = tol_mm;
-        g.proxy_tol_mm = tol_mm * proxy_scale_now();
         g.streamlines = N;
         g.points_total = t.nb_vertices();
         stats.points_total += g.points_total;
