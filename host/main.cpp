@@ -215,7 +215,9 @@ int main(int argc, char **argv) {
         "shader, moving on|off, mark NAME, expand K [streamlines], hide K, repeat [T...], reset, roi "
         "sphere|box|mask|move|scale|flip|remove ..., "
         "undo, redo, save PATH [force], press LABEL, screenshot, quit; see docs/rendering.md and docs/quality-control.md)");
-    view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")->capture_default_str();
+    view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")
+        ->check(CLI::ExistingDirectory)
+        ->capture_default_str();
     view->add_option("--view", vwo.view, "initial camera view fitted to the scene (R returns to it)")->check(CLI::IsMember(named_views()));
     view->add_flag("--explore", vwo.explore, "explore the first tractogram as QuickBundlesX clusters: expand, hide, repeat (paper Fig. 5)");
     view->add_option("--algorithm", vwo.algorithm, "--explore with this clustering plugin (its id or the last part of it)")

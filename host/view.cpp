@@ -39,6 +39,7 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <atomic>
 #include <future>
 #include <optional>
@@ -56,6 +57,66 @@ using core::render::Vec3;
 using namespace win;
 
 namespace {
+
+// An error in a --script file (named with its line): not the data's.
+struct ScriptError : core::Error {
+    using core::Error::Error;
+};
+
+// A modifier of a scripted click or key: ctrl, alt or shift.
+int modifier(const std::string &m) {
+    if (m == "ctrl") return GLFW_MOD_CONTROL;
+    if (m == "alt") return GLFW_MOD_ALT;
+    if (m == "shift") return GLFW_MOD_SHIFT;
+    throw core::Error("'" + m + "' is not a modifier (ctrl, alt, shift)");
+}
+
+// The words of a script line after its command, read strictly: a word a
+// command needs must be there and parse whole, and words left over are an
+// error (a typo never silently does nothing, nor a test that cannot fail).
+class ScriptWords {
+public:
+    ScriptWords(std::istringstream &in, std::string op) : in_(in), op_(std::move(op)) {}
+    std::string word(const std::string &what) {
+        std::string w;
+        if (!(in_ >> w)) throw core::Error(op_ + " needs " + what);
+        return w;
+    }
+    std::optional<std::string> maybe() {
+        if (std::string w; in_ >> w) return w;
+        return std::nullopt;
+    }
+    double number(const std::string &what) { return parse(word(what), what); }
+    std::optional<double> maybe_number(const std::string &what) {
+        if (const auto w = maybe()) return parse(*w, what);
+        return std::nullopt;
+    }
+    // A whole number in [0, max].
+    std::uint64_t count(const std::string &what, std::uint64_t max) {
+        const std::string w = word(what);
+        const double v = parse(w, what);
+        if (!(v >= 0 && v <= double(max) && v == std::floor(v))) throw core::Error(op_ + ": '" + w + "' is not " + what);
+        return std::uint64_t(v);
+    }
+    std::string rest() {
+        std::string r;
+        std::getline(in_ >> std::ws, r);
+        return r;
+    }
+    void done() {
+        if (const auto w = maybe()) throw core::Error(op_ + ": unexpected '" + *w + "'");
+    }
+
+private:
+    double parse(const std::string &w, const std::string &what) const {
+        char *end = nullptr;
+        const double v = std::strtod(w.c_str(), &end);
+        if (end == w.c_str() || *end || !std::isfinite(v)) throw core::Error(op_ + ": '" + w + "' is not a number (" + what + ")");
+        return v;
+    }
+    std::istringstream &in_;
+    std::string op_;
+};
 
 // The interactive exploration of the paper's Fig. 5: a tractogram shown as
 // the centroids of one QuickBundlesX level (tubes, width by cluster size);
@@ -450,8 +511,16 @@ public:
             }
             seen_events = app.events;
             if (!app.pending_shot.empty()) {
-                save_screenshot(reg, r, app.pending_shot, fw, fh);
-                app.pending_shot.clear();
+                const std::string shot = std::exchange(app.pending_shot, {});
+                try {
+                    save_screenshot(reg, r, shot, fw, fh);
+                } catch (const core::Error &e) {
+                    // (S, a user's: one line, and the session goes on; a
+                    // script's screenshot command that fails fails it)
+                    if (!app.shot_by_key) throw ScriptError(o.script + ": " + e.what());
+                    std::fprintf(stderr, "horizon: %s\n", e.what());
+                }
+                app.shot_by_key = false;
             }
 
             panel();
@@ -609,8 +678,9 @@ private:
     // A save is written on a thread (10M streamlines: a minute of disk
     // writes); the window goes on meanwhile, and says when it is done.
     // What is saved is what was shown when it was asked for.
-    void save_to(const std::string &path, bool force) {
+    void save_to(const std::string &path, bool force, bool by_user = false) {
         if (saving()) throw core::Error("still saving " + save_path + "; save again when it is done");
+        save_by_user = by_user;
         auto job = std::make_shared<Session::SaveJob>(session->prepare_save(path, force));
         save_path = path;
         save_job = std::async(std::launch::async, [s = session.get(), job] { return s->write_save(*job); });
@@ -622,7 +692,9 @@ private:
             std::printf("%s\n", line.c_str());
             log.mark("saved");
         } catch (const std::exception &e) {
-            if (!o.script.empty()) throw core::Error(e.what());  // (a script whose save fails fails, as before)
+            // (a script's save command that fails fails the script; Ctrl+S
+            // or the panel's Save, a user's: one line, the window goes on)
+            if (!save_by_user && !o.script.empty()) throw ScriptError(o.script + ": " + e.what());
             std::fprintf(stderr, "horizon: %s\n", e.what());
         }
         std::fflush(stdout);
@@ -635,7 +707,7 @@ private:
         do p = app.shot_dir / ("horizon-selection-" + std::to_string(++saves) + ".trx");
         while (fs::exists(fs::symlink_status(p, ec)));
         try {
-            save_to(p.string(), false);
+            save_to(p.string(), false, true);
         } catch (const std::exception &e) {
             std::fprintf(stderr, "horizon: %s\n", e.what());
         }
@@ -974,66 +1046,69 @@ private:
         std::istringstream cmd(line);
         std::string op;
         cmd >> op;
+        ScriptWords w(cmd, op);
         try {
             if (op == "nowait") {  // nowait CMD: input at once, as a user's, without waiting for a selection or clustering
-                std::string rest;
-                std::getline(cmd >> std::ws, rest);
+                const std::string rest = w.rest();
                 const std::string what = rest.substr(0, rest.find(' '));
                 if (what != "click" && what != "key" && what != "scroll" && what != "drag" && what != "pan" && what != "stroke")
                     throw core::Error("nowait takes an input command (click, key, scroll, drag, pan, stroke), not '" + what + "'");
                 run_script_line(rest);
                 return;
             }
-            if (op == "wait")
-                cmd >> wait;
-            else if (op == "sleep") {  // wall-clock seconds (frames go on meanwhile)
-                double sec = 0;
-                if (!(cmd >> sec) || !(sec >= 0)) throw core::Error("sleep needs seconds");
+            if (op == "wait") {
+                wait = int(w.count("a number of frames", 1000000));
+                w.done();
+            } else if (op == "sleep") {  // wall-clock seconds (frames go on meanwhile)
+                const double sec = w.number("seconds");
+                if (!(sec >= 0)) throw core::Error("sleep needs seconds >= 0");
+                w.done();
                 sleep_until = glfwGetTime() + sec;
             } else if (op == "drag" || op == "pan") {
-                double x0, y0, x1, y1;
-                cmd >> x0 >> y0 >> x1 >> y1;
+                const double x0 = w.number("X0"), y0 = w.number("Y0"), x1 = w.number("X1"), y1 = w.number("Y1");
+                w.done();
                 app.last_x = app.press_x = x0, app.last_y = app.press_y = y0;
                 app.orbit_started = false;
                 (op == "drag" ? app.dragging : app.panning) = true;
                 for (int s = 1; s <= 8; ++s) app.drag_to(x0 + (x1 - x0) * s / 8, y0 + (y1 - y0) * s / 8);
                 app.dragging = app.panning = false;
-            } else if (op == "click") {  // as a left press and release at window point (x, y) [ctrl] [alt]
-                double x, y;
-                if (!(cmd >> x >> y)) throw core::Error("click needs x y");
+            } else if (op == "click") {  // as a left press and release at window point (x, y) [ctrl] [alt] [shift]
+                const double x = w.number("X"), y = w.number("Y");
                 int mods = 0;
-                for (std::string m; cmd >> m;)
-                    mods |= m == "ctrl" ? GLFW_MOD_CONTROL : m == "alt" ? GLFW_MOD_ALT : m == "shift" ? GLFW_MOD_SHIFT : 0;
+                while (const auto m = w.maybe()) mods |= modifier(*m);
                 app.last_x = x, app.last_y = y;
                 app.click(x, y, mods);
             } else if (op == "scroll") {
-                double d;
-                cmd >> d;
+                const double d = w.number("a number of steps");
+                w.done();
                 app.scroll(d);
             } else if (op == "key") {  // key K, or with modifiers: key ctrl+z, key ctrl+shift+z
-                std::string k;
-                cmd >> k;
+                std::string k = w.word("a key (a letter or esc, after ctrl+, shift+, alt+)");
+                w.done();
                 int mods = 0;
-                for (std::size_t plus; (plus = k.find('+')) != std::string::npos && plus + 1 < k.size(); k = k.substr(plus + 1)) {
-                    const std::string m = k.substr(0, plus);
-                    mods |= m == "ctrl" ? GLFW_MOD_CONTROL : m == "shift" ? GLFW_MOD_SHIFT : m == "alt" ? GLFW_MOD_ALT : 0;
-                }
-                if (k.empty()) throw core::Error("key needs a key");
-                app.key(k == "esc" ? GLFW_KEY_ESCAPE : GLFW_KEY_A + (std::toupper(k[0]) - 'A'), mods);
+                for (std::size_t plus; (plus = k.find('+')) != std::string::npos && plus + 1 < k.size(); k = k.substr(plus + 1))
+                    mods |= modifier(k.substr(0, plus));
+                const bool letter = k.size() == 1 && std::isalpha(static_cast<unsigned char>(k[0]));
+                if (!letter && k != "esc") throw core::Error("key: '" + k + "' is not a key (a letter or esc)");
+                app.key(k == "esc" ? GLFW_KEY_ESCAPE : GLFW_KEY_A + (std::toupper(static_cast<unsigned char>(k[0])) - 'A'), mods);
             } else if (op == "screenshot") {
-                cmd >> app.pending_shot;
+                const std::string path = w.word("a file name");
+                w.done();
+                const fs::path dir = fs::path(path).parent_path();
+                if (std::error_code ec; !dir.empty() && !fs::is_directory(dir, ec))
+                    throw core::Error(path + ": directory " + dir.string() + " does not exist");
+                app.pending_shot = path, app.shot_by_key = false;
             } else if (op == "shader" || op == "set") {
-                std::size_t obj;
-                cmd >> obj;
+                const std::size_t obj = w.count("an object number", materials.size());
                 if (obj >= materials.size()) throw core::Error("no object " + std::to_string(obj));
                 if (op == "shader") {
-                    cmd >> materials[obj].shader;
+                    materials[obj].shader = w.word("a shading plugin");
+                    w.done();
                     materials[obj].params.clear();
                 } else {
-                    std::string name;
-                    cmd >> name;
-                    std::vector<double> v;
-                    for (double x; cmd >> x;) v.push_back(x);
+                    const std::string name = w.word("a parameter name");
+                    std::vector<double> v{w.number("a value")};
+                    while (const auto x = w.maybe_number("a value")) v.push_back(*x);
                     materials[obj].params[name] = v;
                 }
                 app.last_material_edit = glfwGetTime();
@@ -1046,9 +1121,15 @@ private:
                 // thresholds in mm (default: fitted to what is shown).
                 std::string k, mode;
                 std::vector<double> thresholds;
-                if (op == "expand" || op == "hide") cmd >> k >> mode;
+                if (op == "expand" || op == "hide") k = w.word("a cluster (a rank such as 0, or a path such as c2.1)");
+                if (op == "expand")
+                    if (const auto m = w.maybe()) {
+                        if (*m != "streamlines") throw core::Error("expand: '" + *m + "' is not 'streamlines'");
+                        mode = *m;
+                    }
                 if (op == "repeat")
-                    for (double t; cmd >> t;) thresholds.push_back(t);
+                    while (const auto t = w.maybe_number("a threshold in mm")) thresholds.push_back(*t);
+                w.done();
                 edit(
                     [&] {
                         if (op == "expand" && mode == "streamlines")
@@ -1067,26 +1148,23 @@ private:
                 // roi sphere X Y Z R [include|exclude], roi box X0 Y0 Z0 X1 Y1 Z1 [...],
                 // roi mask FILE [...], roi move K X Y Z, roi scale K F, roi flip K, roi remove K
                 if (!session) throw core::Error("roi needs a tractogram");
-                std::string what;
-                cmd >> what;
-                auto numbers = [&](int n) {
-                    std::string out;
-                    for (int i = 0; i < n; ++i) {
-                        std::string x;
-                        if (!(cmd >> x)) throw core::Error("roi " + what + " needs " + std::to_string(n) + " numbers");
-                        out += (i ? "," : "") + x;
-                    }
-                    return out;
-                };
+                const std::string what = w.word("sphere, box, mask, move, scale, flip or remove");
                 if (what == "sphere" || what == "box" || what == "mask") {
                     std::string spec;
                     if (what == "mask")
-                        cmd >> spec;
-                    else
-                        spec = what + ":" + numbers(what == "sphere" ? 4 : 6);
-                    std::string mode = "include";
-                    cmd >> mode;
+                        spec = w.word("a mask file");
+                    else {
+                        spec = what + ":";
+                        const int n = what == "sphere" ? 4 : 6;
+                        for (int i = 0; i < n; ++i) {
+                            const auto x = w.maybe();
+                            if (!x) throw core::Error("roi " + what + " needs " + std::to_string(n) + " numbers");
+                            spec += (i ? "," : "") + *x;
+                        }
+                    }
+                    const std::string mode = w.maybe().value_or("include");
                     if (mode != "include" && mode != "exclude") throw core::Error("roi: '" + mode + "' is neither include nor exclude");
+                    w.done();
                     core::Roi roi = core::parse_roi(reg, spec, mode == "include");
                     edit(
                         [&] {
@@ -1096,12 +1174,13 @@ private:
                         true);
                     active_roi = session->rois().size() - 1;
                 } else if (what == "move" || what == "scale" || what == "flip" || what == "remove") {
-                    std::size_t k = 0;
-                    if (!(cmd >> k)) throw core::Error("roi " + what + " needs a region number");
+                    const std::size_t k = w.count("a region number", std::numeric_limits<std::uint32_t>::max());
                     std::array<double, 3> c{};
                     double f = 1;
-                    if (what == "move" && !(cmd >> c[0] >> c[1] >> c[2])) throw core::Error("roi move needs K X Y Z");
-                    if (what == "scale" && !(cmd >> f)) throw core::Error("roi scale needs K FACTOR");
+                    if (what == "move")
+                        for (double &x : c) x = w.number("X Y Z");
+                    if (what == "scale") f = w.number("a factor");
+                    w.done();
                     edit(
                         [&] {
                             if (what == "move")
@@ -1120,26 +1199,28 @@ private:
                     throw core::Error("roi: unknown '" + what + "' (sphere, box, mask, move, scale, flip, remove)");
                 }
             } else if (op == "slab") {  // slab x|y|z CENTRE HALF, slab x|y|z CENTRE points [SIZE], or slab off
-                std::string axis, half;
-                cmd >> axis;
-                if (axis == "off")
+                const std::string axis = w.word("x|y|z CENTRE HALF, x|y|z CENTRE points [SIZE], or off");
+                if (axis == "off") {
+                    w.done();
                     r.set_slab(std::nullopt);
-                else {
+                } else {
                     core::render::Slab sl;
-                    const bool ok =
-                        axis.size() == 1 && axis[0] >= 'x' && axis[0] <= 'z' && (cmd >> sl.centre >> half) && std::isfinite(sl.centre);
-                    if (ok && half == "points") {
+                    const char *usage = "slab needs x|y|z CENTRE HALF (mm, HALF > 0), x|y|z CENTRE points [SIZE], or off";
+                    if (axis.size() != 1 || axis[0] < 'x' || axis[0] > 'z') throw core::Error(usage);
+                    sl.centre = w.number("CENTRE (mm)");
+                    const std::string half = w.word("HALF (mm) or points");
+                    if (half == "points") {
                         sl.points = true;
-                        if (double px; cmd >> px) {
-                            if (!(px >= 1 && px <= 64)) throw core::Error("slab: the point size is in pixels, 1 to 64");
-                            sl.point_px = px;
+                        if (const auto px = w.maybe_number("a point size in pixels")) {
+                            if (!(*px >= 1 && *px <= 64)) throw core::Error("slab: the point size is in pixels, 1 to 64");
+                            sl.point_px = *px;
                         }
                     } else {
                         char *end = nullptr;
-                        sl.half = ok ? std::strtod(half.c_str(), &end) : 0;
-                        if (!ok || end == half.c_str() || *end || !(sl.half > 0) || !std::isfinite(sl.half))
-                            throw core::Error("slab needs x|y|z CENTRE HALF (mm, HALF > 0), x|y|z CENTRE points [SIZE], or off");
+                        sl.half = std::strtod(half.c_str(), &end);
+                        if (end == half.c_str() || *end || !(sl.half > 0) || !std::isfinite(sl.half)) throw core::Error(usage);
                     }
+                    w.done();
                     sl.axis = axis[0] - 'x';
                     r.set_slab(sl);
                     r.update_proxies(true);  // (scripts are deterministic: the crossings are there for the next command)
@@ -1147,14 +1228,14 @@ private:
             } else if (op == "stroke") {  // stroke X0 Y0 X1 Y1 ...: window points
                 if (!session) throw core::Error("stroke needs a tractogram");
                 std::vector<std::array<double, 2>> pts;
-                for (double x, y; cmd >> x >> y;) pts.push_back({x, y});
+                while (const auto x = w.maybe_number("X")) pts.push_back({*x, w.number("a Y after each X")});
                 if (pts.size() < 2) throw core::Error("stroke needs at least two points (X0 Y0 X1 Y1 ...)");
                 app.on_stroke(pts);
             } else if (op == "picked") {  // picked keep|delete|invert
                 if (!session) throw core::Error("picked needs a tractogram");
-                std::string what;
-                cmd >> what;
+                const std::string what = w.maybe().value_or("");
                 if (what != "keep" && what != "delete" && what != "invert") throw core::Error("picked: keep, delete or invert");
+                w.done();
                 edit(
                     [&] {
                         if (what == "keep")
@@ -1167,39 +1248,44 @@ private:
                     true);
             } else if (op == "undo" || op == "redo") {
                 if (!session) throw core::Error(op + " needs a tractogram");
+                w.done();
                 undo_redo(op == "undo");
             } else if (op == "save") {  // save PATH [force]
                 if (!session) throw core::Error("save needs a tractogram");
-                std::string path, force;
-                if (!(cmd >> path)) throw core::Error("save needs a file name");
-                cmd >> force;
+                const std::string path = w.word("a file name");
+                const std::string force = w.maybe().value_or("");
+                if (!force.empty() && force != "force") throw core::Error("save: '" + force + "' is not 'force'");
+                w.done();
                 save_to(path, force == "force");
             } else if (op == "press") {
-                std::string label;
-                std::getline(cmd >> std::ws, label);
+                const std::string label = w.rest();
                 const auto b = app.ui_buttons.find(label);
                 if (b == app.ui_buttons.end()) throw core::Error("no button '" + label + "' on the panel");
                 app.press_at[0] = (b->second[0] + b->second[2]) / 2;
                 app.press_at[1] = (b->second[1] + b->second[3]) / 2;
                 app.press_stage = 0;
             } else if (op == "moving") {
-                std::string v;
-                cmd >> v;
+                const std::string v = w.word("on or off");
+                if (v != "on" && v != "off") throw core::Error("moving: '" + v + "' is neither on nor off");
+                w.done();
                 app.force_moving = v == "on";
                 // (scripts are deterministic: the proxies computed in the
                 // background, the fibre volume's included, are there first)
                 if (app.force_moving) r.update_proxies(true);
             } else if (op == "mark") {  // mark NAME: a record in --stats between frames (benchmarks, tests)
-                std::string name;
-                cmd >> name;
+                const std::string name = w.word("a name");
+                w.done();
                 log.mark(name);
             } else if (op == "quit") {
+                w.done();
                 app.quit = true;
             } else {
                 throw core::Error("unknown command '" + op + "'");
             }
+        } catch (const ScriptError &) {
+            throw;  // (a nowait's command: named already)
         } catch (const core::Error &e) {
-            throw core::Error(o.script + ": line " + std::to_string(pc) + ": " + e.what());
+            throw ScriptError(o.script + ": line " + std::to_string(pc) + ": " + e.what());
         }
     }
 
@@ -1513,6 +1599,7 @@ private:
     std::size_t pc = 0;
     int wait = 0;
     double sleep_until = 0;
+    bool save_by_user = false;  // the save under way: Ctrl+S or the panel's (else a script's save command)
     float exposure = 1;
     std::vector<core::render::Material> materials;
     // The still image: the view, size and scene generation it shows.
@@ -1644,6 +1731,8 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
     try {
         // (read once the window is open, which shows the progress)
         return view_scene(reg, std::function<core::render::Scene()>([&] { return scene_from_inputs(reg, o.inputs, o.view, "view"); }), o);
+    } catch (const ScriptError &) {
+        throw;  // (names the script and its line, not the data)
     } catch (const core::Error &e) {
         // (a reading error names the file already)
         if (o.inputs.size() == 1 && std::string_view(e.what()).find(o.inputs[0]) == std::string_view::npos)

@@ -85,6 +85,7 @@ struct App {
     int shots = 0;
     fs::path shot_dir = ".";
     std::string pending_shot;
+    bool shot_by_key = false;  // (S, not a script's screenshot command: a failure is reported, the window goes on)
     bool quit = false;
     double last_motion = -1e9;  // glfwGetTime() of the last camera change
     // glfwGetTime() of the last material change: the programs use uniforms
@@ -151,7 +152,7 @@ struct App {
         if (on_key && on_key(k, mods)) return;
         if (mods & GLFW_MOD_CONTROL) return;  // (Ctrl+S is not a screenshot)
         if (k == GLFW_KEY_S)
-            pending_shot = (shot_dir / ("horizon-screenshot-" + std::to_string(++shots) + ".png")).string();
+            pending_shot = (shot_dir / ("horizon-screenshot-" + std::to_string(++shots) + ".png")).string(), shot_by_key = true;
         else if (k == GLFW_KEY_R)
             orbit = home;
         else if (k == GLFW_KEY_Q || k == GLFW_KEY_ESCAPE)

@@ -72,7 +72,7 @@ Task::Task() {
     task_.is_cancelled = &Task::is_cancelled;
     task_.report = &Task::report;
 }
-bool HZ_ABI Task::is_cancelled(const hz_task *t) { return static_cast<Task *>(t->task_data)->cancelled_; }
+bool HZ_ABI Task::is_cancelled(const hz_task *t) { return static_cast<Task *>(t->task_data)->cancelled_.load(std::memory_order_relaxed); }
 void HZ_ABI Task::report(const hz_task *t, double f, const char *msg) {
     auto *self = static_cast<Task *>(t->task_data);
     if (self->on_progress) self->on_progress(f, msg);

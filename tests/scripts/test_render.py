@@ -531,6 +531,46 @@ class WindowTest(TempDirTest):
         self.assertGreater(np.mean(np.abs(shots[2] - shots[3])), 0.5, "switching the shading model changes the picture")
         self.assertTrue(os.path.exists(self.path("horizon-screenshot-1.png")), "the S key saves a screenshot")
 
+    def test_a_script_line_that_does_not_parse_is_an_error(self):
+        """Every word of a script line is checked: a missing or malformed
+        argument, a word left over, an unknown modifier or key stop the
+        script with one line naming the script and its line (not the data,
+        which are fine), where a typo used to do nothing or something else
+        (`drag 1 2` read two numbers that were never given)."""
+        self.demo_400()
+        cases = {"foo 1 2": "unknown command 'foo'",
+                 "drag 10 20": "drag needs X1",
+                 "drag 10 20 30 y": "drag: 'y' is not a number (Y1)",
+                 "wait 1.5": "wait: '1.5' is not a number of frames",
+                 "click 10 20 ctlr": "'ctlr' is not a modifier (ctrl, alt, shift)",
+                 "key 5": "key: '5' is not a key (a letter or esc)",
+                 "quit now": "quit: unexpected 'now'",
+                 f"screenshot {self.path('none/x.png')}": f"{self.path('none/x.png')}: directory {self.path('none')} does not exist"}
+        for k, (line, error) in enumerate(cases.items()):
+            with self.subTest(line=line):
+                p = self.window(f"bad{k}", ["wait 1", line, "quit"])
+                self.assertEqual(p.returncode, 1, p.stderr)
+                self.assertEqual(p.stderr.strip(), f"horizon: error: {self.path(f'bad{k}.txt')}: line 2: {error}")
+
+    def test_a_screenshot_that_cannot_be_written_leaves_the_window_open(self):
+        """S where the screenshot cannot be written (here a folder is in the
+        way of its name): one line naming the file, and the window goes on
+        (the next S writes); a --screenshot-dir that does not exist is
+        refused before any window opens."""
+        self.demo_400()
+        shots = self.path("shots")
+        os.makedirs(os.path.join(shots, "horizon-screenshot-1.png"))
+        p = self.window("shot_blocked", ["wait 1", "key s", "wait 2", "key s", "wait 2", "quit"], "--screenshot-dir", shots)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        lines = [l for l in p.stderr.splitlines() if l.startswith("horizon:")]
+        self.assertEqual(len(lines), 1, p.stderr)
+        self.assertIn(os.path.join(shots, "horizon-screenshot-1.png"), lines[0])
+        self.assertEqual(load(os.path.join(shots, "horizon-screenshot-2.png")).shape, (320, 480, 3))
+        p = self.window("shot_nowhere", ["quit"], "--screenshot-dir", self.path("nonexistent"))
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn(f"--screenshot-dir: Directory does not exist: {self.path('nonexistent')}", p.stderr)
+        self.assertNotIn("first frame", p.stdout)
+
     def test_window_reset_pan_visibility_and_repeat_key(self):
         """R goes back to the view the window opened with (after an orbit and
         after a pan, exactly); a pan moves the picture; an object's

@@ -14,6 +14,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <atomic>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -33,14 +34,14 @@ class Task {
 public:
     Task();
     const hz_task *get() const { return &task_; }
-    void cancel() { cancelled_ = true; }
+    void cancel() { cancelled_.store(true, std::memory_order_relaxed); }  // (from any thread)
     std::function<void(double, const char *)> on_progress;
 
 private:
     static bool HZ_ABI is_cancelled(const hz_task *t);
     static void HZ_ABI report(const hz_task *t, double f, const char *msg);
     hz_task task_{};
-    volatile bool cancelled_ = false;
+    std::atomic<bool> cancelled_{false};
 };
 
 // Static checks on a file before dlopen; returns the reason it cannot be a
