@@ -413,7 +413,8 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     if (o.window && have_display() && ::isatty(STDOUT_FILENO)) {
         std::printf("\nOpening the window (Q or Esc closes it; --no-window skips it).\n");
         std::fflush(stdout);
-        return view_scene(reg, core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed), ViewOptions{});
+        const ViewOptions defaults;  // (named: GCC 12 warns of a temporary's strings as maybe uninitialised)
+        return view_scene(reg, core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed), defaults);
     }
     return 0;
 }

@@ -123,6 +123,12 @@ void bind_sampler(Program &p, const char *name, int unit, GLenum target, GLuint 
     glUniform1i(p.loc(name), unit);
 }
 
+}  // namespace
+
+// Render targets: members of Renderer::Impl, whose linkage is external, so
+// not in the anonymous namespace.
+namespace targets {
+
 struct Fbo {
     GLuint fbo = 0, color = 0, depth = 0;
     int width = 0, height = 0, samples = 0;
@@ -182,7 +188,9 @@ struct Tex2dFbo {
     }
 };
 
-}  // namespace
+}  // namespace targets
+using targets::Fbo;
+using targets::Tex2dFbo;
 
 const LoadedPlugin *find_shader(const Registry &reg, const std::string &name) {
     if (const LoadedPlugin *p = reg.find(name); p && p->shader()) return p;
