@@ -209,12 +209,13 @@ int main(int argc, char **argv) {
     view->add_option("inputs", vwo.inputs, "data files (tractograms, surfaces, volumes) or one scene .json")->required();
     view->add_option("--size", vwo.size, "window size WIDTHxHEIGHT")->capture_default_str();
     view->add_option("--samples", vwo.samples, "MSAA samples")->capture_default_str();
-    view->add_option(
-        "--script", vwo.script,
-        "drive the window from a script (wait N (frames), sleep S (seconds), drag, pan, scroll, click X Y [ctrl] [alt], key K|ctrl+K, set, "
-        "shader, moving on|off, mark NAME, expand K [streamlines], hide K, repeat [T...], reset, roi "
-        "sphere|box|mask|move|scale|flip|remove ..., "
-        "undo, redo, save PATH [force], press LABEL, screenshot, quit; see docs/rendering.md and docs/quality-control.md)");
+    view->add_option("--script", vwo.script,
+                     "drive the window from a script (wait N (frames), sleep S (seconds), drag, pan, scroll, click X Y [ctrl] [alt], key "
+                     "K|ctrl+K, set, "
+                     "shader, moving on|off, mark NAME, expand K [streamlines], hide K, repeat [T...], reset, roi "
+                     "sphere|box|mask|move|scale|flip|remove ..., "
+                     "undo, redo, save PATH [force], press LABEL, screenshot, quit; see docs/rendering.md and docs/quality-control.md)")
+        ->check(CLI::ExistingFile);
     view->add_option("--screenshot-dir", vwo.screenshot_dir, "where the S key saves screenshots")
         ->check(CLI::ExistingDirectory)
         ->capture_default_str();

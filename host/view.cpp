@@ -387,8 +387,16 @@ public:
         if (!o.script.empty()) {
             std::ifstream in(o.script);
             if (!in) throw core::Error(o.script + ": cannot open the script");
-            for (std::string line; std::getline(in, line);)
-                if (!line.empty() && line[0] != '#') script.push_back(line);
+            // (blank lines and # comments skipped; spaces around a line and
+            // a Windows line end dropped; errors name the file's line)
+            int number = 0;
+            for (std::string line; std::getline(in, line);) {
+                ++number;
+                const std::size_t a = line.find_first_not_of(" \t\r"), b = line.find_last_not_of(" \t\r");
+                if (a == std::string::npos || line[a] == '#') continue;
+                script.push_back(line.substr(a, b - a + 1));
+                script_line.push_back(number);
+            }
         }
         exposure = float(r.scene().exposure);
         for (const auto &ob : r.scene().objects) materials.push_back(ob.material);
@@ -1041,7 +1049,7 @@ private:
             false);
     }
 
-    // One line of the script (its number is pc).
+    // One command of the script (script[pc - 1], line script_line[pc - 1] of the file).
     void run_script_line(const std::string &line) {
         std::istringstream cmd(line);
         std::string op;
@@ -1285,7 +1293,7 @@ private:
         } catch (const ScriptError &) {
             throw;  // (a nowait's command: named already)
         } catch (const core::Error &e) {
-            throw ScriptError(o.script + ": line " + std::to_string(pc) + ": " + e.what());
+            throw ScriptError(o.script + ": line " + std::to_string(script_line[pc - 1]) + ": " + e.what());
         }
     }
 
@@ -1596,6 +1604,7 @@ private:
     std::chrono::steady_clock::time_point stroke_t0;
     core::Bounds scene_box;  // (the slab's range)
     std::vector<std::string> script;
+    std::vector<int> script_line;  // each command's line in the file
     std::size_t pc = 0;
     int wait = 0;
     double sleep_until = 0;

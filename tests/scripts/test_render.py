@@ -551,6 +551,16 @@ class WindowTest(TempDirTest):
                 p = self.window(f"bad{k}", ["wait 1", line, "quit"])
                 self.assertEqual(p.returncode, 1, p.stderr)
                 self.assertEqual(p.stderr.strip(), f"horizon: error: {self.path(f'bad{k}.txt')}: line 2: {error}")
+        # The line named is the file's: after a comment, a blank line and
+        # Windows line ends (which, like spaces around a command, are not
+        # part of it: the commands before run).
+        p = self.window("crlf", ["# a comment", "", "  wait 1  \r", "mark here\r", "drag 10 20\r", "quit\r"])
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertEqual(p.stderr.strip(), f"horizon: error: {self.path('crlf.txt')}: line 5: drag needs X1")
+        # A script that is not there: refused before any window opens.
+        p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--script", self.path("none.txt")], os.environ)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn(f"--script: File does not exist: {self.path('none.txt')}", p.stderr)
 
     def test_a_screenshot_that_cannot_be_written_leaves_the_window_open(self):
         """S where the screenshot cannot be written (here a folder is in the
