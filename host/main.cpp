@@ -23,6 +23,18 @@ namespace hz::host {
 namespace {
 const auto kLaunch = std::chrono::steady_clock::now();
 
+// --size WIDTHxHEIGHT, checked before anything is read (parse_size's rule).
+const CLI::Validator kSize(
+    [](std::string &s) {
+        try {
+            (void)parse_size(s);
+            return std::string();
+        } catch (const core::Error &) {
+            return "expected WIDTHxHEIGHT between 16x16 and 16384x16384, not '" + s + "'";
+        }
+    },
+    "WIDTHxHEIGHT");
+
 // The level-of-detail options `render` and `view` share (documented once).
 void add_lod_options(CLI::App *cmd, LodOptions &lod) {
     cmd->add_option("--lod-pixels", lod.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")
@@ -189,7 +201,7 @@ int main(int argc, char **argv) {
         ->add_option("-o,--out", ro.out,
                      "output image: .png, .jpg, .tif (the display picture) or .exr, .hdr (linear radiance before the tone curve, float)")
         ->capture_default_str();
-    render->add_option("--size", ro.size, "WIDTHxHEIGHT")->capture_default_str();
+    render->add_option("--size", ro.size, "WIDTHxHEIGHT")->capture_default_str()->check(kSize);
     render->add_option("--samples", ro.samples, "MSAA samples (1 = off; 0 = 4, or 1 above 200k streamline segments)")
         ->capture_default_str();
     add_lod_options(render, ro.lod);
@@ -207,7 +219,7 @@ int main(int argc, char **argv) {
     ViewOptions vwo;
     auto *view = app.add_subcommand("view", "open the interactive window on data files or a scene file");
     view->add_option("inputs", vwo.inputs, "data files (tractograms, surfaces, volumes) or one scene .json")->required();
-    view->add_option("--size", vwo.size, "window size WIDTHxHEIGHT")->capture_default_str();
+    view->add_option("--size", vwo.size, "window size WIDTHxHEIGHT")->capture_default_str()->check(kSize);
     view->add_option("--samples", vwo.samples, "MSAA samples")->capture_default_str();
     view->add_option("--script", vwo.script,
                      "drive the window from a script (wait N (frames), sleep S (seconds), drag, pan, scroll, click X Y [ctrl] [alt], key "
@@ -261,7 +273,7 @@ int main(int argc, char **argv) {
     demo->add_option("--streamlines", demo_opts.nb_streamlines, "phantom size")->capture_default_str();
     demo->add_option("--bundles", demo_opts.nb_bundles, "phantom bundles")->capture_default_str();
     demo->add_option("--seed", demo_opts.seed, "phantom seed")->capture_default_str();
-    demo->add_option("--size", demo_opts.size, "picture size WIDTHxHEIGHT")->capture_default_str();
+    demo->add_option("--size", demo_opts.size, "picture size WIDTHxHEIGHT")->capture_default_str()->check(kSize);
     bool no_window = false;
     demo->add_flag("--no-window", no_window, "do not open the window even when a display exists");
 

@@ -130,6 +130,19 @@ class RenderTest(TempDirTest):
         self.assertGreater(stats["triangles"], 1000)
         self.assertGreater(stats["segments"], 1000)
 
+    def test_a_bad_size_is_refused_before_anything_is_read(self):
+        # One line about --size (not about the data, which are not even read:
+        # a file that does not exist is not the error), for each command.
+        for cmd in (["render", self.path("absent.tck"), "-o", self.path("x.png")], ["view", self.path("absent.tck")],
+                    ["demo", "--out", self.path("d"), "--no-window"]):
+            for size in ("100x", "8x8", "20000x100", "640x400x2"):
+                with self.subTest(cmd=cmd[0], size=size):
+                    p = run(*cmd, "--size", size, env=NO_DISPLAY)
+                    self.assertNotEqual(p.returncode, 0)
+                    self.assertEqual(p.stderr.splitlines()[0],
+                                     f"--size: expected WIDTHxHEIGHT between 16x16 and 16384x16384, not '{size}'")
+        self.assertFalse(os.path.exists(self.path("d")))
+
     def test_shading_model_changes_the_picture(self):
         base = {"objects": [{"type": "surface", "builtin": "cortex", "material": {"shader": "principled"}}], "camera": {"view": "right"}}
         a, _ = render_scene(self, base, "a")
