@@ -348,6 +348,8 @@ void check_outputs(const std::vector<std::string> &outputs, const std::vector<st
                     throw core::Error(o + ": refusing to overwrite the input file " + f.string());
         core::check_output_target(o);
         if (fs::exists(fs::symlink_status(o, ec)) && !force) throw core::Error(o + ": already exists (use --force to replace it)");
+        const fs::path dir = fs::path(o).has_parent_path() ? fs::path(o).parent_path() : fs::path(".");
+        if (!fs::is_directory(dir, ec)) throw core::Error(o + ": directory " + dir.string() + " does not exist");
     }
 }
 

@@ -186,8 +186,8 @@ void write_image(const core::Registry &reg, const core::render::Image &im, const
 // Before any work: every output (empty ones and "-", standard output,
 // skipped) must differ from every input, a NIfTI pair's other half
 // included, and from the other outputs; must not be a device, FIFO,
-// socket or directory; and must not exist unless `force`. Throws Error
-// naming the output.
+// socket or directory; must not exist unless `force`; and its directory
+// must exist. Throws Error naming the output.
 void check_outputs(const std::vector<std::string> &outputs, const std::vector<std::string> &inputs, bool force);
 
 }  // namespace hz::host

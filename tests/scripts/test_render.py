@@ -143,6 +143,17 @@ class RenderTest(TempDirTest):
                                      f"--size: expected WIDTHxHEIGHT between 16x16 and 16384x16384, not '{size}'")
         self.assertFalse(os.path.exists(self.path("d")))
 
+    def test_an_output_in_a_missing_directory_is_refused_before_reading(self):
+        # Named with its directory, before the input is read (here it does
+        # not even exist: that is not the error reported).
+        out = self.path("nodir/x")
+        for cmd in (["render", self.path("absent.tck"), "-o", out + ".png"], ["convert", self.path("absent.tck"), out + ".trx"],
+                    ["filter", self.path("absent.tck"), "--include", "sphere:0,0,0,5", "-o", out + ".tck"]):
+            with self.subTest(cmd=cmd[0]):
+                p = run(*cmd, env=NO_DISPLAY)
+                self.assertEqual(p.returncode, 1, p.stderr)
+                self.assertEqual(p.stderr.strip(), f"horizon: error: {cmd[-1]}: directory {self.path('nodir')} does not exist")
+
     def test_shading_model_changes_the_picture(self):
         base = {"objects": [{"type": "surface", "builtin": "cortex", "material": {"shader": "principled"}}], "camera": {"view": "right"}}
         a, _ = render_scene(self, base, "a")
