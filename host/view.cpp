@@ -1736,6 +1736,8 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
     if (!o.slab.empty()) parse_slab(o.slab);
     for (const auto *list : {&o.include, &o.exclude})  // (and a bad region)
         for (const std::string &spec : *list) core::parse_roi(reg, spec, list == &o.include);
+    // (--stats is written at exit: its place is checked now, not after the session)
+    if (!o.stats.empty()) check_outputs({o.stats}, o.inputs, /*force=*/true);
     require_display(o.inputs);
     try {
         // (read once the window is open, which shows the progress)

@@ -589,8 +589,9 @@ class WindowTest(TempDirTest):
     def test_a_screenshot_that_cannot_be_written_leaves_the_window_open(self):
         """S where the screenshot cannot be written (here a folder is in the
         way of its name): one line naming the file, and the window goes on
-        (the next S writes); a --screenshot-dir that does not exist is
-        refused before any window opens."""
+        (the next S writes); a --screenshot-dir that does not exist, or a
+        --stats file in a folder that does not exist, is refused before any
+        window opens."""
         self.demo_400()
         shots = self.path("shots")
         os.makedirs(os.path.join(shots, "horizon-screenshot-1.png"))
@@ -603,6 +604,11 @@ class WindowTest(TempDirTest):
         p = self.window("shot_nowhere", ["quit"], "--screenshot-dir", self.path("nonexistent"))
         self.assertNotEqual(p.returncode, 0)
         self.assertIn(f"--screenshot-dir: Directory does not exist: {self.path('nonexistent')}", p.stderr)
+        self.assertNotIn("first frame", p.stdout)
+        # So is a --stats file (written at exit) in a folder that does not exist.
+        p = self.window("stats_nowhere", ["quit"], "--stats", self.path("nonexistent/s.json"))
+        self.assertEqual(p.returncode, 1)
+        self.assertEqual(p.stderr.strip(), f"horizon: error: {self.path('nonexistent/s.json')}: directory {self.path('nonexistent')} does not exist")
         self.assertNotIn("first frame", p.stdout)
 
     def test_window_reset_pan_visibility_and_repeat_key(self):
