@@ -406,8 +406,9 @@ class SelectionWindowTest(TempDirTest):
                              (["roi remove 3"], "line 1: no region 3"),
                              (["roi sphere 0 0 0 10 maybe"], "neither include nor exclude"),
                              ([f"save {self.tck} force"], "refusing to overwrite the input"),
-                             # (written on a thread: its failure still fails the script)
-                             (["save /nonexistent-dir/kept.trx"], "/nonexistent-dir/kept.trx: directory /nonexistent-dir does not exist")]:
+                             (["save /nonexistent-dir/kept.trx"], "line 1: /nonexistent-dir/kept.trx: directory /nonexistent-dir does not exist"),
+                             # (written on a thread, where creating the file fails: it still fails the script)
+                             (["save /proc/kept.trx"], "/proc/kept.trx: writing the zip archive failed")]:
             with self.subTest(lines[0]):
                 with open(self.tck, "rb") as f:
                     before = f.read()
