@@ -220,7 +220,9 @@ void check_output_target(const fs::path &path) {
 
 void remove_stale_temporaries(const fs::path &path) {
     const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-    const std::string prefix = "." + path.filename().string() + ".tmp-";
+    std::string prefix = ".";  // (appended piecewise: GCC 12 warns falsely on a + chain here)
+    prefix += path.filename().string();
+    prefix += ".tmp-";
     std::error_code ec;
     for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
         const std::string name = it->path().filename().string();
