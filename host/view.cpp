@@ -1102,9 +1102,7 @@ private:
             } else if (op == "screenshot") {
                 const std::string path = w.word("a file name");
                 w.done();
-                const fs::path dir = fs::path(path).parent_path();
-                if (std::error_code ec; !dir.empty() && !fs::is_directory(dir, ec))
-                    throw core::Error(path + ": directory " + dir.string() + " does not exist");
+                check_outputs({path}, {}, /*force=*/true);  // (its folder, and not a directory or device)
                 app.pending_shot = path, app.shot_by_key = false;
             } else if (op == "shader" || op == "set") {
                 const std::size_t obj = w.count("an object number", materials.size());
