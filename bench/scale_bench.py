@@ -2,6 +2,7 @@
 """Scale benchmark: a realistic whole-brain tractogram in the window and headless.
 
     /usr/bin/python3 bench/scale_bench.py [--build build] [--streamlines 1000000] [--work DIR]
+                                          [--no-window] [--chart PNG]
 
 Writes (or reuses) DIR/brain_N.tck with hz-make-tractogram, then measures, on
 this machine (llvmpipe), at 1280x800:
@@ -14,7 +15,10 @@ this machine (llvmpipe), at 1280x800:
   from the same camera (SSIM of the 4x-downsampled luminance, bench/imgmetrics.py)
   against its frame time, for the three proxies (--lod-proxy volume, shell, uniform) and
   several --lod-points and --lod-scale, and from other cameras.
-Prints a Markdown table (kept in bench/results/scale.md) and writes docs/lod_chart.png.
+Prints a Markdown table (kept in bench/results/scale.md) and writes docs/lod_chart.png
+(or --chart). --no-window measures `render` alone, for a machine without Xvfb
+(a GPU server: the headless renderer takes the first EGL device that is not
+a software renderer).
 """
 import argparse
 import json
@@ -75,6 +79,8 @@ def main():
     ap.add_argument("--build", default=os.path.join(ROOT, "build"))
     ap.add_argument("--streamlines", type=int, default=1000000)
     ap.add_argument("--work", default=tempfile.gettempdir())
+    ap.add_argument("--no-window", action="store_true", help="skip the window's measures (no Xvfb here)")
+    ap.add_argument("--chart", default=os.path.join(ROOT, "docs", "lod_chart.png"))
     args = ap.parse_args()
     horizon = os.path.join(args.build, "bin", "horizon")
     make = os.path.join(args.build, "bin", "hz-make-tractogram")
@@ -84,40 +90,41 @@ def main():
     work = tempfile.mkdtemp(prefix="hz_scale_bench_")
     rows = []
 
-    w = window(horizon, tck, work)
-    fr = w["frames"]
-    moving = [f["ms"] for f in fr if f["kind"] == "moving"]
-    steps = [f["ms"] for f in fr if f["kind"] in ("refine", "complete") and f["step"] > 0]
-    rows.append(("window: launch to first frame (s)", f"{w['first_frame_s']:.2f}"))
-    rows.append(("window: launch to complete still image (s)", f"{w['first_complete_s']:.1f}"))
-    rows.append(("window: moving frame, median / max (ms)", f"{np.median(moving):.0f} / {max(moving):.0f}"))
-    rows.append(("window: refinement step, median / max (ms)", f"{np.median(steps):.0f} / {max(steps):.0f}"))
-    rows.append(("window: peak anonymous memory (MB)", f"{w['peak_rss_anon_mb']:.0f}"))
-    ws = window(horizon, tck, work, moves=SETTLED)
-    settled = [f["ms"] for f in ws["frames"] if f["kind"] == "moving" and f["fibre_volumes"] > 0]
-    rows.append(("window: moving frame over the fibre volume, once the still is complete, median / max (ms)",
-                 f"{np.median(settled):.0f} / {max(settled):.0f} ({len(settled)} frames)"))
-    # The proxy's level the window chose for them (--lod-frame-ms 33), in order.
-    by_level = {}
-    for f in ws["frames"]:
-        if f["kind"] == "moving" and f["fibre_volumes"] > 0:
-            by_level.setdefault(f["proxy_level"], []).append(f["ms"])
-    rows.append(("window: those frames by proxy level (1/scale, points): frames, median ms",
-                 "; ".join(f"1/{ws['proxy_levels'][k][0]}, {ws['proxy_levels'][k][1]:g}: {len(v)}, {np.median(v):.0f}"
-                           for k, v in sorted(by_level.items()))))
-    # Occlusion culling (--lod-occlusion): the same, drawn in file order.
-    # --explore: QuickBundlesX in the background, the tractogram shown meanwhile
-    # (`sleep`: frames, which sample the memory, go on while it clusters).
-    we = window(horizon, tck, work, "--explore", moves=f"wait 2\nnowait key e\nsleep {max(6, 4 * args.streamlines // 1000000)}\n")
-    during = [f for f in we["frames"] if f.get("clustering")]
-    gap = max((b["t"] - a["t"] for a, b in zip(during, during[1:])), default=0)
-    rows.append(("window --explore: launch to first frame / to clusters shown (s)",
-                 f"{we['first_frame_s']:.2f} / {we['clusters_shown_s']:.1f}"))
-    rows.append(("window --explore: longest time between frames while clustering (ms); peak anonymous memory (MB)",
-                 f"{1000 * gap:.0f}; {we['peak_rss_anon_mb']:.0f}"))
-    w_off = window(horizon, tck, work, "--lod-occlusion", "off")
-    rows.append(("window, --lod-occlusion off: launch to complete still image (s)",
-                 f"{w_off['first_complete_s']:.1f} ({w_off['first_complete_s'] / w['first_complete_s']:.1f}x on's)"))
+    if not args.no_window:
+        w = window(horizon, tck, work)
+        fr = w["frames"]
+        moving = [f["ms"] for f in fr if f["kind"] == "moving"]
+        steps = [f["ms"] for f in fr if f["kind"] in ("refine", "complete") and f["step"] > 0]
+        rows.append(("window: launch to first frame (s)", f"{w['first_frame_s']:.2f}"))
+        rows.append(("window: launch to complete still image (s)", f"{w['first_complete_s']:.1f}"))
+        rows.append(("window: moving frame, median / max (ms)", f"{np.median(moving):.0f} / {max(moving):.0f}"))
+        rows.append(("window: refinement step, median / max (ms)", f"{np.median(steps):.0f} / {max(steps):.0f}"))
+        rows.append(("window: peak anonymous memory (MB)", f"{w['peak_rss_anon_mb']:.0f}"))
+        ws = window(horizon, tck, work, moves=SETTLED)
+        settled = [f["ms"] for f in ws["frames"] if f["kind"] == "moving" and f["fibre_volumes"] > 0]
+        rows.append(("window: moving frame over the fibre volume, once the still is complete, median / max (ms)",
+                     f"{np.median(settled):.0f} / {max(settled):.0f} ({len(settled)} frames)"))
+        # The proxy's level the window chose for them (--lod-frame-ms 33), in order.
+        by_level = {}
+        for f in ws["frames"]:
+            if f["kind"] == "moving" and f["fibre_volumes"] > 0:
+                by_level.setdefault(f["proxy_level"], []).append(f["ms"])
+        rows.append(("window: those frames by proxy level (1/scale, points): frames, median ms",
+                     "; ".join(f"1/{ws['proxy_levels'][k][0]}, {ws['proxy_levels'][k][1]:g}: {len(v)}, {np.median(v):.0f}"
+                               for k, v in sorted(by_level.items()))))
+        # Occlusion culling (--lod-occlusion): the same, drawn in file order.
+        # --explore: QuickBundlesX in the background, the tractogram shown meanwhile
+        # (`sleep`: frames, which sample the memory, go on while it clusters).
+        we = window(horizon, tck, work, "--explore", moves=f"wait 2\nnowait key e\nsleep {max(6, 4 * args.streamlines // 1000000)}\n")
+        during = [f for f in we["frames"] if f.get("clustering")]
+        gap = max((b["t"] - a["t"] for a, b in zip(during, during[1:])), default=0)
+        rows.append(("window --explore: launch to first frame / to clusters shown (s)",
+                     f"{we['first_frame_s']:.2f} / {we['clusters_shown_s']:.1f}"))
+        rows.append(("window --explore: longest time between frames while clustering (ms); peak anonymous memory (MB)",
+                     f"{1000 * gap:.0f}; {we['peak_rss_anon_mb']:.0f}"))
+        w_off = window(horizon, tck, work, "--lod-occlusion", "off")
+        rows.append(("window, --lod-occlusion off: launch to complete still image (s)",
+                     f"{w_off['first_complete_s']:.1f} ({w_off['first_complete_s'] / w['first_complete_s']:.1f}x on's)"))
 
     full = render(horizon, tck, os.path.join(work, "full.png"))
     off = render(horizon, tck, os.path.join(work, "full_off.png"), "--lod-occlusion", "off")
@@ -179,12 +186,13 @@ def main():
         levels = [c for c in chart if c[0] == "volume, the window's levels"]
         ax.plot([c[3] for c in levels], [c[4] for c in levels], "D-", color="black", label="the window's proxy levels (volume)")
         ax.axvline(33, color="gray", ls="--", lw=0.8)
-        ax.set_xlabel("frame time, ms (llvmpipe, 2 cores)")
+        gl = full["gl"].split(", ", 1)[-1]
+        ax.set_xlabel(f"frame time, ms ({gl.split(' (')[0]}, {os.cpu_count()} cores)")
         ax.set_ylabel("SSIM against full detail (4x downsampled)")
         ax.set_title(f"Level of detail, {args.streamlines // 1000}k streamlines")
         ax.legend()
         fig.tight_layout()
-        fig.savefig(os.path.join(ROOT, "docs", "lod_chart.png"), dpi=100)
+        fig.savefig(args.chart, dpi=100)
     except ImportError:
         pass
     return text

@@ -7,7 +7,9 @@
 #include <EGL/eglext.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <string>
 
 namespace hz::core::render {
 
@@ -38,34 +40,35 @@ std::string egl_error_name(EGLint e) {
 class EglContext final : public GlContext {
 public:
     EglContext() {
+        // Candidates in order: each EGL device that is not a software
+        // renderer (a workstation's or a server's GPU, with or without a
+        // display; skipped when LIBGL_ALWAYS_SOFTWARE is set), then Mesa's
+        // surfaceless platform (llvmpipe where there is no GPU), then the
+        // default display. The first on which an OpenGL 4.1+ core context
+        // can be made is used.
         const char *exts = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
         auto get_platform_display = reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
-        if (exts && std::strstr(exts, "EGL_MESA_platform_surfaceless") && get_platform_display)
-            display_ = get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
-        if (display_ == EGL_NO_DISPLAY) display_ = eglGetDisplay(EGL_DEFAULT_DISPLAY);
-        if (display_ == EGL_NO_DISPLAY) throw Error("headless OpenGL: no EGL display (is Mesa's libegl-mesa0 installed?)");
-        EGLint major = 0, minor = 0;
-        if (!eglInitialize(display_, &major, &minor))
-            throw Error("headless OpenGL: eglInitialize failed: " + egl_error_name(eglGetError()));
-        if (!eglBindAPI(EGL_OPENGL_API)) throw Error("headless OpenGL: EGL has no desktop OpenGL API");
-        const bool no_config = std::strstr(eglQueryString(display_, EGL_EXTENSIONS), "EGL_KHR_no_config_context") != nullptr;
-        EGLConfig config = nullptr;
-        if (!no_config) {
-            const EGLint attrs[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_NONE};
+        auto has = [&](const char *ext) { return exts && std::strstr(exts, ext) && get_platform_display; };
+        std::string why = "no EGL display (is Mesa's libegl-mesa0 installed?)";
+        const char *soft = std::getenv("LIBGL_ALWAYS_SOFTWARE");
+        if (has("EGL_EXT_platform_device") && !(soft && *soft && std::strcmp(soft, "0") != 0)) {
+            auto query_devices = reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(eglGetProcAddress("eglQueryDevicesEXT"));
+            auto query_device_string = reinterpret_cast<PFNEGLQUERYDEVICESTRINGEXTPROC>(eglGetProcAddress("eglQueryDeviceStringEXT"));
+            EGLDeviceEXT devices[16];
             EGLint n = 0;
-            if (!eglChooseConfig(display_, attrs, &config, 1, &n) || n == 0)
-                throw Error("headless OpenGL: no EGL config with desktop OpenGL");
+            if (query_devices && query_device_string && query_devices(16, devices, &n)) {
+                for (EGLint i = 0; i < n; ++i) {
+                    const char *dev_exts = query_device_string(devices[i], EGL_EXTENSIONS);
+                    if (dev_exts && std::strstr(dev_exts, "EGL_MESA_device_software")) continue;
+                    if (open(get_platform_display(EGL_PLATFORM_DEVICE_EXT, devices[i], nullptr), why)) return;
+                }
+            }
         }
-        const int versions[][2] = {{4, 5}, {4, 3}, {4, 1}};
-        for (const auto &v : versions) {
-            const EGLint attrs[] = {
-                EGL_CONTEXT_MAJOR_VERSION,           v[0],    EGL_CONTEXT_MINOR_VERSION, v[1], EGL_CONTEXT_OPENGL_PROFILE_MASK,
-                EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
-            context_ = eglCreateContext(display_, config, EGL_NO_CONTEXT, attrs);
-            if (context_ != EGL_NO_CONTEXT) break;
-        }
-        if (context_ == EGL_NO_CONTEXT) throw Error("headless OpenGL: no OpenGL 4.1+ core context: " + egl_error_name(eglGetError()));
-        make_current();
+        if (has("EGL_MESA_platform_surfaceless") &&
+            open(get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr), why))
+            return;
+        if (open(eglGetDisplay(EGL_DEFAULT_DISPLAY), why)) return;
+        throw Error("headless OpenGL: " + why);
     }
     ~EglContext() override {
         if (display_ != EGL_NO_DISPLAY) {
@@ -80,6 +83,47 @@ public:
     }
 
 private:
+    // Makes an OpenGL 4.1+ core context on d current; on failure leaves
+    // nothing open, says why, and returns false.
+    bool open(EGLDisplay d, std::string &why) {
+        if (d == EGL_NO_DISPLAY) return false;
+        EGLint major = 0, minor = 0;
+        if (!eglInitialize(d, &major, &minor)) {
+            why = "eglInitialize failed: " + egl_error_name(eglGetError());
+            return false;
+        }
+        auto fail = [&](std::string what) {
+            eglTerminate(d);
+            why = std::move(what);
+            return false;
+        };
+        if (!eglBindAPI(EGL_OPENGL_API)) return fail("EGL has no desktop OpenGL API");
+        const char *dexts = eglQueryString(d, EGL_EXTENSIONS);
+        const bool no_config = dexts && std::strstr(dexts, "EGL_KHR_no_config_context") != nullptr;
+        EGLConfig config = nullptr;
+        if (!no_config) {
+            const EGLint attrs[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_NONE};
+            EGLint n = 0;
+            if (!eglChooseConfig(d, attrs, &config, 1, &n) || n == 0) return fail("no EGL config with desktop OpenGL");
+        }
+        const int versions[][2] = {{4, 5}, {4, 3}, {4, 1}};
+        EGLContext c = EGL_NO_CONTEXT;
+        for (const auto &v : versions) {
+            const EGLint attrs[] = {
+                EGL_CONTEXT_MAJOR_VERSION,           v[0],    EGL_CONTEXT_MINOR_VERSION, v[1], EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+            c = eglCreateContext(d, config, EGL_NO_CONTEXT, attrs);
+            if (c != EGL_NO_CONTEXT) break;
+        }
+        if (c == EGL_NO_CONTEXT) return fail("no OpenGL 4.1+ core context: " + egl_error_name(eglGetError()));
+        if (!eglMakeCurrent(d, EGL_NO_SURFACE, EGL_NO_SURFACE, c)) {
+            eglDestroyContext(d, c);
+            return fail("eglMakeCurrent failed: " + egl_error_name(eglGetError()));
+        }
+        display_ = d, context_ = c;
+        return true;
+    }
+
     EGLDisplay display_ = EGL_NO_DISPLAY;
     EGLContext context_ = EGL_NO_CONTEXT;
 };
