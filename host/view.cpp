@@ -367,7 +367,10 @@ public:
             app.radius =
                 0.5 * std::sqrt(std::pow(b.max[0] - b.min[0], 2) + std::pow(b.max[1] - b.min[1], 2) + std::pow(b.max[2] - b.min[2], 2));
         r.set_scene(std::move(scene), v0, rs);
-        governor = core::render::ProxyGovernor(o.lod_frame_ms, r.proxy_level_count(), r.proxy_level());
+        // The proxy's levels and, above the finest, full detail: allowed
+        // once a complete still image shows it fits the budget (moving_frame_level).
+        governor = core::render::ProxyGovernor(o.lod_frame_ms, r.proxy_level_count() + (o.lod_frame_ms > 0 ? 1 : 0), r.proxy_level());
+        full_detail_ms = refining_ms = -1;
         app.orbit.from_view(v0);
         app.home = app.orbit;
         // Level of detail (paper section 3.4): a tractogram of more than
@@ -480,7 +483,9 @@ public:
             const auto frame_t0 = std::chrono::steady_clock::now();
             r.update_proxies(false);  // a shell proxy computed in the background
             const bool moving = app.dragging || app.panning || glfwGetTime() - app.last_motion < 0.25 || app.force_moving;
-            r.set_interacting(moving);
+            const bool full_detail_moving = moving && moving_frame_level() >= r.proxy_level_count();
+            r.set_interacting(moving && !full_detail_moving);  // (full detail: the frame a still camera's refinement ends with)
+            moving_at_full_detail = full_detail_moving;
             const bool bake = glfwGetTime() - app.last_material_edit > App::kBakeAfter;
             r.set_bake_materials(bake);
             const core::render::View view = app.orbit.view(app.radius);
@@ -492,15 +497,17 @@ public:
             const char *kind;
             if (moving) {
                 // The proxy, drawn whole each frame, at the governor's
-                // level; the still image is gone.
+                // level (or, at its top level, full detail); the still image is gone.
                 r.set_proxy_level(governor.level());
                 r.render_to_window(view, fw, fh);
                 still.valid = false;
+                refining_ms = -1;
                 kind = "moving";
             } else if (!(still == now)) {
                 r.begin_progressive(view, fw, fh);
                 r.present(fw, fh);
                 still = now;
+                refining_ms = -2, refining_generation = now.generation;  // (-2: this frame began it)
                 kind = r.refining() ? "refine" : "complete";
             } else if (r.refining() && !holding_refinement()) {
                 // A step and the rest of its frame (presenting it, the
@@ -541,7 +548,15 @@ public:
             // (not the first moving frame after others: it also leaves the
             // still image, e.g. allocates the proxy's target)
             const bool moving_frame = std::string_view(kind) == "moving";
-            if (moving_frame && r.stats().proxy && std::exchange(moved_last_frame, true)) governor.add(frame_ms);
+            if (moving_frame && (r.stats().proxy || full_detail_moving) && std::exchange(moved_last_frame, true)) governor.add(frame_ms);
+            // What full detail costs: the refinement's frames of the last still
+            // image refined to completion, or the frame that drew it at once (not
+            // the first frame of a refinement, which draws the proxy).
+            if (refining_ms != -1 && (std::string_view(kind) == "refine" || std::string_view(kind) == "complete")) {
+                refining_ms = refining_ms == -2 ? (std::string_view(kind) == "complete" ? frame_ms : 0) : refining_ms + frame_ms;
+                if (std::string_view(kind) == "complete")
+                    full_detail_ms = std::exchange(refining_ms, -1), full_detail_generation = refining_generation;
+            }
             moved_last_frame = moving_frame;
             if (step_ms >= 0) frame_overhead_ms = std::clamp(frame_ms - step_ms, 0.0, kStepMs / 2), step_ms = -1;
             // The regions' spatial index, a second after the first frame
@@ -1315,6 +1330,8 @@ private:
         if (r.refining())
             ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "refining: %llu chunks to go",
                                (unsigned long long)r.stats().refine_remaining);
+        else if (moving_at_full_detail)
+            ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: full detail (%.0f ms a still image)", full_detail_ms);
         else if (const auto &levels = r.proxy_levels(); r.stats().proxy && std::size_t(r.stats().proxy_level) < levels.size())
             ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: level of detail at 1/%d of the size, %.0fk points",
                                levels[std::size_t(r.stats().proxy_level)].scale, levels[std::size_t(r.stats().proxy_level)].points / 1e3);
@@ -1624,6 +1641,23 @@ private:
     // times (--lod-frame-ms); set up with the scene (show).
     core::render::ProxyGovernor governor{0, 1, 0};
     bool moved_last_frame = false;
+    // Full detail while moving, the governor's top level (one above the
+    // proxy's finest): allowed while the last still image refined to
+    // completion took, all its frames together, under kFastShare of
+    // --lod-frame-ms, for the data now shown (a GPU's window at up to a few
+    // hundred thousand streamlines: the moving picture is then the data's).
+    double full_detail_ms = -1;          // (-1: not known)
+    bool moving_at_full_detail = false;  // (this frame: the panel says so)
+    std::uint64_t full_detail_generation = 0;
+    double refining_ms = -1;  // the still image being refined: its steps' frames so far (-1: none; -2: begun this frame)
+    std::uint64_t refining_generation = 0;
+    int moving_frame_level() {
+        const int proxies = r.proxy_level_count();
+        const bool full_fits = o.lod_frame_ms > 0 && full_detail_ms >= 0 && full_detail_generation == r.generation() &&
+                               full_detail_ms < core::render::ProxyGovernor::kFastShare * o.lod_frame_ms;
+        governor.set_finest(full_fits ? proxies : proxies - 1);
+        return governor.level();
+    }
     std::uint64_t seen_events = ~0ull;
     // A refinement frame: its step's time (-1: none this frame), and what
     // the last one's frame took besides.

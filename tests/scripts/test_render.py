@@ -771,8 +771,9 @@ class WindowTest(TempDirTest):
         # (--lod-frame-ms): within a budget no frame meets, down to the
         # cheapest level; within one every frame meets, up to the finest,
         # which draws more of the proxy at a larger size and looks more like
-        # the still image; with 0, the base level (--lod-scale, --lod-points) alone
-        # throughout.
+        # the still image, and then to full detail, since the still image
+        # took less than the budget (the picture is then the still's); with 0,
+        # the base level (--lod-scale, --lod-points) alone throughout.
         env = self.phantom_600()
         runs = {}
         for budget in ("0.5", "10000", "0"):
@@ -793,6 +794,13 @@ class WindowTest(TempDirTest):
                              [[8, 2000], [8, 4000], [4, 4000], [2, 4000], [2, 8000], [1, 8000], [1, 16000]])
             moving = [f for f in j["frames"] if f["kind"] == "moving"]
             self.assertGreater(len(moving), 50)
+            if budget == "10000":
+                # (the top level, full detail: moving frames that draw no proxy, the last ones)
+                full = [f["proxy"] for f in moving].index(False)
+                self.assertTrue(all(not f["proxy"] and f["streamlines"] == 600 for f in moving[full:]), moving)
+                self.assertGreater(len(moving) - full, 5)
+                moving = moving[:full]
+                np.testing.assert_array_equal(load(shot), load(self.path("rest.png")))
             self.assertTrue(all(f["proxy"] for f in moving))
             runs[budget] = ([f["proxy_level"] for f in moving], [f["points"] for f in moving], load(shot))
         down, up, fixed = runs["0.5"][0], runs["10000"][0], runs["0"][0]
@@ -800,8 +808,20 @@ class WindowTest(TempDirTest):
         self.assertTrue(all(a >= b for a, b in zip(down, down[1:])), down)
         self.assertEqual(down[-20:], [0] * 20, down)
         self.assertTrue(all(a <= b for a, b in zip(up, up[1:])), up)
-        self.assertEqual(up[-10:], [6] * 10, up)
+        self.assertEqual(up[-8:], [6] * 8, up)
         self.assertEqual(set(fixed), {0}, fixed)
+        # Full detail only once a still image has shown what it costs: moving
+        # from the first frame, within the same budget, the proxy's finest level at most.
+        with open(script, "w") as f:
+            f.write("\n".join(["moving on", "wait 60", "moving off", "quit"]) + "\n")
+        p = xvfb_run([HORIZON, "view", self.path("lines.json"), "--size", "480x320", "--lod-points", "4000", "--lod-reproject", "off",
+                      "--lod-frame-ms", "10000", "--script", script, "--stats", stats], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        with open(stats) as fh:
+            early = [f for f in json.load(fh)["frames"] if f["kind"] == "moving"]
+        self.assertGreater(len(early), 50)
+        self.assertTrue(all(f["proxy"] for f in early), early)
+        self.assertEqual(early[-1]["proxy_level"], 6)
         # Each level draws its share of the proxy: the finest more points than the base, the cheapest fewer.
         points = lambda k, level: [p for l, p in zip(*runs[k][:2]) if l == level]
         self.assertGreater(min(points("10000", 6)), 1.5 * max(points("0", 0)))

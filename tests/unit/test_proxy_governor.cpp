@@ -81,3 +81,19 @@ TEST_CASE("proxy governor: a budget of 0 never changes the level", "[lod]") {
     CHECK(feed(one, 20, 500) == 0);
     CHECK(feed(one, 20, 1) == 0);
 }
+
+TEST_CASE("proxy governor: the finest level it may step to is capped, and lowering the cap moves down at once", "[lod]") {
+    ProxyGovernor g(33, 8, 2);  // (levels 0-6 the proxy's, 7 the window's full detail)
+    CHECK(g.finest() == 7);
+    g.set_finest(6);
+    CHECK(feed(g, 200, 10) == 6);  // fast frames stop under the cap
+    g.set_finest(7);
+    CHECK(feed(g, 9, 10) == 7);  // the cap raised: the next fast frames go there
+    g.set_finest(6);
+    CHECK(g.level() == 6);        // lowered below the level: there at once
+    CHECK(feed(g, 1, 500) == 6);  // (the first frame after the change is not counted)
+    g.set_finest(-3);
+    CHECK((g.finest() == 0 && g.level() == 0));
+    g.set_finest(99);
+    CHECK(g.finest() == 7);
+}

@@ -16,10 +16,20 @@ double median_of_last(const std::deque<double> &v, std::size_t n) {
 ProxyGovernor::ProxyGovernor(double budget_ms, int levels, int start)
     : budget_ms_(budget_ms),
       level_(std::clamp(start, 0, std::max(0, levels - 1))),
+      finest_(std::max(0, levels - 1)),
       hold_(std::size_t(std::max(1, levels)), 0),
       next_hold_(std::size_t(std::max(1, levels)), kHoldFrames) {}
 
 int ProxyGovernor::hold(int level) const { return level >= 0 && std::size_t(level) < hold_.size() ? hold_[std::size_t(level)] : 0; }
+
+void ProxyGovernor::set_finest(int level) {
+    finest_ = std::clamp(level, 0, int(hold_.size()) - 1);
+    if (level_ > finest_) {
+        level_ = finest_;
+        recent_.clear();
+        settle_ = true;
+    }
+}
 
 int ProxyGovernor::add(double ms) {
     if (!(budget_ms_ > 0)) return level_;
@@ -37,7 +47,7 @@ int ProxyGovernor::add(double ms) {
         hold_[l] = next_hold_[l];
         next_hold_[l] = std::min(2 * next_hold_[l], kMaxHoldFrames);
         change(level_ - 1);
-    } else if (std::size_t(level_ + 1) < hold_.size() && recent_.size() >= std::size_t(kFastFrames) &&
+    } else if (level_ < finest_ && recent_.size() >= std::size_t(kFastFrames) &&
                median_of_last(recent_, kFastFrames) < kFastShare * budget_ms_ && hold_[std::size_t(level_ + 1)] == 0) {
         change(level_ + 1);
     }

@@ -31,6 +31,12 @@ public:
     // the next kHoldFrames moving frames, twice that after each further
     // failure (up to kMaxHoldFrames).
     int add(double ms);
+    // The finest level it may step up to (clamped to the levels; at first
+    // the finest there is). Lowering it below level() moves there at once.
+    // The window caps its top level, full detail, this way until a still
+    // image has shown that full detail fits the budget.
+    void set_finest(int level);
+    int finest() const { return finest_; }
     int level() const { return level_; }
     // Moving frames before `level` may be tried again (0: it may).
     int hold(int level) const;
@@ -41,6 +47,7 @@ public:
 private:
     double budget_ms_;
     int level_;
+    int finest_;
     bool settle_ = false;                // the next frame is the first at a new level
     std::deque<double> recent_;          // the last frames at this level
     std::vector<int> hold_, next_hold_;  // per level: frames left on hold, the next hold
