@@ -158,3 +158,24 @@ def random_streamlines(n, rng, min_pts=1, max_pts=60, scale=80.0):
         steps = rng.normal(size=(k, 3))
         out.append((np.cumsum(steps, axis=0) + rng.uniform(-scale, scale, 3)).astype(np.float32))
     return out
+
+
+def xvfb_run(args, env, timeout=300):
+    """`args` under a fresh Xvfb (`xvfb-run -a`): the process. xvfb-run exits 5,
+    hiding the command's own status, when it fails to remove its temporary
+    directory (a race in its clean-up: about one run in twenty on this
+    machine, more when it is loaded, and more often after a command that
+    ends at once); a shell around the command writes its status to a file,
+    which is then the process's status, and xvfb-run's line is dropped."""
+    with tempfile.TemporaryDirectory() as d:
+        status = os.path.join(d, "status")
+        wrapped = ["sh", "-c", '"$@"; s=$?; echo $s > "$0"; exit $s', status, *args]
+        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", *wrapped], capture_output=True, text=True,
+                           timeout=timeout, env=env)
+        clean_up = "xvfb-run: error: problem while cleaning up temporary directory"
+        if p.returncode == 5 and clean_up in p.stderr and os.path.exists(status):
+            with open(status) as f:
+                code = int(f.read())
+            err = "".join(l for l in p.stderr.splitlines(keepends=True) if not l.startswith(clean_up))
+            p = subprocess.CompletedProcess(args, code, p.stdout, err)
+    return p

@@ -5,14 +5,12 @@ import json
 import os
 import re
 import shutil
-import subprocess
-import tempfile
 import unittest
 
 import numpy as np
 from PIL import Image
 
-from hztest import HORIZON, SOURCE, TempDirTest, run, run_json
+from hztest import HORIZON, SOURCE, TempDirTest, run, run_json, xvfb_run
 
 GOLDEN = os.path.join(SOURCE, "tests", "golden")
 NO_DISPLAY = {"DISPLAY": ""}
@@ -488,27 +486,6 @@ class ShaderCheckTest(unittest.TestCase):
                 env=NO_DISPLAY, timeout=300)
         self.assertEqual(p.returncode, 1, p.stdout)
         self.assertIn("FAIL", p.stdout)
-
-
-def xvfb_run(args, env, timeout=300):
-    """`args` under a fresh Xvfb (`xvfb-run -a`): the process. xvfb-run exits 5,
-    hiding the command's own status, when it fails to remove its temporary
-    directory (a race in its clean-up: about one run in twenty on this
-    machine, more when it is loaded, and more often after a command that
-    ends at once); a shell around the command writes its status to a file,
-    which is then the process's status, and xvfb-run's line is dropped."""
-    with tempfile.TemporaryDirectory() as d:
-        status = os.path.join(d, "status")
-        wrapped = ["sh", "-c", '"$@"; s=$?; echo $s > "$0"; exit $s', status, *args]
-        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", *wrapped], capture_output=True, text=True,
-                           timeout=timeout, env=env)
-        clean_up = "xvfb-run: error: problem while cleaning up temporary directory"
-        if p.returncode == 5 and clean_up in p.stderr and os.path.exists(status):
-            with open(status) as f:
-                code = int(f.read())
-            err = "".join(l for l in p.stderr.splitlines(keepends=True) if not l.startswith(clean_up))
-            p = subprocess.CompletedProcess(args, code, p.stdout, err)
-    return p
 
 
 # Skipped on a user's machine without xvfb-run; in CI (CI set) a missing

@@ -17,7 +17,7 @@ import unittest
 import numpy as np
 from PIL import Image
 
-from hztest import BUILD, HORIZON, SOURCE, make_tractogram, run
+from hztest import BUILD, HORIZON, SOURCE, make_tractogram, run, xvfb_run
 
 # The sanitizer build runs every access checked: a smaller (still realistic)
 # file. The mutation check asks for that size too (HORIZON_SCALE_STREAMLINES):
@@ -59,8 +59,8 @@ class ScaleTest(unittest.TestCase):
                "HORIZON_PLUGIN_CACHE": os.path.join(BUILD, "tests", "plugin-trials.json"), **(env or {})}
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # the GL driver's threads (see hztest.GL_COMMANDS)
-        p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", source or self.tck, "--size",
-                            "640x400", "--script", script, "--stats", stats, *extra], capture_output=True, text=True, timeout=1800, env=env)
+        p = xvfb_run([HORIZON, "view", source or self.tck, "--size", "640x400", "--script", script, "--stats", stats, *extra], env,
+                     timeout=1800)
         self.assertEqual(p.returncode, 0, p.stderr)
         with open(stats) as fh:
             return p, json.load(fh)
@@ -449,9 +449,8 @@ class ScaleTest(unittest.TestCase):
             script, stats = self.path(name + ".txt"), self.path(name + ".json")
             with open(script, "w") as f:
                 f.write("\n".join(lines) + "\n")
-            p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", HORIZON, "view", self.tck, "--explore", "--size",
-                                "640x400", "--script", script, "--stats", stats, *extra], capture_output=True, text=True,
-                               timeout=timeout, env=env)
+            p = xvfb_run([HORIZON, "view", self.tck, "--explore", "--size", "640x400", "--script", script, "--stats", stats, *extra],
+                         env, timeout=timeout)
             self.assertEqual(p.returncode, 0, p.stderr)
             self.log = p.stderr
             with open(stats) as fh:
