@@ -504,7 +504,9 @@ public:
                 refining_ms = -1;
                 kind = "moving";
             } else if (!(still == now)) {
-                r.begin_progressive(view, fw, fh);
+                // (full detail at once where it fits the moving frames' budget:
+                // no proxy picture first, as the moving frames showed none)
+                r.begin_progressive(view, fw, fh, full_detail_fits());
                 r.present(fw, fh);
                 still = now;
                 refining_ms = -2, refining_generation = now.generation;  // (-2: this frame began it)
@@ -1651,11 +1653,13 @@ private:
     std::uint64_t full_detail_generation = 0;
     double refining_ms = -1;  // the still image being refined: its steps' frames so far (-1: none; -2: begun this frame)
     std::uint64_t refining_generation = 0;
+    bool full_detail_fits() const {
+        return o.lod_frame_ms > 0 && full_detail_ms >= 0 && full_detail_generation == r.generation() &&
+               full_detail_ms < core::render::ProxyGovernor::kFastShare * o.lod_frame_ms;
+    }
     int moving_frame_level() {
         const int proxies = r.proxy_level_count();
-        const bool full_fits = o.lod_frame_ms > 0 && full_detail_ms >= 0 && full_detail_generation == r.generation() &&
-                               full_detail_ms < core::render::ProxyGovernor::kFastShare * o.lod_frame_ms;
-        governor.set_finest(full_fits ? proxies : proxies - 1);
+        governor.set_finest(full_detail_fits() ? proxies : proxies - 1);
         return governor.level();
     }
     std::uint64_t seen_events = ~0ull;

@@ -759,7 +759,7 @@ class WindowTest(TempDirTest):
             with open(script, "w") as f:
                 # (the last moving frame's picture: a screenshot while moving)
                 f.write("\n".join(["wait 1", f"screenshot {self.path('rest.png')}", "moving on", "wait 60", f"screenshot {shot}",
-                                   "moving off", "quit"]) + "\n")
+                                   "moving off", "wait 1", "quit"]) + "\n")
             # (without the reprojected still, which would hide the proxy's level)
             p = xvfb_run([HORIZON, "view", self.path("lines.json"), "--size", "480x320", "--lod-points", "4000", "--lod-reproject",
                           "off", "--lod-frame-ms", budget, "--script", script, "--stats", stats], env)
@@ -778,6 +778,10 @@ class WindowTest(TempDirTest):
                 self.assertGreater(len(moving) - full, 5)
                 moving = moving[:full]
                 np.testing.assert_array_equal(load(shot), load(self.path("rest.png")))
+                # ... and at rest again the still at once, without the proxy's picture first
+                last = max(i for i, f in enumerate(j["frames"]) if f["kind"] == "moving")
+                after = [f for f in j["frames"][last + 1:] if f["kind"] != "still"]
+                self.assertEqual([(f["kind"], f["proxy"]) for f in after[:1]], [("complete", False)], after)
             self.assertTrue(all(f["proxy"] for f in moving))
             runs[budget] = ([f["proxy_level"] for f in moving], [f["points"] for f in moving], load(shot))
         down, up, fixed = runs["0.5"][0], runs["10000"][0], runs["0"][0]

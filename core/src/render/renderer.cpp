@@ -1813,11 +1813,17 @@ void main() {
         glDrawArrays(GL_TRIANGLES, 0, 3);
     }
 
-    void begin_progressive(const View &v, int w, int h) {
+    void begin_progressive(const View &v, int w, int h, bool at_once) {
         refine = Refine{};
         reset_counters();
         if (!any_lod_proxy() || !frame_is_direct()) {  // nothing to refine, or composited objects: one full frame
             draw_scene(v, w, h);
+            return;
+        }
+        if (at_once && !bricks_pending()) {  // no proxy picture: every step now (the still, captured as by the steps)
+            start_refinement(v, w, h);
+            refine.active = true;
+            progressive_step(1e9);
             return;
         }
         // The first picture: the proxy frame (lowres); then the full-detail
@@ -2234,10 +2240,10 @@ void Renderer::render_to_window(const View &view, int width, int height) {
     I.stats.draw_ms = ms_since(t0);
 }
 
-void Renderer::begin_progressive(const View &view, int width, int height) {
+void Renderer::begin_progressive(const View &view, int width, int height, bool at_once) {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
-    I.begin_progressive(view, width, height);
+    I.begin_progressive(view, width, height, at_once);
     glFinish();
     I.stats.draw_ms = ms_since(t0);
 }

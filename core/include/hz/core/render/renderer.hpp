@@ -229,7 +229,11 @@ public:
     // complete; the finished image equals render()'s. present() copies the
     // offscreen image into the window (framebuffer 0). Any change to the
     // scene (see generation()) ends a progressive frame: begin again.
-    void begin_progressive(const View &view, int width, int height);
+    // `at_once` (for a window that knows full detail is cheap): no proxy
+    // picture first, every step drawn now, so the frame is complete on
+    // return (unless the tractograms' bricks are still being computed:
+    // then as without it).
+    void begin_progressive(const View &view, int width, int height, bool at_once = false);
     bool progressive_step(double budget_ms);
     bool refining() const;
     void present(int width, int height);
