@@ -483,7 +483,7 @@ public:
             const auto frame_t0 = std::chrono::steady_clock::now();
             r.update_proxies(false);  // a shell proxy computed in the background
             const bool moving = app.dragging || app.panning || glfwGetTime() - app.last_motion < 0.25 || app.force_moving;
-            const bool full_detail_moving = moving && moving_frame_level() >= r.proxy_level_count();
+            const bool full_detail_moving = moving && moving_frame_level(fw, fh) >= r.proxy_level_count();
             r.set_interacting(moving && !full_detail_moving);  // (full detail: the frame a still camera's refinement ends with)
             moving_at_full_detail = full_detail_moving;
             const bool bake = glfwGetTime() - app.last_material_edit > App::kBakeAfter;
@@ -506,10 +506,10 @@ public:
             } else if (!(still == now)) {
                 // (full detail at once where it fits the moving frames' budget:
                 // no proxy picture first, as the moving frames showed none)
-                r.begin_progressive(view, fw, fh, full_detail_fits());
+                r.begin_progressive(view, fw, fh, full_detail_fits(fw, fh));
                 r.present(fw, fh);
                 still = now;
-                refining_ms = -2, refining_generation = now.generation;  // (-2: this frame began it)
+                refining_ms = -2, refining_key = {now.generation, std::uint64_t(fw), std::uint64_t(fh)};  // (-2: this frame began it)
                 kind = r.refining() ? "refine" : "complete";
             } else if (r.refining() && !holding_refinement()) {
                 // A step and the rest of its frame (presenting it, the
@@ -556,8 +556,7 @@ public:
             // the first frame of a refinement, which draws the proxy).
             if (refining_ms != -1 && (std::string_view(kind) == "refine" || std::string_view(kind) == "complete")) {
                 refining_ms = refining_ms == -2 ? (std::string_view(kind) == "complete" ? frame_ms : 0) : refining_ms + frame_ms;
-                if (std::string_view(kind) == "complete")
-                    full_detail_ms = std::exchange(refining_ms, -1), full_detail_generation = refining_generation;
+                if (std::string_view(kind) == "complete") full_detail_ms = std::exchange(refining_ms, -1), full_detail_key = refining_key;
             }
             moved_last_frame = moving_frame;
             if (step_ms >= 0) frame_overhead_ms = std::clamp(frame_ms - step_ms, 0.0, kStepMs / 2), step_ms = -1;
@@ -1295,6 +1294,11 @@ private:
                 // (scripts are deterministic: the proxies computed in the
                 // background, the fibre volume's included, are there first)
                 if (app.force_moving) r.update_proxies(true);
+            } else if (op == "resize") {  // resize W H: the window's size, as a user's drag of its border would set it
+                const auto width = int(w.count("a width in pixels", 16384)), height = int(w.count("a height in pixels", 16384));
+                w.done();
+                if (width < 1 || height < 1) throw core::Error("resize: the size must be at least 1x1");
+                glfwSetWindowSize(win, width, height);
             } else if (op == "mark") {  // mark NAME: a record in --stats between frames (benchmarks, tests)
                 const std::string name = w.word("a name");
                 w.done();
@@ -1646,20 +1650,24 @@ private:
     // Full detail while moving, the governor's top level (one above the
     // proxy's finest): allowed while the last still image refined to
     // completion took, all its frames together, under kFastShare of
-    // --lod-frame-ms, for the data now shown (a GPU's window at up to a few
-    // hundred thousand streamlines: the moving picture is then the data's).
-    double full_detail_ms = -1;          // (-1: not known)
-    bool moving_at_full_detail = false;  // (this frame: the panel says so)
-    std::uint64_t full_detail_generation = 0;
+    // --lod-frame-ms, for the data now shown at the window's size (a GPU's
+    // window at up to a few hundred thousand streamlines: the moving picture
+    // is then the data's). Another camera may cost more (zoomed in: longer
+    // lines): the governor steps down on slow moving frames, and a still
+    // drawn at once that took longer ends it.
+    double full_detail_ms = -1;                      // (-1: not known)
+    bool moving_at_full_detail = false;              // (this frame: the panel says so)
+    std::array<std::uint64_t, 3> full_detail_key{};  // (the data's generation and the window's size it was measured at)
     double refining_ms = -1;  // the still image being refined: its steps' frames so far (-1: none; -2: begun this frame)
-    std::uint64_t refining_generation = 0;
-    bool full_detail_fits() const {
-        return o.lod_frame_ms > 0 && full_detail_ms >= 0 && full_detail_generation == r.generation() &&
+    std::array<std::uint64_t, 3> refining_key{};
+    bool full_detail_fits(int w, int h) const {
+        const std::array<std::uint64_t, 3> key{r.generation(), std::uint64_t(w), std::uint64_t(h)};
+        return o.lod_frame_ms > 0 && full_detail_ms >= 0 && full_detail_key == key &&
                full_detail_ms < core::render::ProxyGovernor::kFastShare * o.lod_frame_ms;
     }
-    int moving_frame_level() {
+    int moving_frame_level(int w, int h) {
         const int proxies = r.proxy_level_count();
-        governor.set_finest(full_detail_fits() ? proxies : proxies - 1);
+        governor.set_finest(full_detail_fits(w, h) ? proxies : proxies - 1);
         return governor.level();
     }
     std::uint64_t seen_events = ~0ull;

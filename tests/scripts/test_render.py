@@ -555,6 +555,8 @@ class WindowTest(TempDirTest):
                  "click 10 20 ctlr": "'ctlr' is not a modifier (ctrl, alt, shift)",
                  "key 5": "key: '5' is not a key (a letter or esc)",
                  "quit now": "quit: unexpected 'now'",
+                 "resize 400": "resize needs a height in pixels",
+                 "resize 0 300": "resize: the size must be at least 1x1",
                  f"screenshot {self.path('none/x.png')}": f"{self.path('none/x.png')}: directory {self.path('none')} does not exist"}
         for k, (line, error) in enumerate(cases.items()):
             with self.subTest(line=line):
@@ -803,6 +805,23 @@ class WindowTest(TempDirTest):
         self.assertGreater(len(early), 50)
         self.assertTrue(all(f["proxy"] for f in early), early)
         self.assertEqual(early[-1]["proxy_level"], 6)
+        # ... and measured at the window's size: resized while moving at full
+        # detail, back to the proxy's finest level, and at rest a still refined
+        # from the proxy again (until one at the new size has been timed).
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 1", "moving on", "wait 60", "resize 400 300", "wait 15", "moving off", "wait 1", "quit"]) + "\n")
+        p = xvfb_run([HORIZON, "view", self.path("lines.json"), "--size", "480x320", "--lod-points", "4000", "--lod-reproject", "off",
+                      "--lod-frame-ms", "10000", "--script", script, "--stats", stats], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        with open(stats) as fh:
+            j = json.load(fh)
+        self.assertEqual(j["window"], [400, 300])
+        moving = [f for f in j["frames"] if f["kind"] == "moving"]
+        self.assertTrue(any(not f["proxy"] for f in moving[:60]), moving)
+        self.assertTrue(all(f["proxy"] and f["proxy_level"] == 6 for f in moving[-10:]), moving)
+        last = max(i for i, f in enumerate(j["frames"]) if f["kind"] == "moving")
+        after = [f for f in j["frames"][last + 1:] if f["kind"] != "still"]
+        self.assertEqual([(f["kind"], f["proxy"]) for f in after[:1]], [("refine", True)], after)
         # Each level draws its share of the proxy: the finest more points than the base, the cheapest fewer.
         points = lambda k, level: [p for l, p in zip(*runs[k][:2]) if l == level]
         self.assertGreater(min(points("10000", 6)), 1.5 * max(points("0", 0)))
