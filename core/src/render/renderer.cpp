@@ -1820,6 +1820,7 @@ void main() {
             draw_scene(v, w, h);
             return;
         }
+        adopt_bricks(false);
         if (at_once && !bricks_pending()) {  // no proxy picture: every step now (the still, captured as by the steps)
             start_refinement(v, w, h);
             refine.active = true;
@@ -1829,7 +1830,6 @@ void main() {
         // The first picture: the proxy frame (lowres); then the full-detail
         // image, cleared to alpha 0, gets everything without a proxy now and
         // the tractograms' chunks step by step.
-        adopt_bricks(false);
         proxy_frame(v, w, h);
         const FrameStats first = stats;
         start_refinement(v, w, h);
