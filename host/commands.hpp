@@ -2,10 +2,12 @@
 #pragma once
 
 #include <hz/core/plugin_host.hpp>
+#include <hz/core/render/context.hpp>
 #include <hz/core/render/renderer.hpp>
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -163,7 +165,12 @@ ShaderGpuResult check_shader_gpu(const core::Registry &reg, const core::LoadedPl
                                  std::uint64_t seed);
 
 // Renders `scene` headlessly to o.out (PNG through the images plugin).
-int render_scene(const core::Registry &reg, core::render::Scene scene, const RenderOptions &o);
+// `ctx`: the headless context to draw with, made beforehand (cmd_render makes
+// it before reading any file, so that a machine without one, or a wrong
+// HORIZON_GPU, is told before the work), and the milliseconds that took;
+// null: one is made here.
+int render_scene(const core::Registry &reg, core::render::Scene scene, const RenderOptions &o,
+                 std::unique_ptr<core::render::GlContext> ctx = nullptr, double ctx_ms = 0);
 // A scene from data files: tractograms as direction-coloured tubes (lines
 // above 20,000 streamlines), meshes as principled surfaces, volumes as three
 // slices; per-vertex overlays go onto the surface named before them.

@@ -83,11 +83,11 @@ std::pair<int, int> parse_size(const std::string &s) {
     return {w, h};
 }
 
-int render_scene(const core::Registry &reg, core::render::Scene scene, const RenderOptions &o) {
+int render_scene(const core::Registry &reg, core::render::Scene scene, const RenderOptions &o, std::unique_ptr<core::render::GlContext> ctx,
+                 double ctx_ms) {
     const auto [w, h] = parse_size(o.size);
     const auto t0 = Clock::now();
-    auto ctx = core::render::make_headless_context();
-    const double ctx_ms = ms_since(t0);
+    if (!ctx) ctx = core::render::make_headless_context(), ctx_ms = ms_since(t0);
     core::render::Renderer r(reg);
     core::render::RenderSettings rs;
     rs.width = w, rs.height = h;
@@ -220,10 +220,14 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     RenderOptions opts = o;
     if (is_scene_file(o.inputs)) opts.scene = o.inputs[0];
     const std::optional<core::render::Slab> slab = o.slab.empty() ? std::nullopt : std::optional(parse_slab(o.slab));
+    // (the GL context first: a machine that has none is told before the files are read)
+    const auto t0 = Clock::now();
+    auto ctx = core::render::make_headless_context();
+    const double ctx_ms = ms_since(t0);
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");
     if (slab) scene.slab = slab;
     try {
-        return render_scene(reg, std::move(scene), opts);
+        return render_scene(reg, std::move(scene), opts, std::move(ctx), ctx_ms);
     } catch (const core::Error &e) {
         if (opts.scene.empty() && o.inputs.size() == 1) throw core::Error(o.inputs[0] + ": " + e.what());
         throw;

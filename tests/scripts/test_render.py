@@ -142,6 +142,27 @@ class RenderTest(TempDirTest):
                                      f"--size: expected WIDTHxHEIGHT between 16x16 and 16384x16384, not '{size}'")
         self.assertFalse(os.path.exists(self.path("d")))
 
+    def test_a_gpu_that_is_not_there_is_refused_before_reading(self):
+        # HORIZON_GPU=N picks the N-th GPU EGL device (from 0) and nothing
+        # else: one that is not there (no machine's EGL lists 99; this one's
+        # may list none) or a malformed number is one line about it, before
+        # the input is read (here a broken file, which is not the error).
+        bad = self.path("broken.tck")
+        with open(bad, "wb") as f:
+            f.write(b"mrtrix tracks\nfile: . 99999\nEND\n")
+        out = self.path("x.png")
+        for value, error in (("99", r"HORIZON_GPU=99: no such GPU \(this machine's EGL has \d+ GPU devices?\)"),
+                             ("first", r"HORIZON_GPU='first' is not a GPU's number \(0 for the first\)")):
+            with self.subTest(value=value):
+                p = run("render", bad, "-o", out, env={**NO_DISPLAY, "HORIZON_GPU": value})
+                self.assertEqual(p.returncode, 1, p.stderr)
+                self.assertRegex(p.stderr.strip(), "^horizon: error: " + error + "$")
+                self.assertFalse(os.path.exists(out))
+        # Unset or empty: as before (llvmpipe here), and the broken file is the error.
+        p = run("render", bad, "-o", out, env={**NO_DISPLAY, "HORIZON_GPU": ""})
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn(f"{bad}: data offset 99999 is past the end of the file", p.stderr)
+
     def test_an_output_in_a_missing_directory_is_refused_before_reading(self):
         # Named with its directory, before the input is read (here it does
         # not even exist: that is not the error reported).

@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <vector>
 
 namespace hz::core::render {
 
@@ -42,28 +43,43 @@ public:
     EglContext() {
         // Candidates in order: each EGL device that is not a software
         // renderer (a workstation's or a server's GPU, with or without a
-        // display; skipped when LIBGL_ALWAYS_SOFTWARE is set), then Mesa's
-        // surfaceless platform (llvmpipe where there is no GPU), then the
-        // default display. The first on which an OpenGL 4.1+ core context
-        // can be made is used.
+        // display; skipped when LIBGL_ALWAYS_SOFTWARE is set; only the one
+        // HORIZON_GPU names, if set), then Mesa's surfaceless platform
+        // (llvmpipe where there is no GPU), then the default display. The
+        // first on which an OpenGL 4.1+ core context can be made is used.
         const char *exts = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
         auto get_platform_display = reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
         auto has = [&](const char *ext) { return exts && std::strstr(exts, ext) && get_platform_display; };
         std::string why = "no EGL display (is Mesa's libegl-mesa0 installed?)";
-        const char *soft = std::getenv("LIBGL_ALWAYS_SOFTWARE");
-        if (has("EGL_EXT_platform_device") && !(soft && *soft && std::strcmp(soft, "0") != 0)) {
+        // The GPUs: EGL devices that are not software renderers, in EGL's order.
+        std::vector<EGLDeviceEXT> gpus;
+        if (has("EGL_EXT_platform_device")) {
             auto query_devices = reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(eglGetProcAddress("eglQueryDevicesEXT"));
             auto query_device_string = reinterpret_cast<PFNEGLQUERYDEVICESTRINGEXTPROC>(eglGetProcAddress("eglQueryDeviceStringEXT"));
-            EGLDeviceEXT devices[16];
+            EGLDeviceEXT devices[64];
             EGLint n = 0;
-            if (query_devices && query_device_string && query_devices(16, devices, &n)) {
+            if (query_devices && query_device_string && query_devices(64, devices, &n))
                 for (EGLint i = 0; i < n; ++i) {
                     const char *dev_exts = query_device_string(devices[i], EGL_EXTENSIONS);
-                    if (dev_exts && std::strstr(dev_exts, "EGL_MESA_device_software")) continue;
-                    if (open(get_platform_display(EGL_PLATFORM_DEVICE_EXT, devices[i], nullptr), why)) return;
+                    if (!(dev_exts && std::strstr(dev_exts, "EGL_MESA_device_software"))) gpus.push_back(devices[i]);
                 }
-            }
         }
+        // HORIZON_GPU=N: the N-th of them (from 0) and nothing else (a server's
+        // processes spread over its GPUs).
+        if (const char *want = std::getenv("HORIZON_GPU"); want && *want) {
+            char *end = nullptr;
+            const long k = std::strtol(want, &end, 10);
+            if (*end || k < 0) throw Error(std::string("HORIZON_GPU='") + want + "' is not a GPU's number (0 for the first)");
+            if (std::size_t(k) >= gpus.size())
+                throw Error(std::string("HORIZON_GPU=") + want + ": no such GPU (this machine's EGL has " + std::to_string(gpus.size()) +
+                            (gpus.size() == 1 ? " GPU device" : " GPU devices") + ")");
+            if (open(get_platform_display(EGL_PLATFORM_DEVICE_EXT, gpus[std::size_t(k)], nullptr), why)) return;
+            throw Error(std::string("headless OpenGL: HORIZON_GPU=") + want + ": " + why);
+        }
+        const char *soft = std::getenv("LIBGL_ALWAYS_SOFTWARE");
+        if (!(soft && *soft && std::strcmp(soft, "0") != 0))
+            for (EGLDeviceEXT d : gpus)
+                if (open(get_platform_display(EGL_PLATFORM_DEVICE_EXT, d, nullptr), why)) return;
         if (has("EGL_MESA_platform_surfaceless") &&
             open(get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr), why))
             return;
