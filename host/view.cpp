@@ -370,7 +370,7 @@ public:
         // The proxy's levels and, above the finest, full detail: allowed
         // once a complete still image shows it fits the budget (moving_frame_level).
         governor = core::render::ProxyGovernor(o.lod_frame_ms, r.proxy_level_count() + (o.lod_frame_ms > 0 ? 1 : 0), r.proxy_level());
-        full_detail_ms = refining_ms = -1;
+        full_detail_ms = -1, refining = {};
         app.orbit.from_view(v0);
         app.home = app.orbit;
         // Level of detail (paper section 3.4): a tractogram of more than
@@ -501,7 +501,7 @@ public:
                 r.set_proxy_level(governor.level());
                 r.render_to_window(view, fw, fh);
                 still.valid = false;
-                refining_ms = -1;
+                refining.active = false;
                 kind = "moving";
             } else if (!(still == now)) {
                 // (full detail at once where it fits the moving frames' budget:
@@ -509,7 +509,7 @@ public:
                 r.begin_progressive(view, fw, fh, full_detail_fits(fw, fh));
                 r.present(fw, fh);
                 still = now;
-                refining_ms = -2, refining_key = {now.generation, std::uint64_t(fw), std::uint64_t(fh)};  // (-2: this frame began it)
+                refining = {true, true, 0, {now.generation, std::uint64_t(fw), std::uint64_t(fh)}};
                 kind = r.refining() ? "refine" : "complete";
             } else if (r.refining() && !holding_refinement()) {
                 // A step and the rest of its frame (presenting it, the
@@ -554,9 +554,9 @@ public:
             // What full detail costs: the refinement's frames of the last still
             // image refined to completion, or the frame that drew it at once (not
             // the first frame of a refinement, which draws the proxy).
-            if (refining_ms != -1 && (std::string_view(kind) == "refine" || std::string_view(kind) == "complete")) {
-                refining_ms = refining_ms == -2 ? (std::string_view(kind) == "complete" ? frame_ms : 0) : refining_ms + frame_ms;
-                if (std::string_view(kind) == "complete") full_detail_ms = std::exchange(refining_ms, -1), full_detail_key = refining_key;
+            if (const std::string_view k = kind; refining.active && (k == "refine" || k == "complete")) {
+                if (!std::exchange(refining.began, false) || k == "complete") refining.ms += frame_ms;
+                if (k == "complete") full_detail_ms = refining.ms, full_detail_key = refining.key, refining.active = false;
             }
             moved_last_frame = moving_frame;
             if (step_ms >= 0) frame_overhead_ms = std::clamp(frame_ms - step_ms, 0.0, kStepMs / 2), step_ms = -1;
@@ -1658,8 +1658,13 @@ private:
     double full_detail_ms = -1;                      // (-1: not known)
     bool moving_at_full_detail = false;              // (this frame: the panel says so)
     std::array<std::uint64_t, 3> full_detail_key{};  // (the data's generation and the window's size it was measured at)
-    double refining_ms = -1;  // the still image being refined: its steps' frames so far (-1: none; -2: begun this frame)
-    std::array<std::uint64_t, 3> refining_key{};
+    // The still image being refined (active): whether its refinement began
+    // this frame, its steps' frames so far, and the key it is measured for.
+    struct Refining {
+        bool active = false, began = false;
+        double ms = 0;
+        std::array<std::uint64_t, 3> key{};
+    } refining;
     bool full_detail_fits(int w, int h) const {
         const std::array<std::uint64_t, 3> key{r.generation(), std::uint64_t(w), std::uint64_t(h)};
         return o.lod_frame_ms > 0 && full_detail_ms >= 0 && full_detail_key == key &&
