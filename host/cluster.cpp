@@ -4,6 +4,7 @@
 #include "commands.hpp"
 #include "progress.hpp"
 
+#include <hz/core/cluster_tree.hpp>
 #include <hz/core/io.hpp>
 #include <hz/core/params.hpp>
 
@@ -19,6 +20,7 @@
 #include <iostream>
 #include <numeric>
 #include <random>
+#include <sstream>
 #include <unistd.h>
 
 namespace hz::host {
@@ -72,7 +74,11 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
         throw core::Error("nothing to write: give --labels, --centroids or --out");
     // Fail on unwritable targets, and on outputs that would replace an input
     // or exist without --force, before the work.
-    check_outputs({o.labels, o.centroids, o.out}, {o.input}, o.force);
+    // (The ordering file is an input too: `--order F --labels F --force`
+    // must not replace it.)
+    std::vector<std::string> inputs{o.input};
+    if (o.order != "file" && o.order != "shuffle") inputs.push_back(o.order);
+    check_outputs({o.labels, o.centroids, o.out}, inputs, o.force);
     if (!o.centroids.empty()) core::loader_for_write(reg, o.centroids);
     if (!o.out.empty()) core::loader_for_write(reg, o.out);
 
@@ -108,8 +114,8 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     if (o.order == "shuffle") {
         order = shuffled(t.nb_streamlines(), o.seed);
     } else if (o.order != "file") {  // a text file of streamline indices
-        std::ifstream in(o.order);
-        if (!in) throw core::Error(o.order + ": cannot open the ordering file");
+        // (At most 24 bytes per index: a line of 20 digits and its end.)
+        std::istringstream in(core::read_small_file(o.order, 24 * (t.nb_streamlines() + 1) + 4096, "ordering file"));
         std::uint64_t i;
         while (order.size() <= t.nb_streamlines() && in >> i) order.push_back(i);
         if (!in.eof() && order.size() <= t.nb_streamlines()) throw core::Error(o.order + ": not a list of integers");
@@ -125,6 +131,7 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     if (st != HZ_OK) throw core::Error(o.input + ": " + id + ": " + err.message);
     run.view.struct_size = sizeof run.view;
     if (run.table->get_result(run.obj, &run.view, &err) != HZ_OK) throw core::Error(id + ": " + err.message);
+    core::check_cluster_tree(run.view, t.nb_streamlines(), id);
     const auto t2 = std::chrono::steady_clock::now();
     const hz_cluster_tree_view &v = run.view;
 

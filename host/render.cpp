@@ -225,6 +225,10 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     auto ctx = core::render::make_headless_context();
     const double ctx_ms = ms_since(t0);
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");
+    // Every file the scene file named is an input too (its environment map,
+    // meshes, overlays, masks): checked once it is known, before anything
+    // is written.
+    if (!scene.files.empty()) check_outputs({o.out}, scene.files, o.force);
     if (slab) scene.slab = slab;
     try {
         return render_scene(reg, std::move(scene), opts, std::move(ctx), ctx_ms);

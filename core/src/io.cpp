@@ -257,6 +257,41 @@ std::string matching_extension(const hz_loader &loader, const fs::path &path) {
     return best;
 }
 
+std::string read_small_file(const fs::path &file, std::uint64_t max_bytes, const std::string &what) {
+    const std::string name = file.string();
+    // O_NONBLOCK: opening a FIFO with no writer must not wait for one.
+    const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+    if (fd < 0) throw Error(name + ": cannot open the " + what + ": " + std::strerror(errno));
+    struct Closer {
+        int fd;
+        ~Closer() { ::close(fd); }
+    } closer{fd};
+    struct stat st {};
+    if (::fstat(fd, &st) != 0) throw Error(name + ": cannot read the " + what + ": " + std::strerror(errno));
+    if (!S_ISREG(st.st_mode)) throw Error(name + ": the " + what + " is not a regular file");
+    const auto too_large = [&] {
+        const bool mib = max_bytes >= (1u << 20);
+        return Error(name + ": " + what + " larger than " + std::to_string(mib ? max_bytes >> 20 : max_bytes) + (mib ? " MiB" : " bytes"));
+    };
+    if (std::uint64_t(st.st_size) > max_bytes) throw too_large();
+    std::string text(std::size_t(st.st_size), '\0');
+    std::size_t got = 0;
+    for (;;) {
+        if (got == text.size()) {
+            if (text.size() > max_bytes) throw too_large();
+            text.resize(std::min<std::uint64_t>(max_bytes + 1, text.size() + 65536));
+        }
+        const ssize_t r = ::read(fd, text.data() + got, text.size() - got);
+        if (r < 0 && errno == EINTR) continue;
+        if (r < 0) throw Error(name + ": cannot read the " + what + ": " + std::strerror(errno));
+        if (r == 0) break;
+        got += std::size_t(r);
+    }
+    if (got > max_bytes) throw too_large();
+    text.resize(got);
+    return text;
+}
+
 const LoadedPlugin &loader_for_read(const Registry &reg, const fs::path &path) {
     std::error_code ec;
     if (!fs::exists(path, ec)) throw Error(path.string() + ": no such file");

@@ -1,5 +1,6 @@
 #include <hz/core/data.hpp>
 #include <hz/core/io.hpp>
+#include <hz/core/params.hpp>
 #include <hz/core/plugin_host.hpp>
 
 #include "plugin_internal.hpp"
@@ -531,6 +532,23 @@ void Registry::add_file(const fs::path &file) {
     load(file, c.id());
 }
 
+namespace {
+// A plugin's parameter schema must be sane before anything uses it: its
+// descriptions well formed (schema_of) and each default inside its own
+// range, type and count, as a value given with --param must be. Throws
+// Error naming the plugin and the parameter.
+void check_schema(const LoadedPlugin &lp) {
+    for (const ParamSpec &s : schema_of(lp)) {
+        if (s.defaults.empty()) continue;  // (a FLOAT_ARRAY without defaults)
+        try {
+            check_param(s, s.defaults);
+        } catch (const Error &e) {
+            throw Error(lp.info.id + ": the default of parameter " + s.name + " breaks its own schema: " + e.what());
+        }
+    }
+}
+}  // namespace
+
 void Registry::load(const fs::path &file, std::optional<FileId> expect) {
     try {
         auto module = std::make_shared<Module>(file, expect);
@@ -543,6 +561,7 @@ void Registry::load(const fs::path &file, std::optional<FileId> expect) {
             lp.iface = module->interface(p.id, core_interface(p.kind));
             lp.info = std::move(p);
             lp.module = module;
+            check_schema(lp);
             plugins_.push_back(std::move(lp));
         }
     } catch (const std::exception &e) {

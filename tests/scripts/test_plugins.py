@@ -268,6 +268,59 @@ class PluginsTest(TempDirTest):
         p = run("view", tck, "--explore", "--algorithm", "nope")
         self.assertIn("no clustering plugin has this id", p.stderr)
 
+    def test_a_broken_cluster_tree_is_refused_not_read(self):
+        """A clustering plugin's result is checked against the tree's
+        contract before the host reads it (issue 53: a member index past
+        the input made `cluster` write past its label table and exit 0).
+        Each lie is one line naming the plugin and what is wrong, exit 1,
+        nothing written; from `cluster` and from a scene alike. The honest
+        tree passes, with the labels its rule gives (index mod 2, mod 4)."""
+        import numpy as np
+        rng = np.random.default_rng(6)
+        lines = [np.cumsum(rng.normal(size=(int(rng.integers(5, 30)), 3)), axis=0) for _ in range(40)]
+        tck, _ = self.tck_and_template(lines, "tpl_length_clustering.so")
+        d = os.path.join(BUILD, "tests", "fixtures", "clustering-lies")
+        labels = self.path("l.csv")
+        p = run("cluster", tck, "--algorithm", "clustering-lies", "--labels", labels, "--plugin-dir", d)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        rows = np.loadtxt(labels, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
+        np.testing.assert_array_equal(rows[:, 1], np.arange(40) % 2)
+        np.testing.assert_array_equal(rows[:, 2], np.arange(40) % 4)
+        os.remove(labels)
+        whats = {1: "node 3 holds index 40 of 40 streamlines", 2: "streamline 4 is twice in level 2",
+                 3: "node 6 is at level 3 of 2", 4: "node 3 holds streamline 1, which its parent (node 1) lacks",
+                 5: "1073741824 levels below the root (1 to 64)", 6: "119 members in all, for 40 streamlines in 3 levels",
+                 7: "node 3 has parent 5 (a node before it)"}
+        for lie, what in whats.items():
+            with self.subTest(lie=lie):
+                p = run("cluster", tck, "--algorithm", "clustering-lies", "--param", f"lie={lie}", "--labels", labels, "--plugin-dir", d)
+                self.assertEqual(p.returncode, 1, p.stderr)
+                line = p.stderr.strip()
+                self.assertNotIn("\n", line)
+                self.assertIn("org.horizon.test.clustering-lies: returned a broken cluster tree: " + what, line)
+                self.assertFalse(os.path.exists(labels))
+        scene = {"objects": [{"type": "streamlines", "file": tck,
+                              "clustering": {"algorithm": "clustering-lies", "params": {"lie": 4}}}]}
+        with open(self.path("s.json"), "w") as f:
+            json.dump(scene, f)
+        p = run("render", self.path("s.json"), "-o", self.path("s.png"), "--size", "64x48", "--plugin-dir", d, timeout=120)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("returned a broken cluster tree: node 3 holds streamline 1", p.stderr)
+        self.assertFalse(os.path.exists(self.path("s.png")))
+
+    def test_a_default_outside_its_own_schema_is_refused_at_load(self):
+        # fx_broken_shader's gain defaults to 2 in [0, 1]: `--param gain=2`
+        # is refused, so the default must be too (issue 53), with the reason
+        # in `horizon plugins`; the validator still examines it.
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(FIXTURES, "fx_broken_shader.so"), d)
+        rep = run_json("plugins", "--json", "--plugin-dir", d)
+        self.assertNotIn("org.horizon.test.fixture", [q["id"] for q in rep["plugins"]])
+        why = [r["reason"] for r in rep["rejected"] if r["file"].endswith("fx_broken_shader.so")]
+        self.assertEqual(len(why), 1, rep["rejected"])
+        self.assertIn("org.horizon.test.fixture: the default of parameter gain breaks its own schema: gain: 2 is outside [0, 1]", why[0])
+
     def test_a_crash_after_the_trial_names_the_plugin(self):
         # The plugin loads and passes its trial, then crashes when called:
         # the command still dies (nothing is known about its state), but

@@ -89,6 +89,27 @@ class SafetyTest(TempDirTest):
         self.assertEqual(open(self.path("v.img"), "rb").read(), img)
         p = run("cluster", self.tck, "--labels", self.path("x.csv"), "--out", self.path("x.csv"))
         self.assert_clean_error(p, "x.csv")
+        # Inputs named indirectly (issue 53): an ordering file, and every
+        # file a scene file names (here its environment map and a mesh).
+        order = self.path("order.txt")
+        with open(order, "w") as f:
+            f.write("\n".join(str(i) for i in range(300)) + "\n")
+        before = open(order, "rb").read()
+        p = run("cluster", self.tck, "--order", order, "--labels", order, "--force")
+        self.assert_clean_error(p, "order.txt")
+        self.assertIn("refusing to overwrite the input", p.stderr)
+        self.assertEqual(open(order, "rb").read(), before)
+        Image.fromarray(np.full((8, 16, 3), 200, np.uint8)).save(self.path("env.png"))
+        env = open(self.path("env.png"), "rb").read()
+        p = run("convert", self.tck, self.path("copy.trk"))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        with open(self.path("scene.json"), "w") as f:
+            json.dump({"environment": {"path": "env.png"}, "objects": [{"type": "streamlines", "file": "copy.trk"}]}, f)
+        for out in ("env.png", "copy.trk"):
+            p = run("render", self.path("scene.json"), "-o", self.path(out), "--force", "--size", "32x24", timeout=120)
+            self.assert_clean_error(p, out)
+            self.assertIn("refusing to overwrite the input file " + self.path(out), p.stderr)
+        self.assertEqual(open(self.path("env.png"), "rb").read(), env)
 
     def test_existing_outputs_need_force(self):
         for args, out in ((("convert", self.tck, self.path("o.trk")), "o.trk"), (("cluster", self.tck, "--labels", self.path("l.csv")), "l.csv"),
@@ -289,6 +310,29 @@ class SafetyTest(TempDirTest):
         os.mkfifo(self.path("f.tck"))
         p = run("info", self.path("f.tck"), timeout=20)
         self.assert_clean_error(p, "f.tck")
+
+    def test_small_text_inputs_are_bounded(self):
+        """A scene or ordering file that is /dev/zero (or a link to it) or a
+        FIFO is refused at once, one line naming it (issue 53: /dev/zero was
+        read to 2 GB before the size check, a FIFO blocked for ever)."""
+        os.symlink("/dev/zero", self.path("zero.json"))
+        os.mkfifo(self.path("fifo.json"))
+        for scene in (self.path("zero.json"), self.path("fifo.json")):
+            t0 = time.monotonic()
+            p = run("render", scene, "-o", self.path("x.png"), "--size", "32x24", timeout=30)
+            self.assert_clean_error(p, scene)
+            self.assertIn(scene + ": the scene file is not a regular file", p.stderr)
+            self.assertLess(time.monotonic() - t0, 20)
+        p = run("cluster", self.tck, "--order", self.path("fifo.json"), "--labels", self.path("l.csv"), timeout=30)
+        self.assert_clean_error(p, "fifo.json")
+        self.assertIn("the ordering file is not a regular file", p.stderr)
+        # A scene larger than its bound is refused by its size, before it is read.
+        with open(self.path("big.json"), "wb") as f:
+            f.truncate((64 << 20) + 1)
+        p = run("render", self.path("big.json"), "-o", self.path("x.png"), "--size", "32x24", timeout=30)
+        self.assert_clean_error(p, "big.json")
+        self.assertIn("scene file larger than 64 MiB", p.stderr)
+        self.assertFalse(os.path.exists(self.path("x.png")))
 
     def test_trk_with_a_singular_affine_is_refused(self):
         # nibabel refuses it as well; accepted, every point would collapse.

@@ -241,7 +241,9 @@ class ValidateTest(TempDirTest):
         case = reason.split("reproduce with: echo '")[1].split("' | horizon brdf --shader org.horizon.test.fixture")[0]
         d = self.path("one")
         os.mkdir(d)
-        shutil.copy(os.path.join(FIXTURES, "fx_broken_shader.so"), d)
+        # (The same function in a plugin with a sane schema: one whose
+        # default breaks its schema is not loaded, the validator aside.)
+        shutil.copy(os.path.join(FIXTURES, "fx_negative_shader.so"), d)
         p = subprocess.run([HORIZON, "--plugin-dir", d, "brdf", "--shader", "org.horizon.test.fixture"], input=case + "\n", capture_output=True,
                            text=True, timeout=60, env=environment("brdf", env={"HORIZON_PLUGIN_CACHE": "off"}))
         self.assertEqual(p.returncode, 0, p.stderr)

@@ -1,4 +1,5 @@
 // Scene files, built-in demo data and clustering for display.
+#include <hz/core/cluster_tree.hpp>
 #include <hz/core/io.hpp>
 #include <hz/core/params.hpp>
 #include <hz/core/phantom.hpp>
@@ -146,12 +147,13 @@ Coloring parse_coloring(const json &j, const std::string &what, const std::strin
 
 // Reads `file` (relative to base) or builds a built-in dataset.
 Dataset object_data(const Registry &reg, const json &o, const std::string &type, const fs::path &base, const std::string &what,
-                    const std::string &where) {
+                    const std::string &where, std::vector<std::string> *files = nullptr) {
     Dataset ds;
     if (o.contains("file") == o.contains("builtin")) fail(what, where, "give exactly one of 'file' and 'builtin'");
     if (o.contains("file")) {
         fs::path p = str(o["file"], what, where + ".file");
         if (p.is_relative()) p = base / p;
+        if (files) files->push_back(p.string());
         ds = read_dataset(reg, p);
         return ds;
     }
@@ -253,6 +255,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             fs::path p = str(e["path"], what, "environment.path");
             if (p.is_relative()) p = base / p;
             s.environment.path = p.string();
+            s.files.push_back(p.string());
             if (!e.contains("type")) s.environment.type = "file";
         }
         if (s.environment.type == "file" && s.environment.path.empty()) fail(what, "environment", "type 'file' needs 'path'");
@@ -362,7 +365,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             ob.clustering = cs;
         }
         try {
-            ob.data = object_data(reg, o, type, base, what, where);
+            ob.data = object_data(reg, o, type, base, what, where, &s.files);
         } catch (const Error &e) {
             const std::string m = e.what();
             if (m.rfind(what + ":", 0) == 0) throw;
@@ -390,6 +393,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                 const std::string at = where + ".overlays[" + std::to_string(k) + "]";
                 fs::path p = str(list[k], what, at);
                 if (p.is_relative()) p = base / p;
+                s.files.push_back(p.string());
                 try {
                     const auto names = attach_overlay(ob.data.mesh, read_dataset(reg, p), p.string());
                     added.insert(added.end(), names.begin(), names.end());
@@ -415,6 +419,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                     std::string spec = str(list[k], what, at);
                     if (spec.rfind("sphere:", 0) != 0 && spec.rfind("box:", 0) != 0 && fs::path(spec).is_relative())
                         spec = (base / spec).string();
+                    if (spec.rfind("sphere:", 0) != 0 && spec.rfind("box:", 0) != 0) s.files.push_back(spec);
                     try {
                         f.rois.push_back(parse_roi(reg, spec, std::string(key) == "include"));
                     } catch (const Error &e) {
@@ -450,12 +455,8 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
 }
 
 Scene load_scene(const Registry &reg, const fs::path &file) {
-    std::ifstream in(file, std::ios::binary);
-    if (!in) throw Error(file.string() + ": cannot open the scene file");
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    if (ss.str().size() > (64u << 20)) throw Error(file.string() + ": scene file larger than 64 MiB");
-    return parse_scene(reg, ss.str(), file.parent_path().empty() ? fs::path(".") : file.parent_path(), file.string());
+    const std::string text = read_small_file(file, 64u << 20, "scene file");
+    return parse_scene(reg, text, file.parent_path().empty() ? fs::path(".") : file.parent_path(), file.string());
 }
 
 // ------------------------------------------------------------------ builtins
@@ -627,6 +628,7 @@ ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const Clust
     hz_cluster_tree_view v{};
     v.struct_size = sizeof v;
     if (c->get_result(obj, &v, &err) != HZ_OK) throw Error(id + ": " + err.message);
+    check_cluster_tree(v, input.nb_streamlines(), id);
     ClusterTree tree;
     tree.nb_levels = v.nb_levels;
     tree.nb_points = v.nb_points;

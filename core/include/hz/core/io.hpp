@@ -38,6 +38,14 @@ Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *t
 // and `loader` otherwise. A deferred copy of the positions is made first.
 void check_reported_bounds(const Tractogram &t, const Bounds &reported, const fs::path &path, const std::string &loader);
 
+// The whole of a small text file a command reads (a scene, an ordering):
+// only a regular file (a FIFO is refused instead of blocking, /dev/zero
+// instead of being read for ever), of at most `max_bytes` (checked before
+// reading and while reading: a file that grows is not read past the
+// bound). `what` names it in errors: "FILE: WHAT larger than N MiB".
+// Throws Error.
+std::string read_small_file(const fs::path &file, std::uint64_t max_bytes, const std::string &what);
+
 // Makes every page of [p, p + bytes) resident and mapped now, on both
 // cores, in a few calls (MADV_POPULATE_READ) instead of a page fault per 16
 // pages as they are first read: for a consumer about to read all of a mapped

@@ -126,6 +126,10 @@ struct Scene {
     std::array<double, 3> background{0.02, 0.02, 0.025};  // linear RGB
     double exposure = 1.0;
     std::string tonemap = "aces";  // aces | reinhard | none
+    // Every file a scene file names and parse_scene read (objects, overlays,
+    // masks, the environment map), as resolved: inputs that no output of
+    // the command may replace.
+    std::vector<std::string> files;
 };
 
 // Parses a scene file, reading every data file it names (relative to the
