@@ -82,6 +82,19 @@ struct LodOptions {
     }
 };
 
+// Depth cues, the same for `render` and `view`: they replace a scene file's.
+struct DepthCueOptions {
+    bool ao = false, no_ao = false;  // --ao, --no-ao
+    double ao_radius = 0;            // --ao-radius MM (0: the scene's, 3 mm by default)
+    double ao_strength = -1;         // --ao-strength S (< 0: the scene's, 0.8 by default)
+    void apply(core::render::Scene &s) const {
+        if (ao || ao_radius > 0 || ao_strength >= 0) s.ambient_occlusion.on = true;
+        if (no_ao) s.ambient_occlusion.on = false;
+        if (ao_radius > 0) s.ambient_occlusion.radius_mm = ao_radius;
+        if (ao_strength >= 0) s.ambient_occlusion.strength = ao_strength;
+    }
+};
+
 // Seconds since the program started (the window's --stats, progress lines).
 double seconds_since_launch();
 
@@ -93,6 +106,7 @@ struct RenderOptions {
     std::string size = "1280x720";
     int samples = 0;  // 0: automatic (RenderSettings)
     LodOptions lod;
+    DepthCueOptions cues;
     bool preview = false;  // draw the level-of-detail proxy only (the window's first picture)
     bool force = false;    // replace an existing output
     int frames = 1;        // frames to draw (timing: the median of frames 2..N)
@@ -118,6 +132,7 @@ struct ViewOptions {
     bool exit_after_script = true;
     std::string screenshot_dir = ".";
     LodOptions lod;
+    DepthCueOptions cues;
     std::string stats;                          // --stats FILE.json: per-frame times and what was drawn
     double lod_frame_ms = 33;                   // moving frames kept within this by the proxy's level (0: the level fixed)
     bool explore = false;                       // Fig. 5: QuickBundlesX centroids, expand / hide / repeat

@@ -36,6 +36,21 @@ const CLI::Validator kSize(
     "WIDTHxHEIGHT");
 
 // The level-of-detail options `render` and `view` share (documented once).
+void add_depth_cue_options(CLI::App *cmd, DepthCueOptions &c) {
+    auto *on = cmd->add_flag("--ao", c.ao,
+                             "ambient occlusion: each pixel darkened by the scene in front of it within --ao-radius (a depth cue; "
+                             "a scene file's \"ambient_occlusion\")");
+    auto *off = cmd->add_flag("--no-ao", c.no_ao, "no ambient occlusion, whatever the scene file says");
+    on->excludes(off);
+    cmd->add_option("--ao-radius", c.ao_radius, "ambient occlusion: the radius sampled around each pixel, in mm (default 3; implies --ao)")
+        ->check(CLI::Range(1e-3, 1000.0))
+        ->excludes(off);
+    cmd->add_option("--ao-strength", c.ao_strength,
+                    "ambient occlusion: 0 (none) to 1 (a fully hidden pixel is black; default 0.8; implies --ao)")
+        ->check(CLI::Range(0.0, 1.0))
+        ->excludes(off);
+}
+
 void add_lod_options(CLI::App *cmd, LodOptions &lod) {
     cmd->add_option("--lod-pixels", lod.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")
         ->capture_default_str()
@@ -205,6 +220,7 @@ int main(int argc, char **argv) {
     render->add_option("--samples", ro.samples, "MSAA samples (1 = off; 0 = 4, or 1 above 200k streamline segments)")
         ->capture_default_str();
     add_lod_options(render, ro.lod);
+    add_depth_cue_options(render, ro.cues);
     render->add_flag("--preview", ro.preview, "draw the level-of-detail proxy only: the window's first picture, in a fraction of the time");
     render->add_option("--frames", ro.frames, "draw N frames and report the median time of frames 2..N (benchmarks)")
         ->check(CLI::Range(1, 1000))
@@ -247,6 +263,7 @@ int main(int argc, char **argv) {
     view->add_option("--exclude", vwo.exclude, "a region the shown streamlines must not meet (same forms; repeatable)")
         ->allow_extra_args(false);
     add_lod_options(view, vwo.lod);
+    add_depth_cue_options(view, vwo.cues);
     view->add_option("--lod-frame-ms", vwo.lod_frame_ms,
                      "while the camera moves, the proxy's level follows the frame times: coarser when frames take longer than "
                      "this, finer while they take less (levels around --lod-scale and --lod-points: half and twice the size, "

@@ -192,12 +192,14 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"culled_chunks", s.culled_chunks},
                             {"culled_points", s.culled_points},
                             {"proxy", s.proxy},
+                            {"passes", {{"ambient_occlusion", {{"on", r.scene().ambient_occlusion.on}, {"ms", s.ao_ms}}}}},
                             {"points_kept", s.points_drawn}};
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     } else {
         std::printf("Wrote %s (%dx%d) in %.0f ms: context %.0f, upload %.0f, environment %.0f, first frame %.0f, read %.0f, write %.0f\n",
                     o.out.c_str(), w, h, ms_since(t0), ctx_ms, s.upload_ms, s.environment_ms, first_ms, s.readback_ms, write_ms);
         if (o.frames > 1) std::printf("  %d frames: median %.1f ms/frame\n", o.frames, frame_ms);
+        if (r.scene().ambient_occlusion.on) std::printf("  ambient occlusion: %.1f ms\n", s.ao_ms);
         if (s.crossings_drawn)
             std::printf("  slab crossings drawn: %llu (where the streamlines cross the plane)\n", (unsigned long long)s.crossings_drawn);
         else if (s.points_total)
@@ -225,6 +227,7 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     auto ctx = core::render::make_headless_context();
     const double ctx_ms = ms_since(t0);
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");
+    o.cues.apply(scene);
     // Every file the scene file named is an input too (its environment map,
     // meshes, overlays, masks): checked once it is known, before anything
     // is written.

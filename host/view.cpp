@@ -974,6 +974,14 @@ private:
                 return false;
             return true;
         }
+        if (k == GLFW_KEY_O) {  // ambient occlusion on or off
+            core::render::AmbientOcclusion ao = r.scene().ambient_occlusion;
+            ao.on = !ao.on;
+            r.set_ambient_occlusion(ao);
+            std::printf("ambient occlusion: %s\n", ao.on ? "on" : "off");
+            std::fflush(stdout);
+            return true;
+        }
         if (k == GLFW_KEY_K || k == GLFW_KEY_D || k == GLFW_KEY_I) {  // what a stroke picked: keep, delete, invert
             edit_ui(
                 [&] {
@@ -1341,8 +1349,22 @@ private:
         else if (const auto &levels = r.proxy_levels(); r.stats().proxy && std::size_t(r.stats().proxy_level) < levels.size())
             ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: level of detail at 1/%d of the size, %.0fk points",
                                levels[std::size_t(r.stats().proxy_level)].scale, levels[std::size_t(r.stats().proxy_level)].points / 1e3);
-        ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset");
+        ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset  O: occlusion");
         if (ImGui::SliderFloat("exposure", &exposure, 0.05f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic)) r.set_exposure(exposure);
+        {  // depth cue: ambient occlusion (O)
+            core::render::AmbientOcclusion ao = r.scene().ambient_occlusion;
+            float radius = float(ao.radius_mm), strength = float(ao.strength);
+            bool changed = ImGui::Checkbox("ambient occlusion (O)", &ao.on);
+            if (ao.on) {
+                changed |= ImGui::SliderFloat("occlusion radius (mm)", &radius, 0.5f, 30.0f, "%.1f", ImGuiSliderFlags_Logarithmic);
+                changed |= ImGui::SliderFloat("occlusion strength", &strength, 0.0f, 1.0f, "%.2f");
+                if (r.stats().ao_ms > 0) ImGui::TextDisabled("ambient occlusion: %.1f ms", r.stats().ao_ms);
+            }
+            if (changed) {
+                ao.radius_mm = std::clamp(double(radius), 0.5, 30.0), ao.strength = std::clamp(double(strength), 0.0, 1.0);
+                r.set_ambient_occlusion(ao);
+            }
+        }
         // What a panel control asks for, done after the panel (an edit:
         // recorded for undo).
         std::function<void()> act;
@@ -1790,7 +1812,12 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
     require_display(o.inputs);
     try {
         // (read once the window is open, which shows the progress)
-        return view_scene(reg, std::function<core::render::Scene()>([&] { return scene_from_inputs(reg, o.inputs, o.view, "view"); }), o);
+        return view_scene(reg, std::function<core::render::Scene()>([&] {
+                              core::render::Scene s = scene_from_inputs(reg, o.inputs, o.view, "view");
+                              o.cues.apply(s);
+                              return s;
+                          }),
+                          o);
     } catch (const ScriptError &) {
         throw;  // (names the script and its line, not the data)
     } catch (const core::Error &e) {

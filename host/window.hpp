@@ -234,6 +234,7 @@ struct FrameLog {
                           {"culled_streamlines", drew ? s.culled_streamlines : 0},
                           {"proxy", drew && s.proxy},
                           {"proxy_level", drew && s.proxy ? s.proxy_level : -1},
+                          {"ao_ms", drew ? s.ao_ms : 0},
                           {"clustering", clustering},
                           {"rss_anon_mb", anon}});
     }

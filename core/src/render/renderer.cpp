@@ -12,6 +12,7 @@
 #include "glsl.hpp"
 #include "programs.hpp"
 #include "occlusion.hpp"
+#include "passes/ambient_occlusion.hpp"
 #include "reprojection.hpp"
 #include "shell_proxy.hpp"
 
@@ -228,11 +229,13 @@ struct Renderer::Impl {
     std::map<std::string, std::unique_ptr<Program>> programs;
     std::map<std::string, std::unique_ptr<Program>> aux_programs;  // sky, slices, tonemap by output and curve
     GLuint empty_vao = 0;
-    std::unique_ptr<ImageLighting> ibl;  // the environment's lighting
-    std::unique_ptr<Reprojection> warp;  // the last complete still, drawn again under the proxy while the camera moves
-    int frame_w = 0, frame_h = 0;        // the size of the frame being drawn (a proxy frame's full size)
-    Fbo msaa;                            // the HDR path's multisampled RGBA16F target
-    Fbo msaa_display;                    // the display path's multisampled RGBA8 target
+    std::unique_ptr<ImageLighting> ibl;             // the environment's lighting
+    std::unique_ptr<Reprojection> warp;             // the last complete still, drawn again under the proxy while the camera moves
+    std::unique_ptr<AmbientOcclusionPass> ao_pass;  // the depth cue after the geometry (Scene::ambient_occlusion)
+    View frame_view;                                // the camera of the frame being drawn (the passes after the geometry)
+    int frame_w = 0, frame_h = 0;                   // the size of the frame being drawn (a proxy frame's full size)
+    Fbo msaa;                                       // the HDR path's multisampled RGBA16F target
+    Fbo msaa_display;                               // the display path's multisampled RGBA8 target
     Tex2dFbo resolved, behind, ldr;
     // The level-of-detail frame: drawn at 1/proxy_scale_now() of the
     // window's size into `lowres` (fewer fragments; each subsample line
@@ -326,6 +329,8 @@ struct Renderer::Impl {
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
         warp = std::make_unique<Reprojection>(
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
+        ao_pass = std::make_unique<AmbientOcclusionPass>(
+            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
     }
 
     ~Impl() {
@@ -337,6 +342,7 @@ struct Renderer::Impl {
         for (auto &[k, p] : aux_programs) glDeleteProgram(p->id);
         ibl.reset();
         warp.reset();
+        ao_pass.reset();
         glDeleteVertexArrays(1, &empty_vao);
         msaa.destroy();
         msaa_display.destroy();
@@ -1547,13 +1553,40 @@ struct Renderer::Impl {
         clipping = on;
     }
 
-    void finish_frame(GLuint target, int w, int h) {
+    // Ends the geometry of a frame drawn into `target`: its picture into
+    // out_ (resolved, tonemapped where it went through the HDR path). With
+    // `complete` (the frame's geometry is all drawn, not a step of a
+    // progressive frame), the passes that read the whole frame run first:
+    // ambient occlusion, on linear radiance where there is some.
+    void finish_frame(GLuint target, int w, int h, bool complete = false) {
         set_clipping(false);
-        if (target == out_->fbo) return;
+        const bool ao = complete && scene.ambient_occlusion.on;
+        if (target == out_->fbo) {
+            if (ao) ambient_occlusion(out_->fbo, target, w, h, true);
+            return;
+        }
         glBindFramebuffer(GL_READ_FRAMEBUFFER, target);
         glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_direct ? out_->fbo : resolved.fbo);
         glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+        if (ao) ambient_occlusion(display_direct ? out_->fbo : resolved.fbo, target, w, h, display_direct);
         if (!display_direct) tonemap_to(out_->fbo, w, h);
+    }
+
+    // The ambient occlusion pass over the picture in `colour_fbo` (display
+    // values if `encoded`, else linear radiance) from the depth of
+    // `depth_fbo`: fewer samples in a proxy frame (the moving picture's
+    // cheap form), the full count in a still.
+    void ambient_occlusion(GLuint colour_fbo, GLuint depth_fbo, int w, int h, bool encoded) {
+        glFinish();
+        const auto t0 = Clock::now();
+        AoParams p;
+        p.radius_mm = scene.ambient_occlusion.radius_mm;
+        p.strength = scene.ambient_occlusion.strength;
+        p.pairs = out_ == &lowres ? 6 : 16;
+        p.fov_deg = frame_view.fov_deg, p.near_mm = frame_view.near_mm, p.far_mm = frame_view.far_mm;
+        ao_pass->apply(colour_fbo, depth_fbo, w, h, p, empty_vao, encoded);
+        glFinish();
+        stats.ao_ms += ms_since(t0);
     }
 
     // The scene's background as the frame's output stores it.
@@ -1670,6 +1703,7 @@ void main() {
 
     void draw_scene(const View &v, int w, int h) {
         const Matrices m = matrices(v, w, h);
+        frame_view = v;
         const GLuint target = begin_frame(w, h);
         clear_and_sky(m, target, w, h);
         // A proxy frame: the last complete still first, reprojected; the
@@ -1716,7 +1750,7 @@ void main() {
             glDepthMask(GL_TRUE);
             glDisable(GL_BLEND);
         }
-        finish_frame(target, w, h);
+        finish_frame(target, w, h, /*complete=*/true);
     }
 
     // Progressive drawing (the window at rest): the first step draws
@@ -1740,6 +1774,7 @@ void main() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
         stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = stats.volumes_drawn = 0;
         stats.volume_rays = 0;
+        stats.ao_ms = 0;
         stats.culled_chunks = stats.culled_points = stats.culled_streamlines = 0;
         stats.proxy = false;
         stats.refine_step = 0;
@@ -1850,6 +1885,7 @@ void main() {
     void start_refinement(const View &v, int w, int h) {
         refine.view = v, refine.w = w, refine.h = h;
         refine.m = matrices(v, w, h);
+        frame_view = v;
         refine.items.clear(), refine.next = 0;
         refine.culling = Culling{};
         refine.target = begin_frame(w, h);
@@ -1869,7 +1905,7 @@ void main() {
                 for (std::size_t k = 0, n = crossing_mode() ? g.crossings.vaos.size() : g.chunks.size(); k < n; ++k)
                     refine.items.push_back({oi, k, SIZE_MAX});
         }
-        finish_frame(refine.target, w, h);
+        finish_frame(refine.target, w, h, /*complete=*/refine.items.empty());
         refine.culling.read = refine.culling.skip = settings.occlusion && settings.occlusion_skip && !crossing_mode();
     }
 
@@ -1932,7 +1968,7 @@ void main() {
             if (ms_since(t0) + ms_since(tg) > budget_ms) break;
             tg = Clock::now();
         }
-        finish_frame(refine.target, refine.w, refine.h);
+        finish_frame(refine.target, refine.w, refine.h, /*complete=*/refine.next >= refine.items.size());
         stats.refine_step = ++refine.step;
         stats.refine_remaining = refine.items.size() - refine.next;
         if (refine.next >= refine.items.size()) {
@@ -2116,6 +2152,13 @@ void Renderer::set_exposure(double e) {
     const double x = std::clamp(e, 1e-4, 1e4);
     if (x != impl_->scene.exposure) ++impl_->generation;
     impl_->scene.exposure = x;
+}
+
+void Renderer::set_ambient_occlusion(const AmbientOcclusion &ao) {
+    check_ambient_occlusion(ao);
+    AmbientOcclusion &now = impl_->scene.ambient_occlusion;
+    if (ao.on != now.on || ao.radius_mm != now.radius_mm || ao.strength != now.strength) ++impl_->generation;
+    now = ao;
 }
 
 void Renderer::set_bake_materials(bool bake) {

@@ -216,8 +216,27 @@ void apply_file_material(Object &ob, bool has_material, bool has_color) {
 Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what) {
     const json root = json::parse(text, nullptr, false);
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
-    check_keys(root, {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab"}, what, "scene");
+    check_keys(root, {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab", "ambient_occlusion"}, what,
+               "scene");
     Scene s;
+    if (root.contains("ambient_occlusion")) {
+        // true | false | {"radius": mm, "strength": 0..1, "on": bool}
+        const json &a = root["ambient_occlusion"];
+        if (a.is_boolean()) {
+            s.ambient_occlusion.on = a.get<bool>();
+        } else if (a.is_object()) {
+            check_keys(a, {"on", "radius", "strength"}, what, "ambient_occlusion");
+            s.ambient_occlusion.on = true;
+            if (a.contains("on")) {
+                if (!a["on"].is_boolean()) fail(what, "ambient_occlusion.on", "expected true or false");
+                s.ambient_occlusion.on = a["on"].get<bool>();
+            }
+            if (a.contains("radius")) s.ambient_occlusion.radius_mm = num_in(a["radius"], what, "ambient_occlusion.radius", 1e-3, 1000.0);
+            if (a.contains("strength")) s.ambient_occlusion.strength = num_in(a["strength"], what, "ambient_occlusion.strength", 0.0, 1.0);
+        } else {
+            fail(what, "ambient_occlusion", "expected true, false or an object {\"radius\": mm, \"strength\": 0..1}");
+        }
+    }
     if (root.contains("camera")) {
         const json &c = root["camera"];
         check_keys(c, {"view", "position", "target", "up", "fov", "zoom"}, what, "camera");
@@ -452,6 +471,13 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         s.objects.push_back(std::move(ob));
     }
     return s;
+}
+
+void check_ambient_occlusion(const AmbientOcclusion &ao) {
+    if (!(ao.radius_mm > 0 && ao.radius_mm <= 1000))
+        throw Error("ambient occlusion: radius " + std::to_string(ao.radius_mm) + " mm is outside (0, 1000]");
+    if (!(ao.strength >= 0 && ao.strength <= 1))
+        throw Error("ambient occlusion: strength " + std::to_string(ao.strength) + " is outside [0, 1]");
 }
 
 Scene load_scene(const Registry &reg, const fs::path &file) {

@@ -137,6 +137,8 @@ struct FrameStats {
     // (RenderSettings::occlusion): how many, their input points, and the
     // streamlines whose first piece they hold.
     std::uint64_t culled_chunks = 0, culled_points = 0, culled_streamlines = 0;
+    // The frame's passes after the geometry (0 when off): ambient occlusion.
+    double ao_ms = 0;
     bool proxy = false;                  // a level-of-detail proxy was drawn
     int proxy_level = 0;                 // ... at this level (Renderer::proxy_levels' index)
     int refine_step = 0;                 // progressive: the step (0: a whole frame)
@@ -183,6 +185,10 @@ public:
     // re-uploading only that object. Throws Error.
     void replace_object(std::size_t i, Object o);
     void set_exposure(double exposure);
+    // Switches and sets ambient occlusion (Scene::ambient_occlusion); a
+    // still image is out of date. Throws Error for values outside
+    // radius_mm in (0, 1000], strength in [0, 1].
+    void set_ambient_occlusion(const AmbientOcclusion &ao);
     // Crops the streamlines to a slab (Scene::slab), or not (nullopt). With
     // Slab::points, the crossings of the plane are computed on background
     // threads: update_proxies() adopts them (render() waits for them).

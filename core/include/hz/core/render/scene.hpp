@@ -117,8 +117,22 @@ struct Slab {
     bool operator==(const Slab &) const = default;
 };
 
+// Ambient occlusion, a depth cue (renderer passes/ambient_occlusion.hpp):
+// each pixel darkened by how much of the scene within `radius_mm` of it
+// lies in front of it, up to `strength` (1: a fully hidden pixel black).
+struct AmbientOcclusion {
+    bool on = false;
+    double radius_mm = 3.0;
+    double strength = 0.8;
+};
+
+// Throws Error "ambient occlusion: ..." unless 0 < radius_mm <= 1000 and
+// 0 <= strength <= 1 (finite).
+void check_ambient_occlusion(const AmbientOcclusion &ao);
+
 struct Scene {
     std::vector<Object> objects;
+    AmbientOcclusion ambient_occlusion;
     std::optional<Slab> slab;
     Camera camera;
     std::vector<Light> lights;  // empty: a three-point rig (key, fill, rim)

@@ -1,0 +1,200 @@
+#include "ambient_occlusion.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hz::core::render {
+
+namespace {
+
+// The sampling pattern, shared by the GLSL and the C++ reference: pair k
+// of n at angle k x the golden angle plus a per-pixel turn (a 4 x 4 Bayer
+// pattern, so neighbouring pixels sample between each other's samples), at
+// sqrt((k + 0.5) / n) of the disc's radius (uniform over the disc).
+constexpr double kGoldenAngle = 2.399963229728653;
+constexpr int kBayer[16] = {0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5};
+constexpr double kTwoPi = 6.283185307179586;
+
+const char *kAoFS = R"glsl(
+in vec2 v_uv;
+uniform sampler2D u_depth;  // window depth, NEAREST
+uniform ivec2 u_size;
+uniform float u_near, u_far, u_focal_px, u_radius_mm, u_strength;
+uniform int u_pairs;
+uniform bool u_encoded;
+out vec4 o;
+const int kBayer[16] = int[16](0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5);
+float linear_depth(float d) { return u_near * u_far / (u_far - d * (u_far - u_near)); }
+// dz: how far in front of the fragment the sample at `at` lies (0 for the background).
+float in_front(ivec2 at, float zp) {
+    float d = texelFetch(u_depth, clamp(at, ivec2(0), u_size - 1), 0).r;
+    return d >= 1.0 ? 0.0 : zp - linear_depth(d);
+}
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    float d = texelFetch(u_depth, px, 0).r;
+    float ao = 1.0;
+    if (d < 1.0) {
+        float zp = linear_depth(d);
+        float r_px = clamp(u_radius_mm * u_focal_px / zp, 1.0, 0.25 * float(max(u_size.x, u_size.y)));
+        float turn = float(kBayer[(px.x & 3) + 4 * (px.y & 3)]) / 16.0;
+        float occ = 0.0;
+        for (int k = 0; k < u_pairs; ++k) {
+            float a = float(k) * 2.399963229728653 + 6.283185307179586 * turn;
+            float r = r_px * sqrt((float(k) + 0.5) / float(u_pairs));
+            vec2 off = r * vec2(cos(a), sin(a));
+            ivec2 oi = ivec2(floor(off + 0.5));
+            float da = in_front(px + oi, zp), db = in_front(px - oi, zp);
+            float c = clamp(0.5 * (da + db) / u_radius_mm, 0.0, 1.0);
+            occ += c * (1.0 - smoothstep(2.0 * u_radius_mm, 4.0 * u_radius_mm, max(da, db)));
+        }
+        ao = 1.0 - u_strength * occ / float(u_pairs);
+    }
+#ifdef HZ_AO_FACTORS
+    o = vec4(ao, 0.0, 0.0, 1.0);
+#else
+    // Multiplied into sRGB-encoded values by the blend (dst x src): a
+    // factor of ao on the linear radiance is about ao^(1/2.2) on the
+    // encoded value.
+    o = vec4(vec3(u_encoded ? pow(ao, 1.0 / 2.2) : ao), 1.0);
+#endif
+}
+)glsl";
+
+double focal_px(const AoParams &p, int h) { return 0.5 * h / std::tan(p.fov_deg * kTwoPi / 720.0); }
+
+}  // namespace
+
+AmbientOcclusionPass::AmbientOcclusionPass(MakeProgram make) : make_(std::move(make)) {}
+
+AmbientOcclusionPass::~AmbientOcclusionPass() {
+    if (depth_fbo_) glDeleteFramebuffers(1, &depth_fbo_);
+    if (depth_tex_) glDeleteTextures(1, &depth_tex_);
+    for (auto *p : {&program_, &factors_})
+        if (*p) glDeleteProgram((*p)->id);
+}
+
+namespace {
+void set_uniforms(Program &p, int w, int h, const AoParams &a) {
+    glUseProgram(p.id);
+    glUniform1i(p.loc("u_depth"), 0);
+    glUniform2i(p.loc("u_size"), w, h);
+    glUniform1f(p.loc("u_near"), float(a.near_mm));
+    glUniform1f(p.loc("u_far"), float(a.far_mm));
+    glUniform1f(p.loc("u_focal_px"), float(focal_px(a, h)));
+    glUniform1f(p.loc("u_radius_mm"), float(a.radius_mm));
+    glUniform1f(p.loc("u_strength"), float(a.strength));
+    glUniform1i(p.loc("u_pairs"), std::max(1, a.pairs));
+}
+}  // namespace
+
+void AmbientOcclusionPass::apply(GLuint colour_fbo, GLuint depth_fbo, int w, int h, const AoParams &p, GLuint empty_vao, bool encoded) {
+    if (!program_) program_ = make_(glsl::kFullscreenVS, std::string("#version 410 core\n") + kAoFS, "ambient occlusion");
+    // The frame's depth as a texture of our own (resolving multisamples).
+    if (!depth_tex_ || w != w_ || h != h_) {
+        if (depth_tex_) glDeleteTextures(1, &depth_tex_);
+        if (!depth_fbo_) glGenFramebuffers(1, &depth_fbo_);
+        glGenTextures(1, &depth_tex_);
+        glBindTexture(GL_TEXTURE_2D, depth_tex_);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, w, h, 0, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, nullptr);
+        clamped_texture_2d(GL_NEAREST);
+        glBindFramebuffer(GL_FRAMEBUFFER, depth_fbo_);
+        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, depth_tex_, 0);
+        glDrawBuffer(GL_NONE);
+        glReadBuffer(GL_NONE);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: ambient occlusion: incomplete framebuffer");
+        w_ = w, h_ = h;
+    }
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, depth_fbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, depth_fbo_);
+    glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_DEPTH_BUFFER_BIT, GL_NEAREST);
+    last_ = p, empty_vao_ = empty_vao;
+    glBindFramebuffer(GL_FRAMEBUFFER, colour_fbo);
+    glViewport(0, 0, w, h);
+    glDisable(GL_DEPTH_TEST);
+    glDepthMask(GL_FALSE);
+    glEnable(GL_BLEND);
+    glBlendFunc(GL_ZERO, GL_SRC_COLOR);
+    set_uniforms(*program_, w, h, p);
+    glUniform1i(program_->loc("u_encoded"), encoded ? 1 : 0);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, depth_tex_);
+    glBindVertexArray(empty_vao);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    glDisable(GL_BLEND);
+    glDepthMask(GL_TRUE);
+}
+
+std::vector<float> AmbientOcclusionPass::read_factors() {
+    if (!depth_tex_) return {};
+    if (!factors_)
+        factors_ = make_(glsl::kFullscreenVS, std::string("#version 410 core\n#define HZ_AO_FACTORS 1\n") + kAoFS, "ambient occlusion factors");
+    GLuint fbo = 0, tex = 0;
+    glGenTextures(1, &tex);
+    glBindTexture(GL_TEXTURE_2D, tex);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, w_, h_, 0, GL_RED, GL_FLOAT, nullptr);
+    clamped_texture_2d(GL_NEAREST);
+    glGenFramebuffers(1, &fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
+    glViewport(0, 0, w_, h_);
+    glDisable(GL_DEPTH_TEST);
+    glDisable(GL_BLEND);
+    set_uniforms(*factors_, w_, h_, last_);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, depth_tex_);
+    glBindVertexArray(empty_vao_);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    std::vector<float> out(std::size_t(w_) * h_);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glReadPixels(0, 0, w_, h_, GL_RED, GL_FLOAT, out.data());
+    glDeleteFramebuffers(1, &fbo);
+    glDeleteTextures(1, &tex);
+    return out;
+}
+
+std::vector<float> AmbientOcclusionPass::read_depth() {
+    if (!depth_tex_) return {};
+    std::vector<float> out(std::size_t(w_) * h_);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, depth_fbo_);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glReadPixels(0, 0, w_, h_, GL_DEPTH_COMPONENT, GL_FLOAT, out.data());
+    return out;
+}
+
+std::vector<float> ao_reference(const std::vector<float> &depth, int w, int h, const AoParams &p) {
+    std::vector<float> out(std::size_t(w) * h, 1.0f);
+    const double n = p.near_mm, f = p.far_mm, R = p.radius_mm, fpx = focal_px(p, h);
+    const int pairs = std::max(1, p.pairs);
+    auto lin = [&](double d) { return n * f / (f - d * (f - n)); };
+    auto at = [&](int x, int y) { return depth[std::size_t(std::clamp(y, 0, h - 1)) * w + std::clamp(x, 0, w - 1)]; };
+    auto smoothstep = [](double e0, double e1, double x) {
+        const double t = std::clamp((x - e0) / (e1 - e0), 0.0, 1.0);
+        return t * t * (3 - 2 * t);
+    };
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const double d = at(x, y);
+            if (d >= 1.0) continue;
+            const double zp = lin(d);
+            const double r_px = std::clamp(R * fpx / zp, 1.0, 0.25 * std::max(w, h));
+            const double turn = kBayer[(x & 3) + 4 * (y & 3)] / 16.0;
+            auto in_front = [&](int sx, int sy) {
+                const double ds = at(sx, sy);
+                return ds >= 1.0 ? 0.0 : zp - lin(ds);
+            };
+            double occ = 0;
+            for (int k = 0; k < pairs; ++k) {
+                const double a = k * kGoldenAngle + kTwoPi * turn;
+                const double r = r_px * std::sqrt((k + 0.5) / pairs);
+                const int ox = int(std::floor(r * std::cos(a) + 0.5)), oy = int(std::floor(r * std::sin(a) + 0.5));
+                const double da = in_front(x + ox, y + oy), db = in_front(x - ox, y - oy);
+                const double c = std::clamp(0.5 * (da + db) / R, 0.0, 1.0);
+                occ += c * (1.0 - smoothstep(2 * R, 4 * R, std::max(da, db)));
+            }
+            out[std::size_t(y) * w + x] = float(1.0 - p.strength * occ / pairs);
+        }
+    return out;
+}
+
+}  // namespace hz::core::render

@@ -1,0 +1,174 @@
+"""The frame's passes after its geometry, through `horizon render` (headless)
+and the window: ambient occlusion (a depth cue), against an independent
+reference where one exists.
+
+The reference for ambient occlusion is the ambient occlusion of a scene
+whose answer is known in closed form: an infinitely long cylinder of radius
+r resting on a plane. Seen in its cross-section from a point of the plane at
+distance d from the cylinder's axis, the cylinder hides the directions
+between phi_c - alpha and 90 degrees from the plane's normal (phi_c =
+atan(d / r), sin(alpha) = r / sqrt(d^2 + r^2)); for a long cylinder the
+cosine-weighted fraction of the hemisphere this hides is (1 - sin(phi_c -
+alpha)) / 2: 1/2 where the cylinder touches the plane, 0.2 at d = 2r, 0.06
+at d = 4r. A screen-space estimate sees only what is within its radius, so
+it is compared by shape: its darkening of the plane must fall with d as the
+reference does.
+"""
+import json
+import math
+import os
+import unittest
+
+import numpy as np
+from PIL import Image
+
+from hztest import HORIZON, TempDirTest, run, tck_bytes, xvfb_run
+
+
+def srgb_to_linear(c):
+    c = c / 255.0
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def reference_occlusion(d, r):
+    phi_c = math.atan2(d, r)
+    alpha = math.asin(r / math.hypot(d, r))
+    return (1 - math.sin(phi_c - alpha)) / 2
+
+
+class AmbientOcclusionTest(TempDirTest):
+    R = 3.0  # the cylinder's radius, mm
+
+    def setUp(self):
+        super().setUp()
+        # A plane z = 0 of 60 x 60 mm (OBJ, two triangles), a tube of radius
+        # R along y resting on it (its axis at z = R), longer than the plane.
+        with open(self.path("plane.obj"), "w") as f:
+            f.write("v -30 -30 0\nv 30 -30 0\nv 30 30 0\nv -30 30 0\nf 1 2 3\nf 1 3 4\n")
+        line = np.stack([np.zeros(81), np.linspace(-40, 40, 81), np.full(81, self.R)], 1).astype(np.float32)
+        with open(self.path("tube.tck"), "wb") as f:
+            f.write(tck_bytes([line]))
+
+    def scene(self, ao, **extra):
+        s = {"camera": {"view": "superior"}, "environment": {"type": "none"},
+             "lights": [{"type": "directional", "direction": [0, 0, 1], "space": "world", "intensity": 2.0}],
+             "tonemap": "none",
+             "objects": [{"type": "surface", "file": "plane.obj", "color": [0.7, 0.7, 0.7], "material": {"shader": "lambert"}},
+                         {"type": "streamlines", "file": "tube.tck", "render": "tubes", "radius": self.R,
+                          "color": [0.7, 0.7, 0.7], "material": {"shader": "lambert"}}]}
+        if ao is not None:
+            s["ambient_occlusion"] = ao
+        s.update(extra)
+        path = self.path("scene.json")
+        with open(path, "w") as f:
+            json.dump(s, f)
+        return path
+
+    def render(self, scene, *args):
+        out = self.path("out.png")
+        p = run("render", scene, "-o", out, "--size", "600x600", "--force", "--json", *args, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return np.asarray(Image.open(out).convert("RGB"), dtype=np.float64), json.loads(p.stdout)
+
+    def test_darkening_falls_off_as_the_cylinders_true_occlusion(self):
+        off, info = self.render(self.scene(None))
+        self.assertFalse(info["passes"]["ambient_occlusion"]["on"])
+        on, info = self.render(self.scene({"radius": 10, "strength": 1.0}))
+        self.assertTrue(info["passes"]["ambient_occlusion"]["on"])
+        self.assertGreater(info["passes"]["ambient_occlusion"]["ms"], 0)
+        # The same from the command line over the scene file's setting.
+        flags, _ = self.render(self.scene(None), "--ao", "--ao-radius", "10", "--ao-strength", "1")
+        np.testing.assert_array_equal(flags, on)
+        none, _ = self.render(self.scene({"radius": 10, "strength": 1.0}), "--no-ao")
+        np.testing.assert_array_equal(none, off)
+
+        # Where the plane is: the picture's columns across the tube (x), the
+        # rows of the middle half (y), each column's mean; the tube's axis is
+        # the darkest column of the plain picture's tube (its middle).
+        lin_off, lin_on = srgb_to_linear(off).mean(2), srgb_to_linear(on).mean(2)
+        rows = slice(150, 450)
+        ratio = (lin_on[rows] / np.maximum(lin_off[rows], 1e-6)).mean(0)
+        lit = lin_off[rows].mean(0)
+        plane = np.flatnonzero(lit > 0.05)
+        x0, x1 = plane[0], plane[-1]  # the plane's edges: 60 mm
+        mm_per_px = 60.0 / (x1 - x0)
+        axis = (x0 + x1) / 2.0
+        d = (np.arange(600) - axis) * mm_per_px
+        # Outside the tube's silhouette, out to 6 radii either side.
+        sel = (np.abs(d) > self.R + 2 * mm_per_px) & (np.abs(d) < 6 * self.R) & (lit > 0.05)
+        dark = 1 - ratio[sel]
+        ref = np.array([reference_occlusion(abs(x), self.R) for x in d[sel]])
+        # (The estimate pairs opposite samples, so that planes cancel: an
+        # occluder on one side only counts half, 0.1 here against the true
+        # 0.5 at the contact. Its shape is what is compared.)
+        self.assertGreater(dark.max(), 0.07, "the plane beside the tube is darkened")
+        corr = np.corrcoef(dark, ref)[0, 1]
+        self.assertGreater(corr, 0.9, f"darkening against the true occlusion: correlation {corr:.3f}")
+        # Monotone with distance on each side (within 0.02 of noise).
+        for side in (d[sel] < 0, d[sel] > 0):
+            order = np.argsort(np.abs(d[sel][side]))
+            seq = dark[side][order]
+            self.assertTrue(np.all(np.diff(seq) < 0.02), seq.round(3))
+        # Far from the tube (beyond twice the radius sampled), nothing changes.
+        far = (np.abs(d) > 25) & (lit > 0.05)
+        self.assertLess(np.abs(1 - ratio[far]).max(), 0.01)
+        # The background is never darkened.
+        np.testing.assert_array_equal(on[:, :5], off[:, :5])
+
+    def test_strength_scales_the_darkening(self):
+        on1, _ = self.render(self.scene({"radius": 10, "strength": 1.0}))
+        on_half, _ = self.render(self.scene({"radius": 10, "strength": 0.5}))
+        off, _ = self.render(self.scene(None))
+        lin = [srgb_to_linear(x).mean(2)[150:450] for x in (off, on1, on_half)]
+        m = lin[0] > 0.05
+        d1 = 1 - lin[1][m] / lin[0][m]
+        dh = 1 - lin[2][m] / lin[0][m]
+        strong = d1 > 0.1
+        self.assertGreater(strong.sum(), 500)
+        # (1 - 0.5 x occlusion) against (1 - occlusion), through 8-bit sRGB and
+        # the encoded blend's power approximation: within a few percent.
+        np.testing.assert_allclose(dh[strong], 0.5 * d1[strong], atol=0.04)
+
+    def test_the_window_switches_it_with_o(self):
+        """O in the window switches ambient occlusion: the picture darkens
+        beside the tube, as `render --ao` draws it, and O again gives back
+        the picture without it; --stats times the pass in the frames that
+        ran it."""
+        scene = self.scene({"on": False, "radius": 10, "strength": 1.0})
+        shots = [self.path(f"w{i}.png") for i in range(3)]
+        script = self.path("script.txt")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 3", f"screenshot {shots[0]}", "key o", "wait 3", f"screenshot {shots[1]}", "key o", "wait 3",
+                               f"screenshot {shots[2]}", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # (Mesa's GLX driver, as in test_render's window tests)
+        p = xvfb_run([HORIZON, "view", scene, "--size", "400x400", "--script", script, "--stats", self.path("stats.json")], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("ambient occlusion: on", p.stdout)
+        a, b, c = (np.asarray(Image.open(s).convert("RGB"), dtype=np.float64) for s in shots)
+        np.testing.assert_array_equal(a, c)
+        darker = (b.sum(2) < a.sum(2) - 3).sum()
+        lighter = (b.sum(2) > a.sum(2) + 3).sum()
+        self.assertGreater(darker, 1000)
+        self.assertEqual(lighter, 0)
+        frames = json.load(open(self.path("stats.json")))["frames"]
+        self.assertTrue(any(f.get("ao_ms", 0) > 0 for f in frames))
+
+    def test_bad_settings_are_one_line(self):
+        for ao, where in (({"radius": 0}, "ambient_occlusion.radius"), ({"strength": 2}, "ambient_occlusion.strength"),
+                          ({"radius": 3, "samples": 4}, "samples"), ("yes", "ambient_occlusion")):
+            p = run("render", self.scene(ao), "-o", self.path("x.png"), "--size", "64x64")
+            self.assertEqual(p.returncode, 1, p.stderr)
+            self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+            self.assertIn("scene.json", p.stderr)
+            self.assertIn(where, p.stderr)
+            self.assertFalse(os.path.exists(self.path("x.png")))
+        for args in (("--ao-radius", "0"), ("--ao-strength", "1.5"), ("--ao", "--no-ao")):
+            p = run("render", self.scene(None), "-o", self.path("x.png"), "--size", "64x64", *args)
+            self.assertNotEqual(p.returncode, 0, p.stderr)
+            self.assertFalse(os.path.exists(self.path("x.png")))
+
+
+if __name__ == "__main__":
+    unittest.main()
