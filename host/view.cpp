@@ -1351,20 +1351,6 @@ private:
                                levels[std::size_t(r.stats().proxy_level)].scale, levels[std::size_t(r.stats().proxy_level)].points / 1e3);
         ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset  O: occlusion");
         if (ImGui::SliderFloat("exposure", &exposure, 0.05f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic)) r.set_exposure(exposure);
-        {  // depth cue: ambient occlusion (O)
-            core::render::AmbientOcclusion ao = r.scene().ambient_occlusion;
-            float radius = float(ao.radius_mm), strength = float(ao.strength);
-            bool changed = ImGui::Checkbox("ambient occlusion (O)", &ao.on);
-            if (ao.on) {
-                changed |= ImGui::SliderFloat("occlusion radius (mm)", &radius, 0.5f, 30.0f, "%.1f", ImGuiSliderFlags_Logarithmic);
-                changed |= ImGui::SliderFloat("occlusion strength", &strength, 0.0f, 1.0f, "%.2f");
-                if (r.stats().ao_ms > 0) ImGui::TextDisabled("ambient occlusion: %.1f ms", r.stats().ao_ms);
-            }
-            if (changed) {
-                ao.radius_mm = std::clamp(double(radius), 0.5, 30.0), ao.strength = std::clamp(double(strength), 0.0, 1.0);
-                r.set_ambient_occlusion(ao);
-            }
-        }
         // What a panel control asks for, done after the panel (an edit:
         // recorded for undo).
         std::function<void()> act;
@@ -1377,6 +1363,7 @@ private:
             edit_ui(act, act_selects);
         slab_panel();
         objects_panel();
+        depth_cues_panel();
         ImGui::End();
         if (app.stroking && app.stroke.size() > 1) {  // the stroke being drawn
             std::vector<ImVec2> pts;
@@ -1563,6 +1550,32 @@ private:
             changed |= ImGui::SliderFloat("half thickness (mm)", &h, 0.5f, 40.0f, "%.1f", ImGuiSliderFlags_Logarithmic);
             v.centre = c, v.half = h;
             if (changed) r.set_slab(on ? std::optional<core::render::Slab>(v) : std::nullopt);
+        }
+    }
+
+    // Depth cues (closed at first, after the objects): ambient occlusion,
+    // also switched by O. (A script opens it as `press depth cues` and
+    // presses `press ambient occlusion`.)
+    void depth_cues_panel() {
+        const bool open = ImGui::CollapsingHeader("depth cues");
+        auto button = [&](const std::string &name) {
+            const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+            app.ui_buttons[name] = {lo.x, lo.y, hi.x, hi.y};
+        };
+        button("depth cues");
+        if (!open) return;
+        core::render::AmbientOcclusion ao = r.scene().ambient_occlusion;
+        float radius = float(ao.radius_mm), strength = float(ao.strength);
+        bool changed = ImGui::Checkbox("ambient occlusion (O)", &ao.on);
+        button("ambient occlusion");
+        if (ao.on) {
+            changed |= ImGui::SliderFloat("occlusion radius (mm)", &radius, 0.5f, 30.0f, "%.1f", ImGuiSliderFlags_Logarithmic);
+            changed |= ImGui::SliderFloat("occlusion strength", &strength, 0.0f, 1.0f, "%.2f");
+            if (r.stats().ao_ms > 0) ImGui::TextDisabled("ambient occlusion: %.1f ms", r.stats().ao_ms);
+        }
+        if (changed) {
+            ao.radius_mm = std::clamp(double(radius), 0.5, 30.0), ao.strength = std::clamp(double(strength), 0.0, 1.0);
+            r.set_ambient_occlusion(ao);
         }
     }
 

@@ -135,19 +135,25 @@ class AmbientOcclusionTest(TempDirTest):
         the picture without it; --stats times the pass in the frames that
         ran it."""
         scene = self.scene({"on": False, "radius": 10, "strength": 1.0})
-        shots = [self.path(f"w{i}.png") for i in range(3)]
+        shots = [self.path(f"w{i}.png") for i in range(4)]
         script = self.path("script.txt")
         with open(script, "w") as f:
             f.write("\n".join(["wait 3", f"screenshot {shots[0]}", "key o", "wait 3", f"screenshot {shots[1]}", "key o", "wait 3",
-                               f"screenshot {shots[2]}", "quit"]) + "\n")
+                               f"screenshot {shots[2]}", "press object 0", "wait 1", "press depth cues", "wait 1",
+                               "press ambient occlusion", "wait 3", f"screenshot {shots[3]}", "quit"]) + "\n")
         env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # (Mesa's GLX driver, as in test_render's window tests)
         p = xvfb_run([HORIZON, "view", scene, "--size", "400x400", "--script", script, "--stats", self.path("stats.json")], env)
         self.assertEqual(p.returncode, 0, p.stderr)
         self.assertIn("ambient occlusion: on", p.stdout)
-        a, b, c = (np.asarray(Image.open(s).convert("RGB"), dtype=np.float64) for s in shots)
+        a, b, c, d = (np.asarray(Image.open(s).convert("RGB"), dtype=np.float64) for s in shots)
         np.testing.assert_array_equal(a, c)
+        # The panel's box does what O does (the panel itself aside: its
+        # folded and opened sections differ).
+        right = slice(200, 400)
+        np.testing.assert_array_equal(d[:, right], b[:, right])
+        self.assertGreater((d[:, right].sum(2) < a[:, right].sum(2) - 3).sum(), 500)
         darker = (b.sum(2) < a.sum(2) - 3).sum()
         lighter = (b.sum(2) > a.sum(2) + 3).sum()
         self.assertGreater(darker, 1000)
