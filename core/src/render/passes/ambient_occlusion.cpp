@@ -102,7 +102,8 @@ void AmbientOcclusionPass::apply(GLuint colour_fbo, GLuint depth_fbo, int w, int
         glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, depth_tex_, 0);
         glDrawBuffer(GL_NONE);
         glReadBuffer(GL_NONE);
-        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: ambient occlusion: incomplete framebuffer");
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+            throw Error("renderer: ambient occlusion: incomplete framebuffer");
         w_ = w, h_ = h;
     }
     glBindFramebuffer(GL_READ_FRAMEBUFFER, depth_fbo);
@@ -128,7 +129,8 @@ void AmbientOcclusionPass::apply(GLuint colour_fbo, GLuint depth_fbo, int w, int
 std::vector<float> AmbientOcclusionPass::read_factors() {
     if (!depth_tex_) return {};
     if (!factors_)
-        factors_ = make_(glsl::kFullscreenVS, std::string("#version 410 core\n#define HZ_AO_FACTORS 1\n") + kAoFS, "ambient occlusion factors");
+        factors_ =
+            make_(glsl::kFullscreenVS, std::string("#version 410 core\n#define HZ_AO_FACTORS 1\n") + kAoFS, "ambient occlusion factors");
     GLuint fbo = 0, tex = 0;
     glGenTextures(1, &tex);
     glBindTexture(GL_TEXTURE_2D, tex);
