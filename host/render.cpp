@@ -97,6 +97,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     if (o.preview) rs.occlusion = false;     // and a proxy frame no full detail
     rs.shell_all_cores = true;               // --preview waits for it
     rs.bake_materials = true;                // a scene file's materials do not change while it renders
+    rs.time_passes = true;                   // (a headless frame ends in a glFinish anyway)
     // .exr and .hdr: the linear radiance before the tone curve (float), not
     // the display picture.
     std::string ext = fs::path(o.out).extension().string();

@@ -1799,6 +1799,7 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
         rs.width = w0, rs.height = h0, rs.samples = o.samples;
         rs.proxy_levels = o.lod_frame_ms > 0;  // (moving frames pick one: ProxyGovernor)
         o.lod.apply(rs);
+        rs.time_passes = !o.stats.empty();  // (a sync per pass: only when the frames are recorded)
         // Baked materials, except while the material panel is being edited
         // (each new value would compile a program): see App::material_edited.
         rs.bake_materials = true;

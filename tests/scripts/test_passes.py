@@ -161,6 +161,36 @@ class AmbientOcclusionTest(TempDirTest):
         frames = json.load(open(self.path("stats.json")))["frames"]
         self.assertTrue(any(f.get("ao_ms", 0) > 0 for f in frames))
 
+    def test_moving_frames_darken_as_much_as_the_still(self):
+        """While the camera moves, the window draws the last still again
+        (reprojected) under the proxy, and the proxy frame runs the pass
+        over both: the still must have been kept before its own pass ran,
+        or what the camera saw at rest is darkened twice. The darkening of
+        a moving frame (against the same frame without the pass) must be
+        the still's, not its square."""
+        p = run("demo", "--out", self.path("d"), "--streamlines", "600", "--no-window", env={"DISPLAY": ""}, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # (Mesa's GLX driver, as in test_render's window tests)
+        means = {}
+        for ao in ((), ("--ao", "--ao-radius", "6", "--ao-strength", "1")):
+            script = self.path("s.txt")
+            rest, moving = self.path(f"rest{len(ao)}.png"), self.path(f"moving{len(ao)}.png")
+            with open(script, "w") as f:
+                f.write("\n".join(["wait 2", f"screenshot {rest}", "moving on", "wait 2", f"screenshot {moving}", "quit"]) + "\n")
+            p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--lod-points", "4000", "--script", script,
+                          *ao], env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            self.assertIn("level of detail: 600 streamlines", p.stdout)
+            for name, path in (("rest", rest), ("moving", moving)):
+                lin = srgb_to_linear(np.asarray(Image.open(path).convert("RGB"), dtype=np.float64))
+                means[name, bool(ao)] = lin[:, 160:].mean()  # (right of the panel)
+        still = means["rest", True] / means["rest", False]
+        moving = means["moving", True] / means["moving", False]
+        self.assertLess(still, 0.95, "the pass darkens the still")
+        self.assertLess(abs(moving - still), 0.5 * (1 - still), f"moving {moving:.3f} against still {still:.3f}")
+
     def test_bad_settings_are_one_line(self):
         for ao, where in (({"radius": 0}, "ambient_occlusion.radius"), ({"strength": 2}, "ambient_occlusion.strength"),
                           ({"radius": 3, "samples": 4}, "samples"), ("yes", "ambient_occlusion")):

@@ -1577,7 +1577,10 @@ struct Renderer::Impl {
     // `depth_fbo`: fewer samples in a proxy frame (the moving picture's
     // cheap form), the full count in a still.
     void ambient_occlusion(GLuint colour_fbo, GLuint depth_fbo, int w, int h, bool encoded) {
-        glFinish();
+        // Timed only on request (a sync before and after: a GPU's pipeline
+        // stalls; llvmpipe's GL_TIME_ELAPSED counts its command recording,
+        // not its rasterisation, so a timer query would say 0.03 ms).
+        if (settings.time_passes) glFinish();
         const auto t0 = Clock::now();
         AoParams p;
         p.radius_mm = scene.ambient_occlusion.radius_mm;
@@ -1585,8 +1588,7 @@ struct Renderer::Impl {
         p.pairs = out_ == &lowres ? 6 : 16;
         p.fov_deg = frame_view.fov_deg, p.near_mm = frame_view.near_mm, p.far_mm = frame_view.far_mm;
         ao_pass->apply(colour_fbo, depth_fbo, w, h, p, empty_vao, encoded);
-        glFinish();
-        stats.ao_ms += ms_since(t0);
+        if (settings.time_passes) glFinish(), stats.ao_ms += ms_since(t0);
     }
 
     // The scene's background as the frame's output stores it.
@@ -1968,12 +1970,19 @@ void main() {
             if (ms_since(t0) + ms_since(tg) > budget_ms) break;
             tg = Clock::now();
         }
-        finish_frame(refine.target, refine.w, refine.h, /*complete=*/refine.next >= refine.items.size());
+        // The still is kept for the reprojection before the passes after the
+        // geometry run over it: a proxy frame runs them again over all it
+        // draws, the reprojected still included (ambient occlusion twice
+        // darkened what the camera had seen at rest while it moved).
+        const bool done = refine.next >= refine.items.size();
+        const bool capture = done && settings.reproject && display_direct;
+        finish_frame(refine.target, refine.w, refine.h, /*complete=*/done && !capture);
         stats.refine_step = ++refine.step;
         stats.refine_remaining = refine.items.size() - refine.next;
-        if (refine.next >= refine.items.size()) {
+        if (done) {
             refine.active = false;
             if (settings.reproject) capture_still();
+            if (capture && scene.ambient_occlusion.on) ambient_occlusion(out_->fbo, refine.target, refine.w, refine.h, true);
         }
         return !refine.active;
     }

@@ -436,9 +436,10 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                 for (std::size_t k = 0; k < list.size(); ++k) {
                     const std::string at = where + "." + key + "[" + std::to_string(k) + "]";
                     std::string spec = str(list[k], what, at);
-                    if (spec.rfind("sphere:", 0) != 0 && spec.rfind("box:", 0) != 0 && fs::path(spec).is_relative())
-                        spec = (base / spec).string();
-                    if (spec.rfind("sphere:", 0) != 0 && spec.rfind("box:", 0) != 0) s.files.push_back(spec);
+                    if (spec.rfind("sphere:", 0) != 0 && spec.rfind("box:", 0) != 0) {  // a mask file
+                        if (fs::path(spec).is_relative()) spec = (base / spec).string();
+                        s.files.push_back(spec);
+                    }
                     try {
                         f.rois.push_back(parse_roi(reg, spec, std::string(key) == "include"));
                     } catch (const Error &e) {

@@ -119,6 +119,10 @@ struct RenderSettings {
     // fixed (`horizon render`); the window, whose sliders change them, keeps
     // uniforms.
     bool bake_materials = false;
+    // Time each pass after the geometry (FrameStats::ao_ms): a glFinish
+    // before and after it, which stalls a GPU's pipeline; `render` and a
+    // window with --stats ask for it.
+    bool time_passes = false;
 };
 
 struct FrameStats {
@@ -137,7 +141,8 @@ struct FrameStats {
     // (RenderSettings::occlusion): how many, their input points, and the
     // streamlines whose first piece they hold.
     std::uint64_t culled_chunks = 0, culled_points = 0, culled_streamlines = 0;
-    // The frame's passes after the geometry (0 when off): ambient occlusion.
+    // The frame's passes after the geometry, with RenderSettings::time_passes
+    // (0 when off or not timed): ambient occlusion.
     double ao_ms = 0;
     bool proxy = false;                  // a level-of-detail proxy was drawn
     int proxy_level = 0;                 // ... at this level (Renderer::proxy_levels' index)
