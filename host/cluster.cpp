@@ -9,6 +9,7 @@
 #include <hz/core/params.hpp>
 
 #include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include <optional>
 #include <algorithm>
@@ -131,8 +132,10 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     if (st != HZ_OK) throw core::Error(o.input + ": " + id + ": " + err.message);
     run.view.struct_size = sizeof run.view;
     if (run.table->get_result(run.obj, &run.view, &err) != HZ_OK) throw core::Error(id + ": " + err.message);
+    const auto tc = std::chrono::steady_clock::now();
     core::check_cluster_tree(run.view, t.nb_streamlines(), id);
     const auto t2 = std::chrono::steady_clock::now();
+    spdlog::debug("{}: its tree checked in {:.1f} ms", id, std::chrono::duration<double, std::milli>(t2 - tc).count());
     const hz_cluster_tree_view &v = run.view;
 
     // Labels: per level, the index of the cluster among that level's nodes.
