@@ -410,13 +410,17 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     RenderOptions ro;
     ro.out = (std::filesystem::path(o.out_dir) / "demo.png").string();
     ro.size = o.size;
-    if (const int c = render_scene(reg, core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed), ro); c != 0) return c;
+    core::render::Scene scene = core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed);
+    o.cues.apply(scene);
+    if (const int c = render_scene(reg, std::move(scene), ro); c != 0) return c;
     // On a desktop, the same scene in the window.
     if (o.window && have_display() && ::isatty(STDOUT_FILENO)) {
         std::printf("\nOpening the window (Q or Esc closes it; --no-window skips it).\n");
         std::fflush(stdout);
         const ViewOptions defaults;  // (named: GCC 12 warns of a temporary's strings as maybe uninitialised)
-        return view_scene(reg, core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed), defaults);
+        core::render::Scene shown = core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed);
+        o.cues.apply(shown);
+        return view_scene(reg, std::move(shown), defaults);
     }
     return 0;
 }

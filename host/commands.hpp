@@ -27,6 +27,19 @@ struct ValidateOptions {
     bool no_gpu = false;  // accept shaders without compiling their GLSL (no headless OpenGL here)
 };
 
+// Depth cues, the same for `render` and `view`: they replace a scene file's.
+struct DepthCueOptions {
+    bool ao = false, no_ao = false;  // --ao, --no-ao
+    double ao_radius = 0;            // --ao-radius MM (0: the scene's, 3 mm by default)
+    double ao_strength = -1;         // --ao-strength S (< 0: the scene's, 0.8 by default)
+    void apply(core::render::Scene &s) const {
+        if (ao || ao_radius > 0 || ao_strength >= 0) s.ambient_occlusion.on = true;
+        if (no_ao) s.ambient_occlusion.on = false;
+        if (ao_radius > 0) s.ambient_occlusion.radius_mm = ao_radius;
+        if (ao_strength >= 0) s.ambient_occlusion.strength = ao_strength;
+    }
+};
+
 struct DemoOptions {
     std::string out_dir = "horizon-demo";
     std::uint64_t nb_streamlines = 5000;
@@ -34,6 +47,7 @@ struct DemoOptions {
     std::uint64_t seed = 1;
     std::string size = "1280x720";
     bool window = true;  // open the window afterwards when a display exists
+    DepthCueOptions cues;
 };
 
 struct ClusterOptions {
@@ -79,19 +93,6 @@ struct LodOptions {
         rs.reproject = lod_reproject == "on";
         rs.occlusion = lod_occlusion != "off";
         rs.occlusion_skip = lod_occlusion == "on";
-    }
-};
-
-// Depth cues, the same for `render` and `view`: they replace a scene file's.
-struct DepthCueOptions {
-    bool ao = false, no_ao = false;  // --ao, --no-ao
-    double ao_radius = 0;            // --ao-radius MM (0: the scene's, 3 mm by default)
-    double ao_strength = -1;         // --ao-strength S (< 0: the scene's, 0.8 by default)
-    void apply(core::render::Scene &s) const {
-        if (ao || ao_radius > 0 || ao_strength >= 0) s.ambient_occlusion.on = true;
-        if (no_ao) s.ambient_occlusion.on = false;
-        if (ao_radius > 0) s.ambient_occlusion.radius_mm = ao_radius;
-        if (ao_strength >= 0) s.ambient_occlusion.strength = ao_strength;
     }
 };
 

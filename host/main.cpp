@@ -293,6 +293,7 @@ int main(int argc, char **argv) {
     demo->add_option("--size", demo_opts.size, "picture size WIDTHxHEIGHT")->capture_default_str()->check(kSize);
     bool no_window = false;
     demo->add_flag("--no-window", no_window, "do not open the window even when a display exists");
+    add_depth_cue_options(demo, demo_opts.cues);
 
     try {
         app.parse(argc, argv);

@@ -191,6 +191,16 @@ class AmbientOcclusionTest(TempDirTest):
         self.assertLess(still, 0.95, "the pass darkens the still")
         self.assertLess(abs(moving - still), 0.5 * (1 - still), f"moving {moving:.3f} against still {still:.3f}")
 
+    def test_the_demo_has_it_unless_told_otherwise(self):
+        for args, on in (((), True), (("--no-ao",), False)):
+            out = self.path(f"demo{len(args)}")
+            p = run("demo", "--out", out, "--streamlines", "300", "--no-window", *args, env={"DISPLAY": ""}, timeout=180)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            self.assertEqual("ambient occlusion:" in p.stdout, on, p.stdout)
+        a, b = (np.asarray(Image.open(self.path(f"demo{k}/demo.png")).convert("RGB"), dtype=np.float64) for k in (0, 1))
+        self.assertGreater((a.sum(2) < b.sum(2) - 6).sum(), 2000, "contact shadows where the tubes meet the cortex and slices")
+        self.assertEqual((a.sum(2) > b.sum(2) + 3).sum(), 0)
+
     def test_bad_settings_are_one_line(self):
         for ao, where in (({"radius": 0}, "ambient_occlusion.radius"), ({"strength": 2}, "ambient_occlusion.strength"),
                           ({"radius": 3, "samples": 4}, "samples"), ("yes", "ambient_occlusion")):

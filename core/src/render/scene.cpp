@@ -695,6 +695,7 @@ Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const Clu
 
 Scene demo_scene(const Registry &reg, std::uint64_t nb_streamlines, std::uint32_t nb_bundles, std::uint64_t seed) {
     Scene s;
+    s.ambient_occlusion.on = true;  // (the tubes' contact shadows on the cortex and slices; --no-ao)
     PhantomOptions po;
     po.nb_streamlines = nb_streamlines;
     po.nb_bundles = nb_bundles;
