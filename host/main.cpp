@@ -13,6 +13,8 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <cerrno>
+#include <cstring>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -304,7 +306,7 @@ int main(int argc, char **argv) {
     if (json || vo.json || co.json || ro.json || fo.json) disable_progress();  // (machine-readable output: no progress line)
     if (const char *t = std::getenv("HORIZON_TRACE"); t && *t == '1') spdlog::set_level(spdlog::level::trace);
 
-    try {
+    const auto dispatch = [&]() -> int {
         if (*plugins) return cmd_plugins(g, json, plugin_id);
         if (*validate) return cmd_validate(g, vo);
         if (*info) return cmd_info(g, info_file, json, info_verify);
@@ -319,9 +321,14 @@ int main(int argc, char **argv) {
         if (*render) return cmd_render(g, ro);
         if (*scheck) return cmd_shader_check(g, sco);
         if (*view) return cmd_view(g, vwo);
+        return 2;
+    };
+    int rc = 2;
+    try {
+        rc = dispatch();
     } catch (const std::bad_alloc &) {
         std::fprintf(stderr, "horizon: error: out of memory (the data do not fit in this machine's memory)\n");
-        return 1;
+        rc = 1;
     } catch (const std::exception &e) {
         // One line, whatever the names in it hold (a file name may contain a
         // newline or control characters).
@@ -338,7 +345,16 @@ int main(int argc, char **argv) {
                 line += char(c);
         }
         std::fprintf(stderr, "horizon: error: %s\n", line.c_str());
-        return 1;
+        rc = 1;
     }
-    return 2;
+    // What was written to standard output must have arrived: a full disk
+    // or a failed pipe is an error (`info > /dev/full` used to exit 0).
+    std::cout.flush();
+    errno = 0;
+    const bool out_failed = std::fflush(stdout) != 0 || std::ferror(stdout) || !std::cout;
+    if (out_failed && rc == 0) {
+        std::fprintf(stderr, "horizon: error: standard output: %s\n", errno ? std::strerror(errno) : "a write failed");
+        rc = 1;
+    }
+    return rc;
 }

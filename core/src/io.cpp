@@ -612,15 +612,8 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
 
     const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
     if (!fs::is_directory(dir, ec)) throw Error(path.string() + ": directory " + dir.string() + " does not exist");
-    std::random_device rd;
-    std::string tmp_name = ".";  // (appended piecewise: GCC 12 warns falsely on a + chain here)
-    tmp_name += path.filename().string();
-    tmp_name += ".tmp-";
-    tmp_name += std::to_string(::getpid());
-    tmp_name += '-';
-    tmp_name += std::to_string(rd() % 1000000);
     remove_stale_temporaries(path);
-    TemporaryFile tmp_file(dir / tmp_name);
+    TemporaryFile tmp_file(temporary_path(path));
     const fs::path &tmp = tmp_file.path();
 
     std::vector<hz_metadata_entry> meta;
@@ -756,8 +749,7 @@ void write_text_atomic(const fs::path &path, const std::string &text, bool force
     const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
     if (!fs::is_directory(dir, ec)) throw Error(path.string() + ": directory " + dir.string() + " does not exist");
     remove_stale_temporaries(path);
-    std::random_device rd;
-    TemporaryFile tmp(dir / ("." + path.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(rd() % 1000000)));
+    TemporaryFile tmp(temporary_path(path));
     {
         const int fd = ::open(tmp.path().c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
         if (fd < 0) throw Error(path.string() + ": cannot create a temporary file: " + std::strerror(errno));

@@ -1,6 +1,8 @@
 // Putting an output in place: the last step of every write (io.hpp).
 #include <hz/core/io.hpp>
 
+#include <random>
+
 #include <fcntl.h>
 #include <signal.h>
 #include <ucontext.h>
@@ -218,11 +220,37 @@ void check_output_target(const fs::path &path) {
         throw Error(path.string() + ": exists and is not a regular file (a device, FIFO or socket); refusing to replace it");
 }
 
+namespace {
+// ".NAME.tmp-", NAME cut so that the prefix and "PID-RANDOM" (at most 10 +
+// 1 + 6 bytes) fit NAME_MAX.
+std::string temporary_prefix(const fs::path &path) {
+    constexpr std::size_t kNameMax = 255, kTail = 5 + 10 + 1 + 6;  // ".tmp-" PID "-" RANDOM
+    std::string name = path.filename().string();
+    if (name.size() > kNameMax - 1 - kTail) {
+        std::size_t n = kNameMax - 1 - kTail;
+        while (n > 0 && (static_cast<unsigned char>(name[n]) & 0xC0) == 0x80) --n;  // (not inside a UTF-8 character)
+        name.resize(n);
+    }
+    std::string prefix = ".";  // (appended piecewise: GCC 12 warns falsely on a + chain here)
+    prefix += name;
+    prefix += ".tmp-";
+    return prefix;
+}
+}  // namespace
+
+fs::path temporary_path(const fs::path &path) {
+    static std::random_device rd;
+    const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+    std::string name = temporary_prefix(path);
+    name += std::to_string(::getpid());
+    name += '-';
+    name += std::to_string(rd() % 1000000);
+    return dir / name;
+}
+
 void remove_stale_temporaries(const fs::path &path) {
     const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-    std::string prefix = ".";  // (appended piecewise: GCC 12 warns falsely on a + chain here)
-    prefix += path.filename().string();
-    prefix += ".tmp-";
+    const std::string prefix = temporary_prefix(path);
     std::error_code ec;
     for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
         const std::string name = it->path().filename().string();

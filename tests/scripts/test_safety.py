@@ -226,6 +226,38 @@ class SafetyTest(TempDirTest):
         self.assertEqual(run("convert", self.tck, self.path("out.trk")).returncode, 0)
         self.assertFalse(os.path.exists(stale))
 
+    def test_long_output_names(self):
+        """An output name of 250 bytes is valid (NAME_MAX is 255): its hidden
+        temporary's name is cut to fit, at a character boundary (issue 53:
+        it failed), and a stale temporary of such a name is still found."""
+        name = "é" * 3 + "a" * 240  # 246 bytes, the cut falling inside the é's when shifted below
+        for out, args in ((name + ".trk", ("convert", self.tck)), (name + ".csv", ("cluster", self.tck, "--labels")),
+                          (name + ".png", ("render", self.tck, "--size", "64x48", "-o"))):
+            self.assertEqual(len(out.encode()), 250)
+            p = run(*args, self.path(out), timeout=120)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            self.assertTrue(os.path.exists(self.path(out)))
+        self.assertEqual(temporaries(self.tmp), [])
+        # The temporaries' prefix: "." + the name cut to 232 bytes + ".tmp-"
+        # (232 = 255 - 1 - len(".tmp-") - len("PID-RANDOM") at most 17).
+        long_name = "b" + "é" * 120 + ".trk"  # 245 bytes; byte 232 is inside an é
+        cut = long_name.encode()[:231].decode()  # (the character boundary below 232)
+        stale = self.path("." + cut + ".tmp-999999999-12")
+        with open(stale, "w") as f:
+            f.write("x")
+        p = run("convert", self.tck, self.path(long_name))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertFalse(os.path.exists(stale))
+
+    def test_a_full_standard_output_is_an_error(self):
+        """What a command writes to standard output must arrive: `info` and
+        `plugins` into /dev/full exit 1 with one line (issue 53: exit 0)."""
+        for args in (("info", self.tck), ("info", self.tck, "--json"), ("plugins",), ("plugins", "--json")):
+            with open("/dev/full", "w") as full:
+                p = subprocess.run([HORIZON, *args], stdout=full, stderr=subprocess.PIPE, text=True, timeout=60, env=environment(*args))
+            self.assertEqual(p.returncode, 1, args)
+            self.assertEqual(p.stderr.strip().splitlines(), ["horizon: error: standard output: a write failed"], args)
+
     # -- inputs ------------------------------------------------------------
     def make_gifti(self, path, n=3, external=None):
         data = "<Data>" + " ".join("0" for _ in range(n * 3)) + "</Data>"

@@ -84,6 +84,12 @@ private:
     bool published_ = false;
 };
 
+// A new temporary's path for output `path`, beside it: .NAME.tmp-PID-RANDOM,
+// NAME cut (at a character boundary) so that the name stays within
+// NAME_MAX (255 bytes) however long `path`'s own name is (a 250-byte name
+// used to fail for its temporary's). remove_stale_temporaries knows it.
+fs::path temporary_path(const fs::path &path);
+
 // Throws Error if `path` exists and is not a regular file or a symbolic
 // link: a device, FIFO or socket is never replaced (renaming over /dev/null
 // as root would replace the device), a directory never overwritten.
