@@ -107,9 +107,12 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     run.table = plugin->clustering();
     hz_error err{};
     err.struct_size = sizeof err;
-    if (run.table->create(core::host_services(), &run.obj, &err) != HZ_OK) throw core::Error(id + ": " + err.message);
+    if (plugin->call("create", "", [&] { return run.table->create(core::host_services(), &run.obj, &err); }) != HZ_OK)
+        throw core::Error(id + ": " + err.message);
     for (const auto &[name, v] : settings)
-        if (run.table->set_param(run.obj, name.c_str(), v.data(), static_cast<uint32_t>(v.size()), &err) != HZ_OK)
+        if (plugin->call("set_param", "", [&] {
+                return run.table->set_param(run.obj, name.c_str(), v.data(), static_cast<uint32_t>(v.size()), &err);
+            }) != HZ_OK)
             throw core::Error(id + ": parameter " + name + ": " + err.message);
     std::vector<std::uint64_t> order;
     if (o.order == "shuffle") {
@@ -127,11 +130,13 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     hz_status st;
     {
         Progress clustering("clustering " + std::to_string(t.nb_streamlines()) + " streamlines (" + o.algorithm + ")", !o.json);
-        st = run.table->run(run.obj, &view, order.empty() ? nullptr : order.data(), clustering.task(), &err);
+        st = plugin->call("run", o.input,
+                          [&] { return run.table->run(run.obj, &view, order.empty() ? nullptr : order.data(), clustering.task(), &err); });
     }
     if (st != HZ_OK) throw core::Error(o.input + ": " + id + ": " + err.message);
     run.view.struct_size = sizeof run.view;
-    if (run.table->get_result(run.obj, &run.view, &err) != HZ_OK) throw core::Error(id + ": " + err.message);
+    if (plugin->call("get_result", "", [&] { return run.table->get_result(run.obj, &run.view, &err); }) != HZ_OK)
+        throw core::Error(id + ": " + err.message);
     const auto tc = std::chrono::steady_clock::now();
     core::check_cluster_tree(run.view, t.nb_streamlines(), id);
     const auto t2 = std::chrono::steady_clock::now();

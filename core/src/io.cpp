@@ -320,7 +320,7 @@ const LoadedPlugin &loader_for_read(const Registry &reg, const fs::path &path) {
     auto score = [&](const LoadedPlugin *p) {
         const hz_loader *l = p->loader();
         if (l->probe == nullptr) return 0;
-        return l->probe(head.data(), head.size(), hint.c_str());
+        return p->call("probe", path.string(), [&] { return l->probe(head.data(), head.size(), hint.c_str()); });
     };
     if (by_ext != nullptr && score(by_ext) >= 50) return *by_ext;
     const LoadedPlugin *best = nullptr;
@@ -403,14 +403,16 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
     // A loader whose open() reads the whole file takes the task there too
     // (HZ_EXT_OPEN_TASK): progress and cancel from the first byte.
     const auto *with_task = p.extension<hz_ext_open_task>(HZ_EXT_OPEN_TASK);
-    hz_status st = with_task != nullptr && with_task->open != nullptr ? with_task->open(&req, task, &g.r, &err) : l->open(&req, &g.r, &err);
+    hz_status st = p.call("open", spath, [&] {
+        return with_task != nullptr && with_task->open != nullptr ? with_task->open(&req, task, &g.r, &err) : l->open(&req, &g.r, &err);
+    });
     if (st != HZ_OK || g.r == nullptr) throw Error(failure(err, st, path, "open"));
     // The next phase (allocation, then the decode, which reports its own
     // fraction) starts with an unknown fraction, not the scan's 100 %.
     if (task != nullptr && task->report != nullptr) task->report(task, -1.0, nullptr);
     hz_dataset_info info{};
     info.struct_size = sizeof info;
-    st = l->get_info(g.r, &info, &err);
+    st = p.call("get_info", spath, [&] { return l->get_info(g.r, &info, &err); });
     if (st != HZ_OK) throw Error(failure(err, st, path, "get_info"));
 
     Dataset ds;
@@ -479,13 +481,14 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
         dst.offsets = t.offsets.data();
         dst.offsets_capacity = t.offsets.size();
         if (mapped) {  // (the positions are mapped: only the offsets are read)
-            st = located->read_offsets(g.r, t.offsets.data(), t.offsets.size(), task, &err);
+            st = p.call("read_offsets", spath, [&] { return located->read_offsets(g.r, t.offsets.data(), t.offsets.size(), task, &err); });
             if (st != HZ_OK) throw Error(failure(err, st, path, "read_offsets"));
         } else if (checked != nullptr) {  // (the loader may vouch for what it wrote)
-            st = checked->read_streamlines_checked(g.r, &dst, &check, task, &err);
+            st =
+                p.call("read_streamlines_checked", spath, [&] { return checked->read_streamlines_checked(g.r, &dst, &check, task, &err); });
             if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines_checked"));
         } else {
-            st = l->read_streamlines(g.r, &dst, task, &err);
+            st = p.call("read_streamlines", spath, [&] { return l->read_streamlines(g.r, &dst, task, &err); });
             if (st != HZ_OK) throw Error(failure(err, st, path, "read_streamlines"));
         }
         if (delimited) {
@@ -538,7 +541,7 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
         v.scale_inter = info.scale_inter;
         std::copy(std::begin(info.voxel_to_ras), std::end(info.voxel_to_ras), v.voxel_to_ras.begin());
         hz_array_view dst = volume_view(v);
-        st = l->read_volume(g.r, &dst, task, &err);
+        st = p.call("read_volume", spath, [&] { return l->read_volume(g.r, &dst, task, &err); });
         if (st != HZ_OK) throw Error(failure(err, st, path, "read_volume"));
     } else if (info.kind == HZ_DATA_MESH) {
         if (l->read_mesh == nullptr) throw Error(path.string() + ": loader " + p.info.id + " has no read_mesh");
@@ -551,7 +554,7 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
         dst.vertices_capacity = m.vertices.size();
         dst.faces = m.faces.data();
         dst.faces_capacity = m.faces.size();
-        st = l->read_mesh(g.r, &dst, task, &err);
+        st = p.call("read_mesh", spath, [&] { return l->read_mesh(g.r, &dst, task, &err); });
         if (st != HZ_OK) throw Error(failure(err, st, path, "read_mesh"));
         for (std::size_t i = 0; i < m.faces.size(); ++i)
             if (m.faces[i] >= m.nb_vertices())
@@ -710,8 +713,10 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
     };
     req.companion_ctx = &companions;
     hz_error err = make_error();
-    const hz_status st = selective != nullptr ? selective->write_selection(&req, &view, selection->data(), selection->size(), task, &err)
-                                              : l->write(&req, &view, task, &err);
+    const hz_status st = p.call(selective != nullptr ? "write_selection" : "write", path.string(), [&] {
+        return selective != nullptr ? selective->write_selection(&req, &view, selection->data(), selection->size(), task, &err)
+                                    : l->write(&req, &view, task, &err);
+    });
     if (st != HZ_OK) {
         std::string msg = err.message[0] ? err.message : ("write failed with status " + std::to_string(st));
         // Report the user's target, not our temporary name.

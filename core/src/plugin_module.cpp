@@ -435,6 +435,11 @@ const void *offered_extension(const Module &module, const PluginInfo &info, cons
     return t;
 }
 
+std::string LoadedPlugin::escaped(const char *call, const std::string &what, const char *message) const {
+    return (what.empty() ? "" : what + ": ") + "the plugin " + info.id + " (" + info.file + ") let a C++ exception out of " + call +
+           "() (exceptions must not cross the ABI; report it to its author): " + message;
+}
+
 const void *LoadedPlugin::extension(const char *id, std::size_t min_size) const {
     return module ? offered_extension(*module, info, id, min_size) : nullptr;
 }

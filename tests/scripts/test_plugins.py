@@ -308,6 +308,37 @@ class PluginsTest(TempDirTest):
         self.assertIn("returned a broken cluster tree: node 3 holds streamline 1", p.stderr)
         self.assertFalse(os.path.exists(self.path("s.png")))
 
+    def test_an_exception_out_of_a_plugin_names_the_plugin_the_call_and_the_file(self):
+        """A C++ plugin that lets an exception cross the ABI is named with
+        its file, the call and the data file, in one line (issue 53: the
+        user saw `horizon: error: stof`): a loader's open(), a clustering's
+        run() from `cluster` and from a scene."""
+        import numpy as np
+        data = self.path("x.throws")
+        with open(data, "w") as f:
+            f.write("anything")
+        d = os.path.join(BUILD, "tests", "fixtures", "loader-throws")
+        p = run("--plugin-dir", d, "info", data)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertEqual(p.stderr.strip(), f"horizon: error: {data}: the plugin org.horizon.test.loader-throws "
+                         f"({os.path.join(d, 'fx_loader_throws.so')}) let a C++ exception out of open() (exceptions must not cross the "
+                         "ABI; report it to its author): stof")
+        rng = np.random.default_rng(7)
+        tck, _ = self.tck_and_template([np.cumsum(rng.normal(size=(10, 3)), axis=0) for _ in range(20)], "tpl_length_clustering.so")
+        d = os.path.join(BUILD, "tests", "fixtures", "clustering-lies")
+        p = run("cluster", tck, "--algorithm", "clustering-lies", "--param", "lie=8", "--labels", self.path("l.csv"), "--plugin-dir", d)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+        self.assertIn(f"{tck}: the plugin org.horizon.test.clustering-lies (", p.stderr)
+        self.assertIn("let a C++ exception out of run()", p.stderr)
+        self.assertTrue(p.stderr.strip().endswith(": stoi"), p.stderr)
+        self.assertFalse(os.path.exists(self.path("l.csv")))
+        with open(self.path("s.json"), "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "file": tck, "clustering": {"algorithm": "clustering-lies", "params": {"lie": 8}}}]}, f)
+        p = run("render", self.path("s.json"), "-o", self.path("s.png"), "--size", "64x48", "--plugin-dir", d, timeout=120)
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("let a C++ exception out of run()", p.stderr)
+
     def test_a_default_outside_its_own_schema_is_refused_at_load(self):
         # fx_broken_shader's gain defaults to 2 in [0, 1]: `--param gain=2`
         # is refused, so the default must be too (issue 53), with the reason

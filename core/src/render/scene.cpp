@@ -639,22 +639,24 @@ ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const Clust
     hz_error err{};
     err.struct_size = sizeof err;
     hz_clusterer *obj = nullptr;
-    if (c->create(host_services(), &obj, &err) != HZ_OK) throw Error(id + ": " + err.message);
+    if (plugin->call("create", "", [&] { return c->create(host_services(), &obj, &err); }) != HZ_OK) throw Error(id + ": " + err.message);
     struct Guard {
         const hz_clustering *c;
         hz_clusterer *o;
         ~Guard() { c->destroy(o); }
     } guard{c, obj};
     for (const auto &[k, v] : settings)
-        if (c->set_param(obj, k.c_str(), v.data(), static_cast<uint32_t>(v.size()), &err) != HZ_OK)
+        if (plugin->call("set_param", "", [&] { return c->set_param(obj, k.c_str(), v.data(), static_cast<uint32_t>(v.size()), &err); }) !=
+            HZ_OK)
             throw Error(id + ": parameter " + k + ": " + err.message);
     const Tractogram input = plugin->streamlines_for(t);
     const hz_streamlines_view view = input.view();
     Task own;
-    if (c->run(obj, &view, nullptr, task ? task : own.get(), &err) != HZ_OK) throw Error(id + ": " + err.message);
+    if (plugin->call("run", "", [&] { return c->run(obj, &view, nullptr, task ? task : own.get(), &err); }) != HZ_OK)
+        throw Error(id + ": " + err.message);
     hz_cluster_tree_view v{};
     v.struct_size = sizeof v;
-    if (c->get_result(obj, &v, &err) != HZ_OK) throw Error(id + ": " + err.message);
+    if (plugin->call("get_result", "", [&] { return c->get_result(obj, &v, &err); }) != HZ_OK) throw Error(id + ": " + err.message);
     check_cluster_tree(v, input.nb_streamlines(), id);
     ClusterTree tree;
     tree.nb_levels = v.nb_levels;

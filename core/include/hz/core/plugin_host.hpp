@@ -141,6 +141,26 @@ struct LoadedPlugin {
     // `t` as this plugin takes it through hz_streamlines_view: the same
     // buffers, or a copy without delimiters for a plugin that does not take them.
     Tractogram streamlines_for(const Tractogram &t) const { return takes_gap() ? t.shared() : t.compacted(); }
+    // Calls `f`, a call into this plugin's C functions named `call`
+    // ("open", "run", ...), and turns a C++ exception that escapes it (a
+    // C++ plugin that lets one cross the ABI) into one Error naming the
+    // plugin, its file and the call, where it used to surface as its bare
+    // message ("stof"). `what` (a file, or empty) is named first.
+    template <class F>
+    decltype(auto) call(const char *call, const std::string &what, F &&f) const {
+        try {
+            return f();
+        } catch (const Error &) {
+            throw;  // (the host's own, from a callback)
+        } catch (const std::exception &e) {
+            throw Error(escaped(call, what, e.what()));
+        } catch (...) {
+            throw Error(escaped(call, what, "not a std::exception"));
+        }
+    }
+
+private:
+    std::string escaped(const char *call, const std::string &what, const char *message) const;
 };
 
 struct Rejection {
