@@ -4,6 +4,7 @@
 //   horizon info FILE [--json]
 //   horizon convert IN OUT [--force]
 //   horizon demo [--out DIR]
+#include "actions.hpp"
 #include "commands.hpp"
 #include "progress.hpp"
 
@@ -266,6 +267,7 @@ int main(int argc, char **argv) {
         ->allow_extra_args(false);
     add_lod_options(view, vwo.lod);
     add_depth_cue_options(view, vwo.cues);
+    view->footer("Keys in the window (scripts: key K, key ctrl+K):\n" + actions_help_text());
     view->add_option("--lod-frame-ms", vwo.lod_frame_ms,
                      "while the camera moves, the proxy's level follows the frame times: coarser when frames take longer than "
                      "this, finer while they take less (levels around --lod-scale and --lod-points: half and twice the size, "

@@ -206,7 +206,7 @@ public:
     Viewer &operator=(const Viewer &) = delete;
     ~Viewer() {
         app.on_click = nullptr;  // (they refer to this viewer)
-        app.on_key = nullptr;
+        app.actions.clear();
         app.on_ctrl_scroll = nullptr;
         app.on_stroke = nullptr;
         app.r = nullptr;
@@ -341,16 +341,12 @@ public:
             report(!session->rois().empty() && !first_selection);
         }
 
+        register_view_actions();
         if (session) {
             // (while a clustering runs in the background, an edit would wait for
             // it: the window says so instead, at once)
             app.on_click = [this](double x, double y, int mods) { busy_editing() ? say_busy() : on_click(x, y, mods); };
-            app.on_key = [this](int k, int mods) {
-                if (!busy_editing()) return on_key(k, mods);
-                if (!is_session_key(k, mods)) return false;
-                say_busy();
-                return true;
-            };
+            register_session_actions();
             app.on_stroke = [this](const std::vector<std::array<double, 2>> &stroke) { busy_editing() ? say_busy() : on_stroke(stroke); };
             app.on_ctrl_scroll = [this](double dy) { busy_editing() ? say_busy() : on_ctrl_scroll(dy); };
         }
@@ -883,13 +879,6 @@ private:
         std::fflush(stdout);
     }
 
-    // The keys on_key handles (the rest are the App's: S, R, Q, Esc).
-    bool is_session_key(int k, int mods) const {
-        if (mods & GLFW_MOD_CONTROL) return k == GLFW_KEY_Z || k == GLFW_KEY_Y || k == GLFW_KEY_S;
-        return k == GLFW_KEY_K || k == GLFW_KEY_D || k == GLFW_KEY_I ||
-               (ex && (k == GLFW_KEY_E || k == GLFW_KEY_X || k == GLFW_KEY_H || k == GLFW_KEY_A || k == GLFW_KEY_C));
-    }
-
     // The answer to an edit while a clustering runs in the background, or
     // a stroke's crossings are being found.
     void say_busy() {
@@ -962,55 +951,48 @@ private:
         refresh(r, false);
     }
 
-    bool on_key(int k, int mods) {
-        if (mods & GLFW_MOD_CONTROL) {
-            if (k == GLFW_KEY_Z)
-                undo_redo(!(mods & GLFW_MOD_SHIFT));
-            else if (k == GLFW_KEY_Y)
-                undo_redo(false);
-            else if (k == GLFW_KEY_S)
-                save_next();
-            else
-                return false;
-            return true;
-        }
-        if (k == GLFW_KEY_O) {  // ambient occlusion on or off
+    // The handlers of the session's actions (actions.hpp): edits, answered
+    // "busy" while a clustering runs in the background or a stroke's
+    // crossings are being found; the exploration's only over one.
+    void register_session_actions() {
+        auto edit = [this](std::function<void()> fn) {
+            return [this, fn] {
+                busy_editing() ? say_busy() : fn();
+                return true;
+            };
+        };
+        app.actions["undo"] = edit([this] { undo_redo(true); });
+        app.actions["redo"] = edit([this] { undo_redo(false); });
+        app.actions["save"] = edit([this] { save_next(); });
+        // What a stroke picked: keep, delete, invert.
+        app.actions["keep picked"] = edit([this] { edit_ui([&] { session->keep_picked(); }, true); });
+        app.actions["delete picked"] = edit([this] { edit_ui([&] { session->delete_picked(); }, true); });
+        app.actions["invert picked"] = edit([this] { edit_ui([&] { session->invert_picked(); }, true); });
+        auto explore = [this](std::function<void()> fn) {
+            return [this, fn] {
+                if (!ex) return false;
+                busy_editing() ? say_busy() : edit_ui(fn, false);
+                return true;
+            };
+        };
+        app.actions["expand"] = explore([this] { ex->expand_selected(); });
+        app.actions["to streamlines"] =
+            explore([this] { ex->expand_selected_to_streamlines(); });  // the selected clusters straight to their streamlines
+        app.actions["hide"] = explore([this] { ex->hide_selected(); });
+        app.actions["select all"] = explore([this] { ex->select_all(); });
+        app.actions["cluster again"] = explore([this] { recluster({}, false); });
+    }
+
+    // The handlers of the actions on what is drawn, whatever is shown.
+    void register_view_actions() {
+        app.actions["occlusion"] = [this] {  // ambient occlusion on or off
             core::render::AmbientOcclusion ao = r.scene().ambient_occlusion;
             ao.on = !ao.on;
             r.set_ambient_occlusion(ao);
             std::printf("ambient occlusion: %s\n", ao.on ? "on" : "off");
             std::fflush(stdout);
             return true;
-        }
-        if (k == GLFW_KEY_K || k == GLFW_KEY_D || k == GLFW_KEY_I) {  // what a stroke picked: keep, delete, invert
-            edit_ui(
-                [&] {
-                    if (k == GLFW_KEY_K)
-                        session->keep_picked();
-                    else if (k == GLFW_KEY_D)
-                        session->delete_picked();
-                    else
-                        session->invert_picked();
-                },
-                true);
-            return true;
-        }
-        if (!ex) return false;
-        std::function<void()> fn;
-        if (k == GLFW_KEY_E)
-            fn = [&] { ex->expand_selected(); };
-        else if (k == GLFW_KEY_X)
-            fn = [&] { ex->expand_selected_to_streamlines(); };  // the selected clusters straight to their streamlines
-        else if (k == GLFW_KEY_H)
-            fn = [&] { ex->hide_selected(); };
-        else if (k == GLFW_KEY_A)
-            fn = [&] { ex->select_all(); };
-        else if (k == GLFW_KEY_C)
-            fn = [&] { recluster({}, false); };
-        else
-            return false;
-        edit_ui(fn, false);
-        return true;
+        };
     }
 
     // A stroke (Ctrl+drag, or `stroke X0 Y0 X1 Y1 ...`): picks the
@@ -1349,7 +1331,7 @@ private:
         else if (const auto &levels = r.proxy_levels(); r.stats().proxy && std::size_t(r.stats().proxy_level) < levels.size())
             ImGui::TextColored(ImVec4(1.0f, 0.8f, 0.3f, 1.0f), "moving: level of detail at 1/%d of the size, %.0fk points",
                                levels[std::size_t(r.stats().proxy_level)].scale, levels[std::size_t(r.stats().proxy_level)].points / 1e3);
-        ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  S: screenshot  R: reset  O: occlusion");
+        ImGui::TextDisabled("drag: orbit  right/shift drag: pan  wheel: zoom  %s", actions_help(ActionGroup::View).c_str());
         if (ImGui::SliderFloat("exposure", &exposure, 0.05f, 8.0f, "%.2f", ImGuiSliderFlags_Logarithmic)) r.set_exposure(exposure);
         // What a panel control asks for, done after the panel (an edit:
         // recorded for undo).
@@ -1394,7 +1376,7 @@ private:
         }
         if (ex && ImGui::CollapsingHeader("Explore (QuickBundlesX, paper Fig. 5)", ImGuiTreeNodeFlags_DefaultOpen)) {
             ImGui::TextWrapped("%s", ex->summary().c_str());
-            ImGui::TextDisabled("click a centroid: select  E: expand  X: to streamlines  H: hide  A: all/none  C: cluster again");
+            ImGui::TextDisabled("click a centroid: select  %s", actions_help(ActionGroup::Explore).c_str());
             if (button("Repeat: cluster what is shown")) act = [&] { recluster({}, false); };
             ImGui::SameLine();
             if (button("Reset")) act = [&] { recluster({}, true); };
@@ -1484,7 +1466,7 @@ private:
             ImGui::SameLine();
             if (button("Save")) save_next();
             ImGui::Text("%zu picked, %llu deleted", session->picked().size(), (unsigned long long)session->nb_deleted());
-            ImGui::TextDisabled("Ctrl+drag: a stroke picks what it crosses  K: keep  D: delete  I: invert");
+            ImGui::TextDisabled("Ctrl+drag: a stroke picks what it crosses  %s", actions_help(ActionGroup::Stroke).c_str());
             if (!session->picked().empty() || (ex && ex->nb_selected() > 0)) {
                 if (button("Keep picked")) act = [&] { session->keep_picked(); }, act_selects = true;
                 ImGui::SameLine();

@@ -4,6 +4,7 @@
 // that shows a file being read. view.cpp builds the session on it.
 #pragma once
 
+#include "actions.hpp"
 #include "commands.hpp"
 
 #include <hz/core/io.hpp>
@@ -109,9 +110,12 @@ struct App {
     double press_x = 0, press_y = 0;
     bool orbit_started = false;
     // The exploration's hooks (with --explore): a click at window
-    // coordinates, and keys it takes (returns true) before the camera's.
+    // coordinates.
     std::function<void(double, double, int)> on_click;  // (x, y, GLFW modifier bits)
-    std::function<bool(int, int)> on_key;
+    // The handlers of the window's actions (actions.hpp), by name,
+    // registered by the viewer: each returns true when it acted; the
+    // camera's own (screenshot, reset, quit) act when none did.
+    std::map<std::string, std::function<bool()>> actions;
     // A Ctrl+wheel turn (resizes the region of interest being edited).
     std::function<void(double)> on_ctrl_scroll;
     // A stroke drawn with Ctrl+drag (window points): picks the streamlines
@@ -149,13 +153,15 @@ struct App {
         orbit.distance = std::clamp(orbit.distance * std::pow(0.9, dy), radius * 0.05, radius * 50);
     }
     void key(int k, int mods = 0) {
-        if (on_key && on_key(k, mods)) return;
-        if (mods & GLFW_MOD_CONTROL) return;  // (Ctrl+S is not a screenshot)
-        if (k == GLFW_KEY_S)
+        const Action *a = action_for_key(k, mods);
+        if (a == nullptr) return;
+        const std::string name = a->name;
+        if (auto it = actions.find(name); it != actions.end() && it->second()) return;
+        if (name == "screenshot")
             pending_shot = (shot_dir / ("horizon-screenshot-" + std::to_string(++shots) + ".png")).string(), shot_by_key = true;
-        else if (k == GLFW_KEY_R)
+        else if (name == "reset")
             orbit = home;
-        else if (k == GLFW_KEY_Q || k == GLFW_KEY_ESCAPE)
+        else if (name == "quit")
             quit = true;
     }
 };

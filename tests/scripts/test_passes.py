@@ -160,6 +160,24 @@ class AmbientOcclusionTest(TempDirTest):
         self.assertEqual(lighter, 0)
         frames = json.load(open(self.path("stats.json")))["frames"]
         self.assertTrue(any(f.get("ao_ms", 0) > 0 for f in frames))
+        # Without a tractogram too (surfaces only: the key's action used to
+        # be registered with the streamlines' editing session only).
+        with open(self.path("meshes.json"), "w") as f:
+            json.dump({"camera": {"view": "superior"}, "objects": [{"type": "surface", "file": "plane.obj"},
+                                                                   {"type": "surface", "builtin": "sphere"}]}, f)
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 3", f"screenshot {shots[0]}", "key o", "wait 3", f"screenshot {shots[1]}", "quit"]) + "\n")
+        p = xvfb_run([HORIZON, "view", self.path("meshes.json"), "--size", "400x400", "--script", script], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("ambient occlusion: on", p.stdout)
+        a, b = (np.asarray(Image.open(s).convert("RGB"), dtype=np.float64) for s in shots[:2])
+        self.assertGreater((b.sum(2) < a.sum(2) - 3).sum(), 200)
+
+    def test_the_keys_are_listed_by_view_help(self):
+        p = run("view", "--help")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        for line in ("  O             occlusion", "  E             expand", "  Ctrl+Shift+Z  redo", "  Ctrl+S        save what is shown"):
+            self.assertIn(line, p.stdout)
 
     def test_moving_frames_darken_as_much_as_the_still(self):
         """While the camera moves, the window draws the last still again
