@@ -27,12 +27,17 @@ struct ValidateOptions {
     bool no_gpu = false;  // accept shaders without compiling their GLSL (no headless OpenGL here)
 };
 
-// Depth cues, the same for `render` and `view`: they replace a scene file's.
+// Depth cues, the same for `render`, `view` and `demo`: they replace a scene file's.
 struct DepthCueOptions {
-    bool ao = false, no_ao = false;  // --ao, --no-ao
-    double ao_radius = 0;            // --ao-radius MM (0: the scene's, 3 mm by default)
-    double ao_strength = -1;         // --ao-strength S (< 0: the scene's, 0.8 by default)
+    bool ao = false, no_ao = false;                // --ao, --no-ao
+    double ao_radius = 0;                          // --ao-radius MM (0: the scene's, 3 mm by default)
+    double ao_strength = -1;                       // --ao-strength S (< 0: the scene's, 0.8 by default)
+    bool depth_cue = false, no_depth_cue = false;  // --depth-cue, --no-depth-cue
+    double depth_cue_strength = -1;                // --depth-cue-strength S (< 0: the scene's, 0.6 by default)
     void apply(core::render::Scene &s) const {
+        if (depth_cue || depth_cue_strength >= 0) s.depth_cue.on = true;
+        if (no_depth_cue) s.depth_cue.on = false;
+        if (depth_cue_strength >= 0) s.depth_cue.strength = depth_cue_strength;
         if (ao || ao_radius > 0 || ao_strength >= 0) s.ambient_occlusion.on = true;
         if (no_ao) s.ambient_occlusion.on = false;
         if (ao_radius > 0) s.ambient_occlusion.radius_mm = ao_radius;

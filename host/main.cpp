@@ -52,6 +52,15 @@ void add_depth_cue_options(CLI::App *cmd, DepthCueOptions &c) {
                     "ambient occlusion: 0 (none) to 1 (a fully hidden pixel is black; default 0.8; implies --ao)")
         ->check(CLI::Range(0.0, 1.0))
         ->excludes(off);
+    auto *cue = cmd->add_flag("--depth-cue", c.depth_cue,
+                              "depth cue: what lies farther fades towards the background across the scene's depth (a scene file's "
+                              "\"depth_cue\")");
+    auto *no_cue = cmd->add_flag("--no-depth-cue", c.no_depth_cue, "no depth cue, whatever the scene file says");
+    cue->excludes(no_cue);
+    cmd->add_option("--depth-cue-strength", c.depth_cue_strength,
+                    "depth cue: the fraction of the background at the scene's far end, 0 to 1 (default 0.6; implies --depth-cue)")
+        ->check(CLI::Range(0.0, 1.0))
+        ->excludes(no_cue);
 }
 
 void add_lod_options(CLI::App *cmd, LodOptions &lod) {

@@ -193,7 +193,9 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"culled_chunks", s.culled_chunks},
                             {"culled_points", s.culled_points},
                             {"proxy", s.proxy},
-                            {"passes", {{"ambient_occlusion", {{"on", r.scene().ambient_occlusion.on}, {"ms", s.ao_ms}}}}},
+                            {"passes",
+                             {{"ambient_occlusion", {{"on", r.scene().ambient_occlusion.on}, {"ms", s.ao_ms}}},
+                              {"depth_cue", {{"on", r.scene().depth_cue.on}, {"ms", s.depth_cue_ms}}}}},
                             {"points_kept", s.points_drawn}};
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     } else {
@@ -201,6 +203,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                     o.out.c_str(), w, h, ms_since(t0), ctx_ms, s.upload_ms, s.environment_ms, first_ms, s.readback_ms, write_ms);
         if (o.frames > 1) std::printf("  %d frames: median %.1f ms/frame\n", o.frames, frame_ms);
         if (r.scene().ambient_occlusion.on) std::printf("  ambient occlusion: %.1f ms\n", s.ao_ms);
+        if (r.scene().depth_cue.on) std::printf("  depth cue: %.1f ms\n", s.depth_cue_ms);
         if (s.crossings_drawn)
             std::printf("  slab crossings drawn: %llu (where the streamlines cross the plane)\n", (unsigned long long)s.crossings_drawn);
         else if (s.points_total)

@@ -985,6 +985,14 @@ private:
 
     // The handlers of the actions on what is drawn, whatever is shown.
     void register_view_actions() {
+        app.actions["depth cue"] = [this] {  // depth cue on or off
+            core::render::DepthCue cue = r.scene().depth_cue;
+            cue.on = !cue.on;
+            r.set_depth_cue(cue);
+            std::printf("depth cue: %s\n", cue.on ? "on" : "off");
+            std::fflush(stdout);
+            return true;
+        };
         app.actions["occlusion"] = [this] {  // ambient occlusion on or off
             core::render::AmbientOcclusion ao = r.scene().ambient_occlusion;
             ao.on = !ao.on;
@@ -1535,9 +1543,10 @@ private:
         }
     }
 
-    // Depth cues (closed at first, after the objects): ambient occlusion,
-    // also switched by O. (A script opens it as `press depth cues` and
-    // presses `press ambient occlusion`.)
+    // Depth cues (closed at first, after the objects): ambient occlusion
+    // and the depth cue, also switched by O and F. (A script opens it as
+    // `press depth cues`, then presses `press ambient occlusion`, `press
+    // depth cue`.)
     void depth_cues_panel() {
         const bool open = ImGui::CollapsingHeader("depth cues");
         auto button = [&](const std::string &name) {
@@ -1558,6 +1567,18 @@ private:
         if (changed) {
             ao.radius_mm = std::clamp(double(radius), 0.5, 30.0), ao.strength = std::clamp(double(strength), 0.0, 1.0);
             r.set_ambient_occlusion(ao);
+        }
+        core::render::DepthCue cue = r.scene().depth_cue;
+        float fade = float(cue.strength);
+        bool cue_changed = ImGui::Checkbox("depth cue (F)", &cue.on);
+        button("depth cue");
+        if (cue.on) {
+            cue_changed |= ImGui::SliderFloat("depth cue strength", &fade, 0.0f, 1.0f, "%.2f");
+            if (r.stats().depth_cue_ms > 0) ImGui::TextDisabled("depth cue: %.1f ms", r.stats().depth_cue_ms);
+        }
+        if (cue_changed) {
+            cue.strength = std::clamp(double(fade), 0.0, 1.0);
+            r.set_depth_cue(cue);
         }
     }
 

@@ -241,6 +241,7 @@ struct FrameLog {
                           {"proxy", drew && s.proxy},
                           {"proxy_level", drew && s.proxy ? s.proxy_level : -1},
                           {"ao_ms", drew ? s.ao_ms : 0},
+                          {"depth_cue_ms", drew ? s.depth_cue_ms : 0},
                           {"clustering", clustering},
                           {"rss_anon_mb", anon}});
     }

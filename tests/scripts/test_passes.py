@@ -1,6 +1,6 @@
 """The frame's passes after its geometry, through `horizon render` (headless)
-and the window: ambient occlusion (a depth cue), against an independent
-reference where one exists.
+and the window: ambient occlusion and the depth cue, against independent
+references where they exist.
 
 The reference for ambient occlusion is the ambient occlusion of a scene
 whose answer is known in closed form: an infinitely long cylinder of radius
@@ -236,3 +236,95 @@ class AmbientOcclusionTest(TempDirTest):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class DepthCueTest(TempDirTest):
+    """Five flat squares facing a camera above them, at heights 0 to 40 mm:
+    the depth cue mixes each towards the background by strength x (the
+    scene's top - its height) / (top - bottom), whatever the camera's
+    distance: a closed form of the geometry alone."""
+    HEIGHTS = [0.0, 10.0, 20.0, 30.0, 40.0]
+
+    def setUp(self):
+        super().setUp()
+        with open(self.path("squares.obj"), "w") as f:
+            for k, z in enumerate(self.HEIGHTS):
+                x0 = -50 + 20 * k
+                f.write(f"v {x0} -8 {z}\nv {x0 + 16} -8 {z}\nv {x0 + 16} 8 {z}\nv {x0} 8 {z}\n")
+            for k in range(len(self.HEIGHTS)):
+                a = 4 * k + 1
+                f.write(f"f {a} {a + 1} {a + 2}\nf {a} {a + 2} {a + 3}\n")
+
+    def render(self, cue, *args):
+        scene = {"camera": {"view": "superior"}, "environment": {"type": "none"}, "tonemap": "none", "background": [0.05, 0.1, 0.2],
+                 "objects": [{"type": "surface", "file": "squares.obj", "color": [0.9, 0.6, 0.3], "material": {"shader": "flat"}}]}
+        if cue is not None:
+            scene["depth_cue"] = cue
+        with open(self.path("s.json"), "w") as f:
+            json.dump(scene, f)
+        out = self.path("out.png")
+        p = run("render", self.path("s.json"), "-o", out, "--size", "500x200", "--force", "--json", *args, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return np.asarray(Image.open(out).convert("RGB"), dtype=np.float64), json.loads(p.stdout)
+
+    def square_centres(self, picture):
+        """Each square's centre pixel, found in the picture without the cue
+        (columns of the squares' colour, left to right)."""
+        lit = np.abs(picture - picture[0, 0]).sum(2).max(0) > 30
+        runs, start = [], None
+        for x, v in enumerate(list(lit) + [False]):
+            if v and start is None:
+                start = x
+            elif not v and start is not None:
+                runs.append((start + x) // 2)
+                start = None
+        self.assertEqual(len(runs), len(self.HEIGHTS), runs)
+        return runs
+
+    def test_fades_linearly_with_depth_across_the_scene(self):
+        off, info = self.render(None)
+        self.assertFalse(info["passes"]["depth_cue"]["on"])
+        for cue, args, strength in (({"strength": 0.8}, (), 0.8), (None, ("--depth-cue",), 0.6), (0.5, (), 0.5),
+                                    (None, ("--depth-cue-strength", "1"), 1.0)):
+            with self.subTest(cue=cue, args=args):
+                on, info = self.render(cue, *args)
+                self.assertTrue(info["passes"]["depth_cue"]["on"])
+                bg = off[0, 0]
+                top, bottom = max(self.HEIGHTS), min(self.HEIGHTS)
+                for x, z in zip(self.square_centres(off), self.HEIGHTS):
+                    w = strength * (top - z) / (top - bottom)
+                    want = (1 - w) * off[100, x] + w * bg
+                    np.testing.assert_allclose(on[100, x], want, atol=2.0, err_msg=f"square at {z} mm")
+                np.testing.assert_array_equal(on[0, :], off[0, :])  # (the background)
+        none, _ = self.render({"strength": 0.8}, "--no-depth-cue")
+        np.testing.assert_array_equal(none, off)
+
+    def test_the_window_switches_it_with_f(self):
+        with open(self.path("s.json"), "w") as f:
+            json.dump({"camera": {"view": "superior"}, "objects": [{"type": "surface", "file": "squares.obj"}]}, f)
+        shots = [self.path(f"f{i}.png") for i in range(3)]
+        with open(self.path("script.txt"), "w") as f:
+            f.write("\n".join(["wait 3", f"screenshot {shots[0]}", "key f", "wait 3", f"screenshot {shots[1]}", "key f", "wait 3",
+                               f"screenshot {shots[2]}", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # (Mesa's GLX driver, as in test_render's window tests)
+        p = xvfb_run([HORIZON, "view", self.path("s.json"), "--size", "400x300", "--script", self.path("script.txt")], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("depth cue: on", p.stdout)
+        a, b, c = (np.asarray(Image.open(s).convert("RGB"), dtype=np.float64) for s in shots)
+        np.testing.assert_array_equal(a, c)
+        self.assertGreater((np.abs(a - b).sum(2) > 6).sum(), 1000)
+
+    def test_bad_settings_are_one_line(self):
+        for cue, where in ((2, "depth_cue"), ({"strength": -1}, "depth_cue.strength"), ({"fog": 1}, "fog"), ("yes", "depth_cue")):
+            with open(self.path("s.json"), "w") as f:
+                json.dump({"depth_cue": cue, "objects": [{"type": "surface", "file": "squares.obj"}]}, f)
+            p = run("render", self.path("s.json"), "-o", self.path("x.png"), "--size", "64x64")
+            self.assertEqual(p.returncode, 1, p.stderr)
+            self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+            self.assertIn(where, p.stderr)
+            self.assertFalse(os.path.exists(self.path("x.png")))
+        p = run("render", self.path("squares.obj"), "-o", self.path("x.png"), "--depth-cue-strength", "3")
+        self.assertNotEqual(p.returncode, 0)
+        self.assertFalse(os.path.exists(self.path("x.png")))

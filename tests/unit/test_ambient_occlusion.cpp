@@ -98,9 +98,11 @@ TEST_CASE("ambient occlusion: the GPU pass equals its C++ statement, planes stay
     REQUIRE(glCheckFramebufferStatus(GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE);
 
     AmbientOcclusionPass pass(make);
-    pass.apply(fbo, fbo, W, H, p, vao, /*encoded=*/false);
-    const std::vector<float> stored = pass.read_depth();  // (as the GPU holds it: 24 bits)
-    const std::vector<float> gpu = pass.read_factors();
+    FrameDepth frame;
+    frame.resolve(fbo, W, H);
+    pass.apply(fbo, frame, p, vao, /*encoded=*/false);
+    const std::vector<float> stored = frame.read();  // (as the GPU holds it: 24 bits)
+    const std::vector<float> gpu = pass.read_factors(frame, p, vao);
     const std::vector<float> cpu = ao_reference(stored, W, H, p);
     REQUIRE(gpu.size() == cpu.size());
     std::size_t off = 0;

@@ -13,6 +13,8 @@
 #include "programs.hpp"
 #include "occlusion.hpp"
 #include "passes/ambient_occlusion.hpp"
+#include "passes/depth_cue.hpp"
+#include "passes/frame_depth.hpp"
 #include "reprojection.hpp"
 #include "shell_proxy.hpp"
 
@@ -229,13 +231,17 @@ struct Renderer::Impl {
     std::map<std::string, std::unique_ptr<Program>> programs;
     std::map<std::string, std::unique_ptr<Program>> aux_programs;  // sky, slices, tonemap by output and curve
     GLuint empty_vao = 0;
-    std::unique_ptr<ImageLighting> ibl;             // the environment's lighting
-    std::unique_ptr<Reprojection> warp;             // the last complete still, drawn again under the proxy while the camera moves
-    std::unique_ptr<AmbientOcclusionPass> ao_pass;  // the depth cue after the geometry (Scene::ambient_occlusion)
-    View frame_view;                                // the camera of the frame being drawn (the passes after the geometry)
-    int frame_w = 0, frame_h = 0;                   // the size of the frame being drawn (a proxy frame's full size)
-    Fbo msaa;                                       // the HDR path's multisampled RGBA16F target
-    Fbo msaa_display;                               // the display path's multisampled RGBA8 target
+    std::unique_ptr<ImageLighting> ibl;  // the environment's lighting
+    std::unique_ptr<Reprojection> warp;  // the last complete still, drawn again under the proxy while the camera moves
+    // The passes after the geometry (passes/): the frame's depth they read,
+    // ambient occlusion, depth cue.
+    std::unique_ptr<FrameDepth> frame_depth;
+    std::unique_ptr<AmbientOcclusionPass> ao_pass;
+    std::unique_ptr<DepthCuePass> cue_pass;
+    View frame_view;               // the camera of the frame being drawn (the passes after the geometry)
+    int frame_w = 0, frame_h = 0;  // the size of the frame being drawn (a proxy frame's full size)
+    Fbo msaa;                      // the HDR path's multisampled RGBA16F target
+    Fbo msaa_display;              // the display path's multisampled RGBA8 target
     Tex2dFbo resolved, behind, ldr;
     // The level-of-detail frame: drawn at 1/proxy_scale_now() of the
     // window's size into `lowres` (fewer fragments; each subsample line
@@ -331,6 +337,9 @@ struct Renderer::Impl {
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
         ao_pass = std::make_unique<AmbientOcclusionPass>(
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
+        cue_pass = std::make_unique<DepthCuePass>(
+            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
+        frame_depth = std::make_unique<FrameDepth>();
     }
 
     ~Impl() {
@@ -343,6 +352,8 @@ struct Renderer::Impl {
         ibl.reset();
         warp.reset();
         ao_pass.reset();
+        cue_pass.reset();
+        frame_depth.reset();
         glDeleteVertexArrays(1, &empty_vao);
         msaa.destroy();
         msaa_display.destroy();
@@ -1556,39 +1567,79 @@ struct Renderer::Impl {
     // Ends the geometry of a frame drawn into `target`: its picture into
     // out_ (resolved, tonemapped where it went through the HDR path). With
     // `complete` (the frame's geometry is all drawn, not a step of a
-    // progressive frame), the passes that read the whole frame run first:
-    // ambient occlusion, on linear radiance where there is some.
+    // progressive frame), the passes that read the whole frame run first,
+    // on linear radiance where there is some.
     void finish_frame(GLuint target, int w, int h, bool complete = false) {
         set_clipping(false);
-        const bool ao = complete && scene.ambient_occlusion.on;
         if (target == out_->fbo) {
-            if (ao) ambient_occlusion(out_->fbo, target, w, h, true);
+            if (complete) passes_after_geometry(out_->fbo, target, w, h, true);
             return;
         }
         glBindFramebuffer(GL_READ_FRAMEBUFFER, target);
         glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_direct ? out_->fbo : resolved.fbo);
         glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
-        if (ao) ambient_occlusion(display_direct ? out_->fbo : resolved.fbo, target, w, h, display_direct);
+        if (complete) passes_after_geometry(display_direct ? out_->fbo : resolved.fbo, target, w, h, display_direct);
         if (!display_direct) tonemap_to(out_->fbo, w, h);
     }
+    bool any_pass_after_geometry() const { return scene.ambient_occlusion.on || scene.depth_cue.on; }
 
-    // The ambient occlusion pass over the picture in `colour_fbo` (display
-    // values if `encoded`, else linear radiance) from the depth of
-    // `depth_fbo`: fewer samples in a proxy frame (the moving picture's
-    // cheap form), the full count in a still.
-    void ambient_occlusion(GLuint colour_fbo, GLuint depth_fbo, int w, int h, bool encoded) {
+    // The passes after the geometry over the picture in `colour_fbo`
+    // (display values if `encoded`, else linear radiance), from the depth of
+    // `depth_fbo`, resolved once for all of them: ambient occlusion (fewer
+    // samples in a proxy frame, the moving picture's cheap form; the full
+    // count in a still), then the depth cue (which fades what ambient
+    // occlusion darkened, as distance does).
+    void passes_after_geometry(GLuint colour_fbo, GLuint depth_fbo, int w, int h, bool encoded) {
+        if (!any_pass_after_geometry()) return;
+        if (scene.ambient_occlusion.on) ao_pass->prepare();  // (the programs compiled outside the timing)
+        if (scene.depth_cue.on) cue_pass->prepare();
         // Timed only on request (a sync before and after: a GPU's pipeline
         // stalls; llvmpipe's GL_TIME_ELAPSED counts its command recording,
         // not its rasterisation, so a timer query would say 0.03 ms).
         if (settings.time_passes) glFinish();
-        const auto t0 = Clock::now();
-        AoParams p;
-        p.radius_mm = scene.ambient_occlusion.radius_mm;
-        p.strength = scene.ambient_occlusion.strength;
-        p.pairs = out_ == &lowres ? 6 : 16;
-        p.fov_deg = frame_view.fov_deg, p.near_mm = frame_view.near_mm, p.far_mm = frame_view.far_mm;
-        ao_pass->apply(colour_fbo, depth_fbo, w, h, p, empty_vao, encoded);
-        if (settings.time_passes) glFinish(), stats.ao_ms += ms_since(t0);
+        auto t0 = Clock::now();
+        frame_depth->resolve(depth_fbo, w, h);
+        if (scene.ambient_occlusion.on) {
+            AoParams p;
+            p.radius_mm = scene.ambient_occlusion.radius_mm;
+            p.strength = scene.ambient_occlusion.strength;
+            p.pairs = out_ == &lowres ? 6 : 16;
+            p.fov_deg = frame_view.fov_deg, p.near_mm = frame_view.near_mm, p.far_mm = frame_view.far_mm;
+            ao_pass->apply(colour_fbo, *frame_depth, p, empty_vao, encoded);
+            if (settings.time_passes) glFinish(), stats.ao_ms += ms_since(t0), t0 = Clock::now();
+        }
+        if (scene.depth_cue.on) {
+            DepthCueParams p;
+            p.strength = scene.depth_cue.strength;
+            p.near_mm = frame_view.near_mm, p.far_mm = frame_view.far_mm;
+            std::tie(p.from_mm, p.to_mm) = scene_depth_range(frame_view);
+            if (encoded) {
+                p.background = background_value();
+            } else {
+                for (int k = 0; k < 3; ++k) p.background[std::size_t(k)] = float(scene.background[std::size_t(k)]);
+            }
+            cue_pass->apply(colour_fbo, *frame_depth, p, empty_vao);
+            if (settings.time_passes) glFinish(), stats.depth_cue_ms += ms_since(t0);
+        }
+    }
+
+    // The nearest and farthest depth of the visible objects' box from
+    // camera `v` (along its view axis), the depth cue's range; the box kept
+    // while what is shown stays the same (generation).
+    Bounds cue_bounds;
+    std::uint64_t cue_bounds_generation = ~std::uint64_t(0);
+    std::pair<double, double> scene_depth_range(const View &v) {
+        if (cue_bounds_generation != generation) cue_bounds = scene_bounds(scene), cue_bounds_generation = generation;
+        if (cue_bounds.empty) return {v.near_mm, v.far_mm};
+        const glm::dvec3 eye = to_dvec3(v.eye), ahead = glm::normalize(to_dvec3(v.target) - eye);
+        double lo = INFINITY, hi = -INFINITY;
+        for (int c = 0; c < 8; ++c) {
+            const glm::dvec3 q((c & 1) ? cue_bounds.max[0] : cue_bounds.min[0], (c & 2) ? cue_bounds.max[1] : cue_bounds.min[1],
+                               (c & 4) ? cue_bounds.max[2] : cue_bounds.min[2]);
+            const double z = glm::dot(q - eye, ahead);
+            lo = std::min(lo, z), hi = std::max(hi, z);
+        }
+        return {std::max(lo, v.near_mm), std::max(hi, v.near_mm + 1e-3)};
     }
 
     // The scene's background as the frame's output stores it.
@@ -1776,7 +1827,7 @@ void main() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
         stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = stats.volumes_drawn = 0;
         stats.volume_rays = 0;
-        stats.ao_ms = 0;
+        stats.ao_ms = stats.depth_cue_ms = 0;
         stats.culled_chunks = stats.culled_points = stats.culled_streamlines = 0;
         stats.proxy = false;
         stats.refine_step = 0;
@@ -1982,7 +2033,7 @@ void main() {
         if (done) {
             refine.active = false;
             if (settings.reproject) capture_still();
-            if (capture && scene.ambient_occlusion.on) ambient_occlusion(out_->fbo, refine.target, refine.w, refine.h, true);
+            if (capture) passes_after_geometry(out_->fbo, refine.target, refine.w, refine.h, true);
         }
         return !refine.active;
     }
@@ -2168,6 +2219,13 @@ void Renderer::set_ambient_occlusion(const AmbientOcclusion &ao) {
     AmbientOcclusion &now = impl_->scene.ambient_occlusion;
     if (ao.on != now.on || ao.radius_mm != now.radius_mm || ao.strength != now.strength) ++impl_->generation;
     now = ao;
+}
+
+void Renderer::set_depth_cue(const DepthCue &cue) {
+    check_depth_cue(cue);
+    DepthCue &now = impl_->scene.depth_cue;
+    if (cue.on != now.on || cue.strength != now.strength) ++impl_->generation;
+    now = cue;
 }
 
 void Renderer::set_bake_materials(bool bake) {

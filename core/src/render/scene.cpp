@@ -216,8 +216,9 @@ void apply_file_material(Object &ob, bool has_material, bool has_color) {
 Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what) {
     const json root = json::parse(text, nullptr, false);
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
-    check_keys(root, {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab", "ambient_occlusion"}, what,
-               "scene");
+    check_keys(
+        root, {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab", "ambient_occlusion", "depth_cue"},
+        what, "scene");
     Scene s;
     if (root.contains("ambient_occlusion")) {
         // true | false | {"radius": mm, "strength": 0..1, "on": bool}
@@ -235,6 +236,26 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             if (a.contains("strength")) s.ambient_occlusion.strength = num_in(a["strength"], what, "ambient_occlusion.strength", 0.0, 1.0);
         } else {
             fail(what, "ambient_occlusion", "expected true, false or an object {\"radius\": mm, \"strength\": 0..1}");
+        }
+    }
+    if (root.contains("depth_cue")) {
+        // true | false | strength | {"strength": 0..1, "on": bool}
+        const json &a = root["depth_cue"];
+        if (a.is_boolean()) {
+            s.depth_cue.on = a.get<bool>();
+        } else if (a.is_number()) {
+            s.depth_cue.on = true;
+            s.depth_cue.strength = num_in(a, what, "depth_cue", 0.0, 1.0);
+        } else if (a.is_object()) {
+            check_keys(a, {"on", "strength"}, what, "depth_cue");
+            s.depth_cue.on = true;
+            if (a.contains("on")) {
+                if (!a["on"].is_boolean()) fail(what, "depth_cue.on", "expected true or false");
+                s.depth_cue.on = a["on"].get<bool>();
+            }
+            if (a.contains("strength")) s.depth_cue.strength = num_in(a["strength"], what, "depth_cue.strength", 0.0, 1.0);
+        } else {
+            fail(what, "depth_cue", "expected true, false, a strength in [0, 1] or an object {\"strength\": 0..1}");
         }
     }
     if (root.contains("camera")) {
@@ -479,6 +500,11 @@ void check_ambient_occlusion(const AmbientOcclusion &ao) {
         throw Error("ambient occlusion: radius " + std::to_string(ao.radius_mm) + " mm is outside (0, 1000]");
     if (!(ao.strength >= 0 && ao.strength <= 1))
         throw Error("ambient occlusion: strength " + std::to_string(ao.strength) + " is outside [0, 1]");
+}
+
+void check_depth_cue(const DepthCue &cue) {
+    if (!(cue.strength >= 0 && cue.strength <= 1))
+        throw Error("depth cue: strength " + std::to_string(cue.strength) + " is outside [0, 1]");
 }
 
 Scene load_scene(const Registry &reg, const fs::path &file) {

@@ -68,14 +68,13 @@ double focal_px(const AoParams &p, int h) { return 0.5 * h / std::tan(p.fov_deg 
 AmbientOcclusionPass::AmbientOcclusionPass(MakeProgram make) : make_(std::move(make)) {}
 
 AmbientOcclusionPass::~AmbientOcclusionPass() {
-    if (depth_fbo_) glDeleteFramebuffers(1, &depth_fbo_);
-    if (depth_tex_) glDeleteTextures(1, &depth_tex_);
     for (auto *p : {&program_, &factors_})
         if (*p) glDeleteProgram((*p)->id);
 }
 
 namespace {
-void set_uniforms(Program &p, int w, int h, const AoParams &a) {
+void draw(Program &p, const FrameDepth &depth, const AoParams &a, GLuint empty_vao) {
+    const int w = depth.width(), h = depth.height();
     glUseProgram(p.id);
     glUniform1i(p.loc("u_depth"), 0);
     glUniform2i(p.loc("u_size"), w, h);
@@ -85,82 +84,54 @@ void set_uniforms(Program &p, int w, int h, const AoParams &a) {
     glUniform1f(p.loc("u_radius_mm"), float(a.radius_mm));
     glUniform1f(p.loc("u_strength"), float(a.strength));
     glUniform1i(p.loc("u_pairs"), std::max(1, a.pairs));
+    glViewport(0, 0, w, h);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D, depth.texture());
+    glBindVertexArray(empty_vao);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
 }
 }  // namespace
 
-void AmbientOcclusionPass::apply(GLuint colour_fbo, GLuint depth_fbo, int w, int h, const AoParams &p, GLuint empty_vao, bool encoded) {
+void AmbientOcclusionPass::prepare() {
     if (!program_) program_ = make_(glsl::kFullscreenVS, std::string("#version 410 core\n") + kAoFS, "ambient occlusion");
-    // The frame's depth as a texture of our own (resolving multisamples).
-    if (!depth_tex_ || w != w_ || h != h_) {
-        if (depth_tex_) glDeleteTextures(1, &depth_tex_);
-        if (!depth_fbo_) glGenFramebuffers(1, &depth_fbo_);
-        glGenTextures(1, &depth_tex_);
-        glBindTexture(GL_TEXTURE_2D, depth_tex_);
-        glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, w, h, 0, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, nullptr);
-        clamped_texture_2d(GL_NEAREST);
-        glBindFramebuffer(GL_FRAMEBUFFER, depth_fbo_);
-        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, depth_tex_, 0);
-        glDrawBuffer(GL_NONE);
-        glReadBuffer(GL_NONE);
-        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-            throw Error("renderer: ambient occlusion: incomplete framebuffer");
-        w_ = w, h_ = h;
-    }
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, depth_fbo);
-    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, depth_fbo_);
-    glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_DEPTH_BUFFER_BIT, GL_NEAREST);
-    last_ = p, empty_vao_ = empty_vao;
+}
+
+void AmbientOcclusionPass::apply(GLuint colour_fbo, const FrameDepth &depth, const AoParams &p, GLuint empty_vao, bool encoded) {
+    prepare();
     glBindFramebuffer(GL_FRAMEBUFFER, colour_fbo);
-    glViewport(0, 0, w, h);
     glDisable(GL_DEPTH_TEST);
     glDepthMask(GL_FALSE);
     glEnable(GL_BLEND);
     glBlendFunc(GL_ZERO, GL_SRC_COLOR);
-    set_uniforms(*program_, w, h, p);
+    glUseProgram(program_->id);
     glUniform1i(program_->loc("u_encoded"), encoded ? 1 : 0);
-    glActiveTexture(GL_TEXTURE0);
-    glBindTexture(GL_TEXTURE_2D, depth_tex_);
-    glBindVertexArray(empty_vao);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
+    draw(*program_, depth, p, empty_vao);
     glDisable(GL_BLEND);
     glDepthMask(GL_TRUE);
 }
 
-std::vector<float> AmbientOcclusionPass::read_factors() {
-    if (!depth_tex_) return {};
+std::vector<float> AmbientOcclusionPass::read_factors(const FrameDepth &depth, const AoParams &p, GLuint empty_vao) {
+    if (!depth.texture()) return {};
     if (!factors_)
         factors_ =
             make_(glsl::kFullscreenVS, std::string("#version 410 core\n#define HZ_AO_FACTORS 1\n") + kAoFS, "ambient occlusion factors");
+    const int w = depth.width(), h = depth.height();
     GLuint fbo = 0, tex = 0;
     glGenTextures(1, &tex);
     glBindTexture(GL_TEXTURE_2D, tex);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, w_, h_, 0, GL_RED, GL_FLOAT, nullptr);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, w, h, 0, GL_RED, GL_FLOAT, nullptr);
     clamped_texture_2d(GL_NEAREST);
     glGenFramebuffers(1, &fbo);
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
-    glViewport(0, 0, w_, h_);
     glDisable(GL_DEPTH_TEST);
     glDisable(GL_BLEND);
-    set_uniforms(*factors_, w_, h_, last_);
-    glActiveTexture(GL_TEXTURE0);
-    glBindTexture(GL_TEXTURE_2D, depth_tex_);
-    glBindVertexArray(empty_vao_);
-    glDrawArrays(GL_TRIANGLES, 0, 3);
-    std::vector<float> out(std::size_t(w_) * h_);
+    draw(*factors_, depth, p, empty_vao);
+    std::vector<float> out(std::size_t(w) * h);
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glReadPixels(0, 0, w_, h_, GL_RED, GL_FLOAT, out.data());
+    glReadPixels(0, 0, w, h, GL_RED, GL_FLOAT, out.data());
     glDeleteFramebuffers(1, &fbo);
     glDeleteTextures(1, &tex);
-    return out;
-}
-
-std::vector<float> AmbientOcclusionPass::read_depth() {
-    if (!depth_tex_) return {};
-    std::vector<float> out(std::size_t(w_) * h_);
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, depth_fbo_);
-    glPixelStorei(GL_PACK_ALIGNMENT, 4);
-    glReadPixels(0, 0, w_, h_, GL_DEPTH_COMPONENT, GL_FLOAT, out.data());
     return out;
 }
 

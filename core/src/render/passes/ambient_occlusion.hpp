@@ -25,6 +25,7 @@
 
 #include "../glsl.hpp"
 #include "../gpu_object.hpp"
+#include "frame_depth.hpp"
 
 #include <functional>
 #include <memory>
@@ -50,27 +51,23 @@ public:
     AmbientOcclusionPass(const AmbientOcclusionPass &) = delete;
     AmbientOcclusionPass &operator=(const AmbientOcclusionPass &) = delete;
 
-    // Darkens the picture in `colour_fbo` (w x h: sRGB-encoded display
-    // values, or linear radiance) by the occlusion that the depth of `depth_fbo` (w x
-    // h, possibly multisampled: resolved first) gives, for `p`. `empty_vao`:
-    // a vertex array for a full-screen triangle. Leaves depth testing and
-    // blending off.
+    // Darkens the picture in `colour_fbo` (sRGB-encoded display values, or
+    // linear radiance; the size of `depth`) by the occlusion that the
+    // frame's depth gives, for `p`. `empty_vao`: a vertex array for a
+    // full-screen triangle. Leaves depth testing and blending off.
     // `encoded`: false where the picture is linear radiance (the HDR path,
     // before its tone curve): then the factor multiplies it as it is.
-    void apply(GLuint colour_fbo, GLuint depth_fbo, int w, int h, const AoParams &p, GLuint empty_vao, bool encoded = true);
-    // The last pass's factors (1: unoccluded), rows bottom to top, w x h:
+    void apply(GLuint colour_fbo, const FrameDepth &depth, const AoParams &p, GLuint empty_vao, bool encoded = true);
+    // Compiles the pass's program now (apply() would on its first call):
+    // so that the pass's first timing is the pass's, not the compiler's.
+    void prepare();
+    // The factors (1: unoccluded) of `depth` for `p`, rows bottom to top:
     // for the tests. Reads back; slow.
-    std::vector<float> read_factors();
-    // The last pass's depth (window depth in [0, 1], rows bottom to top).
-    std::vector<float> read_depth();
+    std::vector<float> read_factors(const FrameDepth &depth, const AoParams &p, GLuint empty_vao);
 
 private:
     MakeProgram make_;
     std::unique_ptr<Program> program_, factors_;
-    GLuint depth_fbo_ = 0, depth_tex_ = 0;
-    int w_ = 0, h_ = 0;
-    AoParams last_;
-    GLuint empty_vao_ = 0;
 };
 
 // The estimate on the CPU, from window depths (rows bottom to top, 1 =

@@ -142,8 +142,9 @@ struct FrameStats {
     // streamlines whose first piece they hold.
     std::uint64_t culled_chunks = 0, culled_points = 0, culled_streamlines = 0;
     // The frame's passes after the geometry, with RenderSettings::time_passes
-    // (0 when off or not timed): ambient occlusion.
-    double ao_ms = 0;
+    // (0 when off or not timed): ambient occlusion (with the resolve of the
+    // frame's depth the passes read), depth cue.
+    double ao_ms = 0, depth_cue_ms = 0;
     bool proxy = false;                  // a level-of-detail proxy was drawn
     int proxy_level = 0;                 // ... at this level (Renderer::proxy_levels' index)
     int refine_step = 0;                 // progressive: the step (0: a whole frame)
@@ -194,6 +195,9 @@ public:
     // still image is out of date. Throws Error for values outside
     // radius_mm in (0, 1000], strength in [0, 1].
     void set_ambient_occlusion(const AmbientOcclusion &ao);
+    // Switches and sets depth cueing (Scene::depth_cue). Throws Error for a
+    // strength outside [0, 1].
+    void set_depth_cue(const DepthCue &cue);
     // Crops the streamlines to a slab (Scene::slab), or not (nullopt). With
     // Slab::points, the crossings of the plane are computed on background
     // threads: update_proxies() adopts them (render() waits for them).

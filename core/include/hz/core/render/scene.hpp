@@ -126,13 +126,24 @@ struct AmbientOcclusion {
     double strength = 0.8;
 };
 
+// Depth cueing (renderer passes/depth_cue.hpp): what lies farther fades
+// towards the background, linearly across the scene's depth, up to
+// `strength` at its far end.
+struct DepthCue {
+    bool on = false;
+    double strength = 0.6;
+};
+
 // Throws Error "ambient occlusion: ..." unless 0 < radius_mm <= 1000 and
 // 0 <= strength <= 1 (finite).
 void check_ambient_occlusion(const AmbientOcclusion &ao);
+// Throws Error "depth cue: ..." unless 0 <= strength <= 1.
+void check_depth_cue(const DepthCue &cue);
 
 struct Scene {
     std::vector<Object> objects;
     AmbientOcclusion ambient_occlusion;
+    DepthCue depth_cue;
     std::optional<Slab> slab;
     Camera camera;
     std::vector<Light> lights;  // empty: a three-point rig (key, fill, rim)
