@@ -18,9 +18,9 @@
 namespace hz::core::render {
 
 struct DepthCueParams {
-    double strength = 0.6;            // the fraction of the background at the far end (0: none)
-    double from_mm = 0, to_mm = 1;    // the scene's depth range from the eye: no fading before, full after
-    double near_mm = 1, far_mm = 1e3; // the camera's planes (linear depth)
+    double strength = 0.6;                     // the fraction of the background at the far end (0: none)
+    double from_mm = 0, to_mm = 1;             // the scene's depth range from the eye: no fading before, full after
+    double near_mm = 1, far_mm = 1e3;          // the camera's planes (linear depth)
     std::array<float, 3> background{0, 0, 0};  // as the picture stores it (display values or linear)
 };
 

@@ -21,7 +21,8 @@ void FrameDepth::resolve(GLuint fbo, int w, int h) {
         glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, tex_, 0);
         glDrawBuffer(GL_NONE);
         glReadBuffer(GL_NONE);
-        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: the frame's depth: incomplete framebuffer");
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+            throw Error("renderer: the frame's depth: incomplete framebuffer");
         w_ = w, h_ = h;
     }
     glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo);
