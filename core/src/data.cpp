@@ -49,9 +49,8 @@ void release_in_parallel(void *p, std::size_t bytes) noexcept {
 
 constexpr std::size_t kParallelRelease = std::size_t(64) << 20;
 
-// The memory the kernel reports can be had without swapping (MemAvailable
-// in /proc/meminfo), in bytes; SIZE_MAX when unknown.
-// HORIZON_MEMORY_AVAILABLE_MB overrides it (tests).
+}  // namespace
+
 std::size_t memory_available() {
     if (const char *m = std::getenv("HORIZON_MEMORY_AVAILABLE_MB"); m && *m) return std::size_t(std::strtoull(m, nullptr, 10)) << 20;
     std::ifstream in("/proc/meminfo");
@@ -62,8 +61,6 @@ std::size_t memory_available() {
 
 // (MB below a tenth of a GB, which would read "0.0 GB")
 std::string gb(double bytes) { return bytes < 1e8 ? fmt::format("{:.0f} MB", bytes / 1e6) : fmt::format("{:.1f} GB", bytes / 1e9); }
-
-}  // namespace
 
 std::shared_ptr<void> allocate_uninitialised(std::size_t bytes) {
     // (Transparent huge pages and populated anonymous mappings were measured

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <fstream>
 #include <mutex>
@@ -378,19 +379,19 @@ void make_resident(const void *p, std::size_t bytes) {
 }
 
 namespace {
-Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const hz_task *task);
+Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const hz_task *task, const ReadLimits &limits);
 }
 
-Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *task) {
+Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *task, const ReadLimits &limits) {
     try {
-        return read_dataset_unguarded(reg, path, task);
+        return read_dataset_unguarded(reg, path, task, limits);
     } catch (const std::bad_alloc &) {
         throw Error(path.string() + ": out of memory while reading it (the data do not fit in this machine's memory)");
     }
 }
 
 namespace {
-Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const hz_task *task) {
+Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const hz_task *task, const ReadLimits &limits) {
     const LoadedPlugin &p = loader_for_read(reg, path);
     const hz_loader *l = p.loader();
     if (l->open == nullptr || l->get_info == nullptr) throw Error(path.string() + ": loader " + p.info.id + " cannot read");
@@ -534,8 +535,22 @@ Dataset read_dataset_unguarded(const Registry &reg, const fs::path &path, const 
         const std::size_t es = dtype_size(info.dtype);
         if (es == 0 || info.ndim < 1 || info.ndim > 7) throw Error(path.string() + ": loader reports an invalid volume layout");
         v.dims.assign(info.dims, info.dims + info.ndim);
+        // Loaders check sizes against the file before reporting them, but a
+        // compressed image or volume may unpack to anything (a 0.8 MB PNG of
+        // 16384 x 16384): its size is bounded before it is allocated.
         std::uint64_t n = 1;
-        for (auto d : v.dims) n *= d;  // loaders check sizes against the file before reporting them
+        std::string shape;
+        for (auto d : v.dims) {
+            if (d != 0 && n > std::numeric_limits<std::uint64_t>::max() / es / d) throw Error(path.string() + ": its dimensions overflow");
+            n *= d;
+            shape += (shape.empty() ? "" : "x") + std::to_string(d);
+        }
+        if (info.kind == HZ_DATA_IMAGE && limits.max_pixels != 0 && v.dims.size() == 3 && v.dims[1] * v.dims[2] > limits.max_pixels)
+            throw Error(path.string() + ": " + limits.what + " of " + std::to_string(v.dims[1]) + "x" + std::to_string(v.dims[2]) +
+                        " pixels, more than the " + std::to_string(limits.max_pixels) + " it may have: downsample it");
+        if (const std::size_t available = memory_available(); n * es > available)
+            throw Error(path.string() + ": its " + shape + " values need " + gb(double(n * es)) + " of memory, and " +
+                        gb(double(available)) + " are available");
         v.voxels = Buffer<std::byte>(n * es);
         v.scale_slope = info.scale_slope;
         v.scale_inter = info.scale_inter;

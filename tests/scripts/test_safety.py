@@ -226,6 +226,39 @@ class SafetyTest(TempDirTest):
         self.assertEqual(run("convert", self.tck, self.path("out.trk")).returncode, 0)
         self.assertFalse(os.path.exists(stale))
 
+    def test_sizes_are_bounded_before_allocating(self):
+        """Counts and sizes are bounded before memory is taken, in one line
+        that says the limit (issue 53: a scene's phantom of 2^32 streamlines
+        grew past 10 GB; a 0.8 MB PNG of 16384 x 16384 as an environment map
+        took 11 GB). Run under a 3 GB address-space limit: an attempt to
+        take the memory would end as an out-of-memory error instead."""
+        def limited():
+            resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+
+        def run_limited(*args):
+            return subprocess.run([HORIZON, *args], capture_output=True, text=True, timeout=120, env=environment(*args), preexec_fn=limited)
+
+        with open(self.path("phantom.json"), "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 2 ** 32}}]}, f)
+        p = run_limited("render", self.path("phantom.json"), "-o", self.path("x.png"))
+        self.assert_clean_error(p, "phantom.json")
+        self.assertIn("objects[0].phantom.streamlines", p.stderr)
+        Image.new("L", (16384, 16384)).save(self.path("huge.png"))
+        self.assertLess(os.path.getsize(self.path("huge.png")), 2 << 20)
+        with open(self.path("env.json"), "w") as f:
+            json.dump({"environment": {"path": "huge.png"}, "objects": [{"type": "streamlines", "file": self.tck}]}, f)
+        p = run_limited("render", self.path("env.json"), "-o", self.path("x.png"), "--size", "64x48")
+        self.assert_clean_error(p, "huge.png")
+        self.assertIn("environment map of 16384x16384 pixels, more than the 134217728 it may have: downsample it", p.stderr)
+        self.assertFalse(os.path.exists(self.path("x.png")))
+        # Any volume or image: no more than the memory available.
+        import nibabel as nib
+        nib.save(nib.Nifti1Image(np.zeros((64, 64, 64), np.float32), np.eye(4)), self.path("v.nii"))
+        p = run("info", self.path("v.nii"), env={"HORIZON_MEMORY_AVAILABLE_MB": "0"})
+        self.assert_clean_error(p, "v.nii")
+        self.assertIn("its 64x64x64 values need 1 MB of memory, and 0 MB are available", p.stderr)
+        self.assertEqual(run("info", self.path("v.nii")).returncode, 0)
+
     def test_long_output_names(self):
         """An output name of 250 bytes is valid (NAME_MAX is 255): its hidden
         temporary's name is cut to fit, at a character boundary (issue 53:

@@ -139,20 +139,29 @@ double ImageLighting::build(const Registry &reg, const Environment &e) {
 }
 
 GLuint ImageLighting::load_equirect(const Registry &reg, const std::string &path) {
-    Dataset ds = read_dataset(reg, path);
+    // (An equirectangular map of 16384 x 8192, a 16k HDRI, is the largest:
+    // a larger one is refused before it is decoded, where a 0.8 MB PNG of
+    // 16384 x 16384 took 11 GB.)
+    ReadLimits limits;
+    limits.max_pixels = std::uint64_t(16384) * 8192;
+    limits.what = "environment map";
+    Dataset ds = read_dataset(reg, path, nullptr, limits);
     if (ds.kind != HZ_DATA_IMAGE) throw Error(path + ": environment: not an image");
     const Volume &im = ds.volume;  // dims = channels, width, height
     if (im.dims.size() != 3 || im.dims[0] < 1 || im.dims[0] > 4) throw Error(path + ": environment: unsupported image layout");
     const std::uint64_t c = im.dims[0], w = im.dims[1], h = im.dims[2];
     std::vector<float> rgba(w * h * 4, 1.0f);
-    const std::vector<double> vals = values_of(im.voxels.data(), im.dtype, c * w * h, dtype_size(im.dtype));
     const double scale = im.dtype == HZ_DTYPE_U8 ? 1.0 / 255 : im.dtype == HZ_DTYPE_U16 ? 1.0 / 65535 : 1.0;
     const bool srgb = im.dtype == HZ_DTYPE_U8 || im.dtype == HZ_DTYPE_U16;
-    for (std::uint64_t i = 0; i < w * h; ++i)
-        for (std::uint64_t k = 0; k < 3; ++k) {
-            double v = vals[i * c + std::min(k, c - 1)] * scale;
-            rgba[i * 4 + k] = float(srgb ? srgb_to_linear(v) : (std::isfinite(v) ? std::max(v, 0.0) : 0.0));
-        }
+    const std::size_t es = dtype_size(im.dtype);
+    for (std::uint64_t y = 0; y < h; ++y) {  // (a row at a time: no copy of the whole image as doubles)
+        const std::vector<double> vals = values_of(im.voxels.data() + y * w * c * es, im.dtype, c * w, es);
+        for (std::uint64_t x = 0; x < w; ++x)
+            for (std::uint64_t k = 0; k < 3; ++k) {
+                const double v = vals[x * c + std::min(k, c - 1)] * scale;
+                rgba[(y * w + x) * 4 + k] = float(srgb ? srgb_to_linear(v) : (std::isfinite(v) ? std::max(v, 0.0) : 0.0));
+            }
+    }
     GLuint t = 0;
     glGenTextures(1, &t);
     glBindTexture(GL_TEXTURE_2D, t);

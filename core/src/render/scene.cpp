@@ -164,9 +164,12 @@ Dataset object_data(const Registry &reg, const json &o, const std::string &type,
         if (o.contains("phantom")) {
             const json &p = o["phantom"];
             check_keys(p, {"streamlines", "bundles", "seed"}, what, where + ".phantom");
+            // (Bounded before any allocation: 2^32 streamlines grew past 10 GB.
+            // A larger realistic tractogram is hz-make-tractogram's job.)
             if (p.contains("streamlines"))
-                po.nb_streamlines = static_cast<std::uint64_t>(std::clamp(num(p["streamlines"], what, where), 0.0, 1e8));
-            if (p.contains("bundles")) po.nb_bundles = static_cast<std::uint32_t>(std::clamp(num(p["bundles"], what, where), 1.0, 1e4));
+                po.nb_streamlines = static_cast<std::uint64_t>(num_in(p["streamlines"], what, where + ".phantom.streamlines", 0.0, 1e7));
+            if (p.contains("bundles"))
+                po.nb_bundles = static_cast<std::uint32_t>(num_in(p["bundles"], what, where + ".phantom.bundles", 1.0, 1e4));
             if (p.contains("seed")) po.seed = static_cast<std::uint64_t>(num(p["seed"], what, where));
         }
         ds.kind = HZ_DATA_STREAMLINES;

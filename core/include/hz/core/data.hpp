@@ -25,6 +25,13 @@ struct Error : std::runtime_error {
     using std::runtime_error::runtime_error;
 };
 
+// The memory the kernel reports can be had without swapping (MemAvailable
+// in /proc/meminfo), in bytes; SIZE_MAX when unknown.
+// HORIZON_MEMORY_AVAILABLE_MB overrides it (tests).
+std::size_t memory_available();
+// A size for messages: "640 MB", "2.1 GB".
+std::string gb(double bytes);
+
 // `bytes` of uninitialised memory aligned to 64 bytes; throws std::bad_alloc.
 std::shared_ptr<void> allocate_uninitialised(std::size_t bytes);
 

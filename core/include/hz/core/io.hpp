@@ -31,7 +31,13 @@ const LoadedPlugin &loader_for_write(const Registry &reg, const fs::path &path, 
 hz_array_view volume_view(const Volume &v);
 
 // Reads a whole file into the data model. Throws Error with a one-line message.
-Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *task = nullptr);
+// Bounds a reader must respect before it allocates (0: none): the pixels of
+// an image (width x height) and what to call it in the error.
+struct ReadLimits {
+    std::uint64_t max_pixels = 0;
+    const char *what = "image";
+};
+Dataset read_dataset(const Registry &reg, const fs::path &path, const hz_task *task = nullptr, const ReadLimits &limits = {});
 // The host's own pass over a dataset's streamlines (Tractogram::validate:
 // every coordinate finite, delimiters all NaN), whose bounds must be the
 // `reported` ones (what the loader vouched for); throws Error naming `path`
