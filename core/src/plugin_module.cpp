@@ -268,15 +268,33 @@ Module::Module(const fs::path &file, std::optional<FileId> expect) : impl_(std::
         throw Error("entry has a NULL function pointer");
     bool ok = false;
     const pid_t self = ::getpid();
+    // The working directory is the user's: a plugin that changes it in
+    // init() would send every relative input and output path elsewhere.
+    // It is put back, and the plugin named.
+    const int cwd = ::open(".", O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    struct stat before {};
+    const bool known = cwd >= 0 && ::fstat(cwd, &before) == 0;
     try {
         ok = e.init(host_services(), file_.c_str());
     } catch (...) {
         if (::getpid() != self) ::_exit(0);
+        if (cwd >= 0) (void)::fchdir(cwd), ::close(cwd);
         throw Error("init() threw a C++ exception (exceptions must not cross the ABI)");
     }
     // A process init() forked must not go on as a second host (a second
     // trial reporter, or a second command writing the same outputs).
     if (::getpid() != self) ::_exit(0);
+    if (known) {
+        struct stat after {};
+        if (::stat(".", &after) != 0 || after.st_dev != before.st_dev || after.st_ino != before.st_ino) {
+            if (::fchdir(cwd) != 0) {
+                ::close(cwd);
+                throw Error("init() changed the working directory, and it could not be put back");
+            }
+            spdlog::warn("{}: init() changed the working directory; it was put back (report it to the plugin's author)", file_.string());
+        }
+    }
+    if (cwd >= 0) ::close(cwd);
     if (!ok) throw Error("init() returned false (the plugin refused to load; see its log)");
     initialised_ = true;
 }

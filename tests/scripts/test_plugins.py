@@ -339,6 +339,26 @@ class PluginsTest(TempDirTest):
         self.assertEqual(p.returncode, 1, p.stderr)
         self.assertIn("let a C++ exception out of run()", p.stderr)
 
+    def test_an_init_that_changes_the_working_directory_changes_nothing(self):
+        """Relative paths are the user's: a plugin whose init() moves the
+        working directory (here to /) must not send inputs and outputs
+        elsewhere (issue 53); the host puts it back and names the plugin."""
+        d = self.path("plugins")
+        os.mkdir(d)
+        shutil.copy(os.path.join(FIXTURES, "fx_init_chdir.so"), d)
+        work = self.path("work")
+        os.mkdir(work)
+        import numpy as np
+        from hztest import tck_bytes
+        with open(os.path.join(work, "in.tck"), "wb") as f:
+            f.write(tck_bytes([np.arange(30, dtype=np.float32).reshape(10, 3)]))
+        p = subprocess.run([HORIZON, "--plugin-dir", d, "convert", "in.tck", "out.trk"], cwd=work, capture_output=True, text=True, timeout=60,
+                           env=environment("convert", env={"HORIZON_PLUGIN_CACHE": "off"}))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertTrue(os.path.exists(os.path.join(work, "out.trk")))
+        self.assertFalse(os.path.exists("/out.trk"))
+        self.assertIn("fx_init_chdir.so: init() changed the working directory; it was put back", p.stderr)
+
     def test_a_default_outside_its_own_schema_is_refused_at_load(self):
         # fx_broken_shader's gain defaults to 2 in [0, 1]: `--param gain=2`
         # is refused, so the default must be too (issue 53), with the reason
