@@ -8,6 +8,7 @@
 #include <ucontext.h>
 #include <stdio.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -25,11 +26,44 @@ namespace {
 constexpr int kSlots = 16;
 constexpr std::size_t kPathMax = 4096;
 char g_paths[kSlots][kPathMax];
-std::atomic<bool> g_used[kSlots];
+// Each temporary's folder and name (set with its path, read by the handler).
+char g_dirs[kSlots][kPathMax];
+char g_names[kSlots][256];
+std::atomic<bool> g_used[kSlots];     // the slot holds a temporary, whole (the handlers read it)
+std::atomic<bool> g_claimed[kSlots];  // the slot is taken (set first, then filled, then g_used)
+
+// Removes temporary `i` and the files a writer made beside it from its name
+// (NAME.XXXXXX: libzip writes a TRX to a temporary of its own next to the
+// path it was given, then renames it; SIGINT in between left it). Only
+// async-signal-safe calls: open, getdents64, unlinkat, close.
+void remove_temporary(int i) {
+    ::unlink(g_paths[i]);
+    const int dir = ::open(g_dirs[i], O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dir < 0) return;
+    const std::size_t n = std::strlen(g_names[i]);
+    alignas(8) char buf[4096];
+    for (;;) {
+        const long got = ::syscall(SYS_getdents64, dir, buf, sizeof buf);
+        if (got <= 0) break;
+        for (long off = 0; off < got;) {
+            struct Entry {
+                std::uint64_t ino;
+                std::int64_t off;
+                unsigned short reclen;
+                unsigned char type;
+                char name[1];
+            };
+            const auto *e = reinterpret_cast<const Entry *>(buf + off);
+            if (std::strncmp(e->name, g_names[i], n) == 0 && e->name[n] == '.') ::unlinkat(dir, e->name, 0);
+            off += e->reclen;
+        }
+    }
+    ::close(dir);
+}
 
 void on_termination(int sig) {
     for (int i = 0; i < kSlots; ++i)
-        if (g_used[i].load()) ::unlink(g_paths[i]);
+        if (g_used[i].load()) remove_temporary(i);
     ::signal(sig, SIG_DFL);
     ::raise(sig);
 }
@@ -109,7 +143,7 @@ void on_sigbus(int sig, siginfo_t *info, void *ctx) {
     wait_for_the_first_report();
     char name[4096];
     for (int i = 0; i < kSlots; ++i)
-        if (g_used[i].load()) ::unlink(g_paths[i]);
+        if (g_used[i].load()) remove_temporary(i);
     if (info != nullptr && mapped_file_at(reinterpret_cast<std::uintptr_t>(info->si_addr), name, sizeof name)) {
         write_all("horizon: error: ");
         write_all(name);
@@ -145,7 +179,7 @@ void on_crash(int sig, siginfo_t *, void *ctx) {
         }
     }
     for (int i = 0; i < kSlots; ++i)
-        if (g_used[i].load()) ::unlink(g_paths[i]);
+        if (g_used[i].load()) remove_temporary(i);
     ::signal(sig, SIG_DFL);
     ::raise(sig);
 }
@@ -194,11 +228,16 @@ void install_termination_cleanup() {
 
 TemporaryFile::TemporaryFile(const fs::path &path) : path_(path) {
     const std::string s = path.string();
-    if (s.size() >= kPathMax) return;
+    const std::string dir = path.has_parent_path() ? path.parent_path().string() : std::string(".");
+    const std::string name = path.filename().string();
+    if (s.size() >= kPathMax || dir.size() >= kPathMax || name.size() >= sizeof g_names[0]) return;
     for (int i = 0; i < kSlots; ++i) {
         bool expected = false;
-        if (g_used[i].load() || !g_used[i].compare_exchange_strong(expected, true)) continue;
+        if (!g_claimed[i].compare_exchange_strong(expected, true)) continue;
         std::memcpy(g_paths[i], s.c_str(), s.size() + 1);
+        std::memcpy(g_dirs[i], dir.c_str(), dir.size() + 1);
+        std::memcpy(g_names[i], name.c_str(), name.size() + 1);
+        g_used[i].store(true);  // (the handler reads the slot once it is whole)
         slot_ = i;
         return;
     }
@@ -208,8 +247,13 @@ TemporaryFile::~TemporaryFile() {
     if (!published_) {
         std::error_code ec;
         fs::remove_all(path_, ec);
+        // (and what a writer made beside it from its name: remove_temporary)
+        const std::string prefix = path_.filename().string() + ".";
+        const fs::path dir = path_.has_parent_path() ? path_.parent_path() : fs::path(".");
+        for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec))
+            if (it->path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(it->path(), ec);
     }
-    if (slot_ >= 0) g_used[slot_].store(false);
+    if (slot_ >= 0) g_used[slot_].store(false), g_claimed[slot_].store(false);
 }
 
 void check_output_target(const fs::path &path) {

@@ -218,6 +218,32 @@ class SafetyTest(TempDirTest):
             self.assertEqual(p.returncode, -sig)
             self.assertEqual(temporaries(self.tmp), [], sig)
 
+    def test_a_signal_while_libzip_writes_leaves_nothing(self):
+        """libzip writes a TRX to a file of its own beside the temporary it
+        was given (TEMP.XXXXXX), then renames it: a signal then left that
+        file (issue 53). Interrupted once it is there: nothing is left."""
+        import re
+        big = self.path("big.tck")
+        rng = np.random.default_rng(4)
+        with open(big, "wb") as f:
+            f.write(tck_bytes([np.cumsum(rng.normal(size=(200, 3)), axis=0) for _ in range(60000)]))
+        libzips = lambda: [n for n in temporaries(self.tmp) if re.search(r"\.tmp-\d+-\d+\.", n)]
+        caught = 0
+        for _ in range(3):
+            p = subprocess.Popen([HORIZON, "convert", big, self.path("sig.trx"), "--force"], stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.DEVNULL, env=environment("convert"))
+            deadline = time.time() + 60
+            while not libzips() and p.poll() is None and time.time() < deadline:
+                time.sleep(0.002)
+            p.send_signal(signal.SIGINT)
+            p.wait(timeout=60)
+            if p.returncode == 0:
+                continue  # (it finished first)
+            caught += 1
+            self.assertEqual(p.returncode, -signal.SIGINT)
+            self.assertEqual(temporaries(self.tmp), [])
+        self.assertGreater(caught, 0, "never interrupted while libzip wrote")
+
     def test_stale_temporaries_are_removed(self):
         # Left by a process that is gone (a power cut, SIGKILL).
         stale = self.path(".out.trk.tmp-999999999-12")
