@@ -70,7 +70,13 @@ int cmd_cluster(const GlobalOptions &g, const ClusterOptions &o) {
     if (o.nb_points) core::apply_shortcut(schema, id, "--nb-points", {"nb_points"}, {double(o.nb_points)}, settings);
     if (o.threads) core::apply_shortcut(schema, id, "--threads", {"threads"}, {double(o.threads)}, settings);
     if (!o.mode.empty()) core::apply_shortcut(schema, id, "--mode", {"mode"}, {o.mode == "fast" ? 1.0 : 0.0}, settings);
-    for (auto &[name, v] : core::parse_param_items(schema, id, o.params)) settings[name] = std::move(v);
+    for (auto &[name, v] : core::parse_param_items(schema, id, o.params)) {
+        // (a shortcut and --param for the same parameter: neither silently wins)
+        if (settings.count(name))
+            throw core::Error("--param " + name + " and a shortcut option (--thresholds, --nb-points, --threads, --mode) both set " + name +
+                              ": give one");
+        settings[name] = std::move(v);
+    }
     if (o.labels.empty() && o.centroids.empty() && o.out.empty())
         throw core::Error("nothing to write: give --labels, --centroids or --out");
     // Fail on unwritable targets, and on outputs that would replace an input

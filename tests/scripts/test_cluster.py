@@ -205,6 +205,14 @@ class ClusterEdgeCasesTest(TempDirTest):
         lab = self.labels(self.write("one.tck", [np.arange(12, dtype=np.float32).reshape(4, 3)]), "--algorithm", "qbx")
         np.testing.assert_array_equal(lab, [[0, 0, 0, 0, 0]])
 
+    def test_a_shortcut_and_param_for_the_same_parameter_are_refused(self):
+        f = self.write("r.tck", random_streamlines(20, np.random.default_rng(9), 5, 30))
+        p = run("cluster", f, "--algorithm", "qbx", "--nb-points", "12", "--param", "nb_points=20", "--labels", self.path("l.csv"))
+        self.assertEqual(p.returncode, 1, p.stderr)
+        self.assertIn("--param nb_points and a shortcut option", p.stderr)
+        self.assertIn("both set nb_points: give one", p.stderr)
+        self.assertFalse(os.path.exists(self.path("l.csv")))
+
     def test_degenerate_streamlines(self):
         sl = [np.array([[1, 2, 3]], np.float32), np.tile(np.float32([5, 5, 5]), (4, 1)),
               np.arange(30, dtype=np.float32).reshape(10, 3)]

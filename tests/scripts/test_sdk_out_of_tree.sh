@@ -14,6 +14,9 @@ gl() { ASAN_OPTIONS="${ASAN_OPTIONS:+$ASAN_OPTIONS:detect_leaks=0}" "$@"; }
 cmake --install "$HORIZON_BUILD_DIR" --component sdk --prefix "$work/sdk" > /dev/null
 test -f "$work/sdk/include/hz/hz.h"
 test -f "$work/sdk/lib/cmake/HorizonSDK/HorizonSDKConfig.cmake"
+# The authors' guide and the ABI's design record come with the SDK.
+test -f "$work/sdk/share/horizon/sdk/docs/plugins.md"
+test -f "$work/sdk/share/horizon/sdk/docs/ABI.md"
 
 mkdir -p "$work/plugins"
 for kind in loader loader_cpp shader clustering; do
