@@ -3,6 +3,7 @@
 #include "progress.hpp"
 
 #include <hz/core/io.hpp>
+#include <hz/core/params.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -306,11 +307,23 @@ core::Bounds Explorer::extent(const std::vector<std::uint64_t> &ids) const {
     return b;
 }
 
+bool Explorer::takes_thresholds() const {
+    const core::LoadedPlugin *p = core::find_clustering(reg_, spec_.algorithm);
+    if (p == nullptr) return false;
+    for (const core::ParamSpec &s : core::schema_of(*p))
+        if (s.name == "thresholds" || s.name == "threshold") return true;
+    return false;
+}
+
 Explorer::Plan Explorer::plan_repeat(std::vector<double> thresholds) const {
     Plan p;
     p.subset = shown_streamlines();
     if (p.subset.empty()) throw core::Error("nothing is shown to cluster again");
-    if (thresholds.empty() && !s_.thresholds.empty() && all_diagonal() > 0) {
+    // Scaled thresholds only for a plugin that takes them: any other (the
+    // SDK's template among them) runs again on what is shown with the
+    // parameters it has (issue 53: repeat failed for every plugin without a
+    // `thresholds` parameter).
+    if (thresholds.empty() && !s_.thresholds.empty() && all_diagonal() > 0 && takes_thresholds()) {
         // A bundle isolated from a whole brain would be one cluster at the
         // whole brain's thresholds: scale them by its extent.
         const core::Bounds b = extent(p.subset);

@@ -135,6 +135,8 @@ public:
         std::vector<std::uint64_t> colour_of;
     };
     static constexpr std::uint64_t kNoColour = ~std::uint64_t(0);
+    // The clustering plugin has a thresholds (or threshold) parameter.
+    bool takes_thresholds() const;
     Plan plan_repeat(std::vector<double> thresholds) const;
     Plan plan_reset(const std::vector<std::uint64_t> *ids) const;
     bool anything_shown() const { return !s_.shown.empty() || !s_.expanded.empty(); }

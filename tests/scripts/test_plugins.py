@@ -261,6 +261,19 @@ class PluginsTest(TempDirTest):
             self.assertEqual(p.returncode == 0, ok, p.stderr)
             if where:
                 self.assertIn(where, p.stderr)
+        # Repeat (C) runs any plugin again on what is shown, with its own
+        # parameters: the template has no `thresholds` (issue 53: it failed).
+        from hztest import xvfb_run
+        with open(self.path("rep.txt"), "w") as f:
+            f.write("wait 2\nexpand 0\nwait 2\nkey c\nwait 5\nquit\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # (Mesa's GLX driver, as in test_render's window tests)
+        p = xvfb_run([HORIZON, "view", tck, "--explore", "--algorithm", "length", "--plugin-dir", d, "--script", self.path("rep.txt"),
+                      "--size", "480x320"], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertNotIn("failed", p.stderr)
+        self.assertIn("2 clustering round(s)", p.stdout)
         # view --explore checks the plugin and its parameters before opening anything.
         p = run("view", tck, "--explore", "--algorithm", "length", "--param", "bin_width=0", "--plugin-dir", d)
         self.assertNotEqual(p.returncode, 0)
