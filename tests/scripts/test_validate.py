@@ -7,7 +7,7 @@ import shutil
 import subprocess
 import unittest
 
-from hztest import BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, environment, make_tractogram, run
+from hztest import BUILD, BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, environment, make_tractogram, run
 
 
 def checks(report):
@@ -252,6 +252,32 @@ class ValidateTest(TempDirTest):
         text = run("validate", os.path.join(FIXTURES, "fx_broken_shader.so"))
         self.assertEqual(text.returncode, 1)
         self.assertIn("failed   shader-schema-wellformed", text.stdout)
+
+    def test_a_snippet_may_read_its_colour_through_hz_albedo(self):
+        """hz_shader.h: `#define HZ_ALBEDO u_<name>` names the first colour
+        parameter. The validator's check program and a material that gives
+        the colour itself used to leave it undefined (issue 53)."""
+        so = os.path.join(BUILD, "tests", "fixtures", "albedo", "fx_albedo_shader.so")
+        rc, rep = self.validate(so)
+        self.assertEqual(rc, 0, [c for c in rep["checks"] if c["status"] == "failed"])
+        d = os.path.dirname(so)
+        with open(self.path("plane.obj"), "w") as f:
+            f.write("v -30 -30 0\nv 30 -30 0\nv 30 30 0\nv -30 30 0\nf 1 2 3\nf 1 3 4\n")
+        for params, colour, channel in (({"tint": [0.0, 0.9, 0.0]}, None, 1), ({}, [0.9, 0.0, 0.0], 0)):
+            scene = {"camera": {"view": "superior"}, "environment": {"type": "none"}, "tonemap": "none",
+                     "lights": [{"type": "directional", "direction": [0, 0, 1], "space": "world", "intensity": 1.0}],
+                     "objects": [{"type": "surface", "file": "plane.obj", "material": {"shader": "albedo", "params": params}}]}
+            if colour:
+                scene["objects"][0]["color"] = colour
+            with open(self.path("s.json"), "w") as f:
+                json.dump(scene, f)
+            p = run("render", self.path("s.json"), "-o", self.path("s.png"), "--size", "64x64", "--force", "--plugin-dir", d)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            from PIL import Image
+            import numpy as np
+            px = np.asarray(Image.open(self.path("s.png")).convert("RGB"), dtype=float)[32, 32]
+            self.assertEqual(int(np.argmax(px)), channel, px)
+            self.assertGreater(px[channel], 150, px)
 
     def test_gpu_must_equal_cpu(self):
         # The valid fixture passes the pixel comparison; one whose GLSL is a

@@ -169,6 +169,16 @@ std::string fragment_program(const FragmentSpec &g) {
         }
         k += pi->components;
     }
+    // HZ_ALBEDO names the first colour parameter (hz_shader.h) also where
+    // the object's colouring does not drive it (the material gives the
+    // colour, or the validator's check program): a snippet written with it
+    // did not compile then.
+    if (g.albedo.empty())
+        for (uint32_t i = 0; i < sh->param_count; ++i)
+            if (const hz_param_info *pi = sh->get_param(i); pi->type == HZ_PARAM_COLOR3) {
+                decl << "#define HZ_ALBEDO u_" << pi->name << "\n";
+                break;
+            }
     s << glsl::kPrelude << glsl::kDisplay << decl.str() << "\n// ---- plugin " << g.shader->info.id << "\n";
     return with_snippet(s.str(), snippet, glsl::kShadeMain);
 }
