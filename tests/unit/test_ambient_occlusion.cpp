@@ -58,7 +58,7 @@ TEST_CASE("ambient occlusion: the GPU pass equals its C++ statement, planes stay
     AoParams p;
     p.radius_mm = 6, p.strength = 1, p.pairs = 16, p.fov_deg = 30, p.near_mm = 200, p.far_mm = 2000;
     // A depth image: background; a plane tilted 75 degrees from the view
-    // (grazing) on the left; on the right, a floor at 330 mm under random
+    // (grazing) on the left; on the right, a floor at 330.25 mm (no depth difference a whole number) under random
     // bars at 322-328 mm (streamlines nearer than what they lie on), and
     // two bars at 325 mm around a gap 3 px wide at x = 120.
     std::vector<float> depth(std::size_t(W) * H, 1.0f);
@@ -70,7 +70,7 @@ TEST_CASE("ambient occlusion: the GPU pass equals its C++ statement, planes stay
             depth[std::size_t(y) * W + x] = window_depth(1 / (1.0 / 320 - (x - 5) * slope), p);
         }
     for (int y = 10; y < 110; ++y)
-        for (int x = 80; x < 155; ++x) depth[std::size_t(y) * W + x] = window_depth(330, p);
+        for (int x = 80; x < 155; ++x) depth[std::size_t(y) * W + x] = window_depth(330.25, p);
     std::mt19937 rng(7);
     for (int k = 0; k < 12; ++k) {
         const int y0 = 12 + int(rng() % 90), x0 = 82 + int(rng() % 20);
@@ -102,7 +102,7 @@ TEST_CASE("ambient occlusion: the GPU pass equals its C++ statement, planes stay
     frame.resolve(fbo, W, H);
     pass.apply(fbo, frame, p, vao, /*encoded=*/false);
     const std::vector<float> stored = frame.read();  // (as the GPU holds it: 24 bits)
-    const std::vector<float> gpu = pass.read_factors(frame, p, vao);
+    const std::vector<float> gpu = pass.read_factors(frame, p, vao, /*blur=*/false);
     const std::vector<float> cpu = ao_reference(stored, W, H, p);
     REQUIRE(gpu.size() == cpu.size());
     std::size_t off = 0;
@@ -128,12 +128,21 @@ TEST_CASE("ambient occlusion: the GPU pass equals its C++ statement, planes stay
     CHECK(at(cpu, 117, 60) > 0.98);
     CHECK(at(cpu, 120, 60) < 0.75);
     CHECK(at(cpu, 145, 20) > 0.98);
-    // The picture is multiplied by the factor (linear here).
+    // Blurred over 4 x 4 pixels within a radius in depth, as its C++
+    // statement says; a bar's pixels take nothing from the floor behind.
+    const std::vector<float> gpu_blur = pass.read_factors(frame, p, vao, /*blur=*/true);
+    const std::vector<float> cpu_blur = ao_blur_reference(cpu, stored, W, H, p);
+    double worst_blur = 0;
+    for (std::size_t i = 0; i < gpu_blur.size(); ++i) worst_blur = std::max(worst_blur, std::abs(double(gpu_blur[i]) - cpu_blur[i]));
+    CHECK(worst_blur < 1e-3);
+    CHECK(at(cpu_blur, 117, 60) > 0.98);
+    CHECK(at(cpu_blur, 120, 60) < 0.8);
+    // The picture is multiplied by the blurred factor (linear here).
     std::vector<std::uint8_t> out(std::size_t(W) * H * 4);
     glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo);
     glReadPixels(0, 0, W, H, GL_RGBA, GL_UNSIGNED_BYTE, out.data());
     const std::size_t g = (std::size_t(60) * W + 120) * 4;
-    CHECK(std::abs(int(out[g]) - int(std::lround(200 * at(gpu, 120, 60)))) <= 1);
+    CHECK(std::abs(int(out[g]) - int(std::lround(200 * at(gpu_blur, 120, 60)))) <= 1);
     CHECK(out[(std::size_t(2) * W + 2) * 4] == 200);
 
     // Half the strength, half the darkening.

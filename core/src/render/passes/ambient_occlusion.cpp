@@ -21,7 +21,6 @@ uniform sampler2D u_depth;  // window depth, NEAREST
 uniform ivec2 u_size;
 uniform float u_near, u_far, u_focal_px, u_radius_mm, u_strength;
 uniform int u_pairs;
-uniform bool u_encoded;
 out vec4 o;
 const int kBayer[16] = int[16](0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5);
 float linear_depth(float d) { return u_near * u_far / (u_far - d * (u_far - u_near)); }
@@ -50,6 +49,39 @@ void main() {
         }
         ao = 1.0 - u_strength * occ / float(u_pairs);
     }
+    o = vec4(ao, 0.0, 0.0, 1.0);
+}
+)glsl";
+
+// The factors averaged over the 4 x 4 pixels around each one (offsets -2
+// to 1: one whole period of the Bayer turns, which would otherwise show as
+// a fine grain), over those within a quarter of the radius in depth of it
+// (no factor crosses a silhouette: the darkened floor beside a streamline
+// does not darken the streamline); then multiplied into the picture.
+const char *kBlurFS = R"glsl(
+in vec2 v_uv;
+uniform sampler2D u_depth, u_raw;
+uniform ivec2 u_size;
+uniform float u_near, u_far, u_radius_mm;
+uniform bool u_encoded;
+out vec4 o;
+float linear_depth(float d) { return u_near * u_far / (u_far - d * (u_far - u_near)); }
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    float d = texelFetch(u_depth, px, 0).r;
+    float ao = 1.0;
+    if (d < 1.0) {
+        float zc = linear_depth(d), sum = 0.0, n = 0.0;
+        for (int dy = -2; dy < 2; ++dy)
+            for (int dx = -2; dx < 2; ++dx) {
+                ivec2 q = clamp(px + ivec2(dx, dy), ivec2(0), u_size - 1);
+                float ds = texelFetch(u_depth, q, 0).r;
+                if (ds >= 1.0 || abs(linear_depth(ds) - zc) > 0.25 * u_radius_mm) continue;
+                sum += texelFetch(u_raw, q, 0).r;
+                n += 1.0;
+            }
+        ao = sum / max(n, 1.0);
+    }
 #ifdef HZ_AO_FACTORS
     o = vec4(ao, 0.0, 0.0, 1.0);
 #else
@@ -68,54 +100,100 @@ double focal_px(const AoParams &p, int h) { return 0.5 * h / std::tan(p.fov_deg 
 AmbientOcclusionPass::AmbientOcclusionPass(MakeProgram make) : make_(std::move(make)) {}
 
 AmbientOcclusionPass::~AmbientOcclusionPass() {
-    for (auto *p : {&program_, &factors_})
+    if (raw_fbo_) glDeleteFramebuffers(1, &raw_fbo_);
+    if (raw_tex_) glDeleteTextures(1, &raw_tex_);
+    for (auto *p : {&raw_, &blur_, &blur_factors_})
         if (*p) glDeleteProgram((*p)->id);
 }
 
 namespace {
-void draw(Program &p, const FrameDepth &depth, const AoParams &a, GLuint empty_vao) {
-    const int w = depth.width(), h = depth.height();
+void set_camera(Program &p, const FrameDepth &depth, const AoParams &a) {
     glUseProgram(p.id);
     glUniform1i(p.loc("u_depth"), 0);
-    glUniform2i(p.loc("u_size"), w, h);
+    glUniform2i(p.loc("u_size"), depth.width(), depth.height());
     glUniform1f(p.loc("u_near"), float(a.near_mm));
     glUniform1f(p.loc("u_far"), float(a.far_mm));
-    glUniform1f(p.loc("u_focal_px"), float(focal_px(a, h)));
     glUniform1f(p.loc("u_radius_mm"), float(a.radius_mm));
-    glUniform1f(p.loc("u_strength"), float(a.strength));
-    glUniform1i(p.loc("u_pairs"), std::max(1, a.pairs));
-    glViewport(0, 0, w, h);
+    glViewport(0, 0, depth.width(), depth.height());
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D, depth.texture());
+}
+void draw_triangle(GLuint empty_vao) {
     glBindVertexArray(empty_vao);
     glDrawArrays(GL_TRIANGLES, 0, 3);
 }
 }  // namespace
 
 void AmbientOcclusionPass::prepare() {
-    if (!program_) program_ = make_(glsl::kFullscreenVS, std::string("#version 410 core\n") + kAoFS, "ambient occlusion");
+    const std::string v = "#version 410 core\n";
+    if (!raw_) raw_ = make_(glsl::kFullscreenVS, v + kAoFS, "ambient occlusion");
+    if (!blur_) blur_ = make_(glsl::kFullscreenVS, v + kBlurFS, "ambient occlusion (blur)");
+}
+
+// The raw factors of `depth` into raw_tex_ (R32F, the depth's size).
+void AmbientOcclusionPass::raw_factors(const FrameDepth &depth, const AoParams &p, GLuint empty_vao) {
+    const int w = depth.width(), h = depth.height();
+    if (!raw_tex_ || w != w_ || h != h_) {
+        if (raw_tex_) glDeleteTextures(1, &raw_tex_);
+        if (!raw_fbo_) glGenFramebuffers(1, &raw_fbo_);
+        glGenTextures(1, &raw_tex_);
+        glBindTexture(GL_TEXTURE_2D, raw_tex_);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, w, h, 0, GL_RED, GL_FLOAT, nullptr);
+        clamped_texture_2d(GL_NEAREST);
+        glBindFramebuffer(GL_FRAMEBUFFER, raw_fbo_);
+        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, raw_tex_, 0);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+            throw Error("renderer: ambient occlusion: incomplete framebuffer");
+        w_ = w, h_ = h;
+    }
+    glBindFramebuffer(GL_FRAMEBUFFER, raw_fbo_);
+    glDisable(GL_DEPTH_TEST);
+    glDisable(GL_BLEND);
+    set_camera(*raw_, depth, p);
+    glUniform1f(raw_->loc("u_focal_px"), float(focal_px(p, h)));
+    glUniform1f(raw_->loc("u_strength"), float(p.strength));
+    glUniform1i(raw_->loc("u_pairs"), std::max(1, p.pairs));
+    draw_triangle(empty_vao);
+}
+
+// The blur of the raw factors, drawn by `prog` into the bound framebuffer.
+void AmbientOcclusionPass::blurred(Program &prog, const FrameDepth &depth, const AoParams &p, GLuint empty_vao, bool encoded) {
+    set_camera(prog, depth, p);
+    glUniform1i(prog.loc("u_raw"), 1);
+    glUniform1i(prog.loc("u_encoded"), encoded ? 1 : 0);
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_2D, raw_tex_);
+    draw_triangle(empty_vao);
+    glActiveTexture(GL_TEXTURE0);
 }
 
 void AmbientOcclusionPass::apply(GLuint colour_fbo, const FrameDepth &depth, const AoParams &p, GLuint empty_vao, bool encoded) {
     prepare();
+    raw_factors(depth, p, empty_vao);
     glBindFramebuffer(GL_FRAMEBUFFER, colour_fbo);
-    glDisable(GL_DEPTH_TEST);
     glDepthMask(GL_FALSE);
     glEnable(GL_BLEND);
     glBlendFunc(GL_ZERO, GL_SRC_COLOR);
-    glUseProgram(program_->id);
-    glUniform1i(program_->loc("u_encoded"), encoded ? 1 : 0);
-    draw(*program_, depth, p, empty_vao);
+    blurred(*blur_, depth, p, empty_vao, encoded);
     glDisable(GL_BLEND);
     glDepthMask(GL_TRUE);
 }
 
-std::vector<float> AmbientOcclusionPass::read_factors(const FrameDepth &depth, const AoParams &p, GLuint empty_vao) {
+std::vector<float> AmbientOcclusionPass::read_factors(const FrameDepth &depth, const AoParams &p, GLuint empty_vao, bool blur) {
     if (!depth.texture()) return {};
-    if (!factors_)
-        factors_ =
-            make_(glsl::kFullscreenVS, std::string("#version 410 core\n#define HZ_AO_FACTORS 1\n") + kAoFS, "ambient occlusion factors");
+    prepare();
+    if (!blur_factors_)
+        blur_factors_ = make_(glsl::kFullscreenVS, std::string("#version 410 core\n#define HZ_AO_FACTORS 1\n") + kBlurFS,
+                              "ambient occlusion factors (blur)");
     const int w = depth.width(), h = depth.height();
+    raw_factors(depth, p, empty_vao);
+    std::vector<float> out(std::size_t(w) * h);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    if (!blur) {
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, raw_fbo_);
+        glReadPixels(0, 0, w, h, GL_RED, GL_FLOAT, out.data());
+        return out;
+    }
     GLuint fbo = 0, tex = 0;
     glGenTextures(1, &tex);
     glBindTexture(GL_TEXTURE_2D, tex);
@@ -124,11 +202,7 @@ std::vector<float> AmbientOcclusionPass::read_factors(const FrameDepth &depth, c
     glGenFramebuffers(1, &fbo);
     glBindFramebuffer(GL_FRAMEBUFFER, fbo);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
-    glDisable(GL_DEPTH_TEST);
-    glDisable(GL_BLEND);
-    draw(*factors_, depth, p, empty_vao);
-    std::vector<float> out(std::size_t(w) * h);
-    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    blurred(*blur_factors_, depth, p, empty_vao, false);
     glReadPixels(0, 0, w, h, GL_RED, GL_FLOAT, out.data());
     glDeleteFramebuffers(1, &fbo);
     glDeleteTextures(1, &tex);
@@ -166,6 +240,31 @@ std::vector<float> ao_reference(const std::vector<float> &depth, int w, int h, c
                 occ += c * (1.0 - smoothstep(2 * R, 4 * R, std::max(da, db)));
             }
             out[std::size_t(y) * w + x] = float(1.0 - p.strength * occ / pairs);
+        }
+    return out;
+}
+
+}  // namespace hz::core::render
+
+namespace hz::core::render {
+
+std::vector<float> ao_blur_reference(const std::vector<float> &raw, const std::vector<float> &depth, int w, int h, const AoParams &p) {
+    std::vector<float> out(std::size_t(w) * h, 1.0f);
+    const double n = p.near_mm, f = p.far_mm;
+    auto lin = [&](double d) { return n * f / (f - d * (f - n)); };
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const double d = depth[std::size_t(y) * w + x];
+            if (d >= 1.0) continue;
+            const double zc = lin(d);
+            double sum = 0, k = 0;
+            for (int dy = -2; dy < 2; ++dy)
+                for (int dx = -2; dx < 2; ++dx) {
+                    const std::size_t q = std::size_t(std::clamp(y + dy, 0, h - 1)) * w + std::clamp(x + dx, 0, w - 1);
+                    if (depth[q] >= 1.0 || std::abs(lin(depth[q]) - zc) > 0.25 * p.radius_mm) continue;
+                    sum += raw[q], k += 1;
+                }
+            out[std::size_t(y) * w + x] = float(sum / std::max(k, 1.0));
         }
     return out;
 }

@@ -61,17 +61,26 @@ public:
     // Compiles the pass's program now (apply() would on its first call):
     // so that the pass's first timing is the pass's, not the compiler's.
     void prepare();
-    // The factors (1: unoccluded) of `depth` for `p`, rows bottom to top:
-    // for the tests. Reads back; slow.
-    std::vector<float> read_factors(const FrameDepth &depth, const AoParams &p, GLuint empty_vao);
+    // The factors (1: unoccluded) of `depth` for `p`, rows bottom to top,
+    // as the pass multiplies them in (`blur`), or before their blur: for
+    // the tests. Reads back; slow.
+    std::vector<float> read_factors(const FrameDepth &depth, const AoParams &p, GLuint empty_vao, bool blur);
 
 private:
+    void raw_factors(const FrameDepth &depth, const AoParams &p, GLuint empty_vao);
+    void blurred(Program &prog, const FrameDepth &depth, const AoParams &p, GLuint empty_vao, bool encoded);
     MakeProgram make_;
-    std::unique_ptr<Program> program_, factors_;
+    std::unique_ptr<Program> raw_, blur_, blur_factors_;
+    GLuint raw_fbo_ = 0, raw_tex_ = 0;  // the factors before their blur (R32F)
+    int w_ = 0, h_ = 0;
 };
 
 // The estimate on the CPU, from window depths (rows bottom to top, 1 =
-// background): each pixel's factor in [0, 1], as the pass computes it.
+// background): each pixel's factor in [0, 1], as the pass computes it
+// before its blur.
 std::vector<float> ao_reference(const std::vector<float> &depth, int w, int h, const AoParams &p);
+// The blur of factors `raw` as the pass does it: over the 4 x 4 pixels
+// (offsets -2..1) around each one within radius_mm / 4 of it in depth.
+std::vector<float> ao_blur_reference(const std::vector<float> &raw, const std::vector<float> &depth, int w, int h, const AoParams &p);
 
 }  // namespace hz::core::render
