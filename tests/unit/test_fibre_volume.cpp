@@ -1,7 +1,7 @@
-// The fibre volume (core/src/render/line_geometry.hpp): per voxel, the
+// The fibre volume (core/src/render/tractogram/line_geometry.hpp): per voxel, the
 // streamlines' density, mean colour and main direction, and the distance to
 // the nearest voxel with streamlines, as the renderer's ray march reads them.
-#include "line_geometry.hpp"
+#include "tractogram/line_geometry.hpp"
 
 #include <hz/core/render/scene.hpp>
 

@@ -1,8 +1,8 @@
-// Occlusion culling of full-detail frames (core/src/render/occlusion.hpp and
+// Occlusion culling of full-detail frames (core/src/render/tractogram/occlusion.hpp and
 // line_geometry.hpp: Bricks): the cut of streamlines into bricks, and the
 // test of a brick's box against the depth already drawn.
-#include "line_geometry.hpp"
-#include "occlusion.hpp"
+#include "tractogram/line_geometry.hpp"
+#include "tractogram/occlusion.hpp"
 
 #include "polylines.hpp"
 

@@ -1,6 +1,6 @@
-// The slab's crossings (core/src/render/line_geometry.hpp): where each
+// The slab's crossings (core/src/render/tractogram/line_geometry.hpp): where each
 // streamline crosses the plane axis = centre, as the renderer draws them.
-#include "line_geometry.hpp"
+#include "tractogram/line_geometry.hpp"
 
 #include <hz/core/render/scene.hpp>
 

@@ -8,15 +8,12 @@
 #include "gl.hpp"
 #include "gpu_object.hpp"
 #include "image_lighting.hpp"
-#include "line_geometry.hpp"
 #include "glsl.hpp"
 #include "programs.hpp"
-#include "occlusion.hpp"
 #include "passes/ambient_occlusion.hpp"
 #include "passes/depth_cue.hpp"
 #include "passes/frame_depth.hpp"
 #include "reprojection.hpp"
-#include "shell_proxy.hpp"
 
 #include <glm/glm.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -51,16 +48,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
-
-// fn()'s result; -v logs "renderer: object K: WHAT (S s)" (a level-of-detail
-// job's time, on its own thread).
-template <class F>
-auto timed_job(std::size_t object, const std::string &what, F &&fn) {
-    const auto t0 = Clock::now();
-    auto result = fn();
-    spdlog::debug("renderer: object {}: {} ({:.2f} s)", object, what, ms_since(t0) / 1000);
-    return result;
-}
 
 glm::dvec3 to_dvec3(const Vec3 &v) { return glm::dvec3(v[0], v[1], v[2]); }
 
@@ -113,17 +100,6 @@ GLuint link_program(const std::vector<GLuint> &shaders, const std::string &what)
         throw Error(what + ": GLSL link error: " + log.substr(0, log.find('\n')));
     }
     return p;
-}
-
-}  // namespace
-
-namespace {
-
-// Binds `tex` to texture unit `unit` and points sampler `name` of the bound program `p` at it.
-void bind_sampler(Program &p, const char *name, int unit, GLenum target, GLuint tex) {
-    glActiveTexture(GL_TEXTURE0 + unit);
-    glBindTexture(target, tex);
-    glUniform1i(p.loc(name), unit);
 }
 
 }  // namespace
@@ -266,6 +242,11 @@ struct Renderer::Impl {
     enum class Output { Hdr, Display, Debug };
     bool display_direct = true;  // the output of the frame being drawn
     FrameStats stats;
+    // Every tractogram's GL buffers of streamline chunks, against
+    // settings.gpu_memory_mb (the drawables release theirs when they go:
+    // ~Impl clears the objects first).
+    LineStream stream{settings, stats};
+    std::vector<float> depth_scratch;  // (occlusion culling's readbacks)
     int max_samples = 1;
     bool interacting = false;
     std::uint64_t generation = 0;  // bumped by every change to what a frame shows
@@ -273,24 +254,7 @@ struct Renderer::Impl {
     double tol_mm = 0;  // streamline decimation tolerance of the current scene
 
     void release(GpuObject &o) {
-        // Background work on the object stops first (its futures' ends are
-        // waited for: an abandoned cut of 10M streamlines into bricks kept
-        // a replace_object waiting 39 s).
-        if (o.brick_cancel) *o.brick_cancel = true;
-        if (o.shell_cancel) *o.shell_cancel = true;
-        if (o.crossing_cancel) *o.crossing_cancel = true;
-        if (o.fibre_cancel) *o.fibre_cancel = true;
-        if (o.brick_job.valid()) o.brick_job.wait(), o.brick_job = {};
-        if (o.shell.valid()) o.shell.wait(), o.shell = {};
-        if (o.crossing_job.valid()) o.crossing_job.wait(), o.crossing_job = {};
-        release_crossings(o.crossings);
-        release_chunks(o.chunks);
-        release_chunks(o.proxy_chunks);
-        o.bricks.reset(), o.brick_chunks.clear();
-        if (o.fibre_cancel) *o.fibre_cancel = true;
-        if (o.fibre_job.valid()) o.fibre_job.wait(), o.fibre_job = {};
-        if (o.fibre_tex[0]) glDeleteTextures(3, o.fibre_tex);
-        o.fibre_tex[0] = o.fibre_tex[1] = o.fibre_tex[2] = 0;
+        o.tract.reset();  // (its background work stopped first, then its buffers)
         if (o.vao) glDeleteVertexArrays(1, &o.vao);
         if (o.vbo) glDeleteBuffers(1, &o.vbo);
         if (o.ebo) glDeleteBuffers(1, &o.ebo);
@@ -305,7 +269,12 @@ struct Renderer::Impl {
         g.index = i;
         if (o.kind == HZ_DATA_STREAMLINES) {
             g.geom = o.render == "tubes" ? Geom::Tube : Geom::Line;
-            upload_streamlines(g, o, tol_mm);
+            double finest = 0;  // (the points of the proxy's finest level)
+            for (const ProxyLevel &l : levels) finest = std::max(finest, l.points);
+            g.tract = std::make_unique<TractogramDrawable>(tract_context(), o, i, g.geom == Geom::Tube, tol_mm, proxy_scale_now(), finest);
+            g.uniform_rgba = uniform_colour(*g.tract->lines());
+            g.bounds = g.tract->bounds();
+            g.segments = g.tract->segments();
             resolve_material(g, o, o.material);
         } else if (o.kind == HZ_DATA_MESH) {
             g.geom = Geom::Mesh;
@@ -344,9 +313,6 @@ struct Renderer::Impl {
 
     ~Impl() {
         clear_objects();
-        if (ring_vao) glDeleteVertexArrays(1, &ring_vao);
-        if (ring_vbo) glDeleteBuffers(1, &ring_vbo);
-        if (ring_ebo) glDeleteBuffers(1, &ring_ebo);
         for (auto &[k, p] : programs) glDeleteProgram(p->id);
         for (auto &[k, p] : aux_programs) glDeleteProgram(p->id);
         ibl.reset();
@@ -594,552 +560,55 @@ struct Renderer::Impl {
     // ----------------------------------------------------------------- upload
 
     // Sets the vertex layout of the bound VAO for the bound buffer.
-    static void line_attributes() {
-        const GLsizei st = sizeof(LineVertex);
-        glEnableVertexAttribArray(0);
-        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, st, reinterpret_cast<void *>(0));
-        glEnableVertexAttribArray(1);
-        glVertexAttribPointer(1, 4, GL_INT_2_10_10_10_REV, GL_TRUE, st, reinterpret_cast<void *>(12));
-        glEnableVertexAttribArray(2);
-        glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, st, reinterpret_cast<void *>(16));
-        glEnableVertexAttribArray(3);
-        glVertexAttribPointer(3, 1, GL_FLOAT, GL_FALSE, st, reinterpret_cast<void *>(20));
-    }
+    // ------------------------------------------------------------ tractograms
+    // Each tractogram's level of detail, streaming and culling is its
+    // drawable's (tractogram/drawable.hpp); here, what concerns them all.
 
-    // Streamline geometry kept in GL buffers, all objects together, against
-    // settings.gpu_memory_mb; and the ring buffer of streamed chunks.
-    std::uint64_t resident_bytes = 0;
-    GLuint ring_vao = 0, ring_vbo = 0, ring_ebo = 0;
-    // Chunks being built on other threads, by chunk.
-    std::map<const LineChunk *, std::future<std::shared_ptr<BuiltLines>>> pending;
+    TractogramDrawable::Context tract_context() { return {settings, stats, stream}; }
 
-    std::uint64_t budget_bytes() const { return std::uint64_t(std::max(0.0, settings.gpu_memory_mb)) << 20; }
-
-    // Records chunk c's draw lists from `b` and keeps its vertices in a GL
-    // buffer of its own while the budget allows.
-    void adopt(LineChunk &c, BuiltLines &b) {
-        c.firsts = std::move(b.firsts);
-        c.counts = std::move(b.counts);
-        c.segments = b.segments, c.kept = b.kept;
-        c.built = true;
-        const std::uint64_t vbytes = b.verts.size() * sizeof(LineVertex), ibytes = b.indices.size() * sizeof(std::uint32_t);
-        const std::uint64_t bytes = vbytes + ibytes;
-        if (resident_bytes + bytes > budget_bytes() || b.verts.empty()) return;
-        glGenVertexArrays(1, &c.vao);
-        glBindVertexArray(c.vao);
-        glGenBuffers(1, &c.vbo);
-        glBindBuffer(GL_ARRAY_BUFFER, c.vbo);
-        glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(vbytes), b.verts.data(), GL_STATIC_DRAW);
-        line_attributes();
-        glGenBuffers(1, &c.ebo);
-        glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, c.ebo);  // (VAO state)
-        glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(ibytes), b.indices.data(), GL_STATIC_DRAW);
-        c.nb_indices = GLsizei(b.indices.size());
-        c.bytes = bytes;
-        resident_bytes += bytes;
-    }
-
-    void release_chunks(std::vector<LineChunk> &cs) {
-        for (LineChunk &c : cs) {
-            if (auto it = pending.find(&c); it != pending.end()) {
-                it->second.wait();
-                pending.erase(it);
-            }
-            if (c.vao) glDeleteVertexArrays(1, &c.vao);
-            if (c.vbo) glDeleteBuffers(1, &c.vbo);
-            if (c.ebo) glDeleteBuffers(1, &c.ebo);
-            resident_bytes -= c.bytes;
-            c.vao = c.vbo = c.ebo = 0, c.bytes = 0, c.nb_indices = 0;
-        }
-        cs.clear();
-    }
-
-    // Starts building chunks [i, i + ahead) of `cs` that are not resident on
-    // other threads (bounded: `ahead` chunks of at most kChunkPoints each).
-    void prefetch(const GpuObject &g, std::vector<LineChunk> &cs, bool proxy, std::size_t i, std::size_t ahead) {
-        for (std::size_t k = i; k < cs.size() && k < i + ahead; ++k) {
-            LineChunk &c = cs[k];
-            if (c.vbo || pending.count(&c)) continue;
-            std::shared_ptr<LineData> d = g.lines;
-            std::shared_ptr<const std::vector<Piece>> pieces = proxy ? g.proxy : nullptr;
-            std::shared_ptr<const Bricks> br = proxy ? nullptr : g.bricks;
-            const std::uint64_t a = c.a, b = c.b;
-            const double tol = proxy ? g.proxy_tol_mm : g.tol_mm;
-            pending.emplace(&c, std::async(std::launch::async, [this, d, pieces, br, a, b, tol] {
-                auto out = spare_lines();
-                build_chunk(*d, pieces.get(), br.get(), a, b, tol, *out);
-                return out;
-            }));
-        }
-    }
-
-    // Chunk c's vertices: from its prefetch, or built now.
-    std::shared_ptr<BuiltLines> take(const GpuObject &g, LineChunk &c, bool proxy) {
-        if (auto it = pending.find(&c); it != pending.end()) {
-            auto b = it->second.get();
-            pending.erase(it);
-            return b;
-        }
-        auto b = spare_lines();
-        build_chunk(*g.lines, proxy ? g.proxy.get() : nullptr, proxy ? nullptr : g.bricks.get(), c.a, c.b,
-                    proxy ? g.proxy_tol_mm : g.tol_mm, *b);
-        return b;
-    }
-    // The vertices of items [a, b) of `pieces`, or of `bricks`' pieces, or
-    // of the streamlines.
-    static void build_chunk(const LineData &d, const std::vector<Piece> *pieces, const Bricks *bricks, std::uint64_t a, std::uint64_t b,
-                            double tol, BuiltLines &out) {
-        if (!bricks) {
-            build_lines(d, pieces ? pieces->data() : nullptr, a, b, tol, out);
-            return;
-        }
-        std::vector<Piece> p(b - a);  // (at most kBrickChunkPoints / 2 pieces)
-        for (std::uint64_t i = a; i < b; ++i) p[i - a] = bricks->pieces[i].piece();
-        build_lines(d, p.data(), 0, b - a, tol, out);
-    }
-
-    // Vertex buffers of built chunks are reused (a fresh 6 MB block for
-    // every chunk would be faulted in, page by page, each time): a chunk's
-    // BuiltLines goes back to the pool when its last user drops it.
-    std::mutex spare_mutex;
-    std::vector<std::unique_ptr<BuiltLines>> spare;
-    std::shared_ptr<BuiltLines> spare_lines() {
-        std::unique_ptr<BuiltLines> b;
-        {
-            std::lock_guard<std::mutex> lock(spare_mutex);
-            if (!spare.empty()) b = std::move(spare.back()), spare.pop_back();
-        }
-        if (!b) b = std::make_unique<BuiltLines>();
-        return std::shared_ptr<BuiltLines>(b.release(), [this](BuiltLines *p) {
-            std::lock_guard<std::mutex> lock(spare_mutex);
-            if (spare.size() < 8)
-                spare.emplace_back(p);
-            else
-                delete p;
-        });
-    }
-
-    // Draws chunk k of g's full (or proxy) chunks with the bound program:
-    // from its GL buffer, or built (or taken from its prefetch), kept when
-    // the budget allows, else streamed through the ring buffer.
-    // `next`: the chunks drawn after it, in order (else k + 1, k + 2, ...),
-    // built ahead on other threads.
-    void draw_chunk(GpuObject &g, bool proxy, std::size_t k, const std::vector<std::size_t> *next = nullptr) {
-        std::vector<LineChunk> &cs = proxy ? g.proxy_chunks : g.chunks;
-        LineChunk &c = cs[k];
-        if (!c.vbo) {
-            if (next)
-                for (std::size_t j : *next) prefetch(g, cs, proxy, j, 1);
-            else
-                prefetch(g, cs, proxy, k + 1, std::max(1u, std::thread::hardware_concurrency()));
-            std::shared_ptr<BuiltLines> b = take(g, c, proxy);
-            const bool first = !c.built;
-            if (first) adopt(c, *b);
-            if (!c.vbo && !b->verts.empty()) {
-                if (!first) c.firsts = std::move(b->firsts), c.counts = std::move(b->counts);
-                if (!ring_vao) {
-                    glGenVertexArrays(1, &ring_vao);
-                    glBindVertexArray(ring_vao);
-                    glGenBuffers(1, &ring_vbo);
-                    glBindBuffer(GL_ARRAY_BUFFER, ring_vbo);
-                    line_attributes();
-                    glGenBuffers(1, &ring_ebo);
-                    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, ring_ebo);
-                }
-                glBindVertexArray(ring_vao);
-                glBindBuffer(GL_ARRAY_BUFFER, ring_vbo);
-                // A new store each time (orphaning): the driver keeps the
-                // previous one until the draws that read it are done.
-                glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(b->verts.size() * sizeof(LineVertex)), b->verts.data(), GL_STREAM_DRAW);
-                glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(b->indices.size() * sizeof(std::uint32_t)), b->indices.data(),
-                             GL_STREAM_DRAW);
-                draw_strips(GLsizei(b->indices.size()));
-                stats.streamed_points += c.kept;
-                c.firsts.clear(), c.counts.clear();
-                c.firsts.shrink_to_fit(), c.counts.shrink_to_fit();
-                count_chunk(c, proxy);
-                return;
-            }
-        }
-        if (c.vbo) {
-            glBindVertexArray(c.vao);
-            draw_strips(c.nb_indices);
-        }
-        count_chunk(c, proxy);
-    }
-
-    // Full-detail chunk k of g is hidden: not drawn (nor built).
-    void cull_chunk(GpuObject &g, std::size_t k) {
-        LineChunk &c = g.chunks[k];
-        if (auto it = pending.find(&c); it != pending.end()) {
-            it->second.wait();
-            pending.erase(it);
-        }
-        ++stats.culled_chunks;
-        stats.culled_points += c.points;
-        stats.culled_streamlines += c.starts;
-    }
-
-    // A full-detail chunk to draw: chunk `chunk` of objects[object], in
-    // brick `brick` (SIZE_MAX: the object is not over bricks).
-    struct ChunkItem {
-        std::size_t object, chunk, brick;
-    };
-    // Occlusion culling (RenderSettings::occlusion): the chunks of g (objects[oi])
-    // in the order they are drawn from camera v, its bricks nearest centre first.
-    static std::vector<ChunkItem> brick_sequence(const GpuObject &g, std::size_t oi, const View &v) {
-        const glm::dvec3 eye = to_dvec3(v.eye), ahead = glm::normalize(to_dvec3(v.target) - eye);
-        std::vector<std::pair<double, std::size_t>> order;
-        for (std::size_t b = 0; b < g.bricks->box.size(); ++b) {
-            const auto &x = g.bricks->box[b];
-            if (g.brick_chunks[b] == g.brick_chunks[b + 1]) continue;
-            const glm::dvec3 centre(0.5 * (double(x[0]) + x[3]), 0.5 * (double(x[1]) + x[4]), 0.5 * (double(x[2]) + x[5]));
-            order.emplace_back(glm::dot(centre - eye, ahead), b);
-        }
-        std::sort(order.begin(), order.end());
-        std::vector<ChunkItem> seq;
-        seq.reserve(g.chunks.size());
-        for (const auto &[d, b] : order)
-            for (std::size_t k = g.brick_chunks[b]; k < g.brick_chunks[b + 1]; ++k) seq.push_back({oi, k, b});
-        return seq;
-    }
-    // Whether brick b of g is hidden behind `tiles` (empty: nothing yet).
-    bool brick_hidden(const GpuObject &g, std::size_t b, const DepthTiles &tiles, const glm::mat4 &view_proj) const {
-        // (a line's fragments lie within half a pixel of it, and their depth
-        // is interpolated between its points: 1.5 px and 1 mm of slack)
-        return !tiles.empty() && tiles.hidden(g.bricks->box[b], g.max_radius_mm * (g.geom == Geom::Tube) + 1.0f, view_proj, 1.5f);
-    }
-    // The depth drawn so far into the bound draw framebuffer (w x h), as
-    // tiles; false (and tiles left empty) where it is multisampled.
-    std::vector<float> depth_scratch;
-    bool read_depth_tiles(DepthTiles &tiles, int w, int h) {
-        GLint fbo = 0, samples = 0;
-        glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &fbo);
-        glGetIntegerv(GL_SAMPLES, &samples);
-        if (samples > 1) return false;
-        glBindFramebuffer(GL_READ_FRAMEBUFFER, GLuint(fbo));
-        depth_scratch.resize(std::size_t(w) * h);
-        glPixelStorei(GL_PACK_ALIGNMENT, 4);
-        glReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT, depth_scratch.data());
-        tiles.build(depth_scratch.data(), w, h);
-        return true;
-    }
-    // Depth is read back after every this many input points drawn (a
-    // readback waits for llvmpipe to finish what it was given).
-    static std::uint64_t cull_refresh_points(const GpuObject &g) { return std::max<std::uint64_t>(kChunkPoints, g.points_total / 64); }
-
-    // Occlusion culling while full detail is drawn over bricks: the depth
-    // drawn so far as tiles, read back (with `read`) after every
-    // cull_refresh_points input points, and (with `skip` too) the chunks of
-    // bricks hidden behind it skipped.
-    struct Culling {
-        bool read = false, skip = false;
-        DepthTiles tiles;
-        std::uint64_t since = 0;
-    };
-    bool hidden(const ChunkItem &it, const Culling &c, const glm::mat4 &view_proj) const {
-        return c.skip && it.brick != SIZE_MAX && brick_hidden(objects[it.object], it.brick, c.tiles, view_proj);
-    }
-    // The chunks after items[i] of the same object still to be drawn (not
-    // hidden now: depth only comes nearer), one per core: built ahead.
-    void upcoming(const std::vector<ChunkItem> &items, std::size_t i, const Culling &c, const glm::mat4 &view_proj,
-                  std::vector<std::size_t> &next) const {
-        const std::size_t ahead = std::max(1u, std::thread::hardware_concurrency());
-        next.clear();
-        for (std::size_t j = i + 1; j < items.size() && next.size() < ahead && items[j].object == items[i].object; ++j)
-            if (!hidden(items[j], c, view_proj)) next.push_back(items[j].chunk);
-    }
-    // Counts `it` as drawn; true once the depth is due to be read back.
-    bool drew(const ChunkItem &it, Culling &c) const {
-        if (!c.read || it.brick == SIZE_MAX) return false;
-        const GpuObject &g = objects[it.object];
-        c.since += g.chunks[it.chunk].points;
-        return c.since >= cull_refresh_points(g);
-    }
-    // Reads the depth drawn so far back into c's tiles (none: multisampled,
-    // culling stops).
-    void refresh(Culling &c, int w, int h) {
-        c.since = 0;
-        if (!read_depth_tiles(c.tiles, w, h)) c.read = c.skip = false;
-    }
-
-    // The full-detail chunks of g. Over bricks: nearest first, those hidden
-    // behind what the frame has drawn skipped where `cull` (an opaque object
-    // drawn into a single-sampled target with depth testing).
-    void draw_full(GpuObject &g, const View &v, const Matrices &m, int w, int h, bool cull) {
-        if (!g.bricks) {
-            for (std::size_t k = 0; k < g.chunks.size(); ++k) draw_chunk(g, false, k);
-            return;
-        }
-        const auto items = brick_sequence(g, std::size_t(&g - objects.data()), v);
-        // (occlusion_skip off: the depth read back all the same, nothing
-        // skipped: the check that skipping changes no pixel)
-        Culling c;
-        c.read = cull, c.skip = cull && settings.occlusion_skip;
-        std::vector<std::size_t> next;
-        for (std::size_t i = 0; i < items.size(); ++i) {
-            if (hidden(items[i], c, m.view_proj)) {
-                cull_chunk(g, items[i].chunk);
-                continue;
-            }
-            upcoming(items, i, c, m.view_proj, next);
-            draw_chunk(g, false, items[i].chunk, &next);
-            if (drew(items[i], c)) refresh(c, w, h);
-        }
-    }
-
-    static void draw_strips(GLsizei nb_indices) {
-        glEnable(GL_PRIMITIVE_RESTART);
-        glPrimitiveRestartIndex(kRestart);
-        glDrawElements(GL_LINE_STRIP, nb_indices, GL_UNSIGNED_INT, nullptr);
-        glDisable(GL_PRIMITIVE_RESTART);
-    }
-
-    void count_chunk(const LineChunk &c, bool proxy) {
-        stats.segments_drawn += c.segments;
-        stats.points_drawn += c.kept;
-        stats.streamlines_drawn += c.starts != UINT64_MAX ? c.starts : c.counts.empty() ? c.b - c.a : c.counts.size();
-        ++stats.chunks_drawn;
-        if (proxy) stats.proxy = true;
-    }
-
-    void upload_streamlines(GpuObject &g, const Object &o, double tol_mm) {
-        const Tractogram &t = o.data.tractogram;
-        const std::uint64_t N = t.nb_streamlines();
-        g.lines = line_data(o);
-        g.uniform_rgba = uniform_colour(*g.lines);
-        g.tol_mm = tol_mm;
-        g.streamlines = N;
-        g.points_total = t.nb_vertices();
-        stats.points_total += g.points_total;
-        g.chunks = partition(t, nullptr, N);
-        // The level-of-detail proxy: above `lod_points` input points, the
-        // streamlines whose hash falls below lod_points / points (in
-        // expectation a uniform subsample: the same density everywhere).
-        g.bounds = !o.data.bounds.empty ? o.data.bounds : bounds_of(t.positions.data(), t.nb_stored());
-        for (float r : g.lines->radius) g.max_radius_mm = std::max(g.max_radius_mm, r);
-        if (settings.occlusion && g.points_total > settings.eager_points && !o.provisional) schedule_bricks(g, t);
-        const double lod = std::max(1.0, settings.lod_points);
-        if (double(g.points_total) > lod) {
-            set_proxy_pieces(g, std::make_shared<const std::vector<Piece>>(uniform_proxy(t, lod)));
-            if (settings.shell_proxy && !o.provisional) {
-                // (as many points as the finest level draws)
-                double most = lod;
-                for (const ProxyLevel &l : levels) most = std::max(most, l.points);
-                g.shell_cancel = std::make_shared<std::atomic<bool>>(false);
-                g.shell = std::async(std::launch::async, [t = t.shared(), b = g.bounds, lod = most, cancel = g.shell_cancel,
-                                                          all = settings.shell_all_cores, index = g.index] {
-                    return timed_job(index, "shell proxy", [&] { return shell_proxy(t, b, lod, *cancel, all); });
-                });
-            }
-            if (!o.provisional) schedule_fibre_volume(g);
-        }
-        // Small objects are built now, in parallel (the draw lists are then
-        // known: MSAA is chosen from the segment count); large ones chunk
-        // by chunk as they are first drawn (a window shows the proxy first).
-        if (g.points_total <= settings.eager_points) {
-            for (std::size_t k = 0; k < g.chunks.size(); ++k) {
-                prefetch(g, g.chunks, false, k, std::max(1u, std::thread::hardware_concurrency()));
-                auto b = take(g, g.chunks[k], false);
-                adopt(g.chunks[k], *b);
-                g.segments += g.chunks[k].segments;
-                stats.points_kept += g.chunks[k].kept;
-            }
-        } else {
-            g.segments = g.points_total;  // (an upper bound until drawn)
-        }
-        if (g.has_lod_proxy()) build_proxy(g);
-    }
-
-    // Starts cutting g's streamlines into bricks on a background thread
-    // (RenderSettings::occlusion), at the finest grid whose pieces fit the
-    // budget (chosen on that thread too: a sample of the streamlines cut at
-    // each grid, 0.1-0.2 s at 1M); none: g is drawn in streamline order.
-    void schedule_bricks(GpuObject &g, const Tractogram &t) {
-        const std::uint64_t max_pieces = std::uint64_t(std::max(0.0, settings.brick_memory_mb) * 1048576.0 / sizeof(BrickPiece));
-        g.brick_cancel = std::make_shared<std::atomic<bool>>(false);
-        g.brick_job =
-            std::async(std::launch::async, [t = t.shared(), b = g.bounds, cancel = g.brick_cancel, window = !settings.shell_all_cores,
-                                            index = g.index, grid = settings.brick_grid, max_pieces, mb = settings.brick_memory_mb] {
-                // In a window below the frames' priority (its threads inherit
-                // it): on two cores, frames moved while it ran took 33-40 ms
-                // instead of 24-28; a window at rest waits for it, idle.
-                if (window) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
-                const int side = brick_side_for(t, b, std::min(8, grid), grid, max_pieces);
-                if (side == 0) {
-                    spdlog::debug("renderer: object {}: no bricks within {} MB, drawn in streamline order", index, mb);
-                    return Bricks{};
-                }
-                return timed_job(index, fmt::format("cut into bricks, {} along the longest side", side),
-                                 [&] { return bricks_of(t, b, side, std::max(1u, std::thread::hardware_concurrency()), *cancel); });
-            });
-    }
-
-    // Adopts the bricks of the objects whose cut is done (with `wait`, once
-    // it is): their full-detail chunks become chunks over bricks. True if
-    // any was adopted (chunk indices changed).
+    // The full-detail chunks over bricks of the tractograms whose cut is done
+    // (with `wait`, once it is). True if any was adopted (chunk indices changed).
     bool adopt_bricks(bool wait) {
         bool changed = false;
-        for (GpuObject &g : objects) {
-            if (!g.brick_job.valid()) continue;
-            if (!wait && g.brick_job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
-            auto br = std::make_shared<Bricks>(g.brick_job.get());
-            if (br->empty()) continue;
-            use_bricks(g, std::move(br));
-            changed = true;
-        }
+        for (GpuObject &g : objects)
+            if (g.tract && g.tract->adopt_bricks(wait)) changed = true;
         return changed;
     }
 
     bool bricks_pending() const {
-        return std::any_of(objects.begin(), objects.end(), [&](const GpuObject &g) { return g.brick_job.valid() && drawn(g.index); });
+        return std::any_of(objects.begin(), objects.end(),
+                           [&](const GpuObject &g) { return g.tract && g.tract->bricks_pending() && drawn(g.index); });
     }
 
-    // Chunks over bricks are smaller: the nearest are drawn first, most of
-    // their fragments seen and shaded (a progressive step of a 2^18-point
-    // chunk of them takes 60-100 ms at 1280x800 against 25 for streamlines
-    // in file order, most of whose fragments fail the depth test).
-    static constexpr std::uint64_t kBrickChunkPoints = kChunkPoints / 4;
-
-    // g's full detail as chunks over its bricks.
-    void use_bricks(GpuObject &g, std::shared_ptr<const Bricks> br) {
-        release_chunks(g.chunks);
-        std::vector<LineChunk> chunks;
-        std::vector<std::size_t> first(br->box.size() + 1, 0);
-        for (std::size_t k = 0; k < br->box.size(); ++k) {
-            first[k] = chunks.size();
-            const std::uint64_t a = br->begin[k], n = br->begin[k + 1] - a;
-            for (LineChunk &c : partition(br->pieces.data() + a, n, kBrickChunkPoints)) {
-                c.a += a, c.b += a;
-                c.starts = 0;
-                for (std::uint64_t i = c.a; i < c.b; ++i) c.starts += br->pieces[i].first() == 0;
-                chunks.push_back(std::move(c));
-            }
-        }
-        first.back() = chunks.size();
-        g.chunks = std::move(chunks);
-        g.brick_chunks = std::move(first);
-        g.bricks = std::move(br);
-    }
-
-    void build_proxy(GpuObject &g) {
-        for (std::size_t k = 0; k < g.proxy_chunks.size(); ++k) {
-            prefetch(g, g.proxy_chunks, true, k, std::max(1u, std::thread::hardware_concurrency()));
-            auto b = take(g, g.proxy_chunks[k], true);
-            adopt(g.proxy_chunks[k], *b);
-        }
-    }
-
-    // g's proxy lines: `pieces` (outermost first, or in hash order: any
-    // prefix is the shell or uniform subsample of a smaller budget), in
-    // chunks small enough that a level draws about its share of them
-    // (proxy_points_now(), drawn_proxy_chunks()).
-    void set_proxy_pieces(GpuObject &g, std::shared_ptr<const std::vector<Piece>> pieces) {
-        release_chunks(g.proxy_chunks);
-        g.proxy = std::move(pieces);
-        g.proxy_tol_mm = tol_mm * proxy_scale_now();
-        const std::uint64_t chunk = std::max<std::uint64_t>(1024, std::uint64_t(settings.lod_points / 16));
-        g.proxy_chunks = partition(scene.objects[g.index].data.tractogram, g.proxy->data(), g.proxy->size(), chunk);
-    }
-    // g's proxy lines built again, decimated for the current level's scale
-    // (its tolerance is lod_pixels of the proxy's pixels), when it changed.
-    void sync_proxy_scale(GpuObject &g) {
-        if (!g.proxy || g.proxy_tol_mm == tol_mm * proxy_scale_now()) return;
-        const auto t0 = Clock::now();
-        set_proxy_pieces(g, g.proxy);
-        build_proxy(g);
-        spdlog::debug("renderer: object {}: proxy decimated again for 1/{} of the size: {:.0f} ms", g.index, proxy_scale_now(),
-                      ms_since(t0));
-    }
     // How many of g's proxy chunks the current level draws: its points,
     // over a fibre volume 3/4 of them (which keeps the frame within its
     // time with the volume's pass); at least one.
     std::size_t drawn_proxy_chunks(const GpuObject &g, bool over) const {
-        const double target = proxy_points_now() * (over ? 0.75 : 1.0);
-        if (g.proxy_chunks.empty()) return 0;
-        std::size_t k = 1;
-        for (double before = double(g.proxy_chunks[0].points);
-             k < g.proxy_chunks.size() && before + 0.5 * double(g.proxy_chunks[k].points) < target; ++k)
-            before += double(g.proxy_chunks[k].points);
-        return k;
+        return g.tract->proxy_chunks_for(proxy_points_now() * (over ? 0.75 : 1.0));
     }
 
     // Replaces uniform proxies by their shell proxies where these are
     // computed (or, with `wait`, once they are). True if one changed.
     bool adopt_shell_proxies(bool wait) {
         bool changed = false;
-        for (GpuObject &g : objects) {
-            if (!g.shell.valid()) continue;
-            if (!wait && g.shell.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
-            std::vector<Piece> pieces = g.shell.get();
-            if (pieces.empty()) continue;
-            set_proxy_pieces(g, std::make_shared<const std::vector<Piece>>(std::move(pieces)));
-            build_proxy(g);
-            changed = true;
-        }
+        for (GpuObject &g : objects)
+            if (g.tract && g.tract->adopt_shell_proxy(wait, proxy_scale_now())) changed = true;
         return changed;
     }
-
-    // -------------------------------------------------------- fibre volume
 
     // A tractogram's proxy is its fibre volume (once computed; for lines,
     // which it models a pixel wide; not with a slab, which it does not crop,
     // nor translucent).
     bool volume_proxy(const GpuObject &g) const {
-        return settings.fibre_volume && g.has_fibre_volume() && g.geom == Geom::Line && !scene.slab && !composited(g);
+        return settings.fibre_volume && g.tract && g.tract->has_fibre_volume() && g.geom == Geom::Line && !scene.slab && !composited(g);
     }
-
-    // Starts computing the fibre volume of tractogram `g` on a background
-    // thread (settings.fibre_volume; objects with a level-of-detail proxy).
-    void schedule_fibre_volume(GpuObject &g) {
-        if (!settings.fibre_volume || !settings.shell_proxy || !g.has_lod_proxy() || !g.lines || g.geom != Geom::Line) return;
-        g.fibre_cancel = std::make_shared<std::atomic<bool>>(false);
-        // (each thread sums into a grid of its own, 48 MB at 128 voxels: at most 4)
-        const unsigned threads = settings.shell_all_cores ? std::clamp(std::thread::hardware_concurrency(), 1u, 4u) : 1u;
-        g.fibre_job = std::async(
-            std::launch::async, [d = g.lines, b = g.bounds, grid = settings.fibre_grid, cancel = g.fibre_cancel, threads, index = g.index] {
-                // In a window (one thread) below the frames' priority: on two
-                // cores it slowed the moving frames beside it from 25 to 42 ms;
-                // the shell is the proxy until it is done.
-                if (threads == 1) setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 10);
-                return timed_job(index, "fibre volume", [&] { return fibre_volume(*d, b, grid, kFibrePoints, threads, *cancel); });
-            });
-    }
-    // Points read into a fibre volume, at most (above, every k-th segment of
-    // every streamline: the density and colours are means over many).
-    static constexpr double kFibrePoints = 64e6;
-    static constexpr double kFibreWidth = 0.5;
 
     // Uploads the fibre volumes computed since the last call (all of them,
     // waiting, with `wait`). True if one was adopted.
     bool adopt_fibre_volumes(bool wait) {
         bool changed = false;
-        for (GpuObject &g : objects) {
-            if (!g.fibre_job.valid()) continue;
-            if (!wait && g.fibre_job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
-            FibreVolume fv = g.fibre_job.get();
-            if (fv.empty()) continue;
-            if (g.fibre_tex[0]) glDeleteTextures(3, g.fibre_tex);
-            glGenTextures(3, g.fibre_tex);
-            // colour x density (linear), direction (linear), skip (fetched)
-            const GLenum formats[3] = {GL_RGBA16F, GL_RGBA8, GL_R8};
-            const GLenum layouts[3] = {GL_RGBA, GL_RGBA, GL_RED};
-            const void *texels[3] = {fv.colour_density.data(), fv.direction.data(), fv.skip.data()};
-            for (int k = 0; k < 3; ++k) {
-                glBindTexture(GL_TEXTURE_3D, g.fibre_tex[k]);
-                glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-                glTexImage3D(GL_TEXTURE_3D, 0, GLint(formats[k]), fv.dim[0], fv.dim[1], fv.dim[2], 0, layouts[k],
-                             k == 0 ? GL_FLOAT : GL_UNSIGNED_BYTE, texels[k]);
-                const GLint filter = k == 2 ? GL_NEAREST : GL_LINEAR;
-                glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, filter);
-                glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, filter);
-                for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R})
-                    glTexParameteri(GL_TEXTURE_3D, w, GL_CLAMP_TO_EDGE);
-            }
-            glBindTexture(GL_TEXTURE_3D, 0);
-            g.fibre_dim = fv.dim, g.fibre_origin = fv.origin, g.fibre_voxel_mm = fv.voxel_mm;
-            changed = true;
-        }
+        for (GpuObject &g : objects)
+            if (g.tract && g.tract->adopt_fibre_volume(wait)) changed = true;
         return changed;
     }
 
@@ -1150,79 +619,12 @@ struct Renderer::Impl {
         glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
     }
 
-    // The rectangle (normalised device coordinates) of g's fibre volume's
-    // box: its corners projected; `all` when one is behind the eye.
-    struct NdcRect {
-        glm::dvec2 lo{1e30}, hi{-1e30};
-        bool all = false;
-    };
-    static NdcRect fibre_box_ndc(const GpuObject &g, const Matrices &m) {
-        NdcRect r;
-        for (int c = 0; c < 8 && !r.all; ++c) {
-            glm::dvec4 x(0, 0, 0, 1);
-            for (int i = 0; i < 3; ++i) x[i] = g.fibre_origin[i] + ((c >> i) & 1) * double(g.fibre_dim[i]) * g.fibre_voxel_mm;
-            const glm::dvec4 q = glm::dmat4(m.view_proj) * x;
-            if (!(q.w > 1e-6)) r.all = true;
-            const glm::dvec2 n(q.x / q.w, q.y / q.w);
-            r.lo = glm::min(r.lo, n), r.hi = glm::max(r.hi, n);
-        }
-        return r;
-    }
     // How much smaller than a w x h proxy frame g's fibre volume is
-    // ray-marched: at most volume_scale / proxy_scale times, and no more
-    // than keeps neighbouring rays within the marching step (1.5 voxels) of
-    // each other across the box's projection. (At 1280x800, a whole brain
-    // seen whole: 2; in a 640x400 window: 1, the proxy's own size.)
+    // ray-marched: at most volume_scale / proxy_scale times (and no more
+    // than its drawable allows).
     int volume_downscale(const GpuObject &g, const Matrices &m, int w, int h) const {
-        int k = std::max(1, settings.volume_scale / proxy_scale_now());
-        const NdcRect r = fibre_box_ndc(g, m);
-        if (r.all) return k;
-        const double span_px = std::max((r.hi.x - r.lo.x) * 0.5 * w, (r.hi.y - r.lo.y) * 0.5 * h);
-        const double voxels = std::max({g.fibre_dim[0], g.fibre_dim[1], g.fibre_dim[2]});
-        while (k > 1 && span_px / k * 1.5 < voxels) --k;
-        return k;
+        return g.tract->volume_downscale(m.view_proj, w, h, settings.volume_scale / proxy_scale_now());
     }
-
-    // Draws g's fibre volume with its bound program `p` (uniforms set but
-    // the volume's): one triangle over the viewport, blended over what is
-    // drawn (each pixel as opaque as the streamlines it crosses would cover),
-    // writing the depth where the ray became half opaque.
-    void draw_fibre_volume(GpuObject &g, Program &p, const Matrices &m, const View &v, bool debug, int w, int h) {
-        glUniformMatrix4fv(p.loc("hz_inv_view_proj"), 1, GL_FALSE, glm::value_ptr(glm::mat4(m.inv_view_proj)));
-        glUniform3f(p.loc("hz_vol_origin"), g.fibre_origin[0], g.fibre_origin[1], g.fibre_origin[2]);
-        glUniform3f(p.loc("hz_vol_dim"), float(g.fibre_dim[0]), float(g.fibre_dim[1]), float(g.fibre_dim[2]));
-        glUniform1f(p.loc("hz_vol_voxel"), g.fibre_voxel_mm);
-        // The streamlines' lines are a pixel wide in the full-size frame;
-        // kFibreWidth of that (calibrated on the scale benchmark: the
-        // volume's colours are means over everything in a voxel, and a
-        // thinner medium lets the layers behind the outermost show through
-        // as the full frame's gaps between lines do).
-        const double full_h = std::max(1, frame_h);
-        glUniform1f(p.loc("hz_px_angle"), float(kFibreWidth * 2.0 * std::tan(glm::radians(double(v.fov_deg)) / 2) / full_h));
-        bind_sampler(p, "hz_vol_colour", 6, GL_TEXTURE_3D, g.fibre_tex[0]);
-        bind_sampler(p, "hz_vol_tangent", 7, GL_TEXTURE_3D, g.fibre_tex[1]);
-        bind_sampler(p, "hz_vol_skip", 8, GL_TEXTURE_3D, g.fibre_tex[2]);
-        if (!debug) blend_over();
-        // Only the pixels the grid's box covers march.
-        const auto [lo, hi, all] = fibre_box_ndc(g, m);
-        const int x0 = all ? 0 : std::clamp(int(std::floor((lo.x * 0.5 + 0.5) * w)) - 1, 0, w);
-        const int x1 = all ? w : std::clamp(int(std::ceil((hi.x * 0.5 + 0.5) * w)) + 1, 0, w);
-        const int y0 = all ? 0 : std::clamp(int(std::floor((lo.y * 0.5 + 0.5) * h)) - 1, 0, h);
-        const int y1 = all ? h : std::clamp(int(std::ceil((hi.y * 0.5 + 0.5) * h)) + 1, 0, h);
-        if (x1 > x0 && y1 > y0) {
-            glEnable(GL_SCISSOR_TEST);
-            glScissor(x0, y0, x1 - x0, y1 - y0);
-            glBindVertexArray(empty_vao);
-            glDrawArrays(GL_TRIANGLES, 0, 3);
-            glDisable(GL_SCISSOR_TEST);
-            stats.volume_rays += std::uint64_t(x1 - x0) * std::uint64_t(y1 - y0);
-        }
-        if (!debug) glDisable(GL_BLEND);
-        stats.proxy = true;
-        ++stats.volumes_drawn;
-    }
-
-    // ------------------------------------------------------ slab crossings
 
     // The slab shows where streamlines cross its plane (Slab::points).
     bool crossing_mode() const { return scene.slab && scene.slab->points; }
@@ -1235,100 +637,31 @@ struct Renderer::Impl {
     // A tractogram drawn through its level-of-detail proxy while the
     // camera moves and first at rest.
     bool lod_proxy(const GpuObject &g) const {
-        return crossing_mode() ? g.geom != Geom::Mesh && g.crossings.total > crossing_budget() : g.has_lod_proxy();
-    }
-
-    static void release_crossings(Crossings &c) {
-        if (!c.vaos.empty()) glDeleteVertexArrays(GLsizei(c.vaos.size()), c.vaos.data());
-        if (!c.vbos.empty()) glDeleteBuffers(GLsizei(c.vbos.size()), c.vbos.data());
-        c = Crossings{};
-    }
-
-    // Draws the first `limit` crossings of chunks [k0, k1) (the program is bound).
-    void draw_crossings(const Crossings &c, std::size_t k0, std::size_t k1, std::uint64_t limit = UINT64_MAX) {
-        glEnable(GL_PROGRAM_POINT_SIZE);
-        for (std::size_t k = k0; k < k1 && k < c.vaos.size() && limit > 0; ++k) {
-            const GLsizei n = GLsizei(std::min<std::uint64_t>(std::uint64_t(c.counts[k]), limit));
-            glBindVertexArray(c.vaos[k]);
-            glDrawArrays(GL_POINTS, 0, n);
-            stats.crossings_drawn += std::uint64_t(n);
-            limit -= std::uint64_t(n);
-        }
-        glDisable(GL_PROGRAM_POINT_SIZE);
+        if (!g.tract) return false;
+        return crossing_mode() ? g.tract->crossings().total > crossing_budget() : g.tract->has_lod_proxy();
     }
 
     // Starts computing the crossings of every tractogram whose drawn or
-    // pending crossings are not those of the slab's plane (a background
-    // thread per object, on every core; a job for another plane is
-    // cancelled). Called whenever the slab or an object changes.
+    // pending crossings are not those of the slab's plane. Called whenever
+    // the slab or an object changes.
     void schedule_crossings() {
         if (!crossing_mode()) return;
-        const int axis = scene.slab->axis;
-        const double centre = scene.slab->centre;
-        for (GpuObject &g : objects) {
-            if (g.geom == Geom::Mesh || g.slices || !g.lines) continue;
-            const auto same = [&](const Crossings &c) { return c.axis == axis && c.centre == centre && c.lines == g.lines.get(); };
-            if (same(g.crossings) && !g.crossing_job.valid()) continue;
-            if (g.crossing_job.valid() && same(g.crossing_next)) continue;
-            if (g.crossing_cancel) *g.crossing_cancel = true;
-            g.crossing_cancel = std::make_shared<std::atomic<bool>>(false);
-            g.crossing_next = Crossings{};
-            g.crossing_next.axis = axis, g.crossing_next.centre = centre, g.crossing_next.lines = g.lines.get();
-            g.crossing_job = std::async(std::launch::async, [d = g.lines, axis, centre, cancel = g.crossing_cancel] {
-                std::mutex m;
-                std::vector<std::pair<std::uint64_t, std::vector<LineVertex>>> parts;
-                parallel_ranges(d->t->nb_streamlines(), 4096, [&](std::uint64_t from, std::uint64_t to) {
-                    std::vector<LineVertex> mine;
-                    slab_crossings(*d, axis, centre, from, to, mine, cancel.get());
-                    std::lock_guard<std::mutex> lock(m);
-                    parts.emplace_back(from, std::move(mine));
-                });
-                std::vector<LineVertex> all;
-                if (*cancel) return all;
-                std::sort(parts.begin(), parts.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
-                std::size_t total = 0;
-                for (const auto &p : parts) total += p.second.size();
-                all.reserve(total);
-                for (const auto &p : parts) all.insert(all.end(), p.second.begin(), p.second.end());
-                // (shuffled, the same way every time: the proxy is a prefix)
-                std::mt19937_64 rng(0x5eed);
-                std::shuffle(all.begin(), all.end(), rng);
-                return all;
-            });
-        }
+        for (GpuObject &g : objects)
+            if (g.tract) g.tract->schedule_crossings(scene.slab->axis, scene.slab->centre);
     }
 
     // Adopts the crossings computed since the last call (with `wait`, once
     // they are); true if what a frame shows changed.
     bool adopt_crossings(bool wait) {
         bool changed = false;
-        for (GpuObject &g : objects) {
-            if (!g.crossing_job.valid()) continue;
-            if (!wait && g.crossing_job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) continue;
-            std::vector<LineVertex> v = g.crossing_job.get();
-            if (*g.crossing_cancel) continue;
-            release_crossings(g.crossings);
-            g.crossings = g.crossing_next;
-            for (std::size_t a = 0; a < v.size(); a += kCrossingChunk) {
-                const std::size_t n = std::min<std::size_t>(kCrossingChunk, v.size() - a);
-                GLuint vao = 0, vbo = 0;
-                glGenVertexArrays(1, &vao);
-                glBindVertexArray(vao);
-                glGenBuffers(1, &vbo);
-                glBindBuffer(GL_ARRAY_BUFFER, vbo);
-                glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(n * sizeof(LineVertex)), v.data() + a, GL_STATIC_DRAW);
-                line_attributes();
-                g.crossings.vaos.push_back(vao), g.crossings.vbos.push_back(vbo), g.crossings.counts.push_back(GLsizei(n));
-            }
-            g.crossings.total = v.size();
-            changed = true;
-        }
+        for (GpuObject &g : objects)
+            if (g.tract && g.tract->adopt_crossings(wait)) changed = true;
         if (changed) ++generation;
         return changed;
     }
 
     bool computing_crossings() const {
-        return std::any_of(objects.begin(), objects.end(), [](const GpuObject &g) { return g.crossing_job.valid(); });
+        return std::any_of(objects.begin(), objects.end(), [](const GpuObject &g) { return g.tract && g.tract->computing_crossings(); });
     }
 
     // ------------------------------------------------------------------ frame
@@ -1476,14 +809,14 @@ struct Renderer::Impl {
         bind_environment(p, !debug);
         set_material_uniforms(p, g);
         if (volume) {
-            draw_fibre_volume(g, p, m, v, debug, w, h);
+            g.tract->draw_fibre_volume(p, m.view_proj, m.inv_view_proj, v.fov_deg, frame_h, debug, w, h, empty_vao);
             return;
         }
         if (points) {
             if (lines == LinesPart::Full)
-                draw_crossings(g.crossings, 0, g.crossings.vaos.size());
+                g.tract->draw_crossings(0, g.tract->crossings().vaos.size());
             else if (lines == LinesPart::Proxy)
-                draw_crossings(g.crossings, 0, g.crossings.vaos.size(), crossing_budget());
+                g.tract->draw_crossings(0, g.tract->crossings().vaos.size(), crossing_budget());
             return;
         }
         glBindVertexArray(g.vao);
@@ -1500,10 +833,11 @@ struct Renderer::Impl {
                 blend_over();
             }
             const std::size_t n = drawn_proxy_chunks(g, over);
-            for (std::size_t k = 0; k < n; ++k) draw_chunk(g, true, k);
+            for (std::size_t k = 0; k < n; ++k) g.tract->draw_proxy_chunk(k);
             if (over) glDisable(GL_BLEND);
         } else if (lines == LinesPart::Full) {
-            draw_full(g, v, m, w, h, settings.occlusion && !debug && !composited(g));
+            g.tract->draw_full(std::size_t(&g - objects.data()), v, m.view_proj, w, h, settings.occlusion && !debug && !composited(g),
+                               depth_scratch);
         }
     }
 
@@ -1779,7 +1113,7 @@ void main() {
                 continue;
             }
             const LinesPart part = part_for(g);
-            if (part == LinesPart::Proxy) sync_proxy_scale(g);
+            if (part == LinesPart::Proxy) g.tract->sync_proxy_scale(proxy_scale_now());
             if (part == LinesPart::Proxy && volume_proxy(g)) draw_volume_proxy(g, o, m, v, target, w, h);
             draw_object(g, o, m, v, false, w, h, part);
         }
@@ -1952,10 +1286,10 @@ void main() {
             const std::size_t oi = std::size_t(&g - objects.data());
             if (!lod_proxy(g))
                 draw_object(g, scene.objects[g.index], refine.m, v, false, w, h, LinesPart::Full);
-            else if (!crossing_mode() && g.bricks)
-                for (const ChunkItem &it : brick_sequence(g, oi, v)) refine.items.push_back(it);
+            else if (!crossing_mode() && g.tract->over_bricks())
+                for (const ChunkItem &it : g.tract->brick_sequence(oi, v)) refine.items.push_back(it);
             else
-                for (std::size_t k = 0, n = crossing_mode() ? g.crossings.vaos.size() : g.chunks.size(); k < n; ++k)
+                for (std::size_t k = 0, n = crossing_mode() ? g.tract->crossings().vaos.size() : g.tract->chunk_count(); k < n; ++k)
                     refine.items.push_back({oi, k, SIZE_MAX});
         }
         finish_frame(refine.target, w, h, /*complete=*/refine.items.empty());
@@ -1973,7 +1307,7 @@ void main() {
         // are skipped: the still completes far sooner).
         if (refine.next == 0 && bricks_pending()) {
             for (GpuObject &g : objects)
-                if (g.brick_job.valid()) g.brick_job.wait_for(std::chrono::duration<double, std::milli>(budget_ms / 2));
+                if (g.tract) g.tract->wait_bricks(budget_ms / 2);
             if (!adopt_bricks(false) && bricks_pending()) {
                 stats.refine_remaining = refine.items.size();
                 return false;
@@ -1994,8 +1328,8 @@ void main() {
         while (refine.next < refine.items.size()) {
             const ChunkItem it = refine.items[refine.next];
             GpuObject &g = objects[it.object];
-            if (hidden(it, c, refine.m.view_proj)) {
-                cull_chunk(g, it.chunk);
+            if (c.hidden(*g.tract, it, refine.m.view_proj)) {
+                g.tract->cull_chunk(it.chunk);
                 ++refine.next;
                 continue;
             }
@@ -2004,19 +1338,19 @@ void main() {
                 bound = it.object;
             }
             if (crossing_mode()) {
-                draw_crossings(g.crossings, it.chunk, it.chunk + 1);
+                g.tract->draw_crossings(it.chunk, it.chunk + 1);
                 group += kChunkPoints;
             } else {
-                upcoming(refine.items, refine.next, c, refine.m.view_proj, next);
-                draw_chunk(g, false, it.chunk, &next);
-                group += g.chunks[it.chunk].points;
-                due = drew(it, c) || due;
+                c.upcoming(*g.tract, refine.items, refine.next, refine.m.view_proj, next);
+                g.tract->draw_chunk(it.chunk, &next);
+                group += g.tract->chunk_points(it.chunk);
+                due = c.drew(*g.tract, it) || due;
             }
             ++refine.next;
-            if (group < kBrickChunkPoints / 2 && refine.next < refine.items.size()) continue;
+            if (group < TractogramDrawable::kBrickChunkPoints / 2 && refine.next < refine.items.size()) continue;
             glFinish();
             group = 0;
-            if (due) refresh(c, refine.w, refine.h), due = false;
+            if (due) c.refresh(depth_scratch, refine.w, refine.h), due = false;
             // (the next group is taken to cost as much as this one)
             if (ms_since(t0) + ms_since(tg) > budget_ms) break;
             tg = Clock::now();
@@ -2385,7 +1719,7 @@ std::uint64_t Renderer::generation() const { return impl_->generation; }
 std::uint64_t Renderer::streamlines_with_proxy() const {
     std::uint64_t n = 0;
     for (const auto &g : impl_->objects)
-        if (impl_->lod_proxy(g)) n += g.streamlines;
+        if (impl_->lod_proxy(g)) n += g.tract->streamlines();
     return n;
 }
 

@@ -1,7 +1,7 @@
 // Streamline geometry on the CPU (line_geometry.hpp).
 #include "line_geometry.hpp"
 
-#include "colour.hpp"
+#include "../colour.hpp"
 
 #include <hz/core/render/decimate.hpp>
 #include <hz/core/render/renderer.hpp>

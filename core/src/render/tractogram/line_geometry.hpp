@@ -1,10 +1,10 @@
 // Streamline geometry on the CPU (private to the renderer): the vertex the
 // line and tube programs read, an object's colouring resolved per
 // streamline, and the decimated vertices of a chunk of streamlines, built on
-// any thread. The GL side (buffers, the ring, drawing) stays in renderer.cpp.
+// any thread. The GL side (buffers, the ring, drawing) is line_stream.hpp.
 #pragma once
 
-#include "gl.hpp"
+#include "../gl.hpp"
 #include "shell_proxy.hpp"
 
 #include <hz/core/render/scene.hpp>
