@@ -45,6 +45,19 @@ struct DepthCueOptions {
     }
 };
 
+// Annotations, the same for `render`, `view` and `demo`: they replace a scene file's.
+struct AnnotationOptions {
+    bool all = false, none = false;                                   // --annotations, --no-annotations
+    bool colour_bar = false, orientation = false, scale_bar = false;  // --colour-bar, --orientation, --scale-bar
+    void apply(core::render::Scene &s) const {
+        if (all) s.annotations = {true, true, true};
+        if (none) s.annotations = {};
+        if (colour_bar) s.annotations.colour_bar = true;
+        if (orientation) s.annotations.orientation = true;
+        if (scale_bar) s.annotations.scale_bar = true;
+    }
+};
+
 struct DemoOptions {
     std::string out_dir = "horizon-demo";
     std::uint64_t nb_streamlines = 5000;
@@ -53,6 +66,7 @@ struct DemoOptions {
     std::string size = "1280x720";
     bool window = true;  // open the window afterwards when a display exists
     DepthCueOptions cues;
+    AnnotationOptions annotations;
 };
 
 struct ClusterOptions {
@@ -113,6 +127,7 @@ struct RenderOptions {
     int samples = 0;  // 0: automatic (RenderSettings)
     LodOptions lod;
     DepthCueOptions cues;
+    AnnotationOptions annotations;
     bool preview = false;  // draw the level-of-detail proxy only (the window's first picture)
     bool force = false;    // replace an existing output
     int frames = 1;        // frames to draw (timing: the median of frames 2..N)
@@ -139,6 +154,7 @@ struct ViewOptions {
     std::string screenshot_dir = ".";
     LodOptions lod;
     DepthCueOptions cues;
+    AnnotationOptions annotations;
     std::string stats;                          // --stats FILE.json: per-frame times and what was drawn
     double lod_frame_ms = 33;                   // moving frames kept within this by the proxy's level (0: the level fixed)
     bool explore = false;                       // Fig. 5: QuickBundlesX centroids, expand / hide / repeat

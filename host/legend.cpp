@@ -3,9 +3,10 @@
 // the CPU into the read-back image: no font library, no GL state.
 #include "legend.hpp"
 
+#include "annotations_paint.hpp"
+
 #include <hz/core/render/renderer.hpp>
 
-#include <imgui.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -89,63 +90,28 @@ std::vector<LegendEntry> cluster_legend(const core::render::Scene &scene, std::s
 
 void draw_legend(core::render::Image &im, const std::vector<LegendEntry> &entries) {
     if (entries.empty() || im.width <= 0 || im.height <= 0) return;
-    ImGuiContext *ctx = ImGui::CreateContext();
-    struct Guard {
-        ImGuiContext *c;
-        ~Guard() { ImGui::DestroyContext(c); }
-    } guard{ctx};
-    ImFontAtlas &atlas = *ImGui::GetIO().Fonts;
-    ImFont *font = atlas.AddFontDefault();
-    unsigned char *alpha = nullptr;
-    int aw = 0, ah = 0;
-    atlas.GetTexDataAsAlpha8(&alpha, &aw, &ah);
     const int s = im.width >= 1600 ? 2 : 1;  // (pixels per font pixel: larger pictures, larger text)
-    const int line = int(std::ceil(font->FontSize)) * s + 4 * s, pad = 8 * s, swatch = int(font->FontSize) * s - 2 * s;
-    auto text_width = [&](const std::string &t) {
-        double w = 0;
-        for (unsigned char c : t) w += font->FindGlyph(ImWchar(c))->AdvanceX;
-        return int(std::ceil(w)) * s;
-    };
+    const int font_px = int(core::render::kGlyphHeight);
+    const int line = font_px * s + 4 * s, pad = 8 * s, swatch = font_px * s - 2 * s;
     int box_w = 0;
-    for (const auto &e : entries) box_w = std::max(box_w, swatch + 6 * s + text_width(e.label));
+    for (const auto &e : entries) box_w = std::max(box_w, swatch + 6 * s + text_width(e.label, s));
     box_w = std::min(box_w + 2 * pad, im.width);
     const int box_h = std::min(int(entries.size()) * line + 2 * pad, im.height);
-    auto blend = [&](int x, int y, double r, double g, double b, double a) {
-        if (x < 0 || y < 0 || x >= im.width || y >= im.height) return;
-        std::uint8_t *p = &im.rgba[(std::size_t(y) * im.width + x) * 4];
-        const double c[3] = {r, g, b};
-        for (int i = 0; i < 3; ++i) p[i] = std::uint8_t(std::lround(p[i] * (1 - a) + std::clamp(c[i], 0.0, 1.0) * 255.0 * a));
-        p[3] = 255;
-    };
     const int x0 = 10 * s, y0 = 10 * s;
-    for (int y = 0; y < box_h; ++y)
-        for (int x = 0; x < box_w; ++x) blend(x0 + x, y0 + y, 0.0, 0.0, 0.0, 0.55);
-    for (std::size_t k = 0; k < entries.size(); ++k) {
-        const int top = y0 + pad + int(k) * line;
-        int x = x0 + pad;
-        if (entries[k].srgb[0] >= 0) {  // (the "more" line has no colour)
-            for (int dy = 0; dy < swatch; ++dy)
-                for (int dx = 0; dx < swatch; ++dx)
-                    blend(x + dx, top + s + dy, entries[k].srgb[0], entries[k].srgb[1], entries[k].srgb[2], 1.0);
-        }
-        x += swatch + 6 * s;
-        double pen = 0;
-        for (unsigned char c : entries[k].label) {
-            const ImFontGlyph *gl = font->FindGlyph(ImWchar(c));
-            const int gx0 = int(std::lround(gl->X0)), gy0 = int(std::lround(gl->Y0)), gx1 = int(std::lround(gl->X1)),
-                      gy1 = int(std::lround(gl->Y1));
-            const int u0 = int(std::lround(gl->U0 * aw)), v0 = int(std::lround(gl->V0 * ah));
-            for (int gy = gy0; gy < gy1; ++gy)
-                for (int gx = gx0; gx < gx1; ++gx) {
-                    const double a = alpha[std::size_t(v0 + gy - gy0) * aw + std::size_t(u0 + gx - gx0)] / 255.0;
-                    if (a <= 0) continue;
-                    for (int sy = 0; sy < s; ++sy)
-                        for (int sx = 0; sx < s; ++sx)
-                            blend(x + int(std::lround(pen)) * s + gx * s + sx, top + gy * s + sy, 0.95, 0.95, 0.95, a);
-                }
-            pen += gl->AdvanceX;
-        }
-    }
+    std::vector<core::render::Mark> boxes;
+    auto box = [&](int x, int y, int w, int h, std::array<float, 4> c) {
+        core::render::Mark m;
+        m.x0 = float(x), m.y0 = float(y), m.x1 = float(x + w), m.y1 = float(y + h), m.srgba = c;
+        boxes.push_back(m);
+    };
+    box(x0, y0, box_w, box_h, {0, 0, 0, 0.55f});
+    for (std::size_t k = 0; k < entries.size(); ++k)
+        if (entries[k].srgb[0] >= 0)  // (the "more" line has no colour)
+            box(x0 + pad, y0 + pad + int(k) * line + s, swatch, swatch,
+                {float(entries[k].srgb[0]), float(entries[k].srgb[1]), float(entries[k].srgb[2]), 1.0f});
+    paint_marks(im, boxes);
+    for (std::size_t k = 0; k < entries.size(); ++k)
+        paint_text(im, x0 + pad + swatch + 6 * s, y0 + pad + int(k) * line, entries[k].label, s, {0.95, 0.95, 0.95});
 }
 
 }  // namespace hz::host

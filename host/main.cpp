@@ -63,6 +63,21 @@ void add_depth_cue_options(CLI::App *cmd, DepthCueOptions &c) {
         ->excludes(no_cue);
 }
 
+void add_annotation_options(CLI::App *cmd, AnnotationOptions &a) {
+    auto *all = cmd->add_flag("--annotations", a.all,
+                              "draw every annotation: --colour-bar, --orientation and --scale-bar (a scene file's "
+                              "\"annotations\": true)");
+    auto *none = cmd->add_flag("--no-annotations", a.none, "no annotations, whatever the scene file says");
+    all->excludes(none);
+    cmd->add_flag("--colour-bar,--color-bar", a.colour_bar,
+                  "a colour bar for every object coloured through a colormap: its name, quantity and range")
+        ->excludes(none);
+    cmd->add_flag("--orientation", a.orientation, "the patient's axes (R, A, S and L, P, I) as the camera sees them, bottom left")
+        ->excludes(none);
+    cmd->add_flag("--scale-bar", a.scale_bar, "a scale bar (a round length in mm at the depth of the camera's target), bottom right")
+        ->excludes(none);
+}
+
 void add_lod_options(CLI::App *cmd, LodOptions &lod) {
     cmd->add_option("--lod-pixels", lod.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")
         ->capture_default_str()
@@ -233,6 +248,7 @@ int main(int argc, char **argv) {
         ->capture_default_str();
     add_lod_options(render, ro.lod);
     add_depth_cue_options(render, ro.cues);
+    add_annotation_options(render, ro.annotations);
     render->add_flag("--preview", ro.preview, "draw the level-of-detail proxy only: the window's first picture, in a fraction of the time");
     render->add_option("--frames", ro.frames, "draw N frames and report the median time of frames 2..N (benchmarks)")
         ->check(CLI::Range(1, 1000))
@@ -276,6 +292,7 @@ int main(int argc, char **argv) {
         ->allow_extra_args(false);
     add_lod_options(view, vwo.lod);
     add_depth_cue_options(view, vwo.cues);
+    add_annotation_options(view, vwo.annotations);
     view->footer("Keys in the window (scripts: key K, key ctrl+K):\n" + actions_help_text());
     view->add_option("--lod-frame-ms", vwo.lod_frame_ms,
                      "while the camera moves, the proxy's level follows the frame times: coarser when frames take longer than "
@@ -307,6 +324,7 @@ int main(int argc, char **argv) {
     bool no_window = false;
     demo->add_flag("--no-window", no_window, "do not open the window even when a display exists");
     add_depth_cue_options(demo, demo_opts.cues);
+    add_annotation_options(demo, demo_opts.annotations);
 
     try {
         app.parse(argc, argv);

@@ -2,12 +2,15 @@
 // server) into a PNG; also the picture of `horizon demo`.
 #include "commands.hpp"
 #include "legend.hpp"
+#include "annotations_paint.hpp"
 
 #include <hz/core/io.hpp>
 #include <hz/core/render/context.hpp>
 #include <hz/core/render/renderer.hpp>
+#include <hz/core/render/annotations.hpp>
 
 #include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <chrono>
@@ -18,9 +21,34 @@
 #include <fstream>
 #include <iostream>
 #include <iterator>
+#include <map>
 #include <stdlib.h>
 
 namespace hz::host {
+
+namespace {
+
+// Each kind of annotation mark ("colour bar", "orientation R", "scale bar",
+// ...) with the box of all its marks (pixels: x0, y0, x1, y1; text by its
+// anchor) and their texts: where `render --json` says it drew what.
+nlohmann::json annotations_json(const std::vector<core::render::Mark> &marks) {
+    std::map<std::string, nlohmann::json> by_role;
+    std::vector<std::string> order;
+    for (const core::render::Mark &m : marks) {
+        auto [it, fresh] = by_role.try_emplace(m.role, nlohmann::json{{"role", m.role}, {"box", {m.x0, m.y0, m.x1, m.y1}}});
+        if (fresh) order.push_back(m.role);
+        nlohmann::json &e = it->second;
+        auto &b = e["box"];
+        b[0] = std::min(b[0].get<float>(), std::min(m.x0, m.x1)), b[1] = std::min(b[1].get<float>(), std::min(m.y0, m.y1));
+        b[2] = std::max(b[2].get<float>(), std::max(m.x0, m.x1)), b[3] = std::max(b[3].get<float>(), std::max(m.y0, m.y1));
+        if (m.kind == core::render::Mark::Kind::Text) e["text"].push_back(m.text);
+    }
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto &role : order) out.push_back(by_role[role]);
+    return out;
+}
+
+}  // namespace
 
 namespace fs = std::filesystem;
 
@@ -105,6 +133,8 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     rs.hdr_output = ext == ".exr" || ext == ".hdr";
     if (rs.hdr_output && o.preview) throw core::Error("--preview draws a display picture: write it as .png, .jpg or .tif, not " + ext);
     if (rs.hdr_output && o.legend) throw core::Error("--legend draws on a display picture: write it as .png, .jpg or .tif, not " + ext);
+    if (rs.hdr_output && scene.annotations.any())
+        throw core::Error("annotations are drawn on a display picture: write it as .png, .jpg or .tif, not " + ext);
     // A picture of nothing is an error, not a blank PNG with exit status 0.
     const bool something = std::any_of(scene.objects.begin(), scene.objects.end(), [](const core::render::Object &ob) {
         if (!ob.visible) return false;
@@ -160,6 +190,16 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                 "{\"mode\": \"cluster\"}, or a selection the window saved)");
         draw_legend(im, entries);
     }
+    // The annotations over the picture, laid out as the window lays them out.
+    std::vector<core::render::Mark> marks;
+    if (r.scene().annotations.any()) {
+        const std::vector<core::render::ColourScale> scales = r.colour_scales();
+        if (r.scene().annotations.colour_bar && scales.empty())
+            spdlog::warn(
+                "colour bar: nothing in the picture is coloured through a colormap (a \"color\": {{\"mode\": \"data\"}} or a volume)");
+        marks = core::render::layout_annotations(r.scene().annotations, scales, view, w, h);
+        paint_marks(im, marks);
+    }
     const auto tw = Clock::now();
     write_image(reg, im, o.out, o.force);
     const double write_ms = ms_since(tw);
@@ -197,6 +237,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                              {{"ambient_occlusion", {{"on", r.scene().ambient_occlusion.on}, {"ms", s.ao_ms}}},
                               {"depth_cue", {{"on", r.scene().depth_cue.on}, {"ms", s.depth_cue_ms}}}}},
                             {"points_kept", s.points_drawn}};
+        j["annotations"] = annotations_json(marks);
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     } else {
         std::printf("Wrote %s (%dx%d) in %.0f ms: context %.0f, upload %.0f, environment %.0f, first frame %.0f, read %.0f, write %.0f\n",
@@ -232,6 +273,7 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     const double ctx_ms = ms_since(t0);
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");
     o.cues.apply(scene);
+    o.annotations.apply(scene);
     // Every file the scene file named is an input too (its environment map,
     // meshes, overlays, masks): checked once it is known, before anything
     // is written.

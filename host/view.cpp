@@ -526,7 +526,7 @@ public:
             if (!app.pending_shot.empty()) {
                 const std::string shot = std::exchange(app.pending_shot, {});
                 try {
-                    save_screenshot(reg, r, shot, fw, fh);
+                    save_screenshot(reg, r, shot, fw, fh, annotation_marks(fw, fh));
                 } catch (const core::Error &e) {
                     // (S, a user's: one line, and the session goes on; a
                     // script's screenshot command that fails fails it)
@@ -985,6 +985,17 @@ private:
 
     // The handlers of the actions on what is drawn, whatever is shown.
     void register_view_actions() {
+        app.actions["annotations"] = [this] {  // annotations on or off (back to those last shown)
+            core::render::Annotations a = r.scene().annotations;
+            if (a.any())
+                shown_annotations = a, a = {};
+            else
+                a = shown_annotations.any() ? shown_annotations : core::render::Annotations{true, true, true};
+            r.set_annotations(a);
+            std::printf("annotations: %s\n", a.any() ? "on" : "off");
+            std::fflush(stdout);
+            return true;
+        };
         app.actions["depth cue"] = [this] {  // depth cue on or off
             core::render::DepthCue cue = r.scene().depth_cue;
             cue.on = !cue.on;
@@ -1354,7 +1365,14 @@ private:
         slab_panel();
         objects_panel();
         depth_cues_panel();
+        annotations_panel();
         ImGui::End();
+        // The annotations over the frame, under the panel: laid out as
+        // `render` lays them out (and as screenshots have them).
+        if (r.scene().annotations.any()) {
+            const ImVec2 size = ImGui::GetIO().DisplaySize;
+            paint_marks(ImGui::GetBackgroundDrawList(), annotation_marks(int(size.x), int(size.y)));
+        }
         if (app.stroking && app.stroke.size() > 1) {  // the stroke being drawn
             std::vector<ImVec2> pts;
             for (const auto &q : app.stroke) pts.emplace_back(float(q[0]), float(q[1]));
@@ -1362,11 +1380,16 @@ private:
         }
     }
 
+    // The panel's last item, which a script presses as `press NAME`.
+    void scriptable(const std::string &name) {
+        const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
+        app.ui_buttons[name] = {lo.x, lo.y, hi.x, hi.y};
+    }
+
     // A panel button that a script can press.
     bool button(const char *label) {
         const bool pressed = ImGui::Button(label);
-        const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
-        app.ui_buttons[label] = {lo.x, lo.y, hi.x, hi.y};
+        scriptable(label);
         return pressed;
     }
 
@@ -1549,16 +1572,12 @@ private:
     // depth cue`.)
     void depth_cues_panel() {
         const bool open = ImGui::CollapsingHeader("depth cues");
-        auto button = [&](const std::string &name) {
-            const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
-            app.ui_buttons[name] = {lo.x, lo.y, hi.x, hi.y};
-        };
-        button("depth cues");
+        scriptable("depth cues");
         if (!open) return;
         core::render::AmbientOcclusion ao = r.scene().ambient_occlusion;
         float radius = float(ao.radius_mm), strength = float(ao.strength);
         bool changed = ImGui::Checkbox("ambient occlusion (O)", &ao.on);
-        button("ambient occlusion");
+        scriptable("ambient occlusion");
         if (ao.on) {
             changed |= ImGui::SliderFloat("occlusion radius (mm)", &radius, 0.5f, 30.0f, "%.1f", ImGuiSliderFlags_Logarithmic);
             changed |= ImGui::SliderFloat("occlusion strength", &strength, 0.0f, 1.0f, "%.2f");
@@ -1571,7 +1590,7 @@ private:
         core::render::DepthCue cue = r.scene().depth_cue;
         float fade = float(cue.strength);
         bool cue_changed = ImGui::Checkbox("depth cue (F)", &cue.on);
-        button("depth cue");
+        scriptable("depth cue");
         if (cue.on) {
             cue_changed |= ImGui::SliderFloat("depth cue strength", &fade, 0.0f, 1.0f, "%.2f");
             if (r.stats().depth_cue_ms > 0) ImGui::TextDisabled("depth cue: %.1f ms", r.stats().depth_cue_ms);
@@ -1582,23 +1601,42 @@ private:
         }
     }
 
+    // What is drawn over the frame (closed at first, last): a colour bar, the
+    // orientation, a scale bar; all switched by N. (A script opens it as
+    // `press annotations`, then presses `press colour bar`, ...)
+    core::render::Annotations shown_annotations;  // (those N brings back)
+    void annotations_panel() {
+        const bool open = ImGui::CollapsingHeader("annotations");
+        scriptable("annotations");
+        if (!open) return;
+        core::render::Annotations a = r.scene().annotations;
+        bool changed = ImGui::Checkbox("colour bar", &a.colour_bar);
+        scriptable("colour bar");
+        changed |= ImGui::Checkbox("orientation", &a.orientation);
+        scriptable("orientation");
+        changed |= ImGui::Checkbox("scale bar", &a.scale_bar);
+        scriptable("scale bar");
+        ImGui::TextDisabled("N: all on or off");
+        if (changed) r.set_annotations(a);
+    }
+
+    // The annotations' marks for a w x h picture of the current camera.
+    std::vector<core::render::Mark> annotation_marks(int w, int h) const {
+        if (!r.scene().annotations.any()) return {};
+        return core::render::layout_annotations(r.scene().annotations, r.colour_scales(), app.orbit.view(app.radius), w, h);
+    }
+
     // Each object: visible, and its material's controls.
     void objects_panel() {
         for (std::size_t i = 0; i < r.scene().objects.size(); ++i) {
             const auto &ob = r.scene().objects[i];
             ImGui::PushID(int(i));
             const bool open = ImGui::CollapsingHeader(ob.name.c_str(), i == 0 ? ImGuiTreeNodeFlags_DefaultOpen : 0);
-            {  // (a script opens or closes it as `press object I`)
-                const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
-                app.ui_buttons["object " + std::to_string(i)] = {lo.x, lo.y, hi.x, hi.y};
-            }
+            scriptable("object " + std::to_string(i));  // (opened or closed as `press object I`)
             if (open) {
                 bool vis = ob.visible;
                 if (ImGui::Checkbox("visible", &vis)) r.set_visible(i, vis);
-                {  // (a script presses it as `press visible I`)
-                    const ImVec2 lo = ImGui::GetItemRectMin(), hi = ImGui::GetItemRectMax();
-                    app.ui_buttons["visible " + std::to_string(i)] = {lo.x, lo.y, hi.x, hi.y};
-                }
+                scriptable("visible " + std::to_string(i));
                 if (ob.kind != HZ_DATA_VOLUME && material_controls(reg, ob, materials[i])) {
                     try {
                         app.last_material_edit = glfwGetTime();
@@ -1832,6 +1870,7 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
         return view_scene(reg, std::function<core::render::Scene()>([&] {
                               core::render::Scene s = scene_from_inputs(reg, o.inputs, o.view, "view");
                               o.cues.apply(s);
+                              o.annotations.apply(s);
                               return s;
                           }),
                           o);

@@ -156,8 +156,11 @@ bool material_controls(const core::Registry &reg, const core::render::Object &o,
     return changed;
 }
 
-void save_screenshot(const core::Registry &reg, core::render::Renderer &r, const std::string &path, int w, int h) {
-    write_image(reg, r.read_window_image(w, h), path, /*force=*/true);
+void save_screenshot(const core::Registry &reg, core::render::Renderer &r, const std::string &path, int w, int h,
+                     const std::vector<core::render::Mark> &marks) {
+    core::render::Image im = r.read_window_image(w, h);
+    paint_marks(im, marks);  // (the annotations the window shows over it)
+    write_image(reg, im, path, /*force=*/true);
     std::printf("screenshot: %s\n", path.c_str());
     std::fflush(stdout);
 }

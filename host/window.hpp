@@ -6,8 +6,10 @@
 
 #include "actions.hpp"
 #include "commands.hpp"
+#include "annotations_paint.hpp"
 
 #include <hz/core/io.hpp>
+#include <hz/core/render/annotations.hpp>
 #include <hz/core/render/renderer.hpp>
 
 #define GLFW_INCLUDE_NONE
@@ -284,7 +286,8 @@ void cb_key(GLFWwindow *w, int key, int, int action, int mods);
 // The material panel: one control per schema parameter.
 bool material_controls(const core::Registry &reg, const core::render::Object &o, core::render::Material &m);
 
-void save_screenshot(const core::Registry &reg, core::render::Renderer &r, const std::string &path, int w, int h);
+void save_screenshot(const core::Registry &reg, core::render::Renderer &r, const std::string &path, int w, int h,
+                     const std::vector<core::render::Mark> &marks = {});
 
 // Reads the scene (`make`) on another thread while the window shows what is
 // being read, how far and for how long (the innermost Progress), instead of

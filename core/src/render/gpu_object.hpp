@@ -1,12 +1,14 @@
 // What the renderer keeps of each scene object on the GPU (private to the
-// renderer): its buffers, its tractogram's drawable, its shading, and for volumes its slices' textures; and the uploads of the
-// kinds that need no renderer state (meshes, slices).
+// renderer): its buffers, its tractogram's drawable, its shading, and for
+// volumes its slices' textures; and the uploads of the kinds that need no
+// renderer state (meshes, slices).
 #pragma once
 
 #include "gl.hpp"
 #include "tractogram/drawable.hpp"
 
 #include <hz/core/plugin_host.hpp>
+#include <hz/core/render/annotations.hpp>
 #include <hz/core/render/scene.hpp>
 
 #include <glm/glm.hpp>
@@ -76,6 +78,9 @@ struct GpuObject {
     glm::mat4 ras_to_tex{1.0f};
     std::array<double, 2> window{0, 1};
     Bounds bounds;
+    // How its colours stand for values, where a colormap colours it (its
+    // colour bar): the range it was drawn with.
+    std::optional<ColourScale> colour_scale;
 };
 
 // A mesh object: vertices with area-weighted normals and colours, faces.

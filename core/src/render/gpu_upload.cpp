@@ -58,6 +58,7 @@ void upload_mesh(GpuObject &g, const Object &o) {
         }
         data = array_values(*a);
         range = c.range ? *c.range : finite_range(data);
+        g.colour_scale = ColourScale{o.name, c.array, c.colormap, range};
     }
     // Per-vertex colours ("rgb"): 8/16-bit values are sRGB-encoded (FreeSurfer annotation colours), float
     // values linear in 0..1 (glTF COLOR_0).
@@ -154,6 +155,7 @@ void upload_slices(GpuObject &g, const Object &o) {
             g.window = {lo, std::max(s[s.size() * 99 / 100], lo + 1e-6f)};
         }
     }
+    g.colour_scale = ColourScale{o.name, "", o.slice_colormap, g.window};
     // Colormap texture (sRGB table).
     std::vector<std::uint8_t> lut(256 * 4);
     for (int i = 0; i < 256; ++i) {

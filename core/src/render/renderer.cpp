@@ -275,6 +275,8 @@ struct Renderer::Impl {
             g.uniform_rgba = uniform_colour(*g.tract->lines());
             g.bounds = g.tract->bounds();
             g.segments = g.tract->segments();
+            if (const LineData &d = *g.tract->lines(); d.mode == LineData::Mode::Data)
+                g.colour_scale = ColourScale{o.name, o.coloring.array, d.colormap, d.range};
             resolve_material(g, o, o.material);
         } else if (o.kind == HZ_DATA_MESH) {
             g.geom = Geom::Mesh;
@@ -1562,6 +1564,8 @@ void Renderer::set_depth_cue(const DepthCue &cue) {
     now = cue;
 }
 
+void Renderer::set_annotations(const Annotations &a) { impl_->scene.annotations = a; }
+
 void Renderer::set_bake_materials(bool bake) {
     Impl &I = *impl_;
     if (I.settings.bake_materials == bake) return;
@@ -1715,6 +1719,15 @@ void Renderer::present(int width, int height) {
 }
 
 std::uint64_t Renderer::generation() const { return impl_->generation; }
+
+std::vector<ColourScale> Renderer::colour_scales() const {
+    std::vector<ColourScale> out;
+    for (const auto &g : impl_->objects) {
+        const Object &o = impl_->scene.objects[g.index];
+        if (g.colour_scale && o.visible && !o.proxy_for) out.push_back(*g.colour_scale);
+    }
+    return out;
+}
 
 std::uint64_t Renderer::streamlines_with_proxy() const {
     std::uint64_t n = 0;

@@ -219,9 +219,10 @@ void apply_file_material(Object &ob, bool has_material, bool has_color) {
 Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what) {
     const json root = json::parse(text, nullptr, false);
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
-    check_keys(
-        root, {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab", "ambient_occlusion", "depth_cue"},
-        what, "scene");
+    check_keys(root,
+               {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab", "ambient_occlusion", "depth_cue",
+                "annotations"},
+               what, "scene");
     Scene s;
     if (root.contains("ambient_occlusion")) {
         // true | false | {"radius": mm, "strength": 0..1, "on": bool}
@@ -259,6 +260,28 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             if (a.contains("strength")) s.depth_cue.strength = num_in(a["strength"], what, "depth_cue.strength", 0.0, 1.0);
         } else {
             fail(what, "depth_cue", "expected true, false, a strength in [0, 1] or an object {\"strength\": 0..1}");
+        }
+    }
+    if (root.contains("annotations")) {
+        // true (all) | false | {"colour_bar": bool, "orientation": bool, "scale_bar": bool}
+        const json &a = root["annotations"];
+        if (a.is_boolean()) {
+            const bool on = a.get<bool>();
+            s.annotations = Annotations{on, on, on};
+        } else if (a.is_object()) {
+            check_keys(a, {"colour_bar", "color_bar", "orientation", "scale_bar"}, what, "annotations");
+            auto flag = [&](const char *key, bool &into) {
+                if (!a.contains(key)) return;
+                if (!a[key].is_boolean()) fail(what, std::string("annotations.") + key, "expected true or false");
+                into = a[key].get<bool>();
+            };
+            flag("colour_bar", s.annotations.colour_bar);
+            flag("color_bar", s.annotations.colour_bar);
+            flag("orientation", s.annotations.orientation);
+            flag("scale_bar", s.annotations.scale_bar);
+        } else {
+            fail(what, "annotations",
+                 "expected true, false or an object {\"colour_bar\": bool, \"orientation\": bool, \"scale_bar\": bool}");
         }
     }
     if (root.contains("camera")) {

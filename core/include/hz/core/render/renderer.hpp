@@ -24,6 +24,14 @@
 namespace hz::core::render {
 
 // A resolved camera.
+// How an object's colours stand for values (its colour bar): `colormap`
+// (colormap()) over `range` of the quantity `quantity` ("": the object's
+// values) of object `object`.
+struct ColourScale {
+    std::string object, quantity, colormap;
+    std::array<double, 2> range{0, 1};
+};
+
 struct View {
     Vec3 eye{0, 0, 100}, target{0, 0, 0}, up{0, 1, 0};
     double fov_deg = 30.0;
@@ -198,6 +206,9 @@ public:
     // Switches and sets depth cueing (Scene::depth_cue). Throws Error for a
     // strength outside [0, 1].
     void set_depth_cue(const DepthCue &cue);
+    // Sets what is drawn over the picture (Scene::annotations): kept in the
+    // scene for whoever paints them (annotations.hpp); frames do not change.
+    void set_annotations(const Annotations &a);
     // Crops the streamlines to a slab (Scene::slab), or not (nullopt). With
     // Slab::points, the crossings of the plane are computed on background
     // threads: update_proxies() adopts them (render() waits for them).
@@ -257,6 +268,10 @@ public:
     std::uint64_t generation() const;
     // Streamlines of the tractograms drawn through a level-of-detail proxy.
     std::uint64_t streamlines_with_proxy() const;
+    // The colour scales of the visible objects a colormap colours (data
+    // colouring of streamlines and meshes, volumes' slices), in scene
+    // order, with the ranges they are drawn with.
+    std::vector<ColourScale> colour_scales() const;
     // Reads the last offscreen frame.
     Image read_image();
     // The last offscreen frame before the tone curve: linear RGB radiance

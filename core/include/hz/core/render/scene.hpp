@@ -140,10 +140,21 @@ void check_ambient_occlusion(const AmbientOcclusion &ao);
 // Throws Error "depth cue: ..." unless 0 <= strength <= 1.
 void check_depth_cue(const DepthCue &cue);
 
+// What is drawn over the picture (annotations.hpp): a colour bar for every
+// object coloured through a colormap, the orientation of the patient's
+// axes, a scale bar.
+struct Annotations {
+    bool colour_bar = false;
+    bool orientation = false;
+    bool scale_bar = false;
+    bool any() const { return colour_bar || orientation || scale_bar; }
+};
+
 struct Scene {
     std::vector<Object> objects;
     AmbientOcclusion ambient_occlusion;
     DepthCue depth_cue;
+    Annotations annotations;
     std::optional<Slab> slab;
     Camera camera;
     std::vector<Light> lights;  // empty: a three-point rig (key, fill, rim)
