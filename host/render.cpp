@@ -194,9 +194,9 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     std::vector<core::render::Mark> marks;
     if (r.scene().annotations.any()) {
         const std::vector<core::render::ColourScale> scales = r.colour_scales();
-        if (r.scene().annotations.colour_bar && scales.empty())
-            spdlog::warn(
-                "colour bar: nothing in the picture is coloured through a colormap (a \"color\": {{\"mode\": \"data\"}} or a volume)");
+        const core::render::Annotations &a = r.scene().annotations;
+        if (a.colour_bar && !a.orientation && !a.scale_bar && scales.empty())  // (asked for alone: say why there is none)
+            spdlog::warn("colour bar: nothing in the picture is coloured through a colormap (a \"color\" of mode \"data\", or a volume)");
         marks = core::render::layout_annotations(r.scene().annotations, scales, view, w, h);
         paint_marks(im, marks);
     }

@@ -146,6 +146,15 @@ class AnnotationTest(TempDirTest):
         self.assertEqual({m.split()[0] for m in marks}, {"colour", "scale"})
         _, marks = self.render(self.scene(None), "--color-bar")
         self.assertEqual({m.split()[0] for m in marks}, {"colour"})
+        # A colour bar asked for alone over nothing colormapped: drawn without
+        # it, and said why (one line); with the other annotations, silently.
+        plane = [{"type": "surface", "file": "plane.obj"}]
+        p = run("render", self.scene(None, objects=plane), "-o", self.path("p.png"), "--colour-bar", "--force")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(p.stderr.strip(), 'warning: colour bar: nothing in the picture is coloured through a colormap '
+                         '(a "color" of mode "data", or a volume)')
+        p = run("render", self.scene(None, objects=plane), "-o", self.path("p.png"), "--annotations", "--force")
+        self.assertEqual((p.returncode, p.stderr), (0, ""))
 
     def test_the_window_switches_them_with_n(self):
         # (a surface first: its open section of material controls makes the
