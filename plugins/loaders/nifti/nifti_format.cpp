@@ -1,6 +1,7 @@
 // NIfTI-1/-2 (nifti1.h, nifti2.h; nibabel nifti1.py for the affine rules).
 #include "nifti_format.hpp"
 
+#include "gzip.hpp"
 #include "mapped_file.hpp"
 
 #include <zlib.h>
@@ -58,52 +59,16 @@ bool ends_with(const std::string &s, const std::string &suffix) {
     return std::equal(suffix.rbegin(), suffix.rend(), s.rbegin(), [](char a, char b) { return std::tolower(a) == std::tolower(b); });
 }
 
-// A whole gzip stream, inflated up to `limit` bytes (never more: the
-// declared size bounds the work, the real stream bounds the memory).
+// A gzip stream inflated up to `limit` bytes (hzio::gunzip), its damage a
+// format error.
 std::vector<unsigned char> gunzip(const std::string &path, std::uint64_t limit) {
-    std::error_code ec;
-    if (fs::exists(path, ec) && !fs::is_regular_file(path, ec)) throw FormatError("not a regular file");  // (a FIFO would block)
-    gzFile g = gzopen(path.c_str(), "rb");
-    if (g == nullptr) throw FormatError(std::string("cannot open: ") + std::strerror(errno));
-    gzbuffer(g, 1 << 17);
-    std::vector<unsigned char> out;
-    while (out.size() < limit) {
-        const std::size_t want = static_cast<std::size_t>(std::min<std::uint64_t>(limit - out.size(), 1 << 24));
-        const std::size_t at = out.size();
-        out.resize(at + want);
-        const int got = gzread(g, out.data() + at, static_cast<unsigned>(want));
-        if (got < 0) {
-            int code = 0;
-            const std::string m = gzerror(g, &code);
-            gzclose(g);
-            throw FormatError("corrupt gzip stream: " + m);
-        }
-        out.resize(at + static_cast<std::size_t>(got));
-        if (got == 0) break;
+    try {
+        return hzio::gunzip(path, limit);
+    } catch (const hzio::IoError &e) {
+        throw FormatError(e.what());
+    } catch (const hzio::CorruptData &e) {
+        throw FormatError(e.what());
     }
-    // A damaged stream is an error even when the bytes we need are all
-    // there: check up to 1 MiB past them for the end of the stream.
-    if (out.size() == limit) {
-        std::vector<unsigned char> rest(1 << 20);
-        const int got = gzread(g, rest.data(), static_cast<unsigned>(rest.size()));
-        if (got < 0) {
-            int code = 0;
-            const std::string m = gzerror(g, &code);
-            gzclose(g);
-            throw FormatError("corrupt gzip stream: " + m);
-        }
-    }
-    if (out.size() < limit) {
-        int code = 0;
-        const char *m = gzerror(g, &code);
-        if (code != Z_OK && code != Z_STREAM_END) {
-            const std::string msg = m;
-            gzclose(g);
-            throw FormatError("corrupt gzip stream: " + msg);
-        }
-    }
-    gzclose(g);
-    return out;
 }
 
 std::array<double, 16> mat_identity() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }
@@ -366,26 +331,11 @@ void write(const std::string &path, const std::string &image_path, bool gz, DTyp
     // One file: `head` bytes of header, then (optionally) the voxels.
     auto put_file = [&](const std::string &file, const unsigned char *head, std::size_t head_bytes, const void *body,
                         std::uint64_t body_bytes) {
-        bool ok;
-        if (gz) {
-            gzFile g = gzopen(file.c_str(), "wb6");
-            if (g == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
-            ok = head_bytes == 0 || gzwrite(g, head, static_cast<unsigned>(head_bytes)) == static_cast<int>(head_bytes);
-            const auto *p = static_cast<const unsigned char *>(body);
-            for (std::uint64_t done = 0; ok && done < body_bytes;) {
-                const unsigned chunk = static_cast<unsigned>(std::min<std::uint64_t>(body_bytes - done, 1 << 26));
-                ok = gzwrite(g, p + done, chunk) == static_cast<int>(chunk);
-                done += chunk;
-            }
-            ok = gzclose(g) == Z_OK && ok;
-        } else {
-            std::FILE *f = std::fopen(file.c_str(), "wb");
-            if (f == nullptr) throw FormatError(std::string("cannot create: ") + std::strerror(errno));
-            ok = (head_bytes == 0 || std::fwrite(head, 1, head_bytes, f) == head_bytes) &&
-                 (body_bytes == 0 || std::fwrite(body, 1, body_bytes, f) == body_bytes);
-            ok = std::fclose(f) == 0 && ok;
+        try {
+            hzio::write_parts(file, gz, {{head, head_bytes}, {body, body_bytes}});
+        } catch (const hzio::IoError &e) {
+            throw FormatError(e.what());
         }
-        if (!ok) throw FormatError(std::string("write failed: ") + std::strerror(errno));
     };
     if (pair) {
         put_file(path, h, 348, nullptr, 0);  // a .hdr is the bare 348-byte header
