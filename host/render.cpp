@@ -235,7 +235,8 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"proxy", s.proxy},
                             {"passes",
                              {{"ambient_occlusion", {{"on", r.scene().ambient_occlusion.on}, {"ms", s.ao_ms}}},
-                              {"depth_cue", {{"on", r.scene().depth_cue.on}, {"ms", s.depth_cue_ms}}}}},
+                              {"depth_cue", {{"on", r.scene().depth_cue.on}, {"ms", s.depth_cue_ms}}},
+                              {"transparency", {{"layers", s.transparency_layers}}}}},
                             {"points_kept", s.points_drawn}};
         j["annotations"] = annotations_json(marks);
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";

@@ -149,6 +149,11 @@ uniform vec3 hz_tangent_hint;
 uniform vec4 hz_light_vec[HZ_NB_LIGHTS];
 uniform vec3 hz_light_radiance[HZ_NB_LIGHTS];
 uniform float hz_opacity;
+#ifdef HZ_PEEL
+// Depth peeling (passes/transparency.hpp): the last layer's window depths;
+// only what lies behind them is drawn.
+uniform sampler2D hz_peel_depth;
+#endif
 layout(location = 0) out vec4 o_color;
 #ifdef HZ_DEBUG_OUTPUTS
 layout(location = 1) out vec4 o_n;
@@ -163,6 +168,9 @@ vec3 hz_safe_normalize(vec3 a, vec3 fallback) {
 }
 
 void main() {
+#ifdef HZ_PEEL
+    if (gl_FragCoord.z <= texelFetch(hz_peel_depth, ivec2(gl_FragCoord.xy), 0).r) discard;
+#endif
 #if defined(HZ_GEOM_VOLUME)
     hz_vol_march(hz_eye);
 #endif

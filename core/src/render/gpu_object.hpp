@@ -69,9 +69,9 @@ struct GpuObject {
     bool use_line_domain = false;
     bool refractive = false;  // the snippet reads hz_scene_behind: drawn after the opaque objects
     // Programs by output (see Impl::Output), compiled when first needed.
-    mutable Program *program = nullptr, *display_program = nullptr, *debug_program = nullptr;
-    mutable Program *point_programs[3] = {};   // the slab's crossings, by output
-    mutable Program *volume_programs[3] = {};  // the fibre volume, by output
+    mutable Program *program = nullptr, *display_program = nullptr, *debug_program = nullptr, *peel_program = nullptr;
+    mutable Program *point_programs[4] = {};   // the slab's crossings, by output
+    mutable Program *volume_programs[4] = {};  // the fibre volume, by output
     // slices
     GLuint volume_tex = 0, colormap_tex = 0;
     GLsizei slice_vertices = 0;

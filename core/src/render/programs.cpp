@@ -113,6 +113,7 @@ std::string fragment_program(const FragmentSpec &g) {
     if (sh->output == HZ_SHADER_OUTPUT_EMISSION) s << "#define HZ_OUTPUT_EMISSION 1\n";
     if (debug) s << "#define HZ_DEBUG_OUTPUTS 1\n";
     if (g.output == ProgramOutput::Display) s << "#define HZ_DISPLAY 1\n";
+    if (g.peel && g.output == ProgramOutput::Hdr) s << "#define HZ_PEEL 1\n";
     s << "#define HZ_TONEMAP " << g.tone_curve << "\n";
     // Lights and environment as constants (see kShadeMain); with no
     // light at all, one black light keeps the arrays non-empty.

@@ -28,6 +28,7 @@ struct FragmentSpec {
     bool refractive = false;
     bool bake = true;  // parameters as constants instead of uniforms
     ProgramOutput output = ProgramOutput::Hdr;
+    bool peel = false;   // a depth-peeling layer's program (HDR output; passes/transparency.hpp)
     int tone_curve = 0;  // 0 ACES, 1 Reinhard, 2 none
     bool env_on = false;
     std::vector<Light> lights;

@@ -12,6 +12,7 @@
 #include "programs.hpp"
 #include "passes/ambient_occlusion.hpp"
 #include "passes/depth_cue.hpp"
+#include "passes/transparency.hpp"
 #include "passes/frame_depth.hpp"
 #include "reprojection.hpp"
 
@@ -214,6 +215,12 @@ struct Renderer::Impl {
     std::unique_ptr<FrameDepth> frame_depth;
     std::unique_ptr<AmbientOcclusionPass> ao_pass;
     std::unique_ptr<DepthCuePass> cue_pass;
+    // Translucent objects, composited in depth order (passes/transparency).
+    std::unique_ptr<DepthPeeling> peeling;
+    GLuint peel_depth = 0;  // while a layer is drawn: the last layer's depths (objects draw with peel programs)
+    bool peeled = false;    // the frame's translucency is composited into `resolved` already
+    int peel_layers = 0;    // layers peeled in the last frame
+    static constexpr int kMaxPeelLayers = 8;
     View frame_view;               // the camera of the frame being drawn (the passes after the geometry)
     int frame_w = 0, frame_h = 0;  // the size of the frame being drawn (a proxy frame's full size)
     Fbo msaa;                      // the HDR path's multisampled RGBA16F target
@@ -239,7 +246,8 @@ struct Renderer::Impl {
     // HDR: linear radiance into RGBA16F, then a tonemapping pass; needed
     // when translucent or refractive objects composite over the opaque
     // image. Debug: the GPU-equals-CPU check's float outputs.
-    enum class Output { Hdr, Display, Debug };
+    // Peel: HDR, a depth-peeling layer (passes/transparency.hpp).
+    enum class Output { Hdr, Display, Debug, Peel };
     bool display_direct = true;  // the output of the frame being drawn
     FrameStats stats;
     // Every tractogram's GL buffers of streamline chunks, against
@@ -310,6 +318,8 @@ struct Renderer::Impl {
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
         cue_pass = std::make_unique<DepthCuePass>(
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
+        peeling = std::make_unique<DepthPeeling>(
+            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
         frame_depth = std::make_unique<FrameDepth>();
     }
 
@@ -321,6 +331,7 @@ struct Renderer::Impl {
         warp.reset();
         ao_pass.reset();
         cue_pass.reset();
+        peeling.reset();
         frame_depth.reset();
         glDeleteVertexArrays(1, &empty_vao);
         msaa.destroy();
@@ -395,7 +406,10 @@ struct Renderer::Impl {
 
     // The program of `g` for `out`, compiled on first use.
     Program &program_for(const GpuObject &g, Output out) {
-        Program *&slot = out == Output::Debug ? g.debug_program : out == Output::Display ? g.display_program : g.program;
+        Program *&slot = out == Output::Debug     ? g.debug_program
+                         : out == Output::Display ? g.display_program
+                         : out == Output::Peel    ? g.peel_program
+                                                  : g.program;
         if (!slot) slot = get_program(g, out, g.geom);
         return *slot;
     }
@@ -473,7 +487,7 @@ struct Renderer::Impl {
         g.shader = p;
         g.values = std::move(values);
         g.albedo = albedo;
-        g.program = g.display_program = g.debug_program = nullptr;
+        g.program = g.display_program = g.debug_program = g.peel_program = nullptr;
         std::fill(std::begin(g.point_programs), std::end(g.point_programs), nullptr);
         std::fill(std::begin(g.volume_programs), std::end(g.volume_programs), nullptr);
         // Compile now (errors surface here) for the output it will most
@@ -498,6 +512,7 @@ struct Renderer::Impl {
         f.refractive = g.refractive;
         f.bake = settings.bake_materials;
         f.output = out == Output::Debug ? ProgramOutput::Debug : out == Output::Display ? ProgramOutput::Display : ProgramOutput::Hdr;
+        f.peel = out == Output::Peel;
         f.tone_curve = tone_curve();
         f.env_on = ibl->on;
         f.lights = lights();
@@ -776,7 +791,7 @@ struct Renderer::Impl {
         // fibre volume for its proxy.
         const bool points = g.geom != Geom::Mesh && crossing_mode();
         const bool volume = lines == LinesPart::Volume;
-        const Output out = debug ? Output::Debug : display_direct ? Output::Display : Output::Hdr;
+        const Output out = debug ? Output::Debug : peel_depth ? Output::Peel : display_direct ? Output::Display : Output::Hdr;
         Program &p = volume ? volume_program_for(g, out) : points ? point_program_for(g, out) : program_for(g, out);
         glUseProgram(p.id);
         glUniform1f(p.loc("hz_exposure"), float(scene.exposure));
@@ -810,6 +825,7 @@ struct Renderer::Impl {
         bind_lights(p, m, v, debug ? 1 : 8);
         bind_environment(p, !debug);
         set_material_uniforms(p, g);
+        if (out == Output::Peel) bind_sampler(p, "hz_peel_depth", 9, GL_TEXTURE_2D, peel_depth);
         if (volume) {
             g.tract->draw_fibre_volume(p, m.view_proj, m.inv_view_proj, v.fov_deg, frame_h, debug, w, h, empty_vao);
             return;
@@ -876,6 +892,7 @@ struct Renderer::Impl {
     GLuint begin_frame(int w, int h) {
         const int samples = std::clamp(settings.samples, 1, std::max(1, max_samples));
         display_direct = frame_is_direct() && !settings.hdr_output;
+        peeled = false;
         hdr_frame_full = !display_direct && out_ == &ldr;
         out_->ensure(w, h, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
         if (!display_direct) {
@@ -911,9 +928,11 @@ struct Renderer::Impl {
             if (complete) passes_after_geometry(out_->fbo, target, w, h, true);
             return;
         }
-        glBindFramebuffer(GL_READ_FRAMEBUFFER, target);
-        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_direct ? out_->fbo : resolved.fbo);
-        glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+        if (!peeled) {  // (with translucency, `resolved` holds the composite already)
+            glBindFramebuffer(GL_READ_FRAMEBUFFER, target);
+            glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_direct ? out_->fbo : resolved.fbo);
+            glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+        }
         if (complete) passes_after_geometry(display_direct ? out_->fbo : resolved.fbo, target, w, h, display_direct);
         if (!display_direct) tonemap_to(out_->fbo, w, h);
     }
@@ -1129,15 +1148,42 @@ void main() {
                 const Object &o = scene.objects[g.index];
                 if (drawn(g.index) && g.refractive && o.opacity >= 1.0) draw_object(g, o, m, v, false, w, h, part_for(g));
             }
+            // Translucent slices: blended in scene order over what is
+            // drawn (behind every translucent surface and tractogram).
             glEnable(GL_BLEND);
             glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
             glDepthMask(GL_FALSE);
-            for (auto &g : objects) {
-                const Object &o = scene.objects[g.index];
-                if (drawn(g.index) && o.opacity < 1.0) draw_object(g, o, m, v, false, w, h, part_for(g));
-            }
+            for (auto &g : objects)
+                if (g.slices && drawn(g.index) && scene.objects[g.index].opacity < 1.0)
+                    draw_object(g, scene.objects[g.index], m, v, false, w, h, part_for(g));
             glDepthMask(GL_TRUE);
             glDisable(GL_BLEND);
+            // Translucent surfaces and tractograms: in depth order, whatever
+            // their order in the scene (depth peeling, over the opaque
+            // picture resolved into `resolved`).
+            const bool any = std::any_of(objects.begin(), objects.end(), [&](const GpuObject &g) {
+                return !g.slices && drawn(g.index) && scene.objects[g.index].opacity < 1.0;
+            });
+            if (any) {
+                glBindFramebuffer(GL_READ_FRAMEBUFFER, msaa.fbo);
+                glBindFramebuffer(GL_DRAW_FRAMEBUFFER, resolved.fbo);
+                glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+                peel_layers = peeling->composite(
+                    msaa.fbo, resolved.fbo, w, h, kMaxPeelLayers,
+                    [&](GLuint previous) {
+                        peel_depth = previous;
+                        for (auto &g : objects) {
+                            const Object &o = scene.objects[g.index];
+                            if (!g.slices && drawn(g.index) && o.opacity < 1.0) draw_object(g, o, m, v, false, w, h, part_for(g));
+                        }
+                        peel_depth = 0;
+                    },
+                    empty_vao);
+                peeled = true;
+                stats.transparency_layers = peel_layers;
+                glBindFramebuffer(GL_FRAMEBUFFER, msaa.fbo);
+                opaque_state();
+            }
         }
         finish_frame(target, w, h, /*complete=*/true);
     }
@@ -1164,6 +1210,7 @@ void main() {
         stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = stats.volumes_drawn = 0;
         stats.volume_rays = 0;
         stats.ao_ms = stats.depth_cue_ms = 0;
+        stats.transparency_layers = 0;
         stats.culled_chunks = stats.culled_points = stats.culled_streamlines = 0;
         stats.proxy = false;
         stats.refine_step = 0;
@@ -1574,7 +1621,7 @@ void Renderer::set_bake_materials(bool bake) {
     // Each object picks up its program for the new form when next drawn
     // (compiled then, or found among the programs already built).
     for (GpuObject &g : I.objects) {
-        g.program = g.display_program = g.debug_program = nullptr;
+        g.program = g.display_program = g.debug_program = g.peel_program = nullptr;
         std::fill(std::begin(g.point_programs), std::end(g.point_programs), nullptr);
         std::fill(std::begin(g.volume_programs), std::end(g.volume_programs), nullptr);
     }

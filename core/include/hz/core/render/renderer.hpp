@@ -153,6 +153,10 @@ struct FrameStats {
     // (0 when off or not timed): ambient occlusion (with the resolve of the
     // frame's depth the passes read), depth cue.
     double ao_ms = 0, depth_cue_ms = 0;
+    // Translucent layers composited in depth order in the last full frame
+    // (depth peeling; 0: nothing translucent, 9: the eighth layer and a
+    // last one in drawing order).
+    int transparency_layers = 0;
     bool proxy = false;                  // a level-of-detail proxy was drawn
     int proxy_level = 0;                 // ... at this level (Renderer::proxy_levels' index)
     int refine_step = 0;                 // progressive: the step (0: a whole frame)
