@@ -404,3 +404,14 @@ class TransparencyTest(TempDirTest):
         reference = self.sorted_reference(objs, pixel, floor_alone[pixel])
         np.testing.assert_allclose(a[pixel], reference, atol=3.0)
         np.testing.assert_allclose(b[pixel], reference, atol=3.0)
+
+    def test_large_translucent_tractograms_take_one_pass(self):
+        """Above 4M translucent streamline points a layer would cost a
+        draw of all of them: one pass in drawing order instead."""
+        objects = [{"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 70000}, "opacity": 0.5},
+                   {"type": "surface", "builtin": "sphere", "opacity": 0.5}]
+        _, info = self.render(objects)
+        self.assertGreater(info["points_total"], 4_000_000)
+        self.assertEqual(info["passes"]["transparency"]["layers"], 1)
+        _, info = self.render(objects[1:])
+        self.assertEqual(info["passes"]["transparency"]["layers"], 2)
