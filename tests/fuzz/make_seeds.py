@@ -13,7 +13,7 @@ out = sys.argv[1]
 rng = np.random.default_rng(0)
 sl = [rng.normal(size=(int(rng.integers(1, 8)), 3)).astype(np.float32) * 10 for _ in range(6)]
 nib_data = os.path.join(os.path.dirname(nib.__file__), "tests", "data")
-for kind in ("tck", "trk", "trx", "nifti", "gifti", "freesurfer", "gltf", "images", "plyobj"):
+for kind in ("tck", "trk", "trx", "nifti", "mgh", "gifti", "freesurfer", "gltf", "images", "plyobj"):
     os.makedirs(os.path.join(out, kind), exist_ok=True)
 t = nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4))
 nib.streamlines.save(t, os.path.join(out, "tck", "small.tck"))
@@ -40,6 +40,9 @@ vol = (rng.random((4, 3, 2)) * 100).astype(np.int16)
 nib.save(nib.Nifti1Image(vol, np.eye(4)), os.path.join(out, "nifti", "small.nii"))
 nib.save(nib.Nifti1Image(vol.astype(np.float32), np.diag([2, 2, 2, 1])), os.path.join(out, "nifti", "small.nii.gz"))
 nib.save(nib.Nifti2Image(vol, np.eye(4)), os.path.join(out, "nifti", "small2.nii"))
+from nibabel.freesurfer.mghformat import MGHImage
+nib.save(MGHImage(vol, np.eye(4)), os.path.join(out, "mgh", "small.mgh"))
+nib.save(MGHImage(np.stack([vol, vol], 3).astype(np.float32), np.diag([2, 2, 2, 1])), os.path.join(out, "mgh", "small.mgz"))
 
 from nibabel.gifti import GiftiDataArray, GiftiImage
 verts = (rng.random((6, 3)) * 10).astype(np.float32)

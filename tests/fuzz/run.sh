@@ -20,7 +20,7 @@ seeds="$dir/seeds"
 rm -rf "$seeds" && /usr/bin/python3 tests/fuzz/make_seeds.py "$seeds"
 # OpenImageIO keeps its last error message for the life of the process (not a leak of ours).
 export LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp:print_suppressions=0"
-for t in tck trk trx nifti gifti freesurfer gltf images plyobj; do
+for t in tck trk trx nifti mgh gifti freesurfer gltf images plyobj; do
   mkdir -p "$dir/corpus/$t"
   log="$dir/fuzz_$t.log"
   # Full stacks for allocations, so the suppression can see OpenImageIO's frames.
