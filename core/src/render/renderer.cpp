@@ -8,6 +8,7 @@
 #include "gl.hpp"
 #include "gpu_object.hpp"
 #include "image_lighting.hpp"
+#include "jobs.hpp"
 #include "glsl.hpp"
 #include "programs.hpp"
 #include "passes/ambient_occlusion.hpp"
@@ -46,9 +47,6 @@
 namespace hz::core::render {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 glm::dvec3 to_dvec3(const Vec3 &v) { return glm::dvec3(v[0], v[1], v[2]); }
 

@@ -2,6 +2,7 @@
 #include "drawable.hpp"
 
 #include "../gpu_object.hpp"
+#include "../jobs.hpp"
 
 #include <glm/gtc/type_ptr.hpp>
 #include <spdlog/spdlog.h>
@@ -20,21 +21,6 @@
 namespace hz::core::render {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
-
-// fn()'s result; -v logs "renderer: object K: WHAT (S s)" (a level-of-detail
-// job's time, on its own thread).
-template <class F>
-auto timed_job(std::size_t object, const std::string &what, F &&fn) {
-    const auto t0 = Clock::now();
-    auto result = fn();
-    spdlog::debug("renderer: object {}: {} ({:.2f} s)", object, what, ms_since(t0) / 1000);
-    return result;
-}
-
-unsigned cores() { return std::max(1u, std::thread::hardware_concurrency()); }
 
 // Points read into a fibre volume, at most (above, every k-th segment of
 // every streamline: the density and colours are means over many).

@@ -1,14 +1,14 @@
 // Streamline geometry on the GPU (line_stream.hpp).
 #include "line_stream.hpp"
 
+#include "../jobs.hpp"
+
 #include <algorithm>
 #include <thread>
 
 namespace hz::core::render {
 
 namespace {
-
-unsigned cores() { return std::max(1u, std::thread::hardware_concurrency()); }
 
 void draw_strips(GLsizei nb_indices) {
     glEnable(GL_PRIMITIVE_RESTART);
