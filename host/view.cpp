@@ -27,6 +27,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cfloat>
 #include <chrono>
 #include <array>
 #include <cmath>
@@ -1338,8 +1339,14 @@ private:
         ImGui::NewFrame();
         app.ui_buttons.clear();
         ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
-        ImGui::SetNextWindowSize(ImVec2(340, 0), ImGuiCond_FirstUseEver);
+        // Its height fits what it shows (a section opened below the first
+        // height used to be clipped), up to the window's; its width is the
+        // user's (dragged, kept from the last frame).
+        const float most = std::max(100.0f, ImGui::GetIO().DisplaySize.y - 20.0f);
+        ImGui::SetNextWindowSizeConstraints(ImVec2(200.0f, 0.0f), ImVec2(FLT_MAX, most));
+        ImGui::SetNextWindowSize(ImVec2(panel_width, 0.0f), ImGuiCond_Always);
         ImGui::Begin("Horizon");
+        panel_width = ImGui::GetWindowWidth();
         ImGui::Text("%.0f ms/frame   %llu segments   %llu triangles", r.stats().draw_ms, (unsigned long long)r.stats().segments_drawn,
                     (unsigned long long)r.stats().triangles_drawn);
         if (r.refining())
@@ -1605,6 +1612,7 @@ private:
     // orientation, a scale bar; all switched by N. (A script opens it as
     // `press annotations`, then presses `press colour bar`, ...)
     core::render::Annotations shown_annotations;  // (those N brings back)
+    float panel_width = 340.0f;                   // the panel's, as the user left it
     void annotations_panel() {
         const bool open = ImGui::CollapsingHeader("annotations");
         scriptable("annotations");

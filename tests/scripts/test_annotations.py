@@ -186,6 +186,23 @@ class AnnotationTest(TempDirTest):
         corner = (slice(300, 400), slice(0, 110))
         self.assertGreater((np.abs(d[corner] - a[corner]).sum(2) > 30).sum(), 50)
 
+    def test_a_section_opened_below_the_panels_first_height_is_usable(self):
+        """The panel grows to what it shows: with only a slices object (a
+        short first panel), its annotations section, opened, can be used
+        (it was clipped at the panel's first height)."""
+        shots = [self.path(f"p{i}.png") for i in range(2)]
+        with open(self.path("script.txt"), "w") as f:
+            f.write("\n".join(["wait 3", "press annotations", "wait 1", f"screenshot {shots[0]}", "press orientation", "wait 2",
+                               f"screenshot {shots[1]}", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"  # (Mesa's GLX driver, as in test_render's window tests)
+        p = xvfb_run([HORIZON, "view", self.scene(None), "--size", "600x400", "--script", self.path("script.txt")], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        a, b = (np.asarray(Image.open(s).convert("RGB"), dtype=np.float64) for s in shots)
+        corner = (slice(300, 400), slice(0, 110))
+        self.assertGreater((np.abs(b[corner] - a[corner]).sum(2) > 30).sum(), 50)
+
     def test_bad_annotations_are_one_line(self):
         for value, where in (("yes", "annotations"), ({"colorbar": True}, "colorbar"), ({"scale_bar": 1}, "annotations.scale_bar")):
             p = run("render", self.scene(value), "-o", self.path("x.png"), "--size", "64x64")
