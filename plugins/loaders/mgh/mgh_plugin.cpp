@@ -2,6 +2,7 @@
 // SDK's C++ loader adapter (hz/cpp/loader.hpp).
 #include "gzip.hpp"
 #include "mgh_format.hpp"
+#include "voxel_copy.hpp"
 
 #include <hz/cpp/loader.hpp>
 
@@ -93,45 +94,28 @@ void mgh_read_volume(MghReader &r, const hz_array_view &dst, const hz_task *task
     const bool raw = dst.dtype == to_hz(h.dtype);
     if (!raw && dst.dtype != HZ_DTYPE_F32 && dst.dtype != HZ_DTYPE_F64)
         throw mgh::FormatError("read_volume: destination dtype must be the stored one or float32/float64");
-    if (dst.ndim < 1 || dst.ndim > 4) throw mgh::FormatError("read_volume: destination must have 1..4 axes");
-    // Destination axes: the volume's, trailing ones merged into the last.
-    std::vector<std::uint64_t> dims(h.dims.begin(), h.dims.end());
-    while (dims.size() > dst.ndim) {
-        const std::uint64_t last = dims.back();
-        dims.pop_back();
-        dims.back() *= last;
-    }
-    for (std::size_t i = 0; i < dims.size(); ++i)
-        if (dst.shape[i] != dims[i]) throw mgh::FormatError("read_volume: destination shape does not match the volume");
+    const std::vector<std::uint64_t> dims(h.dims.begin(), h.dims.end());
     const std::size_t in_size = mgh::dtype_size(h.dtype), out_size = raw ? in_size : dst.dtype == HZ_DTYPE_F32 ? 4 : 8;
-    std::int64_t lo = 0, hi = 0;
-    for (std::size_t i = 0; i < dims.size(); ++i) {
-        const std::int64_t span = static_cast<std::int64_t>(dims[i] - 1) * dst.stride_bytes[i];
-        (span < 0 ? lo : hi) += span;
-    }
-    if (lo < 0 || static_cast<std::uint64_t>(hi) + out_size > dst.capacity_bytes)
-        throw hz::Error(HZ_E_BUFFER_TOO_SMALL, "mgh: destination too small");
     const unsigned char *src = r.volume->voxels();
-    auto *base = static_cast<unsigned char *>(dst.data);
-    std::uint64_t idx[4] = {0, 0, 0, 0};
-    for (std::uint64_t v = 0; v < h.nb_voxels; ++v, src += in_size) {
+    const hzio::StridedDest to{dst.data, dst.ndim, dst.shape, dst.stride_bytes, dst.capacity_bytes};
+    // (the destination's axes: the volume's, trailing ones merged into its last)
+    switch (hzio::copy_voxels(dims, out_size, to, [&](std::uint64_t v, unsigned char *o) {
         if ((v & 0xFFFFF) == 0 && hz::cancelled(task)) throw MghCancelled{};
-        std::int64_t off = 0;
-        for (std::size_t i = 0; i < dims.size(); ++i) off += static_cast<std::int64_t>(idx[i]) * dst.stride_bytes[i];
-        unsigned char *o = base + off;
+        const unsigned char *p = src + v * in_size;
         if (raw) {
-            std::reverse_copy(src, src + in_size, o);  // (big-endian to the host's order)
+            std::reverse_copy(p, p + in_size, o);  // (big-endian to the host's order)
         } else if (out_size == 4) {
-            const float f = static_cast<float>(voxel_value(src, h.dtype));
+            const float f = static_cast<float>(voxel_value(p, h.dtype));
             std::memcpy(o, &f, 4);
         } else {
-            const double d = voxel_value(src, h.dtype);
+            const double d = voxel_value(p, h.dtype);
             std::memcpy(o, &d, 8);
         }
-        for (std::size_t i = 0; i < dims.size(); ++i) {  // x fastest (Fortran order)
-            if (++idx[i] < dims[i]) break;
-            idx[i] = 0;
-        }
+    })) {
+    case hzio::CopyCheck::BadAxes: throw mgh::FormatError("read_volume: destination must have 1..4 axes");
+    case hzio::CopyCheck::BadShape: throw mgh::FormatError("read_volume: destination shape does not match the volume");
+    case hzio::CopyCheck::TooSmall: throw hz::Error(HZ_E_BUFFER_TOO_SMALL, "mgh: destination too small");
+    case hzio::CopyCheck::Ok: break;
     }
     hz::report(task, 1.0);
 }

@@ -2,6 +2,7 @@
 // C++ loader adapter (hz/cpp/loader.hpp).
 #include "mapped_file.hpp"
 #include "nifti_format.hpp"
+#include "voxel_copy.hpp"
 
 #include <hz/cpp/loader.hpp>
 
@@ -122,43 +123,23 @@ void nii_read_volume(NiiReader &r, const hz_array_view &view, const hz_task *tas
         const bool scaled = !raw && (dst->dtype == HZ_DTYPE_F32 || dst->dtype == HZ_DTYPE_F64) && h.dtype != nifti::DType::RGB24 &&
                             h.dtype != nifti::DType::RGBA32;
         if (!raw && !scaled) throw nifti::FormatError("read_volume: destination dtype must be the stored one or float32/float64");
-        // Destination axes: the image's, trailing ones merged into the last.
-        if (dst->ndim < 1 || dst->ndim > 4) throw nifti::FormatError("read_volume: destination must have 1..4 axes");
         std::vector<std::uint64_t> dims(static_cast<std::size_t>(h.ndim));
         for (int i = 0; i < h.ndim; ++i)
             dims[static_cast<std::size_t>(i)] = static_cast<std::uint64_t>(h.dims[static_cast<std::size_t>(i)]);
-        while (dims.size() > dst->ndim) {
-            const std::uint64_t last = dims.back();
-            dims.pop_back();
-            dims.back() *= last;
-        }
-        while (dims.size() < dst->ndim) dims.push_back(1);
-        for (std::size_t i = 0; i < dims.size(); ++i)
-            if (dst->shape[i] != dims[i]) throw nifti::FormatError("read_volume: destination shape does not match the image");
         const std::size_t in_size = nifti::dtype_size(h.dtype);
         const std::size_t out_size = raw ? in_size : (dst->dtype == HZ_DTYPE_F32 ? 4 : 8);
-        // Bounds of the strided destination, checked once.
-        std::int64_t lo = 0, hi = 0;
-        for (std::size_t i = 0; i < dims.size(); ++i) {
-            const std::int64_t span = static_cast<std::int64_t>(dims[i] - 1) * dst->stride_bytes[i];
-            (span < 0 ? lo : hi) += span;
-        }
-        if (lo < 0 || static_cast<std::uint64_t>(hi) + out_size > dst->capacity_bytes)
-            throw hz::Error(HZ_E_BUFFER_TOO_SMALL, "nifti: " + r.path + ": destination too small");
         const unsigned char *src = r.image->data();
-        auto *base = static_cast<unsigned char *>(dst->data);
         const bool swap_elems = h.swap && h.dtype != nifti::DType::RGB24 && h.dtype != nifti::DType::RGBA32;
-        std::uint64_t idx[4] = {0, 0, 0, 0};
-        for (std::uint64_t v = 0; v < h.nb_voxels; ++v, src += in_size) {
+        const hzio::StridedDest to{dst->data, dst->ndim, dst->shape, dst->stride_bytes, dst->capacity_bytes};
+        // (the destination's axes: the image's, trailing ones merged into its last)
+        switch (hzio::copy_voxels(dims, out_size, to, [&](std::uint64_t v, unsigned char *o) {
             if ((v & 0xFFFFF) == 0 && hz::cancelled(task)) throw NiiCancelled{};
-            std::int64_t off = 0;
-            for (std::size_t i = 0; i < dims.size(); ++i) off += static_cast<std::int64_t>(idx[i]) * dst->stride_bytes[i];
-            unsigned char *o = base + off;
+            const unsigned char *p = src + v * in_size;
             if (raw) {
-                std::memcpy(o, src, in_size);
+                std::memcpy(o, p, in_size);
                 if (swap_elems) std::reverse(o, o + in_size);
             } else {
-                const double val = voxel_value(src, h.dtype, h.swap) * h.scl_slope + h.scl_inter;
+                const double val = voxel_value(p, h.dtype, h.swap) * h.scl_slope + h.scl_inter;
                 if (out_size == 4) {
                     const float f = static_cast<float>(val);
                     std::memcpy(o, &f, 4);
@@ -166,10 +147,11 @@ void nii_read_volume(NiiReader &r, const hz_array_view &view, const hz_task *tas
                     std::memcpy(o, &val, 8);
                 }
             }
-            for (std::size_t i = 0; i < dims.size(); ++i) {  // x fastest (Fortran order)
-                if (++idx[i] < dims[i]) break;
-                idx[i] = 0;
-            }
+        })) {
+        case hzio::CopyCheck::BadAxes: throw nifti::FormatError("read_volume: destination must have 1..4 axes");
+        case hzio::CopyCheck::BadShape: throw nifti::FormatError("read_volume: destination shape does not match the image");
+        case hzio::CopyCheck::TooSmall: throw hz::Error(HZ_E_BUFFER_TOO_SMALL, "nifti: " + r.path + ": destination too small");
+        case hzio::CopyCheck::Ok: break;
         }
         hz::report(task, 1.0);
     }

@@ -30,24 +30,16 @@ out vec4 o;
 void main() { o = texelFetch(u_acc, ivec2(gl_FragCoord.xy), 0); }
 )glsl";
 
-GLuint depth_texture(int w, int h) {
+// A w x h texture of `internal` format, fetched (NEAREST, clamped).
+GLuint texture(int w, int h, GLenum internal, GLenum format, GLenum type) {
     GLuint t = 0;
     glGenTextures(1, &t);
     glBindTexture(GL_TEXTURE_2D, t);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, w, h, 0, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, nullptr);
+    glTexImage2D(GL_TEXTURE_2D, 0, GLint(internal), w, h, 0, format, type, nullptr);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-    return t;
-}
-GLuint colour_texture(int w, int h) {
-    GLuint t = 0;
-    glGenTextures(1, &t);
-    glBindTexture(GL_TEXTURE_2D, t);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, w, h, 0, GL_RGBA, GL_FLOAT, nullptr);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     return t;
 }
 
@@ -78,8 +70,8 @@ void DepthPeeling::ensure(int w, int h) {
     if (w == w_ && h == h_) return;
     release();
     w_ = w, h_ = h;
-    layer_tex_ = colour_texture(w, h), acc_tex_ = colour_texture(w, h);
-    depth_[0] = depth_texture(w, h), depth_[1] = depth_texture(w, h);
+    layer_tex_ = texture(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT), acc_tex_ = texture(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT);
+    for (GLuint &d : depth_) d = texture(w, h, GL_DEPTH_COMPONENT24, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT);
     glGenFramebuffers(1, &layer_fbo_);
     glBindFramebuffer(GL_FRAMEBUFFER, layer_fbo_);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, layer_tex_, 0);
