@@ -34,7 +34,14 @@ struct DepthCueOptions {
     double ao_strength = -1;                       // --ao-strength S (< 0: the scene's, 0.8 by default)
     bool depth_cue = false, no_depth_cue = false;  // --depth-cue, --no-depth-cue
     double depth_cue_strength = -1;                // --depth-cue-strength S (< 0: the scene's, 0.6 by default)
+    bool shadows = false, no_shadows = false;      // --shadows, --no-shadows
+    double shadow_strength = -1;                   // --shadow-strength S (< 0: the scene's, 0.75 by default)
+    double shadow_softness = -1;                   // --shadow-softness MM (< 0: the scene's, 0.5 mm by default)
     void apply(core::render::Scene &s) const {
+        if (shadows || shadow_strength >= 0 || shadow_softness >= 0) s.shadows.on = true;
+        if (no_shadows) s.shadows.on = false;
+        if (shadow_strength >= 0) s.shadows.strength = shadow_strength;
+        if (shadow_softness >= 0) s.shadows.softness_mm = shadow_softness;
         if (depth_cue || depth_cue_strength >= 0) s.depth_cue.on = true;
         if (no_depth_cue) s.depth_cue.on = false;
         if (depth_cue_strength >= 0) s.depth_cue.strength = depth_cue_strength;

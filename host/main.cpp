@@ -61,6 +61,19 @@ void add_depth_cue_options(CLI::App *cmd, DepthCueOptions &c) {
                     "depth cue: the fraction of the background at the scene's far end, 0 to 1 (default 0.6; implies --depth-cue)")
         ->check(CLI::Range(0.0, 1.0))
         ->excludes(no_cue);
+    auto *sh = cmd->add_flag("--shadows", c.shadows,
+                             "shadows of the key light (the first directional light) cast by surfaces, lines and tubes (a scene "
+                             "file's \"shadows\")");
+    auto *no_sh = cmd->add_flag("--no-shadows", c.no_shadows, "no shadows, whatever the scene file says");
+    sh->excludes(no_sh);
+    cmd->add_option("--shadow-strength", c.shadow_strength,
+                    "shadows: how much of the key light a point in full shadow loses, 0 to 1 (default 0.75; implies --shadows)")
+        ->check(CLI::Range(0.0, 1.0))
+        ->excludes(no_sh);
+    cmd->add_option("--shadow-softness", c.shadow_softness,
+                    "shadows: the radius over which their edges blend, in mm, 0 to 50 (default 0.5; implies --shadows)")
+        ->check(CLI::Range(0.0, 50.0))
+        ->excludes(no_sh);
 }
 
 void add_annotation_options(CLI::App *cmd, AnnotationOptions &a) {

@@ -236,6 +236,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                             {"passes",
                              {{"ambient_occlusion", {{"on", r.scene().ambient_occlusion.on}, {"ms", s.ao_ms}}},
                               {"depth_cue", {{"on", r.scene().depth_cue.on}, {"ms", s.depth_cue_ms}}},
+                              {"shadows", {{"on", r.scene().shadows.on}, {"ms", s.shadow_ms}, {"map", s.shadow_map}}},
                               {"transparency", {{"layers", s.transparency_layers}}}}},
                             {"points_kept", s.points_drawn}};
         j["annotations"] = annotations_json(marks);
@@ -246,6 +247,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
         if (o.frames > 1) std::printf("  %d frames: median %.1f ms/frame\n", o.frames, frame_ms);
         if (r.scene().ambient_occlusion.on) std::printf("  ambient occlusion: %.1f ms\n", s.ao_ms);
         if (r.scene().depth_cue.on) std::printf("  depth cue: %.1f ms\n", s.depth_cue_ms);
+        if (r.scene().shadows.on) std::printf("  shadows: %.1f ms (a %dx%d map)\n", s.shadow_ms, s.shadow_map, s.shadow_map);
         if (s.crossings_drawn)
             std::printf("  slab crossings drawn: %llu (where the streamlines cross the plane)\n", (unsigned long long)s.crossings_drawn);
         else if (s.points_total)

@@ -1005,6 +1005,14 @@ private:
             std::fflush(stdout);
             return true;
         };
+        app.actions["shadows"] = [this] {  // the key light's shadows on or off
+            core::render::Shadows sh = r.scene().shadows;
+            sh.on = !sh.on;
+            r.set_shadows(sh);
+            std::printf("shadows: %s\n", sh.on ? "on" : "off");
+            std::fflush(stdout);
+            return true;
+        };
         app.actions["occlusion"] = [this] {  // ambient occlusion on or off
             core::render::AmbientOcclusion ao = r.scene().ambient_occlusion;
             ao.on = !ao.on;
@@ -1573,10 +1581,10 @@ private:
         }
     }
 
-    // Depth cues (closed at first, after the objects): ambient occlusion
-    // and the depth cue, also switched by O and F. (A script opens it as
-    // `press depth cues`, then presses `press ambient occlusion`, `press
-    // depth cue`.)
+    // Depth cues (closed at first, after the objects): ambient occlusion,
+    // the depth cue and shadows, also switched by O, F and L. (A script
+    // opens it as `press depth cues`, then presses `press ambient
+    // occlusion`, `press depth cue`, `press shadows`.)
     void depth_cues_panel() {
         const bool open = ImGui::CollapsingHeader("depth cues");
         scriptable("depth cues");
@@ -1605,6 +1613,21 @@ private:
         if (cue_changed) {
             cue.strength = std::clamp(double(fade), 0.0, 1.0);
             r.set_depth_cue(cue);
+        }
+        core::render::Shadows sh = r.scene().shadows;
+        float dark = float(sh.strength), soft = float(sh.softness_mm);
+        bool sh_changed = ImGui::Checkbox("shadows (L)", &sh.on);
+        scriptable("shadows");
+        if (sh.on) {
+            sh_changed |= ImGui::SliderFloat("shadow strength", &dark, 0.0f, 1.0f, "%.2f");
+            sh_changed |= ImGui::SliderFloat("shadow softness (mm)", &soft, 0.0f, 10.0f, "%.1f");
+            if (r.stats().shadow_map > 0)
+                ImGui::TextDisabled("shadow map: %dx%d%s", r.stats().shadow_map, r.stats().shadow_map,
+                                    r.stats().shadow_ms > 0 ? (", " + std::to_string(int(r.stats().shadow_ms + 0.5)) + " ms").c_str() : "");
+        }
+        if (sh_changed) {
+            sh.strength = std::clamp(double(dark), 0.0, 1.0), sh.softness_mm = std::clamp(double(soft), 0.0, 10.0);
+            r.set_shadows(sh);
         }
     }
 

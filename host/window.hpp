@@ -244,6 +244,8 @@ struct FrameLog {
                           {"proxy_level", drew && s.proxy ? s.proxy_level : -1},
                           {"ao_ms", drew ? s.ao_ms : 0},
                           {"depth_cue_ms", drew ? s.depth_cue_ms : 0},
+                          {"shadow_ms", drew ? s.shadow_ms : 0},
+                          {"shadow_map", drew ? s.shadow_map : 0},
                           {"clustering", clustering},
                           {"rss_anon_mb", anon}});
     }

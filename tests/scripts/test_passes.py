@@ -330,6 +330,204 @@ class DepthCueTest(TempDirTest):
         self.assertFalse(os.path.exists(self.path("x.png")))
 
 
+class ShadowTest(TempDirTest):
+    """Shadows of the key light against a ray cast of the same scene: a
+    plane z = 0 lit by one directional light at THETA from its normal
+    (towards +x), and above it at height H either a tube of radius R along y
+    or a sheet of lines along y across x in [-3, 3]. A plane point (x, y, 0)
+    is in shadow exactly where its ray towards the light meets the caster:
+    for the tube where |x cos(THETA) + H sin(THETA)| < R, for the sheet
+    where x + H tan(THETA) lies in [-3, 3]. The plane is seen from above, so
+    its columns map linearly onto x (its edges at +-30 mm are found in the
+    picture)."""
+    H, R, THETA = 12.0, 3.0, math.radians(45)
+
+    def setUp(self):
+        super().setUp()
+        with open(self.path("plane.obj"), "w") as f:
+            f.write("v -30 -30 0\nv 30 -30 0\nv 30 30 0\nv -30 30 0\nf 1 2 3\nf 1 3 4\n")
+        line = np.stack([np.zeros(81), np.linspace(-40, 40, 81), np.full(81, self.H)], 1).astype(np.float32)
+        with open(self.path("tube.tck"), "wb") as f:
+            f.write(tck_bytes([line]))
+        sheet = [np.stack([np.full(81, x), np.linspace(-40, 40, 81), np.full(81, self.H)], 1).astype(np.float32)
+                 for x in np.arange(-3, 3.0001, 0.025)]
+        with open(self.path("sheet.tck"), "wb") as f:
+            f.write(tck_bytes(sheet))
+
+    def render(self, caster, to_light, shadows, plane=True, *args):
+        objects = []
+        grey = {"color": [0.7, 0.7, 0.7], "material": {"shader": "lambert"}}
+        if plane:
+            objects.append({"type": "surface", "file": "plane.obj", **grey})
+        if caster == "tube":
+            objects.append({"type": "streamlines", "file": "tube.tck", "render": "tubes", "radius": self.R, **grey})
+        elif caster == "sheet":
+            objects.append({"type": "streamlines", "file": "sheet.tck", "render": "lines", **grey})
+        scene = {"camera": {"view": "superior"}, "environment": {"type": "none"}, "tonemap": "none", "objects": objects,
+                 "lights": [{"type": "directional", "direction": list(to_light), "space": "world", "intensity": 1.0}]}
+        if shadows is not None:
+            scene["shadows"] = shadows
+        with open(self.path("s.json"), "w") as f:
+            json.dump(scene, f)
+        out = self.path("out.png")
+        p = run("render", self.path("s.json"), "-o", out, "--size", "400x400", "--force", "--json", *args, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return np.asarray(Image.open(out).convert("RGB"), dtype=np.float64), json.loads(p.stdout)
+
+    def test_shadows_fall_where_a_ray_cast_says(self):
+        to_light = (math.sin(self.THETA), 0.0, math.cos(self.THETA))
+        for caster in ("tube", "sheet"):
+            with self.subTest(caster=caster):
+                off, info = self.render(caster, to_light, None)
+                self.assertFalse(info["passes"]["shadows"]["on"])
+                self.assertEqual(info["passes"]["shadows"]["map"], 0)
+                on, info = self.render(caster, to_light, {"strength": 1.0, "softness": 0.5})
+                self.assertTrue(info["passes"]["shadows"]["on"])
+                self.assertEqual(info["passes"]["shadows"]["map"], 2048)
+                self.assertGreater(info["passes"]["shadows"]["ms"], 0)
+                edge = np.nonzero(np.abs(off[100] - off[5, 5]).sum(1) > 6)[0]
+                c0, c1 = edge[0], edge[-1]
+                self.assertGreater(c1 - c0, 200)
+                mm = 60.0 / (c1 - c0 + 1)
+                if caster == "tube":
+                    half = self.R / math.cos(self.THETA)
+                    lo, hi = -self.H * math.tan(self.THETA) - half, -self.H * math.tan(self.THETA) + half
+                else:
+                    lo, hi = -3 - self.H * math.tan(self.THETA), 3 - self.H * math.tan(self.THETA)
+                checked = 0
+                for row in (150, 200, 250):
+                    ratio = srgb_to_linear(on[row, :, 0]) / np.maximum(srgb_to_linear(off[row, :, 0]), 1e-6)
+                    for c in range(c0 + 2, c1 - 1):
+                        x = -30 + (c - c0 + 0.5) * mm
+                        if abs(x) < 5:  # (the caster itself, seen from above)
+                            continue
+                        # Away from the edges by the filter's radius, a
+                        # texel and a pixel: lit or in full shadow.
+                        if min(abs(x - lo), abs(x - hi)) < 0.5 + 0.06 + 1.5 * mm:
+                            continue
+                        want = 0.0 if lo < x < hi else 1.0
+                        self.assertAlmostEqual(ratio[c], want, delta=0.04, msg=f"{caster}: x = {x:.2f} mm, row {row}")
+                        checked += 1
+                self.assertGreater(checked, 500)
+
+    def test_strength_scales_the_shadow(self):
+        to_light = (math.sin(self.THETA), 0.0, math.cos(self.THETA))
+        off, _ = self.render("tube", to_light, None)
+        x = -self.H * math.tan(self.THETA)  # the shadow's middle
+        edge = np.nonzero(np.abs(off[100] - off[5, 5]).sum(1) > 6)[0]
+        c = int(round(edge[0] + (x + 30) / 60.0 * (edge[-1] - edge[0] + 1)))
+        for strength, args in ((0.5, ()), (0.75, ("--shadows",)), (0.3, ("--shadow-strength", "0.3"))):
+            with self.subTest(strength=strength):
+                on, info = self.render("tube", to_light, {"strength": strength} if not args else None, True, *args)
+                self.assertTrue(info["passes"]["shadows"]["on"])
+                got = srgb_to_linear(on[200, c, 0]) / srgb_to_linear(off[200, c, 0])
+                self.assertAlmostEqual(got, 1 - strength, delta=0.03)
+        none, info = self.render("tube", to_light, {"strength": 1.0}, True, "--no-shadows")
+        self.assertFalse(info["passes"]["shadows"]["on"])
+        np.testing.assert_array_equal(none, off)
+
+    def test_nothing_shadows_itself_even_at_grazing_light(self):
+        """Acne: what nothing occludes is as lit with shadows as without, for
+        a plane, a tube and a sheet of lines, the light from overhead to 88
+        degrees off, across and along the lines. A sheet of lines lit at
+        grazing angles is the method's limit (its lines' neighbours lie
+        within the filter at depths no line's own slope tells): a few
+        levels there."""
+        for caster, plane in ((None, True), ("tube", False), ("sheet", False)):
+            for deg in (0, 45, 80, 88):
+                for axis in ("x", "y"):
+                    t = math.radians(deg)
+                    to_light = (math.sin(t), 0, math.cos(t)) if axis == "x" else (0, math.sin(t), math.cos(t))
+                    with self.subTest(caster=caster, deg=deg, axis=axis):
+                        off, _ = self.render(caster, to_light, None, plane)
+                        on, _ = self.render(caster, to_light, {"strength": 1.0}, plane)
+                        worst = np.abs(on - off).max()
+                        limit = 8 if caster == "sheet" and deg >= 80 else 4 if deg >= 88 else 1
+                        self.assertLessEqual(worst, limit)
+
+    def test_the_window_switches_them_with_l(self):
+        to_light = (math.sin(self.THETA), 0.0, math.cos(self.THETA))
+        self.render("tube", to_light, None)  # (writes s.json)
+        shots = [self.path(f"l{i}.png") for i in range(4)]
+        with open(self.path("script.txt"), "w") as f:
+            f.write("\n".join(["wait 3", f"screenshot {shots[0]}", "key l", "wait 3", f"screenshot {shots[1]}", "key l", "wait 3",
+                               f"screenshot {shots[2]}", "press object 0", "wait 1", "press depth cues", "wait 1", "press shadows",
+                               "wait 3", f"screenshot {shots[3]}", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        p = xvfb_run([HORIZON, "view", self.path("s.json"), "--size", "400x400", "--script", self.path("script.txt"),
+                      "--stats", self.path("stats.json")], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertIn("shadows: on", p.stdout)
+        self.assertIn("shadows: off", p.stdout)
+        a, b, c, d = (np.asarray(Image.open(s).convert("RGB"), dtype=np.float64) for s in shots)
+        np.testing.assert_array_equal(a, c)
+        darker = (b.sum(2) < a.sum(2) - 30).sum()  # (the tube's shadow on the plane)
+        self.assertGreater(darker, 2000)
+        self.assertEqual((b.sum(2) > a.sum(2) + 3).sum(), 0)
+        # The panel's box does what L does (the panel aside).
+        right = slice(200, 400)
+        np.testing.assert_array_equal(d[:, right], b[:, right])
+        frames = json.load(open(self.path("stats.json")))["frames"]
+        self.assertTrue(any(f.get("shadow_map", 0) == 2048 for f in frames))
+
+    def test_the_windows_still_is_the_full_frames_and_moving_frames_have_them_too(self):
+        """With a level-of-detail proxy, the window at rest draws the shadow
+        map's full detail in steps before the picture's: the still must be
+        the frame drawn without a proxy (every streamline casting). Moving
+        frames draw a map of the proxy: shadows too, not none."""
+        p = run("demo", "--out", self.path("d"), "--streamlines", "600", "--no-window", env={"DISPLAY": ""}, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        shots = {}
+        for name, args in (("proxy", ("--lod-points", "4000", "--shadows", "--shadow-strength", "1")),
+                           ("plain", ("--lod-points", "1e9", "--shadows", "--shadow-strength", "1")),
+                           ("none", ("--lod-points", "4000"))):
+            script = self.path("s.txt")
+            rest, moving = self.path(f"rest_{name}.png"), self.path(f"moving_{name}.png")
+            with open(script, "w") as f:
+                f.write("\n".join(["wait 1", f"screenshot {rest}", "moving on", "wait 2", f"screenshot {moving}", "quit"]) + "\n")
+            p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--script", script, *args,
+                          "--stats", self.path(f"stats_{name}.json")], env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            shots[name] = [np.asarray(Image.open(x).convert("RGB"), dtype=np.float64) for x in (rest, moving)]
+        np.testing.assert_array_equal(shots["proxy"][0], shots["plain"][0])
+        right = slice(160, 480)  # (right of the panel)
+        self.assertGreater((shots["proxy"][0][:, right].sum(2) < shots["none"][0][:, right].sum(2) - 15).sum(), 1000)
+        self.assertGreater((shots["proxy"][1][:, right].sum(2) < shots["none"][1][:, right].sum(2) - 15).sum(), 300)
+        frames = json.load(open(self.path("stats_proxy.json")))["frames"]
+        self.assertTrue(any(f["kind"] == "moving" and 0 < f["shadow_map"] < 2048 for f in frames), "a smaller map while moving")
+
+    def test_the_demo_has_them_unless_told_otherwise(self):
+        for args, on in (((), True), (("--no-shadows",), False)):
+            out = self.path(f"demo{len(args)}")
+            p = run("demo", "--out", out, "--streamlines", "300", "--no-window", *args, env={"DISPLAY": ""}, timeout=180)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            self.assertEqual("shadows:" in p.stdout, on, p.stdout)
+        a, b = (np.asarray(Image.open(self.path(f"demo{k}/demo.png")).convert("RGB"), dtype=np.float64) for k in (0, 1))
+        self.assertGreater((a.sum(2) < b.sum(2) - 6).sum(), 1000, "the tubes' and the cortex's shadows")
+        self.assertEqual((a.sum(2) > b.sum(2) + 3).sum(), 0)
+
+    def test_bad_settings_are_one_line(self):
+        self.render("tube", (0, 0, 1), None)
+        for sh, where in ((2, "shadows"), ({"strength": 1.5}, "shadows.strength"), ({"softness": -1}, "shadows.softness"),
+                          ({"softness": 80}, "shadows.softness"), ({"bias": 1}, "bias"), ("yes", "shadows")):
+            with open(self.path("s.json"), "w") as f:
+                json.dump({"shadows": sh, "objects": [{"type": "surface", "file": "plane.obj"}]}, f)
+            p = run("render", self.path("s.json"), "-o", self.path("x.png"), "--size", "64x64")
+            self.assertEqual(p.returncode, 1, p.stderr)
+            self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+            self.assertIn(where, p.stderr)
+            self.assertFalse(os.path.exists(self.path("x.png")))
+        for args in (("--shadow-strength", "3"), ("--shadow-softness", "-1"), ("--shadows", "--no-shadows")):
+            p = run("render", self.path("plane.obj"), "-o", self.path("x.png"), *args)
+            self.assertNotEqual(p.returncode, 0)
+            self.assertFalse(os.path.exists(self.path("x.png")))
+
+
 def linear(v):
     v = np.asarray(v, dtype=np.float64) / 255.0
     return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)

@@ -134,6 +134,9 @@ std::string fragment_program(const FragmentSpec &g) {
           << "; HZ_LIGHT_TERM(" << i << ")";
     }
     s << "\n";
+    if (!debug && g.shadow_light >= 0 && std::size_t(g.shadow_light) < nl && g.geom != ProgramGeom::Volume &&
+        sh->output != HZ_SHADER_OUTPUT_EMISSION)
+        s << "#define HZ_SHADOW 1\n#define HZ_SHADOW_LIGHT " << g.shadow_light << "\n";
     s << "#define HZ_ENV " << (!debug && g.env_on ? 1 : 0) << "\n";
     if (g.refractive) s << "#define HZ_REFRACTIVE 1\n";
     if (std::strstr(snippet, "hz_ambient(")) s << "#define HZ_HAS_AMBIENT 1\n";

@@ -32,6 +32,10 @@ struct FragmentSpec {
     int tone_curve = 0;  // 0 ACES, 1 Reinhard, 2 none
     bool env_on = false;
     std::vector<Light> lights;
+    // The light whose shadows the program reads (a directional light of
+    // `lights`; passes/shadow.hpp), or -1: none. Ignored by the debug
+    // output, emission shaders and the fibre volume.
+    int shadow_light = -1;
 };
 
 // Component `c` of parameter `pi`'s default: default_value[c], or for a

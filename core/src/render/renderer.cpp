@@ -13,6 +13,7 @@
 #include "programs.hpp"
 #include "passes/ambient_occlusion.hpp"
 #include "passes/depth_cue.hpp"
+#include "passes/shadow.hpp"
 #include "passes/transparency.hpp"
 #include "passes/frame_depth.hpp"
 #include "reprojection.hpp"
@@ -212,6 +213,7 @@ struct Renderer::Impl {
     // ambient occlusion, depth cue.
     std::unique_ptr<FrameDepth> frame_depth;
     std::unique_ptr<AmbientOcclusionPass> ao_pass;
+    std::unique_ptr<ShadowPass> shadow_pass;
     std::unique_ptr<DepthCuePass> cue_pass;
     // Translucent objects, composited in depth order (passes/transparency).
     std::unique_ptr<DepthPeeling> peeling;
@@ -320,6 +322,15 @@ struct Renderer::Impl {
         peeling = std::make_unique<DepthPeeling>(
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
         frame_depth = std::make_unique<FrameDepth>();
+        shadow_pass = std::make_unique<ShadowPass>(
+            [this](const std::string &vs, const std::string &gs, const std::string &fs, const std::string &what) {
+                std::vector<GLuint> stages{compile_shader(GL_VERTEX_SHADER, vs, what + " (vertex)")};
+                if (!gs.empty()) stages.push_back(compile_shader(GL_GEOMETRY_SHADER, gs, what + " (geometry)"));
+                stages.push_back(compile_shader(GL_FRAGMENT_SHADER, fs, what));
+                auto p = std::make_unique<Program>();
+                p->id = link_program(stages, what);
+                return p;
+            });
     }
 
     ~Impl() {
@@ -329,6 +340,7 @@ struct Renderer::Impl {
         ibl.reset();
         warp.reset();
         ao_pass.reset();
+        shadow_pass.reset();
         cue_pass.reset();
         peeling.reset();
         frame_depth.reset();
@@ -515,6 +527,7 @@ struct Renderer::Impl {
         f.tone_curve = tone_curve();
         f.env_on = ibl->on;
         f.lights = lights();
+        f.shadow_light = scene.shadows.on ? key_light() : -1;
         return fragment_program(f);
     }
 
@@ -712,6 +725,22 @@ struct Renderer::Impl {
         return {key, fill, rim};
     }
 
+    // The key light, whose shadows Scene::shadows draws: the first
+    // directional light of the (at most 8) the programs light with, -1 if none.
+    int key_light() const {
+        const std::vector<Light> ls = lights();
+        for (std::size_t i = 0; i < ls.size() && i < 8; ++i)
+            if (ls[i].type != "point" && glm::length(to_dvec3(ls[i].direction)) > 1e-300) return int(i);
+        return -1;
+    }
+    // Its direction towards the light in the world, for camera `m`.
+    glm::dvec3 key_light_direction(const Matrices &m) const {
+        const Light l = lights()[std::size_t(key_light())];
+        glm::dvec3 d = to_dvec3(l.direction);
+        if (l.camera_space) d = d.x * m.right + d.y * m.up + d.z * m.back;
+        return glm::normalize(d);
+    }
+
     void bind_lights(Program &p, const Matrices &m, const View &v, std::size_t max_lights) {
         std::vector<Light> ls = lights();
         if (ls.size() > max_lights) ls.resize(max_lights);
@@ -766,6 +795,18 @@ struct Renderer::Impl {
     // interacting (when it has one), else all of it.
     LinesPart part_for(const GpuObject &g) const { return interacting && lod_proxy(g) ? LinesPart::Proxy : LinesPart::Full; }
 
+    // The slab's two clip planes (hz_clip) of streamline program p; (0, 0, 0,
+    // 1) each without a slab: never clipped.
+    void set_slab_planes(Program &p) const {
+        GLfloat planes[8] = {0, 0, 0, 1, 0, 0, 0, 1};
+        if (scene.slab) {
+            const Slab &sl = *scene.slab;
+            planes[sl.axis] = 1, planes[3] = float(sl.half - sl.centre);       // x - (c - h) >= 0
+            planes[4 + sl.axis] = -1, planes[7] = float(sl.half + sl.centre);  // (c + h) - x >= 0
+        }
+        glUniform4fv(p.loc("hz_clip"), 2, planes);
+    }
+
     void draw_object(GpuObject &g, const Object &o, const Matrices &m, const View &v, bool debug, int w, int h,
                      LinesPart lines = LinesPart::Full) {
         if (g.slices) {
@@ -807,13 +848,7 @@ struct Renderer::Impl {
             glUniform1f(p.loc("hz_point_px"), float(px));
             glUniform1f(p.loc("hz_point_lift"), 0.5f);  // mm
         } else if (g.geom != Geom::Mesh) {
-            GLfloat planes[8] = {0, 0, 0, 1, 0, 0, 0, 1};
-            if (scene.slab) {
-                const Slab &sl = *scene.slab;
-                planes[sl.axis] = 1, planes[3] = float(sl.half - sl.centre);       // x - (c - h) >= 0
-                planes[4 + sl.axis] = -1, planes[7] = float(sl.half + sl.centre);  // (c + h) - x >= 0
-            }
-            glUniform4fv(p.loc("hz_clip"), 2, planes);
+            set_slab_planes(p);
         }
         set_clipping(g.geom != Geom::Mesh && !points && !volume && scene.slab.has_value());
         {
@@ -825,6 +860,7 @@ struct Renderer::Impl {
         bind_environment(p, !debug);
         set_material_uniforms(p, g);
         if (out == Output::Peel) bind_sampler(p, "hz_peel_depth", 9, GL_TEXTURE_2D, peel_depth);
+        if (!debug && shadow_drawn) shadow_pass->bind(p, 10, ShadowParams{scene.shadows.strength, scene.shadows.softness_mm});
         if (volume) {
             g.tract->draw_fibre_volume(p, m.view_proj, m.inv_view_proj, v.fov_deg, frame_h, debug, w, h, empty_vao);
             return;
@@ -1108,9 +1144,104 @@ void main() {
         opaque_state();
     }
 
+    // The key light's shadow map for a frame from camera `m` (Scene::shadows),
+    // kept while neither the light's direction, what is shown nor the
+    // detail drawn changes: every opaque caster drawn into it, depth only;
+    // tractograms as this frame draws them (their proxy while the camera
+    // moves, into a map as much smaller as the proxy frame), and in full
+    // over bricks nearest the light first, those hidden behind what is
+    // drawn skipped (they change no depth of the map). The frame's counters
+    // are the camera's: those of the map are not kept.
+    // With `defer` (a progressive frame), the full detail of tractograms
+    // with a level-of-detail proxy is not drawn but listed there, for the
+    // steps to draw (shadow_step); the map is then complete once they have.
+    bool shadow_drawn = false;
+    struct ShadowKey {
+        std::uint64_t generation = ~std::uint64_t(0);
+        glm::dvec3 to_light{0.0};
+        int size = 0;
+        bool proxy = false;
+        bool operator==(const ShadowKey &) const = default;
+    } shadow_key, shadow_pending;
+    static constexpr int kShadowMapSize = 2048;
+    void draw_shadow_map(const Matrices &m, std::vector<ChunkItem> *defer = nullptr) {
+        shadow_drawn = false;
+        stats.shadow_ms = 0, stats.shadow_map = 0;
+        if (!scene.shadows.on || key_light() < 0) return;
+        if (cue_bounds_generation != generation) cue_bounds = scene_bounds(scene), cue_bounds_generation = generation;
+        if (cue_bounds.empty) return;
+        const bool proxy = out_ == &lowres;
+        const ShadowKey key{generation, key_light_direction(m), proxy ? std::max(256, kShadowMapSize / proxy_scale_now()) : kShadowMapSize,
+                            proxy};
+        shadow_drawn = true;
+        stats.shadow_map = key.size;
+        if (key == shadow_key) return;
+        shadow_key = ShadowKey{};
+        if (settings.time_passes) glFinish();
+        const auto t0 = Clock::now();
+        const FrameStats keep = stats;
+        const ShadowView sv = fit_shadow_view(key.to_light, cue_bounds);
+        const glm::mat4 vp(sv.view_proj);
+        shadow_pass->begin(sv, key.size);
+        for (auto &g : objects) {
+            if (!casts_shadow(g)) continue;
+            bind_caster(g);
+            if (g.geom == Geom::Mesh) {
+                glDrawElements(GL_TRIANGLES, g.index_count, GL_UNSIGNED_INT, nullptr);
+            } else if (part_for(g) == LinesPart::Proxy) {
+                const std::size_t n = drawn_proxy_chunks(g, false);
+                for (std::size_t k = 0; k < n; ++k) g.tract->draw_proxy_chunk(k);
+            } else if (defer && lod_proxy(g)) {
+                const std::size_t oi = std::size_t(&g - objects.data());
+                if (g.tract->over_bricks())
+                    for (const ChunkItem &it : g.tract->brick_sequence(oi, shadow_light_view())) defer->push_back(it);
+                else
+                    for (std::size_t k = 0; k < g.tract->chunk_count(); ++k) defer->push_back({oi, k, SIZE_MAX});
+            } else {
+                g.tract->draw_full(std::size_t(&g - objects.data()), shadow_light_view(), vp, key.size, key.size, settings.occlusion,
+                                   depth_scratch);
+            }
+        }
+        set_clipping(false);
+        shadow_pass->end();
+        if (settings.time_passes) glFinish();
+        stats = keep;
+        stats.shadow_ms = settings.time_passes ? ms_since(t0) : 0.0;
+        stats.shadow_map = key.size;
+        if (defer && !defer->empty())
+            shadow_pending = key, shadow_drawn = false;  // (the frame's objects wait for the rest)
+        else
+            shadow_key = key;
+    }
+    // Whether object g is drawn into the shadow map: opaque surfaces and
+    // streamlines drawn as lines or tubes (not the slab's crossings).
+    bool casts_shadow(const GpuObject &g) const {
+        return !g.slices && drawn(g.index) && !composited(g) && !(g.geom != Geom::Mesh && crossing_mode());
+    }
+    // The light's camera: for ordering bricks nearest it first.
+    View shadow_light_view() const {
+        View lv = frame_view;
+        const ShadowView &sv = shadow_pass->view();
+        for (int k = 0; k < 3; ++k) lv.eye[std::size_t(k)] = sv.eye[k], lv.target[std::size_t(k)] = sv.target[k];
+        return lv;
+    }
+    // Binds the caster program of g for the map being drawn.
+    void bind_caster(const GpuObject &g) {
+        const ShadowView &sv = shadow_pass->view();
+        Program &p = shadow_pass->caster(g.geom);
+        glUseProgram(p.id);
+        const glm::mat4 vp(sv.view_proj);
+        glUniformMatrix4fv(p.loc("hz_view_proj"), 1, GL_FALSE, glm::value_ptr(vp));
+        glUniform3f(p.loc("hz_eye"), float(sv.eye.x), float(sv.eye.y), float(sv.eye.z));
+        if (g.geom != Geom::Mesh) set_slab_planes(p);
+        set_clipping(g.geom != Geom::Mesh && scene.slab.has_value());
+        glBindVertexArray(g.vao);
+    }
+
     void draw_scene(const View &v, int w, int h) {
         const Matrices m = matrices(v, w, h);
         frame_view = v;
+        draw_shadow_map(m);
         const GLuint target = begin_frame(w, h);
         clear_and_sky(m, target, w, h);
         // A proxy frame: the last complete still first, reprojected; the
@@ -1210,13 +1341,18 @@ void main() {
         std::size_t next = 0;
         int step = 0;
         Culling culling;
+        // The shadow map's full detail still to draw (draw_shadow_map's
+        // `defer`), before everything else: the frame's objects read it.
+        std::vector<ChunkItem> shadow_items;
+        std::size_t shadow_next = 0;
+        Culling shadow_culling;
     } refine;
 
     void reset_counters() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
         stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = stats.volumes_drawn = 0;
         stats.volume_rays = 0;
-        stats.ao_ms = stats.depth_cue_ms = 0;
+        stats.ao_ms = stats.depth_cue_ms = stats.shadow_ms = 0;
         stats.transparency_layers = 0;
         stats.culled_chunks = stats.culled_points = stats.culled_streamlines = 0;
         stats.proxy = false;
@@ -1316,9 +1452,9 @@ void main() {
         stats.segments_drawn += first.segments_drawn, stats.chunks_drawn += first.chunks_drawn;
         stats.crossings_drawn += first.crossings_drawn;
         stats.reprojected_points = first.reprojected_points;
-        refine.active = !refine.items.empty();
+        refine.active = !refine.items.empty() || !refine.shadow_items.empty();
         refine.step = 1;
-        stats.refine_remaining = refine.items.size();
+        stats.refine_remaining = refine.items.size() + refine.shadow_items.size();
     }
 
     // The full-detail image of a progressive frame from camera v: cleared
@@ -1331,12 +1467,28 @@ void main() {
         frame_view = v;
         refine.items.clear(), refine.next = 0;
         refine.culling = Culling{};
+        refine.shadow_items.clear(), refine.shadow_next = 0;
+        refine.shadow_culling = Culling{};
+        draw_shadow_map(refine.m, &refine.shadow_items);
+        refine.shadow_culling.read = refine.shadow_culling.skip = settings.occlusion && settings.occlusion_skip;
         refine.target = begin_frame(w, h);
         clear_and_sky(refine.m, refine.target, w, h);
         glClearColor(0, 0, 0, 0);  // (alpha only: the background colour stays)
         glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_TRUE);
         if (!(ibl->on && scene.environment.visible)) glClear(GL_COLOR_BUFFER_BIT);
         glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+        if (refine.shadow_items.empty()) queue_refinement();
+    }
+
+    // The progressive frame's objects, once its shadow map is complete:
+    // everything without a proxy drawn now, the chunks of the others listed
+    // for the steps.
+    void queue_refinement() {
+        const View &v = refine.view;
+        const int w = refine.w, h = refine.h;
+        glBindFramebuffer(GL_FRAMEBUFFER, refine.target);
+        glViewport(0, 0, w, h);
+        opaque_state();
         for (auto &g : objects) {
             if (!drawn(g.index)) continue;
             const std::size_t oi = std::size_t(&g - objects.data());
@@ -1350,6 +1502,48 @@ void main() {
         }
         finish_frame(refine.target, w, h, /*complete=*/refine.items.empty());
         refine.culling.read = refine.culling.skip = settings.occlusion && settings.occlusion_skip && !crossing_mode();
+    }
+
+    // Draws the progressive frame's shadow map items (nearest the light
+    // first, the hidden ones skipped) until `budget_ms` from t0 have passed
+    // (at least one group); true once the map is complete.
+    bool shadow_step(Clock::time_point t0, double budget_ms) {
+        const FrameStats keep = stats;
+        const auto ts = Clock::now();
+        shadow_pass->resume();
+        const glm::mat4 vp(shadow_pass->view().view_proj);
+        const int size = shadow_pass->size();
+        Culling &c = refine.shadow_culling;
+        std::size_t bound = SIZE_MAX;
+        std::vector<std::size_t> next;
+        std::uint64_t group = 0;
+        bool due = false;
+        while (refine.shadow_next < refine.shadow_items.size()) {
+            const ChunkItem it = refine.shadow_items[refine.shadow_next++];
+            GpuObject &g = objects[it.object];
+            if (c.hidden(*g.tract, it, vp)) {
+                g.tract->cull_chunk(it.chunk);
+                continue;
+            }
+            if (it.object != bound) bind_caster(g), bound = it.object;
+            c.upcoming(*g.tract, refine.shadow_items, refine.shadow_next - 1, vp, next);
+            g.tract->draw_chunk(it.chunk, &next);
+            group += g.tract->chunk_points(it.chunk);
+            due = c.drew(*g.tract, it) || due;
+            if (group < TractogramDrawable::kBrickChunkPoints / 2 && refine.shadow_next < refine.shadow_items.size()) continue;
+            glFinish();
+            group = 0;
+            if (due) c.refresh(depth_scratch, size, size), due = false;
+            if (ms_since(t0) > budget_ms) break;
+        }
+        set_clipping(false);
+        shadow_pass->end();
+        stats = keep;
+        stats.shadow_ms = settings.time_passes ? ms_since(ts) : 0.0;
+        if (refine.shadow_next < refine.shadow_items.size()) return false;
+        refine.shadow_items.clear(), refine.shadow_next = 0;
+        shadow_key = shadow_pending, shadow_drawn = true;
+        return true;
     }
 
     // One more step of the progressive frame, of about `budget_ms` (at
@@ -1369,6 +1563,14 @@ void main() {
                 return false;
             }
             start_refinement(refine.view, refine.w, refine.h);
+        }
+        if (!refine.shadow_items.empty()) {
+            if (!shadow_step(t0, budget_ms)) {
+                stats.refine_step = ++refine.step;
+                stats.refine_remaining = refine.items.size() + refine.shadow_items.size() - refine.shadow_next;
+                return false;
+            }
+            queue_refinement();
         }
         glBindFramebuffer(GL_FRAMEBUFFER, refine.target);
         glViewport(0, 0, refine.w, refine.h);
@@ -1616,6 +1818,20 @@ void Renderer::set_depth_cue(const DepthCue &cue) {
     DepthCue &now = impl_->scene.depth_cue;
     if (cue.on != now.on || cue.strength != now.strength) ++impl_->generation;
     now = cue;
+}
+
+void Renderer::set_shadows(const Shadows &sh) {
+    check_shadows(sh);
+    Impl &I = *impl_;
+    Shadows &now = I.scene.shadows;
+    if (sh.on != now.on || sh.strength != now.strength || sh.softness_mm != now.softness_mm) ++I.generation;
+    if (sh.on != now.on)  // (the lit programs read the map or not: each object's are compiled again when next drawn)
+        for (GpuObject &g : I.objects) {
+            g.program = g.display_program = g.debug_program = g.peel_program = nullptr;
+            std::fill(std::begin(g.point_programs), std::end(g.point_programs), nullptr);
+            std::fill(std::begin(g.volume_programs), std::end(g.volume_programs), nullptr);
+        }
+    now = sh;
 }
 
 void Renderer::set_annotations(const Annotations &a) { impl_->scene.annotations = a; }

@@ -221,7 +221,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
     check_keys(root,
                {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab", "ambient_occlusion", "depth_cue",
-                "annotations"},
+                "shadows", "annotations"},
                what, "scene");
     Scene s;
     if (root.contains("ambient_occlusion")) {
@@ -260,6 +260,24 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             if (a.contains("strength")) s.depth_cue.strength = num_in(a["strength"], what, "depth_cue.strength", 0.0, 1.0);
         } else {
             fail(what, "depth_cue", "expected true, false, a strength in [0, 1] or an object {\"strength\": 0..1}");
+        }
+    }
+    if (root.contains("shadows")) {
+        // true | false | {"on": bool, "strength": 0..1, "softness": mm}
+        const json &a = root["shadows"];
+        if (a.is_boolean()) {
+            s.shadows.on = a.get<bool>();
+        } else if (a.is_object()) {
+            check_keys(a, {"on", "strength", "softness"}, what, "shadows");
+            s.shadows.on = true;
+            if (a.contains("on")) {
+                if (!a["on"].is_boolean()) fail(what, "shadows.on", "expected true or false");
+                s.shadows.on = a["on"].get<bool>();
+            }
+            if (a.contains("strength")) s.shadows.strength = num_in(a["strength"], what, "shadows.strength", 0.0, 1.0);
+            if (a.contains("softness")) s.shadows.softness_mm = num_in(a["softness"], what, "shadows.softness", 0.0, 50.0);
+        } else {
+            fail(what, "shadows", "expected true, false or an object {\"strength\": 0..1, \"softness\": mm}");
         }
     }
     if (root.contains("annotations")) {
@@ -533,6 +551,12 @@ void check_depth_cue(const DepthCue &cue) {
         throw Error("depth cue: strength " + std::to_string(cue.strength) + " is outside [0, 1]");
 }
 
+void check_shadows(const Shadows &sh) {
+    if (!(sh.strength >= 0 && sh.strength <= 1)) throw Error("shadows: strength " + std::to_string(sh.strength) + " is outside [0, 1]");
+    if (!(sh.softness_mm >= 0 && sh.softness_mm <= 50))
+        throw Error("shadows: softness " + std::to_string(sh.softness_mm) + " mm is outside [0, 50]");
+}
+
 Scene load_scene(const Registry &reg, const fs::path &file) {
     const std::string text = read_small_file(file, 64u << 20, "scene file");
     return parse_scene(reg, text, file.parent_path().empty() ? fs::path(".") : file.parent_path(), file.string());
@@ -750,6 +774,7 @@ Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const Clu
 Scene demo_scene(const Registry &reg, std::uint64_t nb_streamlines, std::uint32_t nb_bundles, std::uint64_t seed) {
     Scene s;
     s.ambient_occlusion.on = true;  // (the tubes' contact shadows on the cortex and slices; --no-ao)
+    s.shadows.on = true;            // (the key light's, cast by the tubes and the cortex; --no-shadows)
     PhantomOptions po;
     po.nb_streamlines = nb_streamlines;
     po.nb_bundles = nb_bundles;

@@ -153,6 +153,12 @@ struct FrameStats {
     // (0 when off or not timed): ambient occlusion (with the resolve of the
     // frame's depth the passes read), depth cue.
     double ao_ms = 0, depth_cue_ms = 0;
+    // The key light's shadow map (Scene::shadows) drawn for the last frame:
+    // its milliseconds with time_passes (0: not timed, or the last one kept
+    // because neither the light nor the scene changed), and its side in
+    // texels (0: no shadows drawn).
+    double shadow_ms = 0;
+    int shadow_map = 0;
     // Translucent layers composited in depth order in the last full frame
     // (depth peeling; 0: nothing translucent, 9: the eighth layer and a
     // last one in drawing order).
@@ -210,6 +216,9 @@ public:
     // Switches and sets depth cueing (Scene::depth_cue). Throws Error for a
     // strength outside [0, 1].
     void set_depth_cue(const DepthCue &cue);
+    // Switches and sets the key light's shadows (Scene::shadows). Throws
+    // Error for values outside those check_shadows accepts.
+    void set_shadows(const Shadows &s);
     // Sets what is drawn over the picture (Scene::annotations): kept in the
     // scene for whoever paints them (annotations.hpp); frames do not change.
     void set_annotations(const Annotations &a);

@@ -134,11 +134,25 @@ struct DepthCue {
     double strength = 0.6;
 };
 
+// Shadows of the key light, the first directional light (renderer
+// passes/shadow.hpp): opaque surfaces, lines and tubes cast them on
+// everything lit (slices, which show data, neither cast nor receive).
+// `strength`: how much of the key light a point in full shadow loses;
+// `softness_mm`: the radius over which shadow edges blend.
+struct Shadows {
+    bool on = false;
+    double strength = 0.75;
+    double softness_mm = 0.5;
+};
+
 // Throws Error "ambient occlusion: ..." unless 0 < radius_mm <= 1000 and
 // 0 <= strength <= 1 (finite).
 void check_ambient_occlusion(const AmbientOcclusion &ao);
 // Throws Error "depth cue: ..." unless 0 <= strength <= 1.
 void check_depth_cue(const DepthCue &cue);
+// Throws Error "shadows: ..." unless 0 <= strength <= 1 and
+// 0 <= softness_mm <= 50 (finite).
+void check_shadows(const Shadows &s);
 
 // What is drawn over the picture (annotations.hpp): a colour bar for every
 // object coloured through a colormap, the orientation of the patient's
@@ -154,6 +168,7 @@ struct Scene {
     std::vector<Object> objects;
     AmbientOcclusion ambient_occlusion;
     DepthCue depth_cue;
+    Shadows shadows;
     Annotations annotations;
     std::optional<Slab> slab;
     Camera camera;
