@@ -52,6 +52,22 @@ struct DepthCueOptions {
     }
 };
 
+// Volume rendering, the same for `render` and `view`: every volume (a data
+// file, or a scene's slices or volume) ray-marched through the transfer
+// function `transfer` (a preset, or a JSON file: then an input the outputs
+// may not replace); empty: as the scene says. Throws Error.
+struct VolumeOptions {
+    std::string transfer;  // --volume-render PRESET|FILE.json
+    void apply(core::render::Scene &s) const {
+        if (transfer.empty()) return;
+        const bool file = std::filesystem::path(transfer).extension() == ".json";
+        const core::render::TransferFunction tf = file ? core::render::load_transfer(transfer) : core::render::transfer_preset(transfer);
+        if (file) s.files.push_back(transfer);
+        for (auto &o : s.objects)
+            if (o.kind == HZ_DATA_VOLUME) o.transfer = tf;
+    }
+};
+
 // Annotations, the same for `render`, `view` and `demo`: they replace a scene file's.
 struct AnnotationOptions {
     bool all = false, none = false;                                   // --annotations, --no-annotations
@@ -135,6 +151,7 @@ struct RenderOptions {
     LodOptions lod;
     DepthCueOptions cues;
     AnnotationOptions annotations;
+    VolumeOptions volumes;
     bool preview = false;  // draw the level-of-detail proxy only (the window's first picture)
     bool force = false;    // replace an existing output
     int frames = 1;        // frames to draw (timing: the median of frames 2..N)
@@ -162,6 +179,7 @@ struct ViewOptions {
     LodOptions lod;
     DepthCueOptions cues;
     AnnotationOptions annotations;
+    VolumeOptions volumes;
     std::string stats;                          // --stats FILE.json: per-frame times and what was drawn
     double lod_frame_ms = 33;                   // moving frames kept within this by the proxy's level (0: the level fixed)
     bool explore = false;                       // Fig. 5: QuickBundlesX centroids, expand / hide / repeat

@@ -76,6 +76,14 @@ void add_depth_cue_options(CLI::App *cmd, DepthCueOptions &c) {
         ->excludes(no_sh);
 }
 
+void add_volume_options(CLI::App *cmd, VolumeOptions &v) {
+    std::string presets;
+    for (const auto &n : core::render::transfer_presets()) presets += (presets.empty() ? "" : ", ") + n;
+    cmd->add_option("--volume-render", v.transfer,
+                    "draw every volume by ray-marching through this transfer function instead of as slices: a preset (" + presets +
+                        ") or a JSON file {\"colormap\": ..., \"opacity\": [[fraction of the window, opacity of 1 mm], ...]}");
+}
+
 void add_annotation_options(CLI::App *cmd, AnnotationOptions &a) {
     auto *all = cmd->add_flag("--annotations", a.all,
                               "draw every annotation: --colour-bar, --orientation and --scale-bar (a scene file's "
@@ -262,6 +270,7 @@ int main(int argc, char **argv) {
     add_lod_options(render, ro.lod);
     add_depth_cue_options(render, ro.cues);
     add_annotation_options(render, ro.annotations);
+    add_volume_options(render, ro.volumes);
     render->add_flag("--preview", ro.preview, "draw the level-of-detail proxy only: the window's first picture, in a fraction of the time");
     render->add_option("--frames", ro.frames, "draw N frames and report the median time of frames 2..N (benchmarks)")
         ->check(CLI::Range(1, 1000))
@@ -306,6 +315,7 @@ int main(int argc, char **argv) {
     add_lod_options(view, vwo.lod);
     add_depth_cue_options(view, vwo.cues);
     add_annotation_options(view, vwo.annotations);
+    add_volume_options(view, vwo.volumes);
     view->footer("Keys in the window (scripts: key K, key ctrl+K):\n" + actions_help_text());
     view->add_option("--lod-frame-ms", vwo.lod_frame_ms,
                      "while the camera moves, the proxy's level follows the frame times: coarser when frames take longer than "

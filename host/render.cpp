@@ -237,6 +237,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                              {{"ambient_occlusion", {{"on", r.scene().ambient_occlusion.on}, {"ms", s.ao_ms}}},
                               {"depth_cue", {{"on", r.scene().depth_cue.on}, {"ms", s.depth_cue_ms}}},
                               {"shadows", {{"on", r.scene().shadows.on}, {"ms", s.shadow_ms}, {"map", s.shadow_map}}},
+                              {"volume_rendering", {{"volumes", s.volumes_rendered}, {"ms", s.volume_ms}}},
                               {"transparency", {{"layers", s.transparency_layers}}}}},
                             {"points_kept", s.points_drawn}};
         j["annotations"] = annotations_json(marks);
@@ -248,6 +249,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
         if (r.scene().ambient_occlusion.on) std::printf("  ambient occlusion: %.1f ms\n", s.ao_ms);
         if (r.scene().depth_cue.on) std::printf("  depth cue: %.1f ms\n", s.depth_cue_ms);
         if (r.scene().shadows.on) std::printf("  shadows: %.1f ms (a %dx%d map)\n", s.shadow_ms, s.shadow_map, s.shadow_map);
+        if (s.volumes_rendered) std::printf("  volume rendering: %.1f ms (%d volumes)\n", s.volume_ms, s.volumes_rendered);
         if (s.crossings_drawn)
             std::printf("  slab crossings drawn: %llu (where the streamlines cross the plane)\n", (unsigned long long)s.crossings_drawn);
         else if (s.points_total)
@@ -277,6 +279,7 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");
     o.cues.apply(scene);
     o.annotations.apply(scene);
+    o.volumes.apply(scene);
     // Every file the scene file named is an input too (its environment map,
     // meshes, overlays, masks): checked once it is known, before anything
     // is written.

@@ -1902,6 +1902,7 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
                               core::render::Scene s = scene_from_inputs(reg, o.inputs, o.view, "view");
                               o.cues.apply(s);
                               o.annotations.apply(s);
+                              o.volumes.apply(s);
                               return s;
                           }),
                           o);

@@ -246,6 +246,7 @@ struct FrameLog {
                           {"depth_cue_ms", drew ? s.depth_cue_ms : 0},
                           {"shadow_ms", drew ? s.shadow_ms : 0},
                           {"shadow_map", drew ? s.shadow_map : 0},
+                          {"volume_ms", drew ? s.volume_ms : 0},
                           {"clustering", clustering},
                           {"rss_anon_mb", anon}});
     }

@@ -528,6 +528,127 @@ class ShadowTest(TempDirTest):
             self.assertFalse(os.path.exists(self.path("x.png")))
 
 
+class VolumeRenderingTest(TempDirTest):
+    """Direct volume rendering against the emission-absorption integral
+    computed here: a 32 mm cube (32^3 voxels of 1 mm, centred on the origin)
+    seen from above along its axis, on a black background, with no tone
+    curve. A transfer function of opacity a per millimetre and colour c
+    gives, along a path of L mm through a homogeneous cube, c (1 - (1 -
+    a)^L) exactly; through values that vary, the integral of c T kappa with
+    kappa = -ln(1 - a) and T the transmittance, evaluated here with 20,000
+    steps."""
+
+    def setUp(self):
+        super().setUp()
+        import nibabel as nib
+        affine = np.eye(4)
+        affine[:3, 3] = -15.5
+        nib.save(nib.Nifti1Image(np.ones((32, 32, 32), np.float32), affine), self.path("cube.nii.gz"))
+        ramp = np.broadcast_to(np.arange(32, dtype=np.float32)[None, None, :], (32, 32, 32)).copy()
+        nib.save(nib.Nifti1Image(ramp, affine), self.path("ramp.nii.gz"))
+        with open(self.path("plane.obj"), "w") as f:
+            f.write("v -40 -40 0\nv 40 -40 0\nv 40 40 0\nv -40 40 0\nf 1 2 3\nf 1 3 4\n")
+
+    def render(self, objects, *args, name="v.png"):
+        with open(self.path("s.json"), "w") as f:
+            json.dump({"camera": {"view": "superior"}, "environment": {"type": "none"}, "tonemap": "none", "background": [0, 0, 0],
+                       "objects": objects}, f)
+        out = self.path(name)
+        p = run("render", self.path("s.json"), "-o", out, "--size", "301x301", "--force", "--json", *args, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return np.asarray(Image.open(out).convert("RGB"), dtype=np.float64), json.loads(p.stdout)
+
+    def cube(self, a, **extra):
+        return {"type": "volume", "file": "cube.nii.gz", "window": [0, 1],
+                "transfer": {"colormap": "gray", "opacity": [[0, a], [1, a]]}, **extra}
+
+    def centre(self, picture):
+        return picture[148:153, 148:153, 0].mean() / 255.0
+
+    def test_a_homogeneous_cube_absorbs_as_beer_lambert(self):
+        for a in (0.02, 0.05, 0.2):
+            with self.subTest(a=a):
+                pic, info = self.render([self.cube(a)])
+                self.assertEqual(info["passes"]["volume_rendering"]["volumes"], 1)
+                self.assertAlmostEqual(self.centre(pic), 1 - (1 - a) ** 32, delta=1.5 / 255)
+                # An opaque black plane through its middle: the rays end there.
+                pic, _ = self.render([self.cube(a), {"type": "surface", "file": "plane.obj", "color": [0, 0, 0],
+                                                     "material": {"shader": "flat"}}])
+                self.assertAlmostEqual(self.centre(pic), 1 - (1 - a) ** 16, delta=1.5 / 255)
+        pic, _ = self.render([self.cube(0.05, opacity=0.5)])
+        self.assertAlmostEqual(self.centre(pic), 0.5 * (1 - 0.95 ** 32), delta=1.5 / 255)
+        # Outside the cube: the background, untouched.
+        self.assertEqual(pic[5, 5].max(), 0)
+
+    def test_varying_values_follow_the_emission_absorption_integral(self):
+        """Values rising from 0 at the bottom slice to 31 at the top, a
+        window [0, 31], grey colours and opacity 0.15 x the window fraction
+        per mm: seen from above, the bright top first."""
+        obj = {"type": "volume", "file": "ramp.nii.gz", "window": [0, 31],
+               "transfer": {"colormap": "gray", "opacity": [[0, 0.0], [1, 0.15]]}}
+        pic, _ = self.render([obj])
+        n = 20000
+        z = 16 - (np.arange(n) + 0.5) * 32 / n  # top to bottom, mm
+        w = np.clip((z + 15.5) / 31.0, 0, 1)  # (voxel centres at -15.5..15.5; clamped beyond)
+        kappa = -np.log(1 - 0.15 * w)
+        dz = 32 / n
+        transmittance = np.exp(-np.concatenate([[0], np.cumsum(kappa * dz)[:-1]]))
+        want = float(np.sum(transmittance * (1 - np.exp(-kappa * dz)) * w))
+        self.assertAlmostEqual(self.centre(pic), want, delta=2.0 / 255)
+
+    def test_presets_files_and_the_window(self):
+        with open(self.path("tf.json"), "w") as f:
+            json.dump({"colormap": "hot", "opacity": [[0, 0.1], [1, 0.1]]}, f)
+        for transfer in ("mri", "density", "hot", "glow", "tf.json"):
+            with self.subTest(transfer=transfer):
+                out = self.path("p.png")
+                p = run("render", self.path("ramp.nii.gz"), "-o", out, "--size", "160x160", "--force", "--json",
+                        "--volume-render", self.path(transfer) if transfer.endswith(".json") else transfer)
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertEqual(json.loads(p.stdout)["passes"]["volume_rendering"]["volumes"], 1)
+                pic = np.asarray(Image.open(out).convert("RGB"), dtype=np.float64)
+                self.assertGreater((pic.max(2) > 70).sum(), 300)
+        # In the window: a volume rendered, moving frames too (small, three times the step).
+        shots = [self.path("w0.png"), self.path("w1.png")]
+        with open(self.path("script.txt"), "w") as f:
+            f.write("\n".join(["wait 2", f"screenshot {shots[0]}", "moving on", "wait 2", f"screenshot {shots[1]}", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        p = xvfb_run([HORIZON, "view", self.path("ramp.nii.gz"), "--volume-render", self.path("tf.json"), "--size", "400x400",
+                      "--script", self.path("script.txt"), "--stats", self.path("stats.json")], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        for s in shots:
+            pic = np.asarray(Image.open(s).convert("RGB"), dtype=np.float64)
+            self.assertGreater(pic[200, 300].max(), 40)
+        frames = json.load(open(self.path("stats.json")))["frames"]
+        self.assertTrue(any(f.get("volume_ms", 0) > 0 for f in frames))
+        moving = [f for f in frames if f["kind"] == "moving"]
+        self.assertTrue(moving and all(f["proxy"] for f in moving), "moving frames drawn small")
+
+    def test_bad_transfer_functions_are_one_line(self):
+        cases = (("bone", "no preset 'bone'"), ({"opacity": [[0, 0.1], [0, 0.2]]}, "opacity[1]: fractions must increase"),
+                 ({"opacity": [[0, 1.5]]}, "opacity of one millimetre"), ({"opacity": [[-1, 0.5]]}, "fraction of the window"),
+                 ({"opacity": []}, "1 to 256"), ({"colormap": "jet"}, "jet"), ({"shade": True}, "shade"), ("missing.json", "missing.json"),
+                 ("bad.json", "bad.json"))
+        with open(self.path("bad.json"), "w") as f:
+            f.write("{not json")
+        for transfer, words in cases:
+            with self.subTest(transfer=transfer):
+                with open(self.path("s.json"), "w") as f:
+                    json.dump({"objects": [{"type": "volume", "file": "cube.nii.gz", "transfer": transfer}]}, f)
+                p = run("render", self.path("s.json"), "-o", self.path("x.png"), "--size", "64x64")
+                self.assertEqual(p.returncode, 1, p.stderr)
+                self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+                self.assertIn(words, p.stderr)
+                self.assertFalse(os.path.exists(self.path("x.png")))
+        for arg in ("bone", self.path("bad.json"), self.path("missing.json")):
+            p = run("render", self.path("cube.nii.gz"), "-o", self.path("x.png"), "--size", "64x64", "--volume-render", arg)
+            self.assertEqual(p.returncode, 1, p.stderr)
+            self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+            self.assertFalse(os.path.exists(self.path("x.png")))
+
+
 def linear(v):
     v = np.asarray(v, dtype=np.float64) / 255.0
     return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)

@@ -72,7 +72,11 @@ struct GpuObject {
     mutable Program *program = nullptr, *display_program = nullptr, *debug_program = nullptr, *peel_program = nullptr;
     mutable Program *point_programs[4] = {};   // the slab's crossings, by output
     mutable Program *volume_programs[4] = {};  // the fibre volume, by output
-    // slices
+    // slices, or a volume rendered (dvr: ray-marched through its transfer
+    // function, colormap_tex then the pass's table; step_mm: half its
+    // smallest voxel side)
+    bool dvr = false;
+    double step_mm = 0.5;
     GLuint volume_tex = 0, colormap_tex = 0;
     GLsizei slice_vertices = 0;
     glm::mat4 ras_to_tex{1.0f};
@@ -87,7 +91,8 @@ struct GpuObject {
 // GL objects g.vao/vbo/ebo are created and bound by the caller's context.
 void upload_mesh(GpuObject &g, const Object &o);
 // A volume's three slices: the volume as a 3D texture, its colour map, and
-// the slice quads.
+// the slice quads; or, with o.transfer, the texture and the transfer
+// function's table for the volume rendering pass.
 void upload_slices(GpuObject &g, const Object &o);
 
 }  // namespace hz::core::render

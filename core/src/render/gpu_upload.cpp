@@ -1,5 +1,6 @@
 // Meshes and volume slices on the GPU (gpu_object.hpp).
 #include "gpu_object.hpp"
+#include "passes/volume_rendering.hpp"
 
 #include "colour.hpp"
 
@@ -155,7 +156,19 @@ void upload_slices(GpuObject &g, const Object &o) {
             g.window = {lo, std::max(s[s.size() * 99 / 100], lo + 1e-6f)};
         }
     }
-    g.colour_scale = ColourScale{o.name, "", o.slice_colormap, g.window};
+    if (o.transfer) {  // a volume rendered: the transfer function's table instead of a colormap
+        check_transfer(*o.transfer);
+        g.dvr = true;
+        g.colour_scale = ColourScale{o.name, "", o.transfer->colormap, g.window};
+        const std::vector<float> table = transfer_table(*o.transfer);
+        glGenTextures(1, &g.colormap_tex);
+        glBindTexture(GL_TEXTURE_2D, g.colormap_tex);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA16F, 256, 1, 0, GL_RGBA, GL_FLOAT, table.data());
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    }
+    if (!o.transfer) g.colour_scale = ColourScale{o.name, "", o.slice_colormap, g.window};
     // Colormap texture (sRGB table).
     std::vector<std::uint8_t> lut(256 * 4);
     for (int i = 0; i < 256; ++i) {
@@ -163,9 +176,9 @@ void upload_slices(GpuObject &g, const Object &o) {
         const auto q = rgba8(cm[0], cm[1], cm[2]);
         std::memcpy(&lut[i * 4], q.data(), 4);
     }
-    glGenTextures(1, &g.colormap_tex);
+    if (!g.dvr) glGenTextures(1, &g.colormap_tex);
     glBindTexture(GL_TEXTURE_2D, g.colormap_tex);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, 256, 1, 0, GL_RGBA, GL_UNSIGNED_BYTE, lut.data());
+    if (!g.dvr) glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, 256, 1, 0, GL_RGBA, GL_UNSIGNED_BYTE, lut.data());
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
@@ -203,6 +216,12 @@ void upload_slices(GpuObject &g, const Object &o) {
             quads.push_back(float(p.x)), quads.push_back(float(p.y)), quads.push_back(float(p.z));
         }
     };
+    // (the ray march's step: half the smallest voxel side)
+    g.step_mm = 0.5 * std::min({glm::length(glm::dvec3(A[0])), glm::length(glm::dvec3(A[1])), glm::length(glm::dvec3(A[2]))});
+    if (o.transfer) {
+        g.slice_vertices = 0;
+        return;
+    }
     if (o.slice_x) quad(0, *o.slice_x);
     if (o.slice_y) quad(1, *o.slice_y);
     if (o.slice_z) quad(2, *o.slice_z);

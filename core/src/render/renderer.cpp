@@ -14,6 +14,7 @@
 #include "passes/ambient_occlusion.hpp"
 #include "passes/depth_cue.hpp"
 #include "passes/shadow.hpp"
+#include "passes/volume_rendering.hpp"
 #include "passes/transparency.hpp"
 #include "passes/frame_depth.hpp"
 #include "reprojection.hpp"
@@ -214,6 +215,7 @@ struct Renderer::Impl {
     std::unique_ptr<FrameDepth> frame_depth;
     std::unique_ptr<AmbientOcclusionPass> ao_pass;
     std::unique_ptr<ShadowPass> shadow_pass;
+    std::unique_ptr<VolumeRendering> volume_pass;
     std::unique_ptr<DepthCuePass> cue_pass;
     // Translucent objects, composited in depth order (passes/transparency).
     std::unique_ptr<DepthPeeling> peeling;
@@ -322,6 +324,8 @@ struct Renderer::Impl {
         peeling = std::make_unique<DepthPeeling>(
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
         frame_depth = std::make_unique<FrameDepth>();
+        volume_pass = std::make_unique<VolumeRendering>(
+            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
         shadow_pass = std::make_unique<ShadowPass>(
             [this](const std::string &vs, const std::string &gs, const std::string &fs, const std::string &what) {
                 std::vector<GLuint> stages{compile_shader(GL_VERTEX_SHADER, vs, what + " (vertex)")};
@@ -341,6 +345,7 @@ struct Renderer::Impl {
         warp.reset();
         ao_pass.reset();
         shadow_pass.reset();
+        volume_pass.reset();
         cue_pass.reset();
         peeling.reset();
         frame_depth.reset();
@@ -405,7 +410,7 @@ struct Renderer::Impl {
         return false;
     }
     // ... and once uploaded (the snippet it is drawn with).
-    bool composited(const GpuObject &g) const { return scene.objects[g.index].opacity < 1.0 || g.refractive; }
+    bool composited(const GpuObject &g) const { return (!g.dvr && scene.objects[g.index].opacity < 1.0) || g.refractive; }
 
     // The output of the next frame: display unless something drawn needs
     // the HDR path.
@@ -810,7 +815,7 @@ struct Renderer::Impl {
     void draw_object(GpuObject &g, const Object &o, const Matrices &m, const View &v, bool debug, int w, int h,
                      LinesPart lines = LinesPart::Full) {
         if (g.slices) {
-            if (debug) return;
+            if (debug || g.dvr) return;  // (a volume rendered: by the pass after the geometry, draw_volumes)
             set_clipping(false);
             Program *slice = &aux(Aux::Slices, display_direct);
             glUseProgram(slice->id);
@@ -960,7 +965,7 @@ struct Renderer::Impl {
     void finish_frame(GLuint target, int w, int h, bool complete = false) {
         set_clipping(false);
         if (target == out_->fbo) {
-            if (complete) passes_after_geometry(out_->fbo, target, w, h, true);
+            if (complete) passes_after_geometry(out_->fbo, target, w, h, true), draw_volumes(out_->fbo, target, w, h, true);
             return;
         }
         if (!peeled) {  // (with translucency, `resolved` holds the composite already)
@@ -969,7 +974,39 @@ struct Renderer::Impl {
             glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
         }
         if (complete) passes_after_geometry(display_direct ? out_->fbo : resolved.fbo, target, w, h, display_direct);
+        if (complete) draw_volumes(display_direct ? out_->fbo : resolved.fbo, target, w, h, display_direct);
         if (!display_direct) tonemap_to(out_->fbo, w, h);
+    }
+
+    // The volumes rendered (Object::transfer) over the picture in
+    // `colour_fbo` (display values if `encoded`, else linear radiance), each
+    // ray ending at the depth of `depth_fbo`: after the passes that read the
+    // opaque geometry's depth (ambient occlusion does not darken what lies
+    // in front of what it darkens), in scene order. A moving (proxy) frame
+    // marches with three times the step (its cheap form: about 1.5 voxels).
+    void draw_volumes(GLuint colour_fbo, GLuint depth_fbo, int w, int h, bool encoded) {
+        const bool any = std::any_of(objects.begin(), objects.end(), [&](const GpuObject &g) { return g.dvr && drawn(g.index); });
+        if (!any) return;
+        if (settings.time_passes) glFinish();
+        const auto t0 = Clock::now();
+        frame_depth->resolve(depth_fbo, w, h);
+        const Matrices m = matrices(frame_view, w, h);
+        for (const GpuObject &g : objects) {
+            if (!g.dvr || !drawn(g.index)) continue;
+            VolumeRayParams p;
+            p.inv_view_proj = glm::mat4(m.inv_view_proj);
+            p.eye = glm::vec3(float(frame_view.eye[0]), float(frame_view.eye[1]), float(frame_view.eye[2]));
+            p.ras_to_tex = g.ras_to_tex;
+            p.window = glm::vec2(float(g.window[0]), float(g.window[1]));
+            p.step_mm = float(g.step_mm * (out_ == &lowres ? 3.0 : 1.0));
+            p.opacity = float(scene.objects[g.index].opacity);
+            p.volume_tex = g.volume_tex, p.transfer_tex = g.colormap_tex;
+            p.tone_curve = tone_curve(), p.exposure = float(scene.exposure);
+            volume_pass->apply(colour_fbo, *frame_depth, p, empty_vao, encoded);
+            ++stats.volumes_rendered;
+        }
+        opaque_state();
+        if (settings.time_passes) glFinish(), stats.volume_ms += ms_since(t0);
     }
     bool any_pass_after_geometry() const { return scene.ambient_occlusion.on || scene.depth_cue.on; }
 
@@ -1352,12 +1389,20 @@ void main() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
         stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = stats.volumes_drawn = 0;
         stats.volume_rays = 0;
-        stats.ao_ms = stats.depth_cue_ms = stats.shadow_ms = 0;
+        stats.ao_ms = stats.depth_cue_ms = stats.shadow_ms = stats.volume_ms = 0;
+        stats.volumes_rendered = 0;
         stats.transparency_layers = 0;
         stats.culled_chunks = stats.culled_points = stats.culled_streamlines = 0;
         stats.proxy = false;
         stats.refine_step = 0;
         stats.refine_remaining = 0;
+    }
+
+    // Whether a moving frame is drawn small and upscaled (proxy_frame): a
+    // tractogram with a level-of-detail proxy, or a volume rendered (its
+    // rays are the frame's cost: 0.7 s for 256^3 at 1280x720 on llvmpipe).
+    bool moving_frame_small() const {
+        return any_lod_proxy() || std::any_of(objects.begin(), objects.end(), [&](const GpuObject &g) { return g.dvr && drawn(g.index); });
     }
 
     bool any_lod_proxy() const {
@@ -1368,7 +1413,7 @@ void main() {
     // level-of-detail proxy and the camera moves, the proxy frame (at
     // 1/proxy_scale of the size into lowres, upscaled into ldr).
     void frame(const View &v, int w, int h) {
-        if (interacting && any_lod_proxy())
+        if (interacting && moving_frame_small())
             proxy_frame(v, w, h);
         else
             draw_scene(v, w, h);
@@ -1388,6 +1433,7 @@ void main() {
         out_ = &lowres;
         try {
             draw_scene(v, pw, ph);
+            stats.proxy = true;  // (drawn small: a proxy of the frame, whatever it drew)
         } catch (...) {
             out_ = &ldr, interacting = was;
             throw;
@@ -1949,7 +1995,7 @@ void Renderer::render_to_window(const View &view, int width, int height) {
     const auto t0 = Clock::now();
     I.refine.active = false;
     I.reset_counters();
-    if (I.interacting && I.any_lod_proxy()) {
+    if (I.interacting && I.moving_frame_small()) {
         I.proxy_frame(view, width, height, /*to_window=*/true);
     } else {
         I.frame(view, width, height);

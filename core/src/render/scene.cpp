@@ -186,7 +186,7 @@ Dataset object_data(const Registry &reg, const json &o, const std::string &type,
         ds.format = "builtin cortex";
         ds.mesh = make_cortex_mesh();
     } else {
-        if (type != "slices") fail(what, where, "builtin 'head' is a volume (type 'slices')");
+        if (type != "slices" && type != "volume") fail(what, where, "builtin 'head' is a volume (type 'slices' or 'volume')");
         ds.kind = HZ_DATA_VOLUME;
         ds.format = "builtin head";
         ds.volume = make_head_volume();
@@ -214,6 +214,80 @@ void apply_file_material(Object &ob, bool has_material, bool has_color) {
         if (meta.count("material.roughnessFactor"))
             ob.material.params["roughness"] = {std::clamp(std::atof(meta["material.roughnessFactor"].c_str()), 0.0, 1.0)};
     }
+}
+
+namespace {
+
+// {"colormap": name, "opacity": [[fraction, opacity per mm], ...]} (either
+// key may be left out: the "mri" preset's), checked.
+TransferFunction transfer_from_json(const json &j, const std::string &what, const std::string &where) {
+    TransferFunction tf;
+    tf.name = "custom";
+    if (!j.is_object())
+        fail(what, where, "expected a preset name, or an object {\"colormap\": ..., \"opacity\": [[fraction, opacity], ...]}");
+    check_keys(j, {"colormap", "opacity"}, what, where);
+    if (j.contains("colormap"))
+        tf.colormap = str(j["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
+    if (j.contains("opacity")) {
+        const json &o = j["opacity"];
+        if (!o.is_array() || o.empty() || o.size() > 256) fail(what, where + ".opacity", "expected 1 to 256 points [fraction, opacity]");
+        tf.opacity.clear();
+        for (std::size_t i = 0; i < o.size(); ++i) {
+            const std::string at = where + ".opacity[" + std::to_string(i) + "]";
+            const auto v = vec<2>(o[i], what, at);
+            if (!(v[0] >= 0 && v[0] <= 1)) fail(what, at, "the fraction of the window must be in [0, 1], not " + o[i][0].dump());
+            if (!(v[1] >= 0 && v[1] <= 1)) fail(what, at, "the opacity of one millimetre must be in [0, 1], not " + o[i][1].dump());
+            if (!tf.opacity.empty() && !(v[0] > tf.opacity.back()[0])) fail(what, at, "fractions must increase");
+            tf.opacity.push_back(v);
+        }
+    }
+    return tf;
+}
+
+}  // namespace
+
+const std::vector<std::string> &transfer_presets() {
+    static const std::vector<std::string> names = {"mri", "density", "hot", "glow"};
+    return names;
+}
+
+TransferFunction transfer_preset(const std::string &name) {
+    TransferFunction tf;
+    tf.name = name;
+    if (name == "mri") return tf;
+    if (name == "density") {
+        tf.colormap = "viridis", tf.opacity = {{0.0, 0.0}, {0.02, 0.0}, {1.0, 0.15}};
+        return tf;
+    }
+    if (name == "hot") {
+        tf.colormap = "hot", tf.opacity = {{0.0, 0.0}, {0.5, 0.0}, {1.0, 0.3}};
+        return tf;
+    }
+    if (name == "glow") {
+        tf.colormap = "inferno", tf.opacity = {{0.0, 0.0}, {0.6, 0.0}, {1.0, 0.5}};
+        return tf;
+    }
+    std::string list;
+    for (const auto &n : transfer_presets()) list += (list.empty() ? "" : ", ") + n;
+    throw Error("transfer function: no preset '" + name + "' (presets: " + list + "; or a JSON file)");
+}
+
+void check_transfer(const TransferFunction &tf) {
+    static const std::set<std::string> maps = {"viridis", "inferno", "gray", "coolwarm", "hot"};
+    if (!maps.count(tf.colormap)) throw Error("transfer function: unknown colormap '" + tf.colormap + "'");
+    if (tf.opacity.empty() || tf.opacity.size() > 256) throw Error("transfer function: expected 1 to 256 opacity points");
+    for (std::size_t i = 0; i < tf.opacity.size(); ++i) {
+        const auto &[f, a] = tf.opacity[i];
+        if (!(f >= 0 && f <= 1) || !(a >= 0 && a <= 1)) throw Error("transfer function: point " + std::to_string(i) + " is outside [0, 1]");
+        if (i > 0 && !(f > tf.opacity[i - 1][0])) throw Error("transfer function: fractions must increase");
+    }
+}
+
+TransferFunction load_transfer(const fs::path &file) {
+    const std::string text = read_small_file(file, 64u << 10, "transfer function");
+    const json j = json::parse(text, nullptr, false);
+    if (j.is_discarded()) throw Error(file.string() + ": not valid JSON");
+    return transfer_from_json(j, file.string(), "transfer function");
 }
 
 Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what) {
@@ -371,7 +445,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         const json &o = root["objects"][i];
         const std::string where = "objects[" + std::to_string(i) + "]";
         if (!o.is_object() || !o.contains("type")) fail(what, where, "expected an object with a 'type'");
-        const std::string type = str(o["type"], what, where + ".type", {"streamlines", "surface", "slices"});
+        const std::string type = str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume"});
         Object ob;
         ob.name = type + " " + std::to_string(i);
         if (type == "streamlines") {
@@ -383,6 +457,33 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         } else if (type == "surface") {
             check_keys(o, {"type", "name", "file", "builtin", "overlays", "color", "material", "visible", "opacity"}, what, where);
             ob.coloring.color = {0.85, 0.72, 0.68};
+        } else if (type == "volume") {
+            check_keys(o, {"type", "name", "file", "builtin", "window", "transfer", "visible", "opacity"}, what, where);
+            ob.transfer = transfer_preset("mri");
+            if (o.contains("transfer")) {
+                const json &t = o["transfer"];
+                if (t.is_string()) {
+                    const std::string v = t.get<std::string>();
+                    const bool file = fs::path(v).extension() == ".json";
+                    if (file) s.files.push_back((base / v).string());
+                    try {
+                        ob.transfer = file ? load_transfer(base / v) : transfer_preset(v);
+                    } catch (const Error &e) {
+                        fail(what, where + ".transfer", e.what());
+                    }
+                } else if (t.is_object() && t.contains("file")) {
+                    check_keys(t, {"file"}, what, where + ".transfer");
+                    const fs::path f = base / str(t["file"], what, where + ".transfer.file");
+                    s.files.push_back(f.string());
+                    try {
+                        ob.transfer = load_transfer(f);
+                    } catch (const Error &e) {
+                        fail(what, where + ".transfer", e.what());
+                    }
+                } else {
+                    ob.transfer = transfer_from_json(t, what, where + ".transfer");
+                }
+            }
         } else {
             check_keys(o, {"type", "name", "file", "builtin", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity"},
                        what, where);

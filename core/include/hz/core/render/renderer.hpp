@@ -159,11 +159,15 @@ struct FrameStats {
     // texels (0: no shadows drawn).
     double shadow_ms = 0;
     int shadow_map = 0;
+    // Volumes rendered by ray-marching (Object::transfer) in the last frame,
+    // and the pass's milliseconds with time_passes.
+    int volumes_rendered = 0;
+    double volume_ms = 0;
     // Translucent layers composited in depth order in the last full frame
     // (depth peeling; 0: nothing translucent, 9: the eighth layer and a
     // last one in drawing order).
     int transparency_layers = 0;
-    bool proxy = false;                  // a level-of-detail proxy was drawn
+    bool proxy = false;                  // a level-of-detail proxy was drawn, or the frame drawn small and upscaled
     int proxy_level = 0;                 // ... at this level (Renderer::proxy_levels' index)
     int refine_step = 0;                 // progressive: the step (0: a whole frame)
     std::uint64_t refine_remaining = 0;  // progressive: chunks still to draw

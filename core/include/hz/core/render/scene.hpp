@@ -8,6 +8,7 @@
 #include <hz/core/plugin_host.hpp>
 
 #include <array>
+#include <filesystem>
 #include <map>
 #include <optional>
 #include <string>
@@ -47,6 +48,32 @@ struct ClusterSpec {
     bool width_by_size = true;                          // tube radius grows with sqrt(cluster size)
 };
 
+// How direct volume rendering maps a volume's values to colour and opacity
+// (renderer passes/volume_rendering.hpp): along the object's window, the
+// colours of `colormap` and a piecewise-linear opacity, given as (window
+// fraction in [0, 1], opacity of one millimetre in [0, 1]) in increasing
+// fraction order (clamped at both ends). A preset or a user's (scene file,
+// or a JSON file of the same keys; docs/scene-format.md).
+struct TransferFunction {
+    std::string name = "mri";  // the preset's name, or "custom"
+    std::string colormap = "gray";
+    std::vector<std::array<double, 2>> opacity{{0.0, 0.0}, {0.3, 0.0}, {1.0, 0.25}};
+};
+// The presets' names: mri (grey, tissue above 30 % of the window), density
+// (viridis, anything above 2 %: tract density, fODF amplitude), hot (hot,
+// the top half), glow (inferno, the brightest).
+const std::vector<std::string> &transfer_presets();
+// Preset `name`; throws Error naming the presets otherwise.
+TransferFunction transfer_preset(const std::string &name);
+// Throws Error "transfer function: ..." unless the colormap is known, the
+// opacity has 1 to 256 points with fractions in [0, 1], increasing, and
+// opacities in [0, 1], all finite.
+void check_transfer(const TransferFunction &tf);
+// Reads a transfer function from a JSON file ({"colormap": ..., "opacity":
+// [[fraction, opacity per mm], ...]}, 64 KiB at most); throws Error naming
+// the file.
+TransferFunction load_transfer(const std::filesystem::path &file);
+
 struct Object {
     std::string name;
     hz_data_kind kind = 0;  // STREAMLINES, MESH or VOLUME (drawn as slices)
@@ -74,6 +101,9 @@ struct Object {
     std::optional<std::array<double, 2>> window;  // value range mapped to the colormap
     std::string slice_colormap = "gray";
     std::optional<double> clip_below;  // values below are transparent (e.g. the background)
+    // volumes: drawn by ray-marching through this transfer function instead
+    // of as slices (a scene's "type": "volume")
+    std::optional<TransferFunction> transfer;
 };
 
 struct Camera {
