@@ -1,0 +1,277 @@
+// The compiled part of the `horizon` Python package (horizon._core): the
+// same core and plugins as the `horizon` program, through pybind11.
+//
+// Arrays are lent to numpy without a copy: each array's base is the Python
+// object of the dataset it belongs to, which keeps the dataset (and the file
+// mapping or memory its buffers view) alive as long as any array does. They
+// are read-only: a mapped file's pages are copy-on-write, and a writer would
+// otherwise change what every other view sees.
+//
+// Threading: the GIL is released while a file is read or written and while
+// a picture is drawn; the OpenGL context (one per process, made on the first
+// render) is used by one call at a time (a lock).
+#include <hz/core/data.hpp>
+#include <hz/core/io.hpp>
+#include <hz/core/plugin_host.hpp>
+#include <hz/core/render/context.hpp>
+#include <hz/core/render/renderer.hpp>
+#include <hz/core/render/scene.hpp>
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <cstring>
+#include <memory>
+#include <mutex>
+
+namespace py = pybind11;
+using namespace hz;
+
+namespace {
+
+std::mutex g_mutex;  // the registry's creation, and the GL context's use
+std::unique_ptr<core::Registry> g_registry;
+std::vector<core::fs::path> g_dirs;  // the package's plugin folders (set by horizon/__init__.py)
+std::unique_ptr<core::render::GlContext> g_context;
+
+core::Registry &registry() {
+    std::lock_guard lock(g_mutex);
+    if (!g_registry) {
+        auto reg = std::make_unique<core::Registry>(core::Registry::Options{true, 10.0, core::default_trial_cache()});
+        {
+            py::gil_scoped_release nogil;  // (each plugin file is tried in a child process first)
+            reg->scan(core::plugin_search_path(g_dirs));
+        }
+        g_registry = std::move(reg);
+    }
+    return *g_registry;
+}
+
+// A dataset read from a file, shared by the Python object and its arrays.
+struct Data {
+    std::shared_ptr<core::Dataset> ds;
+    std::string path;
+};
+
+py::dtype dtype_of(hz_dtype t) {
+    switch (t) {
+    case HZ_DTYPE_U8: return py::dtype::of<std::uint8_t>();
+    case HZ_DTYPE_I8: return py::dtype::of<std::int8_t>();
+    case HZ_DTYPE_U16: return py::dtype::of<std::uint16_t>();
+    case HZ_DTYPE_I16: return py::dtype::of<std::int16_t>();
+    case HZ_DTYPE_U32: return py::dtype::of<std::uint32_t>();
+    case HZ_DTYPE_I32: return py::dtype::of<std::int32_t>();
+    case HZ_DTYPE_U64: return py::dtype::of<std::uint64_t>();
+    case HZ_DTYPE_I64: return py::dtype::of<std::int64_t>();
+    case HZ_DTYPE_F32: return py::dtype::of<float>();
+    case HZ_DTYPE_F64: return py::dtype::of<double>();
+    default: throw core::Error(std::string("arrays of ") + core::dtype_name(t) + " have no numpy type");
+    }
+}
+
+// A read-only numpy view of `ptr`, owned by `owner` (the Data's Python object).
+py::array view(py::dtype dt, std::vector<py::ssize_t> shape, std::vector<py::ssize_t> strides, const void *ptr, py::handle owner) {
+    py::array a(dt, std::move(shape), std::move(strides), ptr, owner);
+    py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+    return a;
+}
+
+py::array affine(const core::Affine &m) {
+    py::array_t<double> a({4, 4});
+    std::memcpy(a.mutable_data(), m.data(), sizeof(double) * 16);
+    return a;
+}
+
+// Every array of `arrays` as {name: (attach, numpy view)}.
+py::dict arrays_of(const std::vector<core::DataArray> &arrays, py::handle owner) {
+    py::dict d;
+    for (const core::DataArray &a : arrays) {
+        const auto size = py::ssize_t(core::dtype_size(a.dtype));
+        std::vector<py::ssize_t> shape{py::ssize_t(a.count)}, strides{size * py::ssize_t(a.components)};
+        if (a.components > 1) shape.push_back(py::ssize_t(a.components)), strides.push_back(size);
+        const char *attach = a.attach == HZ_ATTACH_STREAMLINE ? "streamline" : a.attach == HZ_ATTACH_FACE ? "face" : "vertex";
+        d[py::str(a.name)] = py::make_tuple(attach, view(dtype_of(a.dtype), shape, strides, a.bytes.data(), owner));
+    }
+    return d;
+}
+
+const core::Dataset &need(const Data &d, hz_data_kind kind, const char *what) {
+    if (d.ds->kind != kind)
+        throw py::attribute_error(std::string(what) + ": " + d.path + " holds " + core::kind_name(d.ds->kind) + ", not " +
+                                  core::kind_name(kind));
+    return *d.ds;
+}
+
+std::unique_ptr<core::render::GlContext> &context() {
+    if (!g_context) g_context = core::render::make_headless_context();
+    return g_context;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_core, m) {
+    m.doc() = "Horizon's core: loaders, writers and the headless renderer, through the same plugins as the horizon program";
+    py::register_exception<core::Error>(m, "Error", PyExc_RuntimeError);
+
+    m.def(
+        "_set_plugin_dirs",
+        [](const std::vector<std::string> &dirs) {
+            std::lock_guard lock(g_mutex);
+            if (g_registry) throw core::Error("the plugins are loaded already: set their folders before the first call");
+            g_dirs.assign(dirs.begin(), dirs.end());
+        },
+        "The folders searched for plugins first (then HORIZON_PLUGIN_PATH and the user's).");
+
+    m.def(
+        "plugins",
+        []() {
+            py::list out;
+            for (const auto &p : registry().plugins()) {
+                py::dict d;
+                d["id"] = p.info.id;
+                d["name"] = p.info.name;
+                d["version"] = p.info.version;
+                d["kind"] = std::string(core::plugin_kind_name(p.info.kind));
+                d["file"] = p.info.file;
+                if (const hz_loader *l = p.loader()) {
+                    py::list ext;
+                    for (std::uint32_t i = 0; l->extensions && l->extensions[i]; ++i) ext.append(std::string(l->extensions[i]));
+                    d["extensions"] = ext;
+                }
+                out.append(d);
+            }
+            return out;
+        },
+        "The plugins found: id, name, version, kind (loader, shader, clustering), file, and a loader's extensions.");
+
+    py::class_<Data>(m, "Data", "What a file holds, read by a loader plugin (horizon.load)")
+        .def_property_readonly("kind", [](const Data &d) { return std::string(core::kind_name(d.ds->kind)); })
+        .def_property_readonly("format", [](const Data &d) { return d.ds->format; })
+        .def_property_readonly("loader", [](const Data &d) { return d.ds->loader_id; })
+        .def_property_readonly("path", [](const Data &d) { return d.path; })
+        .def_property_readonly("metadata", [](const Data &d) { return d.ds->metadata; })
+        .def_property_readonly(
+            "positions",
+            [](py::object self) {
+                const Data &d = self.cast<const Data &>();
+                const core::Tractogram &t = need(d, HZ_DATA_STREAMLINES, "positions").tractogram;
+                return view(py::dtype::of<float>(), {py::ssize_t(t.nb_stored()), 3}, {12, 4}, t.positions.data(), self);
+            },
+            "Every point, float32 (points, 3), RAS+ mm, read-only, without a copy; with `gap` rows after each streamline "
+            "that belong to none")
+        .def_property_readonly(
+            "offsets",
+            [](py::object self) {
+                const Data &d = self.cast<const Data &>();
+                const core::Tractogram &t = need(d, HZ_DATA_STREAMLINES, "offsets").tractogram;
+                return view(py::dtype::of<std::uint64_t>(), {py::ssize_t(t.offsets.size())}, {8}, t.offsets.data(), self);
+            },
+            "uint64 (streamlines + 1): streamline s is positions[offsets[s]:offsets[s + 1] - gap]")
+        .def_property_readonly("gap", [](const Data &d) { return need(d, HZ_DATA_STREAMLINES, "gap").tractogram.gap; })
+        .def_property_readonly("reference",
+                               [](const Data &d) { return affine(need(d, HZ_DATA_STREAMLINES, "reference").tractogram.reference); })
+        .def_property_readonly("reference_dims",
+                               [](const Data &d) { return need(d, HZ_DATA_STREAMLINES, "reference_dims").tractogram.reference_dims; })
+        .def_property_readonly(
+            "vertices",
+            [](py::object self) {
+                const core::Mesh &mesh = need(self.cast<const Data &>(), HZ_DATA_MESH, "vertices").mesh;
+                return view(py::dtype::of<float>(), {py::ssize_t(mesh.nb_vertices()), 3}, {12, 4}, mesh.vertices.data(), self);
+            },
+            "float32 (vertices, 3), RAS+ mm, read-only")
+        .def_property_readonly(
+            "faces",
+            [](py::object self) {
+                const core::Mesh &mesh = need(self.cast<const Data &>(), HZ_DATA_MESH, "faces").mesh;
+                return view(py::dtype::of<std::uint32_t>(), {py::ssize_t(mesh.nb_faces()), 3}, {12, 4}, mesh.faces.data(), self);
+            },
+            "uint32 (faces, 3), 0-based, read-only")
+        .def_property_readonly(
+            "voxels",
+            [](py::object self) {
+                const core::Volume &v = need(self.cast<const Data &>(), HZ_DATA_VOLUME, "voxels").volume;
+                const auto size = py::ssize_t(core::dtype_size(v.dtype));
+                std::vector<py::ssize_t> shape, strides;
+                py::ssize_t step = size;
+                for (std::uint64_t n : v.dims) shape.push_back(py::ssize_t(n)), strides.push_back(step), step *= py::ssize_t(n);
+                return view(dtype_of(v.dtype), shape, strides, v.voxels.data(), self);
+            },
+            "The stored values, (x, y, z[, t...]) in Fortran order as nibabel's dataobj, read-only; multiply by scale[0] and add "
+            "scale[1] for the values")
+        .def_property_readonly("scale",
+                               [](const Data &d) {
+                                   const core::Volume &v = need(d, HZ_DATA_VOLUME, "scale").volume;
+                                   return py::make_tuple(v.scale_slope, v.scale_inter);
+                               })
+        .def_property_readonly("affine", [](const Data &d) { return affine(need(d, HZ_DATA_VOLUME, "affine").volume.voxel_to_ras); })
+        .def_property_readonly(
+            "arrays",
+            [](py::object self) {
+                const Data &d = self.cast<const Data &>();
+                return arrays_of(d.ds->kind == HZ_DATA_MESH ? d.ds->mesh.arrays : d.ds->tractogram.arrays, self);
+            },
+            "{name: (attach, array)}: per-vertex, per-streamline or per-face data, read-only")
+        .def("__repr__",
+             [](const Data &d) { return "<horizon.Data " + std::string(core::kind_name(d.ds->kind)) + " from " + d.path + ">"; });
+
+    m.def(
+        "load",
+        [](const std::string &path) {
+            core::Registry &reg = registry();
+            auto ds = std::make_shared<core::Dataset>();
+            {
+                py::gil_scoped_release nogil;
+                *ds = core::read_dataset(reg, path);
+            }
+            return Data{std::move(ds), path};
+        },
+        py::arg("path"), "Reads a file through the loader plugin that claims it; raises horizon.Error naming the file.");
+
+    m.def(
+        "save",
+        [](const Data &d, const std::string &path, bool force) {
+            core::Registry &reg = registry();
+            std::error_code ec;
+            if (!force && core::fs::exists(path, ec)) throw core::Error(path + ": already exists (save(..., force=True) replaces it)");
+            std::vector<std::string> dropped;
+            {
+                py::gil_scoped_release nogil;
+                core::write_dataset(reg, *d.ds, path, force, &dropped, d.path);
+            }
+            return dropped;
+        },
+        py::arg("data"), py::arg("path"), py::arg("force") = false,
+        "Writes through the writer plugin of the extension, atomically (a temporary file renamed into place); never over the "
+        "file it was read from; an existing file only with force. Returns what the format could not hold.");
+
+    m.def(
+        "_render",
+        [](const std::string &scene_json, const std::string &base, int width, int height) {
+            if (width < 16 || height < 16 || width > 16384 || height > 16384)
+                throw py::value_error("size: expected 16 to 16384 pixels a side, not " + std::to_string(width) + "x" +
+                                      std::to_string(height));
+            core::Registry &reg = registry();
+            core::render::Image im;
+            {
+                py::gil_scoped_release nogil;
+                std::lock_guard lock(g_mutex);
+                context();
+                core::render::Scene scene = core::render::parse_scene(reg, scene_json, base, "scene");
+                core::render::Renderer r(reg);
+                core::render::RenderSettings rs;
+                rs.width = width, rs.height = height;
+                rs.shell_proxy = false;
+                rs.bake_materials = true;
+                const core::render::View v = core::render::fit_view(scene, scene.camera, double(width) / height);
+                r.set_scene(std::move(scene), v, rs);
+                r.render(v, width, height);
+                im = r.read_image();
+            }
+            py::array_t<std::uint8_t> a({im.height, im.width, 4});
+            std::memcpy(a.mutable_data(), im.rgba.data(), im.rgba.size());
+            return a;
+        },
+        py::arg("scene_json"), py::arg("base"), py::arg("width"), py::arg("height"));
+}

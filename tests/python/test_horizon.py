@@ -1,0 +1,170 @@
+"""The `horizon` Python package (issue 54) against independent references:
+nibabel reads the same files; the command line draws the same scenes.
+
+Run by ctest (python.pytest) with PYTHONPATH at the build tree's package and
+HORIZON_BIN at the program."""
+import json
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+import horizon
+
+HORIZON = os.environ.get("HORIZON_BIN", "horizon")
+
+
+@pytest.fixture
+def tck(tmp_path):
+    """Three streamlines of 5, 1 and 40 points written by nibabel (its TCK
+    writer puts the data at an offset float32 cannot be read at in place)."""
+    import nibabel as nib
+    rng = np.random.default_rng(3)
+    sl = [rng.normal(size=(n, 3)).astype(np.float32) * 20 for n in (5, 1, 40)]
+    path = tmp_path / "t.tck"
+    nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), str(path))
+    return path, sl
+
+
+def test_plugins_lists_the_loaders_and_their_extensions():
+    found = {p["id"]: p for p in horizon.plugins()}
+    tck = [p for p in found.values() if p["kind"] == "loader" and "tck" in p.get("extensions", [])]
+    assert tck, found.keys()
+    assert any(p["kind"] == "shader" for p in found.values())
+    assert any(p["kind"] == "clustering" for p in found.values())
+
+
+def test_streamlines_are_nibabels_without_a_copy(tck):
+    import nibabel as nib
+    path, sl = tck
+    t = horizon.load(str(path))
+    assert t.kind == "streamlines" and t.loader.endswith("tck")
+    assert not t.positions.flags.writeable and not t.positions.flags.owndata
+    assert len(t.offsets) == 4
+    ours = horizon.streamlines(t)
+    theirs = nib.streamlines.load(str(path)).streamlines
+    assert len(ours) == len(theirs) == 3
+    for a, b, c in zip(ours, theirs, sl):
+        np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(a, c)
+    seq = horizon.to_nibabel(t)  # an ArraySequence over the same memory
+    assert np.shares_memory(seq._data, t.positions)
+    for a, b in zip(seq, theirs):
+        np.testing.assert_array_equal(a, b)
+    # The arrays keep the file's data alive after the object goes.
+    p = t.positions
+    del t, seq
+    np.testing.assert_array_equal(p[:5], sl[0])
+
+
+def test_volumes_are_nibabels(tmp_path):
+    import nibabel as nib
+    rng = np.random.default_rng(5)
+    data = rng.integers(-300, 300, size=(7, 5, 3, 2)).astype(np.int16)
+    affine = np.array([[-1.5, 0, 0, 10], [0, 2, 0, -20], [0, 0, 2.5, 5], [0, 0, 0, 1]])
+    img = nib.Nifti1Image(data, affine)
+    img.header.set_slope_inter(0.5, 3.0)
+    path = tmp_path / "v.nii.gz"
+    nib.save(img, str(path))
+    v = horizon.load(str(path))
+    assert v.kind == "volume"
+    ref = nib.load(str(path))
+    np.testing.assert_array_equal(v.voxels, np.asarray(ref.dataobj.get_unscaled()))
+    assert v.voxels.shape == (7, 5, 3, 2) and v.voxels.dtype == np.int16
+    np.testing.assert_allclose(v.affine, ref.affine)
+    assert v.scale == (0.5, 3.0)
+    back = horizon.to_nibabel(v)
+    np.testing.assert_allclose(back.get_fdata(), ref.get_fdata())
+
+
+def test_save_writes_through_the_writer_and_keeps_the_input(tck, tmp_path):
+    import nibabel as nib
+    path, sl = tck
+    t = horizon.load(str(path))
+    out = tmp_path / "t.trk"
+    dropped = horizon.save(t, str(out))
+    assert isinstance(dropped, list)
+    back = nib.streamlines.load(str(out)).streamlines
+    for a, b in zip(back, sl):
+        np.testing.assert_allclose(a, b, atol=1e-4)
+    with pytest.raises(horizon.Error, match="force=True"):
+        horizon.save(t, str(out))
+    with pytest.raises(horizon.Error):
+        horizon.save(t, str(path), force=True)  # never over what it was read from
+    horizon.save(t, str(out), force=True)
+
+
+def test_a_scene_renders_as_the_command_line_draws_it(tmp_path):
+    from PIL import Image
+    scene = {"camera": {"view": "superior"}, "environment": {"type": "none"},
+             "objects": [{"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 60}, "render": "tubes"}]}
+    picture = horizon.render(scene, (160, 120))
+    assert picture.shape == (120, 160, 4) and picture.dtype == np.uint8
+    (tmp_path / "s.json").write_text(json.dumps(scene))
+    out = tmp_path / "s.png"
+    subprocess.run([HORIZON, "render", str(tmp_path / "s.json"), "-o", str(out), "--size", "160x120"], check=True,
+                   capture_output=True)
+    cli = np.asarray(Image.open(out).convert("RGBA"))
+    np.testing.assert_array_equal(picture[..., :3], cli[..., :3])
+    assert (picture[..., :3].max(axis=2) > 60).sum() > 200  # (not an empty picture)
+
+
+def test_scene_builder_and_its_png(tck):
+    path, _ = tck
+    s = horizon.Scene(environment={"type": "none"}).add(path, render="tubes", radius=1.0)
+    assert s.model["objects"][0]["type"] == "streamlines"
+    png = s._repr_png_()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    from io import BytesIO
+    from PIL import Image
+    im = Image.open(BytesIO(png))
+    assert im.size == (640, 480)
+    np.testing.assert_array_equal(np.asarray(im), s.render())
+
+
+def test_errors_are_exceptions_with_the_one_line_message(tmp_path):
+    with pytest.raises(horizon.Error, match="missing.tck"):
+        horizon.load(str(tmp_path / "missing.tck"))
+    bad = tmp_path / "bad.tck"
+    bad.write_bytes(b"mrtrix tracks\ncount: 5\ndatatype: Float32LE\nfile: . 999\nEND\n")
+    with pytest.raises(horizon.Error, match="bad.tck"):
+        horizon.load(str(bad))
+    with pytest.raises(TypeError):
+        horizon.load(3)
+    with pytest.raises(TypeError, match="scene"):
+        horizon.render(3)
+    with pytest.raises(ValueError, match="size"):
+        horizon.render({"objects": [{"type": "surface", "builtin": "sphere"}]}, (4, 4))
+    with pytest.raises(horizon.Error, match="objects"):
+        horizon.render({"objects": [{"type": "nothing"}]}, (64, 64))
+
+
+
+def test_the_example_notebook_runs_and_shows_its_pictures(tmp_path, monkeypatch):
+    """docs/examples/horizon.ipynb executed as a user would (nbclient, the
+    python3 kernel), in a scratch folder: every cell runs, the scene shows
+    inline as a PNG, the printed checks say what they should."""
+    import base64
+    import shutil
+
+    import nbclient
+    import nbformat
+    from PIL import Image
+    from io import BytesIO
+    src = os.path.join(os.path.dirname(__file__), "..", "..", "docs", "examples", "horizon.ipynb")
+    # (the kernel runs in the scratch folder: the package this test imports, by its absolute path)
+    monkeypatch.setenv("PYTHONPATH", os.path.dirname(os.path.dirname(os.path.abspath(horizon.__file__))))
+    nb = nbformat.read(src, as_version=4)
+    shutil.copy(src, tmp_path)
+    nbclient.NotebookClient(nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()
+    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+    assert "loaders" in text
+    assert "streamlines; same as nibabel: True" in text
+    assert "(240, 320, 4) uint8" in text
+    pngs = [o["data"]["image/png"] for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+            if "data" in o and "image/png" in o["data"]]
+    assert len(pngs) == 1
+    im = np.asarray(Image.open(BytesIO(base64.b64decode(pngs[0]))).convert("RGB"))
+    assert im.shape == (360, 480, 3)
+    assert (im.max(axis=2) > 80).sum() > 500  # (the tubes, not an empty picture)
