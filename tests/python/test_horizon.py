@@ -168,3 +168,24 @@ def test_the_example_notebook_runs_and_shows_its_pictures(tmp_path, monkeypatch)
     im = np.asarray(Image.open(BytesIO(base64.b64decode(pngs[0]))).convert("RGB"))
     assert im.shape == (360, 480, 3)
     assert (im.max(axis=2) > 80).sum() > 500  # (the tubes, not an empty picture)
+
+
+def test_the_installed_package_finds_the_installed_plugins(tmp_path, tck):
+    """`cmake --install` of the package and the plugins under any prefix: the
+    package finds the plugins beside it, not the build tree's."""
+    build = os.environ.get("HORIZON_BUILD_DIR")
+    if not build:
+        pytest.skip("HORIZON_BUILD_DIR is not set (ctest sets it)")
+    prefix = tmp_path / "prefix"
+    for component in ("python", "runtime"):
+        subprocess.run(["cmake", "--install", build, "--prefix", str(prefix), "--component", component], check=True,
+                       capture_output=True)
+    site = prefix / "lib" / "python3" / "dist-packages"
+    env = {**os.environ, "PYTHONPATH": str(site), "XDG_DATA_HOME": str(tmp_path / "none"), "HORIZON_PLUGIN_PATH": ""}
+    code = ("import horizon, sys; ps = horizon.plugins(); "
+            "print(horizon.__file__); print(sorted({p['file'].rsplit('/', 1)[0] for p in ps})); "
+            f"print(horizon.load({str(tck[0])!r}).kind)")
+    out = subprocess.run(["/usr/bin/python3", "-c", code], env=env, capture_output=True, text=True, check=True).stdout.splitlines()
+    assert out[0].startswith(str(site))
+    assert out[1] == repr([str(prefix / "lib" / "horizon" / "plugins")])
+    assert out[2] == "streamlines"
