@@ -12,6 +12,7 @@
 // render) is used by one call at a time (a lock).
 #include <hz/core/data.hpp>
 #include <hz/core/io.hpp>
+#include <hz/core/params.hpp>
 #include <hz/core/plugin_host.hpp>
 #include <hz/core/render/context.hpp>
 #include <hz/core/render/renderer.hpp>
@@ -22,7 +23,11 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include <nlohmann/json.hpp>
+
 #include <cstring>
+#include <optional>
+#include <map>
 #include <memory>
 #include <mutex>
 
@@ -248,7 +253,7 @@ PYBIND11_MODULE(_core, m) {
 
     m.def(
         "_render",
-        [](const std::string &scene_json, const std::string &base, int width, int height) {
+        [](const std::string &scene_json, const std::string &base, int width, int height, const std::map<std::string, Data> &memory) {
             if (width < 16 || height < 16 || width > 16384 || height > 16384)
                 throw py::value_error("size: expected 16 to 16384 pixels a side, not " + std::to_string(width) + "x" +
                                       std::to_string(height));
@@ -258,7 +263,9 @@ PYBIND11_MODULE(_core, m) {
                 py::gil_scoped_release nogil;
                 std::lock_guard lock(g_mutex);
                 context();
-                core::render::Scene scene = core::render::parse_scene(reg, scene_json, base, "scene");
+                core::render::MemoryData held;
+                for (const auto &[name, d] : memory) held[name] = d.ds;
+                core::render::Scene scene = core::render::parse_scene(reg, scene_json, base, "scene", held);
                 core::render::Renderer r(reg);
                 core::render::RenderSettings rs;
                 rs.width = width, rs.height = height;
@@ -273,5 +280,56 @@ PYBIND11_MODULE(_core, m) {
             std::memcpy(a.mutable_data(), im.rgba.data(), im.rgba.size());
             return a;
         },
-        py::arg("scene_json"), py::arg("base"), py::arg("width"), py::arg("height"));
+        py::arg("scene_json"), py::arg("base"), py::arg("width"), py::arg("height"), py::arg("memory"));
+
+    m.def(
+        "_cluster",
+        [](const Data &d, const std::string &algorithm, const std::vector<double> &thresholds, const std::string &params_json,
+           std::optional<std::vector<std::uint64_t>> ordering) {
+            const core::Tractogram &t = need(d, HZ_DATA_STREAMLINES, "cluster").tractogram;
+            core::Registry &reg = registry();
+            core::render::ClusterSpec spec;
+            spec.algorithm = algorithm;
+            spec.thresholds = thresholds;
+            const core::LoadedPlugin *plugin = core::find_clustering(reg, algorithm);
+            const std::vector<core::ParamSpec> schema = core::schema_of(*plugin);
+            const nlohmann::json params = nlohmann::json::parse(params_json);
+            for (const auto &[k, v] : params.items())
+                spec.params[k] = core::param_from_json(core::find_param(schema, plugin->info.id, k), v);
+            core::render::ClusterTree tree;
+            {
+                py::gil_scoped_release nogil;
+                tree = core::render::run_clustering(reg, t, spec, nullptr, ordering ? &*ordering : nullptr);
+            }
+            const auto nodes = py::ssize_t(tree.parent.size());
+            py::dict out;
+            out["algorithm"] = plugin->info.id;
+            out["nb_levels"] = tree.nb_levels;
+            out["thresholds"] = tree.thresholds;
+            out["parent"] = py::array_t<std::int64_t>(nodes, tree.parent.data());
+            out["level"] = py::array_t<std::uint32_t>(nodes, tree.level.data());
+            out["centroids"] = py::array_t<float>({nodes, py::ssize_t(tree.nb_points), py::ssize_t(3)}, tree.centroids.data());
+            out["member_offsets"] = py::array_t<std::uint64_t>(py::ssize_t(tree.member_offsets.size()), tree.member_offsets.data());
+            out["members"] = py::array_t<std::uint64_t>(py::ssize_t(tree.members.size()), tree.members.data());
+            return out;
+        },
+        py::arg("data"), py::arg("algorithm"), py::arg("thresholds"), py::arg("params_json"), py::arg("ordering"));
+
+    m.def(
+        "_from_streamlines",
+        [](py::array_t<float, py::array::c_style | py::array::forcecast> positions,
+           py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast> offsets) {
+            if (positions.ndim() != 2 || positions.shape(1) != 3) throw py::value_error("streamlines: points must be an (n, 3) array");
+            if (offsets.ndim() != 1 || offsets.shape(0) < 1) throw py::value_error("streamlines: offsets must be 1-D, streamlines + 1");
+            auto ds = std::make_shared<core::Dataset>();
+            ds->kind = HZ_DATA_STREAMLINES;
+            ds->format = "numpy";
+            ds->loader_id = "python";
+            core::Tractogram &t = ds->tractogram;
+            t.positions = core::Buffer<float>::copy_of({positions.data(), std::size_t(positions.size())});
+            t.offsets = core::Buffer<std::uint64_t>::copy_of({offsets.data(), std::size_t(offsets.size())});
+            ds->bounds = t.validate("streamlines");  // (offsets from 0, non-decreasing, to the points; finite points)
+            return Data{std::move(ds), "<memory>"};
+        },
+        py::arg("positions"), py::arg("offsets"));
 }

@@ -15,9 +15,9 @@ import os
 
 from . import _paths
 from ._core import Data, Error, load, plugins, save
-from ._core import _render, _set_plugin_dirs
+from ._core import _cluster, _from_streamlines, _render, _set_plugin_dirs
 
-__all__ = ["Data", "Error", "Scene", "load", "plugins", "render", "save", "streamlines", "to_nibabel"]
+__all__ = ["ClusterTree", "Data", "Error", "Scene", "cluster", "from_streamlines", "load", "plugins", "render", "save", "streamlines", "to_nibabel"]
 __version__ = _paths.VERSION
 
 _set_plugin_dirs([d for d in _paths.PLUGIN_DIRS if os.path.isdir(d)])
@@ -30,6 +30,25 @@ def streamlines(data):
     _need(data, "streamlines", "streamlines")
     p, o, gap = data.positions, np.asarray(data.offsets).astype(np.int64), data.gap
     return [p[o[i]:o[i + 1] - gap] for i in range(len(o) - 1)]
+
+
+def from_streamlines(streamlines):
+    """A horizon.Data of streamlines from Python: a list of (points, 3)
+    arrays, nibabel's ArraySequence or DIPY's Streamlines (RAS+ mm). The
+    points are copied once, as float32; raises ValueError for a wrong shape
+    or a point that is not finite."""
+    import numpy as np
+    parts = [np.asarray(s) for s in streamlines]  # (an ArraySequence: its streamlines in its order)
+    for k, s in enumerate(parts):
+        if s.ndim != 2 or s.shape[1] != 3:
+            raise ValueError(f"from_streamlines: streamline {k} has shape {s.shape}, not (points, 3)")
+    lengths = np.array([len(s) for s in parts], dtype=np.uint64)
+    offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.uint64)
+    points = np.concatenate(parts).astype(np.float32) if parts else np.zeros((0, 3), np.float32)
+    try:
+        return _from_streamlines(points, offsets)
+    except Error as e:
+        raise ValueError(f"from_streamlines: {e}") from None
 
 
 def to_nibabel(data):
@@ -56,6 +75,81 @@ def to_nibabel(data):
     raise TypeError(f"to_nibabel: {data.path} holds {data.kind}; streamlines and volumes convert")
 
 
+def cluster(data, algorithm="qbx", thresholds=None, ordering=None, **params):
+    """Clusters the streamlines of `data` (a horizon.Data, or streamlines as
+    from_streamlines takes them) with clustering plugin `algorithm` (its id
+    or the last part of it: qb, qbx, qbx_merge, ...), `thresholds` in mm
+    (the plugin's defaults if None), the processing `ordering` (a
+    permutation of the streamlines; None: their order) and the plugin's own
+    parameters by name (`horizon plugins ID` lists them), e.g. mode="exact"
+    (DIPY's results, bit for bit) or mode="fast". Returns a ClusterTree."""
+    import numpy as np
+    if not isinstance(data, Data):
+        data = from_streamlines(data)
+    _need(data, "streamlines", "cluster")
+    order = None
+    if ordering is not None:
+        order = np.asarray(ordering)
+        if order.ndim != 1 or order.dtype.kind not in "iu":
+            raise TypeError("cluster: ordering must be a 1-D array of streamline indices")
+        order = [int(i) for i in order]
+    try:
+        result = _cluster(data, algorithm, [float(t) for t in (thresholds or [])], json.dumps(params), order)
+    except Error as e:
+        if str(e).startswith("ordering:"):
+            raise ValueError(f"cluster: {e}") from None
+        raise
+    return ClusterTree(result)
+
+
+class ClusterTree:
+    """A clustering's tree (paper Fig. 4): one level per threshold, each
+    level's clusters partitioning the streamlines, each a child of one
+    cluster of the level above. Node arrays: `parent`, `level`,
+    `centroids` (nodes, points, 3); `member_offsets`, `members`."""
+
+    def __init__(self, r):
+        self.algorithm = r["algorithm"]
+        self.nb_levels = r["nb_levels"]
+        self.thresholds = list(r["thresholds"])
+        self.parent, self.level, self.centroids = r["parent"], r["level"], r["centroids"]
+        self.member_offsets, self.members = r["member_offsets"], r["members"]
+        self.nb_streamlines = int(self.member_offsets[1]) if len(self.member_offsets) > 1 else 0
+
+    def nodes(self, level):
+        """The nodes of `level` (1: the coarsest; -1: the finest), in order."""
+        import numpy as np
+        level = self.nb_levels if level == -1 else level
+        if not 1 <= level <= self.nb_levels:
+            raise ValueError(f"level {level}: the tree has levels 1..{self.nb_levels}")
+        return np.nonzero(self.level == level)[0]
+
+    def clusters(self, level=-1):
+        """The streamline indices of each cluster of `level`."""
+        return [self.members[self.member_offsets[k]:self.member_offsets[k + 1]] for k in self.nodes(level)]
+
+    def labels(self, level=-1):
+        """Each streamline's cluster at `level` (the clusters numbered in order)."""
+        import numpy as np
+        out = np.empty(self.nb_streamlines, np.int64)
+        for i, m in enumerate(self.clusters(level)):
+            out[m] = i
+        return out
+
+    def to_dipy(self, level=-1, streamlines=None):
+        """DIPY's ClusterMapCentroid of `level` (its clusters' centroids and
+        indices; `streamlines`, if given, as their reference data)."""
+        from dipy.segment.clustering import ClusterCentroid, ClusterMapCentroid
+        cmap = ClusterMapCentroid(refdata=streamlines) if streamlines is not None else ClusterMapCentroid()
+        for k, m in zip(self.nodes(level), self.clusters(level)):
+            cmap.add_cluster(ClusterCentroid(self.centroids[k], indices=[int(i) for i in m]))
+        return cmap
+
+    def __repr__(self):
+        sizes = [len(self.nodes(l)) for l in range(1, self.nb_levels + 1)]
+        return f"<horizon.ClusterTree {self.algorithm}: {self.nb_streamlines} streamlines, clusters per level {sizes}>"
+
+
 def _need(data, kind, what):
     if not isinstance(data, Data):
         raise TypeError(f"{what}: expected a horizon.Data (horizon.load), not {type(data).__name__}")
@@ -67,8 +161,9 @@ def render(scene, size=(1280, 720), base="."):
     """Draws `scene` (a horizon.Scene, a dict of the scene-file model, or the
     path of a scene file) headless (EGL) and returns the picture as a
     (height, width, 4) uint8 array, rows top to bottom."""
+    memory = {}
     if isinstance(scene, Scene):
-        text, base = json.dumps(scene.model), scene.base
+        text, base, memory = json.dumps(scene.model), scene.base, scene.memory
     elif isinstance(scene, dict):
         text = json.dumps(scene)
     elif isinstance(scene, (str, os.PathLike)):
@@ -81,7 +176,7 @@ def render(scene, size=(1280, 720), base="."):
         width, height = (int(v) for v in size)
     except (TypeError, ValueError):
         raise TypeError(f"render: size must be (width, height), not {size!r}") from None
-    return _render(text, os.fspath(base), width, height)
+    return _render(text, os.fspath(base), width, height, memory)
 
 
 class Scene:
@@ -93,15 +188,25 @@ class Scene:
         self.base = os.fspath(base)
         self.model = {"objects": []}
         self.model.update(settings)
+        self.memory = {}  # the objects' data held in Python, by name
         self.size = (640, 480)
 
     def add(self, file=None, type=None, **keys):
         """Adds an object: a file (its type guessed from what it holds unless
-        given: streamlines, surface, slices or volume) or a builtin
-        (builtin="phantom", "cortex", "head", "sphere") with the scene
-        file's keys (render, radius, color, material, transfer, ...)."""
+        given: streamlines, surface, slices or volume), data in memory (a
+        horizon.Data, or streamlines: a list of arrays, an ArraySequence,
+        DIPY's Streamlines) or a builtin (builtin="phantom", "cortex", "head",
+        "sphere"), with the scene file's keys (render, radius, color,
+        material, transfer, ...)."""
         obj = dict(keys)
-        if file is not None:
+        if file is not None and not isinstance(file, (str, os.PathLike)):
+            data = file if isinstance(file, Data) else from_streamlines(file)
+            name = f"data{len(self.memory)}"
+            self.memory[name] = data
+            obj["data"] = name
+            if type is None:
+                type = {"streamlines": "streamlines", "mesh": "surface", "volume": "slices"}.get(data.kind)
+        elif file is not None:
             obj["file"] = os.fspath(file)
             if type is None:
                 type = {"streamlines": "streamlines", "mesh": "surface", "volume": "slices"}.get(load(obj["file"]).kind)

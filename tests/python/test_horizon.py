@@ -189,3 +189,68 @@ def test_the_installed_package_finds_the_installed_plugins(tmp_path, tck):
     assert out[0].startswith(str(site))
     assert out[1] == repr([str(prefix / "lib" / "horizon" / "plugins")])
     assert out[2] == "streamlines"
+
+
+def test_streamlines_in_memory_draw_as_their_file_does(tmp_path):
+    """A scene of streamlines held in Python (a list of arrays, nibabel's
+    ArraySequence) draws what the same streamlines read from a file draw."""
+    import nibabel as nib
+    rng = np.random.default_rng(11)
+    sl = [(np.cumsum(rng.normal(size=(80, 3)), axis=0) + [0, 8 * k, 0]).astype(np.float32) for k in range(6)]
+    path = tmp_path / "m.tck"
+    nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), str(path))
+    looks = {"render": "tubes", "radius": 0.6}
+    settings = {"environment": {"type": "none"}, "camera": {"view": "superior"}}
+    from_file = horizon.Scene(**settings).add(path, **looks).render((160, 120))
+    assert (from_file[..., :3].max(axis=2) > 60).sum() > 300
+    for given in (sl, nib.streamlines.ArraySequence(sl), horizon.from_streamlines(sl)):
+        np.testing.assert_array_equal(horizon.Scene(**settings).add(given, **looks).render((160, 120)), from_file)
+    d = horizon.from_streamlines(sl)
+    assert len(d.offsets) == 7 and d.gap == 0
+    np.testing.assert_array_equal(d.positions[80:160], sl[1])
+    with pytest.raises(ValueError, match="streamline 1"):
+        horizon.from_streamlines([sl[0], np.zeros((4, 2))])
+    with pytest.raises(ValueError, match="finite"):
+        horizon.from_streamlines([np.full((3, 3), np.inf)])
+    with pytest.raises(horizon.Error, match="no dataset in memory"):
+        horizon.render({"objects": [{"type": "streamlines", "data": "nope"}]}, (64, 64))
+
+
+def test_clustering_is_dipys_quickbundlesx_bit_for_bit(tmp_path):
+    """horizon.cluster in exact mode against DIPY's QuickBundlesX on the
+    same streamlines: the same clusters at every level, in the same order,
+    with the same float32 centroids, in file order and in a given order;
+    DIPY's ClusterMapCentroid out."""
+    from dipy.segment.clustering import QuickBundlesX
+    p = subprocess.run([HORIZON, "demo", "--out", str(tmp_path), "--streamlines", "1500", "--no-window"], capture_output=True,
+                       env={**os.environ, "DISPLAY": ""})
+    assert p.returncode == 0, p.stderr
+    data = horizon.load(str(tmp_path / "phantom.tck"))
+    sl = [s.astype(np.float32) for s in horizon.streamlines(data)]
+    thresholds = [30, 25, 20, 15]
+    order = np.random.default_rng(5).permutation(len(sl))
+    for ordering in (None, order):
+        tree = horizon.cluster(data, "qbx", thresholds, ordering=ordering, mode="exact")
+        ref = QuickBundlesX(thresholds).cluster(sl, ordering=ordering)
+        assert tree.nb_levels == 4 and tree.thresholds == thresholds
+        for level in (1, 2, 3, 4):
+            clusters = ref.get_clusters(level)
+            want = np.full(len(sl), -1)
+            for i, c in enumerate(clusters):
+                want[np.asarray(c.indices)] = i
+            np.testing.assert_array_equal(tree.labels(level), want)
+            for c, node in zip(clusters, tree.nodes(level)):
+                assert np.array_equal(c.centroid, tree.centroids[node])
+    cmap = tree.to_dipy(2, sl)
+    assert len(cmap) == len(tree.nodes(2)) and sum(len(c) for c in cmap) == len(sl)
+    # Streamlines from Python cluster alike.
+    np.testing.assert_array_equal(horizon.cluster(sl, "qbx", thresholds, mode="exact").labels(4),
+                                  horizon.cluster(data, "qbx", thresholds, mode="exact").labels(4))
+    with pytest.raises(ValueError, match="ordering"):
+        horizon.cluster(data, "qbx", ordering=[0, 0, 1])
+    with pytest.raises(ValueError, match="permutation"):
+        horizon.cluster(data, "qbx", ordering=np.zeros(len(sl), np.int64))
+    with pytest.raises(horizon.Error, match="no parameter 'nonsense'"):
+        horizon.cluster(data, "qbx", nonsense=3)
+    with pytest.raises(ValueError, match="level 5"):
+        tree.labels(5)

@@ -147,9 +147,16 @@ Coloring parse_coloring(const json &j, const std::string &what, const std::strin
 
 // Reads `file` (relative to base) or builds a built-in dataset.
 Dataset object_data(const Registry &reg, const json &o, const std::string &type, const fs::path &base, const std::string &what,
-                    const std::string &where, std::vector<std::string> *files = nullptr) {
+                    const std::string &where, std::vector<std::string> *files, const MemoryData &memory) {
     Dataset ds;
-    if (o.contains("file") == o.contains("builtin")) fail(what, where, "give exactly one of 'file' and 'builtin'");
+    if (int(o.contains("file")) + int(o.contains("builtin")) + int(o.contains("data")) != 1)
+        fail(what, where, memory.empty() ? "give exactly one of 'file' and 'builtin'" : "give exactly one of 'file', 'builtin' and 'data'");
+    if (o.contains("data")) {
+        const std::string name = str(o["data"], what, where + ".data");
+        const auto it = memory.find(name);
+        if (it == memory.end() || !it->second) fail(what, where + ".data", "no dataset in memory is called '" + name + "'");
+        return share_dataset(*it->second);
+    }
     if (o.contains("file")) {
         fs::path p = str(o["file"], what, where + ".file");
         if (p.is_relative()) p = base / p;
@@ -290,7 +297,24 @@ TransferFunction load_transfer(const fs::path &file) {
     return transfer_from_json(j, file.string(), "transfer function");
 }
 
-Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what) {
+Dataset share_dataset(const Dataset &d) {
+    Dataset c;
+    c.kind = d.kind, c.format = d.format, c.loader_id = d.loader_id, c.source_space = d.source_space, c.metadata = d.metadata;
+    c.tractogram = d.tractogram.shared();
+    c.mesh.vertices = d.mesh.vertices.shared(), c.mesh.faces = d.mesh.faces.shared(), c.mesh.transform = d.mesh.transform;
+    for (const DataArray &a : d.mesh.arrays) {
+        DataArray b;
+        b.name = a.name, b.attach = a.attach, b.dtype = a.dtype, b.components = a.components, b.count = a.count;
+        b.bytes = a.bytes.shared();
+        c.mesh.arrays.push_back(std::move(b));
+    }
+    c.volume.dtype = d.volume.dtype, c.volume.dims = d.volume.dims, c.volume.voxels = d.volume.voxels.shared();
+    c.volume.scale_slope = d.volume.scale_slope, c.volume.scale_inter = d.volume.scale_inter, c.volume.voxel_to_ras = d.volume.voxel_to_ras;
+    c.bounds = d.bounds, c.mapped = d.mapped, c.unaligned = d.unaligned;
+    return c;
+}
+
+Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what, const MemoryData &memory) {
     const json root = json::parse(text, nullptr, false);
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
     check_keys(root,
@@ -450,15 +474,15 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         ob.name = type + " " + std::to_string(i);
         if (type == "streamlines") {
             check_keys(o,
-                       {"type", "name", "file", "builtin", "phantom", "render", "radius", "color", "material", "clustering", "visible",
-                        "opacity", "include", "exclude", "min_length", "max_length"},
+                       {"type", "name", "file", "builtin", "data", "phantom", "render", "radius", "color", "material", "clustering",
+                        "visible", "opacity", "include", "exclude", "min_length", "max_length"},
                        what, where);
             ob.coloring.mode = "direction";
         } else if (type == "surface") {
-            check_keys(o, {"type", "name", "file", "builtin", "overlays", "color", "material", "visible", "opacity"}, what, where);
+            check_keys(o, {"type", "name", "file", "builtin", "data", "overlays", "color", "material", "visible", "opacity"}, what, where);
             ob.coloring.color = {0.85, 0.72, 0.68};
         } else if (type == "volume") {
-            check_keys(o, {"type", "name", "file", "builtin", "window", "transfer", "visible", "opacity"}, what, where);
+            check_keys(o, {"type", "name", "file", "builtin", "data", "window", "transfer", "visible", "opacity"}, what, where);
             ob.transfer = transfer_preset("mri");
             if (o.contains("transfer")) {
                 const json &t = o["transfer"];
@@ -485,7 +509,8 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                 }
             }
         } else {
-            check_keys(o, {"type", "name", "file", "builtin", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity"},
+            check_keys(o,
+                       {"type", "name", "file", "builtin", "data", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity"},
                        what, where);
         }
         if (o.contains("name")) ob.name = str(o["name"], what, where + ".name");
@@ -550,7 +575,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             ob.clustering = cs;
         }
         try {
-            ob.data = object_data(reg, o, type, base, what, where, &s.files);
+            ob.data = object_data(reg, o, type, base, what, where, &s.files, memory);
         } catch (const Error &e) {
             const std::string m = e.what();
             if (m.rfind(what + ":", 0) == 0) throw;
@@ -800,7 +825,18 @@ Volume make_head_volume(double voxel_mm) {
     return vol;
 }
 
-ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec, const hz_task *task) {
+ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec, const hz_task *task,
+                           const std::vector<std::uint64_t> *ordering) {
+    if (ordering) {
+        const std::uint64_t n = t.nb_streamlines();
+        if (ordering->size() != n)
+            throw Error("ordering: " + std::to_string(ordering->size()) + " indices for " + std::to_string(n) + " streamlines");
+        std::vector<bool> seen(n);
+        for (std::uint64_t i : *ordering) {
+            if (i >= n || seen[i]) throw Error("ordering: not a permutation of the streamlines (index " + std::to_string(i) + ")");
+            seen[i] = true;
+        }
+    }
     const LoadedPlugin *plugin = find_clustering(reg, spec.algorithm);
     const std::string id = plugin->info.id;
     const std::vector<ParamSpec> schema = schema_of(*plugin);
@@ -829,7 +865,8 @@ ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const Clust
     const Tractogram input = plugin->streamlines_for(t);
     const hz_streamlines_view view = input.view();
     Task own;
-    if (plugin->call("run", "", [&] { return c->run(obj, &view, nullptr, task ? task : own.get(), &err); }) != HZ_OK)
+    const std::uint64_t *order = ordering && !ordering->empty() ? ordering->data() : nullptr;
+    if (plugin->call("run", "", [&] { return c->run(obj, &view, order, task ? task : own.get(), &err); }) != HZ_OK)
         throw Error(id + ": " + err.message);
     hz_cluster_tree_view v{};
     v.struct_size = sizeof v;

@@ -10,6 +10,7 @@
 #include <array>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -218,8 +219,18 @@ struct Scene {
 // Throws Error naming the file and the offending key.
 Scene load_scene(const Registry &reg, const fs::path &scene_file);
 
-// The same from already-parsed JSON text; `base_dir` resolves relative paths.
-Scene parse_scene(const Registry &reg, const std::string &json_text, const fs::path &base_dir, const std::string &what);
+// Datasets a program holds in memory, by name: an object's "data": NAME
+// shows one (in place of "file" or "builtin"; the Python package's scenes).
+using MemoryData = std::map<std::string, std::shared_ptr<const Dataset>>;
+
+// The same from already-parsed JSON text; `base_dir` resolves relative
+// paths; `memory`: the datasets objects may name with "data".
+Scene parse_scene(const Registry &reg, const std::string &json_text, const fs::path &base_dir, const std::string &what,
+                  const MemoryData &memory = {});
+
+// Another Dataset over the same buffers (each kept alive), with the same
+// arrays, metadata and descriptions: a copy of nothing but the fields.
+Dataset share_dataset(const Dataset &d);
 
 // Uses a mesh file's own material (glTF PBR factors in its header) unless
 // the scene sets the material (`has_material`) or the colour (`has_color`).
@@ -245,8 +256,10 @@ struct ClusterTree {
 // Runs clustering plugin `spec.algorithm` (fast mode: for display) with
 // spec.thresholds over `t`. `task` (may be null; not owned, alive for the
 // call) receives the plugin's progress and may cancel the run, which then
-// throws Error ("cancelled"). Throws Error.
-ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec, const hz_task *task = nullptr);
+// throws Error ("cancelled"). `ordering` (may be null): the processing
+// order, a permutation of the streamlines' indices (checked). Throws Error.
+ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const ClusterSpec &spec, const hz_task *task = nullptr,
+                           const std::vector<std::uint64_t> *ordering = nullptr);
 
 // The first per-vertex array of `m` that holds colours (3 or 4 components:
 // uint8/uint16 sRGB-encoded, float linear 0..1), or "" (coloring mode "rgb");
