@@ -254,3 +254,71 @@ def test_clustering_is_dipys_quickbundlesx_bit_for_bit(tmp_path):
         horizon.cluster(data, "qbx", nonsense=3)
     with pytest.raises(ValueError, match="level 5"):
         tree.labels(5)
+
+
+def test_cohort_qc_on_dask_writes_a_gallery_and_resumes(tmp_path):
+    """python3 -m horizon.batch over a cohort of four subjects (one file
+    truncated) on a local Dask cluster of two workers: the three good ones
+    measured as nibabel measures them and drawn, the bad one a failed row
+    naming its file; a second run skips what is done and unchanged, redoes
+    a changed subject, retries the failed one; --strict makes the failure
+    the exit status."""
+    import nibabel as nib
+    from PIL import Image
+    rng = np.random.default_rng(2)
+    cohort, out = tmp_path / "cohort", tmp_path / "qc"
+    truth = {}
+    for i in range(1, 5):
+        d = cohort / f"sub-{i:02d}" / "dwi"
+        d.mkdir(parents=True)
+        sl = [(np.cumsum(rng.normal(size=(int(rng.integers(20, 60)), 3)), axis=0) * 2 + [0, 10 * k, 0]).astype(np.float32)
+              for k in range(25 + i)]
+        f = d / f"sub-{i:02d}_tractography.{'trk' if i == 3 else 'tck'}"  # (a TRK: no delimiters between streamlines)
+        nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), str(f))
+        lengths = [float(np.linalg.norm(np.diff(s.astype(np.float64), axis=0), axis=1).sum()) for s in sl]
+        truth[f"sub-{i:02d}__dwi__sub-{i:02d}_tractography"] = (len(sl), float(np.median(lengths)))
+    bad = cohort / "sub-04" / "dwi" / "sub-04_tractography.tck"
+    bad.write_bytes(bad.read_bytes()[:300])  # truncated
+    env = {**os.environ, "PYTHONPATH": os.path.dirname(os.path.dirname(os.path.abspath(horizon.__file__)))}
+    cmd = ["/usr/bin/python3", "-m", "horizon.batch", str(cohort), "--glob", "sub-*/dwi/*_tractography.*", "--out", str(out),
+           "--workers", "2"]
+
+    p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert "4 subjects: 3 ok (0 done before), 1 failed" in p.stdout
+    records = {r["id"]: r for r in json.loads((out / "qc.json").read_text())}
+    assert len(records) == 4
+    for sid, (n, median) in truth.items():
+        r = records[sid]
+        if sid.startswith("sub-04"):
+            assert r["status"] == "failed" and "sub-04_tractography.tck" in r["error"]
+            continue
+        assert r["status"] == "ok" and r["streamlines"] == n
+        assert r["length_mm"]["median"] == pytest.approx(median, rel=1e-5)
+        for view in ("superior", "left"):
+            im = Image.open(out / r["views"][view])
+            assert im.size == (320, 240)
+            assert (np.asarray(im.convert("RGB")).max(axis=2) > 80).sum() > 50
+    page = (out / "index.html").read_text()
+    assert page.count("<tr class=\"ok\">") == 3 and page.count("<tr class=\"failed\">") == 1
+    assert "sub-04_tractography.tck" in page and "superior.png" in page
+
+    # Again: the done ones skipped (their records untouched), a changed one redone.
+    done = out / "subjects" / "sub-01__dwi__sub-01_tractography" / "qc.json"
+    before = done.stat().st_mtime_ns
+    changed = cohort / "sub-02" / "dwi" / "sub-02_tractography.tck"
+    nib.streamlines.save(nib.streamlines.Tractogram([np.zeros((3, 3), np.float32) + [0, 0, k] for k in range(3)],
+                                                    affine_to_rasmm=np.eye(4)), str(changed))
+    p = subprocess.run(cmd + ["--strict"], env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 1, p.stdout + p.stderr
+    assert "4 subjects: 3 ok (2 done before), 1 failed" in p.stdout
+    assert done.stat().st_mtime_ns == before
+    records = {r["id"]: r for r in json.loads((out / "qc.json").read_text())}
+    assert records["sub-02__dwi__sub-02_tractography"]["streamlines"] == 3
+
+    # What is wrong with the command itself: one line, before any work.
+    p = subprocess.run(cmd[:-2] + ["--views", "top"], env=env, capture_output=True, text=True)
+    assert p.returncode == 2 and "--views" in p.stderr
+    p = subprocess.run(cmd[:3] + [str(cohort), "--glob", "*.trx", "--out", str(tmp_path / "none")], env=env, capture_output=True,
+                       text=True)
+    assert p.returncode == 1 and "no file under" in p.stderr
