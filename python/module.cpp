@@ -41,14 +41,16 @@ std::unique_ptr<core::Registry> g_registry;
 std::vector<core::fs::path> g_dirs;  // the package's plugin folders (set by horizon/__init__.py)
 std::unique_ptr<core::render::GlContext> g_context;
 
+// (The GIL is released before the lock is taken: a thread that held the GIL
+// while it waited for the lock would block the scanning thread, which must
+// take the GIL back before it lets the lock go; each plugin file is tried
+// in a child process first.)
 core::Registry &registry() {
+    py::gil_scoped_release nogil;
     std::lock_guard lock(g_mutex);
     if (!g_registry) {
         auto reg = std::make_unique<core::Registry>(core::Registry::Options{true, 10.0, core::default_trial_cache()});
-        {
-            py::gil_scoped_release nogil;  // (each plugin file is tried in a child process first)
-            reg->scan(core::plugin_search_path(g_dirs));
-        }
+        reg->scan(core::plugin_search_path(g_dirs));
         g_registry = std::move(reg);
     }
     return *g_registry;

@@ -322,3 +322,18 @@ def test_cohort_qc_on_dask_writes_a_gallery_and_resumes(tmp_path):
     p = subprocess.run(cmd[:3] + [str(cohort), "--glob", "*.trx", "--out", str(tmp_path / "none")], env=env, capture_output=True,
                        text=True)
     assert p.returncode == 1 and "no file under" in p.stderr
+
+
+def test_threads_loading_at_once_do_not_deadlock(tck):
+    """Four threads of a fresh interpreter load files at once, the first
+    call finding the plugins (done with the GIL released, under a lock):
+    all finish."""
+    path, _ = tck
+    code = ("import threading, horizon\n"
+            f"ts = [threading.Thread(target=lambda: [horizon.load({str(path)!r}) for _ in range(20)]) for _ in range(4)]\n"
+            "[t.start() for t in ts]\n[t.join(20) for t in ts]\n"
+            "print('alive' if any(t.is_alive() for t in ts) else 'done')\n"
+            "import os\nos._exit(0)\n")
+    env = {**os.environ, "PYTHONPATH": os.path.dirname(os.path.dirname(os.path.abspath(horizon.__file__)))}
+    p = subprocess.run(["/usr/bin/python3", "-c", code], env=env, capture_output=True, text=True, timeout=60)
+    assert p.stdout.strip() == "done", p.stdout + p.stderr
