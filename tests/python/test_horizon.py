@@ -180,7 +180,7 @@ def test_the_installed_package_finds_the_installed_plugins(tmp_path, tck):
     for component in ("python", "runtime"):
         subprocess.run(["cmake", "--install", build, "--prefix", str(prefix), "--component", component], check=True,
                        capture_output=True)
-    site = prefix / "lib" / "python3" / "dist-packages"
+    site = next(prefix.glob("lib/python3*/dist-packages"))  # (python3.X under /usr/local-like prefixes)
     env = {**os.environ, "PYTHONPATH": str(site), "XDG_DATA_HOME": str(tmp_path / "none"), "HORIZON_PLUGIN_PATH": ""}
     code = ("import horizon, sys; ps = horizon.plugins(); "
             "print(horizon.__file__); print(sorted({p['file'].rsplit('/', 1)[0] for p in ps})); "
