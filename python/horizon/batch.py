@@ -4,7 +4,8 @@ headless, one subject per task on a Dask cluster (a local one by default),
 and a gallery (a static HTML page: thumbnails, numbers, failures; sorting and
 filtering in the page, no server) is written beside the results.
 
-    python3 -m horizon.batch ROOT --glob 'sub-*/**/*.tck' --out qc [--workers 2] [--scheduler tcp://HOST:8786]
+    python3 -m horizon.batch ROOT --glob 'sub-*/**/*.tck' --out qc [--anatomy 'sub-*/anat/*_T1w.nii.gz']
+                             [--workers 2] [--scheduler tcp://HOST:8786]
 
 Per subject, in OUT/subjects/ID/: qc.json (counts, lengths, bounding box, the
 source's size and time) and one PNG per view. Every file is written to a
@@ -15,6 +16,12 @@ current subject (Dask runs the task again elsewhere). A subject that fails
 (a missing, truncated or hostile file) is one failed row with its one-line
 error and never stops the others; it is tried again by the next run. The
 exit status is 0 unless --strict is given and a subject failed.
+
+With --anatomy, each subject's anatomy (the file the glob matches in the
+same subject folder, ROOT's first level) is the affine's sanity check: a
+tractogram reaching more than --tolerance mm outside the anatomy's grid,
+in RAS+ mm, is flagged (the usual sign of a wrong affine or a voxel-space
+file), and drawn over its anatomy's slices.
 """
 import argparse
 import glob
@@ -85,7 +92,22 @@ def measure(data):
             "bounding_box_mm": [lo.tolist(), hi.tolist()] if np.isfinite(lo).all() else None}
 
 
-def qc_subject(root, path, out, views, size):
+def anatomy_box(data):
+    """The RAS+ mm box of a volume's grid (its voxels' outer faces)."""
+    import numpy as np
+    dims = list(data.voxels.shape[:3])
+    corners = np.array([[i, j, k, 1.0] for i in (-0.5, dims[0] - 0.5) for j in (-0.5, dims[1] - 0.5) for k in (-0.5, dims[2] - 0.5)])
+    ras = corners @ np.asarray(data.affine).T
+    return ras[:, :3].min(axis=0), ras[:, :3].max(axis=0)
+
+
+def outside_mm(box, lo, hi):
+    """How far (mm) the box [box[0], box[1]] reaches outside [lo, hi]."""
+    import numpy as np
+    return float(max(0.0, np.max(lo - np.asarray(box[0])), np.max(np.asarray(box[1]) - hi)))
+
+
+def qc_subject(root, path, out, views, size, anatomy=None, tolerance=10.0):
     """One subject's QC (run on a worker): its record, written to
     OUT/subjects/ID/qc.json; done before and unchanged: read back."""
     import horizon
@@ -100,11 +122,11 @@ def qc_subject(root, path, out, views, size):
     if stamp and os.path.exists(record_path):
         with open(record_path) as f:
             old = json.load(f)
-        if old.get("status") == "ok" and old.get("source") == stamp:
+        if old.get("status") == "ok" and old.get("source") == stamp and old.get("anatomy", {}).get("file") == (anatomy or None):
             old["skipped"] = True
             return old
     os.makedirs(folder, exist_ok=True)
-    record = {"id": sid, "file": path, "source": stamp, "views": {}}
+    record = {"id": sid, "file": path, "source": stamp, "views": {}, "warnings": []}
     t0 = time.perf_counter()
     try:
         if stamp is None:
@@ -113,9 +135,24 @@ def qc_subject(root, path, out, views, size):
         if data.kind != "streamlines":
             raise horizon.Error(f"{path}: holds {data.kind}, not streamlines")
         record.update(measure(data))
+        anat = None
+        if anatomy:
+            anat = horizon.load(anatomy)
+            if anat.kind != "volume":
+                raise horizon.Error(f"{anatomy}: holds {anat.kind}, not a volume")
+            lo, hi = anatomy_box(anat)
+            far = outside_mm(record["bounding_box_mm"], lo, hi) if record["bounding_box_mm"] else 0.0
+            record["anatomy"] = {"file": anatomy, "box_mm": [lo.tolist(), hi.tolist()], "outside_mm": round(far, 2)}
+            if far > tolerance:
+                record["warnings"].append(f"the streamlines reach {far:.1f} mm outside {os.path.basename(anatomy)}'s grid "
+                                          f"(a wrong affine, or streamlines in voxel space?)")
+        elif anatomy is not None:
+            record["warnings"].append("no anatomy found for this subject")
         for view in views:
             scene = horizon.Scene(environment={"type": "studio"}, camera={"view": view})
             scene.add(data, render="lines")
+            if anat is not None:
+                scene.add(anat, type="slices")
             png = os.path.join(folder, f"{view}.png")
             _write_atomic(png, horizon._png(scene.render(size)))
             record["views"][view] = os.path.relpath(png, out)
@@ -134,7 +171,7 @@ GALLERY = """<!doctype html>
 <style>
 body{{font-family:sans-serif;margin:1em;background:#111;color:#ddd}} table{{border-collapse:collapse}}
 td,th{{padding:4px 8px;border-bottom:1px solid #333;text-align:right}} th{{cursor:pointer;background:#222}}
-td.id,td.error{{text-align:left}} tr.failed td{{color:#f88}} img{{height:96px}} input{{margin:0 0 1em 0;width:30em}}
+td.id,td.error{{text-align:left}} tr.failed td{{color:#f88}} tr.warned td.error{{color:#fc6}} img{{height:96px}} input{{margin:0 0 1em 0;width:30em}}
 </style></head><body>
 <h1>Horizon QC: {title}</h1>
 <p>{summary}</p>
@@ -161,7 +198,8 @@ t.tHead.addEventListener('click', e => {{
 
 
 def gallery(out, records, views, title):
-    cols = ["subject", "status", "streamlines", "points", "median length (mm)", "min length", "max length"] + list(views) + ["error"]
+    cols = ["subject", "status", "streamlines", "points", "median length (mm)", "min length", "max length"] + list(views) + \
+        ["error or warning"]
     head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
     rows = []
     for r in sorted(records, key=lambda r: r["id"]):
@@ -173,10 +211,13 @@ def gallery(out, records, views, title):
         for v in views:
             src = r.get("views", {}).get(v)
             cells.append(f'<td><a href="{html.escape(src)}"><img src="{html.escape(src)}" alt="{v}"></a></td>' if src else "<td></td>")
-        cells.append(f'<td class="error">{html.escape(r.get("error", ""))}</td>')
-        rows.append(f'<tr class="{"ok" if ok else "failed"}">' + "".join(cells) + "</tr>")
+        note = r.get("error") or "; ".join(r.get("warnings", []))
+        cells.append(f'<td class="error">{html.escape(note)}</td>')
+        kind = "failed" if not ok else "warned" if r.get("warnings") else "ok"
+        rows.append(f'<tr class="{kind}">' + "".join(cells) + "</tr>")
     failed = sum(r.get("status") != "ok" for r in records)
-    summary = f"{len(records)} subjects: {len(records) - failed} ok, {failed} failed."
+    warned = sum(r.get("status") == "ok" and bool(r.get("warnings")) for r in records)
+    summary = f"{len(records)} subjects: {len(records) - failed} ok ({warned} with warnings), {failed} failed."
     page = GALLERY.format(title=html.escape(title), summary=summary, head=head, rows="\n".join(rows))
     _write_atomic(os.path.join(out, "index.html"), page.encode())
     _write_atomic(os.path.join(out, "qc.json"), json.dumps(sorted(records, key=lambda r: r["id"]), indent=1).encode())
@@ -191,6 +232,9 @@ def main(argv=None):
     ap.add_argument("--size", default="320x240", help="each view's size, WIDTHxHEIGHT (default 320x240)")
     ap.add_argument("--workers", type=int, default=2, help="a local Dask cluster of this many worker processes, one thread each")
     ap.add_argument("--scheduler", help="the address of a Dask scheduler started elsewhere (then --workers is ignored)")
+    ap.add_argument("--anatomy", help="each subject's anatomy, relative to ROOT (e.g. 'sub-*/anat/*_T1w.nii.gz'): the affine's "
+                    "sanity check, and slices under the views")
+    ap.add_argument("--tolerance", type=float, default=10.0, help="--anatomy: mm the streamlines may reach outside its grid (10)")
     ap.add_argument("--strict", action="store_true", help="exit with status 1 if a subject failed")
     a = ap.parse_args(argv)
     views = [v for v in a.views.split(",") if v]
@@ -210,6 +254,12 @@ def main(argv=None):
     if not files:
         print(f"horizon.batch: error: no file under {a.root} matches '{a.glob}'", file=sys.stderr)
         return 1
+    anatomy = [None] * len(files)
+    if a.anatomy:
+        by_subject = {}
+        for f in sorted(glob.glob(os.path.join(root, a.anatomy), recursive=True)):
+            by_subject.setdefault(os.path.relpath(f, root).split(os.sep)[0], f)
+        anatomy = [by_subject.get(os.path.relpath(f, root).split(os.sep)[0], "") for f in files]
     os.makedirs(os.path.join(out, "subjects"), exist_ok=True)
     from dask.distributed import Client, LocalCluster
     cluster = None
@@ -221,7 +271,7 @@ def main(argv=None):
     t0 = time.perf_counter()
     try:
         futures = client.map(qc_subject, [root] * len(files), files, [out] * len(files), [views] * len(files), [(w, h)] * len(files),
-                             pure=False, retries=2)
+                             anatomy, [a.tolerance] * len(files), pure=False, retries=2)
         records = client.gather(futures)
     finally:
         client.close()
@@ -234,6 +284,9 @@ def main(argv=None):
           f"in {time.perf_counter() - t0:.1f} s; gallery: {os.path.join(out, 'index.html')}")
     for r in failed:
         print(f"  failed {r['id']}: {r.get('error')}")
+    for r in records:
+        for w_ in r.get("warnings", []) if r.get("status") == "ok" else []:
+            print(f"  warning {r['id']}: {w_}")
     return 1 if failed and a.strict else 0
 
 

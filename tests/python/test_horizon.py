@@ -337,3 +337,37 @@ def test_threads_loading_at_once_do_not_deadlock(tck):
     env = {**os.environ, "PYTHONPATH": os.path.dirname(os.path.dirname(os.path.abspath(horizon.__file__)))}
     p = subprocess.run(["/usr/bin/python3", "-c", code], env=env, capture_output=True, text=True, timeout=60)
     assert p.stdout.strip() == "done", p.stdout + p.stderr
+
+
+def test_cohort_qc_checks_the_affine_against_the_anatomy(tmp_path):
+    """--anatomy: a tractogram inside its subject's T1 grid passes; one moved
+    200 mm away (a wrong affine) is flagged with how far it reaches outside;
+    a subject without an anatomy says so; the views draw the T1's slices."""
+    import nibabel as nib
+    rng = np.random.default_rng(4)
+    cohort, out = tmp_path / "cohort", tmp_path / "qc"
+    affine = np.diag([2.0, 2.0, 2.0, 1.0])
+    affine[:3, 3] = -40
+    for i, shift in ((1, 0.0), (2, 200.0), (3, 0.0)):
+        (cohort / f"sub-{i:02d}" / "dwi").mkdir(parents=True)
+        if i != 3:
+            (cohort / f"sub-{i:02d}" / "anat").mkdir()
+            nib.save(nib.Nifti1Image(rng.random((40, 40, 40)).astype(np.float32) * 100, affine),
+                     str(cohort / f"sub-{i:02d}" / "anat" / f"sub-{i:02d}_T1w.nii.gz"))
+        sl = [(np.cumsum(rng.normal(size=(30, 3)), axis=0) + [shift, 2 * k - 20, 0]).astype(np.float32) for k in range(20)]
+        nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)),
+                             str(cohort / f"sub-{i:02d}" / "dwi" / f"sub-{i:02d}_tractography.tck"))
+    env = {**os.environ, "PYTHONPATH": os.path.dirname(os.path.dirname(os.path.abspath(horizon.__file__)))}
+    p = subprocess.run(["/usr/bin/python3", "-m", "horizon.batch", str(cohort), "--glob", "sub-*/dwi/*.tck", "--out", str(out),
+                        "--anatomy", "sub-*/anat/*_T1w.nii.gz", "--workers", "1", "--views", "superior"],
+                       env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    records = {r["id"].split("__")[0]: r for r in json.loads((out / "qc.json").read_text())}
+    assert all(r["status"] == "ok" for r in records.values())
+    assert records["sub-01"]["warnings"] == [] and records["sub-01"]["anatomy"]["outside_mm"] <= 10
+    np.testing.assert_allclose(records["sub-01"]["anatomy"]["box_mm"], [[-41, -41, -41], [39, 39, 39]])
+    far = records["sub-02"]["anatomy"]["outside_mm"]
+    assert 150 < far < 250 and "outside sub-02_T1w.nii.gz's grid" in records["sub-02"]["warnings"][0]
+    assert records["sub-03"]["warnings"] == ["no anatomy found for this subject"]
+    assert "(2 with warnings)" in (out / "index.html").read_text()
+    assert "warning sub-02" in p.stdout
