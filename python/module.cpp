@@ -50,7 +50,12 @@ core::Registry &registry() {
     std::lock_guard lock(g_mutex);
     if (!g_registry) {
         auto reg = std::make_unique<core::Registry>(core::Registry::Options{true, 10.0, core::default_trial_cache()});
-        reg->scan(core::plugin_search_path(g_dirs));
+        // As the program's: HORIZON_PLUGIN_PATH, the user's folder, then the
+        // bundled plugins (the package's own folders last: the first plugin
+        // with an id wins, so a user's plugin replaces a bundled one).
+        std::vector<core::fs::path> dirs = core::plugin_search_path({});
+        dirs.insert(dirs.end(), g_dirs.begin(), g_dirs.end());
+        reg->scan(dirs);
         g_registry = std::move(reg);
     }
     return *g_registry;
@@ -129,7 +134,7 @@ PYBIND11_MODULE(_core, m) {
             if (g_registry) throw core::Error("the plugins are loaded already: set their folders before the first call");
             g_dirs.assign(dirs.begin(), dirs.end());
         },
-        "The folders searched for plugins first (then HORIZON_PLUGIN_PATH and the user's).");
+        "The bundled plugins' folders, searched after HORIZON_PLUGIN_PATH and the user's folder.");
 
     m.def(
         "plugins",

@@ -272,7 +272,13 @@ def main(argv=None):
     try:
         futures = client.map(qc_subject, [root] * len(files), files, [out] * len(files), [views] * len(files), [(w, h)] * len(files),
                              anatomy, [a.tolerance] * len(files), pure=False, retries=2)
-        records = client.gather(futures)
+        records = []
+        for f, fut in zip(files, futures):
+            try:
+                records.append(fut.result())
+            except Exception as e:  # (its workers died every time: a crash in a plugin, memory; the others go on)
+                records.append({"id": subject_id(root, f), "file": f, "status": "failed", "views": {}, "warnings": [],
+                                "error": f"{f}: its task failed on every worker it was given ({type(e).__name__})"})
     finally:
         client.close()
         if cluster:

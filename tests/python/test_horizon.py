@@ -371,3 +371,34 @@ def test_cohort_qc_checks_the_affine_against_the_anatomy(tmp_path):
     assert records["sub-03"]["warnings"] == ["no anatomy found for this subject"]
     assert "(2 with warnings)" in (out / "index.html").read_text()
     assert "warning sub-02" in p.stdout
+
+
+def test_cohort_qc_survives_a_subject_that_kills_its_worker(tmp_path):
+    """A loader that dies on the files it opens (a test fixture replacing the
+    TCK loader through HORIZON_PLUGIN_PATH): the subject's task kills its
+    worker each time Dask gives it one; it is one failed row, the others
+    are done."""
+    import nibabel as nib
+    build = os.environ.get("HORIZON_BUILD_DIR")
+    if not build:
+        pytest.skip("HORIZON_BUILD_DIR is not set (ctest sets it)")
+    crash = os.path.join(build, "tests", "fixtures", "crash_on_open")
+    assert os.path.exists(os.path.join(crash, "fx_tck_crash_on_open.so"))
+    rng = np.random.default_rng(6)
+    cohort, out = tmp_path / "cohort", tmp_path / "qc"
+    for i, ext in ((1, "trk"), (2, "tck"), (3, "trk")):
+        (cohort / f"sub-{i:02d}").mkdir(parents=True)
+        sl = [np.cumsum(rng.normal(size=(30, 3)), axis=0).astype(np.float32) for _ in range(10)]
+        nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), str(cohort / f"sub-{i:02d}" / f"t.{ext}"))
+    env = {**os.environ, "PYTHONPATH": os.path.dirname(os.path.dirname(os.path.abspath(horizon.__file__))),
+           "HORIZON_PLUGIN_PATH": crash, "HORIZON_PLUGIN_CACHE": "off"}
+    p = subprocess.run(["/usr/bin/python3", "-m", "horizon.batch", str(cohort), "--glob", "sub-*/t.*", "--out", str(out),
+                        "--workers", "2", "--views", "superior"], env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    # (a subject finished on a worker that the bad one then killed may be
+    # given again to another, which finds it done: "done before")
+    assert "3 subjects: 2 ok (" in p.stdout and "), 1 failed" in p.stdout, p.stdout
+    records = {r["id"]: r for r in json.loads((out / "qc.json").read_text())}
+    assert records["sub-02__t"]["status"] == "failed"
+    assert "failed on every worker" in records["sub-02__t"]["error"] and "t.tck" in records["sub-02__t"]["error"]
+    assert records["sub-01__t"]["status"] == records["sub-03__t"]["status"] == "ok"

@@ -80,6 +80,9 @@ hz_status open_with(const hz_open_request *req, const hz_task *task, hz_reader *
     if (out != nullptr) *out = nullptr;
     if (req == nullptr || req->path == nullptr || out == nullptr)
         return hz::set_error(err, HZ_E_INVALID_ARGUMENT, "tck: open: NULL request, path or output");
+#ifdef TCK_FIXTURE_CRASH_ON_OPEN  // tests/fixtures: a loader that dies on every file it opens (SIGSEGV)
+    *static_cast<volatile int *>(nullptr) = 1;
+#endif
     return run(err, req->path, [&]() -> hz_status {
         auto r = std::make_unique<Reader>();
         r->path = req->path;
