@@ -560,7 +560,7 @@ class VolumeRenderingTest(TempDirTest):
 
     def cube(self, a, **extra):
         return {"type": "volume", "file": "cube.nii.gz", "window": [0, 1],
-                "transfer": {"colormap": "gray", "opacity": [[0, a], [1, a]]}, **extra}
+                "transfer": {"colormap": "gray", "opacity": [[0, a], [1, a]], "shade": False}, **extra}
 
     def centre(self, picture):
         return picture[148:153, 148:153, 0].mean() / 255.0
@@ -585,7 +585,7 @@ class VolumeRenderingTest(TempDirTest):
         window [0, 31], grey colours and opacity 0.15 x the window fraction
         per mm: seen from above, the bright top first."""
         obj = {"type": "volume", "file": "ramp.nii.gz", "window": [0, 31],
-               "transfer": {"colormap": "gray", "opacity": [[0, 0.0], [1, 0.15]]}}
+               "transfer": {"colormap": "gray", "opacity": [[0, 0.0], [1, 0.15]], "shade": False}}
         pic, _ = self.render([obj])
         n = 20000
         z = 16 - (np.arange(n) + 0.5) * 32 / n  # top to bottom, mm
@@ -595,6 +595,50 @@ class VolumeRenderingTest(TempDirTest):
         transmittance = np.exp(-np.concatenate([[0], np.cumsum(kappa * dz)[:-1]]))
         want = float(np.sum(transmittance * (1 - np.exp(-kappa * dz)) * w))
         self.assertAlmostEqual(self.centre(pic), want, delta=2.0 / 255)
+
+    def test_shading_follows_the_surfaces_normal(self):
+        """A sphere of radius 20 mm as the level where a distance field
+        crosses (values 25 - r, opaque above 5): lit by one light from above
+        and seen from above, a pixel at distance rho from the disc's centre
+        sees the normal n_z = sqrt(1 - (rho / 20)^2), so shading multiplies
+        its colour (a display value, as the data's colours are composited) by
+        0.3 + 0.7 n_z (1 at the centre, 0.906 at half the radius, 0.72 at 0.8
+        of it); "shade": false leaves it as it is. A light from the side
+        instead: 0.3 + 0.7 |n_x|, the ambient third at the centre."""
+        import nibabel as nib
+        n = 64
+        ijk = np.indices((n, n, n)).astype(np.float32) - (n - 1) / 2
+        r = np.sqrt((ijk ** 2).sum(axis=0))
+        affine = np.eye(4)
+        affine[:3, 3] = -(n - 1) / 2
+        nib.save(nib.Nifti1Image((25 - r).astype(np.float32), affine), self.path("ball.nii.gz"))
+
+        def ball(shade):
+            # (the surface at 91 % of the window: a bright grey, finely quantised)
+            return {"type": "volume", "file": "ball.nii.gz", "window": [4, 5.1],
+                    "transfer": {"colormap": "gray", "opacity": [[0, 0], [0.899, 0], [0.9, 1], [1, 1]], "shade": shade}}
+
+        def draw(shade, light):
+            with open(self.path("s.json"), "w") as f:
+                # (from far, through a narrow field: nearly orthographic, so that
+                # a pixel's distance from the disc's centre is rho's)
+                json.dump({"camera": {"position": [0, 0, 600], "target": [0, 0, 0], "up": [0, 1, 0], "fov": 5}, "environment": {"type": "none"},
+                           "tonemap": "none", "background": [0, 0, 0],
+                           "lights": [{"type": "directional", "direction": light, "space": "world"}], "objects": [ball(shade)]}, f)
+            out = self.path("b.png")
+            p = run("render", self.path("s.json"), "-o", out, "--size", "301x301", "--force", timeout=120)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            return np.asarray(Image.open(out).convert("RGB"), dtype=np.float64)[..., 0] / 255
+
+        flat = draw(False, [0, 0, 1])
+        cols = np.nonzero(flat[150] > 0.1)[0]
+        centre, radius = (cols[0] + cols[-1]) / 2, (cols[-1] - cols[0] + 1) / 2
+        for light, want in (([0, 0, 1], lambda f: math.sqrt(1 - f * f)), ([1, 0, 0], abs)):
+            lit = draw(True, light)
+            for frac in (-0.8, -0.5, 0.0, 0.5, 0.8):
+                x = int(round(centre + frac * radius))
+                got = lit[148:153, x].mean() / flat[148:153, x].mean()
+                self.assertAlmostEqual(got, 0.3 + 0.7 * want(frac), delta=0.04, msg=f"light {light}, at {frac} of the radius")
 
     def test_presets_files_and_the_window(self):
         with open(self.path("tf.json"), "w") as f:
@@ -629,7 +673,7 @@ class VolumeRenderingTest(TempDirTest):
     def test_bad_transfer_functions_are_one_line(self):
         cases = (("bone", "no preset 'bone'"), ({"opacity": [[0, 0.1], [0, 0.2]]}, "opacity[1]: fractions must increase"),
                  ({"opacity": [[0, 1.5]]}, "opacity of one millimetre"), ({"opacity": [[-1, 0.5]]}, "fraction of the window"),
-                 ({"opacity": []}, "1 to 256"), ({"colormap": "jet"}, "jet"), ({"shade": True}, "shade"), ("missing.json", "missing.json"),
+                 ({"opacity": []}, "1 to 256"), ({"colormap": "jet"}, "jet"), ({"shading": True}, "shading"), ({"shade": 1}, "shade"), ("missing.json", "missing.json"),
                  ("bad.json", "bad.json"))
         with open(self.path("bad.json"), "w") as f:
             f.write("{not json")

@@ -1002,6 +1002,11 @@ struct Renderer::Impl {
             p.opacity = float(scene.objects[g.index].opacity);
             p.volume_tex = g.volume_tex, p.transfer_tex = g.colormap_tex;
             p.tone_curve = tone_curve(), p.exposure = float(scene.exposure);
+            p.shade = scene.objects[g.index].transfer && scene.objects[g.index].transfer->shade;
+            if (p.shade) {  // (the key light, else from the camera)
+                const glm::dvec3 l = key_light() >= 0 ? key_light_direction(m) : m.back;
+                p.to_light = glm::vec3(float(l.x), float(l.y), float(l.z));
+            }
             volume_pass->apply(colour_fbo, *frame_depth, p, empty_vao, encoded);
             ++stats.volumes_rendered;
         }

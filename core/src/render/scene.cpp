@@ -232,7 +232,11 @@ TransferFunction transfer_from_json(const json &j, const std::string &what, cons
     tf.name = "custom";
     if (!j.is_object())
         fail(what, where, "expected a preset name, or an object {\"colormap\": ..., \"opacity\": [[fraction, opacity], ...]}");
-    check_keys(j, {"colormap", "opacity"}, what, where);
+    check_keys(j, {"colormap", "opacity", "shade"}, what, where);
+    if (j.contains("shade")) {
+        if (!j["shade"].is_boolean()) fail(what, where + ".shade", "expected true or false");
+        tf.shade = j["shade"].get<bool>();
+    }
     if (j.contains("colormap"))
         tf.colormap = str(j["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
     if (j.contains("opacity")) {
@@ -262,8 +266,8 @@ TransferFunction transfer_preset(const std::string &name) {
     TransferFunction tf;
     tf.name = name;
     if (name == "mri") return tf;
-    if (name == "density") {
-        tf.colormap = "viridis", tf.opacity = {{0.0, 0.0}, {0.02, 0.0}, {1.0, 0.15}};
+    if (name == "density") {  // (a density is no surface: unlit)
+        tf.colormap = "viridis", tf.opacity = {{0.0, 0.0}, {0.02, 0.0}, {1.0, 0.15}}, tf.shade = false;
         return tf;
     }
     if (name == "hot") {

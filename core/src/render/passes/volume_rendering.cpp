@@ -30,6 +30,10 @@ uniform mat4 u_ras_to_tex;
 uniform vec2 u_window;
 uniform float u_step;
 uniform float u_opacity;
+uniform int u_shade;
+uniform vec3 u_light;      // towards the key light, world, unit
+uniform mat3 u_normal_to_world;  // a gradient in texture coordinates to one in world mm (the transpose of world -> texture)
+uniform vec3 u_texel;      // one voxel in texture coordinates
 out vec4 o;
 void main() {
     vec2 ndc = v_uv * 2.0 - 1.0;
@@ -69,6 +73,19 @@ void main() {
         vec4 c = texture(u_transfer, vec2((w * 255.0 + 0.5) / 256.0, 0.5));
         if (c.a <= 0.0) continue;
         float a = 1.0 - pow(max(1.0 - c.a, 0.0), h);
+        if (u_shade != 0) {
+            // The gradient (central differences, one voxel) as the normal:
+            // two-sided Lambert with an ambient third; where the values
+            // hardly change (within a window's thousandth per voxel), unlit.
+            vec3 g = vec3(texture(u_volume, tc + vec3(u_texel.x, 0.0, 0.0)).r - texture(u_volume, tc - vec3(u_texel.x, 0.0, 0.0)).r,
+                          texture(u_volume, tc + vec3(0.0, u_texel.y, 0.0)).r - texture(u_volume, tc - vec3(0.0, u_texel.y, 0.0)).r,
+                          texture(u_volume, tc + vec3(0.0, 0.0, u_texel.z)).r - texture(u_volume, tc - vec3(0.0, 0.0, u_texel.z)).r) *
+                     scale;
+            vec3 gt = g / u_texel;  // (differences over one voxel each: per unit of texture coordinate)
+            vec3 n = u_normal_to_world * gt;
+            float m = length(n);
+            if (length(gt) * min(u_texel.x, min(u_texel.y, u_texel.z)) > 2e-3) c.rgb *= 0.3 + 0.7 * abs(dot(n / m, u_light));
+        }
         acc.rgb += (1.0 - acc.a) * a * c.rgb;
         acc.a += (1.0 - acc.a) * a;
         if (acc.a > 0.996) break;
@@ -144,6 +161,20 @@ void VolumeRendering::apply(GLuint colour_fbo, const FrameDepth &depth, const Vo
     glUniform2f(prog.loc("u_window"), p.window.x, p.window.y);
     glUniform1f(prog.loc("u_step"), p.step_mm);
     glUniform1f(prog.loc("u_opacity"), p.opacity);
+    glUniform1i(prog.loc("u_shade"), p.shade ? 1 : 0);
+    // f(x) = F(A x + b): the world gradient is A^T times the texture one.
+    const glm::mat3 to_tex(p.ras_to_tex);
+    const glm::mat3 at = glm::transpose(to_tex);
+    glUniformMatrix3fv(prog.loc("u_normal_to_world"), 1, GL_FALSE, glm::value_ptr(at));
+    const glm::vec3 l = glm::normalize(p.to_light);
+    glUniform3f(prog.loc("u_light"), l.x, l.y, l.z);
+    GLint dims[3] = {1, 1, 1};
+    glBindTexture(GL_TEXTURE_3D, p.volume_tex);
+    glGetTexLevelParameteriv(GL_TEXTURE_3D, 0, GL_TEXTURE_WIDTH, &dims[0]);
+    glGetTexLevelParameteriv(GL_TEXTURE_3D, 0, GL_TEXTURE_HEIGHT, &dims[1]);
+    glGetTexLevelParameteriv(GL_TEXTURE_3D, 0, GL_TEXTURE_DEPTH, &dims[2]);
+    glUniform3f(prog.loc("u_texel"), 1.0f / float(std::max(dims[0], 1)), 1.0f / float(std::max(dims[1], 1)),
+                1.0f / float(std::max(dims[2], 1)));
     glUniform1f(prog.loc("hz_exposure"), p.exposure);
     glBindVertexArray(empty_vao);
     glDrawArrays(GL_TRIANGLES, 0, 3);

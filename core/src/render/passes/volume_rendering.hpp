@@ -37,12 +37,14 @@ struct VolumeRayParams {
     glm::vec3 eye{0.0f};
     glm::mat4 ras_to_tex{1.0f};  // world mm -> the volume's texture coordinates ([0, 1] inside)
     glm::vec2 window{0.0f, 1.0f};
-    float step_mm = 0.5f;     // the march's step (the last one shorter)
-    float opacity = 1.0f;     // the object's: multiplies what the ray gathered
-    GLuint volume_tex = 0;    // R32F 3D, linear
-    GLuint transfer_tex = 0;  // 256 x 1 RGBA16F: colormap (display values), opacity of 1 mm
-    int tone_curve = 0;       // the scene's (glsl.hpp kDisplay), for a linear picture
-    float exposure = 1.0f;    // the scene's, likewise
+    float step_mm = 0.5f;                  // the march's step (equal steps of at most this)
+    float opacity = 1.0f;                  // the object's: multiplies what the ray gathered
+    GLuint volume_tex = 0;                 // R32F 3D, linear
+    GLuint transfer_tex = 0;               // 256 x 1 RGBA16F: colormap (display values), opacity of 1 mm
+    int tone_curve = 0;                    // the scene's (glsl.hpp kDisplay), for a linear picture
+    float exposure = 1.0f;                 // the scene's, likewise
+    bool shade = false;                    // lit where the values change (TransferFunction::shade)
+    glm::vec3 to_light{0.0f, 0.0f, 1.0f};  // the key light, world, unit
 };
 
 class VolumeRendering {

@@ -54,11 +54,14 @@ struct ClusterSpec {
 // colours of `colormap` and a piecewise-linear opacity, given as (window
 // fraction in [0, 1], opacity of one millimetre in [0, 1]) in increasing
 // fraction order (clamped at both ends). A preset or a user's (scene file,
-// or a JSON file of the same keys; docs/scene-format.md).
+// or a JSON file of the same keys; docs/scene-format.md), lit or not.
 struct TransferFunction {
     std::string name = "mri";  // the preset's name, or "custom"
     std::string colormap = "gray";
     std::vector<std::array<double, 2>> opacity{{0.0, 0.0}, {0.3, 0.0}, {1.0, 0.25}};
+    // Lit by the key light where the values change (the gradient as the
+    // normal, two-sided): colour x (0.3 + 0.7 |n . l|); flat regions unlit.
+    bool shade = true;
 };
 // The presets' names: mri (grey, tissue above 30 % of the window), density
 // (viridis, anything above 2 %: tract density, fODF amplitude), hot (hot,
