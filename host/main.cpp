@@ -38,13 +38,22 @@ const CLI::Validator kSize(
     },
     "WIDTHxHEIGHT");
 
-// The level-of-detail options `render` and `view` share (documented once).
+// A pass's two flags: --NAME (ON_HELP) and --no-NAME (NOUN off whatever the scene file says), which exclude
+// each other. Returns --no-NAME, which the pass's settings exclude too.
+CLI::Option *add_pass_switch(CLI::App *cmd, const std::string &name, bool &on, bool &off, const std::string &on_help,
+                             const std::string &noun) {
+    auto *yes = cmd->add_flag("--" + name, on, on_help);
+    auto *no = cmd->add_flag("--no-" + name, off, "no " + noun + ", whatever the scene file says");
+    yes->excludes(no);
+    return no;
+}
+
+// The depth-cue options `render` and `view` share (documented once).
 void add_depth_cue_options(CLI::App *cmd, DepthCueOptions &c) {
-    auto *on = cmd->add_flag("--ao", c.ao,
-                             "ambient occlusion: each pixel darkened by the scene in front of it within --ao-radius (a depth cue; "
-                             "a scene file's \"ambient_occlusion\")");
-    auto *off = cmd->add_flag("--no-ao", c.no_ao, "no ambient occlusion, whatever the scene file says");
-    on->excludes(off);
+    auto *off = add_pass_switch(cmd, "ao", c.ao, c.no_ao,
+                                "ambient occlusion: each pixel darkened by the scene in front of it within --ao-radius (a depth cue; "
+                                "a scene file's \"ambient_occlusion\")",
+                                "ambient occlusion");
     cmd->add_option("--ao-radius", c.ao_radius, "ambient occlusion: the radius sampled around each pixel, in mm (default 3; implies --ao)")
         ->check(CLI::Range(1e-3, 1000.0))
         ->excludes(off);
@@ -52,20 +61,18 @@ void add_depth_cue_options(CLI::App *cmd, DepthCueOptions &c) {
                     "ambient occlusion: 0 (none) to 1 (a fully hidden pixel is black; default 0.8; implies --ao)")
         ->check(CLI::Range(0.0, 1.0))
         ->excludes(off);
-    auto *cue = cmd->add_flag("--depth-cue", c.depth_cue,
-                              "depth cue: what lies farther fades towards the background across the scene's depth (a scene file's "
-                              "\"depth_cue\")");
-    auto *no_cue = cmd->add_flag("--no-depth-cue", c.no_depth_cue, "no depth cue, whatever the scene file says");
-    cue->excludes(no_cue);
+    auto *no_cue = add_pass_switch(cmd, "depth-cue", c.depth_cue, c.no_depth_cue,
+                                   "depth cue: what lies farther fades towards the background across the scene's depth (a scene "
+                                   "file's \"depth_cue\")",
+                                   "depth cue");
     cmd->add_option("--depth-cue-strength", c.depth_cue_strength,
                     "depth cue: the fraction of the background at the scene's far end, 0 to 1 (default 0.6; implies --depth-cue)")
         ->check(CLI::Range(0.0, 1.0))
         ->excludes(no_cue);
-    auto *sh = cmd->add_flag("--shadows", c.shadows,
-                             "shadows of the key light (the first directional light) cast by surfaces, lines and tubes (a scene "
-                             "file's \"shadows\")");
-    auto *no_sh = cmd->add_flag("--no-shadows", c.no_shadows, "no shadows, whatever the scene file says");
-    sh->excludes(no_sh);
+    auto *no_sh = add_pass_switch(cmd, "shadows", c.shadows, c.no_shadows,
+                                  "shadows of the key light (the first directional light) cast by surfaces, lines and tubes (a scene "
+                                  "file's \"shadows\")",
+                                  "shadows");
     cmd->add_option("--shadow-strength", c.shadow_strength,
                     "shadows: how much of the key light a point in full shadow loses, 0 to 1 (default 0.75; implies --shadows)")
         ->check(CLI::Range(0.0, 1.0))

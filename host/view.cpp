@@ -997,30 +997,21 @@ private:
             std::fflush(stdout);
             return true;
         };
-        app.actions["depth cue"] = [this] {  // depth cue on or off
-            core::render::DepthCue cue = r.scene().depth_cue;
-            cue.on = !cue.on;
-            r.set_depth_cue(cue);
-            std::printf("depth cue: %s\n", cue.on ? "on" : "off");
-            std::fflush(stdout);
-            return true;
+        // A pass on or off: the scene's setting (MEMBER) with its "on" flipped, given back through SET.
+        auto toggle = [this](const char *name, auto member, auto set) {
+            return [this, name, member, set] {
+                auto settings = r.scene().*member;
+                settings.on = !settings.on;
+                (r.*set)(settings);
+                std::printf("%s: %s\n", name, settings.on ? "on" : "off");
+                std::fflush(stdout);
+                return true;
+            };
         };
-        app.actions["shadows"] = [this] {  // the key light's shadows on or off
-            core::render::Shadows sh = r.scene().shadows;
-            sh.on = !sh.on;
-            r.set_shadows(sh);
-            std::printf("shadows: %s\n", sh.on ? "on" : "off");
-            std::fflush(stdout);
-            return true;
-        };
-        app.actions["occlusion"] = [this] {  // ambient occlusion on or off
-            core::render::AmbientOcclusion ao = r.scene().ambient_occlusion;
-            ao.on = !ao.on;
-            r.set_ambient_occlusion(ao);
-            std::printf("ambient occlusion: %s\n", ao.on ? "on" : "off");
-            std::fflush(stdout);
-            return true;
-        };
+        app.actions["depth cue"] = toggle("depth cue", &core::render::Scene::depth_cue, &core::render::Renderer::set_depth_cue);
+        app.actions["shadows"] = toggle("shadows", &core::render::Scene::shadows, &core::render::Renderer::set_shadows);
+        app.actions["occlusion"] =
+            toggle("ambient occlusion", &core::render::Scene::ambient_occlusion, &core::render::Renderer::set_ambient_occlusion);
     }
 
     // A stroke (Ctrl+drag, or `stroke X0 Y0 X1 Y1 ...`): picks the

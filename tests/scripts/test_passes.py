@@ -36,6 +36,18 @@ def reference_occlusion(d, r):
     return (1 - math.sin(phi_c - alpha)) / 2
 
 
+
+def demo_with_and_without(test, off_flag, says, min_darker, what):
+    """The demo draws a pass unless OFF_FLAG: it says SAYS when on, and its picture is darker at MIN_DARKER
+    pixels at least (WHAT), lighter at none."""
+    for args, on in (((), True), ((off_flag,), False)):
+        p = run("demo", "--out", test.path(f"demo{len(args)}"), "--streamlines", "300", "--no-window", *args, env={"DISPLAY": ""}, timeout=180)
+        test.assertEqual(p.returncode, 0, p.stderr)
+        test.assertEqual(says in p.stdout, on, p.stdout)
+    a, b = (np.asarray(Image.open(test.path(f"demo{k}/demo.png")).convert("RGB"), dtype=np.float64) for k in (0, 1))
+    test.assertGreater((a.sum(2) < b.sum(2) - 6).sum(), min_darker, what)
+    test.assertEqual((a.sum(2) > b.sum(2) + 3).sum(), 0)
+
 class AmbientOcclusionTest(TempDirTest):
     R = 3.0  # the cylinder's radius, mm
 
@@ -210,14 +222,7 @@ class AmbientOcclusionTest(TempDirTest):
         self.assertLess(abs(moving - still), 0.5 * (1 - still), f"moving {moving:.3f} against still {still:.3f}")
 
     def test_the_demo_has_it_unless_told_otherwise(self):
-        for args, on in (((), True), (("--no-ao",), False)):
-            out = self.path(f"demo{len(args)}")
-            p = run("demo", "--out", out, "--streamlines", "300", "--no-window", *args, env={"DISPLAY": ""}, timeout=180)
-            self.assertEqual(p.returncode, 0, p.stderr)
-            self.assertEqual("ambient occlusion:" in p.stdout, on, p.stdout)
-        a, b = (np.asarray(Image.open(self.path(f"demo{k}/demo.png")).convert("RGB"), dtype=np.float64) for k in (0, 1))
-        self.assertGreater((a.sum(2) < b.sum(2) - 6).sum(), 2000, "contact shadows where the tubes meet the cortex and slices")
-        self.assertEqual((a.sum(2) > b.sum(2) + 3).sum(), 0)
+        demo_with_and_without(self, "--no-ao", "ambient occlusion:", 2000, "contact shadows where the tubes meet the cortex and slices")
 
     def test_bad_settings_are_one_line(self):
         for ao, where in (({"radius": 0}, "ambient_occlusion.radius"), ({"strength": 2}, "ambient_occlusion.strength"),
@@ -502,14 +507,7 @@ class ShadowTest(TempDirTest):
         self.assertTrue(any(f["kind"] == "moving" and 0 < f["shadow_map"] < 2048 for f in frames), "a smaller map while moving")
 
     def test_the_demo_has_them_unless_told_otherwise(self):
-        for args, on in (((), True), (("--no-shadows",), False)):
-            out = self.path(f"demo{len(args)}")
-            p = run("demo", "--out", out, "--streamlines", "300", "--no-window", *args, env={"DISPLAY": ""}, timeout=180)
-            self.assertEqual(p.returncode, 0, p.stderr)
-            self.assertEqual("shadows:" in p.stdout, on, p.stdout)
-        a, b = (np.asarray(Image.open(self.path(f"demo{k}/demo.png")).convert("RGB"), dtype=np.float64) for k in (0, 1))
-        self.assertGreater((a.sum(2) < b.sum(2) - 6).sum(), 1000, "the tubes' and the cortex's shadows")
-        self.assertEqual((a.sum(2) > b.sum(2) + 3).sum(), 0)
+        demo_with_and_without(self, "--no-shadows", "shadows:", 1000, "the tubes' and the cortex's shadows")
 
     def test_bad_settings_are_one_line(self):
         self.render("tube", (0, 0, 1), None)

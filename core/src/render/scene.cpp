@@ -56,6 +56,25 @@ double num_in(const json &j, const std::string &what, const std::string &where, 
     return v;
 }
 
+// A pass's settings: true, false or an object of KEYS whose "on" (a boolean) is true when absent. Sets ON;
+// returns the object to read its other keys from, or null for a boolean. EXPECTED is the error when A is
+// none of these.
+const json *pass_settings(const json &a, const std::string &what, const std::string &key, const std::set<std::string> &keys, bool &on,
+                          const std::string &expected) {
+    if (a.is_boolean()) {
+        on = a.get<bool>();
+        return nullptr;
+    }
+    if (!a.is_object()) fail(what, key, expected);
+    check_keys(a, keys, what, key);
+    on = true;
+    if (a.contains("on")) {
+        if (!a["on"].is_boolean()) fail(what, key + ".on", "expected true or false");
+        on = a["on"].get<bool>();
+    }
+    return &a;
+}
+
 template <std::size_t N>
 std::array<double, N> vec(const json &j, const std::string &what, const std::string &where) {
     if (!j.is_array() || j.size() != N) fail(what, where, "expected an array of " + std::to_string(N) + " numbers");
@@ -328,58 +347,32 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
     Scene s;
     if (root.contains("ambient_occlusion")) {
         // true | false | {"radius": mm, "strength": 0..1, "on": bool}
-        const json &a = root["ambient_occlusion"];
-        if (a.is_boolean()) {
-            s.ambient_occlusion.on = a.get<bool>();
-        } else if (a.is_object()) {
-            check_keys(a, {"on", "radius", "strength"}, what, "ambient_occlusion");
-            s.ambient_occlusion.on = true;
-            if (a.contains("on")) {
-                if (!a["on"].is_boolean()) fail(what, "ambient_occlusion.on", "expected true or false");
-                s.ambient_occlusion.on = a["on"].get<bool>();
-            }
-            if (a.contains("radius")) s.ambient_occlusion.radius_mm = num_in(a["radius"], what, "ambient_occlusion.radius", 1e-3, 1000.0);
-            if (a.contains("strength")) s.ambient_occlusion.strength = num_in(a["strength"], what, "ambient_occlusion.strength", 0.0, 1.0);
-        } else {
-            fail(what, "ambient_occlusion", "expected true, false or an object {\"radius\": mm, \"strength\": 0..1}");
+        if (const json *a =
+                pass_settings(root["ambient_occlusion"], what, "ambient_occlusion", {"on", "radius", "strength"}, s.ambient_occlusion.on,
+                              "expected true, false or an object {\"radius\": mm, \"strength\": 0..1}")) {
+            if (a->contains("radius"))
+                s.ambient_occlusion.radius_mm = num_in((*a)["radius"], what, "ambient_occlusion.radius", 1e-3, 1000.0);
+            if (a->contains("strength"))
+                s.ambient_occlusion.strength = num_in((*a)["strength"], what, "ambient_occlusion.strength", 0.0, 1.0);
         }
     }
     if (root.contains("depth_cue")) {
         // true | false | strength | {"strength": 0..1, "on": bool}
-        const json &a = root["depth_cue"];
-        if (a.is_boolean()) {
-            s.depth_cue.on = a.get<bool>();
-        } else if (a.is_number()) {
+        const json &d = root["depth_cue"];
+        if (d.is_number()) {
             s.depth_cue.on = true;
-            s.depth_cue.strength = num_in(a, what, "depth_cue", 0.0, 1.0);
-        } else if (a.is_object()) {
-            check_keys(a, {"on", "strength"}, what, "depth_cue");
-            s.depth_cue.on = true;
-            if (a.contains("on")) {
-                if (!a["on"].is_boolean()) fail(what, "depth_cue.on", "expected true or false");
-                s.depth_cue.on = a["on"].get<bool>();
-            }
-            if (a.contains("strength")) s.depth_cue.strength = num_in(a["strength"], what, "depth_cue.strength", 0.0, 1.0);
-        } else {
-            fail(what, "depth_cue", "expected true, false, a strength in [0, 1] or an object {\"strength\": 0..1}");
+            s.depth_cue.strength = num_in(d, what, "depth_cue", 0.0, 1.0);
+        } else if (const json *a = pass_settings(d, what, "depth_cue", {"on", "strength"}, s.depth_cue.on,
+                                                 "expected true, false, a strength in [0, 1] or an object {\"strength\": 0..1}")) {
+            if (a->contains("strength")) s.depth_cue.strength = num_in((*a)["strength"], what, "depth_cue.strength", 0.0, 1.0);
         }
     }
     if (root.contains("shadows")) {
         // true | false | {"on": bool, "strength": 0..1, "softness": mm}
-        const json &a = root["shadows"];
-        if (a.is_boolean()) {
-            s.shadows.on = a.get<bool>();
-        } else if (a.is_object()) {
-            check_keys(a, {"on", "strength", "softness"}, what, "shadows");
-            s.shadows.on = true;
-            if (a.contains("on")) {
-                if (!a["on"].is_boolean()) fail(what, "shadows.on", "expected true or false");
-                s.shadows.on = a["on"].get<bool>();
-            }
-            if (a.contains("strength")) s.shadows.strength = num_in(a["strength"], what, "shadows.strength", 0.0, 1.0);
-            if (a.contains("softness")) s.shadows.softness_mm = num_in(a["softness"], what, "shadows.softness", 0.0, 50.0);
-        } else {
-            fail(what, "shadows", "expected true, false or an object {\"strength\": 0..1, \"softness\": mm}");
+        if (const json *a = pass_settings(root["shadows"], what, "shadows", {"on", "strength", "softness"}, s.shadows.on,
+                                          "expected true, false or an object {\"strength\": 0..1, \"softness\": mm}")) {
+            if (a->contains("strength")) s.shadows.strength = num_in((*a)["strength"], what, "shadows.strength", 0.0, 1.0);
+            if (a->contains("softness")) s.shadows.softness_mm = num_in((*a)["softness"], what, "shadows.softness", 0.0, 50.0);
         }
     }
     if (root.contains("annotations")) {
