@@ -14,6 +14,7 @@ const std::vector<Action> &window_actions() {
         {"occlusion", GLFW_KEY_O, 0, "O", "occlusion", ActionGroup::View},
         {"depth cue", GLFW_KEY_F, 0, "F", "depth cue", ActionGroup::View},
         {"shadows", GLFW_KEY_L, 0, "L", "shadows", ActionGroup::View},
+        {"antialiasing", GLFW_KEY_G, 0, "G", "anti-aliasing", ActionGroup::View},
         {"annotations", GLFW_KEY_N, 0, "N", "annotations", ActionGroup::View},
         {"quit", GLFW_KEY_Q, 0, "Q", "quit", ActionGroup::Other},
         {"quit", GLFW_KEY_ESCAPE, 0, "Esc", "quit", ActionGroup::Other},

@@ -411,7 +411,7 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     ro.out = (std::filesystem::path(o.out_dir) / "demo.png").string();
     ro.size = o.size;
     core::render::Scene scene = core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed);
-    o.cues.apply(scene);
+    o.passes.apply(scene);
     o.annotations.apply(scene);
     if (const int c = render_scene(reg, std::move(scene), ro); c != 0) return c;
     // On a desktop, the same scene in the window.
@@ -420,7 +420,7 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
         std::fflush(stdout);
         const ViewOptions defaults;  // (named: GCC 12 warns of a temporary's strings as maybe uninitialised)
         core::render::Scene shown = core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed);
-        o.cues.apply(shown);
+        o.passes.apply(shown);
         o.annotations.apply(shown);
         return view_scene(reg, std::move(shown), defaults);
     }

@@ -27,8 +27,9 @@ struct ValidateOptions {
     bool no_gpu = false;  // accept shaders without compiling their GLSL (no headless OpenGL here)
 };
 
-// Depth cues, the same for `render`, `view` and `demo`: they replace a scene file's.
-struct DepthCueOptions {
+// The frame's passes (depth cues, anti-aliasing), the same for `render`,
+// `view` and `demo`: they replace a scene file's.
+struct PassOptions {
     bool ao = false, no_ao = false;                // --ao, --no-ao
     double ao_radius = 0;                          // --ao-radius MM (0: the scene's, 3 mm by default)
     double ao_strength = -1;                       // --ao-strength S (< 0: the scene's, 0.8 by default)
@@ -37,7 +38,11 @@ struct DepthCueOptions {
     bool shadows = false, no_shadows = false;      // --shadows, --no-shadows
     double shadow_strength = -1;                   // --shadow-strength S (< 0: the scene's, 0.75 by default)
     double shadow_softness = -1;                   // --shadow-softness MM (< 0: the scene's, 0.5 mm by default)
+    bool no_aa = false;                            // --no-aa
+    int aa_frames = 0;                             // --aa-frames N (0: the scene's, 1 by default)
     void apply(core::render::Scene &s) const {
+        if (aa_frames > 0) s.antialiasing.on = true, s.antialiasing.frames = aa_frames;
+        if (no_aa) s.antialiasing.on = false;
         if (shadows || shadow_strength >= 0 || shadow_softness >= 0) s.shadows.on = true;
         if (no_shadows) s.shadows.on = false;
         if (shadow_strength >= 0) s.shadows.strength = shadow_strength;
@@ -88,7 +93,7 @@ struct DemoOptions {
     std::uint64_t seed = 1;
     std::string size = "1280x720";
     bool window = true;  // open the window afterwards when a display exists
-    DepthCueOptions cues;
+    PassOptions passes;
     AnnotationOptions annotations;
 };
 
@@ -149,7 +154,7 @@ struct RenderOptions {
     std::string size = "1280x720";
     int samples = 0;  // 0: automatic (RenderSettings)
     LodOptions lod;
-    DepthCueOptions cues;
+    PassOptions passes;
     AnnotationOptions annotations;
     VolumeOptions volumes;
     bool preview = false;  // draw the level-of-detail proxy only (the window's first picture)
@@ -177,7 +182,7 @@ struct ViewOptions {
     bool exit_after_script = true;
     std::string screenshot_dir = ".";
     LodOptions lod;
-    DepthCueOptions cues;
+    PassOptions passes;
     AnnotationOptions annotations;
     VolumeOptions volumes;
     std::string stats;                          // --stats FILE.json: per-frame times and what was drawn

@@ -48,8 +48,8 @@ CLI::Option *add_pass_switch(CLI::App *cmd, const std::string &name, bool &on, b
     return no;
 }
 
-// The depth-cue options `render` and `view` share (documented once).
-void add_depth_cue_options(CLI::App *cmd, DepthCueOptions &c) {
+// The options of the frame's passes that `render`, `view` and `demo` share (documented once).
+void add_pass_options(CLI::App *cmd, PassOptions &c) {
     auto *off = add_pass_switch(cmd, "ao", c.ao, c.no_ao,
                                 "ambient occlusion: each pixel darkened by the scene in front of it within --ao-radius (a depth cue; "
                                 "a scene file's \"ambient_occlusion\")",
@@ -81,6 +81,14 @@ void add_depth_cue_options(CLI::App *cmd, DepthCueOptions &c) {
                     "shadows: the radius over which their edges blend, in mm, 0 to 50 (default 0.5; implies --shadows)")
         ->check(CLI::Range(0.0, 50.0))
         ->excludes(no_sh);
+    auto *no_aa = cmd->add_flag("--no-aa", c.no_aa,
+                                "no anti-aliasing: neither the edge pass over frames drawn without multisampling nor jittered frames, "
+                                "whatever the scene file says");
+    cmd->add_option("--aa-frames", c.aa_frames,
+                    "anti-aliasing of a still: N frames, each moved by a fraction of a pixel, averaged (supersampling at N "
+                    "times a frame's cost; a scene file's \"antialiasing\": {\"frames\": N})")
+        ->check(CLI::Range(1, 64))
+        ->excludes(no_aa);
 }
 
 void add_volume_options(CLI::App *cmd, VolumeOptions &v) {
@@ -275,7 +283,7 @@ int main(int argc, char **argv) {
     render->add_option("--samples", ro.samples, "MSAA samples (1 = off; 0 = 4, or 1 above 200k streamline segments)")
         ->capture_default_str();
     add_lod_options(render, ro.lod);
-    add_depth_cue_options(render, ro.cues);
+    add_pass_options(render, ro.passes);
     add_annotation_options(render, ro.annotations);
     add_volume_options(render, ro.volumes);
     render->add_flag("--preview", ro.preview, "draw the level-of-detail proxy only: the window's first picture, in a fraction of the time");
@@ -320,7 +328,7 @@ int main(int argc, char **argv) {
     view->add_option("--exclude", vwo.exclude, "a region the shown streamlines must not meet (same forms; repeatable)")
         ->allow_extra_args(false);
     add_lod_options(view, vwo.lod);
-    add_depth_cue_options(view, vwo.cues);
+    add_pass_options(view, vwo.passes);
     add_annotation_options(view, vwo.annotations);
     add_volume_options(view, vwo.volumes);
     view->footer("Keys in the window (scripts: key K, key ctrl+K):\n" + actions_help_text());
@@ -353,7 +361,7 @@ int main(int argc, char **argv) {
     demo->add_option("--size", demo_opts.size, "picture size WIDTHxHEIGHT")->capture_default_str()->check(kSize);
     bool no_window = false;
     demo->add_flag("--no-window", no_window, "do not open the window even when a display exists");
-    add_depth_cue_options(demo, demo_opts.cues);
+    add_pass_options(demo, demo_opts.passes);
     add_annotation_options(demo, demo_opts.annotations);
 
     try {

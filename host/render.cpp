@@ -206,40 +206,42 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     const auto &s = r.stats();
     if (o.out == "-") return 0;  // (standard output holds the picture)
     if (o.json) {
-        nlohmann::json j = {{"output", o.out},
-                            {"width", w},
-                            {"height", h},
-                            {"gl", r.gl_description()},
-                            {"context_ms", ctx_ms},
-                            {"upload_ms", s.upload_ms},
-                            {"environment_ms", s.environment_ms},
-                            {"first_frame_ms", first_ms},
-                            {"frame_ms", frame_ms},
-                            {"frame_ms_min", frames.empty() ? first_ms : frames.front()},
-                            {"frames", o.frames},
-                            {"readback_ms", s.readback_ms},
-                            {"write_ms", write_ms},
-                            {"total_ms", ms_since(t0)},
-                            {"segments", s.segments_drawn},
-                            {"triangles", s.triangles_drawn},
-                            {"samples", s.samples},
-                            {"points_total", s.points_total},
-                            {"points_drawn", s.points_drawn},
-                            {"streamlines_drawn", s.streamlines_drawn},
-                            {"streamed_points", s.streamed_points},
-                            {"slab_crossings", s.crossings_drawn},
-                            {"fibre_volumes", s.volumes_drawn},
-                            {"fibre_volume_rays", s.volume_rays},
-                            {"culled_chunks", s.culled_chunks},
-                            {"culled_points", s.culled_points},
-                            {"proxy", s.proxy},
-                            {"passes",
-                             {{"ambient_occlusion", {{"on", r.scene().ambient_occlusion.on}, {"ms", s.ao_ms}}},
-                              {"depth_cue", {{"on", r.scene().depth_cue.on}, {"ms", s.depth_cue_ms}}},
-                              {"shadows", {{"on", r.scene().shadows.on}, {"ms", s.shadow_ms}, {"map", s.shadow_map}}},
-                              {"volume_rendering", {{"volumes", s.volumes_rendered}, {"ms", s.volume_ms}}},
-                              {"transparency", {{"layers", s.transparency_layers}}}}},
-                            {"points_kept", s.points_drawn}};
+        nlohmann::json j = {
+            {"output", o.out},
+            {"width", w},
+            {"height", h},
+            {"gl", r.gl_description()},
+            {"context_ms", ctx_ms},
+            {"upload_ms", s.upload_ms},
+            {"environment_ms", s.environment_ms},
+            {"first_frame_ms", first_ms},
+            {"frame_ms", frame_ms},
+            {"frame_ms_min", frames.empty() ? first_ms : frames.front()},
+            {"frames", o.frames},
+            {"readback_ms", s.readback_ms},
+            {"write_ms", write_ms},
+            {"total_ms", ms_since(t0)},
+            {"segments", s.segments_drawn},
+            {"triangles", s.triangles_drawn},
+            {"samples", s.samples},
+            {"points_total", s.points_total},
+            {"points_drawn", s.points_drawn},
+            {"streamlines_drawn", s.streamlines_drawn},
+            {"streamed_points", s.streamed_points},
+            {"slab_crossings", s.crossings_drawn},
+            {"fibre_volumes", s.volumes_drawn},
+            {"fibre_volume_rays", s.volume_rays},
+            {"culled_chunks", s.culled_chunks},
+            {"culled_points", s.culled_points},
+            {"proxy", s.proxy},
+            {"passes",
+             {{"ambient_occlusion", {{"on", r.scene().ambient_occlusion.on}, {"ms", s.ao_ms}}},
+              {"depth_cue", {{"on", r.scene().depth_cue.on}, {"ms", s.depth_cue_ms}}},
+              {"shadows", {{"on", r.scene().shadows.on}, {"ms", s.shadow_ms}, {"map", s.shadow_map}}},
+              {"volume_rendering", {{"volumes", s.volumes_rendered}, {"ms", s.volume_ms}}},
+              {"transparency", {{"layers", s.transparency_layers}}},
+              {"antialiasing", {{"on", r.scene().antialiasing.on}, {"edge", s.edge_aa}, {"frames", s.aa_frames}, {"ms", s.aa_ms}}}}},
+            {"points_kept", s.points_drawn}};
         j["annotations"] = annotations_json(marks);
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     } else {
@@ -250,6 +252,8 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
         if (r.scene().depth_cue.on) std::printf("  depth cue: %.1f ms\n", s.depth_cue_ms);
         if (r.scene().shadows.on) std::printf("  shadows: %.1f ms (a %dx%d map)\n", s.shadow_ms, s.shadow_map, s.shadow_map);
         if (s.volumes_rendered) std::printf("  volume rendering: %.1f ms (%d volumes)\n", s.volume_ms, s.volumes_rendered);
+        if (s.aa_frames > 1) std::printf("  anti-aliasing: %d jittered frames averaged\n", s.aa_frames);
+        if (s.edge_aa) std::printf("  anti-aliasing: edges smoothed (%.1f ms)\n", s.aa_ms);
         if (s.crossings_drawn)
             std::printf("  slab crossings drawn: %llu (where the streamlines cross the plane)\n", (unsigned long long)s.crossings_drawn);
         else if (s.points_total)
@@ -277,7 +281,7 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     auto ctx = core::render::make_headless_context();
     const double ctx_ms = ms_since(t0);
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");
-    o.cues.apply(scene);
+    o.passes.apply(scene);
     o.annotations.apply(scene);
     o.volumes.apply(scene);
     // Every file the scene file named is an input too (its environment map,

@@ -1010,6 +1010,8 @@ private:
         };
         app.actions["depth cue"] = toggle("depth cue", &core::render::Scene::depth_cue, &core::render::Renderer::set_depth_cue);
         app.actions["shadows"] = toggle("shadows", &core::render::Scene::shadows, &core::render::Renderer::set_shadows);
+        app.actions["antialiasing"] =
+            toggle("anti-aliasing", &core::render::Scene::antialiasing, &core::render::Renderer::set_antialiasing);
         app.actions["occlusion"] =
             toggle("ambient occlusion", &core::render::Scene::ambient_occlusion, &core::render::Renderer::set_ambient_occlusion);
     }
@@ -1573,7 +1575,8 @@ private:
     }
 
     // Depth cues (closed at first, after the objects): ambient occlusion,
-    // the depth cue and shadows, also switched by O, F and L. (A script
+    // the depth cue and shadows, also switched by O, F and L; and
+    // anti-aliasing (G). (A script
     // opens it as `press depth cues`, then presses `press ambient
     // occlusion`, `press depth cue`, `press shadows`.)
     void depth_cues_panel() {
@@ -1620,6 +1623,11 @@ private:
             sh.strength = std::clamp(double(dark), 0.0, 1.0), sh.softness_mm = std::clamp(double(soft), 0.0, 10.0);
             r.set_shadows(sh);
         }
+        core::render::Antialiasing aa = r.scene().antialiasing;
+        ImGui::Separator();
+        if (ImGui::Checkbox("anti-aliasing (G)", &aa.on)) r.set_antialiasing(aa);
+        scriptable("anti-aliasing");
+        if (aa.on && r.stats().aa_ms > 0) ImGui::TextDisabled("edge anti-aliasing: %.1f ms", r.stats().aa_ms);
     }
 
     // What is drawn over the frame (closed at first, last): a colour bar, the
@@ -1891,7 +1899,7 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
         // (read once the window is open, which shows the progress)
         return view_scene(reg, std::function<core::render::Scene()>([&] {
                               core::render::Scene s = scene_from_inputs(reg, o.inputs, o.view, "view");
-                              o.cues.apply(s);
+                              o.passes.apply(s);
                               o.annotations.apply(s);
                               o.volumes.apply(s);
                               return s;

@@ -247,6 +247,8 @@ struct FrameLog {
                           {"shadow_ms", drew ? s.shadow_ms : 0},
                           {"shadow_map", drew ? s.shadow_map : 0},
                           {"volume_ms", drew ? s.volume_ms : 0},
+                          {"edge_aa", drew && s.edge_aa},
+                          {"aa_ms", drew ? s.aa_ms : 0},
                           {"clustering", clustering},
                           {"rss_anon_mb", anon}});
     }

@@ -76,7 +76,7 @@ cat > "$work/toon.json" <<'JSON'
  "environment": {"type": "none"}, "camera": {"view": "left"},
  "lights": [{"type": "directional", "direction": [-0.3, 0.6, 0.7], "intensity": 1.0}], "tonemap": "none"}
 JSON
-DISPLAY= gl "$HORIZON_BIN" --plugin-dir "$work/toon" render "$work/toon.json" -o "$work/toon.png" --size 240x160 --samples 1 > /dev/null
+DISPLAY= gl "$HORIZON_BIN" --plugin-dir "$work/toon" render "$work/toon.json" -o "$work/toon.png" --size 240x160 --samples 1 --no-aa > /dev/null
 /usr/bin/python3 - "$work/toon.png" <<'PY'
 import sys
 import numpy as np

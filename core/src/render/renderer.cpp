@@ -12,6 +12,7 @@
 #include "glsl.hpp"
 #include "programs.hpp"
 #include "passes/ambient_occlusion.hpp"
+#include "passes/antialiasing.hpp"
 #include "passes/depth_cue.hpp"
 #include "passes/shadow.hpp"
 #include "passes/volume_rendering.hpp"
@@ -217,6 +218,13 @@ struct Renderer::Impl {
     std::unique_ptr<ShadowPass> shadow_pass;
     std::unique_ptr<VolumeRendering> volume_pass;
     std::unique_ptr<DepthCuePass> cue_pass;
+    // Anti-aliasing (passes/antialiasing): the edge pass over every frame
+    // drawn without multisampling; the sum of a still's jittered frames.
+    std::unique_ptr<EdgeAaPass> edge_aa;
+    std::unique_ptr<Accumulation> accumulation, accumulation_hdr;  // (the display picture's; the linear one's with hdr_output)
+    glm::dvec2 jitter_px{0, 0};                                    // the frame's offset in pixels (matrices(): a jittered frame of a still)
+    bool accumulating = false;                                     // drawing the jittered frames of a still: no edge pass on each
+    int frame_samples = 1;                                         // MSAA samples of the frame being drawn (begin_frame)
     // Translucent objects, composited in depth order (passes/transparency).
     std::unique_ptr<DepthPeeling> peeling;
     GLuint peel_depth = 0;  // while a layer is drawn: the last layer's depths (objects draw with peel programs)
@@ -321,6 +329,12 @@ struct Renderer::Impl {
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
         cue_pass = std::make_unique<DepthCuePass>(
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
+        edge_aa = std::make_unique<EdgeAaPass>(
+            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
+        accumulation = std::make_unique<Accumulation>(
+            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
+        accumulation_hdr = std::make_unique<Accumulation>(
+            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
         peeling = std::make_unique<DepthPeeling>(
             [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
         frame_depth = std::make_unique<FrameDepth>();
@@ -347,6 +361,9 @@ struct Renderer::Impl {
         shadow_pass.reset();
         volume_pass.reset();
         cue_pass.reset();
+        edge_aa.reset();
+        accumulation.reset();
+        accumulation_hdr.reset();
         peeling.reset();
         frame_depth.reset();
         glDeleteVertexArrays(1, &empty_vao);
@@ -706,12 +723,15 @@ struct Renderer::Impl {
         glm::dvec3 right, up, back;
     };
 
-    static Matrices matrices(const View &v, int w, int h) {
+    // (moved by jitter_px on the picture: one of a still's jittered frames)
+    Matrices matrices(const View &v, int w, int h) const {
         Matrices m;
         const glm::dvec3 eye = to_dvec3(v.eye), target = to_dvec3(v.target);
         glm::dvec3 up = to_dvec3(v.up);
         const glm::dmat4 view = glm::lookAt(eye, target, up);
-        const glm::dmat4 vp = glm::make_mat4(view_projection(v, w, h).data());  // (what picking projects with)
+        glm::dmat4 vp = glm::make_mat4(view_projection(v, w, h).data());  // (what picking projects with)
+        if (jitter_px != glm::dvec2(0, 0))
+            vp = glm::translate(glm::dmat4(1.0), glm::dvec3(2.0 * jitter_px.x / w, 2.0 * jitter_px.y / h, 0.0)) * vp;
         m.view_proj = glm::mat4(vp);
         m.inv_view_proj = glm::inverse(vp);
         m.right = glm::dvec3(view[0][0], view[1][0], view[2][0]);
@@ -931,6 +951,7 @@ struct Renderer::Impl {
     // in `ldr` (RGBA8) after finish_frame().
     GLuint begin_frame(int w, int h) {
         const int samples = std::clamp(settings.samples, 1, std::max(1, max_samples));
+        frame_samples = samples;
         display_direct = frame_is_direct() && !settings.hdr_output;
         peeled = false;
         hdr_frame_full = !display_direct && out_ == &ldr;
@@ -964,18 +985,38 @@ struct Renderer::Impl {
     // on linear radiance where there is some.
     void finish_frame(GLuint target, int w, int h, bool complete = false) {
         set_clipping(false);
-        if (target == out_->fbo) {
-            if (complete) passes_after_geometry(out_->fbo, target, w, h, true), draw_volumes(out_->fbo, target, w, h, true);
-            return;
-        }
-        if (!peeled) {  // (with translucency, `resolved` holds the composite already)
+        // (drawn into out_ directly only on the display path)
+        if (target != out_->fbo && !peeled) {  // (with translucency, `resolved` holds the composite already)
             glBindFramebuffer(GL_READ_FRAMEBUFFER, target);
             glBindFramebuffer(GL_DRAW_FRAMEBUFFER, display_direct ? out_->fbo : resolved.fbo);
             glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
         }
-        if (complete) passes_after_geometry(display_direct ? out_->fbo : resolved.fbo, target, w, h, display_direct);
-        if (complete) draw_volumes(display_direct ? out_->fbo : resolved.fbo, target, w, h, display_direct);
+        if (complete) after_geometry(display_direct ? out_->fbo : resolved.fbo, target, w, h, display_direct);
         if (!display_direct) tonemap_to(out_->fbo, w, h);
+        if (complete) smooth_edges(w, h);
+    }
+
+    // What runs over a frame once its geometry is all drawn, on the picture
+    // in `colour_fbo` (display values if `encoded`, else linear radiance)
+    // with the depth of `depth_fbo`: the passes after the geometry, then the
+    // volumes rendered (whose rays end at that depth).
+    void after_geometry(GLuint colour_fbo, GLuint depth_fbo, int w, int h, bool encoded) {
+        passes_after_geometry(colour_fbo, depth_fbo, w, h, encoded);
+        draw_volumes(colour_fbo, depth_fbo, w, h, encoded);
+    }
+
+    // The edge pass over the finished picture in out_ (display values), for
+    // a frame drawn without multisampling, unless it is one of a still's
+    // jittered frames (their average is the anti-aliasing) or the frame's
+    // linear picture is kept (hdr_output: the display picture stays its
+    // tonemapped image).
+    void smooth_edges(int w, int h) {
+        if (!scene.antialiasing.on || frame_samples > 1 || accumulating || settings.hdr_output) return;
+        if (settings.time_passes) glFinish();
+        const auto t0 = Clock::now();
+        edge_aa->apply(out_->fbo, w, h, empty_vao);
+        stats.edge_aa = true;
+        if (settings.time_passes) glFinish(), stats.aa_ms += ms_since(t0);
     }
 
     // The volumes rendered (Object::transfer) over the picture in
@@ -1394,7 +1435,9 @@ void main() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
         stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = stats.volumes_drawn = 0;
         stats.volume_rays = 0;
-        stats.ao_ms = stats.depth_cue_ms = stats.shadow_ms = stats.volume_ms = 0;
+        stats.ao_ms = stats.depth_cue_ms = stats.shadow_ms = stats.volume_ms = stats.aa_ms = 0;
+        stats.edge_aa = false;
+        stats.aa_frames = 1;
         stats.volumes_rendered = 0;
         stats.transparency_layers = 0;
         stats.culled_chunks = stats.culled_points = stats.culled_streamlines = 0;
@@ -1676,7 +1719,7 @@ void main() {
         if (done) {
             refine.active = false;
             if (settings.reproject) capture_still();
-            if (capture) passes_after_geometry(out_->fbo, refine.target, refine.w, refine.h, true);
+            if (capture) after_geometry(out_->fbo, refine.target, refine.w, refine.h, true), smooth_edges(refine.w, refine.h);
         }
         return !refine.active;
     }
@@ -1887,6 +1930,13 @@ void Renderer::set_shadows(const Shadows &sh) {
 
 void Renderer::set_annotations(const Annotations &a) { impl_->scene.annotations = a; }
 
+void Renderer::set_antialiasing(const Antialiasing &aa) {
+    check_antialiasing(aa);
+    Antialiasing &now = impl_->scene.antialiasing;
+    if (aa.on != now.on || aa.frames != now.frames) ++impl_->generation;
+    now = aa;
+}
+
 void Renderer::set_bake_materials(bool bake) {
     Impl &I = *impl_;
     if (I.settings.bake_materials == bake) return;
@@ -1990,7 +2040,37 @@ void Renderer::render(const View &view, int width, int height) {
     if (!I.interacting) I.adopt_bricks(true);
     I.refine.active = false;
     I.reset_counters();
-    I.frame(view, width, height);
+    const int frames = I.scene.antialiasing.on && !I.interacting ? I.scene.antialiasing.frames : 1;
+    if (frames <= 1) {
+        I.frame(view, width, height);
+    } else {
+        // A still of jittered frames, averaged (the stats: the last frame's,
+        // the passes' milliseconds summed).
+        struct Reset {
+            Impl &I;
+            ~Reset() { I.jitter_px = {0, 0}, I.accumulating = false; }
+        } reset{I};
+        I.accumulating = true;
+        double ao = 0, cue = 0, vol = 0, shadow = 0;
+        for (int i = 0; i < frames; ++i) {
+            const std::array<double, 2> j = jitter_offset(i);
+            I.jitter_px = {j[0], j[1]};
+            I.reset_counters();
+            I.frame(view, width, height);
+            const bool hdr = I.hdr_frame_full;
+            if (i == 0) {
+                I.accumulation->begin(width, height);
+                if (hdr) I.accumulation_hdr->begin(width, height);
+            }
+            I.accumulation->add(I.ldr.tex, 1.0 / frames, I.empty_vao);
+            if (hdr) I.accumulation_hdr->add(I.resolved.tex, 1.0 / frames, I.empty_vao);
+            ao += I.stats.ao_ms, cue += I.stats.depth_cue_ms, vol += I.stats.volume_ms, shadow += I.stats.shadow_ms;
+        }
+        I.accumulation->resolve(I.ldr.fbo, I.empty_vao);
+        if (I.hdr_frame_full) I.accumulation_hdr->resolve(I.resolved.fbo, I.empty_vao);
+        I.stats.aa_frames = frames;
+        I.stats.ao_ms = ao, I.stats.depth_cue_ms = cue, I.stats.volume_ms = vol, I.stats.shadow_ms = shadow;
+    }
     glFinish();
     I.stats.draw_ms = ms_since(t0);
 }
@@ -2139,7 +2219,7 @@ std::array<FloatImage, 5> Renderer::render_debug(const View &view, int w, int h)
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     glEnable(GL_DEPTH_TEST);
     glDisable(GL_BLEND);
-    const Impl::Matrices m = Impl::matrices(view, w, h);
+    const Impl::Matrices m = I.matrices(view, w, h);
     for (auto &g : I.objects)
         if (!g.slices && I.scene.objects[g.index].visible) I.draw_object(g, I.scene.objects[g.index], m, view, true, w, h);
     std::array<FloatImage, 5> out;

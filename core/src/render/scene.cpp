@@ -342,7 +342,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
     check_keys(root,
                {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab", "ambient_occlusion", "depth_cue",
-                "shadows", "annotations"},
+                "shadows", "antialiasing", "annotations"},
                what, "scene");
     Scene s;
     if (root.contains("ambient_occlusion")) {
@@ -373,6 +373,17 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                                           "expected true, false or an object {\"strength\": 0..1, \"softness\": mm}")) {
             if (a->contains("strength")) s.shadows.strength = num_in((*a)["strength"], what, "shadows.strength", 0.0, 1.0);
             if (a->contains("softness")) s.shadows.softness_mm = num_in((*a)["softness"], what, "shadows.softness", 0.0, 50.0);
+        }
+    }
+    if (root.contains("antialiasing")) {
+        // true | false | {"on": bool, "frames": 1..64}
+        if (const json *a = pass_settings(root["antialiasing"], what, "antialiasing", {"on", "frames"}, s.antialiasing.on,
+                                          "expected true, false or an object {\"frames\": 1..64}")) {
+            if (a->contains("frames")) {
+                const double f = num_in((*a)["frames"], what, "antialiasing.frames", 1.0, 64.0);
+                if (f != std::floor(f)) fail(what, "antialiasing.frames", "expected a whole number of frames");
+                s.antialiasing.frames = int(f);
+            }
         }
     }
     if (root.contains("annotations")) {
@@ -678,6 +689,10 @@ void check_shadows(const Shadows &sh) {
     if (!(sh.strength >= 0 && sh.strength <= 1)) throw Error("shadows: strength " + std::to_string(sh.strength) + " is outside [0, 1]");
     if (!(sh.softness_mm >= 0 && sh.softness_mm <= 50))
         throw Error("shadows: softness " + std::to_string(sh.softness_mm) + " mm is outside [0, 50]");
+}
+
+void check_antialiasing(const Antialiasing &aa) {
+    if (!(aa.frames >= 1 && aa.frames <= 64)) throw Error("antialiasing: " + std::to_string(aa.frames) + " frames is outside [1, 64]");
 }
 
 Scene load_scene(const Registry &reg, const fs::path &file) {

@@ -167,6 +167,12 @@ struct FrameStats {
     // (depth peeling; 0: nothing translucent, 9: the eighth layer and a
     // last one in drawing order).
     int transparency_layers = 0;
+    // Anti-aliasing (Scene::antialiasing): whether the edge pass ran over
+    // the last frame (and its milliseconds with time_passes), and the
+    // jittered frames averaged into the last still (1: none).
+    bool edge_aa = false;
+    double aa_ms = 0;
+    int aa_frames = 1;
     bool proxy = false;                  // a level-of-detail proxy was drawn, or the frame drawn small and upscaled
     int proxy_level = 0;                 // ... at this level (Renderer::proxy_levels' index)
     int refine_step = 0;                 // progressive: the step (0: a whole frame)
@@ -223,6 +229,9 @@ public:
     // Switches and sets the key light's shadows (Scene::shadows). Throws
     // Error for values outside those check_shadows accepts.
     void set_shadows(const Shadows &s);
+    // Edge anti-aliasing on or off, and the jittered frames of a still
+    // (render()); throws Error as check_antialiasing.
+    void set_antialiasing(const Antialiasing &aa);
     // Sets what is drawn over the picture (Scene::annotations): kept in the
     // scene for whoever paints them (annotations.hpp); frames do not change.
     void set_annotations(const Annotations &a);
@@ -259,7 +268,8 @@ public:
     // Camera fitted to the visible objects for the scene's camera spec.
     View fit_view(const Camera &c, double aspect) const;
 
-    // Draws a frame into the offscreen target of the given size.
+    // Draws a frame into the offscreen target of the given size: at rest,
+    // Scene::antialiasing's `frames` jittered frames averaged.
     void render(const View &view, int width, int height);
     // Draws into the currently bound framebuffer 0 (the window) instead.
     void render_to_window(const View &view, int width, int height);

@@ -179,6 +179,17 @@ struct Shadows {
     double softness_mm = 0.5;
 };
 
+// Anti-aliasing (renderer passes/antialiasing.hpp). With `on`, every frame
+// drawn without multisampling (large tractograms, the window's moving
+// frames) is smoothed along its edges and lines by a post-process; a still
+// of `frames` > 1 (`horizon render`) is that many frames, each moved by a
+// different fraction of a pixel, averaged instead: supersampling at `frames`
+// times the cost of one frame.
+struct Antialiasing {
+    bool on = true;
+    int frames = 1;
+};
+
 // Throws Error "ambient occlusion: ..." unless 0 < radius_mm <= 1000 and
 // 0 <= strength <= 1 (finite).
 void check_ambient_occlusion(const AmbientOcclusion &ao);
@@ -187,6 +198,8 @@ void check_depth_cue(const DepthCue &cue);
 // Throws Error "shadows: ..." unless 0 <= strength <= 1 and
 // 0 <= softness_mm <= 50 (finite).
 void check_shadows(const Shadows &s);
+// Throws Error "antialiasing: ..." unless 1 <= frames <= 64.
+void check_antialiasing(const Antialiasing &aa);
 
 // What is drawn over the picture (annotations.hpp): a colour bar for every
 // object coloured through a colormap, the orientation of the patient's
@@ -203,6 +216,7 @@ struct Scene {
     AmbientOcclusion ambient_occlusion;
     DepthCue depth_cue;
     Shadows shadows;
+    Antialiasing antialiasing;
     Annotations annotations;
     std::optional<Slab> slab;
     Camera camera;
