@@ -726,6 +726,40 @@ class VolumeRenderingTest(TempDirTest):
                 got = lit[148:153, x].mean() / flat[148:153, x].mean()
                 self.assertAlmostEqual(got, 0.3 + 0.7 * want(frac), delta=0.04, msg=f"light {light}, at {frac} of the radius")
 
+    def test_the_windows_still_with_a_proxied_tractogram_has_the_volume(self):
+        """A window at rest with a tractogram large enough for a proxy refines
+        in steps and keeps its still for the reprojection: the volume must be
+        rendered into that still too, which must equal the still of the same
+        window without a proxy (the volume was left out of it)."""
+        rng = np.random.default_rng(5)
+        lines = []
+        for _ in range(400):
+            a, b = rng.uniform(-30, 30, 3), rng.uniform(-30, 30, 3)
+            lines.append(np.linspace(a, b, 40).astype(np.float32))
+        with open(self.path("t.tck"), "wb") as f:
+            f.write(tck_bytes(lines))
+        import nibabel as nib
+        ijk = np.indices((32, 32, 32)).astype(np.float32) - 15.5
+        affine = np.eye(4)
+        affine[:3, 3] = -15.5
+        nib.save(nib.Nifti1Image((16 - np.sqrt((ijk ** 2).sum(axis=0))).astype(np.float32), affine), self.path("ball.nii.gz"))
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        shots = {}
+        for name, args in (("proxy", ("--lod-points", "2000")), ("plain", ("--lod-points", "1e9")), ("none", ("--lod-points", "2000"))):
+            shot = self.path(f"rest_{name}.png")
+            with open(self.path("s.txt"), "w") as f:
+                f.write("\n".join(["wait 2", f"screenshot {shot}", "quit"]) + "\n")
+            files = [self.path("t.tck")] + ([] if name == "none" else [self.path("ball.nii.gz")])
+            p = xvfb_run([HORIZON, "view", *files, "--size", "400x300", "--script", self.path("s.txt"), *args,
+                          *(() if name == "none" else ("--volume-render", "glow"))], env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            shots[name] = np.asarray(Image.open(shot).convert("RGB"), dtype=np.float64)
+        np.testing.assert_array_equal(shots["proxy"], shots["plain"])
+        right = slice(160, 400)
+        self.assertGreater((np.abs(shots["proxy"][:, right] - shots["none"][:, right]).sum(2) > 30).sum(), 800, "the volume is there")
+
     def test_presets_files_and_the_window(self):
         with open(self.path("tf.json"), "w") as f:
             json.dump({"colormap": "hot", "opacity": [[0, 0.1], [1, 0.1]]}, f)
