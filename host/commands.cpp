@@ -380,18 +380,16 @@ int cmd_convert(const GlobalOptions &g, const std::string &in, const std::string
 int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     const core::Registry reg = load_registry(g);
     std::filesystem::create_directories(o.out_dir);
-    core::PhantomOptions po;
-    po.nb_streamlines = o.nb_streamlines;
-    po.nb_bundles = o.nb_bundles;
-    po.seed = o.seed;
     core::Dataset ds;
     ds.kind = HZ_DATA_STREAMLINES;
-    ds.tractogram = core::make_phantom(po);
-    ds.metadata = {{"generator", "horizon demo phantom"}, {"seed", std::to_string(po.seed)}};
+    ds.tractogram = core::make_brain_phantom(o.nb_streamlines, o.seed);
+    ds.metadata = {{"generator", "horizon demo phantom"}, {"seed", std::to_string(o.seed)}};
     const auto path = std::filesystem::path(o.out_dir) / "phantom.tck";
     core::write_dataset(reg, ds, path, /*force=*/true, nullptr);
-    std::printf("Wrote the demo phantom (%llu streamlines, %u bundles) to %s\n\n", (unsigned long long)po.nb_streamlines, po.nb_bundles,
-                path.c_str());
+    std::string names;
+    for (const std::string &n : core::brain_bundle_names()) names += (names.empty() ? "" : ", ") + n;
+    std::printf("Wrote the demo phantom (%llu streamlines in %zu named bundles: %s) to %s\n\n", (unsigned long long)o.nb_streamlines,
+                core::brain_bundle_names().size(), names.c_str(), path.c_str());
     const int rc = cmd_info(g, path.string(), false, false);
     if (rc != 0 || reg.find("org.horizon.clustering.qbx") == nullptr) return rc;
     // The paper's level of detail: QuickBundlesX centroids before streamlines.
@@ -404,13 +402,13 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     co.level = 1;
     co.force = true;
     if (const int c = cmd_cluster(g, co); c != 0) return c;
-    // The picture: QBX centroids as width-encoded tubes, a cortex-like
-    // surface and slices of a synthetic volume, principled shading.
+    // The picture: the bundles as tubes, the cortex and slices of a
+    // T1-like volume, principled shading.
     std::printf("\n");
     RenderOptions ro;
     ro.out = (std::filesystem::path(o.out_dir) / "demo.png").string();
     ro.size = o.size;
-    core::render::Scene scene = core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed);
+    core::render::Scene scene = core::render::demo_scene(o.nb_streamlines, o.seed);
     o.passes.apply(scene);
     o.annotations.apply(scene);
     if (const int c = render_scene(reg, std::move(scene), ro); c != 0) return c;
@@ -419,7 +417,7 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
         std::printf("\nOpening the window (Q or Esc closes it; --no-window skips it).\n");
         std::fflush(stdout);
         const ViewOptions defaults;  // (named: GCC 12 warns of a temporary's strings as maybe uninitialised)
-        core::render::Scene shown = core::render::demo_scene(reg, po.nb_streamlines, po.nb_bundles, po.seed);
+        core::render::Scene shown = core::render::demo_scene(o.nb_streamlines, o.seed);
         o.passes.apply(shown);
         o.annotations.apply(shown);
         return view_scene(reg, std::move(shown), defaults);

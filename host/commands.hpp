@@ -89,7 +89,6 @@ struct AnnotationOptions {
 struct DemoOptions {
     std::string out_dir = "horizon-demo";
     std::uint64_t nb_streamlines = 5000;
-    std::uint32_t nb_bundles = 24;
     std::uint64_t seed = 1;
     std::string size = "1280x720";
     bool window = true;  // open the window afterwards when a display exists

@@ -356,7 +356,6 @@ int main(int argc, char **argv) {
     auto *demo = app.add_subcommand("demo", "build the synthetic demo scene, cluster it and render demo.png");
     demo->add_option("-o,--out", demo_opts.out_dir, "directory for demo files")->capture_default_str();
     demo->add_option("--streamlines", demo_opts.nb_streamlines, "phantom size")->capture_default_str();
-    demo->add_option("--bundles", demo_opts.nb_bundles, "phantom bundles")->capture_default_str();
     demo->add_option("--seed", demo_opts.seed, "phantom seed")->capture_default_str();
     demo->add_option("--size", demo_opts.size, "picture size WIDTHxHEIGHT")->capture_default_str()->check(kSize);
     bool no_window = false;

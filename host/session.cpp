@@ -184,8 +184,15 @@ std::string Explorer::summary() const {
     std::string picked;
     for (std::size_t k = 0; k < s_.shown.size(); ++k)
         if (s_.selected.count(s_.shown[k])) picked += " #" + std::to_string(k);
+    std::string thresholds;
+    for (double t : s_.thresholds) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%s%.2f", thresholds.empty() ? "" : " ", t);
+        thresholds += b;
+    }
     return std::to_string(s_.shown.size()) + " clusters, " + std::to_string(s_.expanded.size()) + " streamlines expanded, " +
-           std::to_string(s_.rounds) + " clustering round(s); selected" + (picked.empty() ? " none" : picked) + "; colours " + colours;
+           std::to_string(s_.rounds) + " clustering round(s); selected" + (picked.empty() ? " none" : picked) +
+           (thresholds.empty() ? "" : "; thresholds " + thresholds + " mm") + "; colours " + colours;
 }
 
 void Explorer::toggle(std::size_t rank) {

@@ -183,8 +183,23 @@ Dataset object_data(const Registry &reg, const json &o, const std::string &type,
         ds = read_dataset(reg, p);
         return ds;
     }
-    const std::string b = str(o["builtin"], what, where + ".builtin", {"phantom", "cortex", "head", "sphere"});
-    if (b == "phantom") {
+    const std::string b =
+        str(o["builtin"], what, where + ".builtin", {"phantom", "cortex", "head", "sphere", "brain_bundles", "brain", "t1"});
+    if (b == "brain_bundles") {
+        // (the named bundles of the demo; "phantom": {"streamlines": N, "seed": S})
+        if (type != "streamlines") fail(what, where, "builtin 'brain_bundles' is a tractogram (type 'streamlines')");
+        std::uint64_t n = 5000, seed = 1;
+        if (o.contains("phantom")) {
+            const json &p = o["phantom"];
+            check_keys(p, {"streamlines", "seed"}, what, where + ".phantom");
+            if (p.contains("streamlines"))
+                n = static_cast<std::uint64_t>(num_in(p["streamlines"], what, where + ".phantom.streamlines", 0.0, 1e7));
+            if (p.contains("seed")) seed = static_cast<std::uint64_t>(num(p["seed"], what, where));
+        }
+        ds.kind = HZ_DATA_STREAMLINES;
+        ds.format = "builtin brain_bundles";
+        ds.tractogram = make_brain_phantom(n, seed);
+    } else if (b == "phantom") {
         if (type != "streamlines") fail(what, where, "builtin 'phantom' is a tractogram (type 'streamlines')");
         PhantomOptions po;
         if (o.contains("phantom")) {
@@ -211,11 +226,16 @@ Dataset object_data(const Registry &reg, const json &o, const std::string &type,
         ds.kind = HZ_DATA_MESH;
         ds.format = "builtin cortex";
         ds.mesh = make_cortex_mesh();
+    } else if (b == "brain") {
+        if (type != "surface") fail(what, where, "builtin 'brain' is a surface (type 'surface')");
+        ds.kind = HZ_DATA_MESH;
+        ds.format = "builtin brain";
+        ds.mesh = make_brain_surface();
     } else {
-        if (type != "slices" && type != "volume") fail(what, where, "builtin 'head' is a volume (type 'slices' or 'volume')");
+        if (type != "slices" && type != "volume") fail(what, where, "builtin '" + b + "' is a volume (type 'slices' or 'volume')");
         ds.kind = HZ_DATA_VOLUME;
-        ds.format = "builtin head";
-        ds.volume = make_head_volume();
+        ds.format = "builtin " + b;
+        ds.volume = b == "t1" ? make_t1_volume() : make_head_volume();
     }
     return ds;
 }
@@ -737,9 +757,11 @@ Mesh make_sphere_mesh(double r, int nu, int nv) {
     return m;
 }
 
-Mesh make_cortex_mesh(int subdivisions) {
+namespace {
+
+// A unit icosphere of `subdivisions` (0..7) subdivisions: vertices, faces.
+std::pair<std::vector<Vec3>, std::vector<std::array<std::uint32_t, 3>>> icosphere(int subdivisions) {
     subdivisions = std::clamp(subdivisions, 0, 7);
-    // Icosphere.
     const double t = (1.0 + std::sqrt(5.0)) / 2.0;
     std::vector<Vec3> v = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
                            {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
@@ -773,11 +795,21 @@ Mesh make_cortex_mesh(int subdivisions) {
         }
         f.swap(g);
     }
-    // Two hemispheres: half-ellipsoids flattened at the midline, folded.
+    return {std::move(v), std::move(f)};
+}
+
+// Two hemispheres made of the unit sphere (v, f): half-ellipsoids
+// flattened at the midline, each point (X, Y, Z) scaled by fold(X, Y, Z, side)
+// about the hemisphere's centre; a per-vertex "sulc" array of overlay(P, Q),
+// P the folded point and Q the point before folding.
+Mesh hemispheres(const std::vector<Vec3> &v, const std::vector<std::array<std::uint32_t, 3>> &f,
+                 const std::function<double(double, double, double, double)> &fold,
+                 const std::function<double(const Vec3 &, const Vec3 &)> &overlay) {
     Mesh m;
     const std::size_t nv = v.size(), nf = f.size();
     m.vertices = Buffer<float>(nv * 3 * 2);
     m.faces = Buffer<std::uint32_t>(nf * 3 * 2);
+    std::vector<Vec3> unfolded(nv * 2);
     for (int h = 0; h < 2; ++h) {
         const double side = h == 0 ? -1.0 : 1.0;
         for (std::size_t i = 0; i < nv; ++i) {
@@ -787,8 +819,9 @@ Mesh make_cortex_mesh(int subdivisions) {
             const double lateral = x * side;
             const double xs = lateral < 0 ? 0.25 * lateral : lateral;
             double X = side * (4.0 + 36.0 * (xs + 0.25)), Y = 88.0 * y;
-            double Z = (z < 0 ? 52.0 : 64.0) * z + 4.0;                                             // flatter base
-            const double r = 1.0 + 0.045 * gyri(X, Y, Z) + 0.03 * gyri(2.1 * Y, 2.1 * Z, 2.1 * X);  // gyri and sulci
+            double Z = (z < 0 ? 52.0 : 64.0) * z + 4.0;  // flatter base
+            unfolded[h * nv + i] = {X, Y, Z};
+            const double r = fold(X, Y, Z, side);
             const double cx = side * 22.0;
             X = cx + (X - cx) * r;
             Y *= r;
@@ -800,12 +833,157 @@ Mesh make_cortex_mesh(int subdivisions) {
         for (std::size_t k = 0; k < nf; ++k)
             for (int c = 0; c < 3; ++c) m.faces[(h * nf + k) * 3 + c] = static_cast<std::uint32_t>(h * nv + f[k][c]);
     }
-    // Per-vertex "curvature-like" overlay for colormap demos.
     std::vector<float> sulc(nv * 2);
     for (std::size_t i = 0; i < nv * 2; ++i)
-        sulc[i] = static_cast<float>(gyri(m.vertices[i * 3], m.vertices[i * 3 + 1], m.vertices[i * 3 + 2]));
+        sulc[i] = static_cast<float>(overlay({m.vertices[i * 3], m.vertices[i * 3 + 1], m.vertices[i * 3 + 2]}, unfolded[i]));
     m.arrays.push_back(f32_array("sulc", HZ_ATTACH_VERTEX, sulc));
     return m;
+}
+
+// Gradient noise in 3D (Perlin's construction: a pseudo-random unit
+// gradient at each integer lattice point, blended with a quintic), in about
+// [-1, 1], deterministic.
+double gradient_noise(double x, double y, double z) {
+    auto grad = [](int i, int j, int k, double dx, double dy, double dz) {
+        std::uint64_t h =
+            std::uint64_t(i) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(j) * 0xC2B2AE3D27D4EB4Full ^ std::uint64_t(k) * 0x165667B19E3779F9ull;
+        h = (h ^ (h >> 31)) * 0xBF58476D1CE4E5B9ull;
+        h ^= h >> 29;
+        const double th = double(h & 0xFFFF) / 65536.0 * 2 * M_PI, u = double((h >> 16) & 0xFFFF) / 65536.0 * 2 - 1;
+        const double s = std::sqrt(1 - u * u);
+        return s * std::cos(th) * dx + s * std::sin(th) * dy + u * dz;
+    };
+    auto fade = [](double t) { return t * t * t * (t * (t * 6 - 15) + 10); };
+    const int i = int(std::floor(x)), j = int(std::floor(y)), k = int(std::floor(z));
+    const double fx = x - i, fy = y - j, fz = z - k, u = fade(fx), w = fade(fy), q = fade(fz);
+    double c[2][2][2];
+    for (int a = 0; a < 2; ++a)
+        for (int b = 0; b < 2; ++b)
+            for (int d = 0; d < 2; ++d) c[a][b][d] = grad(i + a, j + b, k + d, fx - a, fy - b, fz - d);
+    auto lerp = [](double a, double b, double t) { return a + (b - a) * t; };
+    return 1.6 * lerp(lerp(lerp(c[0][0][0], c[1][0][0], u), lerp(c[0][1][0], c[1][1][0], u), w),
+                      lerp(lerp(c[0][0][1], c[1][0][1], u), lerp(c[0][1][1], c[1][1][1], u), w), q);
+}
+
+// The brain surface's sulci: a point at a fundus lies this fraction of the
+// way in from the hemisphere's outline (about 5 mm).
+constexpr double kSulcusFold = 0.10;
+
+// How deep a point lies in a sulcus: 1 at a fundus, 0 on a gyral crown.
+// Sulci are where a band-limited noise crosses zero (narrow valleys between
+// broad gyri, about 12 mm apart), and the Sylvian fissure, a deeper groove
+// on the lateral side between the frontal and temporal lobes.
+double sulcal_depth(double x, double y, double z) {
+    const double n = gradient_noise(x / 17.0, y / 17.0, z / 17.0) + 0.35 * gradient_noise(x / 8.0 + 11.3, y / 8.0, z / 8.0);
+    const double v = std::max(0.0, 1.0 - 2.6 * std::abs(n));
+    double depth = v * v * v;
+    // The Sylvian fissure: along a line on the lateral surface from the
+    // temporal pole (y = 22, z = -6) up and back (y = -34, z = 22).
+    if (std::abs(x) > 30) {
+        const double ty = (22 - y) / 56.0;
+        if (ty > -0.1 && ty < 1.05) {
+            const double zl = -6 + 28 * std::clamp(ty, 0.0, 1.0);
+            const double d = (z - zl) / 3.5;
+            depth = std::max(depth, 1.4 * std::exp(-d * d) * std::min(1.0, (std::abs(x) - 30) / 15));
+        }
+    }
+    return depth;
+}
+
+}  // namespace
+
+Mesh make_cortex_mesh(int subdivisions) {
+    const auto [v, f] = icosphere(subdivisions);
+    return hemispheres(
+        v, f,
+        [](double X, double Y, double Z, double) {
+            return 1.0 + 0.045 * gyri(X, Y, Z) + 0.03 * gyri(2.1 * Y, 2.1 * Z, 2.1 * X);  // gyri and sulci
+        },
+        // Per-vertex "curvature-like" overlay for colormap demos.
+        [](const Vec3 &p, const Vec3 &) { return gyri(p[0], p[1], p[2]); });
+}
+
+Mesh make_brain_surface(int subdivisions) {
+    const auto [v, f] = icosphere(subdivisions);
+    return hemispheres(
+        v, f, [](double X, double Y, double Z, double) { return 1.0 - kSulcusFold * sulcal_depth(X, Y, Z); },
+        [](const Vec3 &, const Vec3 &q) { return sulcal_depth(q[0], q[1], q[2]); });
+}
+
+namespace {
+
+// How far inside make_brain_surface's cortex a point lies, in mm (negative
+// outside), about: from the radius of the unit sphere the hemispheres are
+// made of, after undoing the fold about the hemisphere's centre at the
+// point itself (exact to within the fold's variation over a few mm), over
+// that radius's gradient.
+double brain_depth_mm(double x, double y, double z) {
+    const double side = x < 0 ? -1.0 : 1.0, cx = side * 22.0;
+    const double r = 1.0 - kSulcusFold * sulcal_depth(x, y, z);
+    const double X = cx + (x - cx) / r, Y = y / r, Z = 4.0 + (z - 4.0) / r;
+    const double ax = std::abs(X), sx = ax >= 13.0 ? 36.0 : 9.0, sz = Z >= 4.0 ? 64.0 : 52.0;
+    const double u = (ax - 13.0) / sx, v = Y / 88.0, w = (Z - 4.0) / sz;
+    const double rho = std::max(std::sqrt(u * u + v * v + w * w), 1e-6);
+    const double gx = u / sx, gy = v / 88.0, gz = w / sz;  // (rho times its gradient)
+    return (1.0 - rho) * rho / std::max(std::sqrt(gx * gx + gy * gy + gz * gz), 1e-9);
+}
+
+double smoothstep(double e0, double e1, double x) {
+    const double t = std::clamp((x - e0) / (e1 - e0), 0.0, 1.0);
+    return t * t * (3 - 2 * t);
+}
+
+}  // namespace
+
+Volume make_t1_volume(double voxel_mm) {
+    voxel_mm = std::clamp(voxel_mm, 0.5, 10.0);
+    Volume vol;
+    const double lo[3] = {-70, -110, -75}, hi[3] = {70, 100, 92};
+    std::uint64_t d[3];
+    for (int i = 0; i < 3; ++i) d[i] = static_cast<std::uint64_t>(std::ceil((hi[i] - lo[i]) / voxel_mm)) + 1;
+    vol.dims = {d[0], d[1], d[2]};
+    vol.dtype = HZ_DTYPE_F32;
+    vol.voxels = Buffer<std::byte>(d[0] * d[1] * d[2] * 4);
+    vol.voxel_to_ras = {voxel_mm, 0, 0, lo[0], 0, voxel_mm, 0, lo[1], 0, 0, voxel_mm, lo[2], 0, 0, 0, 1};
+    float *out = reinterpret_cast<float *>(vol.voxels.data());
+    // T1 contrast: white matter brightest, grey matter darker, CSF and
+    // skull dark, the scalp's fat bright.
+    constexpr double kWhite = 0.80, kGrey = 0.42, kDeep = 0.58, kCsf = 0.10, kSkull = 0.04, kScalp = 0.60;
+    parallel_ranges(d[2], 1, [&](std::uint64_t k0, std::uint64_t k1) {
+        for (std::uint64_t k = k0; k < k1; ++k)
+            for (std::uint64_t j = 0; j < d[1]; ++j)
+                for (std::uint64_t i = 0; i < d[0]; ++i) {
+                    const double x = lo[0] + voxel_mm * i, y = lo[1] + voxel_mm * j, z = lo[2] + voxel_mm * k;
+                    // Head: scalp, skull, CSF, in ellipsoidal shells (mm from the skull's inside, about).
+                    const double head = std::sqrt((x / 56) * (x / 56) + ((y + 4) / 94) * ((y + 4) / 94) + ((z - 6) / 72) * ((z - 6) / 72));
+                    const double out_mm = (head - 1.0) * 75.0;
+                    double val = kScalp * (1 - smoothstep(9.0, 10.5, out_mm)) * smoothstep(3.5, 5.0, out_mm) +
+                                 kSkull * (1 - smoothstep(3.5, 5.0, out_mm)) * smoothstep(-0.5, 0.5, out_mm);
+                    if (out_mm < 0.5) val += kCsf * (1 - smoothstep(-0.5, 0.5, out_mm));
+                    // Cortex and white matter: depth below the cortical surface, about, in mm.
+                    const double in_mm = brain_depth_mm(x, y, z);
+                    const double brain = smoothstep(-0.75, 0.75, in_mm);
+                    const double white = smoothstep(2.2, 3.7, in_mm + 1.2 * gradient_noise(x / 6, y / 6, z / 6));
+                    double tissue = kGrey + (kWhite - kGrey) * white;
+                    // Deep grey nuclei (thalamus, basal ganglia), the ventricles.
+                    for (const double side : {-1.0, 1.0}) {
+                        const double tx = (x - side * 12) / 9, ty = (y + 12) / 14, tz = (z - 6) / 9;
+                        tissue += (kDeep - tissue) * (1 - smoothstep(0.8, 1.1, std::sqrt(tx * tx + ty * ty + tz * tz)));
+                        const double vx = (x - side * 9) / 6, vy = (y + 2) / 28, vz = (z - 16) / 8;
+                        tissue += (kCsf - tissue) * (1 - smoothstep(0.8, 1.1, std::sqrt(vx * vx + vy * vy + vz * vz)));
+                    }
+                    val = val * (1 - brain) + tissue * brain;
+                    // Brainstem and cerebellum below the hemispheres.
+                    const double bx = x / 11, by = (y + 24 + 0.12 * z) / 12;
+                    if (z < 0 && z > -68) val = std::max(val, 0.7 * (1 - smoothstep(0.85, 1.1, std::sqrt(bx * bx + by * by))));
+                    const double cx = x / 46, cy = (y + 62) / 26, cz = (z + 34) / 18;
+                    const double cb = std::sqrt(cx * cx + cy * cy + cz * cz);
+                    if (cb < 1.1)
+                        val = std::max(val, (1 - smoothstep(0.9, 1.05, cb)) * (0.45 + 0.2 * std::abs(std::sin(z * 1.3 + 0.3 * y))));
+                    out[(k * d[1] + j) * d[0] + i] = static_cast<float>(1000.0 * val);
+                }
+    });
+    return vol;
 }
 
 Volume make_head_volume(double voxel_mm) {
@@ -921,36 +1099,27 @@ Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const Clu
     return out;
 }
 
-Scene demo_scene(const Registry &reg, std::uint64_t nb_streamlines, std::uint32_t nb_bundles, std::uint64_t seed) {
+Scene demo_scene(std::uint64_t nb_streamlines, std::uint64_t seed) {
     Scene s;
     s.ambient_occlusion.on = true;  // (the tubes' contact shadows on the cortex and slices; --no-ao)
     s.shadows.on = true;            // (the key light's, cast by the tubes and the cortex; --no-shadows)
-    PhantomOptions po;
-    po.nb_streamlines = nb_streamlines;
-    po.nb_bundles = nb_bundles;
-    po.seed = seed;
     Object tracts;
-    tracts.name = "phantom bundles (QBX centroids)";
+    tracts.name = "bundles (corticospinal, arcuate, cingulum, IFOF, uncinate, ILF, corpus callosum)";
     tracts.kind = HZ_DATA_STREAMLINES;
     tracts.data.kind = HZ_DATA_STREAMLINES;
-    tracts.data.tractogram = make_phantom(po);
-    ClusterSpec cs;
-    cs.algorithm = "qbx";
-    cs.level = 2;  // 25 mm
-    tracts.clustering = cs;
-    tracts.data.tractogram = cluster_centroids(reg, tracts.data.tractogram, cs);
+    tracts.data.tractogram = make_brain_phantom(nb_streamlines, seed);
     tracts.render = "tubes";
-    tracts.radius_mm = 1.1;
+    tracts.radius_mm = 0.35;
     tracts.coloring.mode = "direction";
     tracts.material.shader = "principled";
     tracts.material.params = {{"roughness", {0.35}}, {"specular", {0.5}}, {"clearcoat", {0.6}}, {"clearcoat_gloss", {0.8}}};
     s.objects.push_back(std::move(tracts));
 
     Object cortex;
-    cortex.name = "cortex-like surface (right hemisphere)";
+    cortex.name = "cortex (right hemisphere)";
     cortex.kind = HZ_DATA_MESH;
     cortex.data.kind = HZ_DATA_MESH;
-    Mesh full = make_cortex_mesh(5);
+    Mesh full = make_brain_surface(6);
     // Keep the right hemisphere only, so the bundles stay visible.
     const std::uint64_t half_faces = full.nb_faces() / 2;
     Mesh right;
@@ -968,15 +1137,15 @@ Scene demo_scene(const Registry &reg, std::uint64_t nb_streamlines, std::uint32_
     head.name = "synthetic T1 (axial and coronal slices)";
     head.kind = HZ_DATA_VOLUME;
     head.data.kind = HZ_DATA_VOLUME;
-    head.data.volume = make_head_volume(1.5);
-    head.slice_z = -38.0;
-    head.slice_y = -70.0;
+    head.data.volume = make_t1_volume(1.0);
+    head.slice_z = -16.0;
+    head.slice_y = -62.0;
     head.window = std::array<double, 2>{0.0, 1000.0};
     head.clip_below = 1.0;
     s.objects.push_back(std::move(head));
 
     s.camera.view = "left";
-    s.camera.position = Vec3{-330, 190, 150};
+    s.camera.position = Vec3{-280, 160, 128};
     s.camera.target = Vec3{0, -5, -5};
     s.camera.fov_deg = 30;
     s.environment.type = "studio";

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <string>
+#include <vector>
 
 namespace hz::core {
 
@@ -23,6 +25,22 @@ struct PhantomOptions {
 
 // Deterministic for a given options struct (same seed, same bits).
 Tractogram make_phantom(const PhantomOptions &o);
+
+// The named bundles of make_brain_phantom, in the order of its "bundle"
+// values: the corticospinal tracts, arcuate fasciculi, cingula, inferior
+// fronto-occipital, uncinate and inferior longitudinal fasciculi of each
+// hemisphere (suffix _L or _R), and the corpus callosum (CC).
+const std::vector<std::string> &brain_bundle_names();
+
+// A whole-brain-like tractogram of `nb_streamlines` streamlines (points 1 mm
+// apart, RAS+ mm, the frame of make_cortex_mesh's brain: about 140 x 180 x
+// 120 mm around the origin) in anatomically plausible bundles: each a
+// smooth curve through waypoints after the bundle's course in an MNI-like
+// space (a sketch for demos and tests, not an atlas), its streamlines
+// spread around it and fanning towards their cortical ends. A per-streamline
+// array "bundle" holds each one's index into brain_bundle_names().
+// Deterministic for a seed.
+Tractogram make_brain_phantom(std::uint64_t nb_streamlines, std::uint64_t seed = 1);
 
 // splitmix64 draws, the same on every platform (std::uniform_real_distribution
 // is implementation-defined; synthetic data must be identical everywhere).

@@ -257,6 +257,15 @@ void apply_file_material(Object &ob, bool has_material, bool has_color);
 Mesh make_cortex_mesh(int subdivisions = 5);
 Mesh make_sphere_mesh(double radius_mm, int nu, int nv);  // UV sphere at the origin   // two hemispheres around the phantom's box
 Volume make_head_volume(double voxel_mm = 2.0);           // a T1-like synthetic volume, same frame
+// The demo's brain: two hemispheres with sulci (where a band-limited noise
+// crosses zero: narrow valleys between broad gyri) and a Sylvian fissure,
+// a per-vertex "sulc" array of sulcal depth (0 on crowns, 1 at fundi); and
+// a T1-weighted-like volume of the same brain (white matter within the
+// cortex's grey, deep grey nuclei, ventricles, CSF, skull, scalp,
+// brainstem, cerebellum; boundaries blended over about 1.5 mm), in the
+// frame of make_brain_phantom's bundles.
+Mesh make_brain_surface(int subdivisions = 6);
+Volume make_t1_volume(double voxel_mm = 1.0);
 
 // A clustering tree, copied out of the plugin (hz_cluster_tree_view).
 struct ClusterTree {
@@ -291,8 +300,10 @@ void colour_by_overlay(Object &ob, const std::vector<std::string> &names);
 // per-streamline "cluster_size" array. Throws Error.
 Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const ClusterSpec &spec);
 
-// The scene of `horizon demo`: phantom bundles as QBX centroid tubes, a
-// cortex-like surface, an axial slice of a synthetic volume, principled shading.
-Scene demo_scene(const Registry &reg, std::uint64_t nb_streamlines, std::uint32_t nb_bundles, std::uint64_t seed);
+// The scene of `horizon demo`: the named bundles of make_brain_phantom as
+// direction-coloured tubes, the right hemisphere's cortex
+// (make_brain_surface), axial and coronal slices of make_t1_volume,
+// principled shading, ambient occlusion and shadows.
+Scene demo_scene(std::uint64_t nb_streamlines, std::uint64_t seed);
 
 }  // namespace hz::core::render
