@@ -67,7 +67,11 @@ typedef struct hz_task {
 
     /*
      * True when the host wants the call to stop. Poll at least every ~50 ms of
-     * work; on true, clean up and return HZ_E_CANCELLED. [calling-thread]
+     * work; on true, clean up and return HZ_E_CANCELLED. A call handed a task
+     * that is already cancelled may return HZ_E_CANCELLED at once; one that
+     * does less than ~50 ms of work need not poll at all and may finish as if
+     * not cancelled. Either way the reader (or other object) stays usable:
+     * close() or destroy() works after it. [calling-thread]
      */
     bool(HZ_ABI *is_cancelled)(const struct hz_task *task);
 
