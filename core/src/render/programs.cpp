@@ -138,6 +138,15 @@ std::string fragment_program(const FragmentSpec &g) {
         sh->output != HZ_SHADER_OUTPUT_EMISSION)
         s << "#define HZ_SHADOW 1\n#define HZ_SHADOW_LIGHT " << g.shadow_light << "\n";
     s << "#define HZ_ENV " << (!debug && g.env_on ? 1 : 0) << "\n";
+    // Lines, tubes and the fibre volume (shaded as lines): a shading
+    // model's `anisotropic` parameter makes them shine as hair does
+    // (kShadeMain: each light's normal towards a line's glint, the
+    // anisotropy's tangent around the fibre).
+    if (g.geom == ProgramGeom::Line || g.geom == ProgramGeom::Volume || g.geom == ProgramGeom::Tube)
+        for (uint32_t i = 0, k = 0; i < sh->param_count; k += sh->get_param(i)->components, ++i)
+            if (const hz_param_info *pi = sh->get_param(i);
+                pi->type == HZ_PARAM_FLOAT && std::strcmp(pi->name, "anisotropic") == 0 && g.values[k] != 0.0)
+                s << "#define HZ_FIBRE_ANISOTROPY u_anisotropic\n";
     if (g.refractive) s << "#define HZ_REFRACTIVE 1\n";
     if (std::strstr(snippet, "hz_ambient(")) s << "#define HZ_HAS_AMBIENT 1\n";
     // Specialisation: parameters that are exactly zero.
