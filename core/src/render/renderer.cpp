@@ -19,6 +19,7 @@
 #include "passes/transparency.hpp"
 #include "passes/frame_depth.hpp"
 #include "reprojection.hpp"
+#include "targets.hpp"
 
 #include <glm/glm.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -106,70 +107,6 @@ GLuint link_program(const std::vector<GLuint> &shaders, const std::string &what)
 
 }  // namespace
 
-// Render targets: members of Renderer::Impl, whose linkage is external, so
-// not in the anonymous namespace.
-namespace targets {
-
-struct Fbo {
-    GLuint fbo = 0, color = 0, depth = 0;
-    int width = 0, height = 0, samples = 0;
-    void destroy() {
-        if (fbo) glDeleteFramebuffers(1, &fbo);
-        if (color) glDeleteRenderbuffers(1, &color);
-        if (depth) glDeleteRenderbuffers(1, &depth);
-        fbo = color = depth = 0;
-    }
-};
-
-struct Tex2dFbo {
-    GLuint fbo = 0, tex = 0, depth = 0;
-    int width = 0, height = 0;
-    GLenum format = 0;
-    void destroy() {
-        if (fbo) glDeleteFramebuffers(1, &fbo);
-        if (tex) glDeleteTextures(1, &tex);
-        if (depth) glDeleteRenderbuffers(1, &depth);
-        if (depth_tex) glDeleteTextures(1, &depth_tex);
-        fbo = tex = depth = depth_tex = 0;
-    }
-    // A depth texture instead (sampled by a later pass; NEAREST).
-    GLuint depth_tex = 0;
-    void ensure_depth_texture() {
-        if (depth_tex) return;
-        glGenTextures(1, &depth_tex);
-        glBindTexture(GL_TEXTURE_2D, depth_tex);
-        glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT24, width, height, 0, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, nullptr);
-        clamped_texture_2d(GL_NEAREST);
-        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, depth_tex, 0);
-        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
-    }
-    // A depth buffer, for drawing into this target directly.
-    void ensure_depth() {
-        if (depth) return;
-        glGenRenderbuffers(1, &depth);
-        glBindRenderbuffer(GL_RENDERBUFFER, depth);
-        glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, width, height);
-        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-        glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth);
-        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
-    }
-    void ensure(int w, int h, GLenum internal, GLenum fmt, GLenum type) {
-        if (fbo && width == w && height == h && format == internal) return;
-        destroy();
-        width = w, height = h, format = internal;
-        glGenTextures(1, &tex);
-        glBindTexture(GL_TEXTURE_2D, tex);
-        glTexImage2D(GL_TEXTURE_2D, 0, GLint(internal), w, h, 0, fmt, type, nullptr);
-        clamped_texture_2d(GL_LINEAR);
-        glGenFramebuffers(1, &fbo);
-        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
-        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
-    }
-};
-
-}  // namespace targets
 using targets::Fbo;
 using targets::Tex2dFbo;
 
@@ -321,25 +258,20 @@ struct Renderer::Impl {
     explicit Impl(const Registry &r) : reg(r) {
         glGenVertexArrays(1, &empty_vao);
         glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
-        ibl = std::make_unique<ImageLighting>(
-            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
-        warp = std::make_unique<Reprojection>(
-            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
-        ao_pass = std::make_unique<AmbientOcclusionPass>(
-            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
-        cue_pass = std::make_unique<DepthCuePass>(
-            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
-        edge_aa = std::make_unique<EdgeAaPass>(
-            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
-        accumulation = std::make_unique<Accumulation>(
-            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
-        accumulation_hdr = std::make_unique<Accumulation>(
-            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
-        peeling = std::make_unique<DepthPeeling>(
-            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
+        // (what every pass compiles its programs with)
+        const auto simple = [this](const std::string &vs, const std::string &fs, const std::string &what) {
+            return make_simple(vs, fs, what);
+        };
+        ibl = std::make_unique<ImageLighting>(simple);
+        warp = std::make_unique<Reprojection>(simple);
+        ao_pass = std::make_unique<AmbientOcclusionPass>(simple);
+        cue_pass = std::make_unique<DepthCuePass>(simple);
+        edge_aa = std::make_unique<EdgeAaPass>(simple);
+        accumulation = std::make_unique<Accumulation>(simple);
+        accumulation_hdr = std::make_unique<Accumulation>(simple);
+        peeling = std::make_unique<DepthPeeling>(simple);
         frame_depth = std::make_unique<FrameDepth>();
-        volume_pass = std::make_unique<VolumeRendering>(
-            [this](const std::string &vs, const std::string &fs, const std::string &what) { return make_simple(vs, fs, what); });
+        volume_pass = std::make_unique<VolumeRendering>(simple);
         shadow_pass = std::make_unique<ShadowPass>(
             [this](const std::string &vs, const std::string &gs, const std::string &fs, const std::string &what) {
                 std::vector<GLuint> stages{compile_shader(GL_VERTEX_SHADER, vs, what + " (vertex)")};

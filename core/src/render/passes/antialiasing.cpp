@@ -1,6 +1,6 @@
 #include "antialiasing.hpp"
 
-#include "../gl.hpp"
+#include "../targets.hpp"
 
 namespace hz::core::render {
 
@@ -66,26 +66,6 @@ double radical_inverse(int i, int base) {
     return r;
 }
 
-// A w x h texture target of `internal` format (linear filtering, clamped).
-void make_target(GLuint &fbo, GLuint &tex, int w, int h, GLenum internal, GLenum type) {
-    if (fbo) glDeleteFramebuffers(1, &fbo), fbo = 0;
-    if (tex) glDeleteTextures(1, &tex), tex = 0;
-    glGenTextures(1, &tex);
-    glBindTexture(GL_TEXTURE_2D, tex);
-    glTexImage2D(GL_TEXTURE_2D, 0, GLint(internal), w, h, 0, GL_RGBA, type, nullptr);
-    clamped_texture_2d(GL_LINEAR);
-    glGenFramebuffers(1, &fbo);
-    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: anti-aliasing: incomplete framebuffer");
-}
-
-void release(GLuint &fbo, GLuint &tex) {
-    if (fbo) glDeleteFramebuffers(1, &fbo);
-    if (tex) glDeleteTextures(1, &tex);
-    fbo = tex = 0;
-}
-
 void fullscreen(Program &p, GLuint empty_vao) {
     glUseProgram(p.id);
     glBindVertexArray(empty_vao);
@@ -100,21 +80,21 @@ EdgeAaPass::EdgeAaPass(MakeProgram make) : make_(std::move(make)) {}
 
 EdgeAaPass::~EdgeAaPass() {
     if (program_) glDeleteProgram(program_->id);
-    release(copy_fbo_, copy_tex_);
+    copy_.destroy();
 }
 
 void EdgeAaPass::apply(GLuint colour_fbo, int w, int h, GLuint empty_vao) {
     if (!program_) program_ = make_(glsl::kFullscreenVS, kEdgeAaFS, "edge anti-aliasing");
-    if (!copy_fbo_ || w != w_ || h != h_) make_target(copy_fbo_, copy_tex_, w, h, GL_RGBA8, GL_UNSIGNED_BYTE), w_ = w, h_ = h;
+    copy_.ensure(w, h, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
     glBindFramebuffer(GL_READ_FRAMEBUFFER, colour_fbo);
-    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, copy_fbo_);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, copy_.fbo);
     glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
     glBindFramebuffer(GL_FRAMEBUFFER, colour_fbo);
     glViewport(0, 0, w, h);
     glDisable(GL_DEPTH_TEST);
     glDisable(GL_BLEND);
     glUseProgram(program_->id);
-    bind_sampler(*program_, "u_image", 0, GL_TEXTURE_2D, copy_tex_);
+    bind_sampler(*program_, "u_image", 0, GL_TEXTURE_2D, copy_.tex);
     fullscreen(*program_, empty_vao);
 }
 
@@ -122,20 +102,20 @@ Accumulation::Accumulation(MakeProgram make) : make_(std::move(make)) {}
 
 Accumulation::~Accumulation() {
     if (program_) glDeleteProgram(program_->id);
-    release(fbo_, tex_);
+    sum_.destroy();
 }
 
 void Accumulation::begin(int w, int h) {
     if (!program_) program_ = make_(glsl::kFullscreenVS, kWeightedFS, "accumulation");
-    if (!fbo_ || w != w_ || h != h_) make_target(fbo_, tex_, w, h, GL_RGBA32F, GL_FLOAT), w_ = w, h_ = h;
-    glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+    sum_.ensure(w, h, GL_RGBA32F, GL_RGBA, GL_FLOAT);
+    glBindFramebuffer(GL_FRAMEBUFFER, sum_.fbo);
     glClearColor(0, 0, 0, 0);
     glClear(GL_COLOR_BUFFER_BIT);
 }
 
 void Accumulation::draw(GLuint to_fbo, GLuint from_tex, double weight, bool add, GLuint empty_vao) {
     glBindFramebuffer(GL_FRAMEBUFFER, to_fbo);
-    glViewport(0, 0, w_, h_);
+    glViewport(0, 0, sum_.width, sum_.height);
     glDisable(GL_DEPTH_TEST);
     if (add) glEnable(GL_BLEND), glBlendFunc(GL_ONE, GL_ONE);
     glUseProgram(program_->id);
@@ -145,8 +125,8 @@ void Accumulation::draw(GLuint to_fbo, GLuint from_tex, double weight, bool add,
     glDisable(GL_BLEND);
 }
 
-void Accumulation::add(GLuint tex, double weight, GLuint empty_vao) { draw(fbo_, tex, weight, true, empty_vao); }
+void Accumulation::add(GLuint tex, double weight, GLuint empty_vao) { draw(sum_.fbo, tex, weight, true, empty_vao); }
 
-void Accumulation::resolve(GLuint fbo, GLuint empty_vao) { draw(fbo, tex_, 1.0, false, empty_vao); }
+void Accumulation::resolve(GLuint fbo, GLuint empty_vao) { draw(fbo, sum_.tex, 1.0, false, empty_vao); }
 
 }  // namespace hz::core::render

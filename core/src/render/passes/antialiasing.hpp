@@ -23,6 +23,7 @@
 
 #include "../glsl.hpp"
 #include "../gpu_object.hpp"
+#include "../targets.hpp"
 
 #include <array>
 #include <functional>
@@ -51,8 +52,7 @@ public:
 private:
     MakeProgram make_;
     std::unique_ptr<Program> program_;
-    GLuint copy_fbo_ = 0, copy_tex_ = 0;
-    int w_ = 0, h_ = 0;
+    targets::Tex2dFbo copy_;  // (the picture read while the pass writes it)
 };
 
 class Accumulation {
@@ -75,8 +75,7 @@ private:
     void draw(GLuint to_fbo, GLuint from_tex, double weight, bool add, GLuint empty_vao);
     MakeProgram make_;
     std::unique_ptr<Program> program_;
-    GLuint fbo_ = 0, tex_ = 0;
-    int w_ = 0, h_ = 0;
+    targets::Tex2dFbo sum_;
 };
 
 }  // namespace hz::core::render
