@@ -418,8 +418,8 @@ public:
                 // polled every 50 ms; the refinement waits for the first
                 // clusters)
                 const bool selecting = (session && session->selecting()) || stroking() || copying() || saving();
-                const bool busy = (r.refining() && !holding_refinement()) || r.computing() || !still.valid || app.dragging || app.panning ||
-                                  app.force_moving || wait > 0 || queued_click || app.press_stage >= 0 ||
+                const bool busy = ((r.refining() || r.accumulating()) && !holding_refinement()) || r.computing() || !still.valid ||
+                                  app.dragging || app.panning || app.force_moving || wait > 0 || queued_click || app.press_stage >= 0 ||
                                   (pc < script.size() && now >= sleep_until) || !app.pending_shot.empty() || first_frame ||
                                   (!o.script.empty() && o.exit_after_script && pc >= script.size());
                 if (busy)
@@ -447,7 +447,7 @@ public:
             if (settle_now && copying()) finish_copy(r);  // (the refresh above may have started it)
             if (settle_now && saving()) finish_save();
             const bool hold_for_still = pc < script.size() && script[pc].rfind("screenshot", 0) == 0 && !app.force_moving &&
-                                        (r.refining() || r.computing() || !still.valid);
+                                        (r.refining() || r.accumulating() || r.computing() || !still.valid);
             if (wait > 0)
                 --wait;
             else if (glfwGetTime() < sleep_until) {
@@ -515,6 +515,11 @@ public:
                 kind = r.progressive_step(std::max(kStepMs / 4, kStepMs - frame_overhead_ms)) ? "complete" : "refine";
                 step_ms = 1000.0 * (glfwGetTime() - ts);
                 r.present(fw, fh);
+            } else if (r.accumulating() && !holding_refinement()) {
+                // the complete still's jittered frames, one a frame, averaged
+                r.accumulate_step();
+                r.present(fw, fh);
+                kind = "accumulate";
             } else if (app.events != seen_events || !app.pending_shot.empty() || app.press_stage >= 0 || wait > 0 ||
                        (pc < script.size() && glfwGetTime() >= sleep_until) || (clustering() && glfwGetTime() >= next_progress_frame)) {
                 r.present(fw, fh);  // the kept still image (the panel is redrawn over it)
@@ -1871,6 +1876,10 @@ int view_scene(const core::Registry &reg, const std::function<core::render::Scen
         rs.proxy_levels = o.lod_frame_ms > 0;  // (moving frames pick one: ProxyGovernor)
         o.lod.apply(rs);
         rs.time_passes = !o.stats.empty();  // (a sync per pass: only when the frames are recorded)
+        // At rest, where a frame is cheap, the still's jittered frames averaged
+        // (the scene's `antialiasing.frames` where more; --aa-frames N: N,
+        // 1 for the edge pass alone).
+        rs.rest_aa_frames = o.passes.aa_frames > 0 ? o.passes.aa_frames : kRestAaFrames;
         // Baked materials, except while the material panel is being edited
         // (each new value would compile a program): see App::material_edited.
         rs.bake_materials = true;

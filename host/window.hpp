@@ -172,6 +172,11 @@ inline App *app_of(GLFWwindow *w) { return static_cast<App *>(glfwGetWindowUserP
 
 // A progressive step's time budget: input is handled between steps.
 constexpr double kStepMs = 50.0;
+// The jittered frames a still at rest accumulates where a frame is cheap
+// (RenderSettings::rest_aa_frames): 8 bring the error against a 4x4
+// supersampled picture to about a third of the edge pass's
+// (bench/results/antialiasing.md).
+constexpr int kRestAaFrames = 8;
 
 // This process's resident anonymous memory (RssAnon), MiB; file pages of
 // mapped inputs are not counted. -1 where /proc is not there.
@@ -191,8 +196,10 @@ inline nlohmann::json proxy_levels_json(const core::render::Renderer &r) {
 // how long it took (render, panel and buffer swap), for tests and the
 // benchmark; a proxy frame's level (an index into "proxy_levels"). Kinds: "moving" (the level-of-detail proxy while the camera
 // moves), "refine" (a progressive step of a still frame, not complete),
-// "complete" (the step that completed it, or a frame drawn whole), "still"
-// (the kept image presented again, e.g. for the panel; no scene drawing).
+// "complete" (the step that completed it, or a frame drawn whole),
+// "accumulate" (one more jittered frame of a complete still, averaged in:
+// `aa_frames` so far), "still" (the kept image presented again, e.g. for
+// the panel; no scene drawing).
 struct FrameLog {
     // The peak of RssAnon is also sampled 20 times a second on a thread of
     // its own: frames alone miss what happens while none is drawn.
@@ -249,6 +256,7 @@ struct FrameLog {
                           {"volume_ms", drew ? s.volume_ms : 0},
                           {"edge_aa", drew && s.edge_aa},
                           {"aa_ms", drew ? s.aa_ms : 0},
+                          {"aa_frames", drew ? s.aa_frames : 0},
                           {"clustering", clustering},
                           {"rss_anon_mb", anon}});
     }

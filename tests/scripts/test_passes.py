@@ -310,6 +310,49 @@ class AntialiasingTest(TempDirTest):
         frames = json.load(open(self.path("stats.json")))["frames"]
         self.assertTrue(any(f["edge_aa"] for f in frames) and not all(f["edge_aa"] for f in frames if f["kind"] != "idle"))
 
+    def test_the_window_at_rest_averages_jittered_frames_as_render_does(self):
+        """A still at rest that is cheap to draw gets 8 jittered frames (the
+        scene's `frames` where more), one a frame, shown as their average so
+        far: the window's picture then equals `render --aa-frames 8`. None
+        with anti-aliasing off, nor while moving."""
+        with open(self.path("s.json"), "w") as f:
+            json.dump(self.SCENE, f)
+        shots = [self.path(f"w{i}.png") for i in range(2)]
+        with open(self.path("script.txt"), "w") as f:
+            f.write("\n".join(["wait 2", f"screenshot {shots[0]}", "mark off", "key g", "wait 2", f"screenshot {shots[1]}", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        p = xvfb_run([HORIZON, "view", self.path("s.json"), "--size", "400x300", "--samples", "1", "--lod-pixels", "0", "--script",
+                      self.path("script.txt"), "--stats", self.path("stats.json")], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        frames = json.load(open(self.path("stats.json")))["frames"]
+        off = next(i for i, f in enumerate(frames) if f["kind"] == "mark")
+        acc = [f["aa_frames"] for f in frames[:off] if f["kind"] == "accumulate"]
+        self.assertEqual(acc, list(range(1, 9)), "one jittered frame a frame, 8 in all")
+        self.assertFalse([f for f in frames[off:] if f["kind"] == "accumulate"], "none with anti-aliasing off")
+        window = [np.asarray(Image.open(s).convert("RGB"), dtype=np.float64) for s in shots]
+        eight, _ = self.render("r8.png", "400x300", "--samples", "1", "--aa-frames", "8")
+        none, _ = self.render("r0.png", "400x300", "--samples", "1", "--no-aa")
+        right = slice(160, 400)  # (the panel aside)
+        d = lambda a, b: float(np.abs(a[:, right] - b[:, right]).mean())
+        self.assertLess(d(window[0], eight), 0.1, "the window's still is render's 8-frame still")
+        self.assertGreater(d(window[0], none), 0.5)
+        self.assertLess(d(window[1], none), 0.1, "G: neither the edge pass nor jittered frames")
+        # The scene's frames where more than 8.
+        with open(self.path("s16.json"), "w") as f:
+            json.dump({**self.SCENE, "antialiasing": {"frames": 16}}, f)
+        with open(self.path("script16.txt"), "w") as f:  # (a screenshot waits for the still's last frame)
+            f.write(f"screenshot {self.path('a.png')}\nmoving on\nwait 3\nmoving off\nscreenshot {self.path('b.png')}\nquit\n")
+        p = xvfb_run([HORIZON, "view", self.path("s16.json"), "--size", "400x300", "--samples", "1", "--script",
+                      self.path("script16.txt"), "--stats", self.path("stats16.json")], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        kinds = [(f["kind"], f.get("aa_frames")) for f in json.load(open(self.path("stats16.json")))["frames"]]
+        self.assertEqual([n for k, n in kinds if k == "accumulate"], list(range(1, 17)) * 2, "16 at rest, before and after moving")
+        moving = [i for i, (k, _) in enumerate(kinds) if k == "moving"]
+        self.assertTrue(moving)
+        self.assertFalse([k for k, _ in kinds[moving[0]:moving[-1]] if k == "accumulate"], "none while moving")
+
     def test_bad_settings_are_one_line(self):
         for aa, where in (({"frames": 0}, "antialiasing.frames"), ({"frames": 65}, "antialiasing.frames"),
                           ({"frames": 2.5}, "antialiasing.frames"), ({"samples": 4}, "samples"), ("yes", "antialiasing")):
@@ -752,7 +795,7 @@ class VolumeRenderingTest(TempDirTest):
             with open(self.path("s.txt"), "w") as f:
                 f.write("\n".join(["wait 2", f"screenshot {shot}", "quit"]) + "\n")
             files = [self.path("t.tck")] + ([] if name == "none" else [self.path("ball.nii.gz")])
-            p = xvfb_run([HORIZON, "view", *files, "--size", "400x300", "--script", self.path("s.txt"), *args,
+            p = xvfb_run([HORIZON, "view", *files, "--size", "400x300", "--aa-frames", "1", "--script", self.path("s.txt"), *args,
                           *(() if name == "none" else ("--volume-render", "glow"))], env)
             self.assertEqual(p.returncode, 0, p.stderr)
             shots[name] = np.asarray(Image.open(shot).convert("RGB"), dtype=np.float64)

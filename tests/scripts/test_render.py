@@ -783,7 +783,7 @@ class WindowTest(TempDirTest):
         if "ASAN_OPTIONS" in env:
             env["ASAN_OPTIONS"] += ":detect_leaks=0"  # see test_window_under_xvfb_with_scripted_input
         stats = self.path("stats.json")
-        p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--lod-points", "4000", "--script", script,
+        p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--aa-frames", "1", "--lod-points", "4000", "--script", script,
                       "--stats", stats], env)
         self.assertEqual(p.returncode, 0, p.stderr)
         self.assertIn("level of detail: 600 streamlines", p.stdout)
@@ -797,7 +797,7 @@ class WindowTest(TempDirTest):
         # Without a proxy (--lod-points above the size) the same still image.
         with open(script, "w") as f:
             f.write("\n".join(["wait 1", f"screenshot {self.path('plain.png')}", "quit"]) + "\n")
-        p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--lod-points", "1e9", "--script", script],
+        p = xvfb_run([HORIZON, "view", self.path("d/phantom.tck"), "--size", "480x320", "--aa-frames", "1", "--lod-points", "1e9", "--script", script],
                      env)
         self.assertEqual(p.returncode, 0, p.stderr)
         self.assertNotIn("level of detail:", p.stdout)
@@ -951,7 +951,7 @@ class WindowTest(TempDirTest):
         self.demo_400()
         script = self.path("idle.txt")
         with open(script, "w") as f:
-            f.write("wait 2\nsleep 2\nquit\n")
+            f.write(f"screenshot {self.path('idle.png')}\nmark idle\nsleep 2\nquit\n")  # (a screenshot waits for the complete still)
         stats = self.path("idle.json")
         env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
         if "ASAN_OPTIONS" in env:
@@ -961,7 +961,7 @@ class WindowTest(TempDirTest):
         with open(stats) as f:
             frames = json.load(f)["frames"]
         self.assertEqual(frames[0]["kind"], "complete")
-        start = frames[2]["t"]  # after `wait 2`
+        start = next(f["t"] for f in frames if f["kind"] == "mark")
         during = [f for f in frames if start + 0.2 < f["t"] < start + 1.8]
         self.assertEqual(during, [], "no frame while idle")
 
@@ -972,7 +972,9 @@ class WindowTest(TempDirTest):
         self.demo_400()
         shots = {}
         for v in ("superior", "inferior", "left"):
-            p = self.window(v, ["wait 1", f"screenshot {self.path('w_' + v + '.png')}", "quit"], "--view", v, size="320x240")
+            # (--aa-frames 1: the window's still at rest, else averaged over 8 jittered frames, is then render's)
+            p = self.window(v, ["wait 1", f"screenshot {self.path('w_' + v + '.png')}", "quit"], "--view", v, "--aa-frames", "1",
+                            size="320x240")
             self.assertEqual(p.returncode, 0, p.stderr)
             p = run("render", self.path("d/phantom.tck"), "--view", v, "--size", "320x240", "-o", self.path("r_" + v + ".png"),
                     env=NO_DISPLAY, timeout=120)

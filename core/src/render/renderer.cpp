@@ -1363,6 +1363,14 @@ void main() {
         Culling shadow_culling;
     } refine;
 
+    // The window's still, jittered frames of it averaged at rest
+    // (RenderSettings::rest_aa_frames): `done` of `frames` in `accumulation`.
+    struct RestAa {
+        bool active = false;
+        View view;
+        int w = 0, h = 0, frames = 0, done = 0;
+    } rest_aa;
+
     void reset_counters() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
         stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = stats.volumes_drawn = 0;
@@ -1968,6 +1976,7 @@ View fit_view(const Scene &scene, const Camera &c, double aspect) {
 void Renderer::render(const View &view, int width, int height) {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
+    I.rest_aa.active = false;
     I.adopt_crossings(true);  // (an offscreen frame shows the slab's crossings once computed)
     if (!I.interacting) I.adopt_bricks(true);
     I.refine.active = false;
@@ -2010,6 +2019,7 @@ void Renderer::render(const View &view, int width, int height) {
 void Renderer::render_to_window(const View &view, int width, int height) {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
+    I.rest_aa.active = false;
     I.refine.active = false;
     I.reset_counters();
     if (I.interacting && I.moving_frame_small()) {
@@ -2024,9 +2034,46 @@ void Renderer::render_to_window(const View &view, int width, int height) {
 void Renderer::begin_progressive(const View &view, int width, int height, bool at_once) {
     Impl &I = *impl_;
     const auto t0 = Clock::now();
+    I.rest_aa.active = false;
     I.begin_progressive(view, width, height, at_once);
     glFinish();
     I.stats.draw_ms = ms_since(t0);
+    // (a still complete at once, and cheap: its jittered frames follow)
+    const int frames = std::max(I.settings.rest_aa_frames, I.scene.antialiasing.frames);
+    if (!I.refine.active && !I.interacting && I.scene.antialiasing.on && I.settings.rest_aa_frames > 1 &&
+        I.stats.draw_ms <= RenderSettings::kRestAaMaxMs)
+        I.rest_aa = {true, view, width, height, frames, 0};
+}
+
+bool Renderer::accumulating() const { return impl_->rest_aa.active; }
+
+bool Renderer::accumulate_step() {
+    Impl &I = *impl_;
+    Impl::RestAa &a = I.rest_aa;
+    if (!a.active) return true;
+    const auto t0 = Clock::now();
+    I.reset_counters();
+    {
+        struct Reset {
+            Impl &I;
+            ~Reset() { I.jitter_px = {0, 0}, I.accumulating = false; }
+        } reset{I};
+        I.accumulating = true;
+        const std::array<double, 2> j = jitter_offset(a.done);
+        I.jitter_px = {j[0], j[1]};
+        I.frame(a.view, a.w, a.h);
+    }
+    if (a.done == 0) I.accumulation->begin(a.w, a.h);
+    I.accumulation->add(I.ldr.tex, 1.0, I.empty_vao);
+    ++a.done;
+    I.accumulation->resolve(I.ldr.fbo, I.empty_vao, 1.0 / a.done);
+    // (the average of a few frames is rougher than the edge pass's still)
+    if (a.done < 4) I.smooth_edges(a.w, a.h);
+    glFinish();
+    I.stats.draw_ms = ms_since(t0);
+    I.stats.aa_frames = a.done;
+    a.active = a.done < a.frames && I.stats.draw_ms <= RenderSettings::kRestAaMaxMs;
+    return !a.active;
 }
 
 bool Renderer::progressive_step(double budget_ms) {

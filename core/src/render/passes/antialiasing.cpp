@@ -127,6 +127,6 @@ void Accumulation::draw(GLuint to_fbo, GLuint from_tex, double weight, bool add,
 
 void Accumulation::add(GLuint tex, double weight, GLuint empty_vao) { draw(sum_.fbo, tex, weight, true, empty_vao); }
 
-void Accumulation::resolve(GLuint fbo, GLuint empty_vao) { draw(fbo, sum_.tex, 1.0, false, empty_vao); }
+void Accumulation::resolve(GLuint fbo, GLuint empty_vao, double scale) { draw(fbo, sum_.tex, scale, false, empty_vao); }
 
 }  // namespace hz::core::render

@@ -67,8 +67,8 @@ public:
     void begin(int w, int h);
     // Adds `weight` times the picture in texture `tex` (w x h).
     void add(GLuint tex, double weight, GLuint empty_vao);
-    // Writes the sum into `fbo` (w x h; blending off).
-    void resolve(GLuint fbo, GLuint empty_vao);
+    // Writes `scale` times the sum into `fbo` (w x h; blending off).
+    void resolve(GLuint fbo, GLuint empty_vao, double scale = 1.0);
 
 private:
     // Draws `weight` times texture `from_tex` into `to_fbo` (added to it with `add`).

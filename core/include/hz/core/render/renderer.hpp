@@ -131,6 +131,14 @@ struct RenderSettings {
     // before and after it, which stalls a GPU's pipeline; `render` and a
     // window with --stats ask for it.
     bool time_passes = false;
+    // A window at rest: once a progressive frame completed at once (within
+    // begin_progressive, in under kRestAaMaxMs), this many jittered frames of
+    // its view (or Scene::antialiasing's `frames` where more) averaged, one
+    // per accumulate_step: supersampling where a frame is cheap. 0 or 1:
+    // none, whatever the scene's `frames`; none either where
+    // Scene::antialiasing is off.
+    int rest_aa_frames = 0;
+    static constexpr double kRestAaMaxMs = 150;
 };
 
 struct FrameStats {
@@ -289,6 +297,14 @@ public:
     void begin_progressive(const View &view, int width, int height, bool at_once = false);
     bool progressive_step(double budget_ms);
     bool refining() const;
+    // The still's jittered frames (RenderSettings::rest_aa_frames): true
+    // while more are due; accumulate_step draws one, leaves the average so
+    // far as the picture present() shows (smoothed by the edge pass while
+    // fewer than 4), and returns true once the last is in (or a frame took
+    // longer than kRestAaMaxMs: the average so far stays). Any
+    // begin_progressive, render or render_to_window ends it.
+    bool accumulating() const;
+    bool accumulate_step();
     void present(int width, int height);
     // Bumped by every change to what a frame shows (objects, materials,
     // visibility, exposure): a still image is current while it is unchanged.
