@@ -11,6 +11,7 @@ const std::vector<Action> &window_actions() {
     static const std::vector<Action> actions = {
         {"screenshot", GLFW_KEY_S, 0, "S", "screenshot", ActionGroup::View},
         {"reset", GLFW_KEY_R, 0, "R", "reset", ActionGroup::View},
+        {"fit", GLFW_KEY_V, 0, "V", "fit to what is shown", ActionGroup::View},
         {"occlusion", GLFW_KEY_O, 0, "O", "occlusion", ActionGroup::View},
         {"depth cue", GLFW_KEY_F, 0, "F", "depth cue", ActionGroup::View},
         {"shadows", GLFW_KEY_L, 0, "L", "shadows", ActionGroup::View},

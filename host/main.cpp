@@ -9,6 +9,7 @@
 #include "progress.hpp"
 
 #include <hz/core/io.hpp>
+#include <hz/core/plugin_guard.hpp>
 
 #include <CLI/CLI.hpp>
 #include <spdlog/sinks/stdout_color_sinks.h>
@@ -306,7 +307,7 @@ int main(int argc, char **argv) {
     view->add_option("--script", vwo.script,
                      "drive the window from a script (wait N (frames), sleep S (seconds), drag, pan, scroll, click X Y [ctrl] [alt], key "
                      "K|ctrl+K, set, "
-                     "shader, moving on|off, mark NAME, expand K [streamlines], hide K, repeat [T...], reset, roi "
+                     "shader, moving on|off, mark NAME, expand K [streamlines], hide K, repeat [T...], reset, fit, roi "
                      "sphere|box|mask|move|scale|flip|remove ..., "
                      "undo, redo, save PATH [force], press LABEL, screenshot, quit; see docs/rendering.md and docs/quality-control.md)")
         ->check(CLI::ExistingFile);
@@ -423,5 +424,8 @@ int main(int argc, char **argv) {
         std::fprintf(stderr, "horizon: error: standard output: %s\n", errno ? std::strerror(errno) : "a write failed");
         rc = 1;
     }
+    // (a plugin's destructor that crashes or holds the exit up now is named,
+    // and the exit status stays this one)
+    hz::core::plugins_at_exit(rc);
     return rc;
 }

@@ -109,6 +109,7 @@ void Explorer::adopt_saved(Saved saved) {
     s_.tree = std::move(saved.tree);
     s_.subset = std::make_shared<const std::vector<std::uint64_t>>(std::move(saved.subset));
     s_.expanded = std::move(saved.alone);
+    s_.expanded_origin.assign(s_.expanded.size(), 0);
     expanded_changed();
     for (std::size_t g = 0; g < G; ++g) s_.shown.push_back(g + 1);
     sort();
@@ -226,17 +227,24 @@ void Explorer::select_only(const std::vector<std::size_t> &ranks) {
     for (std::size_t k : ranks) s_.selected.insert(at(k));
 }
 
+template <class Keep>
+void Explorer::keep_expanded(Keep keep) {
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < s_.expanded.size(); ++i)
+        if (keep(s_.expanded[i])) s_.expanded[n] = s_.expanded[i], s_.expanded_origin[n] = s_.expanded_origin[i], ++n;
+    s_.expanded.resize(n), s_.expanded_origin.resize(n);
+    expanded_changed();
+}
+
 void Explorer::keep_selected(const std::vector<std::uint64_t> &streamlines) {
     std::erase_if(s_.shown, [&](std::uint64_t node) { return !s_.selected.count(node); });
-    std::erase_if(s_.expanded, [&](std::uint64_t s) { return !std::binary_search(streamlines.begin(), streamlines.end(), s); });
-    expanded_changed();
+    keep_expanded([&](std::uint64_t s) { return std::binary_search(streamlines.begin(), streamlines.end(), s); });
     s_.selected.clear();
 }
 
 void Explorer::drop_selected(const std::vector<std::uint64_t> &streamlines) {
     std::erase_if(s_.shown, [&](std::uint64_t node) { return s_.selected.count(node) != 0; });
-    std::erase_if(s_.expanded, [&](std::uint64_t s) { return std::binary_search(streamlines.begin(), streamlines.end(), s); });
-    expanded_changed();
+    keep_expanded([&](std::uint64_t s) { return !std::binary_search(streamlines.begin(), streamlines.end(), s); });
     s_.selected.clear();
 }
 
@@ -271,26 +279,47 @@ void Explorer::add_members(const std::vector<std::uint64_t> &nodes) {
     // tractogram itself, not a copy)
     const auto &t = *s_.tree;
     const auto &subset = *s_.subset;
+    // Each node's origin: its path and colour now.
+    auto origins = s_.origins ? std::make_shared<std::vector<Origin>>(*s_.origins) : std::make_shared<std::vector<Origin>>(1);
+    std::vector<std::uint32_t> origin_of(nodes.size());
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+        origin_of[i] = std::uint32_t(origins->size());
+        origins->push_back({path(nodes[i]), s_.colour[nodes[i]]});
+    }
+    s_.origins = std::move(origins);
     std::uint64_t count = 0;
     for (std::uint64_t node : nodes) count += t.member_offsets[node + 1] - t.member_offsets[node];
     const std::uint64_t N = all_.nb_streamlines();
     if (count * 8 < N) {  // a few: sorted, then merged
-        const std::size_t before = s_.expanded.size();
-        s_.expanded.reserve(before + count);
-        for (std::uint64_t node : nodes)
-            for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) s_.expanded.push_back(subset[t.members[m]]);
-        std::sort(s_.expanded.begin() + std::ptrdiff_t(before), s_.expanded.end());
-        std::inplace_merge(s_.expanded.begin(), s_.expanded.begin() + std::ptrdiff_t(before), s_.expanded.end());
+        std::vector<std::pair<std::uint64_t, std::uint32_t>> add;
+        add.reserve(count);
+        for (std::size_t i = 0; i < nodes.size(); ++i)
+            for (std::uint64_t m = t.member_offsets[nodes[i]]; m < t.member_offsets[nodes[i] + 1]; ++m)
+                add.emplace_back(subset[t.members[m]], origin_of[i]);
+        std::sort(add.begin(), add.end());
+        std::vector<std::uint64_t> ids;
+        std::vector<std::uint32_t> from;
+        ids.reserve(s_.expanded.size() + add.size()), from.reserve(s_.expanded.size() + add.size());
+        std::size_t a = 0, b = 0;
+        while (a < s_.expanded.size() || b < add.size()) {
+            if (b == add.size() || (a < s_.expanded.size() && s_.expanded[a] < add[b].first))
+                ids.push_back(s_.expanded[a]), from.push_back(s_.expanded_origin[a]), ++a;
+            else
+                ids.push_back(add[b].first), from.push_back(add[b].second), ++b;
+        }
+        s_.expanded = std::move(ids), s_.expanded_origin = std::move(from);
     } else {  // many (select all, then X: ten million): marked, then listed in order
-        std::vector<bool> mark(N);
-        for (std::uint64_t s : s_.expanded) mark[s] = true;
-        for (std::uint64_t node : nodes)
-            for (std::uint64_t m = t.member_offsets[node]; m < t.member_offsets[node + 1]; ++m) mark[subset[t.members[m]]] = true;
+        constexpr std::uint32_t kNot = ~std::uint32_t(0);
+        std::vector<std::uint32_t> mark(N, kNot);
+        for (std::size_t i = 0; i < s_.expanded.size(); ++i) mark[s_.expanded[i]] = s_.expanded_origin[i];
+        for (std::size_t i = 0; i < nodes.size(); ++i)
+            for (std::uint64_t m = t.member_offsets[nodes[i]]; m < t.member_offsets[nodes[i] + 1]; ++m)
+                mark[subset[t.members[m]]] = origin_of[i];
         const std::size_t total = s_.expanded.size() + count;
-        s_.expanded.clear();
-        s_.expanded.reserve(total);
+        s_.expanded.clear(), s_.expanded_origin.clear();
+        s_.expanded.reserve(total), s_.expanded_origin.reserve(total);
         for (std::uint64_t s = 0; s < N; ++s)
-            if (mark[s]) s_.expanded.push_back(s);
+            if (mark[s] != kNot) s_.expanded.push_back(s), s_.expanded_origin.push_back(mark[s]);
     }
     expanded_changed();
 }
@@ -408,7 +437,8 @@ void Explorer::adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const co
     s_.subset = std::make_shared<const std::vector<std::uint64_t>>(std::move(subset));
     s_.shown.clear();
     s_.selected.clear();
-    s_.expanded.clear();
+    s_.expanded.clear(), s_.expanded_origin.clear();
+    s_.origins.reset();
     expanded_changed();
     for (std::uint64_t k = 0; k < tree->level.size(); ++k)
         if (tree->level[k] == 1) s_.shown.push_back(k);
@@ -433,10 +463,14 @@ void Explorer::adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const co
 }
 
 std::vector<std::uint64_t> Explorer::shown_streamlines(std::vector<std::string> *cluster_of) const {
-    std::vector<std::pair<std::uint64_t, std::size_t>> all;  // (streamline, cluster rank + 1; 0: expanded)
+    // (streamline, its path's index + 1: the clusters shown's, then the
+    // expanded streamlines' origins'; 0: none)
+    std::vector<std::pair<std::uint64_t, std::size_t>> all;
     const auto &t = *s_.tree;
-    for (std::uint64_t s : s_.expanded) all.emplace_back(s, 0);
-    for (std::size_t k = 0; k < s_.shown.size(); ++k)
+    const std::size_t K = s_.shown.size();
+    for (std::size_t i = 0; i < s_.expanded.size(); ++i)
+        all.emplace_back(s_.expanded[i], s_.expanded_origin[i] == 0 ? 0 : K + s_.expanded_origin[i]);
+    for (std::size_t k = 0; k < K; ++k)
         for (std::uint64_t m = t.member_offsets[s_.shown[k]]; m < t.member_offsets[s_.shown[k] + 1]; ++m)
             all.emplace_back((*s_.subset)[t.members[m]], k + 1);
     std::sort(all.begin(), all.end());
@@ -445,6 +479,8 @@ std::vector<std::uint64_t> Explorer::shown_streamlines(std::vector<std::string> 
     std::vector<std::string> paths;
     if (cluster_of) {
         for (std::uint64_t node : s_.shown) paths.push_back(path(node));
+        if (s_.origins)
+            for (std::size_t o = 1; o < s_.origins->size(); ++o) paths.push_back((*s_.origins)[o].path);
         cluster_of->assign(all.size(), "");
     }
     for (std::size_t i = 0; i < all.size(); ++i) {
@@ -487,11 +523,12 @@ core::render::Object Explorer::streamlines_object() const {
     // (a million streamlines expanded out of ten million: 2 GB).
     // (The bounds: a pass over ten million streamlines' points is seconds
     // of the window's time.)
-    if (s_.expanded.size() == all_.nb_streamlines()) return streamlines_object(all_.shared(), all_bounds());
-    return streamlines_object(core::select_streamlines(all_, s_.expanded, true), core::Bounds{});
+    if (s_.expanded.size() == all_.nb_streamlines()) return streamlines_object(all_.shared(), all_bounds(), s_.expanded);
+    return streamlines_object(core::select_streamlines(all_, s_.expanded, true), core::Bounds{}, s_.expanded);
 }
 
-core::render::Object Explorer::streamlines_object(core::Tractogram t, const core::Bounds &bounds) const {
+core::render::Object Explorer::streamlines_object(core::Tractogram t, const core::Bounds &bounds,
+                                                  const std::vector<std::uint64_t> &ids) const {
     core::render::Object o;
     o.name = name_ + ": expanded streamlines";
     o.kind = o.data.kind = HZ_DATA_STREAMLINES;
@@ -499,6 +536,19 @@ core::render::Object Explorer::streamlines_object(core::Tractogram t, const core
     o.data.bounds = bounds;
     o.render = "lines";
     o.coloring.mode = "direction";
+    // Each by the cluster it came from, in that cluster's colour (as the
+    // centroids are drawn), where every one came from one.
+    const std::uint64_t n = o.data.tractogram.nb_streamlines();
+    if (n == 0 || ids.size() != n || !s_.origins) return o;
+    std::vector<float> colour(n);
+    for (std::uint64_t i = 0; i < n; ++i) {
+        const auto it = std::lower_bound(s_.expanded.begin(), s_.expanded.end(), ids[i]);
+        const std::uint32_t from = it != s_.expanded.end() && *it == ids[i] ? s_.expanded_origin[std::size_t(it - s_.expanded.begin())] : 0;
+        if (from == 0) return o;
+        colour[i] = float((*s_.origins)[from].colour);
+    }
+    o.data.tractogram.arrays.push_back(core::f32_array("cluster_id", HZ_ATTACH_STREAMLINE, colour));
+    o.coloring.mode = "cluster";
     return o;
 }
 
@@ -848,7 +898,8 @@ Session::SaveJob Session::prepare_save(const std::string &path, bool force) {
     out.tractogram = all_.shared();
     // Clusters: a TRX group per cluster shown (named by its path, which
     // TRX names cannot hold dots of), and each streamline's group index as
-    // per-streamline data (-1: a streamline expanded on its own).
+    // per-streamline data (-1: a streamline in no cluster). An expanded
+    // streamline keeps the path of the cluster it was expanded from.
     std::vector<std::string> names;
     std::map<std::string, std::vector<std::uint64_t>> members;  // (renumbered to the file's streamlines as they are written)
     std::vector<std::int32_t> label(ex_ ? all_.nb_streamlines() : 0, -1);

@@ -35,14 +35,25 @@ namespace hz::host {
 // regions) gives new ones.
 class Explorer {
 public:
+    // Where expanded streamlines came from: the cluster's path ("c1.3", or a
+    // saved name) and its palette entry when it was expanded.
+    struct Origin {
+        std::string path;
+        std::uint64_t colour = 0;
+    };
     // Everything an edit changes (what undo restores). Copies share the tree.
     struct State {
         std::shared_ptr<const core::render::ClusterTree> tree;
         std::shared_ptr<const std::vector<std::uint64_t>> subset;  // the streamlines clustered (tree members index it; shared by copies)
         std::vector<std::uint64_t> shown;                          // tree nodes shown, largest first
         std::vector<std::uint64_t> expanded;                       // streamlines shown on their own (ascending)
-        std::set<std::uint64_t> selected;                          // tree nodes, all shown
-        std::vector<std::uint64_t> colour;                         // per tree node: its palette entry
+        // Per expanded streamline (parallel to `expanded`): the cluster it was
+        // expanded from, an index into `origins` (0: none, e.g. a saved
+        // streamline that was in no cluster).
+        std::vector<std::uint32_t> expanded_origin;
+        std::shared_ptr<const std::vector<Origin>> origins;  // [0]: none (shared by copies; appended to on expansion)
+        std::set<std::uint64_t> selected;                    // tree nodes, all shown
+        std::vector<std::uint64_t> colour;                   // per tree node: its palette entry
         std::uint64_t next_colour = 0;
         int rounds = 0;
         std::vector<double> thresholds;                         // of the last clustering (mm per level)
@@ -160,16 +171,19 @@ public:
                const std::vector<std::uint64_t> *before);
 
     // The streamlines shown (clusters' members and expanded ones), ascending,
-    // and for each its cluster's path ("" for an expanded streamline).
+    // and for each its cluster's path: an expanded streamline's is the path
+    // of the cluster it was expanded from ("" if none).
     std::vector<std::uint64_t> shown_streamlines(std::vector<std::string> *cluster_of = nullptr) const;
 
     core::render::Object centroids_object() const;
     // The expanded streamlines' object: of expanded() (the tractogram itself
     // when every streamline is expanded, else a copy), or drawing `t`, the
     // streamlines expanded() at some time, copied on another thread
-    // (`bounds`: t's when known, else empty).
+    // (`bounds`: t's when known, else empty; `ids`: the streamlines t holds).
+    // Coloured by the cluster each came from (its colour then, as a
+    // per-streamline "cluster_id"), or by direction where one came from none.
     core::render::Object streamlines_object() const;
-    core::render::Object streamlines_object(core::Tractogram t, const core::Bounds &bounds) const;
+    core::render::Object streamlines_object(core::Tractogram t, const core::Bounds &bounds, const std::vector<std::uint64_t> &ids) const;
 
 private:
     std::uint64_t at(std::size_t rank) const;
@@ -177,8 +191,12 @@ private:
     std::vector<std::uint64_t> children(std::uint64_t node) const;
     void expand_node(std::uint64_t node, bool to_streamlines);
     void require_selected() const;  // throws Error when no cluster is selected
-    // Adds the members of `nodes` to expanded (kept ascending).
+    // Adds the members of `nodes` to expanded (kept ascending), each with
+    // its node as its origin.
     void add_members(const std::vector<std::uint64_t> &nodes);
+    // Keeps the expanded streamlines for which keep(streamline) is true (and their origins).
+    template <class Keep>
+    void keep_expanded(Keep keep);
     void expanded_changed() { s_.expanded_id = ++last_expanded_id_; }
     core::Bounds extent(const std::vector<std::uint64_t> &ids) const;
 

@@ -299,7 +299,7 @@ public:
                     scene.objects.push_back(ex->streamlines_object());
                     shown_ids = expanded_ids;
                 } else {
-                    scene.objects.push_back(ex->streamlines_object(core::Tractogram{}, core::Bounds{}));
+                    scene.objects.push_back(ex->streamlines_object(core::Tractogram{}, core::Bounds{}, {}));
                     shown_ids = std::make_shared<const std::vector<std::uint64_t>>();
                     display_at_first_frame = true;
                 }
@@ -837,7 +837,7 @@ private:
     // t's when known, not measured again here).
     void show(core::render::Renderer &rr, std::shared_ptr<const std::vector<std::uint64_t>> ids, core::Tractogram t,
               const core::Bounds &bounds) {
-        core::render::Object ob = ex ? ex->streamlines_object(std::move(t), bounds) : styled_like(rr.scene().objects[ti]);
+        core::render::Object ob = ex ? ex->streamlines_object(std::move(t), bounds, *ids) : styled_like(rr.scene().objects[ti]);
         if (!ex) ob.data.tractogram = std::move(t), ob.data.bounds = bounds;
         highlight(ob.data.tractogram, *ids);
         rr.replace_object(ex ? si : ti, std::move(ob));
@@ -1013,12 +1013,50 @@ private:
                 return true;
             };
         };
+        app.actions["fit"] = [this] {
+            fit_to_shown();
+            return true;
+        };
         app.actions["depth cue"] = toggle("depth cue", &core::render::Scene::depth_cue, &core::render::Renderer::set_depth_cue);
         app.actions["shadows"] = toggle("shadows", &core::render::Scene::shadows, &core::render::Renderer::set_shadows);
         app.actions["antialiasing"] =
             toggle("anti-aliasing", &core::render::Scene::antialiasing, &core::render::Renderer::set_antialiasing);
         app.actions["occlusion"] =
             toggle("ambient occlusion", &core::render::Scene::ambient_occlusion, &core::render::Renderer::set_ambient_occlusion);
+    }
+
+    // The camera refitted to what is shown now (after hiding or expanding
+    // clusters, or a region): the same direction, the target at the centre of
+    // the visible objects' box, the distance at which the box's extent across
+    // the view fits it (as fit_view fits the first view; R still returns to
+    // the view the window opened with).
+    void fit_to_shown() {
+        const core::Bounds b = core::render::scene_bounds(r.scene());
+        if (b.empty) {
+            std::printf("fit: nothing is shown\n");
+            std::fflush(stdout);
+            return;
+        }
+        int fw = 1, fh = 1;
+        glfwGetFramebufferSize(win, &fw, &fh);
+        const double ty = std::tan(app.orbit.fov * M_PI / 360.0), tx = ty * double(std::max(fw, 1)) / double(std::max(fh, 1));
+        const double cp = std::cos(app.orbit.pitch), sp = std::sin(app.orbit.pitch), cy = std::cos(app.orbit.yaw),
+                     sy = std::sin(app.orbit.yaw);
+        const double dir[3] = {cp * cy, cp * sy, sp};  // (target to eye)
+        const double right[3] = {-sy, cy, 0}, up[3] = {-sp * cy, -sp * sy, cp};
+        double hw = 0, hh = 0, hd = 0, diagonal = 0;
+        for (int k = 0; k < 3; ++k) {
+            const double half = std::max(0.5 * (b.max[k] - b.min[k]), 1e-3);
+            hw += std::abs(right[k]) * half, hh += std::abs(up[k]) * half, hd += std::abs(dir[k]) * half;
+            diagonal += 4 * half * half;
+            app.orbit.target[k] = 0.5 * (b.min[k] + b.max[k]);
+        }
+        app.orbit.distance = std::max(hw / tx, hh / ty) * 1.08 + hd;
+        app.radius = std::max(0.5 * std::sqrt(diagonal), 1.0);
+        app.last_motion = glfwGetTime();  // (a new still)
+        std::printf("fit: %.0f mm across, centred on (%.1f, %.1f, %.1f)\n", std::sqrt(diagonal), app.orbit.target[0], app.orbit.target[1],
+                    app.orbit.target[2]);
+        std::fflush(stdout);
     }
 
     // A stroke (Ctrl+drag, or `stroke X0 Y0 X1 Y1 ...`): picks the
@@ -1315,6 +1353,9 @@ private:
                 w.done();
                 if (width < 1 || height < 1) throw core::Error("resize: the size must be at least 1x1");
                 glfwSetWindowSize(win, width, height);
+            } else if (op == "fit") {  // fit: the camera refitted to what is shown (V)
+                w.done();
+                fit_to_shown();
             } else if (op == "mark") {  // mark NAME: a record in --stats between frames (benchmarks, tests)
                 const std::string name = w.word("a name");
                 w.done();

@@ -1,5 +1,8 @@
 #include <hz/core/io.hpp>
+#include <hz/core/plugin_guard.hpp>
 #include <hz/core/filter.hpp>
+
+#include <spdlog/spdlog.h>
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -318,10 +321,35 @@ const LoadedPlugin &loader_for_read(const Registry &reg, const fs::path &path) {
     std::vector<unsigned char> head;
     if (!fs::is_directory(path, ec)) head = read_head(path, std::max<std::uint32_t>(probe_bytes, 16));
     const std::string hint = path.filename().string();
+    // Each loader's probe() guarded (plugin_guard.hpp): one that crashes or
+    // does not return within the plugin timeout is named, and not asked again;
+    // the others still are (a file with no known extension asks them all).
     auto score = [&](const LoadedPlugin *p) {
         const hz_loader *l = p->loader();
-        if (l->probe == nullptr) return 0;
-        return p->call("probe", path.string(), [&] { return l->probe(head.data(), head.size(), hint.c_str()); });
+        if (l->probe == nullptr || p->faulted()) return 0;
+        PluginCallSite site;
+        site.plugin = p->info.file.c_str();
+        site.call = "probe";
+        site.timeout_s = plugin_call_timeout();
+        int32_t s = 0;
+        bool threw = false;
+        std::string thrown = "not a std::exception";
+        if (!guarded_call(site, [&] {
+                try {
+                    s = l->probe(head.data(), head.size(), hint.c_str());
+                } catch (const std::exception &e) {
+                    threw = true, thrown = e.what();
+                } catch (...) {
+                    threw = true;
+                }
+            })) {
+            p->module->mark_faulted();
+            spdlog::warn("{}: the plugin {} ({}) {}: not asked again; move it out of the plugin folders or report it to its author",
+                         path.string(), p->info.id, p->info.file, fault_text(site));
+            return 0;
+        }
+        if (threw) throw Error(p->escaped("probe", path.string(), thrown.c_str()));
+        return int(s);
     };
     if (by_ext != nullptr && score(by_ext) >= 50) return *by_ext;
     const LoadedPlugin *best = nullptr;
@@ -752,8 +780,11 @@ void write_dataset(const Registry &reg, const Dataset &ds, const fs::path &path,
         }
         check_output_target(f);
     }
-    for (std::size_t i = 0; i < companions.files.size(); ++i) publish(*companions.temps[i], companions.files[i].second, force);
-    publish(tmp_file, path, force);
+    // (the companions and the main file as a unit: all in place, or none)
+    std::vector<std::pair<TemporaryFile *, fs::path>> unit;
+    for (std::size_t i = 0; i < companions.files.size(); ++i) unit.emplace_back(companions.temps[i].get(), companions.files[i].second);
+    unit.emplace_back(&tmp_file, path);
+    publish_together(unit, force);
 }
 
 void write_text_atomic(const fs::path &path, const std::string &text, bool force) {

@@ -1,5 +1,8 @@
 // Putting an output in place: the last step of every write (io.hpp).
 #include <hz/core/io.hpp>
+#include <hz/core/plugin_guard.hpp>
+
+#include "plugin_internal.hpp"
 
 #include <random>
 
@@ -70,14 +73,7 @@ void on_termination(int sig) {
 
 std::string errno_message(int e) { return std::strerror(e); }
 
-void write_all(const char *s) {
-    std::size_t n = std::strlen(s);
-    while (n > 0) {
-        const ssize_t w = ::write(STDERR_FILENO, s, n);
-        if (w <= 0) return;
-        s += w, n -= std::size_t(w);
-    }
-}
+void write_all(const char *s) { detail::write_stderr(s); }
 
 // The file mapped at `addr`, from /proc/self/maps (async-signal-safe: only
 // open, read and close). False if none.
@@ -157,16 +153,14 @@ void on_sigbus(int sig, siginfo_t *info, void *ctx) {
 // stderr when it is a plugin's code, then the default action (the process
 // dies of the signal as before).
 void on_crash(int sig, siginfo_t *, void *ctx) {
+    // A plugin's call: returns into its guard where it may, else is named
+    // with the call (and, at exit, ends the process with the command's status).
+    const bool named = sig != SIGBUS && plugin_fault(sig, ctx);
     if (sig != SIGBUS) wait_for_the_first_report();  // (on_sigbus has)
     char name[4096];
-    std::uintptr_t pc = 0;
-#if defined(__x86_64__)
-    if (ctx) pc = std::uintptr_t(static_cast<ucontext_t *>(ctx)->uc_mcontext.gregs[REG_RIP]);
-#elif defined(__aarch64__)
-    if (ctx) pc = std::uintptr_t(static_cast<ucontext_t *>(ctx)->uc_mcontext.pc);
-#endif
+    const std::uintptr_t pc = detail::fault_pc(ctx);
     const char *what = sig == SIGSEGV ? "SIGSEGV" : sig == SIGILL ? "SIGILL" : sig == SIGFPE ? "SIGFPE" : "SIGBUS";
-    if (pc && mapped_file_at(pc, name, sizeof name)) {
+    if (!named && pc && mapped_file_at(pc, name, sizeof name)) {
         const std::size_t n = std::strlen(name);
         const bool plugin = n > 3 && std::strcmp(name + n - 3, ".so") == 0 && std::strstr(name, "/libc.so") == nullptr &&
                             std::strstr(name, "/x86_64-linux-gnu/") == nullptr && std::strstr(name, "/aarch64-linux-gnu/") == nullptr;
@@ -213,14 +207,19 @@ void install_termination_cleanup() {
     bus.sa_flags = SA_SIGINFO;
     sigemptyset(&bus.sa_mask);
     ::sigaction(SIGBUS, &bus, nullptr);
-    // Crashes in a plugin after its trial (a later call) name the plugin.
+    // Crashes in a plugin after its trial (a later call) name the plugin,
+    // and a guarded call's return into its guard (plugin_guard.hpp).
     // (Not where a sanitizer or debugger already handles them.)
+    install_plugin_guard();
     for (int sig : {SIGSEGV, SIGILL, SIGFPE}) {
         struct sigaction old {};
         if (::sigaction(sig, nullptr, &old) != 0 || old.sa_handler != SIG_DFL) continue;
+        // (not reset on delivery: a fault in a plugin's guarded call returns
+        // into its guard, and the next one must be caught too; on_crash
+        // resets it before dying of the signal)
         struct sigaction crash {};
         crash.sa_sigaction = on_crash;
-        crash.sa_flags = SA_SIGINFO | SA_RESETHAND;
+        crash.sa_flags = SA_SIGINFO | SA_ONSTACK;
         sigemptyset(&crash.sa_mask);
         ::sigaction(sig, &crash, nullptr);
     }
@@ -332,5 +331,48 @@ void publish(TemporaryFile &tmp, const fs::path &path, bool force) {
     if (int e = sync_path(path.has_parent_path() ? path.parent_path() : fs::path("."), true); e != 0)
         throw Error(path.string() + ": written, but its directory could not be synced: " + errno_message(e));
 }
+
+void publish_together(const std::vector<std::pair<TemporaryFile *, fs::path>> &files, bool force) {
+    struct Aside {
+        fs::path file, aside;
+    };
+    std::vector<Aside> asides;
+    std::vector<fs::path> placed;
+    const auto undo = [&] {
+        for (const fs::path &p : placed) ::unlink(p.c_str());
+        for (const Aside &a : asides) ::rename(a.aside.c_str(), a.file.c_str());
+    };
+    try {
+        for (const auto &[tmp, path] : files) {
+            struct stat st {};
+            if (force && ::lstat(path.c_str(), &st) == 0) {
+                check_output_target(path);
+                fs::path aside = temporary_path(path);
+                const std::string name = aside.filename().string();
+                aside.replace_filename(name.substr(0, name.rfind(".tmp-")) + ".old-" + name.substr(name.rfind(".tmp-") + 5));
+                if (::rename(path.c_str(), aside.c_str()) != 0)
+                    throw Error(path.string() + ": cannot move the file it replaces aside: " + errno_message(errno));
+                asides.push_back({path, aside});
+            }
+            publish(*tmp, path, force);
+            placed.push_back(path);
+        }
+    } catch (...) {
+        undo();
+        throw;
+    }
+    for (const Aside &a : asides) ::unlink(a.aside.c_str());
+}
+
+namespace detail {
+void write_stderr(const char *s) {
+    std::size_t n = std::strlen(s);
+    while (n > 0) {
+        const ssize_t w = ::write(STDERR_FILENO, s, n);
+        if (w <= 0) return;
+        s += w, n -= std::size_t(w);
+    }
+}
+}  // namespace detail
 
 }  // namespace hz::core

@@ -2,6 +2,7 @@
 // loads): fork, a pipe, a deadline, and how the child ended.
 #include <hz/core/data.hpp>
 #include <hz/core/io.hpp>
+#include <hz/core/plugin_guard.hpp>
 #include <hz/core/plugin_host.hpp>
 
 #include "plugin_internal.hpp"
@@ -84,6 +85,7 @@ std::pair<pid_t, int> spawn(const std::function<void(int)> &body) {
     if (pid == 0) {
         ::close(fds[0]);
         for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL}) std::signal(sig, SIG_DFL);
+        disable_plugin_guard();  // (no watchdog, no recovery: the parent watches and names)
         ::dup2(2, 1);
         int code = 0;
         try {

@@ -211,6 +211,11 @@ public:
         entries_.push_back(std::move(x));
         changed_ = true;
     }
+    // A file it vouched for crashed or hung in this process: tried again
+    // (in a child) next time.
+    void forget(const std::string &file) {
+        if (std::erase_if(entries_, [&](const Entry &e) { return e.file == file && e.host == host_; }) > 0) changed_ = true;
+    }
     // Writes the list if it changed (to a temporary file, then renamed over
     // it), without the entries whose file, libraries or host are gone or
     // changed, and without the oldest beyond kMax.
@@ -463,7 +468,7 @@ void Registry::scan(const std::vector<fs::path> &dirs) {
     for (std::size_t i = 0; i < files.size(); ++i) {
         const Candidate &c = files[i];
         if (next == todo.size() || todo[next] != i) {  // vouched for
-            load(c.file, c.id());
+            if (!load(c.file, c.id())) list.forget(c.key);
             continue;
         }
         if (pid < 0) start_child();
@@ -510,8 +515,7 @@ bool Registry::take_report(const fs::path &file, const nlohmann::json &j, const 
         reject(file, j.contains("reason") && j["reason"].is_string() ? j["reason"].get<std::string>() : if_malformed);
         return false;
     }
-    load(file, expect);
-    return true;
+    return load(file, expect);  // (not listed when it crashed or hung here)
 }
 
 void Registry::reject(const fs::path &file, const std::string &why) {
@@ -549,7 +553,7 @@ void check_schema(const LoadedPlugin &lp) {
 }
 }  // namespace
 
-void Registry::load(const fs::path &file, std::optional<FileId> expect) {
+bool Registry::load(const fs::path &file, std::optional<FileId> expect) {
     try {
         auto module = std::make_shared<Module>(file, expect);
         for (auto &p : module->plugins()) {
@@ -564,9 +568,13 @@ void Registry::load(const fs::path &file, std::optional<FileId> expect) {
             check_schema(lp);
             plugins_.push_back(std::move(lp));
         }
+    } catch (const PluginFault &e) {
+        reject(file, e.what());
+        return false;
     } catch (const std::exception &e) {
         reject(file, e.what());
     }
+    return true;
 }
 
 void Registry::add_module(const Module &m) {

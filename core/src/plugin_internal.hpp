@@ -1,11 +1,12 @@
 // Private to the plugin host's sources (plugin_host.cpp, plugin_module.cpp,
-// plugin_child.cpp): the child-process plumbing the registry's trial loads
+// plugin_child.cpp, plugin_guard.cpp, output.cpp): the child-process plumbing the registry's trial loads
 // share with run_in_child(), and the core interface id of a plugin kind.
 #pragma once
 
 #include <hz/core/plugin_host.hpp>
 
 #include <chrono>
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <sys/types.h>
@@ -15,6 +16,11 @@ namespace hz::core::detail {
 
 // Writes all of `s` to `fd`, retrying short writes.
 void write_all(int fd, const std::string &s);
+// Writes the C string `s` to stderr (async-signal-safe: write only; the
+// signal handlers' one lines).
+void write_stderr(const char *s);
+// The faulting instruction's address in a signal handler's ucontext (0 where unknown).
+std::uintptr_t fault_pc(void *ucontext);
 // Forks a child that runs `body` with the write end of a pipe whose read
 // end is returned with the pid. In the child, stdout goes to stderr and a
 // crash dies of the real signal; it exits 0, or 3 when body throws.

@@ -227,6 +227,18 @@ const char *const kReplaced = "the file was replaced after its trial load: not l
 
 }  // namespace
 
+template <class F>
+void Module::guarded(const char *call, const std::string &what, F &&f) const {
+    if (faulted()) throw PluginFault(what + "not called: it crashed or hung in an earlier call");
+    PluginCallSite site;
+    site.plugin = file_.c_str();
+    site.call = call;
+    site.timeout_s = plugin_call_timeout();
+    if (guarded_call(site, std::forward<F>(f))) return;
+    mark_faulted();
+    throw PluginFault(what + fault_text(site));
+}
+
 Module::Module(const fs::path &file, std::optional<FileId> expect) : impl_(std::make_unique<Impl>()), file_(fs::absolute(file)) {
     namespace dll = boost::dll;
     if (expect && path_id(file_) != expect) throw Error(kReplaced);
@@ -266,6 +278,7 @@ Module::Module(const fs::path &file, std::optional<FileId> expect) : impl_(std::
     }
     if (!e.init || !e.deinit || !e.get_plugin_count || !e.get_plugin_descriptor || !e.get_interface)
         throw Error("entry has a NULL function pointer");
+    register_plugin_object(entry_, file_.string());  // (a crash at exit in its code is named)
     bool ok = false;
     const pid_t self = ::getpid();
     // The working directory is the user's: a plugin that changes it in
@@ -274,9 +287,21 @@ Module::Module(const fs::path &file, std::optional<FileId> expect) : impl_(std::
     const int cwd = ::open(".", O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     struct stat before {};
     const bool known = cwd >= 0 && ::fstat(cwd, &before) == 0;
+    bool threw = false;
     try {
-        ok = e.init(host_services(), file_.c_str());
-    } catch (...) {
+        guarded("init", "", [&] {
+            try {
+                ok = e.init(host_services(), file_.c_str());
+            } catch (...) {
+                threw = true;
+            }
+        });
+    } catch (const PluginFault &) {
+        if (::getpid() != self) ::_exit(0);
+        if (cwd >= 0) (void)::fchdir(cwd), ::close(cwd);
+        throw;
+    }
+    if (threw) {
         if (::getpid() != self) ::_exit(0);
         if (cwd >= 0) (void)::fchdir(cwd), ::close(cwd);
         throw Error("init() threw a C++ exception (exceptions must not cross the ABI)");
@@ -313,9 +338,19 @@ Module::~Module() {
 }
 
 void Module::deinit() {
-    if (initialised_) {
-        initialised_ = false;
-        entry_->deinit();
+    if (!initialised_) return;
+    initialised_ = false;
+    if (faulted()) return;
+    // (after the command's work: a fault is a warning, and the command's
+    // status stands)
+    try {
+        guarded("deinit", "", [&] {
+            try {
+                entry_->deinit();
+            } catch (...) {}
+        });
+    } catch (const PluginFault &f) {
+        spdlog::warn("the plugin {} {}; move it out of the plugin folders or report it to its author", file_.string(), f.what());
     }
 }
 
@@ -401,11 +436,16 @@ std::vector<std::string> Module::dependencies() const {
 
 std::vector<PluginInfo> Module::plugins() const {
     std::vector<PluginInfo> out;
-    const uint32_t n = entry_->get_plugin_count();
+    // (each call guarded: the first in this process may well be after the
+    // trial's, and a crash or hang in it must not take the host with it)
+    const std::string after = "in this process (after its trial load): ";
+    uint32_t n = 0;
+    guarded("get_plugin_count", after, [&] { n = entry_->get_plugin_count(); });
     if (n == 0) throw Error("get_plugin_count() returned 0");
     if (n > 1024) throw Error("get_plugin_count() returned " + std::to_string(n) + " (absurd)");
     for (uint32_t i = 0; i < n; ++i) {
-        const hz_plugin_descriptor *d = entry_->get_plugin_descriptor(i);
+        const hz_plugin_descriptor *d = nullptr;
+        guarded("get_plugin_descriptor", after, [&] { d = entry_->get_plugin_descriptor(i); });
         const std::string at = "descriptor " + std::to_string(i);
         if (d == nullptr) throw Error(at + " is NULL");
         if (d->struct_size < sizeof(hz_plugin_descriptor)) throw Error(at + ": struct_size too small");
@@ -430,7 +470,8 @@ std::vector<PluginInfo> Module::plugins() const {
         for (const char *const *it = d->interfaces; *it != nullptr && p.interfaces.size() < 64; ++it) p.interfaces.emplace_back(*it);
         if (std::find(p.interfaces.begin(), p.interfaces.end(), ci) == p.interfaces.end())
             throw Error(p.id + ": kind " + plugin_kind_name(d->kind) + " but '" + ci + "' not in its interfaces");
-        const void *t = entry_->get_interface(d->id, ci);
+        const void *t = nullptr;
+        guarded("get_interface", after, [&] { t = entry_->get_interface(d->id, ci); });
         if (t == nullptr) throw Error(p.id + ": get_interface(\"" + ci + "\") returned NULL");
         const auto size = *static_cast<const uint32_t *>(t);
         if (size < core_interface_min_size(d->kind))
@@ -442,7 +483,14 @@ std::vector<PluginInfo> Module::plugins() const {
 }
 
 const void *Module::interface(const std::string &plugin_id, const char *iface) const {
-    return entry_->get_interface(plugin_id.c_str(), iface);
+    const void *t = nullptr;
+    try {
+        guarded("get_interface", "the plugin " + plugin_id + " (" + file_.string() + ") ",
+                [&] { t = entry_->get_interface(plugin_id.c_str(), iface); });
+    } catch (const PluginFault &f) {
+        throw PluginFault(std::string(f.what()) + "; move it out of the plugin folders or report it to its author");
+    }
+    return t;
 }
 
 const void *offered_extension(const Module &module, const PluginInfo &info, const char *id, std::size_t min_size) {

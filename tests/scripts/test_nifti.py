@@ -9,7 +9,7 @@ import struct
 import nibabel as nib
 import numpy as np
 
-from hztest import TempDirTest, run, run_json
+from hztest import BUILD, TempDirTest, run, run_json
 
 DTYPES = [np.uint8, np.int8, np.int16, np.uint16, np.int32, np.uint32, np.int64, np.uint64, np.float32, np.float64]
 
@@ -212,6 +212,47 @@ class NiftiTest(TempDirTest):
         with open(self.path("short.img"), "r+b") as fh:
             fh.truncate(os.path.getsize(self.path("short.img")) // 2)
         self.assert_clean_error(run("info", self.path("short.hdr")), "short")
+
+    def test_a_pair_is_replaced_as_a_unit(self):
+        """A .hdr/.img pair is one output: when the second file cannot be put
+        in place (its rename fails, injected by an LD_PRELOAD shim), the first
+        one is taken back, and with --force the pair it replaced is back as
+        it was, byte for byte; nothing is left beside them. A half-new pair
+        (a new .img beside the old .hdr) is a volume that was never written."""
+        shim = os.path.join(BUILD, "tests", "fixtures", "hz_fail_rename.so")
+        self.assertTrue(os.path.exists(shim), shim)
+        rng = np.random.default_rng(12)
+        old_path, new_path = self.path("old.nii"), self.path("new.nii")
+        nib.save(nib.Nifti1Image(rng.random((4, 5, 6)).astype(np.float32), np.eye(4)), old_path)
+        nib.save(nib.Nifti1Image(rng.random((3, 3, 3)).astype(np.int16), np.eye(4)), new_path)
+
+        def failing(suffix):
+            env = {"LD_PRELOAD": shim, "HZ_FAIL_RENAME_TO": suffix}
+            if "ASAN_OPTIONS" in os.environ:
+                env["ASAN_OPTIONS"] = os.environ["ASAN_OPTIONS"] + ":verify_asan_link_order=0"
+            return env
+
+        for target, other in (("hdr", "img"), ("img", "hdr")):
+            with self.subTest(target=target):
+                out, companion = self.path(f"pair.{target}"), self.path(f"pair.{other}")
+                self.assertEqual(run("convert", old_path, out, "--force").returncode, 0)
+                before = {f: open(f, "rb").read() for f in (out, companion)}
+                # (the file named is put in place last: its rename fails)
+                p = run("convert", new_path, out, "--force", env=failing("." + target))
+                self.assertEqual(p.returncode, 1)
+                self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+                self.assertIn(out, p.stderr)
+                self.assertEqual({f: open(f, "rb").read() for f in (out, companion)}, before, "the old pair, whole")
+                self.assertEqual(sorted(n for n in os.listdir(self.tmp) if n.startswith(".")), [])
+                # A new pair: neither file appears.
+                fresh = self.path(f"fresh.{target}")
+                p = run("convert", new_path, fresh, env=failing("." + target))
+                self.assertEqual(p.returncode, 1)
+                self.assertFalse(os.path.exists(fresh) or os.path.exists(self.path(f"fresh.{other}")))
+                # Without the fault, --force replaces both.
+                self.assertEqual(run("convert", new_path, out, "--force").returncode, 0)
+                self.assertEqual(nib.load(out).shape, (3, 3, 3))
+                self.assertEqual(sorted(n for n in os.listdir(self.tmp) if n.startswith(".")), [])
 
     def test_writes_pairs(self):
         """convert writes .hdr/.img pairs (plain and gzipped) that nibabel reads

@@ -3,7 +3,9 @@ good plugin, each with a one-line reason naming the file."""
 import json
 import os
 import shutil
+import struct
 import subprocess
+import time
 import unittest
 
 from hztest import BUILD, BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, environment, run, run_json
@@ -398,6 +400,89 @@ class PluginsTest(TempDirTest):
                            capture_output=True, text=True, timeout=60, env=environment("brdf"))
         self.assertEqual(p.returncode, -11, p.stderr)
         self.assertIn("the plugin " + os.path.join(d, "fx_eval_crash.so") + " crashed (SIGSEGV)", p.stderr)
+
+    def misbehaving(self, name, *args, timeout=60):
+        """Runs horizon with the SDK's C loader template misbehaving after its
+        trial load as `name` (tests/fixtures/plugins/misbehaving_loader.c)
+        alone in a plugin folder, no trial list, a 2 s plugin timeout."""
+        d = os.path.join(BUILD, "tests", "fixtures", "misbehaving", name)
+        self.assertTrue(os.path.isdir(d), d)
+        env = {**os.environ, "HORIZON_PLUGIN_CACHE": "off"}
+        p = run("--plugin-dir", d, "--plugin-timeout", "2", *args, timeout=timeout, env=env)
+        return p, os.path.join(d, f"fx_{name}.so")
+
+    def tck_without_extension(self):
+        """A TCK named data.bin: no loader claims it by extension, so every
+        loader's probe() is asked."""
+        path = self.path("data.bin")
+        with open(path, "wb") as f:
+            f.write(b"mrtrix tracks\ncount: 1\ndatatype: Float32LE\nfile: . 64\nEND\n".ljust(64, b" "))
+            f.write(struct.pack("<12f", 0, 0, 0, 1, 0, 0, 2, 0, 0, float("nan"), float("nan"), float("nan")))
+            f.write(struct.pack("<3f", float("inf"), float("inf"), float("inf")))
+        return path
+
+    def test_a_probe_that_crashes_or_hangs_is_named_and_the_others_still_asked(self):
+        """probe() after the trial, on a file no extension claims: the plugin
+        whose probe crashes or does not return within the plugin timeout is
+        named in one warning and not asked again; the TCK loader still
+        recognises the file (it used to kill the command with SIGSEGV, or
+        hang it for ever)."""
+        data = self.tck_without_extension()
+        for name, what in (("probe_crash", "crashed (SIGSEGV) in probe()"), ("probe_hang", "did not return from probe() within 2 s")):
+            with self.subTest(name=name):
+                t0 = time.monotonic()
+                p, so = self.misbehaving(name, "info", data, "--json")
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertLess(time.monotonic() - t0, 30)
+                self.assertEqual(json.loads(p.stdout)["nb_streamlines"], 1)
+                lines = p.stderr.strip().splitlines()
+                self.assertEqual(len(lines), 1, p.stderr)
+                self.assertIn(f"data.bin: the plugin org.example.loader.hzt ({so}) {what}: not asked again", lines[0])
+                p, _ = self.misbehaving(name, "plugins", "--json")
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertIn("org.example.loader.hzt", [x["id"] for x in json.loads(p.stdout)["plugins"]])
+
+    def test_a_crash_in_a_later_get_interface_rejects_the_plugin_and_every_command_goes_on(self):
+        """get_interface() that crashes on its second call in a process (the
+        trial load makes one): the host's load survives it, rejects the
+        plugin with the call named (`horizon plugins` says so), and every
+        command goes on without it."""
+        p, so = self.misbehaving("interface_crash", "plugins", "--json")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        rejected = {r["file"]: r["reason"] for r in json.loads(p.stdout)["rejected"]}
+        self.assertIn("crashed (SIGSEGV) in get_interface()", rejected.get(so, ""), rejected)
+        p, _ = self.misbehaving("interface_crash", "info", self.tck_without_extension(), "--json")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(json.loads(p.stdout)["nb_streamlines"], 1)
+        # Vouched for by the trial list (it behaved then), it crashes in this
+        # process: rejected, and forgotten by the list (tried again next time).
+        lst = self.path("trials.json")
+        calm = {"HORIZON_PLUGIN_CACHE": lst, "HZ_FIXTURE_CALM": "1"}
+        for env, want in ((calm, 1), ({**calm, "HZ_FIXTURE_CALM": ""}, 0), (calm, 1)):
+            p = run("--plugin-dir", os.path.dirname(so), "plugins", "--json", env=env)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            rep = json.loads(p.stdout)
+            self.assertEqual(so in [x["file"] for x in rep["plugins"]], bool(want), rep["rejected"])
+        self.assertEqual(rep["trial_loads"], 1, "tried again after its crash, not taken on the list's word")
+
+    def test_a_destructor_that_crashes_or_hangs_at_exit_keeps_the_commands_status(self):
+        """A plugin's destructor at exit that crashes or never returns: the
+        command's output and exit status stand, with one warning naming the
+        plugin (a finished command used to die of SIGSEGV, or never end)."""
+        data = self.tck_without_extension()
+        for name, what in (("exit_crash", "crashed (SIGSEGV) at exit"), ("exit_hang", "did not let the process end")):
+            with self.subTest(name=name):
+                t0 = time.monotonic()
+                p, so = self.misbehaving(name, "info", data, "--json")
+                self.assertLess(time.monotonic() - t0, 30)
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertEqual(json.loads(p.stdout)["nb_streamlines"], 1)
+                self.assertEqual(p.stderr.strip().splitlines(), [p.stderr.strip()])
+                self.assertIn(f"warning: the plugin {so} {what}", p.stderr)
+                p, _ = self.misbehaving(name, "info", self.path("missing.tck"))
+                self.assertEqual(p.returncode, 1, "a failed command's status stands too")
+                self.assertIn("missing.tck: no such file", p.stderr)
+                self.assertIn(f"the plugin {so} {what}", p.stderr)
 
     def test_a_changed_library_of_a_plugin_is_tried_again(self):
         """The trial list vouches for a plugin with the libraries it needs as

@@ -229,6 +229,98 @@ class SelectionWindowTest(TempDirTest):
         self.assertEqual(again[0], (len(names), int((labels < 0).sum()), 1))
         self.assertEqual(again[1][:2], (len(names) - 1, int((labels < 0).sum()) + len(groups[first.replace(".", "_")])))
 
+    def test_fig5_sequence_keeps_each_streamlines_cluster_through_x_and_save(self):
+        """The paper's Fig. 5 end to end (issue 53): expand, hide, cluster
+        again, hide, select all, X (every cluster to its streamlines), a
+        stroke's delete and its undo, fit, save. Each saved streamline keeps
+        the path of the cluster it was expanded from (a TRX group per path,
+        read back here with zipfile and numpy, and its index per streamline);
+        the file reopens as those clusters, and `render --legend` lists them."""
+        out = self.path("fig5.trx")
+        p = self.window("fig5", [
+            "wait 1",
+            "expand c1",
+            "hide c2",
+            "repeat",
+            "hide c3",
+            f"screenshot {self.path('clusters.png')}",
+            "key a", "key x",
+            f"screenshot {self.path('expanded.png')}",
+            "stroke 200 100 280 220", "picked delete", "undo",
+            "fit",
+            f"screenshot {self.path('fitted.png')}",
+            f"save {out}",
+            "quit"], "--explore")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        states = [l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore: ")]
+        counts = [tuple(map(int, re.match(r"(\d+) clusters, (\d+) streamlines expanded, (\d+) clustering", s).groups())) for s in states]
+        before_x = next(c for c in reversed(counts) if c[0] > 0)  # (the clusters shown when all were selected)
+        after_x = counts[-1]
+        self.assertEqual(after_x[0], 0, "X took every cluster to its streamlines")
+        self.assertGreater(after_x[1], 100)
+        self.assertIn("fit: ", p.stdout)
+        # Fitted: what is shown fills the view, centred (its box's centre on the view's axis).
+        ys, xs = np.nonzero(np.abs(load(self.path("fitted.png")) - load(self.path("fitted.png"))[0, 0]).sum(-1) > 40)
+        self.assertLess(abs((xs.min() + xs.max()) / 2 - 240), 40)
+        self.assertLess(abs((ys.min() + ys.max()) / 2 - 160), 40)
+        self.assertGreater(max((xs.max() - xs.min()) / 480, (ys.max() - ys.min()) / 320), 0.6)
+        header, groups, dps = trx_parts(out)
+        n = header["NB_STREAMLINES"]
+        self.assertEqual(n, after_x[1], "the undo brought the deleted streamlines back")
+        names = header["horizon_clusters"]
+        self.assertEqual(len(names), before_x[0], "one group per cluster the streamlines came from")
+        self.assertTrue(all(re.fullmatch(r"c\d+(\.\d+)*", x) for x in names), names)
+        labels = dps["horizon_cluster"]
+        self.assertTrue((labels >= 0).all(), "every streamline came from a cluster")
+        members = np.concatenate([groups[x.replace(".", "_")] for x in names])
+        np.testing.assert_array_equal(np.sort(members), np.arange(n), "the groups are a partition of the file's streamlines")
+        for g, x in enumerate(names):
+            np.testing.assert_array_equal(np.sort(groups[x.replace(".", "_")]), np.nonzero(labels == g)[0])
+        # Each group is one cluster: its streamlines lie together (their mean
+        # distance to the group's mean shape is well below the spread of the whole).
+        def resampled(s, k=12):
+            t = np.linspace(0, len(s) - 1, k)
+            return np.array([s[int(np.floor(a))] * (1 - (a % 1)) + s[min(int(np.floor(a)) + 1, len(s) - 1)] * (a % 1) for a in t])
+        shapes = np.array([resampled(s) for s in header["streamlines"]])
+        flip = np.linalg.norm(shapes - shapes[:, ::-1], axis=(1, 2))  # (orientation does not matter)
+        spread = lambda ss: float(np.mean(np.linalg.norm(ss - ss.mean(0), axis=2)))
+        within = np.mean([spread(shapes[labels == g]) for g in range(len(names)) if (labels == g).sum() > 2])
+        self.assertGreater(float(flip.max()), 0)
+        self.assertLess(within, 0.8 * spread(shapes))
+        # The streamlines expanded are drawn in their clusters' colours (not by
+        # direction): the colours of the picture after X are those of the
+        # centroids before it.
+        hues = lambda im: {tuple(c) for c in (im[::4, 170::4].reshape(-1, 3) // 32 * 32).astype(int) if c.max() - c.min() > 64}
+        a, b = hues(load(self.path("clusters.png"))), hues(load(self.path("expanded.png")))
+        self.assertGreater(len(a & b), 0.5 * len(b), (len(a), len(b), len(a & b)))
+        # Reopened with --explore: those clusters, by name, nothing expanded.
+        p = self.window("fig5_reopen", ["wait 1", "quit"], "--explore", source=out)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        again = re.match(r"(\d+) clusters, (\d+) streamlines expanded, (\d+) clustering",
+                         next(l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore: ")))
+        self.assertEqual(tuple(map(int, again.groups())), (len(names), 0, 1))
+        p = run("render", out, "--legend", "-o", self.path("legend.png"), "--size", "480x320")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        # V / fit on what is left of a whole brain after hiding all but its
+        # smallest cluster: it then fills the view, centred; before, it did not.
+        lines = ["wait 1"] + ["hide 0"] * 11 + [f"screenshot {self.path('small.png')}", "fit", f"screenshot {self.path('small_fit.png')}",
+                                                 "quit"]
+        p = self.window("fit", lines, "--explore")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertTrue(p.stdout.splitlines()[-1].startswith("explore: 1 clusters") or "explore: 1 clusters" in p.stdout, p.stdout)
+
+        def box(name):
+            im = load(self.path(name))
+            ys, xs = np.nonzero(np.abs(im - im[0, 0]).sum(-1) > 40)
+            return (xs.min() + xs.max()) / 2 - 240, (ys.min() + ys.max()) / 2 - 160, max((xs.max() - xs.min()) / 480, (ys.max() - ys.min()) / 320)
+        before, after = box("small.png"), box("small_fit.png")
+        # (the picture's box is centred on the 3D box's centre only up to the
+        # shape's asymmetry: measured 22, 7 px; before the fit -117, 59 px, 0.23 of the view)
+        self.assertLess(abs(after[0]) + abs(after[1]), 50, after)
+        self.assertGreater(after[2], 0.6, after)
+        self.assertGreater(abs(before[0]) + abs(before[1]), 2 * (abs(after[0]) + abs(after[1])), (before, after))
+        self.assertLess(before[2], 0.5 * after[2])
+
     def test_stroke_picks_keeps_and_deletes(self):
         # A stroke across the middle of the view picks the streamlines it
         # crosses (drawn lighter); delete removes them, keep keeps only them;

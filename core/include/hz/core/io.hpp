@@ -111,6 +111,15 @@ void remove_stale_temporaries(const fs::path &path);
 // system's reason; `tmp` is then removed by its destructor.
 void publish(TemporaryFile &tmp, const fs::path &path, bool force);
 
+// Publishes several files that make one output (a NIfTI .hdr/.img pair) as
+// a unit: all of them, or none. With `force`, the files they replace are
+// first renamed aside (.NAME.old-PID-RANDOM, in the same folder) and only
+// removed once every new file is in place; when one fails, the new files
+// already placed are removed and the old ones renamed back, and the error
+// names the file that failed. (A process killed in between leaves the old
+// files under those names: hidden, never deleted.)
+void publish_together(const std::vector<std::pair<TemporaryFile *, fs::path>> &files, bool force);
+
 // Writes `text` to `path` through a temporary file in the same directory,
 // renamed over `path` on success and deleted on failure. Refuses to replace
 // an existing file unless `force`. Throws Error naming `path`.

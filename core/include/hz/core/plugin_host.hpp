@@ -11,6 +11,7 @@
 
 #include <hz/hz.h>
 #include <hz/core/data.hpp>
+#include <hz/core/plugin_guard.hpp>
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -78,7 +79,16 @@ struct FileId {
     bool operator==(const FileId &) const = default;
 };
 
-// One loaded library (kept resident until exit).
+// A plugin that crashed, or did not return within the plugin timeout, in a
+// call the host survived (plugin_guard.hpp): it is not called again.
+struct PluginFault : Error {
+    using Error::Error;
+};
+
+// One loaded library (kept resident until exit). Its calls after dlopen
+// (init, the descriptors, get_interface, deinit) are guarded: a crash or a
+// call past the plugin timeout throws PluginFault (deinit: a warning), and
+// marks the module faulted: no call of it is made again.
 class Module {
 public:
     // Loads `file`, checks the entry and calls init(). Throws Error with a
@@ -98,6 +108,9 @@ public:
     const void *interface(const std::string &plugin_id, const char *iface) const;
     void deinit();
     const fs::path &file() const { return file_; }
+    // Whether a call of it crashed or timed out (then it is not called again).
+    bool faulted() const { return faulted_.load(); }
+    void mark_faulted() const { faulted_.store(true); }
     // The loaded file's shared-library dependencies, resolved as the dynamic
     // linker found them: the DT_NEEDED closure, as absolute paths.
     std::vector<std::string> dependencies() const;
@@ -108,6 +121,11 @@ private:
     const hz_plugin_entry *entry_ = nullptr;
     fs::path file_;
     bool initialised_ = false;
+    mutable std::atomic<bool> faulted_{false};
+    // Runs f (a call of this plugin named `call`) guarded; throws
+    // PluginFault (`what`: the text before the fault's) on a crash or timeout.
+    template <class F>
+    void guarded(const char *call, const std::string &what, F &&f) const;
 };
 
 // The table of extension `id` (hz_extensions.h) that plugin `info` of
@@ -146,8 +164,10 @@ struct LoadedPlugin {
     // C++ plugin that lets one cross the ABI) into one Error naming the
     // plugin, its file and the call, where it used to surface as its bare
     // message ("stof"). `what` (a file, or empty) is named first.
+    // A crash in it names the plugin and the call (PluginCallMark).
     template <class F>
     decltype(auto) call(const char *call, const std::string &what, F &&f) const {
+        const PluginCallMark mark(info.file.c_str(), call);
         try {
             return f();
         } catch (const Error &) {
@@ -159,7 +179,9 @@ struct LoadedPlugin {
         }
     }
 
-private:
+    // Whether a guarded call of it crashed or timed out (Module::faulted).
+    bool faulted() const { return module && module->faulted(); }
+    // The error for a C++ exception that escaped `call`.
     std::string escaped(const char *call, const std::string &what, const char *message) const;
 };
 
@@ -202,7 +224,8 @@ public:
         fs::path trial_cache;
     };
     Registry() = default;
-    explicit Registry(Options o) : options_(o) {}
+    // (sets the guarded calls' timeout: set_plugin_call_timeout)
+    explicit Registry(Options o) : options_(o) { set_plugin_call_timeout(o.timeout_s); }
 
     // Scans `dirs` in order; the first plugin with a given id wins.
     void scan(const std::vector<fs::path> &dirs);
@@ -224,10 +247,12 @@ public:
 private:
     void reject(const fs::path &file, const std::string &why);
     // In this process, after its trial; `expect`: the inode the trial saw.
-    void load(const fs::path &file, std::optional<FileId> expect = std::nullopt);
+    // False when a call of it crashed or hung here (PluginFault): rejected,
+    // and not to be vouched for again.
+    bool load(const fs::path &file, std::optional<FileId> expect = std::nullopt);
     // Acts on a trial load's JSON report: loads the file (returns true: the
-    // trial passed), or rejects it with the plugin's reason, or with
-    // `if_malformed` when the report is not one.
+    // trial passed, and its load here did not crash or hang), or rejects it
+    // with the plugin's reason, or with `if_malformed` when the report is not one.
     bool take_report(const fs::path &file, const nlohmann::json &report, const std::string &if_malformed,
                      std::optional<FileId> expect = std::nullopt);
     std::string trial_failure(const ChildResult &r) const;  // why a trial load gave no report
