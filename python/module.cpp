@@ -11,6 +11,7 @@
 // a picture is drawn; the OpenGL context (one per process, made on the first
 // render) is used by one call at a time (a lock).
 #include <hz/core/data.hpp>
+#include <hz/core/filter.hpp>
 #include <hz/core/io.hpp>
 #include <hz/core/params.hpp>
 #include <hz/core/plugin_host.hpp>
@@ -243,20 +244,48 @@ PYBIND11_MODULE(_core, m) {
 
     m.def(
         "save",
-        [](const Data &d, const std::string &path, bool force) {
+        [](const Data &d, const std::string &path, bool force, std::optional<std::vector<std::uint64_t>> selection) {
             core::Registry &reg = registry();
             std::error_code ec;
             if (!force && core::fs::exists(path, ec)) throw core::Error(path + ": already exists (save(..., force=True) replaces it)");
+            if (selection) {
+                const std::uint64_t n = need(d, HZ_DATA_STREAMLINES, "save(selection=...)").tractogram.nb_streamlines();
+                for (std::size_t i = 0; i < selection->size(); ++i)
+                    if ((*selection)[i] >= n || (i > 0 && (*selection)[i] <= (*selection)[i - 1]))
+                        throw py::value_error("save: selection must be increasing streamline indices below " + std::to_string(n));
+            }
             std::vector<std::string> dropped;
             {
                 py::gil_scoped_release nogil;
-                core::write_dataset(reg, *d.ds, path, force, &dropped, d.path);
+                core::write_dataset(reg, *d.ds, path, force, &dropped, d.path, nullptr, selection ? &*selection : nullptr);
             }
             return dropped;
         },
-        py::arg("data"), py::arg("path"), py::arg("force") = false,
+        py::arg("data"), py::arg("path"), py::arg("force") = false, py::arg("selection") = py::none(),
         "Writes through the writer plugin of the extension, atomically (a temporary file renamed into place); never over the "
-        "file it was read from; an existing file only with force. Returns what the format could not hold.");
+        "file it was read from; an existing file only with force. `selection`: the streamlines to write (increasing indices, "
+        "as filter() returns them), read where they lie. Returns what the format could not hold.");
+
+    m.def(
+        "_filter",
+        [](const Data &d, const std::vector<std::string> &include, const std::vector<std::string> &exclude, double min_length,
+           double max_length, bool ends_only, bool invert) {
+            const core::Tractogram &t = need(d, HZ_DATA_STREAMLINES, "filter").tractogram;
+            core::Registry &reg = registry();
+            core::FilterSpec spec;
+            // (as `horizon filter` reads --include and --exclude: spheres, boxes, masks)
+            for (const std::string &r : include) spec.rois.push_back(core::parse_roi(reg, r, true));
+            for (const std::string &r : exclude) spec.rois.push_back(core::parse_roi(reg, r, false));
+            spec.min_length = min_length, spec.max_length = max_length, spec.ends_only = ends_only, spec.invert = invert;
+            std::vector<std::uint64_t> kept;
+            {
+                py::gil_scoped_release nogil;
+                kept = core::filter_streamlines(t, spec);
+            }
+            return py::array_t<std::uint64_t>(py::ssize_t(kept.size()), kept.data());
+        },
+        py::arg("data"), py::arg("include"), py::arg("exclude"), py::arg("min_length"), py::arg("max_length"), py::arg("ends_only"),
+        py::arg("invert"));
 
     m.def(
         "_render",

@@ -145,7 +145,8 @@ void on_watchdog(int, siginfo_t *, void *ucontext) {
     if (file == nullptr) return;  // (not held up by a plugin: exiting goes on)
     tell("horizon: warning: the plugin ");
     tell(file);
-    tell(" did not let the process end (its destructors ran past the plugin timeout) after the command had finished; "
+    tell(
+        " did not let the process end (its destructors ran past the plugin timeout) after the command had finished; "
         "move it out of the plugin folders or report it to its author\n");
     ::_exit(g_exit_status.load());
 }
@@ -175,8 +176,7 @@ void leave_plugin_call(PluginCallSite &s) {
 }
 
 std::string fault_text(const PluginCallSite &s) {
-    if (s.fault == -1)
-        return std::string("did not return from ") + s.call + "() within " + std::to_string(int(s.timeout_s + 0.5)) + " s";
+    if (s.fault == -1) return std::string("did not return from ") + s.call + "() within " + std::to_string(int(s.timeout_s + 0.5)) + " s";
     return std::string("crashed (") + signal_name(s.fault) + ") in " + s.call + "()";
 }
 
@@ -256,7 +256,8 @@ bool plugin_fault(int sig, void *ucontext) {
         tell(file);
         tell(" crashed (");
         tell(signal_name(sig));
-        tell(") at exit, after the command had finished (its exit status stands); move it out of the plugin folders or report it "
+        tell(
+            ") at exit, after the command had finished (its exit status stands); move it out of the plugin folders or report it "
             "to its author\n");
         ::_exit(g_exit_status.load());
     }

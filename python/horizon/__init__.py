@@ -14,10 +14,11 @@ import json
 import os
 
 from . import _paths
-from ._core import Data, Error, load, plugins, save
+from ._core import Data, Error, _filter, load, plugins, save
 from ._core import _cluster, _from_streamlines, _render, _set_plugin_dirs
 
-__all__ = ["ClusterTree", "Data", "Error", "Scene", "cluster", "from_streamlines", "load", "plugins", "render", "save", "streamlines", "to_nibabel"]
+__all__ = ["ClusterTree", "Data", "Error", "Scene", "cluster", "filter", "from_streamlines", "load", "plugins", "render", "save", "streamlines",
+           "to_nibabel"]
 __version__ = _paths.VERSION
 
 _set_plugin_dirs([d for d in _paths.PLUGIN_DIRS if os.path.isdir(d)])
@@ -100,6 +101,29 @@ def cluster(data, algorithm="qbx", thresholds=None, ordering=None, **params):
             raise ValueError(f"cluster: {e}") from None
         raise
     return ClusterTree(result)
+
+
+def filter(data, include=(), exclude=(), min_length=0.0, max_length=None, ends_only=False, invert=False):
+    """The streamlines of `data` (a horizon.Data, or streamlines as
+    from_streamlines takes them) that `horizon filter` selects with the same
+    regions: `include` and `exclude` are lists of "sphere:X,Y,Z,R",
+    "box:X0,Y0,Z0,X1,Y1,Z1" (RAS+ mm) or mask files (any volume, voxels > 0);
+    a streamline passes when it meets every include region and no exclude
+    region (with `ends_only`, through its end points only), and its length
+    in mm is within [min_length, max_length]; `invert` keeps the others.
+    Returns their indices, increasing (numpy uint64): save(data, path,
+    selection=ids) writes them."""
+    import math
+    if not isinstance(data, Data):
+        data = from_streamlines(data)
+    _need(data, "streamlines", "filter")
+    for name, regions in (("include", include), ("exclude", exclude)):
+        if isinstance(regions, str) or not all(isinstance(r, str) for r in regions):
+            raise TypeError(f"filter: {name} must be a list of region specs (strings), e.g. ['sphere:0,0,0,10']")
+    if min_length < 0 or (max_length is not None and (max_length < 0 or max_length < min_length)):
+        raise ValueError(f"filter: lengths must satisfy 0 <= min_length <= max_length (got {min_length}, {max_length})")
+    return _filter(data, list(include), list(exclude), float(min_length), math.inf if max_length is None else float(max_length),
+                   bool(ends_only), bool(invert))
 
 
 class ClusterTree:

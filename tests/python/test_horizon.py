@@ -402,3 +402,54 @@ def test_cohort_qc_survives_a_subject_that_kills_its_worker(tmp_path):
     assert records["sub-02__t"]["status"] == "failed"
     assert "failed on every worker" in records["sub-02__t"]["error"] and "t.tck" in records["sub-02__t"]["error"]
     assert records["sub-01__t"]["status"] == records["sub-03__t"]["status"] == "ok"
+
+
+def test_filter_selects_what_the_command_line_selects(tmp_path):
+    """horizon.filter with the regions `horizon filter` takes (spheres,
+    boxes, a mask file; include, exclude, ends only, lengths, invert) keeps
+    the same streamlines as the command line, and a sphere's against numpy;
+    save(selection=...) writes those, read back by nibabel."""
+    import nibabel as nib
+    p = subprocess.run([HORIZON, "demo", "--out", str(tmp_path), "--streamlines", "1500", "--no-window"], capture_output=True,
+                       env={**os.environ, "DISPLAY": ""})
+    assert p.returncode == 0, p.stderr
+    src = str(tmp_path / "phantom.tck")
+    data = horizon.load(src)
+    sl = horizon.streamlines(data)
+    mask = np.zeros((40, 40, 40), np.uint8)
+    mask[10:25, 15:30, 12:28] = 1
+    affine = np.diag([3.0, 3.0, 3.0, 1.0])
+    affine[:3, 3] = -60
+    nib.save(nib.Nifti1Image(mask, affine), str(tmp_path / "mask.nii.gz"))
+    cases = [dict(include=["sphere:-29,27,-30,12"]),
+             dict(include=["box:-20,-40,-10,20,10,30"], exclude=["sphere:0,-20,10,8"]),
+             dict(include=[str(tmp_path / "mask.nii.gz")], min_length=40, max_length=160),
+             dict(include=["sphere:-29,27,-30,12"], ends_only=True),
+             dict(include=["sphere:-29,27,-30,12"], invert=True)]
+    for c in cases:
+        ids = horizon.filter(data, **c)
+        args = [a for r in c.get("include", []) for a in ("--include", r)] + [a for r in c.get("exclude", []) for a in ("--exclude", r)]
+        args += ["--min-length", str(c["min_length"])] if "min_length" in c else []
+        args += ["--max-length", str(c["max_length"])] if "max_length" in c else []
+        args += ["--ends-only"] if c.get("ends_only") else []
+        args += ["--invert"] if c.get("invert") else []
+        cli = subprocess.run([HORIZON, "filter", src, *args, "--ids", "-"], capture_output=True, text=True)
+        assert cli.returncode == 0, cli.stderr
+        assert ids.dtype == np.uint64
+        np.testing.assert_array_equal(ids, [int(x) for x in cli.stdout.split()], err_msg=str(c))
+        assert 0 < len(ids) < len(sl), c
+    within = [i for i, s in enumerate(sl) if (np.linalg.norm(s - [-29, 27, -30], axis=1) <= 12).any()]
+    np.testing.assert_array_equal(horizon.filter(data, include=["sphere:-29,27,-30,12"]), within)
+    ids = horizon.filter(data, include=["sphere:-29,27,-30,12"])
+    horizon.save(data, str(tmp_path / "kept.trk"), selection=ids)
+    kept = nib.streamlines.load(str(tmp_path / "kept.trk")).streamlines
+    assert len(kept) == len(ids)
+    for k, i in zip(kept, ids):
+        np.testing.assert_allclose(k, sl[i], atol=1e-4)
+    with pytest.raises(ValueError, match="increasing"):
+        horizon.save(data, str(tmp_path / "bad.trk"), selection=[3, 1])
+    with pytest.raises(TypeError, match="list of region specs"):
+        horizon.filter(data, include="sphere:0,0,0,1")
+    with pytest.raises(horizon.Error, match="nowhere.nii"):
+        horizon.filter(data, include=[str(tmp_path / "nowhere.nii")])
+    assert not (tmp_path / "bad.trk").exists()
