@@ -114,6 +114,31 @@ def render_scene(test, scene, name, *extra, size="200x150"):
 
 
 class RenderTest(TempDirTest):
+    def test_non_pbr_models_show_their_colours_without_the_tone_curve(self):
+        """A model that asks to be shown as it is (hz_shader.display, ABI
+        1.12: the bundled flat and Blinn-Phong) is not washed out by the
+        scene's default ACES curve: flat shading of colour (0.8, 0.3, 0.2) is
+        that colour's sRGB encoding on screen, through the display path and
+        through the HDR path (a translucent object); a physically based model
+        (Lambert) still goes through the curve."""
+        want = [round(255 * (1.055 * c ** (1 / 2.4) - 0.055)) for c in (0.8, 0.3, 0.2)]  # (231, 149, 124)
+
+        def median(shader, opacity=1.0, tonemap=None):
+            scene = {"objects": [{"type": "surface", "builtin": "cortex", "color": [0.8, 0.3, 0.2], "opacity": opacity,
+                                  "material": {"shader": shader}}], "background": [0, 0, 0], "camera": {"view": "left"}}
+            if tonemap:
+                scene["tonemap"] = tonemap
+            out, _ = render_scene(self, scene, f"{shader}_{opacity}_{tonemap}", "--no-aa", size="160x120")
+            im = load(out).reshape(-1, 3)
+            return np.median(im[im.sum(1) > 30], axis=0)
+
+        np.testing.assert_allclose(median("flat"), want, atol=1)
+        np.testing.assert_allclose(median("flat", opacity=0.999), want, atol=2)
+        lambert = median("lambert"), median("lambert", tonemap="none")
+        self.assertGreater(float(np.abs(lambert[0] - lambert[1]).max()), 10, lambert)
+        blinn = median("blinn_phong"), median("blinn_phong", tonemap="none")
+        np.testing.assert_allclose(blinn[0], blinn[1], atol=1)
+
     def test_headless_render_of_builtin_scene(self):
         scene = {"objects": [
             {"type": "streamlines", "builtin": "phantom", "phantom": {"streamlines": 500}, "render": "tubes"},

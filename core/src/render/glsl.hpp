@@ -351,8 +351,14 @@ void main() {
     o_l = vec4(l0, 1.0);
     o_v = vec4(p.v, 1.0);
     o_t = vec4(tl0, 1.0);
+#elif defined(HZ_DISPLAY) && defined(HZ_OUTPUT_AS_IS)
+    o_color = vec4(hz_encode(c * hz_exposure), HZ_OUT_ALPHA);  // (a model shown as it is: no tone curve)
 #elif defined(HZ_DISPLAY)
     o_color = vec4(hz_display(max(c, vec3(0.0))), HZ_OUT_ALPHA);
+#elif defined(HZ_OUTPUT_AS_IS)
+    // The HDR buffer is tonemapped afterwards: what the tonemapping pass
+    // turns back into c, clamped.
+    o_color = vec4(hz_display_inverse(clamp(c * hz_exposure, 0.0, 1.0)), HZ_OUT_ALPHA);
 #else
     o_color = vec4(max(c, vec3(0.0)), HZ_OUT_ALPHA);
 #endif
@@ -704,6 +710,7 @@ void main() {
 // HZ_DISPLAY defined); so does the tonemapping pass of the HDR path.
 inline constexpr const char *kDisplay = R"glsl(
 uniform float hz_exposure;
+vec3 hz_encode(vec3 c);
 vec3 hz_display(vec3 c) {
     c *= hz_exposure;
     if (any(isnan(c))) return vec3(1.0, 0.0, 1.0);
@@ -712,6 +719,11 @@ vec3 hz_display(vec3 c) {
 #elif HZ_TONEMAP == 1
     c = c / (1.0 + c);
 #endif
+    return hz_encode(c);
+}
+// Linear [0, 1] (clamped) to display values: the sRGB encoding alone.
+vec3 hz_encode(vec3 c) {
+    if (any(isnan(c))) return vec3(1.0, 0.0, 1.0);
     c = clamp(c, 0.0, 1.0);
     // sRGB encoding. Above the linear toe, 1.055 c^(1/2.4) - 0.055 is replaced
     // by a degree-6 minimax polynomial in s = sqrt(c) (one square root, which

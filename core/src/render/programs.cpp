@@ -111,6 +111,7 @@ std::string fragment_program(const FragmentSpec &g) {
     s << (dom == HZ_SHADE_LINE ? "#define HZ_DOMAIN_LINE 1\n" : "#define HZ_DOMAIN_SURFACE 1\n");
     if (sh->output == HZ_SHADER_OUTPUT_BRDF) s << "#define HZ_OUTPUT_BRDF 1\n";
     if (sh->output == HZ_SHADER_OUTPUT_EMISSION) s << "#define HZ_OUTPUT_EMISSION 1\n";
+    if (HZ_HAS_FIELD(sh, hz_shader, display) && sh->display == HZ_SHADER_DISPLAY_AS_IS) s << "#define HZ_OUTPUT_AS_IS 1\n";
     if (debug) s << "#define HZ_DEBUG_OUTPUTS 1\n";
     if (g.output == ProgramOutput::Display) s << "#define HZ_DISPLAY 1\n";
     if (g.peel && g.output == ProgramOutput::Hdr) s << "#define HZ_PEEL 1\n";

@@ -158,6 +158,8 @@ const hz_shader kShaders[] = {
         .eval_reference = eval_lambert,
         .functions = nullptr,
         .eval_function = nullptr,
+        .display = HZ_SHADER_DISPLAY_TONE_MAPPED,
+        .reserved0 = 0,
     },
     {
         .struct_size = sizeof(hz_shader),
@@ -171,6 +173,8 @@ const hz_shader kShaders[] = {
         .eval_reference = eval_blinn,
         .functions = nullptr,
         .eval_function = nullptr,
+        .display = HZ_SHADER_DISPLAY_AS_IS,  // (non-PBR: the user's colours, not a filmic curve's)
+        .reserved0 = 0,
     },
     {
         .struct_size = sizeof(hz_shader),
@@ -184,6 +188,8 @@ const hz_shader kShaders[] = {
         .eval_reference = eval_blinn_brdf,
         .functions = nullptr,
         .eval_function = nullptr,
+        .display = HZ_SHADER_DISPLAY_TONE_MAPPED,
+        .reserved0 = 0,
     },
     {
         .struct_size = sizeof(hz_shader),
@@ -197,6 +203,8 @@ const hz_shader kShaders[] = {
         .eval_reference = eval_stalling,
         .functions = nullptr,
         .eval_function = nullptr,
+        .display = HZ_SHADER_DISPLAY_TONE_MAPPED,
+        .reserved0 = 0,
     },
     {
         .struct_size = sizeof(hz_shader),
@@ -210,6 +218,8 @@ const hz_shader kShaders[] = {
         .eval_reference = eval_mallo,
         .functions = nullptr,
         .eval_function = nullptr,
+        .display = HZ_SHADER_DISPLAY_TONE_MAPPED,
+        .reserved0 = 0,
     },
     {
         .struct_size = sizeof(hz_shader),
@@ -223,6 +233,8 @@ const hz_shader kShaders[] = {
         .eval_reference = eval_flat,
         .functions = nullptr,
         .eval_function = nullptr,
+        .display = HZ_SHADER_DISPLAY_AS_IS,  // (non-PBR: the user's colours, not a filmic curve's)
+        .reserved0 = 0,
     },
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_SHADER, nullptr};

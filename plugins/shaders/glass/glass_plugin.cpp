@@ -228,6 +228,8 @@ const hz_shader kShader = {
     .eval_reference = eval_reference,
     .functions = kFunctions,
     .eval_function = eval_function,
+    .display = HZ_SHADER_DISPLAY_TONE_MAPPED,
+    .reserved0 = 0,
 };
 const char *const kInterfaces[] = {HZ_INTERFACE_SHADER, nullptr};
 const hz_plugin_descriptor kDescriptor = {

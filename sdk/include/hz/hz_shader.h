@@ -91,6 +91,20 @@ enum {
     HZ_SHADER_OUTPUT_EMISSION = 3
 };
 
+/* Since 1.12. How the host shows a model's output (hz_shader.display). */
+typedef uint32_t hz_shader_display;
+enum {
+    /* Linear radiance: the scene's exposure and tone curve (ACES by default)
+       map it to the screen. Physically based models. */
+    HZ_SHADER_DISPLAY_TONE_MAPPED = 0,
+    /* The colour to show: times the scene's exposure (1 by default),
+       clamped to [0, 1] and sRGB-encoded, without the tone curve (non-PBR
+       models whose colours are the user's own, e.g. flat shading or classic
+       Blinn-Phong, which a filmic curve would wash out). Depth cues,
+       shadows and transparency still apply. */
+    HZ_SHADER_DISPLAY_AS_IS = 1
+};
+
 /* Properties the plugin claims; `horizon validate` tests exactly these. */
 typedef uint32_t hz_shader_claims;
 enum {
@@ -162,6 +176,11 @@ typedef struct hz_shader {
      * allocation, no exceptions. May be NULL. [thread-safe]
      */
     hz_status(HZ_ABI *eval_function)(const char *name, const double *args, uint32_t nargs, double out_rgb[3]);
+
+    /* Since 1.12 (test HZ_HAS_FIELD): an hz_shader_display; older tables
+       read as HZ_SHADER_DISPLAY_TONE_MAPPED. */
+    hz_shader_display display;
+    uint32_t reserved0; /* zero */
 } hz_shader;
 
 HZ_EXTERN_C_END

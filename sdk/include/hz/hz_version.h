@@ -66,6 +66,8 @@
  *   1.11.0 A fifth extension, "hz.ext.write-selection/1": a writer writes
  *          chosen streamlines of a view (the streamlines kept, a filter's
  *          selection) without the host copying them first.
+ *   1.12.0 hz_shader.display (appended): a model may ask to be shown as it
+ *          is, without the scene's exposure and tone curve (non-PBR models).
  */
 #ifndef HZ_VERSION_H
 #define HZ_VERSION_H
@@ -76,7 +78,7 @@
 /* The major this SDK describes. Only the test fixtures override it. */
 #  define HZ_ABI_VERSION_MAJOR 1
 #endif
-#define HZ_ABI_VERSION_MINOR 11
+#define HZ_ABI_VERSION_MINOR 12
 #define HZ_ABI_VERSION_PATCH 0
 
 /* A semantic version triple, passed by value inside boundary structs. */
