@@ -29,9 +29,18 @@ HZ_SA(offsetof(hz_param_info, min_value) == 56, "param.min_value");
 HZ_SA(sizeof(hz_dataset_info) == 312, "hz_dataset_info");
 HZ_SA(offsetof(hz_dataset_info, voxel_to_ras) == 152, "info.voxel_to_ras");
 HZ_SA(offsetof(hz_loader, write) == 104, "loader.write (1.0 layout)");
-HZ_SA(sizeof(hz_loader) == 112, "hz_loader (the 1.0 table, again since 1.10)");
+#if defined(__GNUC__) || defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
+#endif
+HZ_SA(offsetof(hz_loader, locate_positions) == 112, "loader.locate_positions (1.4-1.9's place, back in 1.12 for source compatibility)");
+HZ_SA(sizeof(hz_loader) == 120, "hz_loader (1.12: the 1.0 table and the deprecated locate_positions)");
 HZ_SA(offsetof(hz_streamlines_dst, reserved0) == 4, "streamlines_dst.reserved0");
-HZ_SA(sizeof(hz_streamlines_dst) == 40, "hz_streamlines_dst (the 1.0 struct, again since 1.10)");
+HZ_SA(offsetof(hz_streamlines_dst, check) == 40, "streamlines_dst.check (1.7-1.9's place, back in 1.12 for source compatibility)");
+HZ_SA(sizeof(hz_streamlines_dst) == 48, "hz_streamlines_dst (1.12: the 1.0 struct and the deprecated check)");
+#if defined(__GNUC__) || defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 /* Extension tables (hz_extensions.h, since 1.10). */
 HZ_SA(sizeof(hz_positions_check) == 56, "hz_positions_check");
 HZ_SA(offsetof(hz_positions_extent, offset) == 16, "positions_extent.offset");

@@ -627,6 +627,23 @@ class PluginsTest(TempDirTest):
         p = run("validate", os.path.join(d, "abi19_text_loader.so"), timeout=300)
         self.assertEqual(p.returncode, 0, p.stdout)
 
+    def test_a_1_9_source_built_against_today_s_sdk(self):
+        """Source compatibility within major 1: the 1.9 loader template's
+        source, unchanged, built against today's headers (its 1.9 names only
+        deprecated: tests/abi/check_source.py checks the warnings), is a
+        plugin of today's ABI that loads, reads and writes, and passes
+        validate."""
+        d = self.path("v19src")
+        os.mkdir(d)
+        shutil.copy(os.path.join(BUILD, "tests", "abi19src", "abi19src_text_loader.so"), d)
+        env = {"HORIZON_PLUGIN_CACHE": "off"}
+        j = run_json("--plugin-dir", d, "plugins", "--json", env=env)
+        mine = {p["id"]: (p["abi"].split(".")[0], p["status"]) for p in j["plugins"] if p["file"].startswith(d)}
+        self.assertEqual(mine, {"org.example.loader.hzt": ("1", "loaded")})
+        self.assert_hzt_round_trip(d, env, "hzt 1\n3\n1 2 3\n2 3.5 4\n3 4 5\n0\n2\n0 0 0\n1 1 1\n")
+        p = run("validate", os.path.join(d, "abi19src_text_loader.so"), timeout=300)
+        self.assertEqual(p.returncode, 0, p.stdout)
+
     def test_a_trial_list_that_is_not_a_file_is_not_used(self):
         # A FIFO would block every command; a folder made every command fail.
         fifo, folder = self.path("fifo"), self.path("folder")

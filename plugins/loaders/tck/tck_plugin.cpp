@@ -300,6 +300,7 @@ const hz_loader kLoader = {
     .read_mesh = nullptr,
     .close = close,
     .write = Writer::write,
+    .locate_positions = nullptr,  // (1.4-1.9, kept for source compatibility; the extensions below read in place)
 };
 
 // Extensions (hz_extensions.h): the host maps Float32LE positions in place,

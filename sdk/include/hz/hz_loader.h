@@ -45,7 +45,11 @@ enum {
 typedef uint32_t hz_loader_caps;
 enum {
     HZ_LOADER_CAN_READ = 1u << 0,  /* open/get_info/read_* are non-NULL */
-    HZ_LOADER_CAN_WRITE = 1u << 1  /* write is non-NULL                 */
+    HZ_LOADER_CAN_WRITE = 1u << 1, /* write is non-NULL                 */
+    /* 1.8-1.9, ignored since 1.10 (kept for source compatibility): a writer
+       that takes delimited streamlines offers HZ_EXT_DELIMITED_STREAMLINES. */
+    HZ_LOADER_WRITES_GAP HZ_DEPRECATED("ignored since ABI 1.10: offer the extension hz.ext.delimited-streamlines/1 "
+                                       "(HZ_EXT_DELIMITED_STREAMLINES, hz_extensions.h) to be given delimited streamlines") = 1u << 2
 };
 
 /* Coordinate space the file stores its geometry in (informative). */
@@ -132,14 +136,36 @@ typedef struct hz_array_info {
  * nb_streamlines + 1 entries with offsets[0] = 0 and the final sentinel
  * nb_vertices. Capacities are in elements (floats, uint64s).
  */
+struct hz_positions_check;  /* hz_extensions.h */
+struct hz_positions_extent; /* hz_extensions.h */
+
+/* 1.4-1.9, never set since 1.10 (kept for source compatibility). */
+typedef uint32_t hz_streamlines_flags;
+enum {
+    HZ_STREAMLINES_OFFSETS_ONLY HZ_DEPRECATED("never set since ABI 1.10: a loader that reads in place offers "
+                                              "hz.ext.mapped-positions/1, whose read_offsets() the host calls instead") = 1u << 0
+};
+
 typedef struct hz_streamlines_dst {
     uint32_t struct_size;
-    uint32_t reserved0;                  /* zero                                */
+    union {
+        uint32_t reserved0; /* zero                                */
+        /* 1.4-1.9: hz_streamlines_flags; always zero since 1.10. */
+        uint32_t flags HZ_DEPRECATED("always zero since ABI 1.10: the host asks for offsets only through "
+                                     "hz.ext.mapped-positions/1 (read_offsets)");
+    };
     float *positions;
     uint64_t positions_capacity;
     uint64_t *offsets;
     uint64_t offsets_capacity;
+    /* 1.7-1.9, always NULL since 1.10 (kept for source compatibility; a
+       loader vouches through hz.ext.checked-read/1 instead). */
+    struct hz_positions_check *check HZ_DEPRECATED("always NULL since ABI 1.10: vouch for the positions read through "
+                                                   "hz.ext.checked-read/1 (read_streamlines_checked, hz_extensions.h)");
 } hz_streamlines_dst;
+
+/* The size of hz_streamlines_dst before 1.7 (1.4-1.9 plugins compared with it). */
+#define HZ_STREAMLINES_DST_SIZE_1_4 40u
 
 /*
  * Destination of read_mesh(). HOST-owned, valid for the call. vertices
@@ -326,6 +352,13 @@ typedef struct hz_loader {
      */
     hz_status(HZ_ABI *write)(const hz_write_request *req, const hz_dataset_view *data,
                              const hz_task *task, hz_error *err);
+
+    /* 1.4-1.9, never called since 1.10 (kept for source compatibility: a
+       1.9 loader's table still compiles): a loader that lets the host map
+       its positions offers hz.ext.mapped-positions/1. */
+    hz_status(HZ_ABI *locate_positions)(hz_reader *reader, struct hz_positions_extent *out, hz_error *err)
+        HZ_DEPRECATED("never called since ABI 1.10: offer hz.ext.mapped-positions/1 (HZ_EXT_MAPPED_POSITIONS, "
+                      "hz_extensions.h) to have the host map the positions");
 } hz_loader;
 
 HZ_EXTERN_C_END

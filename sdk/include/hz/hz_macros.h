@@ -47,6 +47,19 @@
  * MUST test it first (growth rule, see sdk/docs/ABI.md section "Growth").
  * A function-pointer field must also be tested for NULL.
  */
+/*
+ * HZ_DEPRECATED("what replaced it"): on a name kept within the major for
+ * source compatibility only (ABI.md, "Migration"): code that uses it still
+ * compiles and works, with a compiler warning that names the replacement.
+ */
+#if defined(__GNUC__) || defined(__clang__)
+#  define HZ_DEPRECATED(msg) __attribute__((deprecated(msg)))
+#elif defined(_MSC_VER)
+#  define HZ_DEPRECATED(msg) __declspec(deprecated(msg))
+#else
+#  define HZ_DEPRECATED(msg)
+#endif
+
 #define HZ_HAS_FIELD(ptr, type, field) \
     (offsetof(type, field) + sizeof(((type *)0)->field) <= (ptr)->struct_size)
 

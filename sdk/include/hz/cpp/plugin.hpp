@@ -234,6 +234,15 @@ inline std::size_t dtype_size(hz_dtype d) noexcept {
     }
 }
 
+// 1.7-1.9 (kept for source compatibility): where read_streamlines() could
+// vouch for the positions it wrote. Since 1.10 the host never asks there
+// (hz_streamlines_dst.check is always NULL): this returns NULL, and a loader
+// vouches through hz.ext.checked-read/1 (hz::checked_read). [calling thread]
+[[deprecated("always NULL since ABI 1.10: vouch through hz.ext.checked-read/1 (hz::checked_read)")]] inline hz_positions_check *
+positions_check(const hz_streamlines_dst *) noexcept {
+    return nullptr;
+}
+
 // Convenience for polling a possibly-NULL task.
 inline bool cancelled(const hz_task *task) noexcept {
     return task != nullptr && task->is_cancelled != nullptr && task->is_cancelled(task);
