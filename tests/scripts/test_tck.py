@@ -3,6 +3,7 @@ nibabel (the independent reference) and against the generating arrays."""
 import glob
 import json
 import os
+import re
 import resource
 import shutil
 import subprocess
@@ -189,6 +190,40 @@ class TckVariantsTest(TempDirTest):
                     self.assertEqual(p.stderr.count("the header says count"), 1, p.stderr)
                 else:
                     self.assertNotIn("the header says count", p.stderr)
+
+
+class TckCountTest(TempDirTest):
+    def test_the_header_count_matches_the_data_for_mrtrix(self):
+        """The `count` of every TCK horizon writes (convert, filter, a
+        selection written in place, the inverse selection) is the number of
+        streamlines in the file, as MRtrix3's tckinfo reads it (nibabel
+        ignores the field)."""
+        tckinfo = shutil.which("tckinfo")
+        if tckinfo is None:
+            self.skipTest("tckinfo (package mrtrix3) is not installed")
+        rng = np.random.default_rng(23)
+        src = self.path("src.tck")
+        nib.streamlines.save(nib.streamlines.Tractogram(random_streamlines(300, rng, min_pts=2, scale=30.0), affine_to_rasmm=np.eye(4)), src)
+        outputs = {"convert": ("convert", src, self.path("c.tck")),
+                   "filter": ("filter", src, "--include", "sphere:0,0,0,20", "-o", self.path("f.tck")),
+                   "inverse": ("filter", src, "--include", "sphere:0,0,0,20", "--invert", "-o", self.path("i.tck")),
+                   "lengths": ("filter", self.path("c.tck"), "--min-length", "30", "-o", self.path("l.tck"))}
+        counts = {}
+        for name, args in outputs.items():
+            p = run(*args)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            out = args[-1]
+            q = subprocess.run([tckinfo, "-count", out], capture_output=True, text=True, timeout=60)
+            self.assertEqual(q.returncode, 0, q.stderr)
+            header = int(re.search(r"^\s*count:\s*(\d+)", q.stdout, re.M).group(1))
+            actual = int(re.search(r"actual count in file:\s*(\d+)", q.stdout + q.stderr).group(1))
+            counts[name] = actual
+            with self.subTest(output=name):
+                self.assertEqual(header, actual, q.stdout)
+                self.assertEqual(actual, len(nib.streamlines.load(out).streamlines))
+        self.assertEqual(counts["convert"], 300)
+        self.assertEqual(counts["filter"] + counts["inverse"], 300)
+        self.assertTrue(0 < counts["filter"] < 300 and 0 < counts["lengths"] < 300, counts)
 
 
 class TckMalformedTest(TempDirTest):

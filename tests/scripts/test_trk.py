@@ -89,6 +89,43 @@ class TrkTest(TempDirTest):
                 self.assert_close(list(back.streamlines), ref)
                 np.testing.assert_allclose(back.header[Field.VOXEL_TO_RASMM], aff, atol=1e-5)
 
+    def test_voxel_orders_that_permute_the_axes(self):
+        """Voxel orders that permute the axes, not only flip them (ASR, SAR,
+        PIL, RSA, ILP, beside RAS and LPS), with a voxel-to-RAS affine that
+        says the same, and as an old TrackVis file whose vox_to_ras is all
+        zero (the voxel order and sizes alone): the streamlines nibabel
+        reads, and a TRK that horizon writes back reads the same again."""
+        from nibabel.orientations import axcodes2ornt
+        rng = np.random.default_rng(17)
+        sl = [(rng.normal(size=(int(n), 3)) * 12 + [5, -3, 8]).astype(np.float32) for n in rng.integers(2, 30, 12)]
+        dims, sizes = np.array([60, 70, 50]), np.array([2.0, 1.5, 2.5])
+        for order in ["RAS", "LPS", "ASR", "SAR", "PIL", "RSA", "ILP"]:
+            aff = np.eye(4)
+            aff[:3, :3] = 0
+            for i, (axis, flip) in enumerate(axcodes2ornt(tuple(order))):
+                aff[int(axis), i] = flip * sizes[i]
+            aff[:3, 3] = -aff[:3, :3] @ (dims / 2)
+            header = {"dimensions": dims.astype(np.int16), "voxel_sizes": sizes.astype(np.float32),
+                      "voxel_to_rasmm": aff.astype(np.float32), "voxel_order": order}
+            f = self.path(f"t_{order}.trk")
+            TrkFile(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), header=header).save(f)
+            old = self.path(f"old_{order}.trk")
+            raw = bytearray(open(f, "rb").read())
+            raw[440:504] = bytes(64)  # (vox_to_ras, 4x4 float32 at byte 440: unset)
+            open(old, "wb").write(raw)
+            for name in (f, old):
+                with self.subTest(order=order, file=os.path.basename(name)):
+                    import warnings
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore")
+                        want = list(nib.streamlines.load(name).streamlines)
+                    if name == f:
+                        self.assert_close(want, sl)
+                    self.assert_close(self.horizon_streamlines(name), want)
+                    back = self.path(f"back_{order}_{len(os.listdir(self.tmp))}.trk")
+                    self.assertEqual(run("convert", name, back).returncode, 0)
+                    self.assert_close(list(nib.streamlines.load(back).streamlines), want)
+
     def test_decoded_positions_spilled_to_a_temporary_file(self):
         # Large decoded positions live in an unlinked file in the spill
         # folder (file-backed, reclaimable memory): the same streamlines as

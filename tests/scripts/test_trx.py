@@ -83,6 +83,28 @@ class TrxTest(TempDirTest):
                             for a, b in zip(got, exp):
                                 np.testing.assert_allclose(a, b, atol=1e-3 if pos_dtype != "float16" else 0)
 
+    def test_float16_positions_at_the_edges_of_the_range(self):
+        """float16 positions (the TRX specification allows them) at the edges
+        of the half-precision range: subnormals (2^-24, 6e-8), the smallest
+        normal (2^-14), the largest finite value (65504), negative zero;
+        read as numpy widens them to float32, bit for bit, written by zipfile
+        and numpy from the specification, not by horizon."""
+        pos = np.array([[0, 0, 0], [6e-8, 1e-5, -6e-8], [65504, -65504, 1.0], [2 ** -14, -(2 ** -14), 2 ** -24], [100.5, -0.0, 3.0],
+                        [1, 2, 3]], dtype=np.float16)
+        f = self.path("f16.trx")
+        with zipfile.ZipFile(f, "w") as z:
+            z.writestr("header.json", json.dumps({"DIMENSIONS": [1, 1, 1], "VOXEL_TO_RASMM": np.eye(4).tolist(), "NB_VERTICES": 6,
+                                                  "NB_STREAMLINES": 2}))
+            z.writestr("positions.3.float16", pos.tobytes())
+            z.writestr("offsets.uint32", np.array([0, 3], np.uint32).tobytes())
+        out = self.path("f16.tck")
+        p = run("convert", f, out)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        got = np.concatenate(list(nib.streamlines.load(out).streamlines))
+        self.assertEqual(got.tobytes(), pos.astype(np.float32).tobytes(), "bit for bit, subnormals and -0 included")
+        info = run_json("info", f, "--json")
+        self.assertEqual((info["nb_streamlines"], info["nb_vertices"]), (2, 6))
+
     def test_arrays_survive_trx_to_trx(self):
         rng = np.random.default_rng(4)
         sl = random_streamlines(10, rng, 2, 20)
