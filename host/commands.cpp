@@ -8,6 +8,8 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cmath>
 #include <optional>
 #include <cstdio>
 #include <sstream>
@@ -411,6 +413,7 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     core::render::Scene scene = core::render::demo_scene(o.nb_streamlines, o.seed);
     o.passes.apply(scene);
     o.annotations.apply(scene);
+    o.style.apply(scene);
     if (const int c = render_scene(reg, std::move(scene), ro); c != 0) return c;
     // On a desktop, the same scene in the window.
     if (o.window && have_display() && ::isatty(STDOUT_FILENO)) {
@@ -420,9 +423,66 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
         core::render::Scene shown = core::render::demo_scene(o.nb_streamlines, o.seed);
         o.passes.apply(shown);
         o.annotations.apply(shown);
+        o.style.apply(shown);
         return view_scene(reg, std::move(shown), defaults);
     }
     return 0;
+}
+
+std::array<double, 3> parse_colour(const std::string &what, const std::string &text) {
+    if (text == "black") return {0, 0, 0};
+    if (text == "white") return {1, 1, 1};
+    if (text == "grey" || text == "gray") return {0.5, 0.5, 0.5};
+    std::array<double, 3> c{};
+    std::istringstream in(text);
+    char comma1 = 0, comma2 = 0;
+    if (in >> c[0] >> comma1 >> c[1] >> comma2 >> c[2] && comma1 == ',' && comma2 == ',' && (in >> std::ws).eof() &&
+        std::all_of(c.begin(), c.end(), [](double v) { return v >= 0 && v <= 1; }))
+        return c;
+    throw core::Error((what.empty() ? std::string() : what + ": ") + "'" + text +
+                      "' is not a colour (black, white, grey, or R,G,B each in [0, 1])");
+}
+
+namespace {
+// The linear radiance that the scene's exposure and tone curve show as the
+// sRGB-encoded value `v` (0..1): a background the picture shows as asked.
+double radiance_shown_as(double v, const core::render::Scene &s) {
+    double d = v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
+    d = std::min(d, 0.999);
+    double c = d;
+    if (s.tonemap == "aces") {  // (the inverse of the ACES fit the display applies: glsl.hpp, hz_display)
+        const double a = 2.51 - 2.43 * d, b = 0.03 - 0.59 * d;
+        c = (-b + std::sqrt(b * b + 4 * a * 0.14 * d)) / (2 * a);
+    } else if (s.tonemap == "reinhard") {
+        c = d / (1 - d);
+    }
+    return c / std::max(s.exposure, 1e-30);
+}
+}  // namespace
+
+void StyleOptions::apply(core::render::Scene &s) const {
+    if (!background.empty()) {
+        const std::array<double, 3> shown = parse_colour("--background", background);
+        for (int i = 0; i < 3; ++i) s.background[i] = radiance_shown_as(shown[i], s);
+    }
+    if (tracts.empty() || tracts == "direction") {
+        if (tracts == "direction")
+            for (auto &o : s.objects)
+                if (o.kind == HZ_DATA_STREAMLINES) o.coloring.mode = "direction";
+        return;
+    }
+    const bool random = tracts == "random";
+    const std::array<double, 3> solid = random ? std::array<double, 3>{} : parse_colour("--tract-colour", tracts);
+    std::size_t k = 0;
+    for (auto &o : s.objects) {
+        if (o.kind != HZ_DATA_STREAMLINES) continue;
+        o.coloring.mode = "solid";
+        o.coloring.color = solid;
+        if (random) {  // (the palette is sRGB-encoded; scene colours are linear)
+            const auto c = core::render::cluster_palette(double(k++));
+            for (int i = 0; i < 3; ++i) o.coloring.color[i] = c[i] <= 0.04045 ? c[i] / 12.92 : std::pow((c[i] + 0.055) / 1.055, 2.4);
+        }
+    }
 }
 
 }  // namespace hz::host

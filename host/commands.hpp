@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <array>
 #include <string>
 #include <vector>
 
@@ -86,6 +87,22 @@ struct AnnotationOptions {
     }
 };
 
+// The look in one flag each (as dipy_horizon's --bg_color and per-tractogram
+// colours), the same for `render`, `view` and `demo`: they replace a scene
+// file's. A colour is black, white, grey (gray) or R,G,B in [0, 1].
+std::array<double, 3> parse_colour(const std::string &what, const std::string &text);  // throws Error naming `what`
+struct StyleOptions {
+    // --background COLOUR: the picture's pixels there (sRGB-encoded values;
+    // the scene's background is the radiance its exposure and tone curve
+    // show as them).
+    std::string background;
+    std::string tracts;  // --tract-colour direction|random|COLOUR (linear, as a scene file's colours)
+    // Every streamlines object: "direction" as drawn by default, "random" a
+    // solid colour each from the cluster palette (the k-th tractogram the
+    // k-th entry), a colour solid. Throws Error.
+    void apply(core::render::Scene &s) const;
+};
+
 struct DemoOptions {
     std::string out_dir = "horizon-demo";
     std::uint64_t nb_streamlines = 5000;
@@ -94,6 +111,7 @@ struct DemoOptions {
     bool window = true;  // open the window afterwards when a display exists
     PassOptions passes;
     AnnotationOptions annotations;
+    StyleOptions style;
 };
 
 struct ClusterOptions {
@@ -156,6 +174,7 @@ struct RenderOptions {
     PassOptions passes;
     AnnotationOptions annotations;
     VolumeOptions volumes;
+    StyleOptions style;
     bool preview = false;  // draw the level-of-detail proxy only (the window's first picture)
     bool force = false;    // replace an existing output
     int frames = 1;        // frames to draw (timing: the median of frames 2..N)
@@ -184,6 +203,7 @@ struct ViewOptions {
     PassOptions passes;
     AnnotationOptions annotations;
     VolumeOptions volumes;
+    StyleOptions style;
     std::string stats;                          // --stats FILE.json: per-frame times and what was drawn
     double lod_frame_ms = 33;                   // moving frames kept within this by the proxy's level (0: the level fixed)
     bool explore = false;                       // Fig. 5: QuickBundlesX centroids, expand / hide / repeat

@@ -116,6 +116,30 @@ void add_annotation_options(CLI::App *cmd, AnnotationOptions &a) {
         ->excludes(none);
 }
 
+void add_style_options(CLI::App *cmd, StyleOptions &st) {
+    // (checked as the command line is read, before any file is)
+    const auto colour = [](const std::string &flag) {
+        return CLI::Validator(
+            [flag](std::string &v) {
+                try {
+                    if (flag == "--tract-colour" && (v == "direction" || v == "random")) return std::string();
+                    (void)parse_colour("", v);
+                    return std::string();
+                } catch (const std::exception &e) {
+                    return std::string(e.what());
+                }
+            },
+            "COLOUR");
+    };
+    cmd->add_option("--background", st.background,
+                    "the background as the picture shows it: black, white, grey, or R,G,B each in [0, 1] (sRGB-encoded values)")
+        ->check(colour("--background"));
+    cmd->add_option("--tract-colour,--tract-color", st.tracts,
+                    "every tractogram's colour: direction (RGB of the local direction), random (one colour per tractogram), or a "
+                    "colour (black, white, grey, R,G,B in [0, 1], linear as a scene file's colours)")
+        ->check(colour("--tract-colour"));
+}
+
 void add_lod_options(CLI::App *cmd, LodOptions &lod) {
     cmd->add_option("--lod-pixels", lod.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")
         ->capture_default_str()
@@ -287,6 +311,7 @@ int main(int argc, char **argv) {
     add_lod_options(render, ro.lod);
     add_pass_options(render, ro.passes);
     add_annotation_options(render, ro.annotations);
+    add_style_options(render, ro.style);
     add_volume_options(render, ro.volumes);
     render->add_flag("--preview", ro.preview, "draw the level-of-detail proxy only: the window's first picture, in a fraction of the time");
     render->add_option("--frames", ro.frames, "draw N frames and report the median time of frames 2..N (benchmarks)")
@@ -332,6 +357,7 @@ int main(int argc, char **argv) {
     add_lod_options(view, vwo.lod);
     add_pass_options(view, vwo.passes);
     add_annotation_options(view, vwo.annotations);
+    add_style_options(view, vwo.style);
     add_volume_options(view, vwo.volumes);
     view->footer("Keys in the window (scripts: key K, key ctrl+K):\n" + actions_help_text());
     view->add_option("--lod-frame-ms", vwo.lod_frame_ms,
@@ -364,6 +390,7 @@ int main(int argc, char **argv) {
     demo->add_flag("--no-window", no_window, "do not open the window even when a display exists");
     add_pass_options(demo, demo_opts.passes);
     add_annotation_options(demo, demo_opts.annotations);
+    add_style_options(demo, demo_opts.style);
 
     try {
         app.parse(argc, argv);

@@ -283,6 +283,7 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     core::render::Scene scene = scene_from_inputs(reg, o.inputs, o.view, "render");
     o.passes.apply(scene);
     o.annotations.apply(scene);
+    o.style.apply(scene);
     o.volumes.apply(scene);
     // Every file the scene file named is an input too (its environment map,
     // meshes, overlays, masks): checked once it is known, before anything

@@ -1951,6 +1951,7 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
                               core::render::Scene s = scene_from_inputs(reg, o.inputs, o.view, "view");
                               o.passes.apply(s);
                               o.annotations.apply(s);
+                              o.style.apply(s);
                               o.volumes.apply(s);
                               return s;
                           }),

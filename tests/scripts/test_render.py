@@ -10,7 +10,7 @@ import unittest
 import numpy as np
 from PIL import Image
 
-from hztest import HORIZON, SOURCE, TempDirTest, run, run_json, xvfb_run
+from hztest import HORIZON, SOURCE, TempDirTest, run, run_json, tck_bytes, xvfb_run
 
 GOLDEN = os.path.join(SOURCE, "tests", "golden")
 NO_DISPLAY = {"DISPLAY": ""}
@@ -114,6 +114,46 @@ def render_scene(test, scene, name, *extra, size="200x150"):
 
 
 class RenderTest(TempDirTest):
+    def test_background_and_tract_colour_flags(self):
+        """--background shows exactly the colour asked (whatever the tone
+        curve and exposure: the radiance they map to it); --tract-colour
+        colours every tractogram (a colour, one each at random, or back to
+        direction); a bad colour is one line before any work."""
+        lines = [np.array([[x, y, z] for x in np.linspace(-30, 30, 40)], np.float32) for y in (-6, 0, 6) for z in (-4, 4)]
+        for name, shift in (("a.tck", 0), ("b.tck", 40)):
+            with open(self.path(name), "wb") as f:
+                f.write(tck_bytes([l + [0, shift, 0] for l in lines]))
+        for bg, want in (("white", (255, 255, 255)), ("grey", (128, 128, 128)), ("0.2,0.4,0.6", (51, 102, 153))):
+            for tonemap, exposure in (("aces", 1.0), ("reinhard", 2.0), ("none", 0.5)):
+                with self.subTest(bg=bg, tonemap=tonemap):
+                    out, _ = render_scene(self, {"objects": [{"type": "streamlines", "file": self.path("a.tck")}], "tonemap": tonemap,
+                                                 "exposure": exposure}, f"bg_{tonemap}_{bg}", "--background", bg)
+                    np.testing.assert_allclose(load(out)[0, 0], want, atol=1)
+        red, _ = render_scene(self, {"objects": [{"type": "streamlines", "file": self.path("a.tck"), "render": "tubes", "radius": 1}]},
+                              "red", "--tract-colour", "1,0,0", "--background", "black")
+        px = load(red).reshape(-1, 3)
+        px = px[px.sum(1) > 60]
+        self.assertGreater(len(px), 100)
+        # (lit red tubes: their highlights go towards white, the rest is red)
+        self.assertGreater(float((px[:, 0] > 2 * px[:, 1] + 10).mean()), 0.7, "red, as asked")
+        scene = {"objects": [{"type": "streamlines", "file": self.path(n), "render": "tubes", "radius": 1, "color": [0.5, 0.5, 0.5]}
+                             for n in ("a.tck", "b.tck")], "camera": {"view": "superior"}}
+        two, _ = render_scene(self, scene, "random", "--tract-colour", "random", "--background", "black", size="320x240")
+        im = load(two)
+        hue = lambda part: tuple(np.round(part[part.sum(1) > 60].mean(0) / max(part[part.sum(1) > 60].mean(0).max(), 1), 1))
+        top, bottom = im[:120].reshape(-1, 3), im[120:].reshape(-1, 3)  # (b.tck lies 40 mm anterior: the top half, seen from above)
+        self.assertNotEqual(hue(top), hue(bottom), "one colour per tractogram")
+        grey, _ = render_scene(self, scene, "grey", "--background", "black", size="320x240")
+        g = load(grey).reshape(-1, 3)
+        g = g[g.sum(1) > 60]
+        self.assertLess(float(np.abs(g[:, 0] - g[:, 2]).mean()), 3, "the scene's grey without the flag")
+        for flag, value in (("--background", "nope"), ("--background", "1,1"), ("--tract-colour", "2,0,0"), ("--tract-colour", "rainbow")):
+            with self.subTest(flag=flag, value=value):
+                p = run("render", self.path("a.tck"), flag, value, "-o", self.path("bad.png"), env=NO_DISPLAY)
+                self.assertNotEqual(p.returncode, 0)
+                self.assertIn(f"{flag}: '{value}' is not a colour", p.stderr)
+                self.assertFalse(os.path.exists(self.path("bad.png")))
+
     def test_non_pbr_models_show_their_colours_without_the_tone_curve(self):
         """A model that asks to be shown as it is (hz_shader.display, ABI
         1.12: the bundled flat and Blinn-Phong) is not washed out by the
