@@ -208,6 +208,8 @@ struct ViewOptions {
     double lod_frame_ms = 33;                   // moving frames kept within this by the proxy's level (0: the level fixed)
     bool explore = false;                       // Fig. 5: QuickBundlesX centroids, expand / hide / repeat
     std::string algorithm = "qbx";              // --explore's clustering plugin (id or last part)
+    std::uint64_t cluster_size_min = 0;         // --cluster-size-min N: clusters of fewer streamlines are not shown
+    double cluster_length_min = 0;              // --cluster-length-min MM: nor those with a shorter centroid
     std::vector<std::string> params;            // its --param NAME=VALUE
     std::string view;                           // a named camera view fitted to the scene (empty: the scene's own)
     std::vector<std::string> include, exclude;  // regions of interest over the first tractogram (as `filter` takes them)

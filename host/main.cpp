@@ -340,7 +340,16 @@ int main(int argc, char **argv) {
         ->check(CLI::ExistingDirectory)
         ->capture_default_str();
     view->add_option("--view", vwo.view, "initial camera view fitted to the scene (R returns to it)")->check(CLI::IsMember(named_views()));
-    view->add_flag("--explore", vwo.explore, "explore the first tractogram as QuickBundlesX clusters: expand, hide, repeat (paper Fig. 5)");
+    auto *explore = view->add_flag("--explore", vwo.explore,
+                                   "explore the first tractogram as QuickBundlesX clusters: expand, hide, repeat (paper Fig. 5)");
+    view->add_option("--cluster-size-min", vwo.cluster_size_min,
+                     "--explore: clusters of fewer streamlines are not shown (dipy_horizon's --cluster_size_thr)")
+        ->check(CLI::Range(std::uint64_t(0), std::uint64_t(1) << 50))
+        ->needs(explore);
+    view->add_option("--cluster-length-min", vwo.cluster_length_min,
+                     "--explore: clusters whose centroid is shorter (mm) are not shown (dipy_horizon's --cluster_length_thr)")
+        ->check(CLI::Range(0.0, 1e6))
+        ->needs(explore);
     view->add_option("--algorithm", vwo.algorithm, "--explore with this clustering plugin (its id or the last part of it)")
         ->capture_default_str();
     view->add_option("--param", vwo.params, "NAME=VALUE, a parameter of the clustering plugin (repeatable)")->allow_extra_args(false);

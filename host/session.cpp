@@ -257,7 +257,8 @@ void Explorer::expand_node(std::uint64_t node, bool to_streamlines) {
     const auto &t = *s_.tree;
     if (!to_streamlines && t.level[node] < t.nb_levels) {
         // The largest child keeps the parent's colour, the others get new ones.
-        const std::vector<std::uint64_t> kids = children(node);
+        std::vector<std::uint64_t> kids = children(node);
+        std::erase_if(kids, [&](std::uint64_t k) { return !t.kept(k, spec_); });
         for (std::size_t i = 0; i < kids.size(); ++i) s_.colour[kids[i]] = i == 0 ? s_.colour[node] : s_.next_colour++;
         s_.shown.insert(s_.shown.end(), kids.begin(), kids.end());
     } else {
@@ -441,7 +442,7 @@ void Explorer::adopt(std::vector<std::uint64_t> subset, std::shared_ptr<const co
     s_.origins.reset();
     expanded_changed();
     for (std::uint64_t k = 0; k < tree->level.size(); ++k)
-        if (tree->level[k] == 1) s_.shown.push_back(k);
+        if (tree->level[k] == 1 && tree->kept(k, spec_)) s_.shown.push_back(k);  // (the cut-offs: --cluster-size-min, ...)
     sort();
     s_.colour.assign(tree->level.size(), 0);
     std::set<std::uint64_t> taken;

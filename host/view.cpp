@@ -134,6 +134,7 @@ core::render::ClusterSpec explore_spec(const core::Registry &reg, const ViewOpti
     spec.algorithm = o.algorithm;
     const core::LoadedPlugin *plugin = core::find_clustering(reg, o.algorithm);
     spec.params = core::parse_param_items(core::schema_of(*plugin), plugin->info.id, o.params);
+    spec.min_size = o.cluster_size_min, spec.min_length_mm = o.cluster_length_min;
     return spec;
 }
 

@@ -321,6 +321,45 @@ class SelectionWindowTest(TempDirTest):
         self.assertGreater(abs(before[0]) + abs(before[1]), 2 * (abs(after[0]) + abs(after[1])), (before, after))
         self.assertLess(before[2], 0.5 * after[2])
 
+    def test_cluster_size_and_length_cut_offs(self):
+        """dipy_horizon's --cluster_size_thr and --cluster_length_thr: in the
+        window (--explore) and in a scene file's clustering, clusters of
+        fewer streamlines, or with a shorter centroid, are not shown; the
+        counts against `horizon cluster`'s labels of the same tractogram."""
+        import csv
+        labels = self.path("labels.csv")
+        p = run("cluster", self.tck, "--labels", labels)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        with open(labels) as f:
+            level1 = [int(r[1]) for r in list(csv.reader(f))[1:]]
+        sizes = np.bincount(level1)
+        want = int((sizes >= 100).sum())
+        self.assertTrue(0 < want < len(sizes), sizes)
+        first = lambda p: tuple(map(int, re.match(r"(\d+) clusters", next(
+            l[len("explore: "):] for l in p.stdout.splitlines() if l.startswith("explore: "))).groups()))[0]
+        p = self.window("cut_size", ["wait 1", f"save {self.path('big.trx')}", "quit"], "--explore", "--cluster-size-min", "100")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(first(p), want)
+        header, groups, _ = trx_parts(self.path("big.trx"))
+        self.assertTrue(all(len(g) >= 100 for g in groups.values()), [len(g) for g in groups.values()])
+        p = self.window("cut_length", ["wait 1", f"save {self.path('long.trx')}", "quit"], "--explore", "--cluster-length-min", "150")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertTrue(0 < first(p) < len(sizes), first(p))
+        header, groups, dps = trx_parts(self.path("long.trx"))
+        length = lambda s: float(np.linalg.norm(np.diff(s, axis=0), axis=1).sum())
+        for g in groups.values():  # (a centroid is its members' mean shape: about their length)
+            self.assertGreater(np.median([length(header["streamlines"][i]) for i in g]), 0.8 * 150)
+        # A scene file's clustering: the clusters drawn.
+        scene = self.path("cut.json")
+        with open(scene, "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "file": self.tck, "clustering": {"level": 1, "min_size": 100}}]}, f)
+        p = run("render", scene, "-o", self.path("cut.png"), "--size", "160x120", "--json", env=NO_DISPLAY)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(json.loads(p.stdout)["streamlines_drawn"], want)
+        p = self.window("cut_bad", ["quit"], "--cluster-size-min", "10")
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--cluster-size-min requires --explore", p.stderr)
+
     def test_stroke_picks_keeps_and_deletes(self):
         # A stroke across the middle of the view picks the streamlines it
         # crosses (drawn lighter); delete removes them, keep keeps only them;

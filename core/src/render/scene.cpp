@@ -566,7 +566,8 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             ob.slice_colormap = str(o["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
         if (o.contains("clustering")) {
             const json &c = o["clustering"];
-            check_keys(c, {"algorithm", "thresholds", "level", "width_by_size", "params"}, what, where + ".clustering");
+            check_keys(c, {"algorithm", "thresholds", "level", "width_by_size", "params", "min_size", "min_length"}, what,
+                       where + ".clustering");
             ClusterSpec cs;
             if (c.contains("algorithm")) {
                 if (!c["algorithm"].is_string()) fail(what, where + ".clustering.algorithm", "expected a plugin id");
@@ -600,6 +601,16 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             }
             if (c.contains("level")) cs.level = static_cast<int>(num(c["level"], what, where + ".clustering.level"));
             if (c.contains("width_by_size")) cs.width_by_size = c["width_by_size"].get<bool>();
+            if (c.contains("min_size")) {
+                const double m = num(c["min_size"], what, where + ".clustering.min_size");
+                if (m < 0 || m != std::floor(m) || m > 1e15)
+                    fail(what, where + ".clustering.min_size", "expected a whole number of streamlines >= 0");
+                cs.min_size = std::uint64_t(m);
+            }
+            if (c.contains("min_length")) {
+                cs.min_length_mm = num(c["min_length"], what, where + ".clustering.min_length");
+                if (!(cs.min_length_mm >= 0) || cs.min_length_mm > 1e6) fail(what, where + ".clustering.min_length", "expected mm >= 0");
+            }
             ob.clustering = cs;
         }
         try {
@@ -1074,6 +1085,14 @@ ClusterTree run_clustering(const Registry &reg, const Tractogram &t, const Clust
     return tree;
 }
 
+double ClusterTree::centroid_length(std::uint64_t node) const {
+    const float *c = centroids.data() + node * nb_points * 3;
+    double len = 0;
+    for (std::uint32_t i = 1; i < nb_points; ++i)
+        len += std::hypot(double(c[3 * i]) - c[3 * i - 3], double(c[3 * i + 1]) - c[3 * i - 2], double(c[3 * i + 2]) - c[3 * i - 1]);
+    return len;
+}
+
 Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const ClusterSpec &spec) {
     const ClusterTree tree = run_clustering(reg, t, spec);
     const std::uint32_t level = spec.level < 0 ? tree.nb_levels : static_cast<std::uint32_t>(spec.level);
@@ -1081,7 +1100,7 @@ Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const Clu
         throw Error("clustering.level " + std::to_string(spec.level) + ": the tree has levels 1.." + std::to_string(tree.nb_levels));
     std::vector<std::uint64_t> nodes;
     for (std::uint64_t k = 0; k < tree.level.size(); ++k)
-        if (tree.level[k] == level) nodes.push_back(k);
+        if (tree.level[k] == level && tree.kept(k, spec)) nodes.push_back(k);
     Tractogram out;
     const std::uint64_t K = nodes.size(), P = tree.nb_points;
     out.positions = Buffer<float>(K * P * 3);

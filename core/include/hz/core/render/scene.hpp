@@ -47,6 +47,11 @@ struct ClusterSpec {
     std::map<std::string, std::vector<double>> params;  // the plugin's own parameters, by name (checked by its schema)
     int level = 1;                                      // 1 = coarsest; -1 = finest
     bool width_by_size = true;                          // tube radius grows with sqrt(cluster size)
+    // Clusters shown only from this many streamlines, and with a centroid at
+    // least this long (mm): dipy_horizon's --cluster_size_thr and
+    // --cluster_length_thr (ClusterTree::kept).
+    std::uint64_t min_size = 0;
+    double min_length_mm = 0;
 };
 
 // How direct volume rendering maps a volume's values to colour and opacity
@@ -277,6 +282,12 @@ struct ClusterTree {
     std::vector<std::uint64_t> member_offsets;  // nodes + 1
     std::vector<std::uint64_t> members;         // streamline indices into the input
     std::uint64_t size(std::uint64_t node) const { return member_offsets[node + 1] - member_offsets[node]; }
+    // The length of node's centroid (mm: the sum of its segments).
+    double centroid_length(std::uint64_t node) const;
+    // Whether node passes spec's cut-offs (min_size, min_length_mm).
+    bool kept(std::uint64_t node, const ClusterSpec &spec) const {
+        return size(node) >= spec.min_size && (spec.min_length_mm <= 0 || centroid_length(node) >= spec.min_length_mm);
+    }
 };
 
 // Runs clustering plugin `spec.algorithm` (fast mode: for display) with
