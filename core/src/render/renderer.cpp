@@ -1371,6 +1371,19 @@ void main() {
         int w = 0, h = 0, frames = 0, done = 0;
     } rest_aa;
 
+    // Jittered frame `i` (jitter_offset) of a still from camera v, drawn
+    // without the edge pass (the frames' average is the anti-aliasing).
+    void jittered_frame(const View &v, int w, int h, int i) {
+        struct Reset {
+            Impl &I;
+            ~Reset() { I.jitter_px = {0, 0}, I.accumulating = false; }
+        } reset{*this};
+        accumulating = true;
+        const std::array<double, 2> j = jitter_offset(i);
+        jitter_px = {j[0], j[1]};
+        frame(v, w, h);
+    }
+
     void reset_counters() {
         stats.segments_drawn = stats.triangles_drawn = stats.points_drawn = stats.streamlines_drawn = 0;
         stats.chunks_drawn = stats.streamed_points = stats.crossings_drawn = stats.reprojected_points = stats.volumes_drawn = 0;
@@ -1987,17 +2000,10 @@ void Renderer::render(const View &view, int width, int height) {
     } else {
         // A still of jittered frames, averaged (the stats: the last frame's,
         // the passes' milliseconds summed).
-        struct Reset {
-            Impl &I;
-            ~Reset() { I.jitter_px = {0, 0}, I.accumulating = false; }
-        } reset{I};
-        I.accumulating = true;
         double ao = 0, cue = 0, vol = 0, shadow = 0;
         for (int i = 0; i < frames; ++i) {
-            const std::array<double, 2> j = jitter_offset(i);
-            I.jitter_px = {j[0], j[1]};
             I.reset_counters();
-            I.frame(view, width, height);
+            I.jittered_frame(view, width, height, i);
             const bool hdr = I.hdr_frame_full;
             if (i == 0) {
                 I.accumulation->begin(width, height);
@@ -2053,16 +2059,7 @@ bool Renderer::accumulate_step() {
     if (!a.active) return true;
     const auto t0 = Clock::now();
     I.reset_counters();
-    {
-        struct Reset {
-            Impl &I;
-            ~Reset() { I.jitter_px = {0, 0}, I.accumulating = false; }
-        } reset{I};
-        I.accumulating = true;
-        const std::array<double, 2> j = jitter_offset(a.done);
-        I.jitter_px = {j[0], j[1]};
-        I.frame(a.view, a.w, a.h);
-    }
+    I.jittered_frame(a.view, a.w, a.h, a.done);
     if (a.done == 0) I.accumulation->begin(a.w, a.h);
     I.accumulation->add(I.ldr.tex, 1.0, I.empty_vao);
     ++a.done;
