@@ -88,7 +88,7 @@ void add_pass_options(CLI::App *cmd, PassOptions &c) {
     cmd->add_option("--aa-frames", c.aa_frames,
                     "anti-aliasing of a still: N frames, each moved by a fraction of a pixel, averaged (supersampling at N "
                     "times a frame's cost; a scene file's \"antialiasing\": {\"frames\": N}; render: 1 by default; the window at "
-                    "rest: N, else 8 or the scene's where more, while a frame takes under 150 ms; 1: the edge pass alone)")
+                    "rest: N, else 8 or the scene's where more, where a still is drawn at once and cheap; 1: the edge pass alone)")
         ->check(CLI::Range(1, 64))
         ->excludes(no_aa);
 }

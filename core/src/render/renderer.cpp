@@ -2044,10 +2044,13 @@ void Renderer::begin_progressive(const View &view, int width, int height, bool a
     I.begin_progressive(view, width, height, at_once);
     glFinish();
     I.stats.draw_ms = ms_since(t0);
-    // (a still complete at once, and cheap: its jittered frames follow)
+    // (a still complete at once, and cheap: its jittered frames follow. Cheap
+    // by what was drawn, not by the clock: the same scene decides the same
+    // way under any load, so the window's picture is reproducible.)
     const int frames = std::max(I.settings.rest_aa_frames, I.scene.antialiasing.frames);
-    if (!I.refine.active && !I.interacting && I.scene.antialiasing.on && I.settings.rest_aa_frames > 1 &&
-        I.stats.draw_ms <= RenderSettings::kRestAaMaxMs)
+    const bool cheap = I.stats.points_drawn + I.stats.triangles_drawn <= RenderSettings::kRestAaMaxPrimitives &&
+                       std::uint64_t(width) * std::uint64_t(height) <= RenderSettings::kRestAaMaxPixels && I.stats.volumes_rendered == 0;
+    if (!I.refine.active && !I.interacting && I.scene.antialiasing.on && I.settings.rest_aa_frames > 1 && cheap)
         I.rest_aa = {true, view, width, height, frames, 0};
 }
 
@@ -2069,7 +2072,7 @@ bool Renderer::accumulate_step() {
     glFinish();
     I.stats.draw_ms = ms_since(t0);
     I.stats.aa_frames = a.done;
-    a.active = a.done < a.frames && I.stats.draw_ms <= RenderSettings::kRestAaMaxMs;
+    a.active = a.done < a.frames;
     return !a.active;
 }
 

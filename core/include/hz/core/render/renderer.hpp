@@ -132,13 +132,17 @@ struct RenderSettings {
     // window with --stats ask for it.
     bool time_passes = false;
     // A window at rest: once a progressive frame completed at once (within
-    // begin_progressive, in under kRestAaMaxMs), this many jittered frames of
-    // its view (or Scene::antialiasing's `frames` where more) averaged, one
-    // per accumulate_step: supersampling where a frame is cheap. 0 or 1:
-    // none, whatever the scene's `frames`; none either where
-    // Scene::antialiasing is off.
+    // begin_progressive) and was cheap (at most kRestAaMaxPrimitives points
+    // and triangles drawn, kRestAaMaxPixels pixels, no volume rendered: by
+    // what it drew, not by the clock, so that a scene always decides the
+    // same way), this many jittered frames of its view (or
+    // Scene::antialiasing's `frames` where more) averaged, one per
+    // accumulate_step: supersampling where a frame is cheap. 0 or 1: none,
+    // whatever the scene's `frames`; none either where Scene::antialiasing
+    // is off.
     int rest_aa_frames = 0;
-    static constexpr double kRestAaMaxMs = 150;
+    static constexpr std::uint64_t kRestAaMaxPrimitives = 2000000;
+    static constexpr std::uint64_t kRestAaMaxPixels = 1920 * 1080;
 };
 
 struct FrameStats {
@@ -300,8 +304,7 @@ public:
     // The still's jittered frames (RenderSettings::rest_aa_frames): true
     // while more are due; accumulate_step draws one, leaves the average so
     // far as the picture present() shows (smoothed by the edge pass while
-    // fewer than 4), and returns true once the last is in (or a frame took
-    // longer than kRestAaMaxMs: the average so far stays). Any
+    // fewer than 4), and returns true once the last is in. Any
     // begin_progressive, render or render_to_window ends it.
     bool accumulating() const;
     bool accumulate_step();
