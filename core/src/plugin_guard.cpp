@@ -232,7 +232,7 @@ void install_plugin_guard() {
     (void)::backtrace(frames, 2);
     struct sigaction sa {};
     sa.sa_sigaction = on_watchdog;
-    sa.sa_flags = SA_SIGINFO | SA_ONSTACK;
+    sa.sa_flags = SA_SIGINFO | SA_ONSTACK | SA_RESTART;  // (a stray interrupt of a system call is restarted, not an EINTR)
     sigemptyset(&sa.sa_mask);
     ::sigaction(kSignal, &sa, nullptr);
     g_installed.store(true);
