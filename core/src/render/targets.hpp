@@ -45,7 +45,7 @@ struct Tex2dFbo {
         clamped_texture_2d(GL_NEAREST);
         glBindFramebuffer(GL_FRAMEBUFFER, fbo);
         glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, depth_tex, 0);
-        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
+        if (tex && glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
     }
     // A depth buffer, for drawing into this target directly.
     void ensure_depth() {
@@ -57,17 +57,31 @@ struct Tex2dFbo {
         glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth);
         if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
     }
-    void ensure(int w, int h, GLenum internal, GLenum fmt, GLenum type) {
-        if (fbo && width == w && height == h && format == internal) return;
+    // The colour texture (sampled with `filter`) and its framebuffer, w x h;
+    // kept while the size and format are those asked.
+    void ensure(int w, int h, GLenum internal, GLenum fmt, GLenum type, GLenum filter = GL_LINEAR) {
+        if (fbo && tex && width == w && height == h && format == internal) return;
         destroy();
         width = w, height = h, format = internal;
         glGenTextures(1, &tex);
         glBindTexture(GL_TEXTURE_2D, tex);
         glTexImage2D(GL_TEXTURE_2D, 0, GLint(internal), w, h, 0, fmt, type, nullptr);
-        clamped_texture_2d(GL_LINEAR);
+        clamped_texture_2d(filter);
         glGenFramebuffers(1, &fbo);
         glBindFramebuffer(GL_FRAMEBUFFER, fbo);
         glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
+    }
+    // A framebuffer of a depth texture alone (DEPTH_COMPONENT24, NEAREST), w x
+    // h: a copy of a frame's depth that passes sample.
+    void ensure_depth_only(int w, int h) {
+        if (fbo && depth_tex && !tex && width == w && height == h) return;
+        destroy();
+        width = w, height = h, format = GL_DEPTH_COMPONENT24;
+        glGenFramebuffers(1, &fbo);
+        ensure_depth_texture();
+        glDrawBuffer(GL_NONE);
+        glReadBuffer(GL_NONE);
         if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) throw Error("renderer: incomplete framebuffer");
     }
 };

@@ -100,8 +100,7 @@ double focal_px(const AoParams &p, int h) { return 0.5 * h / std::tan(p.fov_deg 
 AmbientOcclusionPass::AmbientOcclusionPass(MakeProgram make) : make_(std::move(make)) {}
 
 AmbientOcclusionPass::~AmbientOcclusionPass() {
-    if (raw_fbo_) glDeleteFramebuffers(1, &raw_fbo_);
-    if (raw_tex_) glDeleteTextures(1, &raw_tex_);
+    raw_target_.destroy();
     for (auto *p : {&raw_, &blur_, &blur_factors_})
         if (*p) glDeleteProgram((*p)->id);
 }
@@ -130,23 +129,11 @@ void AmbientOcclusionPass::prepare() {
     if (!blur_) blur_ = make_(glsl::kFullscreenVS, v + kBlurFS, "ambient occlusion (blur)");
 }
 
-// The raw factors of `depth` into raw_tex_ (R32F, the depth's size).
+// The raw factors of `depth` into raw_target_ (R32F, the depth's size).
 void AmbientOcclusionPass::raw_factors(const FrameDepth &depth, const AoParams &p, GLuint empty_vao) {
     const int w = depth.width(), h = depth.height();
-    if (!raw_tex_ || w != w_ || h != h_) {
-        if (raw_tex_) glDeleteTextures(1, &raw_tex_);
-        if (!raw_fbo_) glGenFramebuffers(1, &raw_fbo_);
-        glGenTextures(1, &raw_tex_);
-        glBindTexture(GL_TEXTURE_2D, raw_tex_);
-        glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, w, h, 0, GL_RED, GL_FLOAT, nullptr);
-        clamped_texture_2d(GL_NEAREST);
-        glBindFramebuffer(GL_FRAMEBUFFER, raw_fbo_);
-        glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, raw_tex_, 0);
-        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-            throw Error("renderer: ambient occlusion: incomplete framebuffer");
-        w_ = w, h_ = h;
-    }
-    glBindFramebuffer(GL_FRAMEBUFFER, raw_fbo_);
+    raw_target_.ensure(w, h, GL_R32F, GL_RED, GL_FLOAT, GL_NEAREST);
+    glBindFramebuffer(GL_FRAMEBUFFER, raw_target_.fbo);
     glDisable(GL_DEPTH_TEST);
     glDisable(GL_BLEND);
     set_camera(*raw_, depth, p);
@@ -162,7 +149,7 @@ void AmbientOcclusionPass::blurred(Program &prog, const FrameDepth &depth, const
     glUniform1i(prog.loc("u_raw"), 1);
     glUniform1i(prog.loc("u_encoded"), encoded ? 1 : 0);
     glActiveTexture(GL_TEXTURE1);
-    glBindTexture(GL_TEXTURE_2D, raw_tex_);
+    glBindTexture(GL_TEXTURE_2D, raw_target_.tex);
     draw_triangle(empty_vao);
     glActiveTexture(GL_TEXTURE0);
 }
@@ -190,22 +177,16 @@ std::vector<float> AmbientOcclusionPass::read_factors(const FrameDepth &depth, c
     std::vector<float> out(std::size_t(w) * h);
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
     if (!blur) {
-        glBindFramebuffer(GL_READ_FRAMEBUFFER, raw_fbo_);
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, raw_target_.fbo);
         glReadPixels(0, 0, w, h, GL_RED, GL_FLOAT, out.data());
         return out;
     }
-    GLuint fbo = 0, tex = 0;
-    glGenTextures(1, &tex);
-    glBindTexture(GL_TEXTURE_2D, tex);
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, w, h, 0, GL_RED, GL_FLOAT, nullptr);
-    clamped_texture_2d(GL_NEAREST);
-    glGenFramebuffers(1, &fbo);
-    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
+    targets::Tex2dFbo blurred_target;
+    blurred_target.ensure(w, h, GL_R32F, GL_RED, GL_FLOAT, GL_NEAREST);
+    glBindFramebuffer(GL_FRAMEBUFFER, blurred_target.fbo);
     blurred(*blur_factors_, depth, p, empty_vao, false);
     glReadPixels(0, 0, w, h, GL_RED, GL_FLOAT, out.data());
-    glDeleteFramebuffers(1, &fbo);
-    glDeleteTextures(1, &tex);
+    blurred_target.destroy();
     return out;
 }
 

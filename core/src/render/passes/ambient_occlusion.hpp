@@ -71,8 +71,7 @@ private:
     void blurred(Program &prog, const FrameDepth &depth, const AoParams &p, GLuint empty_vao, bool encoded);
     MakeProgram make_;
     std::unique_ptr<Program> raw_, blur_, blur_factors_;
-    GLuint raw_fbo_ = 0, raw_tex_ = 0;  // the factors before their blur (R32F)
-    int w_ = 0, h_ = 0;
+    targets::Tex2dFbo raw_target_;  // the factors before their blur (R32F, NEAREST)
 };
 
 // The estimate on the CPU, from window depths (rows bottom to top, 1 =

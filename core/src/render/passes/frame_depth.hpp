@@ -5,6 +5,7 @@
 // Threading: the GL context's thread.
 #pragma once
 
+#include "../targets.hpp"
 #include "../gl.hpp"
 
 #include <vector>
@@ -21,16 +22,15 @@ public:
     // Copies the depth of `fbo` (w x h; multisampled: one sample each) into
     // the texture. Throws Error if the driver cannot make the target.
     void resolve(GLuint fbo, int w, int h);
-    GLuint texture() const { return tex_; }  // DEPTH_COMPONENT24, NEAREST; 0 before resolve
-    int width() const { return w_; }
-    int height() const { return h_; }
+    GLuint texture() const { return target_.depth_tex; }  // DEPTH_COMPONENT24, NEAREST; 0 before resolve
+    int width() const { return target_.width; }
+    int height() const { return target_.height; }
     // Window depths in [0, 1] (1: the background), rows bottom to top: for
     // the tests. Reads back; slow.
     std::vector<float> read() const;
 
 private:
-    GLuint fbo_ = 0, tex_ = 0;
-    int w_ = 0, h_ = 0;
+    targets::Tex2dFbo target_;  // (depth only)
 };
 
 }  // namespace hz::core::render
