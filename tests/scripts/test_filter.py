@@ -115,6 +115,15 @@ class FilterTest(unittest.TestCase):
         blob = (((xyz - [30, -10, 10]) / [18, 30, 20]) ** 2).sum(1) <= 1
         cls.mask = os.path.join(cls.tmp, "mask.nii.gz")
         nib.save(nib.Nifti1Image(blob.reshape(80, 100, 70).astype(np.uint8), aff), cls.mask)
+        # The same mask stored inverted and scaled back: raw 0 inside, 1
+        # outside, value = raw - 1 (scl_inter -1): only a reader that applies
+        # the scaling finds the blob (nibabel's dataobj does; so does tckedit).
+        scaled = nib.Nifti1Image((~blob).reshape(80, 100, 70).astype(np.uint8), aff)
+        scaled.header.set_slope_inter(1, -1)
+        scaled.header.set_data_dtype(np.uint8)
+        cls.scaled_mask = os.path.join(cls.tmp, "scaled_mask.nii")
+        nib.save(scaled, cls.scaled_mask)
+        assert (np.asarray(nib.load(cls.scaled_mask).dataobj.get_unscaled()) != 0).sum() == (~blob).sum()
         s0, s1 = cls.streamlines[0], cls.streamlines[1]
         # Regions where the data are (the generator's brain: semi-axes 65, 85, 60 mm).
         cls.cases = {
@@ -127,6 +136,10 @@ class FilterTest(unittest.TestCase):
             "mask": dict(include=[cls.mask], exclude=["sphere:-20,0,-10,12"]),
             "lengths only": dict(min_length=120),
             "ends only": dict(include=["sphere:40,10,30,25"], ends_only=True),
+            # (the exclusion is tested at the ends only too: streamlines
+            # that pass through it but end elsewhere are kept)
+            "ends only with an exclusion": dict(include=["sphere:40,10,30,35"], exclude=["sphere:30,-10,20,25"], ends_only=True),
+            "mask with scl_inter": dict(include=[cls.scaled_mask]),
             "inverted": dict(include=["sphere:10,-20,15,12"], invert=True),
         }
 
@@ -238,6 +251,37 @@ class FilterTest(unittest.TestCase):
                 expect[g] = kept
         self.assertEqual({g: sorted(m.tolist()) for g, m in part["groups"].items()}, expect)
         self.assertIn("horizon_filter", part["header"])
+
+    def test_lengths_exactly_at_the_bounds(self):
+        """Streamlines whose length is exactly --min-length or --max-length
+        (steps of (0.3, 0.4, 0) scaled to 0.5 mm and whole (3, 4, 0) steps:
+        exact in float32) are kept: both bounds are inclusive, as tckedit's;
+        one ulp beyond them is not."""
+        from hztest import tck_bytes
+        steps = {"half": np.float32([0.3, 0.4, 0.0]), "five": np.float32([3.0, 4.0, 0.0])}
+        sl = []
+        for n in range(1, 61):  # 0.5 .. 30 mm in 0.5 mm steps, then 5 .. 300 mm
+            sl.append(np.arange(n + 1, dtype=np.float32)[:, None] * steps["half"] + np.float32([1, 2, 3]))
+            sl.append(np.arange(n + 1, dtype=np.float32)[:, None] * steps["five"] - np.float32([7, 0, 1]))
+        lens = lengths_f32(sl)
+        self.assertIn(np.float32(10), lens)
+        self.assertIn(np.float32(20), lens)
+        path = self.path("exact.tck")
+        with open(path, "wb") as f:
+            f.write(tck_bytes(sl))
+        for lo, hi in ((10, 20), (10, 10), (np.nextafter(np.float32(10), np.float32(11)), 20), (5, np.nextafter(np.float32(20), np.float32(0)))):
+            with self.subTest(min_length=lo, max_length=hi):
+                want = [i for i, x in enumerate(lens) if np.float32(lo) <= x <= np.float32(hi)]
+                self.assertEqual(want, reference(sl, min_length=lo, max_length=hi))
+                p = run("filter", path, "--min-length", repr(float(lo)), "--max-length", repr(float(hi)), "--ids", "-")
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertEqual([int(x) for x in p.stdout.split()], want)
+                if TCKEDIT is not None:
+                    out = self.path("exact_m.tck")
+                    m = subprocess.run([TCKEDIT, path, out, "-quiet", "-force", "-minlength", repr(float(lo)), "-maxlength", repr(float(hi))],
+                                       capture_output=True, text=True, timeout=60)
+                    self.assertEqual(m.returncode, 0, m.stderr)
+                    self.assertEqual(len(load(out)), len(want))
 
     def test_carries_per_vertex_data_of_the_selection(self):
         """Per-point scalars and per-streamline properties of a TRK (written

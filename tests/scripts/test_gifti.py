@@ -60,6 +60,32 @@ class GiftiTest(TempDirTest):
                     self.assertEqual(len(info["arrays"]), 1)
                     self.check_roundtrip(path, v, f, ov)
 
+    def test_base64_with_line_breaks(self):
+        """Base64 wrapped at 76 characters with CRLF and indentation, as
+        MIME encoders and several GIFTI writers lay it out (nibabel writes
+        one line): the same arrays as nibabel reads from the same file."""
+        import re
+        rng = np.random.default_rng(3)
+        v, f = surface(rng, 300, 500)
+        for enc in ("GIFTI_ENCODING_B64BIN", "GIFTI_ENCODING_B64GZ"):
+            with self.subTest(encoding=enc):
+                path = self.write("one_line.gii", v, f, enc)
+                with open(path) as fh:
+                    text = fh.read()
+
+                def wrap(m):
+                    lines = base64.encodebytes(base64.b64decode(m.group(2))).decode()
+                    return m.group(1) + "\n  " + lines.replace("\n", "\r\n  ") + m.group(3)
+
+                wrapped, count = re.subn(r"(<Data>)([^<]*)(</Data>)", wrap, text)
+                self.assertEqual(count, 2)
+                self.assertGreater(wrapped.count("\r\n"), 20)
+                path = self.path("wrapped.gii")
+                with open(path, "w", newline="") as fh:
+                    fh.write(wrapped)
+                np.testing.assert_array_equal(nib.load(path).agg_data("NIFTI_INTENT_POINTSET"), v)
+                self.check_roundtrip(path, v, f)
+
     def test_float64_overlay_kept(self):
         """A NIFTI_TYPE_FLOAT64 array reads as float64 (not narrowed) and converts to GIFTI exactly."""
         rng = np.random.default_rng(5)

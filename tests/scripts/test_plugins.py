@@ -465,6 +465,34 @@ class PluginsTest(TempDirTest):
             self.assertEqual(so in [x["file"] for x in rep["plugins"]], bool(want), rep["rejected"])
         self.assertEqual(rep["trial_loads"], 1, "tried again after its crash, not taken on the list's word")
 
+    def test_tables_too_short_for_what_they_hold(self):
+        """A descriptor or a loader table whose struct_size is below the 1.0
+        layout is rejected with the reason in `horizon plugins`; an
+        extension table too short for its function is not used (its function
+        crashes): the loader still reads, through its core table."""
+        for name, reason in (("short_descriptor", "struct_size too small"), ("short_table", "table struct_size 8 <")):
+            with self.subTest(name=name):
+                p, so = self.misbehaving(name, "plugins", "--json")
+                self.assertEqual(p.returncode, 0, p.stderr)
+                rep = json.loads(p.stdout)
+                self.assertNotIn(so, [x["file"] for x in rep["plugins"]])
+                rejected = {r["file"]: r["reason"] for r in rep["rejected"]}
+                self.assertIn(reason, rejected.get(so, ""), rejected)
+        data = self.path("two.hzt")
+        with open(data, "w") as f:
+            f.write("hzt 1\n3\n0 0 0\n1 0 0\n2 0.5 0\n2\n-1 -2 -3\n4 5 6\n")
+        p, so = self.misbehaving("short_extension", "info", data, "--json")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertEqual(json.loads(p.stdout)["nb_streamlines"], 2)
+        out = self.path("two.tck")
+        p, _ = self.misbehaving("short_extension", "convert", data, out)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        import nibabel as nib
+        import numpy as np
+        got = list(nib.streamlines.load(out).streamlines)
+        np.testing.assert_array_equal(got[0], [[0, 0, 0], [1, 0, 0], [2, 0.5, 0]])
+        np.testing.assert_array_equal(got[1], [[-1, -2, -3], [4, 5, 6]])
+
     def test_a_destructor_that_crashes_or_hangs_at_exit_keeps_the_commands_status(self):
         """A plugin's destructor at exit that crashes or never returns: the
         command's output and exit status stand, with one warning naming the

@@ -499,6 +499,25 @@ class SelectionWindowTest(TempDirTest):
             p = run("render", self.path(name + ".json"), "-o", self.path(name + ".png"), "--size", "320x240")
             self.assertEqual(p.returncode, 0, p.stderr)
         np.testing.assert_array_equal(load(self.path("regions.png")), load(self.path("filtered.png")))
+        # A mask named relative to the scene file (in a folder of its own,
+        # not the working directory): the selection `filter` makes with it.
+        import nibabel as nib
+        os.makedirs(self.path("sub/masks"))
+        aff = np.diag([2.0, 2.0, 2.0, 1.0])
+        aff[:3, 3] = -40
+        ijk = np.stack(np.meshgrid(*[np.arange(41)] * 3, indexing="ij"), -1)
+        ball = ((ijk * 2.0 - 40 - [5, 0, 0]) ** 2).sum(-1) <= 12 ** 2
+        nib.save(nib.Nifti1Image(ball.astype(np.uint8), aff), self.path("sub/masks/ball.nii.gz"))
+        p = run("filter", self.tck, "--include", self.path("sub/masks/ball.nii.gz"), "-o", self.path("m.tck"))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.assertNotEqual(os.path.getsize(self.path("m.tck")), os.path.getsize(out))
+        for name, ob in {"sub/masked": {"type": "streamlines", "file": self.tck, "include": "masks/ball.nii.gz", "render": "lines"},
+                         "mfiltered": {"type": "streamlines", "file": self.path("m.tck"), "render": "lines"}}.items():
+            with open(self.path(name + ".json"), "w") as f:
+                json.dump({"objects": [ob], "camera": {"view": "superior"}}, f)
+            p = run("render", self.path(name + ".json"), "-o", self.path(name + ".png"), "--size", "320x240")
+            self.assertEqual(p.returncode, 0, p.stderr)
+        np.testing.assert_array_equal(load(self.path("sub/masked.png")), load(self.path("mfiltered.png")))
         # A region that selects nothing, or a bad one, names the object.
         for ob, words in [({"include": "sphere:500,500,500,5"}, "no streamline is selected"), ({"include": "sphere:1,2"}, "objects[0].include[0]")]:
             with open(self.path("bad.json"), "w") as f:
