@@ -249,8 +249,19 @@ class SafetyTest(TempDirTest):
         stale = self.path(".out.trk.tmp-999999999-12")
         with open(stale, "w") as f:
             f.write("x")
-        self.assertEqual(run("convert", self.tck, self.path("out.trk")).returncode, 0)
-        self.assertFalse(os.path.exists(stale))
+        # Beside it, the temporary of a writer still running (another
+        # process's, for the same output): left alone.
+        writer = subprocess.Popen(["sleep", "60"])
+        try:
+            live = self.path(f".out.trk.tmp-{writer.pid}-34")
+            with open(live, "w") as f:
+                f.write("y")
+            self.assertEqual(run("convert", self.tck, self.path("out.trk")).returncode, 0)
+            self.assertFalse(os.path.exists(stale))
+            self.assertTrue(os.path.exists(live), "a live writer's temporary was removed")
+        finally:
+            writer.kill()
+            writer.wait()
 
     def test_sizes_are_bounded_before_allocating(self):
         """Counts and sizes are bounded before memory is taken, in one line
