@@ -455,7 +455,7 @@ class ScaleTest(unittest.TestCase):
             mean[name] = linear(shot).mean()
             if name == "proxy":
                 self.assertIn("level of detail:", p.stdout)
-                self.assertTrue(any(f["shadow_map"] == 2048 and f["kind"] == "complete" for f in j["frames"]))
+                self.assertTrue(any(f["shadow_map"] >= 256 and f["kind"] == "complete" for f in j["frames"]))
         full = mean["plain"] / mean["plain_none"]
         still = mean["proxy"] / mean["proxy_none"]
         self.assertLess(full, 0.95, "shadows darken the full frame")

@@ -1178,24 +1178,38 @@ void main() {
         bool proxy = false;
         bool operator==(const ShadowKey &) const = default;
     } shadow_key, shadow_pending;
+    // The map's size: a texel no finer than the frame's pixel at the
+    // target (at most kShadowMapSize, or its share of a proxy frame), so that a line casts a shadow as wide as it is
+    // drawn (a finer map drew 1M lines' shadows half as wide as the lines,
+    // and at twice the cost: thin lines leave the map's tiles open, and
+    // occlusion culling in the light's view then skips less); a multiple of
+    // 256 texels, so that a small zoom keeps the map.
     static constexpr int kShadowMapSize = 2048;
-    void draw_shadow_map(const Matrices &m, std::vector<ChunkItem> *defer = nullptr) {
+    int shadow_map_size(double extent_mm, int frame_h, bool proxy) const {
+        const int cap = proxy ? std::max(256, kShadowMapSize / proxy_scale_now()) : kShadowMapSize;
+        const double dist = glm::length(to_dvec3(frame_view.eye) - to_dvec3(frame_view.target));
+        const double px_mm = 2.0 * dist * std::tan(glm::radians(frame_view.fov_deg) / 2) / std::max(frame_h, 1);
+        const double need = px_mm > 0 ? extent_mm / px_mm : double(cap);
+        return std::clamp(int(std::ceil(std::min(need, double(cap)) / 256.0)) * 256, 256, cap);
+    }
+    void draw_shadow_map(const Matrices &m, int frame_h, std::vector<ChunkItem> *defer = nullptr) {
         shadow_drawn = false;
-        stats.shadow_ms = 0, stats.shadow_map = 0;
+        stats.shadow_ms = 0, stats.shadow_map = 0, stats.shadow_texel_mm = 0;
         if (!scene.shadows.on || key_light() < 0) return;
         if (cue_bounds_generation != generation) cue_bounds = scene_bounds(scene), cue_bounds_generation = generation;
         if (cue_bounds.empty) return;
         const bool proxy = out_ == &lowres;
-        const ShadowKey key{generation, key_light_direction(m), proxy ? std::max(256, kShadowMapSize / proxy_scale_now()) : kShadowMapSize,
-                            proxy};
+        const glm::dvec3 to_light = key_light_direction(m);
+        const ShadowView sv = fit_shadow_view(to_light, cue_bounds);
+        const ShadowKey key{generation, to_light, shadow_map_size(sv.extent_mm, frame_h, proxy), proxy};
         shadow_drawn = true;
         stats.shadow_map = key.size;
+        stats.shadow_texel_mm = sv.extent_mm / key.size;
         if (key == shadow_key) return;
         shadow_key = ShadowKey{};
         if (settings.time_passes) glFinish();
         const auto t0 = Clock::now();
         const FrameStats keep = stats;
-        const ShadowView sv = fit_shadow_view(key.to_light, cue_bounds);
         const glm::mat4 vp(sv.view_proj);
         shadow_pass->begin(sv, key.size);
         for (auto &g : objects) {
@@ -1223,6 +1237,7 @@ void main() {
         stats = keep;
         stats.shadow_ms = settings.time_passes ? ms_since(t0) : 0.0;
         stats.shadow_map = key.size;
+        stats.shadow_texel_mm = sv.extent_mm / key.size;
         if (defer && !defer->empty())
             shadow_pending = key, shadow_drawn = false;  // (the frame's objects wait for the rest)
         else
@@ -1256,7 +1271,7 @@ void main() {
     void draw_scene(const View &v, int w, int h) {
         const Matrices m = matrices(v, w, h);
         frame_view = v;
-        draw_shadow_map(m);
+        draw_shadow_map(m, h);
         const GLuint target = begin_frame(w, h);
         clear_and_sky(m, target, w, h);
         // A proxy frame: the last complete still first, reprojected; the
@@ -1516,7 +1531,7 @@ void main() {
         refine.culling = Culling{};
         refine.shadow_items.clear(), refine.shadow_next = 0;
         refine.shadow_culling = Culling{};
-        draw_shadow_map(refine.m, &refine.shadow_items);
+        draw_shadow_map(refine.m, h, &refine.shadow_items);
         refine.shadow_culling.read = refine.shadow_culling.skip = settings.occlusion && settings.occlusion_skip;
         refine.target = begin_frame(w, h);
         clear_and_sky(refine.m, refine.target, w, h);

@@ -167,10 +167,13 @@ struct FrameStats {
     double ao_ms = 0, depth_cue_ms = 0;
     // The key light's shadow map (Scene::shadows) drawn for the last frame:
     // its milliseconds with time_passes (0: not timed, or the last one kept
-    // because neither the light nor the scene changed), and its side in
-    // texels (0: no shadows drawn).
+    // because neither the light nor the scene changed), its side in
+    // texels (0: no shadows drawn; as many as make a texel no finer than the
+    // frame's pixel at the target, in steps of 256, at most 2048) and a
+    // texel's side in mm.
     double shadow_ms = 0;
     int shadow_map = 0;
+    double shadow_texel_mm = 0;
     // Volumes rendered by ray-marching (Object::transfer) in the last frame,
     // and the pass's milliseconds with time_passes.
     int volumes_rendered = 0;
