@@ -250,7 +250,8 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
         if (o.frames > 1) std::printf("  %d frames: median %.1f ms/frame\n", o.frames, frame_ms);
         if (r.scene().ambient_occlusion.on) std::printf("  ambient occlusion: %.1f ms\n", s.ao_ms);
         if (r.scene().depth_cue.on) std::printf("  depth cue: %.1f ms\n", s.depth_cue_ms);
-        if (r.scene().shadows.on) std::printf("  shadows: %.1f ms (a %dx%d map, %.3f mm a texel)\n", s.shadow_ms, s.shadow_map, s.shadow_map, s.shadow_texel_mm);
+        if (r.scene().shadows.on)
+            std::printf("  shadows: %.1f ms (a %dx%d map, %.3f mm a texel)\n", s.shadow_ms, s.shadow_map, s.shadow_map, s.shadow_texel_mm);
         if (s.volumes_rendered) std::printf("  volume rendering: %.1f ms (%d volumes)\n", s.volume_ms, s.volumes_rendered);
         if (s.aa_frames > 1) std::printf("  anti-aliasing: %d jittered frames averaged\n", s.aa_frames);
         if (s.edge_aa) std::printf("  anti-aliasing: edges smoothed (%.1f ms)\n", s.aa_ms);

@@ -130,11 +130,12 @@ struct Csv {
     }
 };
 
-// An extension (hz_extensions.h): open() with a task, which the adapter
-// provides too: the host shows the parse's progress and can cancel it.
-using OpenTask = hz::open_task<hz::loader<Csv>::open_task>;
-
-const char *const kInterfaces[] = {HZ_INTERFACE_LOADER, HZ_EXT_OPEN_TASK, nullptr};
+// The descriptor. Its interfaces, hz::loader<Csv>::interfaces, name the
+// core table and the extensions (hz_extensions.h) the adapter serves for
+// this class: here open() with a task (the host shows the parse's progress
+// and can cancel it). A class with read_streamlines_checked, locate_positions
+// and read_offsets, max_gap or write_selection gets those extensions too
+// (see hz/cpp/loader.hpp; the TRK loader is a full example).
 const hz_plugin_descriptor kDescriptor = {
     .struct_size = sizeof(hz_plugin_descriptor),
     .abi = HZ_ABI_VERSION_INIT,
@@ -145,9 +146,9 @@ const hz_plugin_descriptor kDescriptor = {
     .vendor = "Example Vendor",
     .description = "Streamlines as CSV rows 'streamline,x,y,z': a starting point for loaders in C++",
     .license = "MIT",
-    .interfaces = kInterfaces,
+    .interfaces = hz::loader<Csv>::interfaces,
 };
 
 }  // namespace
 
-HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, hz::loader<Csv>::table, OpenTask::ext>::entry;
+HZ_DECLARE_PLUGIN_ENTRY = hz::loader_plugin<kDescriptor, Csv>::entry;

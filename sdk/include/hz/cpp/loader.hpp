@@ -11,7 +11,10 @@
 //   - no exception across the ABI: L::FormatError becomes HZ_E_FORMAT,
 //     L::IoError HZ_E_IO, L::Cancelled (if any) HZ_E_CANCELLED, anything
 //     else HZ_E_INTERNAL (hz::format_guard);
-//   - slots L does not fill are NULL, and `caps` follows from what it does.
+//   - slots L does not fill are NULL, and `caps` follows from what it does;
+//   - the extensions of hz_extensions.h L supports (below), their tables,
+//     and the descriptor's interfaces list that names them
+//     (loader<L>::interfaces), served by hz::loader_plugin<D, L>::entry.
 // Nothing here crosses the ABI; C authors keep writing the table by hand.
 //
 // L provides these static members ([opt]: may be left out):
@@ -35,6 +38,32 @@
 //   [opt] static void read_volume(Reader &, const hz_array_view &dst, const hz_task *);   // dims checked
 //   [opt] static void write(const hz_write_request &req, const hz_dataset_view &data, const hz_task *);
 //                                // data.kind is one of `kinds`; req.path is where to write
+// Extensions (hz_extensions.h), each offered when L has what it needs:
+//   HZ_EXT_OPEN_TASK              whenever L reads: open() gets the host's task (may be NULL)
+//   HZ_EXT_CHECKED_READ           [opt] static bool read_streamlines_checked(Reader &, float *positions,
+//                                     uint64_t *offsets, double lo[3], double hi[3], const hz_task *);
+//                                 read_streamlines() that returns true when it vouches that every
+//                                 coordinate it wrote is finite and lo/hi are exactly their bounds
+//                                 (false: the host checks them itself). With it, read_streamlines may
+//                                 be left out.
+//   HZ_EXT_MAPPED_POSITIONS       [opt] static bool locate_positions(Reader &, hz_positions_extent &out);
+//                                 [opt] static void read_offsets(Reader &, uint64_t *offsets, const hz_task *);
+//                                 both or neither; locate_positions returns false when the positions are
+//                                 not stored as the host holds them (or not in a layout out.accepts
+//                                 lists); read_offsets writes nb_streamlines + 1 offsets (room checked,
+//                                 called only after a locate_positions that returned true).
+//   HZ_EXT_DELIMITED_STREAMLINES  [opt] static constexpr uint32_t max_gap = 1;   // write() takes
+//                                 views whose streamlines end `gap` vertices before the next offset
+//                                 (a larger gap is refused here, HZ_E_INVALID_ARGUMENT)
+//   HZ_EXT_WRITE_SELECTION        [opt] static void write_selection(const hz_write_request &,
+//                                     const hz_dataset_view &, const uint64_t *selection,
+//                                     uint64_t nb_selected, const hz_task *);
+//                                 selection NULL: every streamline; else strictly increasing indices
+//                                 below nb_streamlines (checked here). Without L::write, the table's
+//                                 write() calls it with NULL.
+// A single-plugin library then needs only its descriptor:
+//     const hz_plugin_descriptor kDescriptor = {..., .interfaces = hz::loader<Trk>::interfaces};
+//     HZ_DECLARE_PLUGIN_ENTRY = hz::loader_plugin<kDescriptor, Trk>::entry;
 // Every function is called with the loader's threading rules (hz_loader.h):
 // one thread at a time per reader.
 #ifndef HZ_CPP_LOADER_HPP
@@ -42,6 +71,8 @@
 
 #include <hz/cpp/plugin.hpp>
 
+#include <array>
+#include <concepts>
 #include <cstring>
 #include <memory>
 #include <string>
@@ -72,6 +103,7 @@ class loader {
         hz_dataset_info info{};
         std::vector<hz_array_info> arrays;
         std::unique_ptr<typename L::Reader> impl;
+        bool located = false;  // locate_positions() answered HZ_OK
     };
     static Open *as(hz_reader *r) noexcept { return reinterpret_cast<Open *>(r); }
 
@@ -81,7 +113,23 @@ class loader {
     static constexpr bool has_streamlines = requires(typename L::Reader &r) { L::read_streamlines(r, nullptr, nullptr, nullptr); };
     static constexpr bool has_mesh = requires(typename L::Reader &r) { L::read_mesh(r, nullptr, nullptr, nullptr); };
     static constexpr bool has_volume = requires(typename L::Reader &r, const hz_array_view &v) { L::read_volume(r, v, nullptr); };
-    static constexpr bool writes = requires(const hz_write_request &q, const hz_dataset_view &d) { L::write(q, d, nullptr); };
+    static constexpr bool has_write = requires(const hz_write_request &q, const hz_dataset_view &d) { L::write(q, d, nullptr); };
+    static constexpr bool has_checked = requires(typename L::Reader &r, double *b) {
+        { L::read_streamlines_checked(r, nullptr, nullptr, b, b, nullptr) } -> std::convertible_to<bool>;
+    };
+    static constexpr bool has_mapped = requires(typename L::Reader &r, hz_positions_extent &e) {
+        { L::locate_positions(r, e) } -> std::convertible_to<bool>;
+        L::read_offsets(r, nullptr, nullptr);
+    };
+    static constexpr bool has_gap = requires { requires L::max_gap >= 1u; };
+    static constexpr bool has_selection = requires(const hz_write_request &q, const hz_dataset_view &d) {
+        L::write_selection(q, d, nullptr, uint64_t{0}, nullptr);
+    };
+    static constexpr bool writes = has_write || has_selection;
+    static constexpr uint32_t gap_taken() noexcept {
+        if constexpr (has_gap) return L::max_gap;
+        return 0;
+    }
 
     template <class F>
     static hz_status run(hz_error *err, const std::string &path, F &&body) noexcept {
@@ -207,7 +255,70 @@ public:
             return too_small(err, r, "read_streamlines");
         if (cancelled(task)) return set_error(err, HZ_E_CANCELLED, "cancelled");
         return run(err, r.path, [&]() -> hz_status {
-            L::read_streamlines(*r.impl, dst->positions, dst->offsets, task);
+            if constexpr (has_streamlines) {
+                L::read_streamlines(*r.impl, dst->positions, dst->offsets, task);
+            } else {
+                double lo[3], hi[3];
+                (void)L::read_streamlines_checked(*r.impl, dst->positions, dst->offsets, lo, hi, task);
+            }
+            return HZ_OK;
+        });
+    }
+
+    // HZ_EXT_CHECKED_READ: read_streamlines() and the loader's vouch, into
+    // `check` only where its struct_size has room.
+    static hz_status HZ_ABI read_streamlines_checked(hz_reader *reader, const hz_streamlines_dst *dst, hz_positions_check *check,
+                                                     const hz_task *task, hz_error *err) noexcept {
+        if (reader == nullptr || dst == nullptr || check == nullptr) return bad(err, "read_streamlines_checked: NULL");
+        Open &r = *as(reader);
+        if (r.info.kind != HZ_DATA_STREAMLINES)
+            return set_errorf(err, HZ_E_UNSUPPORTED, "%s: %s: holds no streamlines", L::prefix, r.path.c_str());
+        if ((dst->positions == nullptr && r.info.nb_vertices > 0) || dst->offsets == nullptr)
+            return bad(err, "read_streamlines_checked: NULL destination");
+        if (dst->positions_capacity < 3 * r.info.nb_vertices || dst->offsets_capacity < r.info.nb_streamlines + 1)
+            return too_small(err, r, "read_streamlines_checked");
+        if (cancelled(task)) return set_error(err, HZ_E_CANCELLED, "cancelled");
+        return run(err, r.path, [&]() -> hz_status {
+            double lo[3], hi[3];
+            const bool vouched = L::read_streamlines_checked(*r.impl, dst->positions, dst->offsets, lo, hi, task);
+            if (vouched && check->struct_size >= sizeof(hz_positions_check)) {
+                check->vouched = 1;
+                for (int d = 0; d < 3; ++d) check->bounds_min[d] = lo[d], check->bounds_max[d] = hi[d];
+            }
+            return HZ_OK;
+        });
+    }
+
+    // HZ_EXT_MAPPED_POSITIONS.
+    static hz_status HZ_ABI locate_positions(hz_reader *reader, hz_positions_extent *out, hz_error *err) noexcept {
+        if (reader == nullptr || out == nullptr || out->struct_size < sizeof(hz_positions_extent))
+            return bad(err, "locate_positions: bad arguments");
+        Open &r = *as(reader);
+        if (r.info.kind != HZ_DATA_STREAMLINES) return HZ_E_UNSUPPORTED;
+        hz_status st = HZ_E_UNSUPPORTED;
+        const hz_status ran = run(err, r.path, [&]() -> hz_status {
+            hz_positions_extent e = *out;
+            // (a layout the host did not list is not one it can map: the
+            // host reads with read_streamlines() instead)
+            if (L::locate_positions(*r.impl, e) && (e.flags & ~(out->accepts | hz_extent_flags(HZ_EXTENT_HAS_CRC32))) == 0) {
+                e.struct_size = out->struct_size, e.accepts = out->accepts;
+                *out = e;
+                r.located = true, st = HZ_OK;
+            }
+            return HZ_OK;
+        });
+        return ran != HZ_OK ? ran : st;
+    }
+    static hz_status HZ_ABI read_offsets(hz_reader *reader, uint64_t *offsets, uint64_t capacity, const hz_task *task,
+                                         hz_error *err) noexcept {
+        if (reader == nullptr || offsets == nullptr) return bad(err, "read_offsets: NULL");
+        Open &r = *as(reader);
+        if (!r.located)
+            return set_errorf(err, HZ_E_BAD_STATE, "%s: %s: read_offsets before locate_positions", L::prefix, r.path.c_str());
+        if (capacity < r.info.nb_streamlines + 1) return too_small(err, r, "read_offsets");
+        if (cancelled(task)) return set_error(err, HZ_E_CANCELLED, "cancelled");
+        return run(err, r.path, [&]() -> hz_status {
+            L::read_offsets(*r.impl, offsets, task);
             return HZ_OK;
         });
     }
@@ -242,12 +353,38 @@ public:
 
     static void HZ_ABI close(hz_reader *reader) noexcept { delete as(reader); }
 
-    static hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *task, hz_error *err) noexcept {
+    // What every write checks: the request, the kind, a gap L takes.
+    static hz_status write_checks(const hz_write_request *req, const hz_dataset_view *data, hz_error *err) noexcept {
         if (req == nullptr || req->path == nullptr || data == nullptr) return bad(err, "write: NULL request or data");
         if ((data->kind & L::kinds) == 0 || (data->kind & (data->kind - 1)) != 0)
             return set_errorf(err, HZ_E_UNSUPPORTED, "%s: %s: cannot hold this kind of data", L::prefix, req->path);
+        if (data->kind == HZ_DATA_STREAMLINES && data->streamlines.gap > gap_taken())
+            return set_errorf(err, HZ_E_INVALID_ARGUMENT, "%s: %s: streamlines with gap %u (at most %u expected)", L::prefix, req->path,
+                              data->streamlines.gap, gap_taken());
+        return HZ_OK;
+    }
+
+    static hz_status HZ_ABI write(const hz_write_request *req, const hz_dataset_view *data, const hz_task *task, hz_error *err) noexcept {
+        if (const hz_status st = write_checks(req, data, err); st != HZ_OK) return st;
         return run(err, req->path, [&]() -> hz_status {
-            L::write(*req, *data, task);
+            if constexpr (has_write)
+                L::write(*req, *data, task);
+            else
+                L::write_selection(*req, *data, nullptr, 0, task);
+            return HZ_OK;
+        });
+    }
+
+    // HZ_EXT_WRITE_SELECTION: the selection checked (selection_invalid).
+    static hz_status HZ_ABI write_selection(const hz_write_request *req, const hz_dataset_view *data, const uint64_t *selection,
+                                            uint64_t nb_selected, const hz_task *task, hz_error *err) noexcept {
+        if (const hz_status st = write_checks(req, data, err); st != HZ_OK) return st;
+        if (selection_invalid(data->streamlines.nb_streamlines, selection, nb_selected))
+            return set_errorf(err, HZ_E_INVALID_ARGUMENT, "%s: %s: the selection is not increasing indices of the %llu streamlines",
+                              L::prefix, req->path, static_cast<unsigned long long>(data->streamlines.nb_streamlines));
+        static const uint64_t none = 0;
+        return run(err, req->path, [&]() -> hz_status {
+            L::write_selection(*req, *data, nb_selected ? selection : &none, nb_selected, task);
             return HZ_OK;
         });
     }
@@ -269,7 +406,7 @@ public:
             t.close = close;
         }
         if constexpr (has_metadata) t.visit_metadata = visit_metadata;
-        if constexpr (has_streamlines) t.read_streamlines = read_streamlines;
+        if constexpr (has_streamlines || has_checked) t.read_streamlines = read_streamlines;
         if constexpr (has_arrays) t.read_array = read_array;
         if constexpr (has_volume) t.read_volume = read_volume;
         if constexpr (has_mesh) t.read_mesh = read_mesh;
@@ -277,6 +414,78 @@ public:
         return t;
     }
     static constexpr hz_loader table = make_table();
+
+    // The extension tables L supports, and the descriptor's interfaces:
+    // HZ_INTERFACE_LOADER, then their ids, NULL-terminated.
+    static constexpr hz_ext_open_task open_task_table = {.struct_size = sizeof(hz_ext_open_task), .reserved0 = 0, .open = open_task};
+    static constexpr hz_ext_checked_read checked_read_table = {
+        .struct_size = sizeof(hz_ext_checked_read), .reserved0 = 0, .read_streamlines_checked = read_streamlines_checked};
+    static constexpr hz_ext_mapped_positions mapped_positions_table = {
+        .struct_size = sizeof(hz_ext_mapped_positions), .reserved0 = 0, .locate_positions = locate_positions, .read_offsets = read_offsets};
+    static constexpr hz_ext_delimited_streamlines delimited_table = {.struct_size = sizeof(hz_ext_delimited_streamlines),
+                                                                     .max_gap = gap_taken()};
+    static constexpr hz_ext_write_selection write_selection_table = {
+        .struct_size = sizeof(hz_ext_write_selection), .reserved0 = 0, .write_selection = write_selection};
+
+    // The table of extension `id` (NULL: not one L supports). [any thread]
+    static const void *extension(const char *id) noexcept {
+        if (id == nullptr) return nullptr;
+        if constexpr (reads)
+            if (std::strcmp(id, HZ_EXT_OPEN_TASK) == 0) return &open_task_table;
+        if constexpr (has_checked)
+            if (std::strcmp(id, HZ_EXT_CHECKED_READ) == 0) return &checked_read_table;
+        if constexpr (has_mapped)
+            if (std::strcmp(id, HZ_EXT_MAPPED_POSITIONS) == 0) return &mapped_positions_table;
+        if constexpr (has_gap)
+            if (std::strcmp(id, HZ_EXT_DELIMITED_STREAMLINES) == 0) return &delimited_table;
+        if constexpr (has_selection)
+            if (std::strcmp(id, HZ_EXT_WRITE_SELECTION) == 0) return &write_selection_table;
+        return nullptr;
+    }
+
+private:
+    static constexpr std::array<const char *, 7> make_interfaces() noexcept {
+        std::array<const char *, 7> a{};
+        std::size_t n = 0;
+        a[n++] = HZ_INTERFACE_LOADER;
+        if (reads) a[n++] = HZ_EXT_OPEN_TASK;
+        if (has_checked) a[n++] = HZ_EXT_CHECKED_READ;
+        if (has_mapped) a[n++] = HZ_EXT_MAPPED_POSITIONS;
+        if (has_gap) a[n++] = HZ_EXT_DELIMITED_STREAMLINES;
+        if (has_selection) a[n++] = HZ_EXT_WRITE_SELECTION;
+        return a;
+    }
+    static constexpr std::array<const char *, 7> interfaces_ = make_interfaces();
+
+public:
+    // For hz_plugin_descriptor.interfaces: static storage, NULL-terminated.
+    static constexpr const char *const *interfaces = interfaces_.data();
+};
+
+// The entry functions of a library holding one loader written as class L,
+// whose descriptor D has .interfaces = hz::loader<L>::interfaces:
+//     HZ_DECLARE_PLUGIN_ENTRY = hz::loader_plugin<kDescriptor, Trk>::entry;
+// get_interface() serves loader<L>::table and the extensions L supports.
+// host() returns the hz_host given to init() (NULL before init / after deinit).
+template <const hz_plugin_descriptor &D, class L>
+struct loader_plugin {
+    static const hz_host *host() noexcept { return host_; }
+    static bool HZ_ABI init(const hz_host *h, const char *) noexcept {
+        host_ = h;
+        return true;
+    }
+    static void HZ_ABI deinit() noexcept { host_ = nullptr; }
+    static uint32_t HZ_ABI count() noexcept { return 1; }
+    static const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) noexcept { return i == 0 ? &D : nullptr; }
+    static const void *HZ_ABI get_interface(const char *id, const char *iface) noexcept {
+        if (id == nullptr || iface == nullptr || std::strcmp(id, D.id) != 0) return nullptr;
+        if (std::strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &loader<L>::table;
+        return loader<L>::extension(iface);
+    }
+    static constexpr hz_plugin_entry entry = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
+
+private:
+    static inline const hz_host *host_ = nullptr;
 };
 
 }  // namespace hz
