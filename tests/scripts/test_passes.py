@@ -716,6 +716,39 @@ class VolumeRenderingTest(TempDirTest):
         # Outside the cube: the background, untouched.
         self.assertEqual(pic[5, 5].max(), 0)
 
+    def test_translucent_objects_in_front_of_and_behind_a_volume(self):
+        """A translucent red square (opacity 0.5) above the cube (a = 0.05,
+        white) or below it, seen from above: sorted compositing in linear
+        light, from the two drawn alone: in front, square over volume; behind,
+        volume over square; whatever the scene's order. (Volumes used to be
+        composited after every translucent object, over them: a square in
+        front showed behind the volume, its green channel 0.91 instead of
+        0.67.) The volume's colours are composited as linear light in such a
+        frame (as display values in a frame without translucency)."""
+        def square(z):
+            return {"type": "surface", "file": f"sq{z}.obj", "color": [1, 0, 0], "opacity": 0.5, "material": {"shader": "flat"}}
+
+        for z in (25, -25):
+            with open(self.path(f"sq{z}.obj"), "w") as f:
+                f.write(f"v -40 -40 {z}\nv 40 -40 {z}\nv 40 40 {z}\nv -40 40 {z}\nf 1 2 3\nf 1 3 4\n")
+        # In a linear frame (one with translucency) the white volume adds
+        # alpha = 1 - 0.95^32 of white light, premultiplied (Beer-Lambert).
+        alpha = 1 - 0.95 ** 32
+        v = np.full(3, alpha)
+        for z, front in ((25, True), (-25, False)):
+            alone, _ = self.render([square(z)], name="square.png")
+            sq = srgb_to_linear(alone[148:153, 148:153].mean(axis=(0, 1)))  # (premultiplied by its opacity, over black)
+            self.assertAlmostEqual(sq[0], 0.5, delta=0.01)
+            want = sq + 0.5 * v if front else v + (1 - alpha) * sq
+            want = np.where(want <= 0.0031308, 12.92 * want, 1.055 * np.power(want, 1 / 2.4) - 0.055)
+            for order in ("volume first", "square first"):
+                with self.subTest(z=z, order=order):
+                    objects = [self.cube(0.05), square(z)]
+                    pic, info = self.render(objects if order == "volume first" else objects[::-1])
+                    self.assertEqual(info["passes"]["volume_rendering"]["volumes"], 1)
+                    got = pic[148:153, 148:153].mean(axis=(0, 1)) / 255.0
+                    np.testing.assert_allclose(got, want, atol=2.5 / 255, err_msg=f"z {z}, {order}")
+
     def test_varying_values_follow_the_emission_absorption_integral(self):
         """Values rising from 0 at the bottom slice to 31 at the top, a
         window [0, 31], grey colours and opacity 0.15 x the window fraction

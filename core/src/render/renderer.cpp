@@ -885,7 +885,7 @@ struct Renderer::Impl {
         const int samples = std::clamp(settings.samples, 1, std::max(1, max_samples));
         frame_samples = samples;
         display_direct = frame_is_direct() && !settings.hdr_output;
-        peeled = false;
+        peeled = false, volumes_peeled = false;
         hdr_frame_full = !display_direct && out_ == &ldr;
         out_->ensure(w, h, GL_RGBA8, GL_RGBA, GL_UNSIGNED_BYTE);
         if (!display_direct) {
@@ -957,33 +957,49 @@ struct Renderer::Impl {
     // opaque geometry's depth (ambient occlusion does not darken what lies
     // in front of what it darkens), in scene order. A moving (proxy) frame
     // marches with three times the step (its cheap form: about 1.5 voxels).
+    bool volumes_peeled = false;  // the frame's volumes were marched between its translucent layers
+    bool any_volume_rendered() const {
+        return std::any_of(objects.begin(), objects.end(), [&](const GpuObject &g) { return g.dvr && drawn(g.index); });
+    }
+    // The ray-marching parameters of volume object g in a frame of camera m.
+    VolumeRayParams volume_params(const GpuObject &g, const Matrices &m) const {
+        VolumeRayParams p;
+        p.inv_view_proj = glm::mat4(m.inv_view_proj);
+        p.eye = glm::vec3(float(frame_view.eye[0]), float(frame_view.eye[1]), float(frame_view.eye[2]));
+        p.ras_to_tex = g.ras_to_tex;
+        p.window = glm::vec2(float(g.window[0]), float(g.window[1]));
+        p.step_mm = float(g.step_mm * (out_ == &lowres ? 3.0 : 1.0));
+        p.opacity = float(scene.objects[g.index].opacity);
+        p.volume_tex = g.volume_tex, p.transfer_tex = g.colormap_tex;
+        p.tone_curve = tone_curve(), p.exposure = float(scene.exposure);
+        p.shade = scene.objects[g.index].transfer && scene.objects[g.index].transfer->shade;
+        if (p.shade) {  // (the key light, else from the camera)
+            const glm::dvec3 l = key_light() >= 0 ? key_light_direction(m) : m.back;
+            p.to_light = glm::vec3(float(l.x), float(l.y), float(l.z));
+        }
+        return p;
+    }
     void draw_volumes(GLuint colour_fbo, GLuint depth_fbo, int w, int h, bool encoded) {
-        const bool any = std::any_of(objects.begin(), objects.end(), [&](const GpuObject &g) { return g.dvr && drawn(g.index); });
-        if (!any) return;
+        if (volumes_peeled || !any_volume_rendered()) return;
         if (settings.time_passes) glFinish();
         const auto t0 = Clock::now();
         frame_depth->resolve(depth_fbo, w, h);
         const Matrices m = matrices(frame_view, w, h);
         for (const GpuObject &g : objects) {
             if (!g.dvr || !drawn(g.index)) continue;
-            VolumeRayParams p;
-            p.inv_view_proj = glm::mat4(m.inv_view_proj);
-            p.eye = glm::vec3(float(frame_view.eye[0]), float(frame_view.eye[1]), float(frame_view.eye[2]));
-            p.ras_to_tex = g.ras_to_tex;
-            p.window = glm::vec2(float(g.window[0]), float(g.window[1]));
-            p.step_mm = float(g.step_mm * (out_ == &lowres ? 3.0 : 1.0));
-            p.opacity = float(scene.objects[g.index].opacity);
-            p.volume_tex = g.volume_tex, p.transfer_tex = g.colormap_tex;
-            p.tone_curve = tone_curve(), p.exposure = float(scene.exposure);
-            p.shade = scene.objects[g.index].transfer && scene.objects[g.index].transfer->shade;
-            if (p.shade) {  // (the key light, else from the camera)
-                const glm::dvec3 l = key_light() >= 0 ? key_light_direction(m) : m.back;
-                p.to_light = glm::vec3(float(l.x), float(l.y), float(l.z));
-            }
-            volume_pass->apply(colour_fbo, *frame_depth, p, empty_vao, encoded);
+            volume_pass->apply(colour_fbo, *frame_depth, volume_params(g, m), empty_vao, encoded);
             ++stats.volumes_rendered;
         }
         opaque_state();
+        if (settings.time_passes) glFinish(), stats.volume_ms += ms_since(t0);
+    }
+    // The volumes between two translucent layers (window depths `near`,
+    // `far`), into the bound accumulation: DepthPeeling's `between`.
+    void draw_volume_segments(GLuint near, GLuint far, const Matrices &m) {
+        if (settings.time_passes) glFinish();
+        const auto t0 = Clock::now();
+        for (const GpuObject &g : objects)
+            if (g.dvr && drawn(g.index)) volume_pass->apply_segment(near, far, volume_params(g, m), empty_vao);
         if (settings.time_passes) glFinish(), stats.volume_ms += ms_since(t0);
     }
     bool any_pass_after_geometry() const { return scene.ambient_occlusion.on || scene.depth_cue.on; }
@@ -1336,6 +1352,10 @@ void main() {
                 glBindFramebuffer(GL_READ_FRAMEBUFFER, msaa.fbo);
                 glBindFramebuffer(GL_DRAW_FRAMEBUFFER, resolved.fbo);
                 glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+                // Volumes rendered: marched between the layers, so that a
+                // translucent object in front of one is in front of it.
+                std::function<void(GLuint, GLuint)> between;
+                if (any_volume_rendered()) between = [&](GLuint near, GLuint far) { draw_volume_segments(near, far, m); };
                 peel_layers = peeling->composite(
                     msaa.fbo, resolved.fbo, w, h, most,
                     [&](GLuint previous) {
@@ -1346,8 +1366,12 @@ void main() {
                         }
                         peel_depth = 0;
                     },
-                    empty_vao);
+                    empty_vao, between);
                 peeled = true;
+                if (between) {
+                    volumes_peeled = true;
+                    for (const GpuObject &g : objects) stats.volumes_rendered += g.dvr && drawn(g.index);
+                }
                 stats.transparency_layers = peel_layers;
                 glBindFramebuffer(GL_FRAMEBUFFER, msaa.fbo);
                 opaque_state();

@@ -84,7 +84,7 @@ void DepthPeeling::ensure(int w, int h) {
 }
 
 int DepthPeeling::composite(GLuint opaque_fbo, GLuint target_fbo, int w, int h, int max_layers, const std::function<void(GLuint)> &draw,
-                            GLuint empty_vao) {
+                            GLuint empty_vao, const std::function<void(GLuint near, GLuint far)> &between) {
     ensure(w, h);
     glViewport(0, 0, w, h);
     // Nothing accumulated yet; the "previous layer" lies at depth 0, in
@@ -108,6 +108,18 @@ int DepthPeeling::composite(GLuint opaque_fbo, GLuint target_fbo, int w, int h, 
         glUniform1i(under_->loc("u_premultiplied"), premultiplied ? 1 : 0);
         glBindVertexArray(empty_vao);
         glDrawArrays(GL_TRIANGLES, 0, 3);
+        glDisable(GL_BLEND);
+    };
+    // What lies between the layer in front (depth `near`) and this one
+    // (`far`), under what is accumulated.
+    auto segment = [&](GLuint near, GLuint far) {
+        if (!between) return;
+        glBindFramebuffer(GL_FRAMEBUFFER, acc_fbo_);
+        glViewport(0, 0, w, h);
+        glDisable(GL_DEPTH_TEST);
+        glEnable(GL_BLEND);
+        glBlendFunc(GL_ONE_MINUS_DST_ALPHA, GL_ONE);
+        between(near, far);
         glDisable(GL_BLEND);
     };
     // Each layer starts from the opaque depth: what lies behind it is hidden.
@@ -135,6 +147,9 @@ int DepthPeeling::composite(GLuint opaque_fbo, GLuint target_fbo, int w, int h, 
         glEndQuery(GL_ANY_SAMPLES_PASSED);
         GLuint any = 0;
         glGetQueryObjectuiv(query_, GL_QUERY_RESULT, &any);
+        // (without a fragment this layer's depth is the opaque depth: the
+        // segment is then the last, up to the opaque geometry)
+        segment(depth_[1 - cur], depth_[cur]);
         if (!any) {
             more = false;
             break;
@@ -152,6 +167,10 @@ int DepthPeeling::composite(GLuint opaque_fbo, GLuint target_fbo, int w, int h, 
         draw(depth_[1 - cur]);
         glDisable(GL_BLEND);
         glDepthMask(GL_TRUE);
+        // (the rest: what lies between the last layer and the opaque
+        // depth, which this draw left in depth_[cur], then what it blended
+        // in drawing order)
+        segment(depth_[1 - cur], depth_[cur]);
         under(true);
         ++layers;
     }

@@ -36,10 +36,18 @@ public:
     // `draw(previous_depth)` draws every translucent object with its peel
     // program, the texture `previous_depth` (the last layer's window depths)
     // bound to it as hz_peel_depth; the depth test and the blending are this
-    // pass's. Returns the number of layers peeled (the last partial one
-    // included). Leaves blending off and depth writes on.
+    // pass's. `between(near, far)`, where given, composites what lies
+    // between two layers (direct volume rendering) under what the layers in
+    // front accumulated: called before each layer with the depth textures of
+    // the layer in front (`near`; all 0 before the first) and of this one
+    // (`far`; the opaque depth where it has no fragment), and once after the
+    // last (`far` the opaque depth), with the accumulation bound, full
+    // screen, blending "under" (premultiplied: GL_ONE_MINUS_DST_ALPHA,
+    // GL_ONE) and no depth test; it draws a full-screen triangle of
+    // premultiplied colour. Returns the number of layers peeled (the last
+    // partial one included). Leaves blending off and depth writes on.
     int composite(GLuint opaque_fbo, GLuint target_fbo, int w, int h, int max_layers, const std::function<void(GLuint)> &draw,
-                  GLuint empty_vao);
+                  GLuint empty_vao, const std::function<void(GLuint near, GLuint far)> &between = {});
 
 private:
     void ensure(int w, int h);

@@ -24,6 +24,9 @@ in vec2 v_uv;
 uniform sampler3D u_volume;
 uniform sampler2D u_transfer;
 uniform sampler2D u_depth;
+#ifdef HZ_SEGMENT
+uniform sampler2D u_near;  // where the ray starts (window depth; 0: at the eye)
+#endif
 uniform mat4 u_inv_view_proj;
 uniform vec3 u_eye;
 uniform mat4 u_ras_to_tex;
@@ -57,7 +60,15 @@ void main() {
             lo[k] = inside ? -1e30 : 1e30;
             hi[k] = inside ? 1e30 : -1e30;
         }
-    float t0 = max(max(lo.x, lo.y), max(lo.z, 0.0));
+    float t_start = 0.0;
+#ifdef HZ_SEGMENT
+    float zn = texelFetch(u_near, ivec2(gl_FragCoord.xy), 0).r;
+    if (zn > 0.0) {
+        vec4 s = u_inv_view_proj * vec4(ndc, zn * 2.0 - 1.0, 1.0);
+        t_start = dot(s.xyz / s.w - u_eye, d);
+    }
+#endif
+    float t0 = max(max(lo.x, lo.y), max(lo.z, t_start));
     float t1 = min(min(min(hi.x, hi.y), hi.z), t_end);
     if (!(t1 > t0)) discard;
     int n = min(int(ceil((t1 - t0) / u_step)), 4096);
@@ -133,28 +144,40 @@ VolumeRendering::~VolumeRendering() {
     for (auto &[k, p] : programs_) glDeleteProgram(p->id);
 }
 
-Program &VolumeRendering::program(bool encoded, int tone_curve) {
-    const int key = tone_curve * 2 + (encoded ? 1 : 0);
+Program &VolumeRendering::program(bool encoded, int tone_curve, bool segment) {
+    const int key = (tone_curve * 2 + (encoded ? 1 : 0)) * 2 + (segment ? 1 : 0);
     auto &p = programs_[key];
     if (!p) {
         std::string fs = "#version 410 core\n#define HZ_TONEMAP " + std::to_string(tone_curve) + "\n";
         if (encoded) fs += "#define HZ_DISPLAY 1\n";
+        if (segment) fs += "#define HZ_SEGMENT 1\n";
         p = make_(glsl::kFullscreenVS, fs + glsl::kDisplay + kMarchFS, "volume rendering");
     }
     return *p;
 }
 
 void VolumeRendering::apply(GLuint colour_fbo, const FrameDepth &depth, const VolumeRayParams &p, GLuint empty_vao, bool encoded) {
-    Program &prog = program(encoded, p.tone_curve);
+    Program &prog = program(encoded, p.tone_curve, false);
     glBindFramebuffer(GL_FRAMEBUFFER, colour_fbo);
     glViewport(0, 0, depth.width(), depth.height());
     glDisable(GL_DEPTH_TEST);
     glEnable(GL_BLEND);
     glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);  // premultiplied, over the picture
+    march(prog, p, depth.texture(), 0, empty_vao);
+    glDisable(GL_BLEND);
+}
+
+void VolumeRendering::apply_segment(GLuint near_depth, GLuint far_depth, const VolumeRayParams &p, GLuint empty_vao) {
+    Program &prog = program(false, p.tone_curve, true);
+    march(prog, p, far_depth, near_depth, empty_vao);
+}
+
+void VolumeRendering::march(Program &prog, const VolumeRayParams &p, GLuint far_depth, GLuint near_depth, GLuint empty_vao) {
     glUseProgram(prog.id);
     bind_sampler(prog, "u_volume", 0, GL_TEXTURE_3D, p.volume_tex);
     bind_sampler(prog, "u_transfer", 1, GL_TEXTURE_2D, p.transfer_tex);
-    bind_sampler(prog, "u_depth", 2, GL_TEXTURE_2D, depth.texture());
+    bind_sampler(prog, "u_depth", 2, GL_TEXTURE_2D, far_depth);
+    if (near_depth) bind_sampler(prog, "u_near", 3, GL_TEXTURE_2D, near_depth);
     glUniformMatrix4fv(prog.loc("u_inv_view_proj"), 1, GL_FALSE, glm::value_ptr(p.inv_view_proj));
     glUniform3f(prog.loc("u_eye"), p.eye.x, p.eye.y, p.eye.z);
     glUniformMatrix4fv(prog.loc("u_ras_to_tex"), 1, GL_FALSE, glm::value_ptr(p.ras_to_tex));
@@ -178,7 +201,6 @@ void VolumeRendering::apply(GLuint colour_fbo, const FrameDepth &depth, const Vo
     glUniform1f(prog.loc("hz_exposure"), p.exposure);
     glBindVertexArray(empty_vao);
     glDrawArrays(GL_TRIANGLES, 0, 3);
-    glDisable(GL_BLEND);
 }
 
 }  // namespace hz::core::render

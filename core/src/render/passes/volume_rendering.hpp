@@ -13,7 +13,9 @@
 // Colours are the transfer function's colormap entries (sRGB-encoded
 // display values, as slices show them), composited as they are on a display
 // picture, decoded to what the tone curve turns back into them on a linear
-// one.
+// one. With translucent surfaces or tractograms in the frame, each ray is
+// marched in segments between their depth-peeled layers instead, so that a
+// translucent object in front of a volume is in front of it.
 //
 // Threading: the GL context's thread.
 #pragma once
@@ -60,9 +62,17 @@ public:
     // with rays ending at `depth`. `empty_vao`: a vertex array for a
     // full-screen triangle. Leaves depth testing and blending off.
     void apply(GLuint colour_fbo, const FrameDepth &depth, const VolumeRayParams &p, GLuint empty_vao, bool encoded);
+    // The part of each ray between the window depths of the textures
+    // `near_depth` (0: from the eye) and `far_depth` (1: unbounded), into
+    // the bound framebuffer (linear radiance) as premultiplied colour, with
+    // the blending the caller set: what lies between two layers of depth
+    // peeling (transparency.hpp), composited under the layers in front.
+    // The viewport is the caller's; the textures are its size.
+    void apply_segment(GLuint near_depth, GLuint far_depth, const VolumeRayParams &p, GLuint empty_vao);
 
 private:
-    Program &program(bool encoded, int tone_curve);
+    Program &program(bool encoded, int tone_curve, bool segment);
+    void march(Program &prog, const VolumeRayParams &p, GLuint far_depth, GLuint near_depth, GLuint empty_vao);
     MakeProgram make_;
     std::map<int, std::unique_ptr<Program>> programs_;
 };
