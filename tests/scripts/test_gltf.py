@@ -1,4 +1,4 @@
-"""glTF 2.0 meshes: independently written files (glTF JSON with an embedded
+"""glTF 2.0 meshes and streamlines (line primitives): independently written files (glTF JSON with an embedded
 base64 buffer, binary GLB, node transforms) read as the glTF spec defines them
 and mapped to RAS+ mm; GIFTI -> glTF -> GIFTI round trips against nibabel;
 PBR factors reach the renderer; malformed files fail cleanly."""
@@ -146,6 +146,90 @@ class GltfTest(TempDirTest):
         self.assertEqual(p.returncode, 0, p.stderr)
         plain = np.asarray(Image.open(self.path("plain.png")).convert("RGB")).astype(float)
         self.assertGreater(np.abs(plain - im).mean(), 2.0, "the vertex colours are used")
+
+    def test_streamlines_as_lines(self):
+        """Streamlines written as one line primitive (mode 1), read back
+        from the GLB as the spec lays it out (chunks, accessors, buffer
+        views) and compared with nibabel's reading of the source: positions
+        in glTF's metres, +Y up; one segment per pair of consecutive points;
+        COLOR_0 the direction colour |tangent|. Back through Horizon: the
+        same streamlines, empty and one-point ones included."""
+        from hztest import tck_bytes
+        rng = np.random.default_rng(5)
+        sl = [np.cumsum(rng.normal(size=(n, 3)), axis=0).astype(np.float32) * 3 for n in (12, 40, 1, 0, 7, 2)]
+        src = self.path("s.tck")
+        with open(src, "wb") as f:
+            f.write(tck_bytes(sl))
+        glb = self.path("s.glb")
+        p = run("convert", src, glb)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        ref = list(nib.streamlines.load(src).streamlines)
+        with open(glb, "rb") as f:
+            data = f.read()
+        magic, version, length = struct.unpack_from("<4sII", data)
+        self.assertEqual((magic, version, length), (b"glTF", 2, len(data)))
+        jlen, jtype = struct.unpack_from("<II", data, 12)
+        doc = json.loads(data[20:20 + jlen])
+        blen, btype = struct.unpack_from("<II", data, 20 + jlen)
+        self.assertEqual((jtype, btype), (0x4E4F534A, 0x004E4942))
+        blob = data[28 + jlen:28 + jlen + blen]
+
+        def accessor(i):
+            a = doc["accessors"][i]
+            v = doc["bufferViews"][a["bufferView"]]
+            dt = {5126: np.float32, 5125: np.uint32}[a["componentType"]]
+            n = {"SCALAR": 1, "VEC3": 3}[a["type"]]
+            off = v.get("byteOffset", 0) + a.get("byteOffset", 0)
+            return np.frombuffer(blob, dt, a["count"] * n, off).reshape(a["count"], n)
+
+        prim = doc["meshes"][0]["primitives"][0]
+        self.assertEqual(prim["mode"], 1)
+        pos = accessor(prim["attributes"]["POSITION"])
+        pts = np.concatenate([s for s in ref if len(s)])
+        np.testing.assert_allclose(ras_of_gltf(pos), pts, atol=1e-4)
+        seg = accessor(prim["indices"]).reshape(-1, 2)
+        starts = np.cumsum([0] + [len(s) for s in ref])
+        want = [(starts[k] + i, starts[k] + i + 1) for k, s in enumerate(ref) for i in range(len(s) - 1)]
+        np.testing.assert_array_equal(seg, want)
+        col = accessor(prim["attributes"]["COLOR_0"])
+        s1 = ref[1]
+        t = s1[2] - s1[0]
+        np.testing.assert_allclose(col[starts[1] + 1], np.abs(t) / np.linalg.norm(t), atol=1e-5)
+        self.assertAlmostEqual(float(np.abs(doc["accessors"][prim["attributes"]["POSITION"]]["max"][1] - pos[:, 1].max())), 0, places=6)
+        back = self.path("back.tck")
+        p = run("convert", glb, back)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        got = list(nib.streamlines.load(back).streamlines)
+        self.assertEqual([len(x) for x in got], [len(x) for x in ref])
+        for a, b in zip(got, ref):
+            np.testing.assert_allclose(a, b, atol=1e-4)
+
+    def test_independent_line_files_read_as_streamlines(self):
+        """Lines (segments chained where one starts at the point the last
+        ended) and a line strip, written from the spec, no triangles: read
+        as streamlines in RAS+ mm."""
+        pts = np.array([[0, 0, 0], [0.01, 0, 0], [0.02, 0.01, 0], [0, 0, 0.05], [0, 0.02, 0.05]], np.float32)
+        # segments 0-1, 1-2 (one streamline of 3 points), then 3-4 (another)
+        doc, blob = gltf_json(pts, [0, 1, 1, 2, 3, 4])
+        doc["meshes"][0]["primitives"][0]["mode"] = 1
+        with open(self.path("lines.glb"), "wb") as f:
+            f.write(to_glb(doc, blob))
+        info = run_json("info", self.path("lines.glb"), "--json")
+        self.assertEqual((info["kind"], info["nb_streamlines"], info["nb_vertices"]), ("streamlines", 2, 5))
+        p = run("convert", self.path("lines.glb"), self.path("lines.tck"))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        got = list(nib.streamlines.load(self.path("lines.tck")).streamlines)
+        np.testing.assert_allclose(got[0], ras_of_gltf(pts[:3]), atol=1e-4)
+        np.testing.assert_allclose(got[1], ras_of_gltf(pts[3:]), atol=1e-4)
+        doc, blob = gltf_json(pts, [4, 3, 0, 1])
+        doc["meshes"][0]["primitives"][0]["mode"] = 3
+        with open(self.path("strip.glb"), "wb") as f:
+            f.write(to_glb(doc, blob))
+        p = run("convert", self.path("strip.glb"), self.path("strip.tck"))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        got = list(nib.streamlines.load(self.path("strip.tck")).streamlines)
+        self.assertEqual(len(got), 1)
+        np.testing.assert_allclose(got[0], ras_of_gltf(pts[[4, 3, 0, 1]]), atol=1e-4)
 
     def test_malformed(self):
         rng = np.random.default_rng(3)

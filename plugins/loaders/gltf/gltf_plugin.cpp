@@ -13,7 +13,16 @@
 // "color" (RGB, float); the first primitive's material factors as header
 // entries (material.baseColorFactor, material.metallicFactor, ...), which
 // `horizon render` uses for the principled model. Textures are not decoded.
-// Points, lines and strips, skins and morph targets are reported, not drawn.
+// A file without triangles whose primitives are lines (mode 1, segments
+// chained where one starts at the vertex the last ended on) or line strips
+// (mode 3) is read as streamlines, COLOR_0 likewise as "color". Points,
+// skins and morph targets are reported, not drawn.
+//
+// What is written: a mesh as one triangle primitive; streamlines as one
+// line primitive (mode 1, each streamline's segments in order), COLOR_0
+// from a per-vertex "color" array or else each point's direction colour
+// (|tangent| as RGB, as tractography viewers colour streamlines): what a
+// browser's glTF viewer (three.js) shows of a tractogram.
 #include <hz/cpp/loader.hpp>
 
 #include <tiny_gltf.h>
@@ -169,6 +178,10 @@ struct Surface {
     std::vector<std::uint32_t> faces;
     std::vector<float> colors;  // RGB per vertex, or empty
     std::vector<std::pair<std::string, std::string>> meta;
+    // Streamlines (a file of lines and no triangles): the vertices above,
+    // one streamline per offsets range.
+    bool streamlines = false;
+    std::vector<std::uint64_t> offsets;
 };
 
 bool skip_images(tinygltf::Image *, const int, std::string *, std::string *, int, int, const unsigned char *, int, void *) { return true; }
@@ -195,6 +208,87 @@ bool uri_read(std::vector<unsigned char> *out, std::string *err, const std::stri
 bool uri_write(std::string *err, const std::string &, const std::vector<unsigned char> &, void *) {
     if (err) *err += "external files are not written\n";
     return false;
+}
+
+// Appends the streamlines of a line (mode 1) or line-strip (mode 3)
+// primitive, transformed by `world` into RAS mm: a strip is one streamline
+// (its vertices in index order); segments (a, b) of lines are chained while
+// each starts at the vertex the one before ended on.
+void read_lines(const tinygltf::Model &m, const tinygltf::Primitive &prim, const M4 &world, Surface &out, bool &has_color) {
+    auto pos_it = prim.attributes.find("POSITION");
+    if (pos_it == prim.attributes.end()) throw FormatError("a primitive without POSITION");
+    AccessorReader pos(m, pos_it->second, "POSITION");
+    if (pos.ncomp != 3) throw FormatError("POSITION is not VEC3");
+    std::unique_ptr<AccessorReader> col;
+    if (auto c = prim.attributes.find("COLOR_0"); c != prim.attributes.end()) {
+        col = std::make_unique<AccessorReader>(m, c->second, "COLOR_0");
+        if (col->count != pos.count || col->ncomp < 3) throw FormatError("COLOR_0 does not match POSITION");
+    }
+    std::vector<std::size_t> order;  // the primitive's vertex sequence
+    if (prim.indices >= 0) {
+        AccessorReader idx(m, prim.indices, "indices");
+        if (idx.ncomp != 1) throw FormatError("line indices are not scalars");
+        order.reserve(idx.count);
+        for (std::size_t i = 0; i < idx.count; ++i) {
+            const double k = idx.get(i, 0);
+            if (!(k >= 0) || k >= double(pos.count)) throw FormatError("a line index is out of range (" + std::to_string(k) + ")");
+            order.push_back(std::size_t(k));
+        }
+    } else {
+        for (std::size_t i = 0; i < pos.count; ++i) order.push_back(i);
+    }
+    if (prim.mode == TINYGLTF_MODE_LINE && order.size() % 2 != 0) throw FormatError("line indices are not pairs");
+    if (col && !has_color) out.colors.assign(out.vertices.size(), 1.0f);
+    auto put = [&](std::size_t i) {
+        const double x = pos.get(i, 0), y = pos.get(i, 1), z = pos.get(i, 2);
+        const double wx = world[0] * x + world[4] * y + world[8] * z + world[12];
+        const double wy = world[1] * x + world[5] * y + world[9] * z + world[13];
+        const double wz = world[2] * x + world[6] * y + world[10] * z + world[14];
+        const float r = float(-1000.0 * wx), a = float(1000.0 * wz), u = float(1000.0 * wy);
+        if (!std::isfinite(r) || !std::isfinite(a) || !std::isfinite(u)) throw FormatError("non-finite vertex coordinate (in RAS mm)");
+        out.vertices.push_back(r);
+        out.vertices.push_back(a);
+        out.vertices.push_back(u);
+        if (col)
+            for (int c = 0; c < 3; ++c) out.colors.push_back(float(col->get(i, c)));
+        else if (has_color)
+            out.colors.insert(out.colors.end(), 3, 1.0f);
+    };
+    auto end_streamline = [&] {
+        if (out.vertices.size() / 3 > out.offsets.back()) out.offsets.push_back(out.vertices.size() / 3);
+    };
+    // Horizon's own: the streamlines' offsets into POSITION (an accessor
+    // named by the primitive's extras), which keep empty and one-point
+    // streamlines that segments cannot hold.
+    if (prim.extras.IsObject() && prim.extras.Has("horizon_offsets") && prim.extras.Get("horizon_offsets").IsInt()) {
+        AccessorReader offs(m, prim.extras.Get("horizon_offsets").GetNumberAsInt(), "extras.horizon_offsets");
+        if (offs.ncomp != 1 || offs.count < 1) throw FormatError("extras.horizon_offsets is not a list of offsets");
+        double before = 0;
+        for (std::size_t k = 0; k < offs.count; ++k) {
+            const double o = offs.get(k, 0);
+            if (!(o >= before) || o > double(pos.count) || (k == 0 && o != 0) || (k + 1 == offs.count && o != double(pos.count)))
+                throw FormatError("extras.horizon_offsets are not increasing offsets from 0 to the vertex count");
+            before = o;
+        }
+        const std::uint64_t base = out.vertices.size() / 3;
+        for (std::size_t i = 0; i < pos.count; ++i) put(i);
+        for (std::size_t k = 1; k < offs.count; ++k) out.offsets.push_back(base + std::uint64_t(offs.get(k, 0)));
+    } else if (prim.mode == TINYGLTF_MODE_LINE_STRIP) {
+        for (std::size_t i : order) put(i);
+        end_streamline();
+    } else {
+        std::size_t last = SIZE_MAX;
+        for (std::size_t k = 0; k < order.size(); k += 2) {
+            if (order[k] != last) {
+                end_streamline();
+                put(order[k]);
+            }
+            put(order[k + 1]);
+            last = order[k + 1];
+        }
+        end_streamline();
+    }
+    has_color = has_color || col != nullptr;
 }
 
 Surface parse(const std::string &path) {
@@ -226,6 +320,12 @@ Surface parse(const std::string &path) {
     Surface s;
     bool has_color = false;
     std::size_t skipped = 0;
+    // Lines and strips: their streamlines, kept aside while triangles may
+    // still come (a file with triangles is a mesh).
+    Surface lines;
+    lines.offsets = {0};
+    bool lines_color = false;
+    std::size_t line_primitives = 0;
     int first_material = -1;
     // Instancing multiplies what a file stores: a node listed twice as a
     // child at every level of a 60-deep chain would be visited 2^60 times.
@@ -243,6 +343,13 @@ Surface parse(const std::string &path) {
         if (n.mesh >= 0) {
             if (n.mesh >= int(m.meshes.size())) throw FormatError("mesh index out of range");
             for (const auto &prim : m.meshes[n.mesh].primitives) {
+                if (prim.mode == TINYGLTF_MODE_LINE || prim.mode == TINYGLTF_MODE_LINE_STRIP) {
+                    read_lines(m, prim, world, lines, lines_color);
+                    ++line_primitives;
+                    if (lines.vertices.size() / 3 > kMaxVertices)
+                        throw FormatError("the scene's instances add up to more than " + std::to_string(kMaxVertices) + " vertices");
+                    continue;
+                }
                 if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) {
                     ++skipped;
                     continue;
@@ -259,10 +366,12 @@ Surface parse(const std::string &path) {
                     const double wx = world[0] * x + world[4] * y + world[8] * z + world[12];
                     const double wy = world[1] * x + world[5] * y + world[9] * z + world[13];
                     const double wz = world[2] * x + world[6] * y + world[10] * z + world[14];
-                    if (!std::isfinite(wx) || !std::isfinite(wy) || !std::isfinite(wz)) throw FormatError("non-finite vertex coordinate");
-                    s.vertices.push_back(float(-1000.0 * wx));
-                    s.vertices.push_back(float(1000.0 * wz));
-                    s.vertices.push_back(float(1000.0 * wy));
+                    const float r = float(-1000.0 * wx), a = float(1000.0 * wz), u = float(1000.0 * wy);
+                    if (!std::isfinite(r) || !std::isfinite(a) || !std::isfinite(u))
+                        throw FormatError("non-finite vertex coordinate (in RAS mm)");
+                    s.vertices.push_back(r);
+                    s.vertices.push_back(a);
+                    s.vertices.push_back(u);
                 }
                 auto col_it = prim.attributes.find("COLOR_0");
                 if (col_it != prim.attributes.end()) {
@@ -303,6 +412,13 @@ Surface parse(const std::string &path) {
     for (int r : roots) visit(r, kI, 0);
     if (s.faces.empty() && skipped == 0 && roots.empty() && !m.meshes.empty())
         throw FormatError("meshes but no scene nodes instancing them");
+    if (s.vertices.empty() && line_primitives > 0) {
+        lines.streamlines = true;
+        if (!m.asset.generator.empty()) lines.meta.emplace_back("generator", m.asset.generator);
+        if (skipped) lines.meta.emplace_back("skipped_primitives", std::to_string(skipped) + " primitives neither lines nor triangles");
+        return lines;
+    }
+    skipped += line_primitives;
     if (skipped) s.meta.emplace_back("skipped_primitives", std::to_string(skipped) + " non-triangle primitives");
     if (first_material >= 0 && first_material < int(m.materials.size())) {
         const auto &mat = m.materials[first_material];
@@ -357,10 +473,11 @@ std::unique_ptr<GltfReader> gltf_open(const std::string &path, const hz_task *) 
 }
 
 void gltf_info(const GltfReader &r, hz_dataset_info &out) {
-    out.kind = HZ_DATA_MESH;
-    std::snprintf(out.format, sizeof out.format, "gltf 2.0");
+    out.kind = r.s.streamlines ? HZ_DATA_STREAMLINES : HZ_DATA_MESH;
+    std::snprintf(out.format, sizeof out.format, r.s.streamlines ? "gltf 2.0 lines" : "gltf 2.0");
     out.nb_vertices = r.s.vertices.size() / 3;
     out.nb_faces = r.s.faces.size() / 3;
+    if (r.s.streamlines) out.nb_streamlines = r.s.offsets.size() - 1;
     const double id[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
     std::memcpy(out.voxel_to_ras, id, sizeof id);
     out.source_space = HZ_SPACE_RASMM;
@@ -384,17 +501,44 @@ void gltf_metadata(const GltfReader &r, hz_metadata_visitor visit, void *ctx) {
     for (const auto &[k, v] : r.s.meta) visit(ctx, k.c_str(), v.c_str());
 }
 
+void gltf_read_streamlines(GltfReader &r, float *positions, uint64_t *offsets, const hz_task *) {
+    if (!r.s.vertices.empty()) std::memcpy(positions, r.s.vertices.data(), r.s.vertices.size() * 4);
+    std::memcpy(offsets, r.s.offsets.data(), r.s.offsets.size() * sizeof(uint64_t));
+}
+
 void gltf_read_mesh(GltfReader &r, float *vertices, uint32_t *faces, const hz_task *) {
     if (!r.s.vertices.empty()) std::memcpy(vertices, r.s.vertices.data(), r.s.vertices.size() * 4);
     if (!r.s.faces.empty()) std::memcpy(faces, r.s.faces.data(), r.s.faces.size() * 4);
+}
+
+// Direction colours of streamlines (|the tangent| as RGB, central
+// differences inside, one-sided at the ends; grey for a single point).
+std::vector<float> direction_colours(const float *p, const uint64_t *offsets, std::uint64_t ns) {
+    std::vector<float> c(offsets[ns] * 3, 0.5f);
+    for (std::uint64_t s = 0; s < ns; ++s) {
+        const std::uint64_t b = offsets[s], e = offsets[s + 1];
+        if (e - b < 2) continue;
+        for (std::uint64_t v = b; v < e; ++v) {
+            const std::uint64_t i = v == b ? b : v - 1, j = v + 1 == e ? v : v + 1;
+            double d[3], n = 0;
+            for (int k = 0; k < 3; ++k) d[k] = double(p[j * 3 + k]) - double(p[i * 3 + k]), n += d[k] * d[k];
+            n = std::sqrt(n);
+            if (n > 0)
+                for (int k = 0; k < 3; ++k) c[v * 3 + k] = float(std::abs(d[k]) / n);
+        }
+    }
+    return c;
 }
 
 void gltf_write(const hz_write_request &request, const hz_dataset_view &view, const hz_task *) {
     const hz_write_request *req = &request;
     const hz_dataset_view *data = &view;
     {
-        const std::uint64_t nv = data->mesh_nb_vertices, nf = data->mesh_nb_faces;
+        const bool lines = data->kind == HZ_DATA_STREAMLINES;
+        const hz_streamlines_view &sv = data->streamlines;
+        const std::uint64_t nv = lines ? sv.nb_vertices : data->mesh_nb_vertices, nf = lines ? 0 : data->mesh_nb_faces;
         if (nv > 0xFFFFFFFFu || nf * 3 > 0xFFFFFFFFu) throw FormatError("too many vertices or faces");
+        const float *vertices = lines ? sv.positions : data->mesh_vertices;
         const float *colors = nullptr;
         for (uint32_t i = 0; i < data->nb_arrays; ++i) {
             const hz_named_array &a = data->arrays[i];
@@ -403,6 +547,20 @@ void gltf_write(const hz_write_request &request, const hz_dataset_view &view, co
                 colors = static_cast<const float *>(a.data);
             else if (req->on_dropped)
                 req->on_dropped(req->ctx, ("array '" + name + "' (glTF keeps geometry and COLOR_0 only)").c_str());
+        }
+        // Streamlines: segment indices, each streamline's in order; colours
+        // of their directions where none are given.
+        std::vector<std::uint32_t> segments;
+        std::vector<float> own_colours;
+        if (lines) {
+            if (sv.offsets == nullptr || (nv > 0 && sv.positions == nullptr)) throw FormatError("streamlines without data");
+            for (std::uint64_t s = 0; s < sv.nb_streamlines; ++s) {
+                if (sv.offsets[s] > sv.offsets[s + 1] || sv.offsets[s + 1] > nv) throw FormatError("streamline offsets out of order");
+                for (std::uint64_t v = sv.offsets[s]; v + 1 < sv.offsets[s + 1]; ++v)
+                    segments.push_back(std::uint32_t(v)), segments.push_back(std::uint32_t(v + 1));
+            }
+            if (colors == nullptr)
+                own_colours = direction_colours(sv.positions, sv.offsets, sv.nb_streamlines), colors = own_colours.data();
         }
         tinygltf::Model m;
         m.asset.version = "2.0";
@@ -418,7 +576,7 @@ void gltf_write(const hz_write_request &request, const hz_dataset_view &view, co
         std::vector<float> pos(nv * 3);
         float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
         for (std::uint64_t i = 0; i < nv; ++i) {
-            const float R = data->mesh_vertices[i * 3], A = data->mesh_vertices[i * 3 + 1], S = data->mesh_vertices[i * 3 + 2];
+            const float R = vertices[i * 3], A = vertices[i * 3 + 1], S = vertices[i * 3 + 2];
             const float g[3] = {float(-double(R) / 1000.0), float(double(S) / 1000.0), float(double(A) / 1000.0)};
             for (int c = 0; c < 3; ++c) {
                 pos[i * 3 + c] = g[c];
@@ -440,7 +598,7 @@ void gltf_write(const hz_write_request &request, const hz_dataset_view &view, co
             return int(m.accessors.size() - 1);
         };
         tinygltf::Primitive prim;
-        prim.mode = TINYGLTF_MODE_TRIANGLES;
+        prim.mode = lines ? TINYGLTF_MODE_LINE : TINYGLTF_MODE_TRIANGLES;
         const int pa = add_accessor(add_view(append(pos.data(), pos.size() * 4), pos.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
                                     TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
         if (nv) {
@@ -451,8 +609,23 @@ void gltf_write(const hz_write_request &request, const hz_dataset_view &view, co
         if (colors)
             prim.attributes["COLOR_0"] = add_accessor(add_view(append(colors, nv * 12), nv * 12, TINYGLTF_TARGET_ARRAY_BUFFER),
                                                       TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, nv);
-        prim.indices = add_accessor(add_view(append(data->mesh_faces, nf * 12), nf * 12, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
-                                    TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, nf * 3);
+        if (lines) {
+            // (the offsets, for a reader that knows them: empty and
+            // one-point streamlines have no segment)
+            std::vector<std::uint32_t> offs(sv.offsets, sv.offsets + sv.nb_streamlines + 1);
+            const int oa = add_accessor(add_view(append(offs.data(), offs.size() * 4), offs.size() * 4, 0),
+                                        TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, offs.size());
+            tinygltf::Value::Object extras;
+            extras["horizon_offsets"] = tinygltf::Value(oa);
+            prim.extras = tinygltf::Value(extras);
+        }
+        if (lines)
+            prim.indices = add_accessor(
+                add_view(append(segments.data(), segments.size() * 4), segments.size() * 4, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
+                TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, segments.size());
+        else
+            prim.indices = add_accessor(add_view(append(data->mesh_faces, nf * 12), nf * 12, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
+                                        TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, nf * 3);
         // Material factors carried in the header (from a glTF read), else defaults.
         tinygltf::Material mat;
         mat.pbrMetallicRoughness.baseColorFactor = {1, 1, 1, 1};
@@ -511,7 +684,7 @@ const char *const kExtensions[] = {"gltf", "glb", nullptr};
 // The format as the SDK's C++ loader adapter takes it (hz/cpp/loader.hpp).
 struct Gltf {
     static constexpr const char *prefix = "gltf";
-    static constexpr hz_data_kind kinds = HZ_DATA_MESH;
+    static constexpr hz_data_kind kinds = HZ_DATA_MESH | HZ_DATA_STREAMLINES;
     static constexpr uint32_t probe_bytes = 4096;
     static constexpr const char *const *extensions = kExtensions;
     using FormatError = ::FormatError;
@@ -524,6 +697,7 @@ struct Gltf {
     static constexpr auto read_array = gltf_read_array;
     static constexpr auto metadata = gltf_metadata;
     static constexpr auto read_mesh = gltf_read_mesh;
+    static constexpr auto read_streamlines = gltf_read_streamlines;
     static constexpr auto write = gltf_write;
 };
 constexpr const hz_loader &kLoader = hz::loader<Gltf>::table;
