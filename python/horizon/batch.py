@@ -17,6 +17,16 @@ current subject (Dask runs the task again elsewhere). A subject that fails
 error and never stops the others; it is tried again by the next run. The
 exit status is 0 unless --strict is given and a subject failed.
 
+Each subject also gets an interactive 3D view in the browser, OUT/subjects/
+ID/view.html: its streamlines exported to glTF (scene.glb, every k-th
+streamline so that at most --web-points points are shown) and drawn by
+three.js, which the gallery carries with it (OUT/three/) so that it opens
+offline from the files themselves. three.js is not part of Horizon: it is
+found with --three DIR, $HORIZON_THREE_DIR, or an npm install of three@0.147
+(the last release with classic-script loaders, which a page opened from
+files can use) in the usual places; without it the gallery has no 3D views
+and says so.
+
 With --anatomy, each subject's anatomy (the file the glob matches in the
 same subject folder, ROOT's first level) is the affine's sanity check: a
 tractogram reaching more than --tolerance mm outside the anatomy's grid,
@@ -32,6 +42,113 @@ import sys
 import time
 
 VIEWS = ("superior", "left", "anterior")
+
+# What the 3D views take of three.js (paths in its npm package), copied to OUT/three/.
+THREE_FILES = {"three.min.js": "build/three.min.js", "GLTFLoader.js": "examples/js/loaders/GLTFLoader.js",
+               "OrbitControls.js": "examples/js/controls/OrbitControls.js", "LICENSE": "LICENSE"}
+
+
+def find_three(explicit=None):
+    """The folder of an npm package three with the classic-script files the
+    3D views need, or None. Tried: `explicit`, $HORIZON_THREE_DIR, then
+    node_modules/three under the working directory, ~/.local/lib,
+    /usr/local/lib, /usr/lib and /usr/share/nodejs. An explicit folder that
+    lacks them raises ValueError saying what is missing."""
+    def ok(d):
+        return d and all(os.path.isfile(os.path.join(d, f)) for f in THREE_FILES.values())
+    for d, named in ((explicit, "--three"), (os.environ.get("HORIZON_THREE_DIR"), "$HORIZON_THREE_DIR")):
+        if d:
+            if ok(d):
+                return os.path.abspath(d)
+            missing = [f for f in THREE_FILES.values() if not os.path.isfile(os.path.join(d, f))]
+            raise ValueError(f"{named}: {d} is not an npm package three with {', '.join(missing)} "
+                             f"(three.js 0.147 is the last release that has them: npm install three@0.147)")
+    for prefix in (os.getcwd(), os.path.expanduser("~/.local/lib"), "/usr/local/lib", "/usr/lib", "/usr/share/nodejs"):
+        d = os.path.join(prefix, "node_modules", "three") if not prefix.endswith("nodejs") else os.path.join(prefix, "three")
+        if ok(d):
+            return d
+    return None
+
+
+def copy_three(three, out):
+    """three.js's files into OUT/three/ (each written atomically; the same
+    bytes already there are left alone)."""
+    os.makedirs(os.path.join(out, "three"), exist_ok=True)
+    for name, rel in THREE_FILES.items():
+        with open(os.path.join(three, rel), "rb") as f:
+            data = f.read()
+        dst = os.path.join(out, "three", name)
+        if os.path.exists(dst):
+            with open(dst, "rb") as f:
+                if f.read() == data:
+                    continue
+        _write_atomic(dst, data)
+
+
+VIEW_3D = """<!doctype html>
+<html><head><meta charset="utf-8"><title>Horizon 3D: {id}</title>
+<style>html,body{{margin:0;height:100%;background:#111;color:#ddd;font-family:sans-serif;overflow:hidden}}
+#info{{position:absolute;left:8px;top:6px;font-size:13px}} a{{color:#9cf}}</style></head><body>
+<div id="info">{id}: {shown} of {total} streamlines (drag: turn, wheel: zoom, right drag: pan) &middot; <a href="../../index.html">gallery</a></div>
+<script src="../../three/three.min.js"></script>
+<script src="../../three/GLTFLoader.js"></script>
+<script src="../../three/OrbitControls.js"></script>
+<script src="scene.js"></script>
+<script>
+(function () {{
+  const renderer = new THREE.WebGLRenderer({{antialias: true, preserveDrawingBuffer: true}});
+  renderer.setPixelRatio(window.devicePixelRatio);
+  renderer.setSize(innerWidth, innerHeight);
+  renderer.setClearColor(0x111111);
+  document.body.appendChild(renderer.domElement);
+  const scene = new THREE.Scene();
+  const camera = new THREE.PerspectiveCamera(30, innerWidth / innerHeight, 0.001, 100);
+  const controls = new THREE.OrbitControls(camera, renderer.domElement);
+  const draw = () => {{ renderer.render(scene, camera); window.hzFrames = (window.hzFrames || 0) + 1; }};
+  controls.addEventListener('change', draw);
+  addEventListener('resize', () => {{
+    camera.aspect = innerWidth / innerHeight; camera.updateProjectionMatrix();
+    renderer.setSize(innerWidth, innerHeight); draw();
+  }});
+  const bytes = Uint8Array.from(atob(window.HZ_SCENE), c => c.charCodeAt(0));
+  new THREE.GLTFLoader().parse(bytes.buffer, '', gltf => {{
+    scene.add(gltf.scene);
+    // glTF: +X left, +Y superior, +Z anterior. The left side, whole.
+    const box = new THREE.Box3().setFromObject(gltf.scene);
+    const c = box.getCenter(new THREE.Vector3()), r = Math.max(box.getSize(new THREE.Vector3()).length() / 2, 1e-3);
+    controls.target.copy(c);
+    camera.position.set(c.x + r / Math.sin(Math.PI / 12), c.y, c.z);
+    camera.near = r / 100; camera.far = r * 20; camera.updateProjectionMatrix();
+    controls.update();
+    draw();
+    window.hzReady = true;
+  }}, e => {{ document.getElementById('info').textContent = 'cannot read this scene: ' + e; window.hzError = String(e); }});
+}})();
+</script></body></html>
+"""
+
+
+def web_view(data, folder, sid, points):
+    """The subject's 3D view: scene.glb (every k-th streamline, at most
+    `points` points), scene.js (the same bytes for a page opened from files,
+    which may not fetch them) and view.html. Returns view.html's path."""
+    import base64
+    import numpy as np
+    import horizon
+    offsets = np.asarray(data.offsets)
+    n = len(offsets) - 1
+    total = int(offsets[-1]) if n > 0 else 0
+    k = max(1, -(-total // max(points, 1)))
+    ids = list(range(0, n, k))
+    glb = os.path.join(folder, "scene.glb")
+    tmp = os.path.join(folder, ".scene.tmp.glb")
+    horizon.save(data, tmp, force=True, selection=ids)
+    os.replace(tmp, glb)
+    with open(glb, "rb") as f:
+        _write_atomic(os.path.join(folder, "scene.js"), b"window.HZ_SCENE = '" + base64.b64encode(f.read()) + b"';\n")
+    page = os.path.join(folder, "view.html")
+    _write_atomic(page, VIEW_3D.format(id=html.escape(sid), shown=len(ids), total=n).encode())
+    return page
 
 
 def subject_id(root, path):
@@ -107,9 +224,10 @@ def outside_mm(box, lo, hi):
     return float(max(0.0, np.max(lo - np.asarray(box[0])), np.max(np.asarray(box[1]) - hi)))
 
 
-def qc_subject(root, path, out, views, size, anatomy=None, tolerance=10.0):
+def qc_subject(root, path, out, views, size, anatomy=None, tolerance=10.0, web_points=None):
     """One subject's QC (run on a worker): its record, written to
-    OUT/subjects/ID/qc.json; done before and unchanged: read back."""
+    OUT/subjects/ID/qc.json; done before and unchanged: read back. With
+    `web_points`, its 3D view too (web_view)."""
     import horizon
     sid = subject_id(root, path)
     folder = os.path.join(out, "subjects", sid)
@@ -122,7 +240,8 @@ def qc_subject(root, path, out, views, size, anatomy=None, tolerance=10.0):
     if stamp and os.path.exists(record_path):
         with open(record_path) as f:
             old = json.load(f)
-        if old.get("status") == "ok" and old.get("source") == stamp and old.get("anatomy", {}).get("file") == (anatomy or None):
+        if old.get("status") == "ok" and old.get("source") == stamp and old.get("anatomy", {}).get("file") == (anatomy or None) and \
+                (web_points is None or "view_3d" in old):
             old["skipped"] = True
             return old
     os.makedirs(folder, exist_ok=True)
@@ -156,6 +275,8 @@ def qc_subject(root, path, out, views, size, anatomy=None, tolerance=10.0):
             png = os.path.join(folder, f"{view}.png")
             _write_atomic(png, horizon._png(scene.render(size)))
             record["views"][view] = os.path.relpath(png, out)
+        if web_points is not None:
+            record["view_3d"] = os.path.relpath(web_view(data, folder, sid, web_points), out)
         record["status"] = "ok"
     except Exception as e:  # (a subject's failure is its row, never the batch's)
         record["status"] = "failed"
@@ -197,9 +318,9 @@ t.tHead.addEventListener('click', e => {{
 """
 
 
-def gallery(out, records, views, title):
+def gallery(out, records, views, title, note_3d=""):
     cols = ["subject", "status", "streamlines", "points", "median length (mm)", "min length", "max length"] + list(views) + \
-        ["error or warning"]
+        ["3D", "error or warning"]
     head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
     rows = []
     for r in sorted(records, key=lambda r: r["id"]):
@@ -211,13 +332,16 @@ def gallery(out, records, views, title):
         for v in views:
             src = r.get("views", {}).get(v)
             cells.append(f'<td><a href="{html.escape(src)}"><img src="{html.escape(src)}" alt="{v}"></a></td>' if src else "<td></td>")
+        v3 = r.get("view_3d") if ok else None
+        cells.append(f'<td><a class="view3d" href="{html.escape(v3)}">3D</a></td>' if v3 else "<td></td>")
         note = r.get("error") or "; ".join(r.get("warnings", []))
         cells.append(f'<td class="error">{html.escape(note)}</td>')
         kind = "failed" if not ok else "warned" if r.get("warnings") else "ok"
         rows.append(f'<tr class="{kind}">' + "".join(cells) + "</tr>")
     failed = sum(r.get("status") != "ok" for r in records)
     warned = sum(r.get("status") == "ok" and bool(r.get("warnings")) for r in records)
-    summary = f"{len(records)} subjects: {len(records) - failed} ok ({warned} with warnings), {failed} failed."
+    summary = f"{len(records)} subjects: {len(records) - failed} ok ({warned} with warnings), {failed} failed." + \
+        (f" {html.escape(note_3d)}" if note_3d else "")
     page = GALLERY.format(title=html.escape(title), summary=summary, head=head, rows="\n".join(rows))
     _write_atomic(os.path.join(out, "index.html"), page.encode())
     _write_atomic(os.path.join(out, "qc.json"), json.dumps(sorted(records, key=lambda r: r["id"]), indent=1).encode())
@@ -236,7 +360,20 @@ def main(argv=None):
                     "sanity check, and slices under the views")
     ap.add_argument("--tolerance", type=float, default=10.0, help="--anatomy: mm the streamlines may reach outside its grid (10)")
     ap.add_argument("--strict", action="store_true", help="exit with status 1 if a subject failed")
+    ap.add_argument("--three", help="an npm package three (0.147: npm install three@0.147) for the 3D views "
+                    "(default: $HORIZON_THREE_DIR, else node_modules/three in the usual places)")
+    ap.add_argument("--web-points", type=int, default=100000, help="the most points a 3D view shows (every k-th streamline; 100000)")
+    ap.add_argument("--no-3d", action="store_true", help="no 3D views")
     a = ap.parse_args(argv)
+    if a.web_points < 2:
+        ap.error("--web-points: at least 2")
+    three = None
+    if not a.no_3d:
+        try:
+            three = find_three(a.three)
+        except ValueError as e:
+            ap.error(str(e))
+    note_3d = "" if three or a.no_3d else "No 3D views: three.js was not found (npm install three@0.147, then --three DIR)."
     views = [v for v in a.views.split(",") if v]
     for v in views:
         if v not in VIEWS:
@@ -270,8 +407,11 @@ def main(argv=None):
         client = Client(cluster)
     t0 = time.perf_counter()
     try:
+        if three:
+            copy_three(three, out)
         futures = client.map(qc_subject, [root] * len(files), files, [out] * len(files), [views] * len(files), [(w, h)] * len(files),
-                             anatomy, [a.tolerance] * len(files), pure=False, retries=2)
+                             anatomy, [a.tolerance] * len(files), [a.web_points if three else None] * len(files), pure=False,
+                             retries=2)
         records = []
         for f, fut in zip(files, futures):
             try:
@@ -283,7 +423,7 @@ def main(argv=None):
         client.close()
         if cluster:
             cluster.close()
-    gallery(out, records, views, os.path.basename(root.rstrip(os.sep)) or root)
+    gallery(out, records, views, os.path.basename(root.rstrip(os.sep)) or root, note_3d)
     failed = [r for r in records if r.get("status") != "ok"]
     skipped = sum(1 for r in records if r.get("skipped"))
     print(f"{len(records)} subjects: {len(records) - len(failed)} ok ({skipped} done before), {len(failed)} failed, "

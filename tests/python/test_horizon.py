@@ -5,6 +5,7 @@ Run by ctest (python.pytest) with PYTHONPATH at the build tree's package and
 HORIZON_BIN at the program."""
 import json
 import os
+import shutil
 import subprocess
 
 import numpy as np
@@ -322,6 +323,67 @@ def test_cohort_qc_on_dask_writes_a_gallery_and_resumes(tmp_path):
     p = subprocess.run(cmd[:3] + [str(cohort), "--glob", "*.trx", "--out", str(tmp_path / "none")], env=env, capture_output=True,
                        text=True)
     assert p.returncode == 1 and "no file under" in p.stderr
+
+
+def test_the_gallery_and_its_3d_views_in_a_real_browser(tmp_path):
+    """The cohort's gallery opened from its files by Chromium (headless,
+    driven by puppeteer-core from npm: tests/browser/gallery.js): its rows,
+    sorting by a click on a header, filtering by typing; a subject's 3D view
+    (its streamlines as glTF, drawn by three.js from npm, carried in the
+    gallery) drawn in colour, not the background, and turned by a drag. The
+    exported streamlines are every k-th of the subject's, as nibabel reads
+    them. (Needs chromium, node and BUILD/npm/node_modules with three@0.147
+    and puppeteer-core, which .ci/bootstrap installs; a machine without them
+    skips it, CI fails.)"""
+    import nibabel as nib
+    build = os.environ.get("HORIZON_BUILD_DIR", "")
+    modules = os.environ.get("HORIZON_NODE_MODULES") or os.path.join(build, "npm", "node_modules")
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    missing = [what for what, ok in (("chromium", chromium), ("node", shutil.which("node")),
+                                     (os.path.join(modules, "three"), os.path.isdir(os.path.join(modules, "three"))),
+                                     (os.path.join(modules, "puppeteer-core"), os.path.isdir(os.path.join(modules, "puppeteer-core"))))
+               if not ok]
+    if missing:
+        if os.environ.get("CI"):
+            pytest.fail(f"missing {', '.join(missing)} (.ci/bootstrap installs them)")
+        pytest.skip(f"missing {', '.join(missing)}")
+    rng = np.random.default_rng(6)
+    cohort, out = tmp_path / "cohort", tmp_path / "qc"
+    for i in (1, 2, 3):
+        d = cohort / f"sub-{i:02d}"
+        d.mkdir(parents=True)
+        sl = [(np.cumsum(rng.normal(size=(40, 3)), axis=0) * 2 + [0, 3 * k - 40, 0]).astype(np.float32) for k in range(30 * i)]
+        nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), str(d / "t.tck"))
+    (cohort / "sub-03" / "t.tck").write_bytes(b"mrtrix tracks\ncount: 3\n")  # (broken: a failed row, no 3D view)
+    env = {**os.environ, "PYTHONPATH": os.path.dirname(os.path.dirname(os.path.abspath(horizon.__file__)))}
+    p = subprocess.run(["/usr/bin/python3", "-m", "horizon.batch", str(cohort), "--glob", "sub-*/t.tck", "--out", str(out), "--workers",
+                        "1", "--three", os.path.join(modules, "three"), "--web-points", "1000"], env=env, capture_output=True, text=True,
+                       timeout=600)
+    assert p.returncode == 0, p.stderr
+    # The exported proxy: every k-th streamline, at most 1000 points (40 each: every 3rd of sub-02's 60).
+    glb = out / "subjects" / "sub-02__t" / "scene.glb"
+    src = list(nib.streamlines.load(str(cohort / "sub-02" / "t.tck")).streamlines)
+    back = tmp_path / "back.tck"
+    assert subprocess.run([os.environ.get("HORIZON_BIN", "horizon"), "convert", str(glb), str(back)], capture_output=True).returncode == 0
+    got = list(nib.streamlines.load(str(back)).streamlines)
+    assert len(got) == 20
+    for a, b in zip(got, src[::3]):
+        np.testing.assert_allclose(a, b, atol=1e-4)
+    # In the browser (without the sanitizer's preload: Chromium is not ours).
+    benv = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "ASAN_OPTIONS", "LSAN_OPTIONS", "UBSAN_OPTIONS")}
+    script = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "browser", "gallery.js")
+    r = subprocess.run(["node", script, str(out / "index.html"), chromium, modules], env=benv, capture_output=True, text=True,
+                       timeout=300)
+    seen = json.loads(r.stdout.strip().splitlines()[-1]) if r.stdout.strip() else {}
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert seen["rows"] == ["sub-01__t", "sub-02__t", "sub-03__t"] and seen["failed"] == 1
+    assert [x for x in seen["sorted_up"] if x] == ["30", "60"] and [x for x in seen["sorted_down"] if x] == ["60", "30"]
+    assert seen["filtered"] == ["sub-01__t"]
+    assert seen["links_3d"] == 2 and seen["view_url"].endswith("sub-01__t/view.html")
+    assert seen["view_error"] is None and "15 of 30 streamlines" in seen["info"]
+    before, after = seen["before"], seen["after"]
+    assert before["drawn"] > 2000 and before["coloured"] > 1000, before  # (direction colours, not the background)
+    assert after["drawn"] > 2000 and after["hash"] != before["hash"] and seen["frames"] >= 2, seen
 
 
 def test_threads_loading_at_once_do_not_deadlock(tck):
