@@ -184,6 +184,82 @@ hz_status read_with(const hz_loader &l, const fs::path &file, core::Tractogram &
     return st;
 }
 
+// Reads a mesh file through `l`: every face index below the vertex count
+// and every coordinate finite, else HZ_E_INTERNAL (an accepted file's output
+// must be valid). `shrink` vertex floats less room than described (the
+// buffer-too-small check: a guard page after it). Returns the status.
+hz_status read_mesh_with(const hz_loader &l, const fs::path &file, std::string &msg, const hz_task *task = nullptr,
+                         std::uint64_t shrink = 0) {
+    hz_error err = new_error();
+    hz_open_request req{};
+    req.struct_size = sizeof req;
+    const std::string path = file.string();
+    req.path = path.c_str();
+    hz_reader *r = nullptr;
+    hz_status st = l.open(&req, &r, &err);
+    if (st != HZ_OK) {
+        msg = err.message;
+        return r != nullptr ? HZ_E_INTERNAL : st;
+    }
+    hz_dataset_info info{};
+    info.struct_size = sizeof info;
+    st = l.get_info(r, &info, &err);
+    if (st == HZ_OK && info.kind != HZ_DATA_MESH) st = HZ_E_UNSUPPORTED;
+    if (st == HZ_OK) {
+        std::error_code ec;
+        const auto fsize = fs::is_regular_file(file, ec) ? fs::file_size(file, ec) : UINT64_MAX;
+        if (info.nb_vertices > fsize || info.nb_faces > fsize) {
+            l.close(r);
+            msg = "get_info reports " + std::to_string(info.nb_vertices) + " vertices for a " + std::to_string(fsize) + "-byte file";
+            return HZ_E_INTERNAL;
+        }
+        const std::uint64_t nv = 3 * info.nb_vertices > shrink ? 3 * info.nb_vertices - shrink : 0;
+        GuardedBuffer vb(std::max<std::uint64_t>(nv, 1) * sizeof(float));
+        std::vector<std::uint32_t> faces(3 * info.nb_faces);
+        hz_mesh_dst dst{};
+        dst.struct_size = sizeof dst;
+        dst.vertices = reinterpret_cast<float *>(vb.data());
+        dst.vertices_capacity = nv;
+        dst.faces = faces.data();
+        dst.faces_capacity = faces.size();
+        st = l.read_mesh(r, &dst, task, &err);
+        if (st == HZ_OK && shrink == 0) {
+            const float *v = dst.vertices;
+            for (std::uint64_t i = 0; i < 3 * info.nb_vertices; ++i)
+                if (!std::isfinite(v[i])) {
+                    l.close(r);
+                    msg = "accepted input: non-finite coordinate at vertex " + std::to_string(i / 3);
+                    return HZ_E_INTERNAL;
+                }
+            for (std::uint32_t f : faces)
+                if (f >= info.nb_vertices) {
+                    l.close(r);
+                    msg = "accepted input: face index " + std::to_string(f) + " of " + std::to_string(info.nb_vertices) + " vertices";
+                    return HZ_E_INTERNAL;
+                }
+        }
+    }
+    if (st != HZ_OK && msg.empty()) msg = err.message;
+    l.close(r);
+    return st;
+}
+
+// The kind of data a sample holds (0 when it does not open).
+hz_data_kind sample_kind(const hz_loader &l, const fs::path &file) {
+    hz_error err = new_error();
+    hz_open_request req{};
+    req.struct_size = sizeof req;
+    const std::string path = file.string();
+    req.path = path.c_str();
+    hz_reader *r = nullptr;
+    if (l.open(&req, &r, &err) != HZ_OK || r == nullptr) return 0;
+    hz_dataset_info info{};
+    info.struct_size = sizeof info;
+    const hz_data_kind k = l.get_info(r, &info, &err) == HZ_OK ? info.kind : 0;
+    l.close(r);
+    return k;
+}
+
 // Reads a volume file through `l` (raw dtype); returns status, fills `v`.
 hz_status read_volume_with(const hz_loader &l, const fs::path &file, core::Volume &v, std::string &msg, const hz_task *task = nullptr,
                            std::int64_t shrink_capacity = 0) {
@@ -320,7 +396,13 @@ hz_status read_any(const hz_loader &l, const fs::path &file, std::string &msg) {
     }
     if (l.read_volume && (l.data_kinds & HZ_DATA_VOLUME)) {
         core::Volume v;
-        return read_volume_with(l, file, v, msg);
+        const hz_status st = read_volume_with(l, file, v, msg);
+        if (st != HZ_E_UNSUPPORTED) return st;
+    }
+    if (l.read_mesh && (l.data_kinds & HZ_DATA_MESH)) {
+        msg.clear();
+        const hz_status st = read_mesh_with(l, file, msg);
+        if (st != HZ_E_UNSUPPORTED) return st;
     }
     msg = "no reader for this kind";
     return HZ_E_UNSUPPORTED;
@@ -523,7 +605,7 @@ void add_loader_checks(std::vector<Check> &c) {
     c.push_back({"loader-malformed-survival", HZ_KIND_LOADER,
                  "truncated and corrupted samples fail cleanly (no crash, message, valid output when accepted)", [](const Ctx &x) {
                      const hz_loader &l = loader_of(x);
-                     if (!l.read_streamlines && !l.read_volume) return skip("reads neither streamlines nor volumes");
+                     if (!l.read_streamlines && !l.read_volume && !l.read_mesh) return skip("reads no streamlines, volumes or meshes");
                      std::string msg;
                      const auto files = loader_samples(x, msg);
                      if (files.empty()) return skip("no sample file (pass --data FILE)");
@@ -570,6 +652,15 @@ void add_loader_checks(std::vector<Check> &c) {
                  [](const Ctx &x) {
                      const hz_loader &l = loader_of(x);
                      std::string msg;
+                     if (l.read_mesh) {
+                         const auto files = loader_samples(x, msg);
+                         if (!files.empty() && sample_kind(l, files[0]) == HZ_DATA_MESH) {
+                             const hz_status st = read_mesh_with(l, files[0], msg, nullptr, 1);
+                             if (st != HZ_E_BUFFER_TOO_SMALL)
+                                 return fail("read_mesh: status " + std::to_string(st) + " instead of HZ_E_BUFFER_TOO_SMALL");
+                             return pass("read_mesh");
+                         }
+                     }
                      if (!l.read_streamlines && l.read_volume) {
                          const auto files = loader_samples(x, msg);
                          if (files.empty()) return skip("no sample file");
@@ -609,7 +700,7 @@ void add_loader_checks(std::vector<Check> &c) {
                  "lets it skip polling); close() still works",
                  [](const Ctx &x) {
                      const hz_loader &l = loader_of(x);
-                     if (!l.read_streamlines && !l.read_volume) return skip("reads neither streamlines nor volumes");
+                     if (!l.read_streamlines && !l.read_volume && !l.read_mesh) return skip("reads no streamlines, volumes or meshes");
                      std::string msg;
                      const auto files = loader_samples(x, msg);
                      if (files.empty()) return skip("no sample file");
@@ -617,10 +708,12 @@ void add_loader_checks(std::vector<Check> &c) {
                      task.cancel();
                      core::Tractogram t;
                      core::Volume v;
-                     const char *call = l.read_streamlines ? "read_streamlines" : "read_volume";
+                     const bool mesh = l.read_mesh && sample_kind(l, files[0]) == HZ_DATA_MESH;
+                     const char *call = mesh ? "read_mesh" : l.read_streamlines ? "read_streamlines" : "read_volume";
                      const auto t0 = std::chrono::steady_clock::now();
-                     const hz_status st = l.read_streamlines ? read_with(l, files[0], t, msg, task.get())
-                                                             : read_volume_with(l, files[0], v, msg, task.get());
+                     const hz_status st = mesh                 ? read_mesh_with(l, files[0], msg, task.get())
+                                          : l.read_streamlines ? read_with(l, files[0], t, msg, task.get())
+                                                               : read_volume_with(l, files[0], v, msg, task.get());
                      const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
                      if (st == HZ_E_CANCELLED) return pass();
                      if (st != HZ_OK)
