@@ -26,6 +26,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <chrono>
 #include <cstring>
 #include <optional>
 #include <map>
@@ -121,6 +123,52 @@ std::unique_ptr<core::render::GlContext> &context() {
     if (!g_context) g_context = core::render::make_headless_context();
     return g_context;
 }
+
+// Long work's progress for Python (issue 54): `fn(fraction, what)` called
+// with the GIL held, from whatever thread reports, at most every 0.1 s
+// unless the fraction moved by 5 % or reached 1. An exception it raises
+// (KeyboardInterrupt from Ctrl-C included) cancels the work, and the call
+// that did it raises that exception (rethrow()) instead of its own error.
+class Progress {
+public:
+    explicit Progress(py::object fn) : fn_(std::move(fn)) {
+        if (!fn_.is_none()) task_.on_progress = [this](double f, const char *what) { report(f, what); };
+    }
+    ~Progress() {
+        py::gil_scoped_acquire gil;  // (fn_ and a kept exception let go with the GIL)
+        error_ = nullptr;
+        fn_ = py::object();
+    }
+    Progress(const Progress &) = delete;
+    Progress &operator=(const Progress &) = delete;
+    const hz_task *task() const { return fn_.is_none() ? nullptr : task_.get(); }
+    // With the GIL held, after the work: the callback's exception, if any.
+    void rethrow() {
+        if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+    }
+
+private:
+    void report(double f, const char *what) {
+        std::lock_guard<std::mutex> lock(m_);
+        if (error_) return;
+        const auto now = std::chrono::steady_clock::now();
+        if (f < 1.0 && f - last_f_ < 0.05 && now - last_ < std::chrono::milliseconds(100)) return;
+        last_ = now, last_f_ = f;
+        py::gil_scoped_acquire gil;
+        try {
+            fn_(std::clamp(f, 0.0, 1.0), std::string(what ? what : ""));
+        } catch (py::error_already_set &) {
+            error_ = std::current_exception();
+            task_.cancel();
+        }
+    }
+    py::object fn_;
+    core::Task task_;
+    std::mutex m_;
+    std::chrono::steady_clock::time_point last_{};
+    double last_f_ = -1.0;
+    std::exception_ptr error_;
+};
 
 }  // namespace
 
@@ -231,16 +279,23 @@ PYBIND11_MODULE(_core, m) {
 
     m.def(
         "load",
-        [](const std::string &path) {
+        [](const std::string &path, py::object progress) {
             core::Registry &reg = registry();
             auto ds = std::make_shared<core::Dataset>();
-            {
+            Progress prog(std::move(progress));
+            try {
                 py::gil_scoped_release nogil;
-                *ds = core::read_dataset(reg, path);
+                *ds = core::read_dataset(reg, path, prog.task());
+            } catch (...) {
+                prog.rethrow();
+                throw;
             }
+            prog.rethrow();
             return Data{std::move(ds), path};
         },
-        py::arg("path"), "Reads a file through the loader plugin that claims it; raises horizon.Error naming the file.");
+        py::arg("path"), py::arg("progress") = py::none(),
+        "Reads a file through the loader plugin that claims it; raises horizon.Error naming the file. `progress`: "
+        "progress(fraction, what), called as the file is read (an exception it raises stops the reading and is raised).");
 
     m.def(
         "save",
@@ -321,7 +376,7 @@ PYBIND11_MODULE(_core, m) {
     m.def(
         "_cluster",
         [](const Data &d, const std::string &algorithm, const std::vector<double> &thresholds, const std::string &params_json,
-           std::optional<std::vector<std::uint64_t>> ordering) {
+           std::optional<std::vector<std::uint64_t>> ordering, py::object progress) {
             const core::Tractogram &t = need(d, HZ_DATA_STREAMLINES, "cluster").tractogram;
             core::Registry &reg = registry();
             core::render::ClusterSpec spec;
@@ -333,10 +388,15 @@ PYBIND11_MODULE(_core, m) {
             for (const auto &[k, v] : params.items())
                 spec.params[k] = core::param_from_json(core::find_param(schema, plugin->info.id, k), v);
             core::render::ClusterTree tree;
-            {
+            Progress prog(std::move(progress));
+            try {
                 py::gil_scoped_release nogil;
-                tree = core::render::run_clustering(reg, t, spec, nullptr, ordering ? &*ordering : nullptr);
+                tree = core::render::run_clustering(reg, t, spec, prog.task(), ordering ? &*ordering : nullptr);
+            } catch (...) {
+                prog.rethrow();
+                throw;
             }
+            prog.rethrow();
             const auto nodes = py::ssize_t(tree.parent.size());
             py::dict out;
             out["algorithm"] = plugin->info.id;
@@ -349,7 +409,8 @@ PYBIND11_MODULE(_core, m) {
             out["members"] = py::array_t<std::uint64_t>(py::ssize_t(tree.members.size()), tree.members.data());
             return out;
         },
-        py::arg("data"), py::arg("algorithm"), py::arg("thresholds"), py::arg("params_json"), py::arg("ordering"));
+        py::arg("data"), py::arg("algorithm"), py::arg("thresholds"), py::arg("params_json"), py::arg("ordering"),
+        py::arg("progress") = py::none());
 
     m.def(
         "_from_streamlines",

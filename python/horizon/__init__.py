@@ -14,7 +14,8 @@ import json
 import os
 
 from . import _paths
-from ._core import Data, Error, _filter, load, plugins, save
+from ._core import Data, Error, _filter, plugins, save
+from ._core import load as _load
 from ._core import _cluster, _from_streamlines, _render, _set_plugin_dirs
 
 __all__ = ["ClusterTree", "Data", "Error", "Scene", "cluster", "filter", "from_streamlines", "load", "plugins", "render", "save", "streamlines",
@@ -76,14 +77,52 @@ def to_nibabel(data):
     raise TypeError(f"to_nibabel: {data.path} holds {data.kind}; streamlines and volumes convert")
 
 
-def cluster(data, algorithm="qbx", thresholds=None, ordering=None, **params):
+class _Bar:
+    """progress=True: a text bar on standard error, one line redrawn."""
+
+    def __init__(self, title):
+        import sys
+        self.title, self.err, self.shown = title, sys.stderr, -1
+
+    def __call__(self, fraction, what):
+        pct = int(fraction * 100)
+        if pct == self.shown:
+            return
+        self.shown = pct
+        bar = "#" * (pct // 4) + "." * (25 - pct // 4)
+        self.err.write(f"\r{self.title}: [{bar}] {pct:3d}% {what[:40]:40s}" + ("\n" if pct >= 100 else ""))
+        self.err.flush()
+
+
+def _progress(progress, title="horizon"):
+    if progress is None or progress is False:
+        return None
+    if progress is True:
+        return _Bar(title)
+    if not callable(progress):
+        raise TypeError("progress must be a callable progress(fraction, what), True (a text bar) or None")
+    return progress
+
+
+def load(path, progress=None):
+    """Reads `path` through the loader plugin that claims it (a
+    horizon.Data); raises horizon.Error naming the file. `progress`: a
+    callable progress(fraction, what) called as the file is read (from the
+    reading thread, at most ten times a second; an exception it raises, such
+    as KeyboardInterrupt, stops the reading and is raised here), or True for
+    a text bar on standard error."""
+    return _load(os.fspath(path), _progress(progress, f"reading {os.path.basename(os.fspath(path))}"))
+
+
+def cluster(data, algorithm="qbx", thresholds=None, ordering=None, progress=None, **params):
     """Clusters the streamlines of `data` (a horizon.Data, or streamlines as
     from_streamlines takes them) with clustering plugin `algorithm` (its id
     or the last part of it: qb, qbx, qbx_merge, ...), `thresholds` in mm
     (the plugin's defaults if None), the processing `ordering` (a
     permutation of the streamlines; None: their order) and the plugin's own
     parameters by name (`horizon plugins ID` lists them), e.g. mode="exact"
-    (DIPY's results, bit for bit) or mode="fast". Returns a ClusterTree."""
+    (DIPY's results, bit for bit) or mode="fast". `progress`: as load()'s.
+    Returns a ClusterTree."""
     import numpy as np
     if not isinstance(data, Data):
         data = from_streamlines(data)
@@ -95,7 +134,7 @@ def cluster(data, algorithm="qbx", thresholds=None, ordering=None, **params):
             raise TypeError("cluster: ordering must be a 1-D array of streamline indices")
         order = [int(i) for i in order]
     try:
-        result = _cluster(data, algorithm, [float(t) for t in (thresholds or [])], json.dumps(params), order)
+        result = _cluster(data, algorithm, [float(t) for t in (thresholds or [])], json.dumps(params), order, _progress(progress))
     except Error as e:
         if str(e).startswith("ordering:"):
             raise ValueError(f"cluster: {e}") from None

@@ -386,6 +386,42 @@ def test_the_gallery_and_its_3d_views_in_a_real_browser(tmp_path):
     assert after["drawn"] > 2000 and after["hash"] != before["hash"] and seen["frames"] >= 2, seen
 
 
+def test_progress_is_reported_and_an_exception_in_it_stops_the_work(tmp_path, capsys):
+    """load(progress=...) and cluster(progress=...): fractions in [0, 1],
+    never decreasing, ending at 1, with what is being done; an exception the
+    callback raises (KeyboardInterrupt, as Ctrl-C in a notebook) stops the
+    work and is raised by the call; True draws a text bar; anything else is
+    a TypeError."""
+    import nibabel as nib
+    rng = np.random.default_rng(8)
+    sl = [np.cumsum(rng.normal(size=(60, 3)), axis=0).astype(np.float32) for _ in range(20000)]
+    path = tmp_path / "p.tck"
+    nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), str(path))
+    seen = []
+    data = horizon.load(path, progress=lambda f, what: seen.append((f, what)))
+    assert len(data.offsets) == 20001
+    fractions = [f for f, _ in seen]
+    assert fractions and fractions[-1] == 1.0 and all(0 <= f <= 1 for f in fractions)
+    assert fractions == sorted(fractions)
+    assert any("TCK" in w for _, w in seen)
+
+    def interrupt(f, what):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        horizon.load(path, progress=interrupt)
+    seen.clear()
+    tree = horizon.cluster(data, "qbx", [30, 20], progress=lambda f, what: seen.append(f))
+    assert len(tree.labels(2)) == 20000
+    assert seen and seen[-1] == 1.0 and seen == sorted(seen)
+    with pytest.raises(KeyboardInterrupt):
+        horizon.cluster(data, "qbx", [30, 20], progress=interrupt)
+    horizon.load(path, progress=True)
+    assert "100%" in capsys.readouterr().err
+    with pytest.raises(TypeError, match="progress"):
+        horizon.load(path, progress=3)
+
+
 def test_threads_loading_at_once_do_not_deadlock(tck):
     """Four threads of a fresh interpreter load files at once, the first
     call finding the plugins (done with the GIL released, under a lock):
