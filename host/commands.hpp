@@ -9,6 +9,7 @@
 #include <functional>
 #include <memory>
 #include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -64,7 +65,13 @@ struct PassOptions {
 // may not replace); empty: as the scene says. Throws Error.
 struct VolumeOptions {
     std::string transfer;  // --volume-render PRESET|FILE.json
+    // --volume-index N: every volume of a 4D series shows its N-th 3D volume
+    // (Object::volume_index; the renderer says when a file has fewer)
+    std::optional<std::uint64_t> volume_index;
     void apply(core::render::Scene &s) const {
+        if (volume_index)
+            for (auto &o : s.objects)
+                if (o.kind == HZ_DATA_VOLUME) o.volume_index = *volume_index;
         if (transfer.empty()) return;
         const bool file = std::filesystem::path(transfer).extension() == ".json";
         const core::render::TransferFunction tf = file ? core::render::load_transfer(transfer) : core::render::transfer_preset(transfer);

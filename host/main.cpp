@@ -99,6 +99,10 @@ void add_volume_options(CLI::App *cmd, VolumeOptions &v) {
     cmd->add_option("--volume-render", v.transfer,
                     "draw every volume by ray-marching through this transfer function instead of as slices: a preset (" + presets +
                         ") or a JSON file {\"colormap\": ..., \"opacity\": [[fraction of the window, opacity of 1 mm], ...]}");
+    cmd->add_option("--volume-index", v.volume_index,
+                    "a 4D series (e.g. diffusion volumes): show its N-th 3D volume, counting from 0 (a scene file's \"volume_index\"; "
+                    "the window's panel and `volume I N` step through them)")
+        ->check(CLI::Range(std::uint64_t(0), std::uint64_t(1) << 40));
 }
 
 void add_annotation_options(CLI::App *cmd, AnnotationOptions &a) {

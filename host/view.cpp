@@ -1275,6 +1275,34 @@ private:
                 } else {
                     throw core::Error("roi: unknown '" + what + "' (sphere, box, mask, move, scale, flip, remove)");
                 }
+            } else if (op == "slice") {  // slice I x|y|z MM, or slice I x|y|z off: volume I's slice along that axis
+                const std::size_t obj = w.count("an object number", r.scene().objects.size());
+                const std::string axis = w.word("x, y or z");
+                if (axis.size() != 1 || axis[0] < 'x' || axis[0] > 'z') throw core::Error("slice needs I x|y|z MM (or off)");
+                const std::string at = w.word("a position in mm, or off");
+                w.done();
+                if (obj >= r.scene().objects.size()) throw core::Error("slice: no object " + std::to_string(obj));
+                const auto &ob = r.scene().objects[obj];
+                std::optional<double> p[3] = {ob.slice_x, ob.slice_y, ob.slice_z};
+                if (at == "off") {
+                    p[axis[0] - 'x'].reset();
+                } else {
+                    char *end = nullptr;
+                    const double mm = std::strtod(at.c_str(), &end);
+                    if (end == at.c_str() || *end) throw core::Error("slice: '" + at + "' is not a position in mm (or off)");
+                    p[axis[0] - 'x'] = mm;
+                }
+                r.set_slices(obj, p[0], p[1], p[2]);
+            } else if (op == "window") {  // window I LO HI: the values volume I's colormap spans
+                const std::size_t obj = w.count("an object number", r.scene().objects.size());
+                const double lo = w.number("LO"), hi = w.number("HI");
+                w.done();
+                r.set_window(obj, lo, hi);
+            } else if (op == "volume") {  // volume I N: volume I shows the N-th 3D volume of its series
+                const std::size_t obj = w.count("an object number", r.scene().objects.size());
+                const std::uint64_t n = w.count("a volume index", std::uint64_t(1) << 40);
+                w.done();
+                r.set_volume_index(obj, n);
             } else if (op == "slab") {  // slab x|y|z CENTRE HALF, slab x|y|z CENTRE points [SIZE], or slab off
                 const std::string axis = w.word("x|y|z CENTRE HALF, x|y|z CENTRE points [SIZE], or off");
                 if (axis == "off") {
@@ -1703,6 +1731,46 @@ private:
         return core::render::layout_annotations(r.scene().annotations, r.colour_scales(), app.orbit.view(app.radius), w, h);
     }
 
+    // A volume's slicer in the panel: each slice's position (a box shows or
+    // hides it), the window its colormap spans, the 3D volume of a series.
+    // A change goes to the renderer at once (slices and window: no upload;
+    // the volume: its texture).
+    void slicer_controls(std::size_t i) {
+        const auto ext = r.volume_extent(i);
+        if (!ext) return;
+        const auto &ob = r.scene().objects[i];
+        try {
+            if (!ob.transfer) {
+                std::optional<double> p[3] = {ob.slice_x, ob.slice_y, ob.slice_z};
+                bool changed = false;
+                for (int a = 0; a < 3; ++a) {
+                    ImGui::PushID(a);
+                    bool on = p[a].has_value();
+                    const float lo = float(ext->box.min[a]), hi = float(ext->box.max[a]);
+                    if (ImGui::Checkbox("##on", &on)) p[a] = on ? std::optional<double>((lo + hi) / 2) : std::nullopt, changed = true;
+                    ImGui::SameLine();
+                    float v = p[a] && !std::isnan(*p[a]) ? float(*p[a]) : (lo + hi) / 2;
+                    const char label[] = {char('x' + a), 0};
+                    if (ImGui::SliderFloat(label, &v, lo, hi, "%.1f mm") && p[a])
+                        p[a] = std::clamp(double(v), ext->box.min[a], ext->box.max[a]), changed = true;
+                    ImGui::PopID();
+                }
+                if (changed) r.set_slices(i, p[0], p[1], p[2]);
+            }
+            float win[2] = {float(ext->window[0]), float(ext->window[1])};
+            const float span = std::max(win[1] - win[0], 1e-6f);
+            if (ImGui::DragFloatRange2("window", &win[0], &win[1], span / 200, 0, 0, "%.4g", "%.4g") && win[1] > win[0])
+                r.set_window(i, win[0], win[1]);
+            if (ext->volumes > 1) {
+                int k = int(std::min<std::uint64_t>(ob.volume_index, INT32_MAX));
+                if (ImGui::SliderInt("volume", &k, 0, int(std::min<std::uint64_t>(ext->volumes - 1, INT32_MAX))))
+                    r.set_volume_index(i, std::uint64_t(k));
+            }
+        } catch (const core::Error &e) {
+            std::fprintf(stderr, "horizon: %s\n", e.what());
+        }
+    }
+
     // Each object: visible, and its material's controls.
     void objects_panel() {
         for (std::size_t i = 0; i < r.scene().objects.size(); ++i) {
@@ -1714,6 +1782,7 @@ private:
                 bool vis = ob.visible;
                 if (ImGui::Checkbox("visible", &vis)) r.set_visible(i, vis);
                 scriptable("visible " + std::to_string(i));
+                if (ob.kind == HZ_DATA_VOLUME) slicer_controls(i);
                 if (ob.kind != HZ_DATA_VOLUME && material_controls(reg, ob, materials[i])) {
                     try {
                         app.last_material_edit = glfwGetTime();

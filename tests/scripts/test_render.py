@@ -557,6 +557,72 @@ class RenderTest(TempDirTest):
             self.assertLess(np.mean(diff > 6), 0.005, f"{name}: {100 * np.mean(diff > 6):.1f} % of the foreground differs by more than 6/255")
 
 
+class SlicerTest(TempDirTest):
+    """The slicer (issue 55): a 4D series (40 x 48 x 36 voxels of 2 mm, 3
+    volumes, each a different pattern) shown as slices. `--volume-index N`
+    and a scene's "volume_index" show the N-th volume; one past the last is
+    a one-line error. In the window, `slice`, `window` and `volume` (the
+    panel's sliders do the same) give the picture `render` draws of the scene
+    with those positions, window and volume."""
+
+    def setUp(self):
+        super().setUp()
+        import nibabel as nib
+        i, j, k = np.meshgrid(np.arange(40), np.arange(48), np.arange(36), indexing="ij")
+        vols = [i * 5.0, j * 5.0, ((i // 4 + j // 4 + k // 4) % 2) * 200.0]
+        aff = np.diag([2.0, 2.0, 2.0, 1.0])
+        aff[:3, 3] = [-40, -48, -36]
+        nib.save(nib.Nifti1Image(np.stack(vols, -1).astype(np.float32), aff), self.path("series.nii.gz"))
+
+    def scene(self, name, **keys):
+        ob = {"type": "slices", "file": "series.nii.gz", "x": None, "y": None, "z": 0, "window": [0, 240], **keys}
+        with open(self.path(name), "w") as f:
+            json.dump({"objects": [ob], "camera": {"view": "superior"}, "environment": {"type": "none"}}, f)
+        return self.path(name)
+
+    def render(self, scene, out, *args):
+        p = run("render", scene, "-o", self.path(out), "--size", "320x240", "--force", *args, env=NO_DISPLAY, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return load(self.path(out))
+
+    def test_volume_index_of_a_series(self):
+        first = self.render(self.scene("s.json"), "v0.png")
+        flag = self.render(self.scene("s.json"), "v2f.png", "--volume-index", "2")
+        key = self.render(self.scene("k.json", volume_index=2), "v2k.png")
+        np.testing.assert_array_equal(flag, key)
+        self.assertGreater(np.abs(first - flag).mean(), 10, "another volume, another picture")
+        # Volume 0 rises along x (columns), volume 2 is a checkerboard of 8 mm.
+        row = first[120, 90:230, 0]
+        self.assertGreater(np.corrcoef(np.arange(len(row)), row)[0, 1], 0.95)
+        self.assertGreater(len(np.unique(key[120, 90:230, 0] > 128)), 1)
+        p = run("render", self.scene("s.json"), "-o", self.path("x.png"), "--volume-index", "3", env=NO_DISPLAY, timeout=120)
+        self.assertEqual(p.returncode, 1)
+        self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+        self.assertIn("volume_index 3, but the file holds 3 volumes (0 to 2)", p.stderr)
+        self.assertFalse(os.path.exists(self.path("x.png")))
+
+    @unittest.skipUnless(shutil.which("xvfb-run") or os.environ.get("CI"), "xvfb-run is not installed")
+    def test_the_window_moves_slices_window_and_volume(self):
+        script = self.path("s.txt")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 1", f"screenshot {self.path('w0.png')}", "slice 0 z 10", "window 0 20 120", "volume 0 1",
+                               "slice 0 x -4", "wait 1", f"screenshot {self.path('w1.png')}", "slice 0 x off", "window 0 0 0",
+                               "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        p = xvfb_run([HORIZON, "view", self.scene("s.json"), "--size", "320x240", "--aa-frames", "1", "--script", script], env)
+        self.assertNotEqual(p.returncode, 0, "window 0 0 0 is not a range: the script stops there")
+        self.assertIn("window", p.stderr)
+        self.assertIn("is not a range", p.stderr)
+        before = self.render(self.scene("s.json"), "r0.png", "--aa-frames", "1")
+        after = self.render(self.scene("a.json", z=10, x=-4, window=[20, 120], volume_index=1), "r1.png", "--aa-frames", "1")
+        w0, w1 = load(self.path("w0.png")), load(self.path("w1.png"))
+        self.assertLess((np.abs(w0 - before).sum(axis=-1) > 30).mean(), 0.005)
+        self.assertLess((np.abs(w1 - after).sum(axis=-1) > 30).mean(), 0.005)
+        self.assertGreater(np.abs(w0 - w1).mean(), 5)
+
+
 class FibreAnisotropyTest(TempDirTest):
     """The paper's Fig. 7: a corpus-callosum-like bundle (1500 arcs across
     the midline) lit by the default rig, with the principled model's

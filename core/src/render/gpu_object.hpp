@@ -94,5 +94,16 @@ void upload_mesh(GpuObject &g, const Object &o);
 // the slice quads; or, with o.transfer, the texture and the transfer
 // function's table for the volume rendering pass.
 void upload_slices(GpuObject &g, const Object &o);
+// The slice quads of g (made by upload_slices) again for o's positions
+// (Object::slice_x/y/z): only the vertex buffer changes. Throws Error for a
+// position outside the volume.
+void upload_slice_quads(GpuObject &g, const Object &o);
+// How many 3D volumes a volume holds (the product of its dimensions after
+// the third; 1 for a 3D one).
+std::uint64_t volume_count(const Volume &v);
+// The values of o's volume shown (Object::volume_index; a 3D volume of
+// dims[0..2], x fastest), scaled, as float. Throws Error for an index
+// beyond the file's volumes.
+std::vector<float> volume_values(const Object &o);
 
 }  // namespace hz::core::render

@@ -123,6 +123,22 @@ void upload_mesh(GpuObject &g, const Object &o) {
     g.bounds = bounds_of(V, nv);
 }
 
+std::vector<float> volume_values(const Object &o) {
+    const Volume &v = o.data.volume;
+    const std::uint64_t X = v.dims[0], Y = v.dims[1], Z = v.dims[2];
+    // The 3D volume shown (Object::volume_index), scaled to float (read in
+    // place, no copy of the voxels).
+    const std::uint64_t volumes = volume_count(v);
+    if (o.volume_index >= volumes)
+        throw Error(o.name + ": volume_index " + std::to_string(o.volume_index) + ", but the file holds " + std::to_string(volumes) +
+                    (volumes == 1 ? " volume" : " volumes") + " (0 to " + std::to_string(volumes - 1) + ")");
+    const std::size_t es = dtype_size(v.dtype);
+    const std::vector<double> vals = values_of(v.voxels.data() + o.volume_index * X * Y * Z * es, v.dtype, X * Y * Z, es);
+    std::vector<float> f(vals.size());
+    for (std::size_t i = 0; i < vals.size(); ++i) f[i] = float(vals[i] * v.scale_slope + v.scale_inter);
+    return f;
+}
+
 void upload_slices(GpuObject &g, const Object &o) {
     const Volume &v = o.data.volume;
     if (v.dims.size() < 3) throw Error(o.name + ": slices need a 3D volume");
@@ -131,10 +147,7 @@ void upload_slices(GpuObject &g, const Object &o) {
     const std::uint64_t X = v.dims[0], Y = v.dims[1], Z = v.dims[2];
     if (X > std::uint64_t(max3d) || Y > std::uint64_t(max3d) || Z > std::uint64_t(max3d))
         throw Error(o.name + ": volume larger than the GL 3D texture limit " + std::to_string(max3d));
-    // First 3D volume, scaled to float (read in place, no copy of the voxels).
-    const std::vector<double> vals = values_of(v.voxels.data(), v.dtype, X * Y * Z, dtype_size(v.dtype));
-    std::vector<float> f(vals.size());
-    for (std::size_t i = 0; i < vals.size(); ++i) f[i] = float(vals[i] * v.scale_slope + v.scale_inter);
+    const std::vector<float> f = volume_values(o);
     glGenTextures(1, &g.volume_tex);
     glBindTexture(GL_TEXTURE_3D, g.volume_tex);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
@@ -197,6 +210,29 @@ void upload_slices(GpuObject &g, const Object &o) {
     }
     g.bounds.empty = false;
     for (int k = 0; k < 3; ++k) g.bounds.min[k] = lo[k], g.bounds.max[k] = hi[k];
+    // (the ray march's step: half the smallest voxel side)
+    g.step_mm = 0.5 * std::min({glm::length(glm::dvec3(A[0])), glm::length(glm::dvec3(A[1])), glm::length(glm::dvec3(A[2]))});
+    if (o.transfer) {
+        g.slice_vertices = 0;
+        return;
+    }
+    glGenVertexArrays(1, &g.vao);
+    glBindVertexArray(g.vao);
+    glGenBuffers(1, &g.vbo);
+    glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, nullptr);
+    upload_slice_quads(g, o);
+}
+
+std::uint64_t volume_count(const Volume &v) {
+    std::uint64_t n = 1;
+    for (std::size_t k = 3; k < v.dims.size(); ++k) n *= std::max<std::uint64_t>(v.dims[k], 1);
+    return n;
+}
+
+void upload_slice_quads(GpuObject &g, const Object &o) {
+    const glm::dvec3 lo(g.bounds.min[0], g.bounds.min[1], g.bounds.min[2]), hi(g.bounds.max[0], g.bounds.max[1], g.bounds.max[2]);
     const glm::dvec3 mid = (lo + hi) * 0.5;
     std::vector<float> quads;
     auto quad = [&](int axis, double at) {
@@ -216,24 +252,13 @@ void upload_slices(GpuObject &g, const Object &o) {
             quads.push_back(float(p.x)), quads.push_back(float(p.y)), quads.push_back(float(p.z));
         }
     };
-    // (the ray march's step: half the smallest voxel side)
-    g.step_mm = 0.5 * std::min({glm::length(glm::dvec3(A[0])), glm::length(glm::dvec3(A[1])), glm::length(glm::dvec3(A[2]))});
-    if (o.transfer) {
-        g.slice_vertices = 0;
-        return;
-    }
     if (o.slice_x) quad(0, *o.slice_x);
     if (o.slice_y) quad(1, *o.slice_y);
     if (o.slice_z) quad(2, *o.slice_z);
     g.slice_vertices = GLsizei(quads.size() / 3);
     g.triangles = g.slice_vertices / 3;
-    glGenVertexArrays(1, &g.vao);
-    glBindVertexArray(g.vao);
-    glGenBuffers(1, &g.vbo);
     glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
-    glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(quads.size() * 4), quads.data(), GL_STATIC_DRAW);
-    glEnableVertexAttribArray(0);
-    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 12, nullptr);
+    glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(quads.size() * 4), quads.data(), GL_DYNAMIC_DRAW);
 }
 
 }  // namespace hz::core::render

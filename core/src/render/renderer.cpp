@@ -1950,6 +1950,71 @@ void Renderer::set_visible(std::size_t object, bool visible) {
     }
 }
 
+namespace {
+GpuObject &volume_object(std::vector<GpuObject> &objects, const Scene &scene, std::size_t object, const char *what) {
+    if (object >= scene.objects.size()) throw Error(std::string(what) + ": no object " + std::to_string(object));
+    for (GpuObject &g : objects)
+        if (g.index == object && g.slices) return g;
+    throw Error(std::string(what) + ": " + scene.objects[object].name + " is not a volume");
+}
+}  // namespace
+
+void Renderer::set_slices(std::size_t object, std::optional<double> x, std::optional<double> y, std::optional<double> z) {
+    Impl &I = *impl_;
+    GpuObject &g = volume_object(I.objects, I.scene, object, "slices");
+    Object &o = I.scene.objects[object];
+    if (o.transfer) throw Error("slices: " + o.name + " is rendered by ray-marching, not as slices");
+    // (NaN: the middle of the volume along that axis, as a scene's default)
+    std::optional<double> p[3] = {x, y, z};
+    for (int a = 0; a < 3; ++a) {
+        if (p[a] && std::isnan(*p[a])) p[a] = (g.bounds.min[a] + g.bounds.max[a]) / 2;
+        if (p[a] && !std::isfinite(*p[a])) throw Error("slices: " + o.name + ": a position is not a finite number");
+    }
+    Object moved;  // (checked and built before anything changes)
+    moved.name = o.name, moved.slice_x = p[0], moved.slice_y = p[1], moved.slice_z = p[2];
+    upload_slice_quads(g, moved);
+    o.slice_x = p[0], o.slice_y = p[1], o.slice_z = p[2];
+    ++I.generation;
+}
+
+void Renderer::set_window(std::size_t object, double lo, double hi) {
+    Impl &I = *impl_;
+    GpuObject &g = volume_object(I.objects, I.scene, object, "window");
+    if (!(std::isfinite(lo) && std::isfinite(hi) && hi > lo))
+        throw Error("window: " + I.scene.objects[object].name + ": [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                    "] is not a range (finite, high > low)");
+    g.window = {lo, hi};
+    I.scene.objects[object].window = std::array<double, 2>{lo, hi};
+    if (g.colour_scale) g.colour_scale->range = {lo, hi};
+    ++I.generation;
+}
+
+void Renderer::set_volume_index(std::size_t object, std::uint64_t index) {
+    Impl &I = *impl_;
+    GpuObject &g = volume_object(I.objects, I.scene, object, "volume");
+    Object &o = I.scene.objects[object];
+    const std::uint64_t before = o.volume_index;
+    o.volume_index = index;
+    std::vector<float> f;
+    try {
+        f = volume_values(o);
+    } catch (...) {
+        o.volume_index = before;
+        throw;
+    }
+    const Volume &v = o.data.volume;
+    glBindTexture(GL_TEXTURE_3D, g.volume_tex);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexSubImage3D(GL_TEXTURE_3D, 0, 0, 0, 0, GLsizei(v.dims[0]), GLsizei(v.dims[1]), GLsizei(v.dims[2]), GL_RED, GL_FLOAT, f.data());
+    ++I.generation;
+}
+
+std::optional<Renderer::VolumeExtent> Renderer::volume_extent(std::size_t object) const {
+    for (const GpuObject &g : impl_->objects)
+        if (g.index == object && g.slices) return VolumeExtent{g.bounds, volume_count(impl_->scene.objects[object].data.volume), g.window};
+    return std::nullopt;
+}
+
 View Renderer::fit_view(const Camera &c, double aspect) const { return render::fit_view(impl_->scene, c, aspect); }
 
 Bounds scene_bounds(const Scene &s) {

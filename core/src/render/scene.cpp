@@ -510,7 +510,8 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             check_keys(o, {"type", "name", "file", "builtin", "data", "overlays", "color", "material", "visible", "opacity"}, what, where);
             ob.coloring.color = {0.85, 0.72, 0.68};
         } else if (type == "volume") {
-            check_keys(o, {"type", "name", "file", "builtin", "data", "window", "transfer", "visible", "opacity"}, what, where);
+            check_keys(o, {"type", "name", "file", "builtin", "data", "window", "transfer", "visible", "opacity", "volume_index"}, what,
+                       where);
             ob.transfer = transfer_preset("mri");
             if (o.contains("transfer")) {
                 const json &t = o["transfer"];
@@ -538,7 +539,8 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             }
         } else {
             check_keys(o,
-                       {"type", "name", "file", "builtin", "data", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity"},
+                       {"type", "name", "file", "builtin", "data", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity",
+                        "volume_index"},
                        what, where);
         }
         if (o.contains("name")) ob.name = str(o["name"], what, where + ".name");
@@ -557,6 +559,8 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                 (ax[0] == 'x' ? ob.slice_x : ax[0] == 'y' ? ob.slice_y : ob.slice_z) = v;
             }
         if (o.contains("clip_below") && !o["clip_below"].is_null()) ob.clip_below = num(o["clip_below"], what, where + ".clip_below");
+        if (o.contains("volume_index"))
+            ob.volume_index = std::uint64_t(num_in(o["volume_index"], what, where + ".volume_index", 0.0, 1e12));
         if (o.contains("window")) {
             ob.window = vec<2>(o["window"], what, where + ".window");
             if (!((*ob.window)[1] > (*ob.window)[0]))

@@ -230,6 +230,27 @@ public:
     // compiles the new program if needed. Throws Error.
     void set_material(std::size_t object, const Material &m);
     void set_visible(std::size_t object, bool visible);
+    // The slicer (a volume drawn as slices): moves object `object`'s
+    // slices (Object::slice_x/y/z, RAS+ mm; nullopt hides that slice, NaN
+    // puts it in the middle),
+    // only their quads redrawn; sets the value range its colormap spans
+    // (Object::window; a rendered volume's transfer function too); shows
+    // another of its 3D volumes (Object::volume_index, a 4D series; its
+    // texture uploaded again, the window kept). Each throws Error naming the
+    // object for a position outside the volume, lo >= hi or non-finite, an
+    // index beyond the file's volumes, or an object that is not a volume.
+    void set_slices(std::size_t object, std::optional<double> x, std::optional<double> y, std::optional<double> z);
+    void set_window(std::size_t object, double lo, double hi);
+    void set_volume_index(std::size_t object, std::uint64_t index);
+    // The RAS+ mm box of a volume object's grid (its voxels' outer faces),
+    // its number of 3D volumes and its window; nullopt for an object that is
+    // not a volume.
+    struct VolumeExtent {
+        Bounds box;
+        std::uint64_t volumes = 1;
+        std::array<double, 2> window{0, 1};
+    };
+    std::optional<VolumeExtent> volume_extent(std::size_t object) const;
     // Replaces object `i` (same kind) with new data, colouring and material,
     // re-uploading only that object. Throws Error.
     void replace_object(std::size_t i, Object o);

@@ -110,6 +110,10 @@ struct Object {
     std::optional<std::array<double, 2>> window;  // value range mapped to the colormap
     std::string slice_colormap = "gray";
     std::optional<double> clip_below;  // values below are transparent (e.g. the background)
+    // a volume of more than three dimensions (a 4D series): which of its
+    // 3D volumes is shown, counting over the dimensions after the third
+    // (the 4th's index, for a 4D file)
+    std::uint64_t volume_index = 0;
     // volumes: drawn by ray-marching through this transfer function instead
     // of as slices (a scene's "type": "volume")
     std::optional<TransferFunction> transfer;
