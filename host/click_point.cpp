@@ -26,7 +26,10 @@ std::optional<std::array<double, 3>> point_under(const ClickTarget &target, int 
     const double dir[3] = {f[0] + sx * rt[0] + sy * u[0], f[1] + sx * rt[1] + sy * u[1], f[2] + sx * rt[2] + sy * u[2]};
     std::optional<core::render::PickHit> hit;
     constexpr double kTolerancePx = 6.0;
-    if (target.centroids) {
+    const bool streamlines = !target.slices_only && target.object < target.scene->objects.size() &&
+                             target.scene->objects[target.object].kind == HZ_DATA_STREAMLINES && (target.centroids || target.session);
+    if (!streamlines) {
+    } else if (target.centroids) {
         const core::render::Object &ob = target.scene->objects[target.object];
         hit = core::render::pick_streamline(ob.data.tractogram, core::render::tube_radii(ob), v, fw, fh, px, py, kTolerancePx);
     } else {
@@ -77,8 +80,9 @@ std::optional<std::array<double, 3>> point_under(const ClickTarget &target, int 
         if (!ob.visible) continue;
         std::optional<double> t;
         if (ob.kind == HZ_DATA_MESH) {
+            if (target.slices_only) continue;
             t = core::render::ray_mesh(ob.data.mesh, o3, d3);
-        } else if (ob.kind == HZ_DATA_VOLUME && ob.data.volume.dims.size() >= 3) {
+        } else if (ob.kind == HZ_DATA_VOLUME && ob.data.volume.dims.size() >= 3 && !ob.transfer) {
             const core::Volume &vol = ob.data.volume;
             double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
             for (int c = 0; c < 8; ++c) {  // (the grid's RAS bounding box, as the slices are drawn)
@@ -108,6 +112,45 @@ std::optional<std::array<double, 3>> point_under(const ClickTarget &target, int 
     std::array<double, 3> p;
     for (int i = 0; i < 3; ++i) p[i] = v.eye[i] + *depth * dir[i];
     return p;
+}
+
+std::optional<VoxelValue> voxel_at(const core::render::Scene &scene, const std::array<double, 3> &p) {
+    for (std::size_t k = 0; k < scene.objects.size(); ++k) {
+        const auto &ob = scene.objects[k];
+        if (!ob.visible || ob.kind != HZ_DATA_VOLUME || ob.transfer || ob.data.volume.dims.size() < 3) continue;
+        const core::Volume &vol = ob.data.volume;
+        // RAS -> voxel: the inverse of the 3x4 affine.
+        const auto &a = vol.voxel_to_ras;
+        const double m[3][3] = {{a[0], a[1], a[2]}, {a[4], a[5], a[6]}, {a[8], a[9], a[10]}};
+        const double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+        if (!(std::abs(det) > 1e-12)) continue;
+        const double q[3] = {p[0] - a[3], p[1] - a[7], p[2] - a[11]};
+        double inv[3][3];
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) {
+                const int i1 = (j + 1) % 3, i2 = (j + 2) % 3, j1 = (i + 1) % 3, j2 = (i + 2) % 3;
+                inv[i][j] = (m[i1][j1] * m[i2][j2] - m[i1][j2] * m[i2][j1]) / det;
+            }
+        VoxelValue out;
+        out.object = k;
+        bool inside = true;
+        for (int i = 0; i < 3; ++i) {
+            const double c = inv[i][0] * q[0] + inv[i][1] * q[1] + inv[i][2] * q[2];
+            out.ijk[i] = std::int64_t(c < 0 ? -std::floor(-c + 0.5) : std::floor(c + 0.5));
+            inside = inside && out.ijk[i] >= 0 && std::uint64_t(out.ijk[i]) < vol.dims[i];
+        }
+        if (!inside) continue;
+        const std::uint64_t X = vol.dims[0], Y = vol.dims[1], Z = vol.dims[2];
+        const std::uint64_t at =
+            std::uint64_t(out.ijk[0]) + X * (std::uint64_t(out.ijk[1]) + Y * std::uint64_t(out.ijk[2])) + ob.volume_index * X * Y * Z;
+        const std::size_t es = core::dtype_size(vol.dtype);
+        if (es == 0 || (at + 1) * es > vol.voxels.size()) continue;
+        out.value =
+            core::value_at(vol.voxels.data() + at * es, vol.dtype) * (vol.scale_slope == 0 ? 1.0 : vol.scale_slope) + vol.scale_inter;
+        return out;
+    }
+    return std::nullopt;
 }
 
 }  // namespace hz::host

@@ -19,7 +19,18 @@ struct ClickTarget {
     std::size_t object = 0;                      // the streamlines a click can meet: the session's, or the centroids
     bool centroids = false;                      // `object` is an exploration's centroids (few: tested whole)
     const Session *session = nullptr;            // the streamlines shown and their spatial grid (when not centroids)
+    bool slices_only = false;                    // only the slices (the slicer's readout): no streamline, no mesh
 };
+
+// A volume's voxel and value at a world point: the first visible volume
+// drawn as slices whose grid holds `p` (the voxel nearest it: the affine's
+// inverse, rounded half away from zero), in the 3D volume it shows.
+struct VoxelValue {
+    std::size_t object = 0;
+    std::array<std::int64_t, 3> ijk{};
+    double value = 0;  // scaled (scl_slope, scl_inter)
+};
+std::optional<VoxelValue> voxel_at(const core::render::Scene &scene, const std::array<double, 3> &p);
 
 // The world point (RAS+ mm) under window point (x, y) of a ww x wh window
 // whose framebuffer is fw x fh, seen with camera `v`: the nearest of the

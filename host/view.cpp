@@ -1293,6 +1293,12 @@ private:
                     p[axis[0] - 'x'] = mm;
                 }
                 r.set_slices(obj, p[0], p[1], p[2]);
+            } else if (op == "probe") {  // probe X Y: prints the voxel and value of the slice under window point (X, Y)
+                const double x = w.number("X"), y = w.number("Y");
+                w.done();
+                const std::string v = value_under(x, y);
+                std::printf("probe %g %g: %s\n", x, y, v.empty() ? "no slice" : v.c_str());
+                std::fflush(stdout);
             } else if (op == "window") {  // window I LO HI: the values volume I's colormap spans
                 const std::size_t obj = w.count("an object number", r.scene().objects.size());
                 const double lo = w.number("LO"), hi = w.number("HI");
@@ -1731,6 +1737,25 @@ private:
         return core::render::layout_annotations(r.scene().annotations, r.colour_scales(), app.orbit.view(app.radius), w, h);
     }
 
+    // The slicer's readout: the voxel and value of the slice under window
+    // point (x, y), "NAME: voxel (i, j, k) = V at (x, y, z) mm"; empty over
+    // no slice.
+    std::string value_under(double x, double y) {
+        int ww, wh, fw, fh;
+        glfwGetWindowSize(win, &ww, &wh);
+        glfwGetFramebufferSize(win, &fw, &fh);
+        host::ClickTarget t{&r.scene(), 0, false, nullptr, true};
+        const auto p = host::point_under(t, ww, wh, fw, fh, x, y, app.orbit.view(app.radius));
+        if (!p) return {};
+        const auto vv = host::voxel_at(r.scene(), *p);
+        if (!vv) return {};
+        char line[512];
+        std::snprintf(line, sizeof line, "%s: voxel (%lld, %lld, %lld) = %.6g at (%.1f, %.1f, %.1f) mm",
+                      r.scene().objects[vv->object].name.c_str(), (long long)vv->ijk[0], (long long)vv->ijk[1], (long long)vv->ijk[2],
+                      vv->value, (*p)[0], (*p)[1], (*p)[2]);
+        return line;
+    }
+
     // A volume's slicer in the panel: each slice's position (a box shows or
     // hides it), the window its colormap spans, the 3D volume of a series.
     // A change goes to the renderer at once (slices and window: no upload;
@@ -1761,6 +1786,8 @@ private:
             const float span = std::max(win[1] - win[0], 1e-6f);
             if (ImGui::DragFloatRange2("window", &win[0], &win[1], span / 200, 0, 0, "%.4g", "%.4g") && win[1] > win[0])
                 r.set_window(i, win[0], win[1]);
+            if (!ob.transfer && !ImGui::GetIO().WantCaptureMouse) under_cursor = value_under(app.last_x, app.last_y);
+            ImGui::TextWrapped("%s", under_cursor.empty() ? "(point at a slice: its voxel and value)" : under_cursor.c_str());
             if (ext->volumes > 1) {
                 int k = int(std::min<std::uint64_t>(ob.volume_index, INT32_MAX));
                 if (ImGui::SliderInt("volume", &k, 0, int(std::min<std::uint64_t>(ext->volumes - 1, INT32_MAX))))
@@ -1808,6 +1835,7 @@ private:
     Explorer *ex = nullptr;
     std::size_t ti = 0, ci = 0, si = 0, wire_in = 0, wire_out = 0;
     int saves = 0;
+    std::string under_cursor;       // the slicer's readout (value_under) at the cursor
     std::size_t active_roi = 0;     // the region Ctrl+wheel resizes (the last placed or edited)
     bool roi_drag = false;          // a panel drag of a region in progress (recorded once for undo)
     char thresholds_text[64] = "";  // the panel's thresholds for the next repeat

@@ -622,6 +622,36 @@ class SlicerTest(TempDirTest):
         self.assertLess((np.abs(w1 - after).sum(axis=-1) > 30).mean(), 0.005)
         self.assertGreater(np.abs(w0 - w1).mean(), 5)
 
+    @unittest.skipUnless(shutil.which("xvfb-run") or os.environ.get("CI"), "xvfb-run is not installed")
+    def test_the_value_under_the_cursor(self):
+        """`probe X Y` (the panel's readout at the cursor): the slice's point
+        under a window point, its voxel (the affine's inverse, rounded, as
+        nibabel computes it here) and the value there in the volume shown."""
+        import re
+        import nibabel as nib
+        script = self.path("p.txt")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 1", "probe 160 120", "probe 200 100", "volume 0 1", "probe 120 150", "probe 3 3", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        p = xvfb_run([HORIZON, "view", self.scene("s.json"), "--size", "320x240", "--script", script], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        img = nib.load(self.path("series.nii.gz"))
+        data, inv = np.asarray(img.dataobj), np.linalg.inv(img.affine)
+        lines = [l for l in p.stdout.splitlines() if l.startswith("probe ")]
+        self.assertEqual(len(lines), 4, p.stdout)
+        self.assertTrue(lines[3].endswith(": no slice"), lines[3])
+        for line, vol in zip(lines[:3], (0, 0, 1)):
+            m = re.search(r"voxel \((\d+), (\d+), (\d+)\) = ([-\d.e+]+) at \(([-\d.]+), ([-\d.]+), ([-\d.]+)\) mm", line)
+            self.assertIsNotNone(m, line)
+            ijk = [int(m.group(k)) for k in (1, 2, 3)]
+            xyz = np.array([float(m.group(k)) for k in (5, 6, 7)])
+            self.assertAlmostEqual(xyz[2], 0.0, places=3)  # (on the axial slice z = 0)
+            want = inv[:3, :3] @ xyz + inv[:3, 3]
+            self.assertTrue(np.all(np.abs(want - ijk) <= 0.5 + 0.06), f"{line}: voxel {want}")  # (the printed point has 0.1 mm)
+            self.assertEqual(float(m.group(4)), float(data[ijk[0], ijk[1], ijk[2], vol]), line)
+
 
 class FibreAnisotropyTest(TempDirTest):
     """The paper's Fig. 7: a corpus-callosum-like bundle (1500 arcs across
