@@ -190,6 +190,24 @@ struct RenderOptions {
     bool json = false;
 };
 
+// `horizon movie`: a turntable of the scene (its camera turned about the
+// superior axis through its target) to .mp4, .webm or an image sequence.
+struct MovieOptions {
+    std::vector<std::string> inputs;
+    std::string view;
+    std::string out = "horizon.mp4";
+    std::string size = "1280x720";
+    double seconds = 10;
+    int fps = 30;
+    double degrees = 360;  // the turn over the whole movie
+    LodOptions lod;
+    PassOptions passes;
+    AnnotationOptions annotations;
+    VolumeOptions volumes;
+    StyleOptions style;
+    bool force = false, json = false;
+};
+
 struct ShaderCheckOptions {
     std::string shader;  // empty: every shading plugin
     int sets = 8;        // parameter sets per shader (the first: the defaults)
@@ -236,6 +254,7 @@ int cmd_filter(const GlobalOptions &g, const FilterOptions &o);
 int cmd_brdf(const GlobalOptions &g, const std::string &shader_id);
 int cmd_demo(const GlobalOptions &g, const DemoOptions &o);
 int cmd_render(const GlobalOptions &g, const RenderOptions &o);
+int cmd_movie(const GlobalOptions &g, const MovieOptions &o);
 int cmd_view(const GlobalOptions &g, const ViewOptions &o);
 bool have_display();
 int view_scene(const core::Registry &reg, core::render::Scene scene, const ViewOptions &o);

@@ -328,6 +328,27 @@ int main(int argc, char **argv) {
     render->add_flag("--json", ro.json, "timings and counts as JSON");
     render->add_flag("-f,--force", ro.force, "replace an existing output image (never an input)");
 
+    MovieOptions mo;
+    auto *movie = app.add_subcommand("movie", "a turntable movie of data files or a scene file, headless: .mp4, .webm or frames/%04d.png");
+    movie->add_option("inputs", mo.inputs, "data files or one scene file (JSON)")->required();
+    movie->add_option("--view", mo.view, "the camera view it starts from (replaces a scene file's camera placement)")
+        ->check(CLI::IsMember(named_views()));
+    movie->add_option("-o,--out", mo.out, "the movie: .mp4 (H.264), .webm (VP9), or an image sequence with one %d (frames/%04d.png)")
+        ->capture_default_str();
+    movie->add_option("--size", mo.size, "WIDTHxHEIGHT (even, for a video)")->capture_default_str()->check(kSize);
+    movie->add_option("--seconds", mo.seconds, "the movie's length")->capture_default_str();
+    movie->add_option("--fps", mo.fps, "frames a second")->check(CLI::Range(1, 120))->capture_default_str();
+    movie->add_option("--degrees", mo.degrees, "the turn about the superior axis over the whole movie (360: once round)")
+        ->check(CLI::Range(-3600.0, 3600.0))
+        ->capture_default_str();
+    add_lod_options(movie, mo.lod);
+    add_pass_options(movie, mo.passes);
+    add_annotation_options(movie, mo.annotations);
+    add_style_options(movie, mo.style);
+    add_volume_options(movie, mo.volumes);
+    movie->add_flag("--json", mo.json, "timings as JSON");
+    movie->add_flag("-f,--force", mo.force, "replace an existing movie or frames (never an input)");
+
     ViewOptions vwo;
     auto *view = app.add_subcommand("view", "open the interactive window on data files or a scene file");
     view->add_option("inputs", vwo.inputs, "data files (tractograms, surfaces, volumes) or one scene .json")->required();
@@ -427,6 +448,7 @@ int main(int argc, char **argv) {
         if (*filter) return cmd_filter(g, fo);
         if (*brdf) return cmd_brdf(g, brdf_shader);
         if (*render) return cmd_render(g, ro);
+        if (*movie) return cmd_movie(g, mo);
         if (*scheck) return cmd_shader_check(g, sco);
         if (*view) return cmd_view(g, vwo);
         return 2;

@@ -3,6 +3,7 @@ EGL, no X server), `horizon shader-check` (GPU equals CPU), `horizon view`
 (the window, under Xvfb, with scripted input) and `horizon demo`."""
 import json
 import os
+import subprocess
 import re
 import shutil
 import unittest
@@ -651,6 +652,103 @@ class SlicerTest(TempDirTest):
             want = inv[:3, :3] @ xyz + inv[:3, 3]
             self.assertTrue(np.all(np.abs(want - ijk) <= 0.5 + 0.06), f"{line}: voxel {want}")  # (the printed point has 0.1 mm)
             self.assertEqual(float(m.group(4)), float(data[ijk[0], ijk[1], ijk[2], vol]), line)
+
+
+class MovieTest(TempDirTest):
+    """`horizon movie`: a turntable (the camera turned about the superior
+    axis through its target) to an image sequence, .mp4 and .webm. Frame k
+    of N is the scene seen from its camera turned by 360 k / N degrees, as
+    a scene file with that camera computed here renders it; the videos are
+    what FFmpeg's own ffprobe and ffmpeg (Debian's ffmpeg) read back."""
+
+    def setUp(self):
+        super().setUp()
+        p = run("demo", "--out", self.path("d"), "--streamlines", "400", "--no-window", env=NO_DISPLAY, timeout=180)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.tck = self.path("d/phantom.tck")
+        self.eye, self.target = np.array([0.0, 300.0, 20.0]), np.array([0.0, -10.0, 5.0])
+
+    def scene(self, name, eye):
+        with open(self.path(name), "w") as f:
+            json.dump({"objects": [{"type": "streamlines", "file": self.tck, "render": "lines"}],
+                       "camera": {"position": list(eye), "target": list(self.target), "up": [0, 0, 1]}}, f)
+        return self.path(name)
+
+    def turned(self, deg):
+        a = np.radians(deg)
+        d = self.eye - self.target
+        return self.target + [d[0] * np.cos(a) - d[1] * np.sin(a), d[0] * np.sin(a) + d[1] * np.cos(a), d[2]]
+
+    def still(self, name, eye):
+        p = run("render", self.scene(name + ".json", eye), "-o", self.path(name + ".png"), "--size", "160x120", env=NO_DISPLAY, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return load(self.path(name + ".png"))
+
+    def test_frames_are_the_turned_camera(self):
+        os.mkdir(self.path("f"))
+        p = run("movie", self.scene("s.json", self.eye), "-o", self.path("f/%03d.png"), "--size", "160x120", "--seconds", "1", "--fps",
+                "4", "--json", env=NO_DISPLAY, timeout=300)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        j = json.loads(p.stdout)
+        self.assertEqual((j["frames"], j["fps"]), (4, 4))
+        self.assertGreater(j["frame_ms_median"], 0)
+        self.assertEqual(sorted(os.listdir(self.path("f"))), ["000.png", "001.png", "002.png", "003.png"])
+        for k in range(4):
+            want = self.still(f"r{k}", self.turned(90 * k))
+            got = load(self.path(f"f/{k:03d}.png"))
+            self.assertLess((np.abs(got - want).sum(axis=-1) > 30).mean(), 0.002, f"frame {k}")
+        self.assertGreater(np.abs(load(self.path("f/000.png")) - load(self.path("f/001.png"))).mean(), 2)
+
+    @unittest.skipUnless(shutil.which("ffprobe") or os.environ.get("CI"), "ffprobe (Debian's ffmpeg) is not installed")
+    def test_videos_read_back_by_ffmpeg(self):
+        first = self.still("r0", self.eye)
+        for ext, codec in ((".mp4", "h264"), (".webm", "vp9")):
+            with self.subTest(ext=ext):
+                out = self.path("m" + ext)
+                p = run("movie", self.scene("s.json", self.eye), "-o", out, "--size", "160x120", "--seconds", "1", "--fps", "12",
+                        env=NO_DISPLAY, timeout=300)
+                self.assertEqual(p.returncode, 0, p.stderr)
+                self.assertIn("12 frames of 160x120 at 12 fps", p.stdout)
+                self.assertEqual(p.stderr.strip(), "", "the encoders' chatter is not shown")
+                q = subprocess.run(["ffprobe", "-v", "error", "-count_frames", "-show_entries",
+                                    "stream=codec_name,width,height,pix_fmt,r_frame_rate,nb_read_frames", "-of", "json", out],
+                                   capture_output=True, text=True, timeout=60)
+                self.assertEqual(q.returncode, 0, q.stderr)
+                st = json.loads(q.stdout)["streams"][0]
+                self.assertEqual((st["codec_name"], st["width"], st["height"], st["pix_fmt"], st["r_frame_rate"], st["nb_read_frames"]),
+                                 (codec, 160, 120, "yuv420p", "12/1", "12"))
+                png = self.path("first" + ext + ".png")
+                q = subprocess.run(["ffmpeg", "-v", "error", "-y", "-i", out, "-frames:v", "1", png], capture_output=True, text=True, timeout=60)
+                self.assertEqual(q.returncode, 0, q.stderr)
+                # Lossy (4:2:0 halves the colour of 1-pixel lines): the
+                # background within 3 levels, most pixels within 3, the
+                # mean within 8 (frames a quarter turn apart differ by 12).
+                got = load(png)
+                np.testing.assert_allclose(got[2:20, 2:20].mean(axis=(0, 1)), first[2:20, 2:20].mean(axis=(0, 1)), atol=3)
+                self.assertLessEqual(np.median(np.abs(got - first)), 3)
+                self.assertLess(np.abs(got - first).mean(), 8.0)
+
+    def test_bad_movies_are_one_line_and_write_nothing(self):
+        scene = self.scene("s.json", self.eye)
+        for args, words in ((["-o", self.path("odd.mp4"), "--size", "161x120"], "even"),
+                            (["-o", self.path("m.avi")], ".mp4 (H.264), .webm (VP9) or an image sequence"),
+                            (["-o", self.path("none/m.mp4")], "no such folder"),
+                            (["-o", self.path("f_%d_%d.png")], "one %d"),
+                            (["-o", self.path("m.mp4"), "--seconds", "0"], "--seconds"),
+                            (["-o", scene.replace(".json", ".mp4"), "--fps", "500"], "--fps")):
+            with self.subTest(args=args):
+                before = sorted(os.listdir(self.tmp))
+                p = run("movie", scene, *args, env=NO_DISPLAY, timeout=120)
+                self.assertNotEqual(p.returncode, 0)
+                self.assertIn(words, p.stderr.strip().splitlines()[0])  # (the command line's own checks add a hint line)
+                self.assertEqual(sorted(os.listdir(self.tmp)), before)
+        with open(self.path("keep.mp4"), "w") as f:
+            f.write("keep me")
+        p = run("movie", scene, "-o", self.path("keep.mp4"), "--size", "160x120", "--seconds", "0.5", env=NO_DISPLAY, timeout=120)
+        self.assertEqual(p.returncode, 1)
+        self.assertIn("--force", p.stderr)
+        with open(self.path("keep.mp4")) as f:
+            self.assertEqual(f.read(), "keep me")
 
 
 class FibreAnisotropyTest(TempDirTest):
