@@ -53,7 +53,7 @@ def run(*args, timeout=60, env=None):
 # on the driver's threads at exit ("Tracer caught signal 11"), and the
 # driver's own process-lifetime allocations are not Horizon's. ASan and
 # UBSan still check every memory access of these processes.
-GL_COMMANDS = {"render", "view", "shader-check", "demo"}
+GL_COMMANDS = {"render", "view", "shader-check", "demo", "movie"}
 
 
 def make_tractogram(path, n, seed, timeout=900):
