@@ -68,10 +68,14 @@ struct VolumeOptions {
     // --volume-index N: every volume of a 4D series shows its N-th 3D volume
     // (Object::volume_index; the renderer says when a file has fewer)
     std::optional<std::uint64_t> volume_index;
+    bool rgb = false;  // --rgb: every volume's slices in colour (Object::rgb)
     void apply(core::render::Scene &s) const {
         if (volume_index)
             for (auto &o : s.objects)
                 if (o.kind == HZ_DATA_VOLUME) o.volume_index = *volume_index;
+        if (rgb)
+            for (auto &o : s.objects)
+                if (o.kind == HZ_DATA_VOLUME) o.rgb = true;
         if (transfer.empty()) return;
         const bool file = std::filesystem::path(transfer).extension() == ".json";
         const core::render::TransferFunction tf = file ? core::render::load_transfer(transfer) : core::render::transfer_preset(transfer);

@@ -103,6 +103,9 @@ void add_volume_options(CLI::App *cmd, VolumeOptions &v) {
                     "a 4D series (e.g. diffusion volumes): show its N-th 3D volume, counting from 0 (a scene file's \"volume_index\"; "
                     "the window's panel and `volume I N` step through them)")
         ->check(CLI::Range(std::uint64_t(0), std::uint64_t(1) << 40));
+    cmd->add_flag("--rgb", v.rgb,
+                  "volumes of 3 values a voxel (a colour-FA map) in colour, each value through the window (on by itself for 8-bit "
+                  "and RGB voxels; a scene file's \"rgb\")");
 }
 
 void add_annotation_options(CLI::App *cmd, AnnotationOptions &a) {

@@ -602,6 +602,50 @@ class SlicerTest(TempDirTest):
         self.assertIn("volume_index 3, but the file holds 3 volumes (0 to 2)", p.stderr)
         self.assertFalse(os.path.exists(self.path("x.png")))
 
+    def test_colour_volumes(self):
+        """A colour map (a 4th dimension of 3 values a voxel: a colour-FA
+        map) shown in colour: 8-bit values as they are (255 is full), the
+        same in float 0..1 with "rgb": true or --rgb; without it a float one
+        is a series (its first volume, grey). The pixel at a region's centre
+        is the voxel's colour exactly (display values: no tone curve)."""
+        import nibabel as nib
+        rgb = np.zeros((20, 24, 10, 3), np.uint8)
+        rgb[:10, :, :, 0] = 255
+        rgb[10:, :12, :, 1] = 200
+        rgb[10:, 12:, :, 2] = 128
+        aff = np.diag([2.0, 2.0, 2.0, 1.0])
+        aff[:3, 3] = [-20, -24, -10]
+        nib.save(nib.Nifti1Image(rgb, aff), self.path("rgb.nii.gz"))
+        nib.save(nib.Nifti1Image(rgb.astype(np.float32) / 255, aff), self.path("rgbf.nii.gz"))
+
+        def scene(name, file, **keys):
+            with open(self.path(name), "w") as f:
+                json.dump({"objects": [{"type": "slices", "file": file, "x": None, "y": None, "z": 0, **keys}],
+                           "camera": {"view": "superior"}, "environment": {"type": "none"}}, f)
+            return self.path(name)
+
+        byte = self.render(scene("b.json", "rgb.nii.gz"), "b.png")
+        flt = self.render(scene("f.json", "rgbf.nii.gz", rgb=True), "f.png")
+        flag = self.render(scene("g.json", "rgbf.nii.gz"), "g.png", "--rgb")
+        grey = self.render(scene("h.json", "rgbf.nii.gz"), "h.png")
+        np.testing.assert_array_equal(byte, flt)
+        np.testing.assert_array_equal(flt, flag)
+        # The regions' centres, from the affine: x < 0 red; x > 0: y < 0 green, y > 0 blue (superior view: y up).
+        box = np.argwhere(np.abs(byte - byte[2, 2]).sum(axis=-1) > 30)
+        (r0, c0), (r1, c1) = box.min(axis=0), box.max(axis=0)
+        at = lambda fx, fy: byte[int(r0 + (1 - fy) * (r1 - r0)), int(c0 + fx * (c1 - c0))]
+        np.testing.assert_array_equal(at(0.25, 0.5), [255, 0, 0])
+        np.testing.assert_array_equal(at(0.75, 0.25), [0, 200, 0])
+        np.testing.assert_array_equal(at(0.75, 0.75), [0, 0, 128])
+        inside = grey[r0 + 2:r1 - 1, c0 + 2:c1 - 1].astype(float)
+        self.assertLess(np.abs(inside - inside[..., :1]).max(), 1, "a float series is grey")
+        nib.save(nib.Nifti1Image(np.ones((8, 8, 8), np.float32), aff), self.path("plain.nii.gz"))
+        p = run("render", scene("bad.json", "plain.nii.gz", rgb=True), "-o", self.path("x.png"), env=NO_DISPLAY, timeout=120)
+        self.assertEqual(p.returncode, 1)
+        self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+        self.assertIn("4th dimension must hold 3 or 4 values per voxel, not none (a 3D volume)", p.stderr)
+        self.assertFalse(os.path.exists(self.path("x.png")))
+
     @unittest.skipUnless(shutil.which("xvfb-run") or os.environ.get("CI"), "xvfb-run is not installed")
     def test_the_window_moves_slices_window_and_volume(self):
         script = self.path("s.txt")

@@ -780,17 +780,23 @@ uniform mat4 u_ras_to_tex;
 uniform vec2 u_window;
 uniform float u_opacity;
 uniform float u_clip_below;
+uniform int u_rgb;  // a colour volume: each channel through the window is the display value
 out vec4 o;
 void main() {
     vec3 tc = (u_ras_to_tex * vec4(v_pos, 1.0)).xyz;
     if (any(lessThan(tc, vec3(0.0))) || any(greaterThan(tc, vec3(1.0)))) discard;
-    float v = texture(u_volume, tc).r;
-    if (v < u_clip_below) discard;
-    float t = clamp((v - u_window.x) / max(u_window.y - u_window.x, 1e-30), 0.0, 1.0);
-    // Data are shown as they are: the window and colormap map a value to
-    // exactly the colormap's (sRGB-encoded) entry, with no exposure or tone
-    // curve (those are for lit geometry).
-    vec3 c = texture(u_colormap, vec2(t, 0.5)).rgb;
+    vec3 c;
+    if (u_rgb != 0) {
+        c = clamp((texture(u_volume, tc).rgb - u_window.x) / max(u_window.y - u_window.x, 1e-30), 0.0, 1.0);
+    } else {
+        float v = texture(u_volume, tc).r;
+        if (v < u_clip_below) discard;
+        float t = clamp((v - u_window.x) / max(u_window.y - u_window.x, 1e-30), 0.0, 1.0);
+        // Data are shown as they are: the window and colormap map a value to
+        // exactly the colormap's (sRGB-encoded) entry, with no exposure or tone
+        // curve (those are for lit geometry).
+        c = texture(u_colormap, vec2(t, 0.5)).rgb;
+    }
 #ifndef HZ_DISPLAY
     // The HDR buffer is linear and tonemapped afterwards: store what the
     // tonemapping pass turns back into c.

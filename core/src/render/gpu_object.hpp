@@ -51,6 +51,7 @@ struct GpuObject {
     std::size_t index = 0;
     Geom geom = Geom::Mesh;
     bool slices = false;
+    bool rgb = false;  // slices in colour (Object::rgb): volume_tex is RGB, each channel through the window
     GLuint vao = 0, vbo = 0, ebo = 0;
     std::vector<GLint> firsts;
     std::vector<GLsizei> counts;
@@ -105,5 +106,7 @@ std::uint64_t volume_count(const Volume &v);
 // dims[0..2], x fastest), scaled, as float. Throws Error for an index
 // beyond the file's volumes.
 std::vector<float> volume_values(const Object &o);
+// Whether o's slices show colour (Object::rgb, or what its volume is).
+bool shows_rgb(const Object &o);
 
 }  // namespace hz::core::render

@@ -139,6 +139,42 @@ std::vector<float> volume_values(const Object &o) {
     return f;
 }
 
+bool shows_rgb(const Object &o) {
+    const Volume &v = o.data.volume;
+    const bool rgb_type = v.dtype == HZ_DTYPE_RGB8 || v.dtype == HZ_DTYPE_RGBA8;
+    const bool channels = v.dims.size() == 4 && (v.dims[3] == 3 || v.dims[3] == 4);
+    if (o.rgb) return *o.rgb;
+    return rgb_type || (channels && v.dtype == HZ_DTYPE_U8);
+}
+
+namespace {
+// The RGB values of a colour volume, 3 per voxel (x fastest), scaled: from
+// an RGB voxel type's bytes, or from the 4th dimension's first three.
+std::vector<float> rgb_values(const Object &o) {
+    const Volume &v = o.data.volume;
+    const std::uint64_t n = v.dims[0] * v.dims[1] * v.dims[2];
+    std::vector<float> out(n * 3);
+    if (v.dtype == HZ_DTYPE_RGB8 || v.dtype == HZ_DTYPE_RGBA8) {
+        const std::size_t es = v.dtype == HZ_DTYPE_RGB8 ? 3 : 4;
+        if (v.voxels.size() < n * es) throw Error(o.name + ": fewer voxels than its dimensions");
+        const auto *b = reinterpret_cast<const std::uint8_t *>(v.voxels.data());
+        for (std::uint64_t i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c) out[i * 3 + c] = float(b[i * es + c]);
+        return out;
+    }
+    if (v.dims.size() != 4 || (v.dims[3] != 3 && v.dims[3] != 4))
+        throw Error(o.name + ": \"rgb\": its 4th dimension must hold 3 or 4 values per voxel, not " +
+                    (v.dims.size() > 3 ? std::to_string(v.dims[3]) : std::string("none (a 3D volume)")));
+    const std::size_t es = dtype_size(v.dtype);
+    const double slope = v.scale_slope == 0 ? 1.0 : v.scale_slope;
+    for (int c = 0; c < 3; ++c) {
+        const std::vector<double> vals = values_of(v.voxels.data() + c * n * es, v.dtype, n, es);
+        for (std::uint64_t i = 0; i < n; ++i) out[i * 3 + c] = float(vals[i] * slope + v.scale_inter);
+    }
+    return out;
+}
+}  // namespace
+
 void upload_slices(GpuObject &g, const Object &o) {
     const Volume &v = o.data.volume;
     if (v.dims.size() < 3) throw Error(o.name + ": slices need a 3D volume");
@@ -147,18 +183,26 @@ void upload_slices(GpuObject &g, const Object &o) {
     const std::uint64_t X = v.dims[0], Y = v.dims[1], Z = v.dims[2];
     if (X > std::uint64_t(max3d) || Y > std::uint64_t(max3d) || Z > std::uint64_t(max3d))
         throw Error(o.name + ": volume larger than the GL 3D texture limit " + std::to_string(max3d));
-    const std::vector<float> f = volume_values(o);
+    g.rgb = !o.transfer && shows_rgb(o);
+    if (g.rgb && o.volume_index != 0) throw Error(o.name + ": a colour volume has no series to index (volume_index 0)");
+    const std::vector<float> f = g.rgb ? rgb_values(o) : volume_values(o);
     glGenTextures(1, &g.volume_tex);
     glBindTexture(GL_TEXTURE_3D, g.volume_tex);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTexImage3D(GL_TEXTURE_3D, 0, GL_R32F, GLsizei(X), GLsizei(Y), GLsizei(Z), 0, GL_RED, GL_FLOAT, f.data());
+    glTexImage3D(GL_TEXTURE_3D, 0, g.rgb ? GL_RGB32F : GL_R32F, GLsizei(X), GLsizei(Y), GLsizei(Z), 0, g.rgb ? GL_RGB : GL_RED, GL_FLOAT,
+                 f.data());
     glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
     for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R}) glTexParameteri(GL_TEXTURE_3D, w, GL_CLAMP_TO_EDGE);
-    // Window: given, else the 1st..99th percentile of the finite values.
+    // Window: given, else the 1st..99th percentile of the finite values
+    // (colour: 0 to 255 for 8-bit values, else 0 to 1).
     if (o.window)
         g.window = *o.window;
-    else {
+    else if (g.rgb) {
+        const hz_dtype t = o.data.volume.dtype;
+        g.window =
+            t == HZ_DTYPE_U8 || t == HZ_DTYPE_RGB8 || t == HZ_DTYPE_RGBA8 ? std::array<double, 2>{0, 255} : std::array<double, 2>{0, 1};
+    } else {
         std::vector<float> s;
         for (float x : f)
             if (std::isfinite(x)) s.push_back(x);
@@ -181,7 +225,7 @@ void upload_slices(GpuObject &g, const Object &o) {
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
     }
-    if (!o.transfer) g.colour_scale = ColourScale{o.name, "", o.slice_colormap, g.window};
+    if (!o.transfer && !g.rgb) g.colour_scale = ColourScale{o.name, "", o.slice_colormap, g.window};
     // Colormap texture (sRGB table).
     std::vector<std::uint8_t> lut(256 * 4);
     for (int i = 0; i < 256; ++i) {

@@ -777,6 +777,7 @@ struct Renderer::Impl {
             glUniform2f(slice->loc("u_window"), float(g.window[0]), float(g.window[1]));
             glUniform1f(slice->loc("u_opacity"), float(o.opacity));
             glUniform1f(slice->loc("u_clip_below"), o.clip_below ? float(*o.clip_below) : -INFINITY);
+            glUniform1i(slice->loc("u_rgb"), g.rgb ? 1 : 0);
             bind_sampler(*slice, "u_volume", 4, GL_TEXTURE_3D, g.volume_tex);
             bind_sampler(*slice, "u_colormap", 5, GL_TEXTURE_2D, g.colormap_tex);
             glBindVertexArray(g.vao);
@@ -1993,6 +1994,8 @@ void Renderer::set_volume_index(std::size_t object, std::uint64_t index) {
     Impl &I = *impl_;
     GpuObject &g = volume_object(I.objects, I.scene, object, "volume");
     Object &o = I.scene.objects[object];
+    if (g.rgb && index != 0) throw Error("volume: " + o.name + " is a colour volume: it has no series to index");
+    if (g.rgb) return;
     const std::uint64_t before = o.volume_index;
     o.volume_index = index;
     std::vector<float> f;

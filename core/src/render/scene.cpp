@@ -540,7 +540,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         } else {
             check_keys(o,
                        {"type", "name", "file", "builtin", "data", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity",
-                        "volume_index"},
+                        "volume_index", "rgb"},
                        what, where);
         }
         if (o.contains("name")) ob.name = str(o["name"], what, where + ".name");
@@ -559,6 +559,10 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                 (ax[0] == 'x' ? ob.slice_x : ax[0] == 'y' ? ob.slice_y : ob.slice_z) = v;
             }
         if (o.contains("clip_below") && !o["clip_below"].is_null()) ob.clip_below = num(o["clip_below"], what, where + ".clip_below");
+        if (o.contains("rgb")) {
+            if (!o["rgb"].is_boolean()) fail(what, where + ".rgb", "expected true or false");
+            ob.rgb = o["rgb"].get<bool>();
+        }
         if (o.contains("volume_index"))
             ob.volume_index = std::uint64_t(num_in(o["volume_index"], what, where + ".volume_index", 0.0, 1e12));
         if (o.contains("window")) {

@@ -114,6 +114,12 @@ struct Object {
     // 3D volumes is shown, counting over the dimensions after the third
     // (the 4th's index, for a 4D file)
     std::uint64_t volume_index = 0;
+    // slices shown as colour rather than through a colormap (a colour-FA
+    // map): the voxel's three values (a 4th dimension of 3 or 4, or an RGB
+    // voxel type) mapped each through the window to a display value. Unset:
+    // on for RGB voxel types and for 8-bit volumes whose 4th dimension is 3
+    // or 4; a float volume of 3 needs it said (it may be a series).
+    std::optional<bool> rgb;
     // volumes: drawn by ray-marching through this transfer function instead
     // of as slices (a scene's "type": "volume")
     std::optional<TransferFunction> transfer;
