@@ -246,18 +246,8 @@ hz_status read_mesh_with(const hz_loader &l, const fs::path &file, std::string &
 
 // The kind of data a sample holds (0 when it does not open).
 hz_data_kind sample_kind(const hz_loader &l, const fs::path &file) {
-    hz_error err = new_error();
-    hz_open_request req{};
-    req.struct_size = sizeof req;
-    const std::string path = file.string();
-    req.path = path.c_str();
-    hz_reader *r = nullptr;
-    if (l.open(&req, &r, &err) != HZ_OK || r == nullptr) return 0;
-    hz_dataset_info info{};
-    info.struct_size = sizeof info;
-    const hz_data_kind k = l.get_info(r, &info, &err) == HZ_OK ? info.kind : 0;
-    l.close(r);
-    return k;
+    const OpenedSample s(l, file);
+    return s.error.empty() ? s.info.kind : 0;
 }
 
 // Reads a volume file through `l` (raw dtype); returns status, fills `v`.

@@ -467,26 +467,16 @@ public:
 //     HZ_DECLARE_PLUGIN_ENTRY = hz::loader_plugin<kDescriptor, Trk>::entry;
 // get_interface() serves loader<L>::table and the extensions L supports.
 // host() returns the hz_host given to init() (NULL before init / after deinit).
-template <const hz_plugin_descriptor &D, class L>
-struct loader_plugin {
-    static const hz_host *host() noexcept { return host_; }
-    static bool HZ_ABI init(const hz_host *h, const char *) noexcept {
-        host_ = h;
-        return true;
-    }
-    static void HZ_ABI deinit() noexcept { host_ = nullptr; }
-    static uint32_t HZ_ABI count() noexcept { return 1; }
-    static const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) noexcept { return i == 0 ? &D : nullptr; }
-    static const void *HZ_ABI get_interface(const char *id, const char *iface) noexcept {
-        if (id == nullptr || iface == nullptr || std::strcmp(id, D.id) != 0) return nullptr;
-        if (std::strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &loader<L>::table;
-        return loader<L>::extension(iface);
-    }
-    static constexpr hz_plugin_entry entry = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
+namespace detail {
+template <class L>
+const void *loader_lookup(const char *iface) noexcept {
+    if (std::strcmp(iface, HZ_INTERFACE_LOADER) == 0) return &loader<L>::table;
+    return loader<L>::extension(iface);
+}
+}  // namespace detail
 
-private:
-    static inline const hz_host *host_ = nullptr;
-};
+template <const hz_plugin_descriptor &D, class L>
+struct loader_plugin : one_plugin_entry<D, &detail::loader_lookup<L>> {};
 
 }  // namespace hz
 

@@ -148,17 +148,13 @@ inline constexpr hz_ext_delimited_streamlines delimited_streamlines_table = {.st
                                                                               .max_gap = 1};
 inline constexpr extension delimited_streamlines = {HZ_EXT_DELIMITED_STREAMLINES, &delimited_streamlines_table};
 
-// The entry functions of a library that holds exactly one plugin, whose
-// descriptor `D` lists its core interface first (then the ids of the
-// extensions E..., in any order) and whose core table is `T`:
-//     HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;
-//     HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader, kMapped>::entry;
-// get_interface() serves T for D.interfaces[0] and each extension's table
-// for its id; an extension missing from D.interfaces is a bug `horizon
-// validate` reports (the host never asks for it).
+// The entry functions of a library that holds exactly one plugin, with
+// descriptor `D`, whose get_interface() answers a request for its own id
+// with Lookup(iface) (NULL: not served): what single_plugin and
+// hz::loader_plugin (hz/cpp/loader.hpp) share.
 // host() returns the hz_host given to init() (NULL before init / after deinit).
-template <const hz_plugin_descriptor &D, const auto &T, const extension &...E>
-struct single_plugin {
+template <const hz_plugin_descriptor &D, const void *(*Lookup)(const char *iface) noexcept>
+struct one_plugin_entry {
     static const hz_host *host() noexcept { return host_; }
     static bool HZ_ABI init(const hz_host *h, const char *) noexcept {
         host_ = h;
@@ -169,16 +165,38 @@ struct single_plugin {
     static const hz_plugin_descriptor *HZ_ABI descriptor(uint32_t i) noexcept { return i == 0 ? &D : nullptr; }
     static const void *HZ_ABI get_interface(const char *id, const char *iface) noexcept {
         if (id == nullptr || iface == nullptr || std::strcmp(id, D.id) != 0) return nullptr;
-        if (std::strcmp(iface, D.interfaces[0]) == 0) return static_cast<const void *>(&T);
-        const void *found = nullptr;
-        ((found == nullptr && std::strcmp(iface, E.id) == 0 ? (void)(found = E.table) : (void)0), ...);
-        return found;
+        return Lookup(iface);
     }
     static constexpr hz_plugin_entry entry = {sizeof(hz_plugin_entry), HZ_ABI_VERSION_INIT, init, deinit, count, descriptor, get_interface};
 
 private:
     static inline const hz_host *host_ = nullptr;
 };
+
+namespace detail {
+// single_plugin's tables: T for D.interfaces[0], each extension's for its id.
+template <const hz_plugin_descriptor &D, const auto &T, const extension &...E>
+struct single_lookup {
+    static const void *get(const char *iface) noexcept {
+        if (std::strcmp(iface, D.interfaces[0]) == 0) return static_cast<const void *>(&T);
+        const void *found = nullptr;
+        ((found == nullptr && std::strcmp(iface, E.id) == 0 ? (void)(found = E.table) : (void)0), ...);
+        return found;
+    }
+};
+}  // namespace detail
+
+// The entry functions of a library that holds exactly one plugin, whose
+// descriptor `D` lists its core interface first (then the ids of the
+// extensions E..., in any order) and whose core table is `T`:
+//     HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader>::entry;
+//     HZ_DECLARE_PLUGIN_ENTRY = hz::single_plugin<kDescriptor, kLoader, kMapped>::entry;
+// get_interface() serves T for D.interfaces[0] and each extension's table
+// for its id; an extension missing from D.interfaces is a bug `horizon
+// validate` reports (the host never asks for it).
+// host() returns the hz_host given to init() (NULL before init / after deinit).
+template <const hz_plugin_descriptor &D, const auto &T, const extension &...E>
+struct single_plugin : one_plugin_entry<D, &detail::single_lookup<D, T, E...>::get> {};
 
 // Logs through the host of a single_plugin (no-op without one). [thread-safe]
 inline void log(const hz_host *host, const char *plugin_id, hz_log_level level, const std::string &msg) noexcept {
