@@ -69,7 +69,26 @@ struct VolumeOptions {
     // (Object::volume_index; the renderer says when a file has fewer)
     std::optional<std::uint64_t> volume_index;
     bool rgb = false;  // --rgb: every volume's slices in colour (Object::rgb)
+    // --peaks: every volume of 3N values a voxel (MRtrix3's sh2peaks, DIPY's
+    // peaks as NIfTI) drawn as peak glyphs (Object::peaks); a PAM5 file is
+    // always. --peak-scale S, --peak-threshold F, --peaks-whole,
+    // --peaks-voxel-frame: PeakOptions for every peaks object (a scene
+    // file's too).
+    bool peaks = false;
+    std::optional<double> peak_scale, peak_threshold;
+    bool peaks_whole = false, peaks_voxel_frame = false;
     void apply(core::render::Scene &s) const {
+        const bool options = peak_scale || peak_threshold || peaks_whole || peaks_voxel_frame;
+        for (auto &o : s.objects) {
+            if (!o.peaks && !(peaks && o.kind == HZ_DATA_VOLUME)) continue;
+            if (o.peaks && !options) continue;
+            core::render::PeakOptions po = o.peaks ? o.peaks->options : core::render::PeakOptions{};
+            if (peak_scale) po.scale = *peak_scale;
+            if (peak_threshold) po.threshold = *peak_threshold;
+            if (peaks_whole) po.whole = true;
+            if (peaks_voxel_frame) po.frame = "voxel";
+            core::render::show_as_peaks(o, po, o.name);
+        }
         if (volume_index)
             for (auto &o : s.objects)
                 if (o.kind == HZ_DATA_VOLUME) o.volume_index = *volume_index;

@@ -103,6 +103,18 @@ void add_volume_options(CLI::App *cmd, VolumeOptions &v) {
                     "a 4D series (e.g. diffusion volumes): show its N-th 3D volume, counting from 0 (a scene file's \"volume_index\"; "
                     "the window's panel and `volume I N` step through them)")
         ->check(CLI::Range(std::uint64_t(0), std::uint64_t(1) << 40));
+    cmd->add_flag("--peaks", v.peaks,
+                  "volumes of 3 values a peak a voxel (MRtrix3's sh2peaks, DIPY's peaks saved as NIfTI) drawn as peak glyphs: "
+                  "lines centred on their voxels, coloured by direction, on the three slices through the centre (a PAM5 file "
+                  "always is; a scene file's \"type\": \"peaks\")");
+    cmd->add_option("--peak-scale", v.peak_scale, "peak glyphs: the longest spans this many voxels (default 1)")
+        ->check(CLI::Range(1e-3, 100.0));
+    cmd->add_option("--peak-threshold", v.peak_threshold,
+                    "peak glyphs: peaks shorter than this fraction of the longest are not drawn (default 0)")
+        ->check(CLI::Range(0.0, 0.999));
+    cmd->add_flag("--peaks-whole", v.peaks_whole, "peak glyphs of every voxel rather than of the slices");
+    cmd->add_flag("--peaks-voxel-frame", v.peaks_voxel_frame,
+                  "peak vectors are in the voxel axes (turned by the affine), not in world RAS+ axes (MRtrix3's and DIPY's)");
     cmd->add_flag("--rgb", v.rgb,
                   "volumes of 3 values a voxel (a colour-FA map) in colour, each value through the window (on by itself for 8-bit "
                   "and RGB voxels; a scene file's \"rgb\")");

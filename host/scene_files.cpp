@@ -61,6 +61,8 @@ core::render::Scene scene_from_files(const core::Registry &reg, const std::vecto
             core::render::apply_file_material(o, false, false);
         } else if (o.kind == HZ_DATA_VOLUME) {
             o.slice_x = o.slice_y = o.slice_z = std::nan("");
+            // (a PAM5 file holds peaks: drawn as their glyphs)
+            if (o.data.format.rfind("pam5", 0) == 0) core::render::show_as_peaks(o, {}, f);
         } else {
             throw core::Error(f + ": " + core::kind_name(o.kind) + " data cannot be shown in the 3D view");
         }

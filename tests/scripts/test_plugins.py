@@ -11,6 +11,7 @@ import unittest
 from hztest import BUILD, BUNDLED, FIXTURES, HORIZON, TEMPLATES, TempDirTest, environment, run, run_json
 
 BUNDLED_IDS = {"org.horizon.loader.tck", "org.horizon.loader.trk", "org.horizon.loader.trx", "org.horizon.loader.nifti", "org.horizon.loader.mgh",
+               "org.horizon.loader.pam5",
                "org.horizon.shader.lambert", "org.horizon.shader.blinn_phong", "org.horizon.shader.line_stalling",
                "org.horizon.loader.gifti", "org.horizon.loader.freesurfer", "org.horizon.shader.principled", "org.horizon.clustering.qb",
                "org.horizon.clustering.qbx", "org.horizon.clustering.qbx_merge"}

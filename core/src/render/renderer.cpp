@@ -1962,6 +1962,31 @@ GpuObject &volume_object(std::vector<GpuObject> &objects, const Scene &scene, st
 
 void Renderer::set_slices(std::size_t object, std::optional<double> x, std::optional<double> y, std::optional<double> z) {
     Impl &I = *impl_;
+    if (object < I.scene.objects.size() && I.scene.objects[object].peaks) {
+        // Peak glyphs: the segments of the voxels on the new slices, built
+        // again (a slice of peaks is tens of thousands of segments: a few ms).
+        const Object &o = I.scene.objects[object];
+        const PeakField &f = *o.peaks;
+        if (f.options.whole) throw Error("slices: " + o.name + " shows the peaks of the whole volume, not slices");
+        const Bounds box = peak_grid_box(f);
+        std::optional<double> p[3] = {x, y, z};
+        for (int a = 0; a < 3; ++a) {
+            if (p[a] && std::isnan(*p[a])) p[a] = (box.min[a] + box.max[a]) / 2;
+            if (p[a] && !std::isfinite(*p[a])) throw Error("slices: " + o.name + ": a position is not a finite number");
+            if (p[a] && (*p[a] < box.min[a] || *p[a] > box.max[a]))
+                throw Error("slices: " + o.name + ": " + std::string(1, char('x' + a)) + " = " + std::to_string(*p[a]) +
+                            " mm is outside the volume (" + std::to_string(box.min[a]) + " to " + std::to_string(box.max[a]) + ")");
+        }
+        Tractogram t = peak_lines(f, p[0], p[1], p[2]);
+        for (auto &g : I.objects)  // (its drawable reads the object's data: gone first)
+            if (g.index == object) I.release(g);
+        Object moved = std::move(I.scene.objects[object]);  // (the same field, colouring and material; new segments)
+        moved.slice_x = p[0], moved.slice_y = p[1], moved.slice_z = p[2];
+        moved.data.bounds = peak_bounds(f, t);
+        moved.data.tractogram = std::move(t);
+        replace_object(object, std::move(moved));
+        return;
+    }
     GpuObject &g = volume_object(I.objects, I.scene, object, "slices");
     Object &o = I.scene.objects[object];
     if (o.transfer) throw Error("slices: " + o.name + " is rendered by ray-marching, not as slices");
@@ -2013,6 +2038,10 @@ void Renderer::set_volume_index(std::size_t object, std::uint64_t index) {
 }
 
 std::optional<Renderer::VolumeExtent> Renderer::volume_extent(std::size_t object) const {
+    if (object < impl_->scene.objects.size() && impl_->scene.objects[object].peaks) {
+        const PeakField &f = *impl_->scene.objects[object].peaks;
+        return VolumeExtent{peak_grid_box(f), 1, {0, f.max_amplitude > 0 ? f.max_amplitude : 1}};
+    }
     for (const GpuObject &g : impl_->objects)
         if (g.index == object && g.slices) return VolumeExtent{g.bounds, volume_count(impl_->scene.objects[object].data.volume), g.window};
     return std::nullopt;

@@ -497,7 +497,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         const json &o = root["objects"][i];
         const std::string where = "objects[" + std::to_string(i) + "]";
         if (!o.is_object() || !o.contains("type")) fail(what, where, "expected an object with a 'type'");
-        const std::string type = str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume"});
+        const std::string type = str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume", "peaks"});
         Object ob;
         ob.name = type + " " + std::to_string(i);
         if (type == "streamlines") {
@@ -537,6 +537,12 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                     ob.transfer = transfer_from_json(t, what, where + ".transfer");
                 }
             }
+        } else if (type == "peaks") {
+            check_keys(o,
+                       {"type", "name", "file", "data", "x", "y", "z", "whole", "scale", "by_value", "threshold", "frame", "render",
+                        "radius", "color", "material", "visible", "opacity"},
+                       what, where);
+            ob.coloring.mode = "direction";
         } else {
             check_keys(o,
                        {"type", "name", "file", "builtin", "data", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity",
@@ -632,6 +638,24 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (ob.data.kind != want)
             fail(what, where, std::string("the file holds ") + kind_name(ob.data.kind) + ", not what type '" + type + "' shows");
         ob.kind = want;
+        if (type == "peaks") {
+            PeakOptions po;
+            if (o.contains("scale")) po.scale = num_in(o["scale"], what, where + ".scale", 1e-3, 100.0);
+            if (o.contains("threshold")) po.threshold = num_in(o["threshold"], what, where + ".threshold", 0.0, 0.999);
+            if (o.contains("frame")) po.frame = str(o["frame"], what, where + ".frame", {"world", "voxel"});
+            for (const char *key : {"whole", "by_value"})
+                if (o.contains(key)) {
+                    if (!o[key].is_boolean()) fail(what, where + "." + key, "expected true or false");
+                    (std::string(key) == "whole" ? po.whole : po.by_value) = o[key].get<bool>();
+                }
+            if (po.whole && (o.contains("x") || o.contains("y") || o.contains("z")))
+                fail(what, where, "'whole' draws every voxel's peaks: give it or slices (x, y, z), not both");
+            try {
+                show_as_peaks(ob, po, what + ": " + where);
+            } catch (const Error &e) {
+                fail(what, where, e.what());
+            }
+        }
         if (want == HZ_DATA_MESH && is_overlay(ob.data))
             fail(what, where, "the file holds per-vertex values only; give the surface in 'file' and this file in 'overlays'");
         if (want == HZ_DATA_MESH && !ob.data.metadata.empty()) apply_file_material(ob, o.contains("material"), o.contains("color"));
@@ -710,6 +734,33 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         s.objects.push_back(std::move(ob));
     }
     return s;
+}
+
+void show_as_peaks(Object &o, const PeakOptions &opt, const std::string &what) {
+    if (!o.peaks && o.data.kind != HZ_DATA_VOLUME)
+        throw Error(what + ": peaks are read from a volume, not " + std::string(kind_name(o.data.kind)));
+    // (peaks already: drawn again with these options from the same voxels)
+    auto field = std::make_shared<const PeakField>(make_peak_field(o.peaks ? o.peaks->volume : o.data.volume, opt, what));
+    const std::string format = o.peaks ? o.data.format : o.data.format + " peaks";
+    if (!opt.whole && !o.slice_x && !o.slice_y && !o.slice_z) o.slice_x = o.slice_y = o.slice_z = std::nan("");
+    const Bounds box = peak_grid_box(*field);
+    std::optional<double> *at[3] = {&o.slice_x, &o.slice_y, &o.slice_z};
+    for (int a = 0; a < 3; ++a)
+        if (*at[a] && std::isnan(**at[a])) *at[a] = (box.min[a] + box.max[a]) / 2;
+    if (opt.whole) o.slice_x.reset(), o.slice_y.reset(), o.slice_z.reset();
+    Dataset ds;
+    ds.kind = HZ_DATA_STREAMLINES;
+    ds.format = format;
+    ds.loader_id = o.data.loader_id;
+    ds.source_space = HZ_SPACE_RASMM;
+    ds.tractogram = peak_lines(*field, o.slice_x, o.slice_y, o.slice_z);
+    ds.bounds = peak_bounds(*field, ds.tractogram);
+    o.data = std::move(ds);
+    o.kind = HZ_DATA_STREAMLINES;
+    o.peaks = std::move(field);
+    if (o.coloring.mode == "solid" && o.coloring.array.empty() && o.coloring.color == Coloring{}.color) o.coloring.mode = "direction";
+    o.transfer.reset();
+    o.rgb.reset();
 }
 
 void check_ambient_occlusion(const AmbientOcclusion &ao) {

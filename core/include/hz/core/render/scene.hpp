@@ -6,6 +6,7 @@
 
 #include <hz/core/data.hpp>
 #include <hz/core/plugin_host.hpp>
+#include <hz/core/render/peaks.hpp>
 
 #include <array>
 #include <filesystem>
@@ -123,7 +124,20 @@ struct Object {
     // volumes: drawn by ray-marching through this transfer function instead
     // of as slices (a scene's "type": "volume")
     std::optional<TransferFunction> transfer;
+    // Peak glyphs (a scene's "type": "peaks", peaks.hpp): a streamlines
+    // object whose tractogram is peak_lines() of this field at the slices
+    // slice_x/y/z (or of the whole volume); the renderer's set_slices
+    // builds it again where the slices move.
+    std::shared_ptr<const PeakField> peaks;
 };
+
+// Turns object `o`, holding a peak volume (a 4th dimension of 3N values),
+// into peak glyphs (Object::peaks): lines coloured by direction, at the
+// object's slices (none set: the three through the volume's centre) unless
+// `opt.whole`. An object that shows peaks already is drawn again with
+// `opt` (from the same voxels). Throws Error naming `what`
+// (make_peak_field's checks).
+void show_as_peaks(Object &o, const PeakOptions &opt, const std::string &what);
 
 struct Camera {
     // Either explicit (position/target/up) or fitted to the scene bounds

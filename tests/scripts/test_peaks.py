@@ -1,0 +1,319 @@
+"""Peaks: DIPY's PAM5 files read as DIPY reads them (dipy.io.peaks.load_peaks),
+MRtrix3-style peak NIfTIs (3 values a peak), both drawn as peak glyphs on
+slices or through the whole volume, from data files, scene files and the
+window's slicer; malformed and hostile PAM5 files and peak volumes of the
+wrong layout each one line, nothing written."""
+import json
+import os
+import shutil
+import unittest
+
+import h5py
+import nibabel as nib
+import numpy as np
+from PIL import Image
+
+from hztest import BUNDLED, HORIZON, TempDirTest, run, run_json, xvfb_run
+
+NO_DISPLAY = {"DISPLAY": ""}
+
+
+def load(path):
+    return np.asarray(Image.open(path).convert("RGB"), dtype=np.float64)
+
+
+def random_peaks(rng, shape, n):
+    """Unit directions and values, some voxels without peaks (values 0)."""
+    dirs = rng.normal(size=shape + (n, 3))
+    dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
+    vals = rng.random(shape + (n,))
+    vals[rng.random(shape + (n,)) < 0.2] = 0
+    dirs[vals == 0] = 0
+    return dirs, vals
+
+
+def save_pam5(path, dirs, vals, affine):
+    """Through DIPY's own writer."""
+    from dipy.core.sphere import Sphere
+    from dipy.direction.peaks import PeaksAndMetrics
+    from dipy.io.peaks import save_peaks
+    pam = PeaksAndMetrics()
+    pam.affine = affine
+    pam.peak_dirs, pam.peak_values = dirs, vals
+    pam.peak_indices = np.zeros(vals.shape, int)
+    pam.shm_coeff, pam.odf = None, None
+    pam.sphere = Sphere(xyz=np.eye(3))
+    pam.B = np.zeros((3, 1))
+    pam.total_weight, pam.ang_thr = 0.5, 60.0
+    pam.gfa, pam.qa = np.zeros(vals.shape[:3]), np.zeros(vals.shape)
+    save_peaks(path, pam)
+
+
+def pam5_by_hand(path, dirs, vals, affine=None, version="0.0.1", compress=False, fixed=False, **extra):
+    """Written with h5py directly: gzip-compressed chunks, a fixed-length
+    version string (which DIPY's reader refuses), or whatever a case needs."""
+    with h5py.File(path, "w") as f:
+        if version is not None:
+            f.attrs["version"] = np.bytes_(version) if fixed else version
+        g = f.create_group("pam")
+        kw = {"compression": "gzip", "chunks": True} if compress else {}
+        if dirs is not None:
+            g.create_dataset("peak_dirs", data=dirs, **kw)
+        if vals is not None:
+            g.create_dataset("peak_values", data=vals, **kw)
+        if affine is not None:
+            g.create_dataset("affine", data=affine)
+        for k, v in extra.items():
+            g.create_dataset(k, data=v)
+
+
+def oblique(rng):
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    a = np.eye(4)
+    a[:3, :3] = q @ np.diag([1.5, 2.0, 2.5])
+    a[:3, 3] = rng.normal(size=3) * 20
+    return a
+
+
+class PeaksTest(TempDirTest):
+    def convert(self, src, name):
+        out = self.path(name)
+        p = run("convert", src, out, "--force")
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return nib.load(out)
+
+    def render(self, src, out, *args, size="320x240"):
+        p = run("render", src, "-o", self.path(out), "--size", size, "--force", "--json", *args, env=NO_DISPLAY, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return load(self.path(out)), json.loads(p.stdout)
+
+    def test_pam5_reads_as_dipy_does(self):
+        """DIPY's writer (float64, an oblique affine) and h5py by hand (float32,
+        gzip chunks, a fixed-length version): `info` gives the extents and
+        affine dipy.io.peaks.load_peaks gives, and the volume converted to
+        NIfTI is its peak_dirs x peak_values, 3 values a peak. A fixed-length
+        version string (h5py's bytes; DIPY 1.6 refuses it) reads the same."""
+        from dipy.io.peaks import load_peaks
+        rng = np.random.default_rng(5)
+        for name, writer, dtype in (("dipy.pam5", save_pam5, np.float64), ("hand.pam5", pam5_by_hand, np.float32)):
+            with self.subTest(file=name):
+                dirs, vals = random_peaks(rng, (7, 6, 5), 4)
+                aff = oblique(rng)
+                f = self.path(name)
+                if writer is save_pam5:
+                    save_pam5(f, dirs, vals, aff)
+                else:
+                    pam5_by_hand(f, dirs.astype(dtype), vals.astype(dtype), aff, compress=True,
+                                 peak_indices=np.zeros(vals.shape, np.int32), sphere_vertices=np.eye(3), B=np.zeros((3, 1)),
+                                 total_weight=[0.5], ang_thr=[60.0], gfa=np.zeros(vals.shape[:3]), qa=np.zeros(vals.shape))
+                ref = load_peaks(f)
+                info = run_json("info", f, "--json")
+                self.assertEqual(info["dims"], [7, 6, 5, 12])
+                np.testing.assert_allclose(np.array(info["affine"]), ref.affine, atol=1e-5)
+                self.assertIn("pam5", info["format"])
+                want = (ref.peak_dirs * ref.peak_values[..., None]).reshape(7, 6, 5, 12)
+                ours = self.convert(f, name + ".nii.gz")
+                np.testing.assert_allclose(ours.get_fdata(), want, rtol=1e-6, atol=1e-7)
+                np.testing.assert_allclose(ours.affine, ref.affine, atol=1e-5)
+                if writer is pam5_by_hand:
+                    pam5_by_hand(self.path("fixed.pam5"), dirs.astype(dtype), vals.astype(dtype), aff, fixed=True)
+                    np.testing.assert_array_equal(self.convert(self.path("fixed.pam5"), "fixed.nii.gz").get_fdata(), ours.get_fdata())
+
+    def test_pam5_and_its_nifti_draw_the_same_glyphs(self):
+        """A PAM5 file and the same peaks as an MRtrix3-style NIfTI (--peaks)
+        render the same picture; the glyphs drawn are exactly the peaks of
+        the voxels on the three centre slices (counted here with numpy)."""
+        rng = np.random.default_rng(6)
+        dirs, vals = random_peaks(rng, (12, 10, 8), 3)
+        aff = np.diag([2.0, 2.0, 2.0, 1.0])
+        aff[:3, 3] = [-11, -9, -7]
+        save_pam5(self.path("p.pam5"), dirs, vals, aff)
+        nib.save(nib.Nifti1Image((dirs * vals[..., None]).reshape(12, 10, 8, 9).astype(np.float32), aff), self.path("p.nii.gz"))
+        a, sa = self.render(self.path("p.pam5"), "a.png")
+        b, sb = self.render(self.path("p.nii.gz"), "b.png", "--peaks")
+        np.testing.assert_array_equal(a, b)
+        # The slices through the grid's centre (RAS 0, 0, 0 mm -> voxel 5.5, 4.5, 3.5), the upper voxel on a boundary.
+        i, j, k = 6, 5, 4
+        on = np.zeros((12, 10, 8), bool)
+        on[i], on[:, j], on[:, :, k] = True, True, True
+        self.assertEqual(sa["streamlines_drawn"], int(((vals > 0) & on[..., None]).sum()))
+        self.assertGreater(np.abs(a - a[2, 2]).sum(axis=-1).max(), 100, "glyphs drawn")
+        # The whole volume: every peak.
+        _, sw = self.render(self.path("p.pam5"), "w.png", "--peaks-whole")
+        self.assertEqual(sw["streamlines_drawn"], int((vals > 0).sum()))
+        # A threshold drops the short ones.
+        _, st = self.render(self.path("p.pam5"), "t.png", "--peaks-whole", "--peak-threshold", "0.5")
+        self.assertEqual(st["streamlines_drawn"], int((vals >= 0.5 * vals.max()).sum()))
+
+    def test_glyphs_are_coloured_by_direction_and_placed_by_the_affine(self):
+        """One axial slice of peaks seen from above: left half along x (red),
+        right half along y (green); the glyphs lie where the affine puts the
+        voxels (the same picture for a grid shifted by the affine and the
+        camera target moved alike)."""
+        vol = np.zeros((16, 16, 1, 3), np.float32)
+        vol[:8, :, 0, 0] = 1
+        vol[8:, :, 0, 1] = 1
+        aff = np.diag([2.0, 2.0, 2.0, 1.0])
+        aff[:3, 3] = [-15, -15, 0]
+        nib.save(nib.Nifti1Image(vol, aff), self.path("xy.nii.gz"))
+        scene = {"objects": [{"type": "peaks", "file": "xy.nii.gz", "z": 0, "scale": 0.8}],
+                 "camera": {"view": "superior"}, "environment": {"type": "none"}, "background": [0, 0, 0]}
+        with open(self.path("s.json"), "w") as f:
+            json.dump(scene, f)
+        img, stats = self.render(self.path("s.json"), "s.png")
+        self.assertEqual(stats["streamlines_drawn"], 256)
+        lit = img.sum(axis=-1) > 60
+        cols = np.nonzero(lit.any(axis=0))[0]
+        mid = (cols.min() + cols.max()) // 2
+        left, right = img[:, :mid][lit[:, :mid]], img[:, mid + 1:][lit[:, mid + 1:]]
+        self.assertGreater(left[:, 0].mean(), 3 * max(left[:, 1].mean(), left[:, 2].mean()), "x peaks are red")
+        self.assertGreater(right[:, 1].mean(), 3 * max(right[:, 0].mean(), right[:, 2].mean()), "y peaks are green")
+        # Coloured by amplitude through a colormap instead: a data colouring of the "amplitude" array.
+        scene["objects"][0]["color"] = {"mode": "data", "array": "amplitude", "colormap": "hot"}
+        with open(self.path("d.json"), "w") as f:
+            json.dump(scene, f)
+        d, _ = self.render(self.path("d.json"), "d.png")
+        self.assertGreater(np.abs(d - img).mean(), 0.5)
+
+    def test_scene_keys_and_wrong_layouts(self):
+        """A scene's peaks object: unknown keys, 'whole' with slices, a
+        volume of 4 values a voxel, a 3D volume: one line each naming the
+        scene file, nothing written."""
+        nib.save(nib.Nifti1Image(np.ones((4, 4, 4, 4), np.float32), np.eye(4)), self.path("four.nii.gz"))
+        nib.save(nib.Nifti1Image(np.ones((4, 4, 4), np.float32), np.eye(4)), self.path("flat.nii.gz"))
+        nib.save(nib.Nifti1Image(np.ones((4, 4, 4, 3), np.float32), np.eye(4)), self.path("ok.nii.gz"))
+        cases = {
+            "four.json": ({"type": "peaks", "file": "four.nii.gz"}, "4 values a voxel"),
+            "flat.json": ({"type": "peaks", "file": "flat.nii.gz"}, "4th dimension"),
+            "both.json": ({"type": "peaks", "file": "ok.nii.gz", "whole": True, "z": 0}, "not both"),
+            "key.json": ({"type": "peaks", "file": "ok.nii.gz", "window": [0, 1]}, "window"),
+            "scale.json": ({"type": "peaks", "file": "ok.nii.gz", "scale": 0}, "scale"),
+        }
+        for name, (ob, msg) in cases.items():
+            with self.subTest(case=name):
+                with open(self.path(name), "w") as f:
+                    json.dump({"objects": [ob]}, f)
+                p = run("render", self.path(name), "-o", self.path("x.png"), env=NO_DISPLAY, timeout=60)
+                self.assert_clean_error(p, name)
+                self.assertIn(msg, p.stderr)
+                self.assertFalse(os.path.exists(self.path("x.png")))
+        p = run("render", self.path("four.nii.gz"), "--peaks", "-o", self.path("x.png"), env=NO_DISPLAY, timeout=60)
+        self.assert_clean_error(p, "four.nii.gz")
+        self.assertIn("multiple of 3", p.stderr)
+
+    def test_the_pam5_plugin_keeps_the_abi_contract(self):
+        """`horizon validate` with a PAM5 sample: every check passes, the
+        reads of a thousand damaged variants of the file among them."""
+        rng = np.random.default_rng(9)
+        dirs, vals = random_peaks(rng, (6, 5, 4), 3)
+        save_pam5(self.path("s.pam5"), dirs, vals, np.eye(4))
+        p = run("validate", os.path.join(BUNDLED, "hz_loader_pam5.so"), "--data", self.path("s.pam5"), "--json", timeout=600)
+        self.assertEqual(p.returncode, 0, p.stdout[-3000:] + p.stderr)
+        report = json.loads(p.stdout)
+        checks = {c["check"]: c["status"] for c in report["checks"]}
+        self.assertEqual(checks["loader-malformed-survival"], "passed")
+        self.assertNotIn("failed", checks.values())
+
+    def test_malformed_pam5(self):
+        """Not HDF5, truncated, another HDF5 file, a wrong version, missing or
+        mismatched datasets, text for numbers, bad affines, absurd extents
+        (a chunked dataset of 2^60 voxels in a few KB), a damaged compressed
+        chunk: one line naming the file, no output, no large allocation."""
+        rng = np.random.default_rng(7)
+        dirs, vals = random_peaks(rng, (5, 4, 3), 2)
+        good = self.path("good.pam5")
+        pam5_by_hand(good, dirs, vals, np.eye(4), compress=True)
+        with open(good, "rb") as fh:
+            blob = fh.read()
+        cases = {}
+
+        def make(name, **kw):
+            args = dict(dirs=dirs, vals=vals, affine=np.eye(4))
+            args.update(kw)
+            pam5_by_hand(self.path(name), args.pop("dirs"), args.pop("vals"), **args)
+            cases[name] = None
+        with open(self.path("text.pam5"), "w") as fh:
+            fh.write("version 0.0.1\n")
+        cases["text.pam5"] = None
+        with open(self.path("truncated.pam5"), "wb") as fh:
+            fh.write(blob[:len(blob) // 3])
+        cases["truncated.pam5"] = None
+        damaged = bytearray(blob)
+        for i in range(len(blob) - 400, len(blob) - 40):  # (inside the last compressed chunks)
+            damaged[i] ^= 0x5A
+        with open(self.path("damaged.pam5"), "wb") as fh:
+            fh.write(bytes(damaged))
+        cases["damaged.pam5"] = None
+        make("no_version.pam5", version=None)
+        make("version_2.pam5", version="2.0.0")
+        make("number_version.pam5", version=np.int64(1))
+        make("no_values.pam5", vals=None)
+        make("no_dirs.pam5", dirs=None)
+        make("rank4_dirs.pam5", dirs=dirs[..., 0, :])
+        make("dirs_of_2.pam5", dirs=dirs[..., :2])
+        make("mismatch.pam5", vals=vals[:4])
+        make("text_dirs.pam5", dirs=np.array([b"x"] * 5 * 4 * 3 * 2 * 3).reshape(5, 4, 3, 2, 3))
+        make("affine_3x3.pam5", affine=np.eye(3))
+        make("singular_affine.pam5", affine=np.zeros((4, 4)))
+        make("nan_affine.pam5", affine=np.full((4, 4), np.nan))
+        make("zero_extent.pam5", dirs=np.zeros((0, 4, 3, 2, 3)), vals=np.zeros((0, 4, 3, 2)))
+        with h5py.File(self.path("absurd.pam5"), "w") as f:
+            f.attrs["version"] = "0.0.1"
+            g = f.create_group("pam")
+            g.create_dataset("peak_dirs", shape=(2 ** 20, 2 ** 20, 2 ** 20, 5, 3), dtype="f4", chunks=(1, 1, 1, 5, 3))
+            g.create_dataset("peak_values", shape=(2 ** 20, 2 ** 20, 2 ** 20, 5), dtype="f4", chunks=(1, 1, 1, 5))
+        cases["absurd.pam5"] = None
+        with h5py.File(self.path("large.pam5"), "w") as f:  # (within the reader's bounds, beyond the memory: the host says so)
+            f.attrs["version"] = "0.0.1"
+            g = f.create_group("pam")
+            g.create_dataset("peak_dirs", shape=(4096, 4096, 4096, 5, 3), dtype="f4", chunks=(1, 1, 1, 5, 3))
+            g.create_dataset("peak_values", shape=(4096, 4096, 4096, 5), dtype="f4", chunks=(1, 1, 1, 5))
+        cases["large.pam5"] = None
+        with h5py.File(self.path("other.pam5"), "w") as f:
+            f.create_dataset("x", data=np.arange(10))
+        cases["other.pam5"] = None
+        for name in cases:
+            with self.subTest(case=name):
+                f = self.path(name)
+                self.assert_clean_error(run("info", f, timeout=20), name)
+                self.assert_clean_error(run("convert", f, self.path("x.nii"), timeout=20), name)
+                self.assertFalse(os.path.exists(self.path("x.nii")))
+                p = run("render", f, "-o", self.path("x.png"), env=NO_DISPLAY, timeout=60)
+                self.assert_clean_error(p, name)
+                self.assertFalse(os.path.exists(self.path("x.png")))
+
+    @unittest.skipUnless(shutil.which("xvfb-run") or os.environ.get("CI"), "xvfb-run is not installed")
+    def test_the_window_moves_the_peaks_slices(self):
+        """The slicer's `slice I z MM` on a peaks object: the glyphs of that
+        slice, as a render of a scene file with that slice draws them; a
+        position outside the grid is one line naming the object."""
+        rng = np.random.default_rng(8)
+        dirs, vals = random_peaks(rng, (10, 10, 6), 2)
+        aff = np.diag([2.0, 2.0, 2.0, 1.0])
+        aff[:3, 3] = [-9, -9, -5]
+        save_pam5(self.path("p.pam5"), dirs, vals, aff)
+
+        def scene(name, **keys):
+            with open(self.path(name), "w") as f:
+                json.dump({"objects": [{"type": "peaks", "file": "p.pam5", **keys}], "camera": {"view": "superior"},
+                           "environment": {"type": "none"}}, f)
+            return self.path(name)
+        script = self.path("s.txt")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 1", "slice 0 z 3", "slice 0 x off", "slice 0 y off", "wait 1",
+                               f"screenshot {self.path('w.png')}", "slice 0 z 500", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        p = xvfb_run([HORIZON, "view", scene("v.json"), "--size", "320x240", "--aa-frames", "1", "--script", script], env)
+        self.assertNotEqual(p.returncode, 0, "z = 500 mm is outside the grid: the script stops there")
+        self.assertIn("outside the volume", p.stderr)
+        want, _ = self.render(scene("r.json", z=3), "r.png", "--aa-frames", "1")
+        other, _ = self.render(scene("o.json", z=-3), "o.png", "--aa-frames", "1")
+        w = load(self.path("w.png"))
+        self.assertLess((np.abs(w - want).sum(axis=-1) > 30).mean(), 0.005)
+        self.assertGreater((np.abs(w - other).sum(axis=-1) > 30).mean(), 0.01)
+
+
+if __name__ == "__main__":
+    unittest.main()
