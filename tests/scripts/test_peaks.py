@@ -252,6 +252,7 @@ class PeaksTest(TempDirTest):
         make("rank4_dirs.pam5", dirs=dirs[..., 0, :])
         make("dirs_of_2.pam5", dirs=dirs[..., :2])
         make("mismatch.pam5", vals=vals[:4])
+        make("values_larger.pam5", vals=np.concatenate([vals, vals[:1]]))  # (readable, plane by plane, but not the same voxels)
         make("text_dirs.pam5", dirs=np.array([b"x"] * 5 * 4 * 3 * 2 * 3).reshape(5, 4, 3, 2, 3))
         make("affine_3x3.pam5", affine=np.eye(3))
         make("singular_affine.pam5", affine=np.zeros((4, 4)))
