@@ -77,7 +77,27 @@ struct VolumeOptions {
     bool peaks = false;
     std::optional<double> peak_scale, peak_threshold;
     bool peaks_whole = false, peaks_voxel_frame = false;
+    // --odfs: every volume of SH coefficients (1, 6, 15, 28, 45, ... a
+    // voxel) drawn as ODF glyphs on its slices (Object::odfs); --sh-basis,
+    // --sh-not-legacy, --odf-sphere, --odf-scale: OdfOptions for every ODF
+    // object (a scene file's too).
+    bool odfs = false;
+    std::string sh_basis;  // descoteaux07 | tournier07 | mrtrix3 ("": as given)
+    bool sh_not_legacy = false;
+    std::optional<int> odf_sphere;
+    std::optional<double> odf_scale;
     void apply(core::render::Scene &s) const {
+        const bool odf_options = !sh_basis.empty() || sh_not_legacy || odf_sphere || odf_scale;
+        for (auto &o : s.objects) {
+            if (!o.odfs && !(odfs && o.kind == HZ_DATA_VOLUME)) continue;
+            if (o.odfs && !odf_options) continue;
+            core::render::OdfOptions oo = o.odfs ? o.odfs->options : core::render::OdfOptions{};
+            if (!sh_basis.empty()) oo.basis = sh_basis == "mrtrix3" ? "tournier07" : sh_basis, oo.legacy = sh_basis != "mrtrix3";
+            if (sh_not_legacy) oo.legacy = false;
+            if (odf_sphere) oo.sphere = *odf_sphere;
+            if (odf_scale) oo.scale = *odf_scale;
+            core::render::show_as_odfs(o, oo, o.name);
+        }
         const bool options = peak_scale || peak_threshold || peaks_whole || peaks_voxel_frame;
         for (auto &o : s.objects) {
             if (!o.peaks && !(peaks && o.kind == HZ_DATA_VOLUME)) continue;

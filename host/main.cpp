@@ -115,6 +115,18 @@ void add_volume_options(CLI::App *cmd, VolumeOptions &v) {
     cmd->add_flag("--peaks-whole", v.peaks_whole, "peak glyphs of every voxel rather than of the slices");
     cmd->add_flag("--peaks-voxel-frame", v.peaks_voxel_frame,
                   "peak vectors are in the voxel axes (turned by the affine), not in world RAS+ axes (MRtrix3's and DIPY's)");
+    cmd->add_flag("--odfs", v.odfs,
+                  "volumes of spherical-harmonic coefficients (1, 6, 15, 28, 45, ... a voxel: DIPY's or MRtrix3's fODFs) drawn as "
+                  "ODF glyphs on the three slices through the centre (a scene file's \"type\": \"odfs\")");
+    cmd->add_option("--sh-basis", v.sh_basis,
+                    "ODF glyphs: the SH basis, descoteaux07 (DIPY's default, legacy), tournier07 (DIPY's, legacy) or mrtrix3 "
+                    "(tournier07, not legacy)")
+        ->check(CLI::IsMember({"descoteaux07", "tournier07", "mrtrix3"}));
+    cmd->add_flag("--sh-not-legacy", v.sh_not_legacy, "ODF glyphs: DIPY's non-legacy form of the basis (legacy=False)");
+    cmd->add_option("--odf-sphere", v.odf_sphere, "ODF glyphs: icosphere subdivisions, 0 (12 vertices) to 5 (10242); default 2 (162)")
+        ->check(CLI::Range(0, 5));
+    cmd->add_option("--odf-scale", v.odf_scale, "ODF glyphs: the largest spans this many voxels (default 1)")
+        ->check(CLI::Range(1e-3, 100.0));
     cmd->add_flag("--rgb", v.rgb,
                   "volumes of 3 values a voxel (a colour-FA map) in colour, each value through the window (on by itself for 8-bit "
                   "and RGB voxels; a scene file's \"rgb\")");

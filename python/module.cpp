@@ -374,6 +374,23 @@ PYBIND11_MODULE(_core, m) {
         py::arg("scene_json"), py::arg("base"), py::arg("width"), py::arg("height"), py::arg("memory"));
 
     m.def(
+        "_sh_matrix",
+        [](py::array_t<double, py::array::c_style | py::array::forcecast> vertices, int order, const std::string &basis, bool legacy) {
+            if (vertices.ndim() != 2 || vertices.shape(1) != 3) throw core::Error("sh_to_sf: vertices must be (N, 3)");
+            if (order < 0 || order > 16 || order % 2) throw core::Error("sh_to_sf: the order must be even, 0 to 16");
+            if (basis != "descoteaux07" && basis != "tournier07")
+                throw core::Error("sh_to_sf: basis '" + basis + "' is neither descoteaux07 nor tournier07");
+            std::vector<double> xyz(vertices.data(), vertices.data() + vertices.size());
+            const std::vector<double> B = core::render::sh_matrix(xyz, order, basis, legacy);
+            const py::ssize_t C = py::ssize_t(core::render::sh_coefficients(order));
+            py::array_t<double> out({py::ssize_t(vertices.shape(0)), C});
+            std::memcpy(out.mutable_data(), B.data(), B.size() * sizeof(double));
+            return out;
+        },
+        py::arg("vertices"), py::arg("order"), py::arg("basis"), py::arg("legacy"),
+        "B (vertices x coefficients): the real SH basis of the ODF glyphs at the vertices (horizon.sh_to_sf).");
+
+    m.def(
         "_cluster",
         [](const Data &d, const std::string &algorithm, const std::vector<double> &thresholds, const std::string &params_json,
            std::optional<std::vector<std::uint64_t>> ordering, py::object progress) {

@@ -16,10 +16,10 @@ import os
 from . import _paths
 from ._core import Data, Error, _filter, plugins, save
 from ._core import load as _load
-from ._core import _cluster, _from_streamlines, _render, _set_plugin_dirs
+from ._core import _cluster, _from_streamlines, _render, _set_plugin_dirs, _sh_matrix
 
-__all__ = ["ClusterTree", "Data", "Error", "Scene", "cluster", "filter", "from_streamlines", "load", "plugins", "render", "save", "streamlines",
-           "to_nibabel"]
+__all__ = ["ClusterTree", "Data", "Error", "Scene", "cluster", "filter", "from_streamlines", "load", "plugins", "render", "save", "sh_to_sf",
+           "streamlines", "to_nibabel"]
 __version__ = _paths.VERSION
 
 _set_plugin_dirs([d for d in _paths.PLUGIN_DIRS if os.path.isdir(d)])
@@ -218,6 +218,22 @@ def _need(data, kind, what):
         raise TypeError(f"{what}: expected a horizon.Data (horizon.load), not {type(data).__name__}")
     if data.kind != kind:
         raise TypeError(f"{what}: {data.path} holds {data.kind}, not {kind}")
+
+
+def sh_to_sf(sh, vertices, basis="descoteaux07", legacy=True):
+    """The values on the sphere of ODFs given by their real spherical-harmonic
+    coefficients, as the ODF glyphs evaluate them: `sh` (..., C) with C =
+    (L + 1)(L + 2) / 2 for an even order L (DIPY's order of coefficients),
+    `vertices` (N, 3) unit vectors; returns (..., N). `basis`: "descoteaux07"
+    or "tournier07" (DIPY's names; MRtrix3's is tournier07 with legacy
+    False), `legacy` as DIPY's (dipy.reconst.shm.sh_to_sf's equal)."""
+    import numpy as np
+    sh = np.asarray(sh, dtype=np.float64)
+    C = sh.shape[-1]
+    orders = [L for L in range(0, 17, 2) if (L + 1) * (L + 2) // 2 == C]
+    if not orders:
+        raise Error(f"sh_to_sf: {C} coefficients are not an even-order SH series (1, 6, 15, 28, 45, ...)")
+    return sh @ _sh_matrix(np.asarray(vertices, dtype=np.float64), orders[0], basis, bool(legacy)).T
 
 
 def render(scene, size=(1280, 720), base="."):

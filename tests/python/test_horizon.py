@@ -556,3 +556,33 @@ def test_filter_selects_what_the_command_line_selects(tmp_path):
     with pytest.raises(horizon.Error, match="nowhere.nii"):
         horizon.filter(data, include=[str(tmp_path / "nowhere.nii")])
     assert not (tmp_path / "bad.trk").exists()
+
+
+def test_sh_to_sf_is_dipys_in_every_basis():
+    """The ODF glyphs' SH basis (horizon.sh_to_sf, core's sh_matrix) against
+    dipy.reconst.shm.sh_to_sf on DIPY's own sphere: descoteaux07 and
+    tournier07, legacy and not, orders 0 to 12, random coefficients."""
+    import warnings
+    from dipy.core.sphere import Sphere
+    from dipy.data import get_sphere
+    from dipy.reconst.shm import sh_to_sf
+    sphere = get_sphere("repulsion724")
+    rng = np.random.default_rng(4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for order in (0, 2, 4, 8, 12):
+            sh = rng.normal(size=(5, (order + 1) * (order + 2) // 2))
+            for basis in ("descoteaux07", "tournier07"):
+                for legacy in (True, False):
+                    want = sh_to_sf(sh, sphere, sh_order=order, basis_type=basis, legacy=legacy)
+                    got = horizon.sh_to_sf(sh, sphere.vertices, basis=basis, legacy=legacy)
+                    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-10, err_msg=f"{basis} legacy={legacy} order {order}")
+    # (the poles and the x axis, where the angles are degenerate)
+    poles = np.array([[0, 0, 1.0], [0, 0, -1.0], [1.0, 0, 0], [-1.0, 0, 0]])
+    sh = rng.normal(size=45)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        want = sh_to_sf(sh, Sphere(xyz=poles), sh_order=8)
+    np.testing.assert_allclose(horizon.sh_to_sf(sh, poles), want, rtol=1e-9, atol=1e-10)
+    with pytest.raises(horizon.Error, match="7 coefficients are not an even-order SH series"):
+        horizon.sh_to_sf(np.zeros(7), poles)

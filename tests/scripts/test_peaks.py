@@ -1,8 +1,10 @@
-"""Peaks: DIPY's PAM5 files read as DIPY reads them (dipy.io.peaks.load_peaks),
-MRtrix3-style peak NIfTIs (3 values a peak), both drawn as peak glyphs on
-slices or through the whole volume, from data files, scene files and the
-window's slicer; malformed and hostile PAM5 files and peak volumes of the
-wrong layout each one line, nothing written."""
+"""Peaks and ODFs: DIPY's PAM5 files read as DIPY reads them
+(dipy.io.peaks.load_peaks), MRtrix3-style peak NIfTIs (3 values a peak), both
+drawn as peak glyphs on slices or through the whole volume, from data files,
+scene files and the window's slicer; ODFs from SH coefficients (DIPY's and
+MRtrix3's bases, written by DIPY's sf_to_sh) drawn as glyphs of their shape;
+malformed and hostile PAM5 files and volumes of the wrong layout each one
+line, nothing written."""
 import json
 import os
 import shutil
@@ -20,6 +22,19 @@ NO_DISPLAY = {"DISPLAY": ""}
 
 def load(path):
     return np.asarray(Image.open(path).convert("RGB"), dtype=np.float64)
+
+
+def scene_errors(test, cases):
+    """Each scene of one object `ob` fails to render with one line naming
+    the scene file and holding `msg`, nothing written."""
+    for name, (ob, msg) in cases.items():
+        with test.subTest(case=name):
+            with open(test.path(name), "w") as f:
+                json.dump({"objects": [ob]}, f)
+            p = run("render", test.path(name), "-o", test.path("x.png"), env=NO_DISPLAY, timeout=60)
+            test.assert_clean_error(p, name)
+            test.assertIn(msg, p.stderr)
+            test.assertFalse(os.path.exists(test.path("x.png")))
 
 
 def random_peaks(rng, shape, n):
@@ -189,14 +204,7 @@ class PeaksTest(TempDirTest):
             "key.json": ({"type": "peaks", "file": "ok.nii.gz", "window": [0, 1]}, "window"),
             "scale.json": ({"type": "peaks", "file": "ok.nii.gz", "scale": 0}, "scale"),
         }
-        for name, (ob, msg) in cases.items():
-            with self.subTest(case=name):
-                with open(self.path(name), "w") as f:
-                    json.dump({"objects": [ob]}, f)
-                p = run("render", self.path(name), "-o", self.path("x.png"), env=NO_DISPLAY, timeout=60)
-                self.assert_clean_error(p, name)
-                self.assertIn(msg, p.stderr)
-                self.assertFalse(os.path.exists(self.path("x.png")))
+        scene_errors(self, cases)
         p = run("render", self.path("four.nii.gz"), "--peaks", "-o", self.path("x.png"), env=NO_DISPLAY, timeout=60)
         self.assert_clean_error(p, "four.nii.gz")
         self.assertIn("multiple of 3", p.stderr)
@@ -314,6 +322,123 @@ class PeaksTest(TempDirTest):
         w = load(self.path("w.png"))
         self.assertLess((np.abs(w - want).sum(axis=-1) > 30).mean(), 0.005)
         self.assertGreater((np.abs(w - other).sum(axis=-1) > 30).mean(), 0.01)
+
+
+def lobes_sh(shape, direction_of, basis, order=8, legacy=True, sharpness=6):
+    """SH coefficients (DIPY's sf_to_sh) of ODFs of one lobe along
+    direction_of(x, y, z) a voxel."""
+    import warnings
+    from dipy.data import get_sphere
+    from dipy.reconst.shm import sf_to_sh
+    sphere = get_sphere("repulsion724")
+    sf = np.zeros(shape + (len(sphere.vertices),))
+    for ijk in np.ndindex(shape):
+        d = np.asarray(direction_of(*ijk), float)
+        sf[ijk] = np.exp(sharpness * ((sphere.vertices @ (d / np.linalg.norm(d))) ** 2 - 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return sf_to_sh(sf, sphere, sh_order=order, basis_type=basis, legacy=legacy).astype(np.float32)
+
+
+class OdfTest(TempDirTest):
+    def render(self, src, out, *args, size="400x300"):
+        p = run("render", src, "-o", self.path(out), "--size", size, "--force", "--json", *args, env=NO_DISPLAY, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return load(self.path(out)), json.loads(p.stdout)
+
+    def test_glyphs_show_each_odfs_lobe_in_its_basis(self):
+        """One axial slice of single-lobe ODFs, along x on the left and y on
+        the right, seen from above: left glyphs long across and red, right
+        ones long upwards and green, each as long as the voxel is wide (scale
+        1) or half (scale 0.5); the same ODFs written in tournier07, in
+        MRtrix3's basis and in descoteaux07 without legacy draw the same
+        picture with the matching --sh-basis."""
+        aff = np.diag([2.0, 2.0, 2.0, 1.0])
+        aff[:3, 3] = [-11, -11, 0]
+        along = lambda x, y, z: (1, 0, 0) if x < 6 else (0, 1, 0)
+        cases = {"d.nii.gz": ("descoteaux07", True, ()), "t.nii.gz": ("tournier07", True, ("--sh-basis", "tournier07")),
+                 "m.nii.gz": ("tournier07", False, ("--sh-basis", "mrtrix3")),
+                 "n.nii.gz": ("descoteaux07", False, ("--sh-not-legacy",))}
+        pictures = {}
+        for name, (basis, legacy, flags) in cases.items():
+            nib.save(nib.Nifti1Image(lobes_sh((12, 12, 1), along, basis, legacy=legacy), aff), self.path(name))
+            pictures[name], stats = self.render(self.path(name), name + ".png", "--odfs", "--view", "superior", *flags)
+        ref = pictures["d.nii.gz"]
+        for name, pic in pictures.items():
+            self.assertLess(np.abs(pic - ref).max(), 40, name)
+            self.assertLess((np.abs(pic - ref).sum(axis=-1) > 30).mean(), 0.002, name)
+        background = ref[2, 2]
+        lit = np.abs(ref - background).sum(axis=-1) > 60
+        cols = np.nonzero(lit.any(axis=0))[0]
+        mid = (cols.min() + cols.max()) // 2
+        left, right = ref[:, :mid][lit[:, :mid]], ref[:, mid + 1:][lit[:, mid + 1:]]
+        self.assertGreater(left[:, 0].mean(), 1.3 * max(left[:, 1].mean(), left[:, 2].mean()), "x lobes are red")
+        self.assertGreater(right[:, 1].mean(), 1.3 * max(right[:, 0].mean(), right[:, 2].mean()), "y lobes are green")
+
+        def lengths(pic):
+            """The glyphs of one row on the left: their widths over the spacing of their centres."""
+            on = np.abs(pic - background).sum(axis=-1) > 60
+            rows = np.nonzero(on[:, :mid].any(axis=1))[0]
+            best = max(rows, key=lambda r: on[r, :mid].sum())
+            runs, start = [], None
+            for c, v in enumerate(np.append(on[best, :mid], False)):
+                if v and start is None:
+                    start = c
+                elif not v and start is not None:
+                    runs.append((start, c))
+                    start = None
+            return runs
+        runs = lengths(ref)
+        self.assertGreaterEqual(len(runs), 4, runs)
+        centres = np.array([(a + b) / 2 for a, b in runs])
+        spacing = np.median(np.diff(centres))
+        widths = np.array([b - a for a, b in runs])
+        self.assertAlmostEqual(np.median(widths) / spacing, 1.0, delta=0.2)
+        half, _ = self.render(self.path("d.nii.gz"), "h.png", "--odfs", "--view", "superior", "--odf-scale", "0.5")
+        hw = np.array([b - a for a, b in lengths(half)])
+        self.assertAlmostEqual(np.median(hw) / spacing, 0.5, delta=0.15)
+
+    def test_scene_odfs_and_wrong_layouts(self):
+        """A scene's odfs object (basis, sphere, normalise); 7 values a voxel,
+        an unknown basis, a 3D volume: one line each, nothing written; the
+        window's slicer moves the glyphs as a scene file with that slice draws
+        them."""
+        aff = np.eye(4)
+        nib.save(nib.Nifti1Image(lobes_sh((6, 6, 4), lambda x, y, z: (x, y + 1, z), "descoteaux07", order=4), aff), self.path("o.nii.gz"))
+        nib.save(nib.Nifti1Image(np.ones((4, 4, 4, 7), np.float32), aff), self.path("seven.nii.gz"))
+        nib.save(nib.Nifti1Image(np.ones((4, 4, 4), np.float32), aff), self.path("flat.nii.gz"))
+        cases = {
+            "seven.json": ({"type": "odfs", "file": "seven.nii.gz"}, "not the coefficients of an even-order SH series"),
+            "basis.json": ({"type": "odfs", "file": "o.nii.gz", "basis": "mrtrix"}, "basis"),
+            "flat.json": ({"type": "odfs", "file": "flat.nii.gz"}, "4th dimension"),
+            "norm.json": ({"type": "odfs", "file": "o.nii.gz", "normalise": "sum"}, "normalise"),
+        }
+        scene_errors(self, cases)
+        p = run("render", self.path("seven.nii.gz"), "--odfs", "-o", self.path("x.png"), env=NO_DISPLAY, timeout=60)
+        self.assert_clean_error(p, "seven.nii.gz")
+
+        def scene(name, **keys):
+            with open(self.path(name), "w") as f:
+                json.dump({"objects": [{"type": "odfs", "file": "o.nii.gz", "sphere": 1, **keys}], "camera": {"view": "superior"},
+                           "environment": {"type": "none"}}, f)
+            return self.path(name)
+        a, sa = self.render(scene("a.json", z=1), "a.png")
+        b, _ = self.render(scene("b.json", z=1, normalise="none"), "b.png")
+        self.assertGreater(np.abs(a - b).mean(), 0.5, "normalise changes the glyphs")
+        if not (shutil.which("xvfb-run") or os.environ.get("CI")):
+            return
+        script = self.path("s.txt")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 1", "slice 0 z 2", "wait 1", f"screenshot {self.path('w.png')}", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        p = xvfb_run([HORIZON, "view", scene("v.json", z=1), "--size", "400x300", "--aa-frames", "1", "--script", script], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        want, _ = self.render(scene("r.json", z=2), "r.png", "--aa-frames", "1")
+        w = load(self.path("w.png"))
+        self.assertLess((np.abs(w - want).sum(axis=-1) > 30).mean(), 0.01)
+        self.assertGreater((np.abs(w - a).sum(axis=-1) > 30).mean(), 0.01)
 
 
 if __name__ == "__main__":

@@ -147,8 +147,8 @@ TEST_CASE("peak_lines: scaled integers, and no peak where a vector is zero or no
 
 TEST_CASE("make_peak_field refuses what is not a peak volume", "[peaks]") {
     const Volume four = peak_volume(2, 2, 2, 1, kIdentity, [](auto...) { return 1.0f; });
-    Volume wrong = peak_volume(2, 2, 2, 1, kIdentity, [](auto...) { return 1.0f; });
-    wrong.dims[3] = 4;  // (4 values a voxel)
+    Volume wrong = peak_volume(2, 2, 2, 2, kIdentity, [](auto...) { return 1.0f; });
+    wrong.dims[3] = 4;  // (4 values a voxel, all there)
     CHECK_THROWS_WITH(make_peak_field(wrong, {}, "f.nii"), Catch::Contains("f.nii") && Catch::Contains("4 values a voxel"));
     Volume flat = peak_volume(2, 2, 2, 1, kIdentity, [](auto...) { return 1.0f; });
     flat.dims = {2, 2, 6};

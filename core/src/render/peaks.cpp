@@ -23,24 +23,14 @@ PeakField make_peak_field(const Volume &v, const PeakOptions &o, const std::stri
     if (!(o.threshold >= 0 && o.threshold < 1))
         throw Error(what + ": peak threshold " + std::to_string(o.threshold) + " is outside [0, 1)");
     if (o.frame != "world" && o.frame != "voxel") throw Error(what + ": peak frame '" + o.frame + "' is neither world nor voxel");
-    std::size_t dims = v.dims.size();
-    while (dims > 4 && v.dims[dims - 1] == 1) --dims;
-    if (dims != 4 || v.dims[0] == 0 || v.dims[1] == 0 || v.dims[2] == 0)
-        throw Error(what + ": peaks need a volume of 3 values a peak along a 4th dimension (x, y, z, 3 x peaks), not " +
-                    std::to_string(v.dims.size()) + " dimensions");
+    GlyphVolume g = glyph_volume(v, what, "peaks need 3 values a peak (x, y, z, 3 x peaks)");
     if (v.dims[3] % 3 != 0 || v.dims[3] == 0)
         throw Error(what + ": " + std::to_string(v.dims[3]) + " values a voxel: peaks need 3 a peak (x, y, z), so a multiple of 3");
     const std::size_t es = dtype_size(v.dtype);
-    if (es == 0 || v.dtype == HZ_DTYPE_RGB8 || v.dtype == HZ_DTYPE_RGBA8 || v.dtype == HZ_DTYPE_F16)
-        throw Error(what + ": peaks need numbers (integers or floats), not this voxel type");
     const std::uint64_t nvox = voxels_of(v);
-    if (v.voxels.size() < nvox * v.dims[3] * es) throw Error(what + ": the voxels are fewer than the dimensions say");
     PeakField f;
-    f.volume.dtype = v.dtype;
-    f.volume.dims = {v.dims[0], v.dims[1], v.dims[2], v.dims[3]};
-    f.volume.voxels = v.voxels.shared();
-    f.volume.scale_slope = v.scale_slope, f.volume.scale_inter = v.scale_inter;
-    f.volume.voxel_to_ras = v.voxel_to_ras;
+    f.volume = std::move(g.volume);
+    f.voxel_mm = g.voxel_mm;
     f.options = o;
     f.peaks_per_voxel = v.dims[3] / 3;
     for (std::uint64_t vox = 0; vox < nvox; ++vox)
@@ -52,27 +42,69 @@ PeakField make_peak_field(const Volume &v, const PeakOptions &o, const std::stri
             }
             if (std::isfinite(n2)) f.max_amplitude = std::max(f.max_amplitude, std::sqrt(n2));
         }
-    const auto &a = v.voxel_to_ras;
-    f.voxel_mm = 1e300;
-    for (int k = 0; k < 3; ++k) f.voxel_mm = std::min(f.voxel_mm, std::hypot(a[k], a[4 + k], a[8 + k]));
-    if (!(f.voxel_mm > 0 && std::isfinite(f.voxel_mm))) throw Error(what + ": the volume's affine has a voxel side of zero");
     return f;
 }
 
-Bounds peak_grid_box(const PeakField &f) {
+GlyphVolume glyph_volume(const Volume &v, const std::string &what, const std::string &holds) {
+    std::size_t dims = v.dims.size();
+    while (dims > 4 && v.dims[dims - 1] == 1) --dims;
+    if (dims != 4 || v.dims[0] == 0 || v.dims[1] == 0 || v.dims[2] == 0)
+        throw Error(what + ": " + holds + " along a 4th dimension, not a volume of " + std::to_string(v.dims.size()) + " dimensions");
+    const std::size_t es = dtype_size(v.dtype);
+    if (es == 0 || v.dtype == HZ_DTYPE_RGB8 || v.dtype == HZ_DTYPE_RGBA8 || v.dtype == HZ_DTYPE_F16)
+        throw Error(what + ": glyphs need numbers (integers or floats), not this voxel type");
+    if (v.voxels.size() < voxels_of(v) * v.dims[3] * es) throw Error(what + ": the voxels are fewer than the dimensions say");
+    GlyphVolume g;
+    g.volume.dtype = v.dtype;
+    g.volume.dims = {v.dims[0], v.dims[1], v.dims[2], v.dims[3]};
+    g.volume.voxels = v.voxels.shared();
+    g.volume.scale_slope = v.scale_slope, g.volume.scale_inter = v.scale_inter;
+    g.volume.voxel_to_ras = v.voxel_to_ras;
+    const auto &a = v.voxel_to_ras;
+    g.voxel_mm = 1e300;
+    for (int k = 0; k < 3; ++k) g.voxel_mm = std::min(g.voxel_mm, std::hypot(a[k], a[4 + k], a[8 + k]));
+    if (!(g.voxel_mm > 0 && std::isfinite(g.voxel_mm))) throw Error(what + ": the volume's affine has a voxel side of zero");
+    return g;
+}
+
+Bounds grid_box(const std::vector<std::uint64_t> &dims, const Affine &a) {
     Bounds b;
-    const auto &a = f.volume.voxel_to_ras;
     for (int corner = 0; corner < 8; ++corner) {
         double ijk[3];
-        for (int k = 0; k < 3; ++k) ijk[k] = (corner >> k & 1) ? double(f.volume.dims[std::size_t(k)]) - 0.5 : -0.5;
+        for (int k = 0; k < 3; ++k) ijk[k] = (corner >> k & 1) ? double(dims[std::size_t(k)]) - 0.5 : -0.5;
         for (int r = 0; r < 3; ++r) {
             const double w = a[4 * r] * ijk[0] + a[4 * r + 1] * ijk[1] + a[4 * r + 2] * ijk[2] + a[4 * r + 3];
             b.min[r] = b.empty ? w : std::min(b.min[r], w);
             b.max[r] = b.empty ? w : std::max(b.max[r], w);
         }
-        if (corner == 0) b.empty = false;
+        b.empty = false;
     }
     return b;
+}
+
+Bounds peak_grid_box(const PeakField &f) { return grid_box(f.volume.dims, f.volume.voxel_to_ras); }
+
+std::vector<std::uint64_t> slice_voxels(const std::vector<std::uint64_t> &dims, const Affine &a, std::optional<double> x,
+                                        std::optional<double> y, std::optional<double> z, bool whole) {
+    const std::uint64_t X = dims[0], Y = dims[1], nvox = dims[0] * dims[1] * dims[2];
+    // Half a voxel's extent along each world axis: the slab a slice takes.
+    double half[3];
+    for (int r = 0; r < 3; ++r) half[r] = 0.5 * (std::abs(a[4 * r]) + std::abs(a[4 * r + 1]) + std::abs(a[4 * r + 2]));
+    const std::optional<double> at[3] = {x, y, z};
+    std::vector<std::uint64_t> out;
+    for (std::uint64_t vox = 0; vox < nvox; ++vox) {
+        if (!whole) {
+            const double ijk[3] = {double(vox % X), double(vox / X % Y), double(vox / X / Y)};
+            bool on = false;
+            for (int r = 0; r < 3 && !on; ++r) {
+                const double c = a[4 * r] * ijk[0] + a[4 * r + 1] * ijk[1] + a[4 * r + 2] * ijk[2] + a[4 * r + 3];
+                on = at[r] && c > *at[r] - half[r] && c <= *at[r] + half[r];
+            }
+            if (!on) continue;
+        }
+        out.push_back(vox);
+    }
+    return out;
 }
 
 Bounds peak_bounds(const PeakField &f, const Tractogram &lines) {
@@ -86,10 +118,6 @@ Tractogram peak_lines(const PeakField &f, std::optional<double> x, std::optional
     const std::uint64_t X = v.dims[0], Y = v.dims[1], nvox = voxels_of(v);
     const std::size_t es = dtype_size(v.dtype);
     const auto &a = v.voxel_to_ras;
-    // Half a voxel's extent along each world axis: the slab a slice takes.
-    double half[3];
-    for (int r = 0; r < 3; ++r) half[r] = 0.5 * (std::abs(a[4 * r]) + std::abs(a[4 * r + 1]) + std::abs(a[4 * r + 2]));
-    const std::optional<double> at[3] = {x, y, z};
     const double longest = f.max_amplitude, cut = f.options.threshold * longest;
     const double full = 0.5 * f.voxel_mm * f.options.scale;  // half the longest peak, mm
     // Voxel axes -> world directions (frame "voxel"): the affine's columns, each of unit length.
@@ -101,15 +129,11 @@ Tractogram peak_lines(const PeakField &f, std::optional<double> x, std::optional
         }
     std::vector<float> pos;
     std::vector<float> amp;
-    for (std::uint64_t vox = 0; vox < nvox && longest > 0; ++vox) {
+    const std::vector<std::uint64_t> shown = longest > 0 ? slice_voxels(v.dims, a, x, y, z, f.options.whole) : std::vector<std::uint64_t>{};
+    for (const std::uint64_t vox : shown) {
         const double ijk[3] = {double(vox % X), double(vox / X % Y), double(vox / X / Y)};
         double c[3];
         for (int r = 0; r < 3; ++r) c[r] = a[4 * r] * ijk[0] + a[4 * r + 1] * ijk[1] + a[4 * r + 2] * ijk[2] + a[4 * r + 3];
-        if (!f.options.whole) {
-            bool on = false;
-            for (int r = 0; r < 3 && !on; ++r) on = at[r] && c[r] > *at[r] - half[r] && c[r] <= *at[r] + half[r];
-            if (!on) continue;
-        }
         for (std::uint64_t p = 0; p < f.peaks_per_voxel; ++p) {
             double d[3];
             for (int k = 0; k < 3; ++k) d[k] = component(v, nvox, vox, 3 * p + std::uint64_t(k), es);

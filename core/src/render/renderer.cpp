@@ -1960,8 +1960,37 @@ GpuObject &volume_object(std::vector<GpuObject> &objects, const Scene &scene, st
 }
 }  // namespace
 
+namespace {
+// A glyph object's slice position along `axis`: NaN the middle of `box`;
+// throws Error naming the object for one not finite or outside the box.
+std::optional<double> slice_position(const std::string &name, const Bounds &box, int axis, std::optional<double> p) {
+    if (p && std::isnan(*p)) p = (box.min[axis] + box.max[axis]) / 2;
+    if (p && !std::isfinite(*p)) throw Error("slices: " + name + ": a position is not a finite number");
+    if (p && (*p < box.min[axis] || *p > box.max[axis]))
+        throw Error("slices: " + name + ": " + std::string(1, char('x' + axis)) + " = " + std::to_string(*p) +
+                    " mm is outside the volume (" + std::to_string(box.min[axis]) + " to " + std::to_string(box.max[axis]) + ")");
+    return p;
+}
+}  // namespace
+
 void Renderer::set_slices(std::size_t object, std::optional<double> x, std::optional<double> y, std::optional<double> z) {
     Impl &I = *impl_;
+    if (object < I.scene.objects.size() && I.scene.objects[object].odfs) {
+        // ODF glyphs: the glyphs of the voxels on the new slices, built again.
+        const Object &o = I.scene.objects[object];
+        const OdfField &f = *o.odfs;
+        const Bounds box = grid_box(f.volume.dims, f.volume.voxel_to_ras);
+        const std::optional<double> p[3] = {slice_position(o.name, box, 0, x), slice_position(o.name, box, 1, y),
+                                            slice_position(o.name, box, 2, z)};
+        Mesh m = odf_glyphs(f, p[0], p[1], p[2], f.options.sphere);
+        for (auto &g : I.objects)  // (its upload reads the object's data: gone first)
+            if (g.index == object) I.release(g);
+        Object moved = std::move(I.scene.objects[object]);
+        moved.slice_x = p[0], moved.slice_y = p[1], moved.slice_z = p[2];
+        moved.data.mesh = std::move(m);
+        replace_object(object, std::move(moved));
+        return;
+    }
     if (object < I.scene.objects.size() && I.scene.objects[object].peaks) {
         // Peak glyphs: the segments of the voxels on the new slices, built
         // again (a slice of peaks is tens of thousands of segments: a few ms).
@@ -1969,14 +1998,8 @@ void Renderer::set_slices(std::size_t object, std::optional<double> x, std::opti
         const PeakField &f = *o.peaks;
         if (f.options.whole) throw Error("slices: " + o.name + " shows the peaks of the whole volume, not slices");
         const Bounds box = peak_grid_box(f);
-        std::optional<double> p[3] = {x, y, z};
-        for (int a = 0; a < 3; ++a) {
-            if (p[a] && std::isnan(*p[a])) p[a] = (box.min[a] + box.max[a]) / 2;
-            if (p[a] && !std::isfinite(*p[a])) throw Error("slices: " + o.name + ": a position is not a finite number");
-            if (p[a] && (*p[a] < box.min[a] || *p[a] > box.max[a]))
-                throw Error("slices: " + o.name + ": " + std::string(1, char('x' + a)) + " = " + std::to_string(*p[a]) +
-                            " mm is outside the volume (" + std::to_string(box.min[a]) + " to " + std::to_string(box.max[a]) + ")");
-        }
+        const std::optional<double> p[3] = {slice_position(o.name, box, 0, x), slice_position(o.name, box, 1, y),
+                                            slice_position(o.name, box, 2, z)};
         Tractogram t = peak_lines(f, p[0], p[1], p[2]);
         for (auto &g : I.objects)  // (its drawable reads the object's data: gone first)
             if (g.index == object) I.release(g);
@@ -2038,6 +2061,10 @@ void Renderer::set_volume_index(std::size_t object, std::uint64_t index) {
 }
 
 std::optional<Renderer::VolumeExtent> Renderer::volume_extent(std::size_t object) const {
+    if (object < impl_->scene.objects.size() && impl_->scene.objects[object].odfs) {
+        const OdfField &f = *impl_->scene.objects[object].odfs;
+        return VolumeExtent{grid_box(f.volume.dims, f.volume.voxel_to_ras), 1, {0, 1}};
+    }
     if (object < impl_->scene.objects.size() && impl_->scene.objects[object].peaks) {
         const PeakField &f = *impl_->scene.objects[object].peaks;
         return VolumeExtent{peak_grid_box(f), 1, {0, f.max_amplitude > 0 ? f.max_amplitude : 1}};
@@ -2065,8 +2092,8 @@ Bounds scene_bounds(const Scene &s) {
         // tractogram's positions are not scanned again)
         if (o.kind == HZ_DATA_STREAMLINES)
             add(!o.data.bounds.empty ? o.data.bounds : bounds_of(o.data.tractogram.positions.data(), o.data.tractogram.nb_stored()));
-        else if (o.kind == HZ_DATA_MESH)
-            add(bounds_of(o.data.mesh.vertices.data(), o.data.mesh.nb_vertices()));
+        else if (o.kind == HZ_DATA_MESH)  // (ODF glyphs: the grid's, whatever the slices show)
+            add(o.odfs && !o.data.bounds.empty ? o.data.bounds : bounds_of(o.data.mesh.vertices.data(), o.data.mesh.nb_vertices()));
         else if (o.kind == HZ_DATA_VOLUME && o.data.volume.dims.size() >= 3) {
             const Volume &v = o.data.volume;
             float corners[24];

@@ -497,7 +497,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         const json &o = root["objects"][i];
         const std::string where = "objects[" + std::to_string(i) + "]";
         if (!o.is_object() || !o.contains("type")) fail(what, where, "expected an object with a 'type'");
-        const std::string type = str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume", "peaks"});
+        const std::string type = str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume", "peaks", "odfs"});
         Object ob;
         ob.name = type + " " + std::to_string(i);
         if (type == "streamlines") {
@@ -543,6 +543,11 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                         "radius", "color", "material", "visible", "opacity"},
                        what, where);
             ob.coloring.mode = "direction";
+        } else if (type == "odfs") {
+            check_keys(o,
+                       {"type", "name", "file", "data", "x", "y", "z", "basis", "legacy", "sphere", "scale", "normalise", "color",
+                        "material", "visible", "opacity"},
+                       what, where);
         } else {
             check_keys(o,
                        {"type", "name", "file", "builtin", "data", "x", "y", "z", "window", "colormap", "clip_below", "visible", "opacity",
@@ -656,6 +661,24 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                 fail(what, where, e.what());
             }
         }
+        if (type == "odfs") {
+            OdfOptions oo;
+            if (o.contains("basis")) oo.basis = str(o["basis"], what, where + ".basis", {"descoteaux07", "tournier07", "mrtrix3"});
+            if (oo.basis == "mrtrix3") oo.basis = "tournier07", oo.legacy = false;
+            if (o.contains("legacy")) {
+                if (!o["legacy"].is_boolean()) fail(what, where + ".legacy", "expected true or false");
+                oo.legacy = o["legacy"].get<bool>();
+            }
+            if (o.contains("sphere")) oo.sphere = int(num_in(o["sphere"], what, where + ".sphere", 0.0, 5.0));
+            if (o.contains("scale")) oo.scale = num_in(o["scale"], what, where + ".scale", 1e-3, 100.0);
+            if (o.contains("normalise")) oo.normalise = str(o["normalise"], what, where + ".normalise", {"minmax", "max", "none"});
+            try {
+                show_as_odfs(ob, oo, what + ": " + where);
+            } catch (const Error &e) {
+                fail(what, where, e.what());
+            }
+            if (o.contains("color")) ob.coloring = parse_coloring(o["color"], what, where + ".color");
+        }
         if (want == HZ_DATA_MESH && is_overlay(ob.data))
             fail(what, where, "the file holds per-vertex values only; give the surface in 'file' and this file in 'overlays'");
         if (want == HZ_DATA_MESH && !ob.data.metadata.empty()) apply_file_material(ob, o.contains("material"), o.contains("color"));
@@ -763,6 +786,31 @@ void show_as_peaks(Object &o, const PeakOptions &opt, const std::string &what) {
     o.rgb.reset();
 }
 
+void show_as_odfs(Object &o, const OdfOptions &opt, const std::string &what) {
+    if (!o.odfs && o.data.kind != HZ_DATA_VOLUME)
+        throw Error(what + ": ODFs are read from a volume of SH coefficients, not " + std::string(kind_name(o.data.kind)));
+    auto field = std::make_shared<const OdfField>(make_odf_field(o.odfs ? o.odfs->volume : o.data.volume, opt, what));
+    const std::string format = o.odfs ? o.data.format : o.data.format + " odfs";
+    if (!o.slice_x && !o.slice_y && !o.slice_z) o.slice_x = o.slice_y = o.slice_z = std::nan("");
+    const Bounds box = grid_box(field->volume.dims, field->volume.voxel_to_ras);
+    std::optional<double> *at[3] = {&o.slice_x, &o.slice_y, &o.slice_z};
+    for (int a = 0; a < 3; ++a)
+        if (*at[a] && std::isnan(**at[a])) *at[a] = (box.min[a] + box.max[a]) / 2;
+    Dataset ds;
+    ds.kind = HZ_DATA_MESH;
+    ds.format = format;
+    ds.loader_id = o.data.loader_id;
+    ds.source_space = HZ_SPACE_RASMM;
+    ds.mesh = odf_glyphs(*field, o.slice_x, o.slice_y, o.slice_z, opt.sphere);
+    ds.bounds = odf_bounds(*field);
+    o.data = std::move(ds);
+    o.kind = HZ_DATA_MESH;
+    o.odfs = std::move(field);
+    o.coloring.mode = "rgb", o.coloring.array = "direction";
+    o.transfer.reset();
+    o.rgb.reset();
+}
+
 void check_ambient_occlusion(const AmbientOcclusion &ao) {
     if (!(ao.radius_mm > 0 && ao.radius_mm <= 1000))
         throw Error("ambient occlusion: radius " + std::to_string(ao.radius_mm) + " mm is outside (0, 1000]");
@@ -829,42 +877,13 @@ Mesh make_sphere_mesh(double r, int nu, int nv) {
 
 namespace {
 
-// A unit icosphere of `subdivisions` (0..7) subdivisions: vertices, faces.
-std::pair<std::vector<Vec3>, std::vector<std::array<std::uint32_t, 3>>> icosphere(int subdivisions) {
-    subdivisions = std::clamp(subdivisions, 0, 7);
-    const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-    std::vector<Vec3> v = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
-                           {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
-    std::vector<std::array<std::uint32_t, 3>> f = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-                                                   {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-                                                   {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
-    for (auto &p : v) {
-        const double n = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-        for (auto &c : p) c /= n;
-    }
-    for (int s = 0; s < subdivisions; ++s) {
-        std::map<std::pair<std::uint32_t, std::uint32_t>, std::uint32_t> mid;
-        auto midpoint = [&](std::uint32_t a, std::uint32_t b) {
-            auto key = std::minmax(a, b);
-            auto it = mid.find(key);
-            if (it != mid.end()) return it->second;
-            Vec3 m{(v[a][0] + v[b][0]) / 2, (v[a][1] + v[b][1]) / 2, (v[a][2] + v[b][2]) / 2};
-            const double n = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
-            for (auto &c : m) c /= n;
-            v.push_back(m);
-            return mid[key] = static_cast<std::uint32_t>(v.size() - 1);
-        };
-        std::vector<std::array<std::uint32_t, 3>> g;
-        g.reserve(f.size() * 4);
-        for (const auto &tri : f) {
-            const auto a = midpoint(tri[0], tri[1]), b = midpoint(tri[1], tri[2]), c = midpoint(tri[2], tri[0]);
-            g.push_back({tri[0], a, c});
-            g.push_back({tri[1], b, a});
-            g.push_back({tri[2], c, b});
-            g.push_back({a, b, c});
-        }
-        f.swap(g);
-    }
+// A unit icosphere of `subdivisions` (0..7) subdivisions (odfs.hpp): vertices, faces.
+std::pair<std::vector<Vec3>, std::vector<std::array<std::uint32_t, 3>>> icosphere_lists(int subdivisions) {
+    const SphereMesh s = icosphere(std::clamp(subdivisions, 0, 7));
+    std::vector<Vec3> v(s.nb_vertices());
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = {s.vertices[3 * i], s.vertices[3 * i + 1], s.vertices[3 * i + 2]};
+    std::vector<std::array<std::uint32_t, 3>> f(s.faces.size() / 3);
+    for (std::size_t i = 0; i < f.size(); ++i) f[i] = {s.faces[3 * i], s.faces[3 * i + 1], s.faces[3 * i + 2]};
     return {std::move(v), std::move(f)};
 }
 
@@ -963,7 +982,7 @@ double sulcal_depth(double x, double y, double z) {
 }  // namespace
 
 Mesh make_cortex_mesh(int subdivisions) {
-    const auto [v, f] = icosphere(subdivisions);
+    const auto [v, f] = icosphere_lists(subdivisions);
     return hemispheres(
         v, f,
         [](double X, double Y, double Z, double) {
@@ -974,7 +993,7 @@ Mesh make_cortex_mesh(int subdivisions) {
 }
 
 Mesh make_brain_surface(int subdivisions) {
-    const auto [v, f] = icosphere(subdivisions);
+    const auto [v, f] = icosphere_lists(subdivisions);
     return hemispheres(
         v, f, [](double X, double Y, double Z, double) { return 1.0 - kSulcusFold * sulcal_depth(X, Y, Z); },
         [](const Vec3 &, const Vec3 &q) { return sulcal_depth(q[0], q[1], q[2]); });

@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace hz::core::render {
 
@@ -50,11 +51,32 @@ PeakField make_peak_field(const Volume &v, const PeakOptions &o, const std::stri
 // The segments of the peaks shown, as two-point streamlines (RAS+ mm), each
 // centred on its voxel, with a per-streamline "amplitude" array (the
 // vector's length in the file's units): those of the voxels the slices at
-// x, y, z (RAS+ mm; absent: that slice is off) pass through (a voxel whose
-// centre lies within half its extent along that axis of the plane; on the
-// boundary between two, the upper one, as a voxel index rounds), or of
-// every voxel with PeakOptions::whole. The reference grid is the volume's.
+// x, y, z (slice_voxels), or of every voxel with PeakOptions::whole. The
+// reference grid is the volume's.
 Tractogram peak_lines(const PeakField &f, std::optional<double> x, std::optional<double> y, std::optional<double> z);
+
+// What peak and ODF glyphs read: `v` as a 4D volume whose voxels are
+// shared (not copied), and the smallest side of its voxels (mm), once it is
+// checked to have 3 spatial dimensions and a 4th (`holds` says what the
+// 4th must hold: "peaks need 3 values a peak"), numbers (integers or
+// floats), its voxels all there and a voxel side above zero. Throws Error
+// naming `what`.
+struct GlyphVolume {
+    Volume volume;
+    double voxel_mm = 1;
+};
+GlyphVolume glyph_volume(const Volume &v, const std::string &what, const std::string &holds);
+
+// The voxels (indices, x fastest) of a grid of `dims` (x, y, z) and affine
+// `a` that slices at x, y, z (RAS+ mm; absent: that slice is off) pass
+// through, in index order: a voxel whose centre lies within half its extent
+// along that axis of the plane (on the boundary between two, the upper
+// one, as a voxel index rounds); every voxel with `whole`. Shared by the
+// peak and ODF glyphs.
+std::vector<std::uint64_t> slice_voxels(const std::vector<std::uint64_t> &dims, const Affine &a, std::optional<double> x,
+                                        std::optional<double> y, std::optional<double> z, bool whole);
+// The RAS+ box of a grid's voxels (their outer faces).
+Bounds grid_box(const std::vector<std::uint64_t> &dims, const Affine &a);
 
 // The RAS+ box of the field's voxels (their outer faces).
 Bounds peak_grid_box(const PeakField &f);

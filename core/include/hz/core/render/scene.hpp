@@ -6,6 +6,7 @@
 
 #include <hz/core/data.hpp>
 #include <hz/core/plugin_host.hpp>
+#include <hz/core/render/odfs.hpp>
 #include <hz/core/render/peaks.hpp>
 
 #include <array>
@@ -129,7 +130,18 @@ struct Object {
     // slice_x/y/z (or of the whole volume); the renderer's set_slices
     // builds it again where the slices move.
     std::shared_ptr<const PeakField> peaks;
+    // ODF glyphs (a scene's "type": "odfs", odfs.hpp): a surface object
+    // whose mesh is odf_glyphs() of this field at the slices slice_x/y/z,
+    // built again by set_slices.
+    std::shared_ptr<const OdfField> odfs;
 };
+
+// Turns object `o`, holding a volume of SH coefficients, into ODF glyphs
+// (Object::odfs) on its slices (none set: the three through the centre),
+// coloured by direction (per-vertex "direction" array) unless a colour is
+// set. An object that shows ODFs already is drawn again with `opt`.
+// Throws Error naming `what` (make_odf_field's checks).
+void show_as_odfs(Object &o, const OdfOptions &opt, const std::string &what);
 
 // Turns object `o`, holding a peak volume (a 4th dimension of 3N values),
 // into peak glyphs (Object::peaks): lines coloured by direction, at the
