@@ -86,7 +86,19 @@ struct VolumeOptions {
     bool sh_not_legacy = false;
     std::optional<int> odf_sphere;
     std::optional<double> odf_scale;
+    // --tensors: every volume of 6 values a voxel drawn as tensor glyphs
+    // (Object::tensors); --tensor-order: TensorOptions::order for every
+    // tensor object.
+    bool tensors = false;
+    std::string tensor_order;
     void apply(core::render::Scene &s) const {
+        for (auto &o : s.objects) {
+            if (!o.tensors && !(tensors && o.kind == HZ_DATA_VOLUME)) continue;
+            if (o.tensors && tensor_order.empty()) continue;
+            core::render::TensorOptions to = o.tensors ? o.tensors->options : core::render::TensorOptions{};
+            if (!tensor_order.empty()) to.order = tensor_order;
+            core::render::show_as_tensors(o, to, o.name);
+        }
         const bool odf_options = !sh_basis.empty() || sh_not_legacy || odf_sphere || odf_scale;
         for (auto &o : s.objects) {
             if (!o.odfs && !(odfs && o.kind == HZ_DATA_VOLUME)) continue;

@@ -127,6 +127,13 @@ void add_volume_options(CLI::App *cmd, VolumeOptions &v) {
         ->check(CLI::Range(0, 5));
     cmd->add_option("--odf-scale", v.odf_scale, "ODF glyphs: the largest spans this many voxels (default 1)")
         ->check(CLI::Range(1e-3, 100.0));
+    cmd->add_flag("--tensors", v.tensors,
+                  "volumes of 6 values a voxel (diffusion tensors) drawn as ellipsoids coloured by FA and direction on the three "
+                  "slices through the centre (a scene file's \"type\": \"tensors\")");
+    cmd->add_option("--tensor-order", v.tensor_order,
+                    "tensor glyphs: the order of the six values, dipy (Dxx, Dxy, Dyy, Dxz, Dyz, Dzz: DIPY, NIfTI's symmetric matrix; "
+                    "the default), fsl (dtifit: Dxx, Dxy, Dxz, Dyy, Dyz, Dzz) or mrtrix3 (dwi2tensor: Dxx, Dyy, Dzz, Dxy, Dxz, Dyz)")
+        ->check(CLI::IsMember({"dipy", "fsl", "mrtrix3"}));
     cmd->add_flag("--rgb", v.rgb,
                   "volumes of 3 values a voxel (a colour-FA map) in colour, each value through the window (on by itself for 8-bit "
                   "and RGB voxels; a scene file's \"rgb\")");

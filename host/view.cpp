@@ -1759,7 +1759,7 @@ private:
     // A volume's slicer in the panel: each slice's position (a box shows or
     // hides it), the window its colormap spans, the 3D volume of a series.
     // A change goes to the renderer at once (slices and window: no upload;
-    // the volume: its texture). Peak and ODF glyphs get the slices alone
+    // the volume: its texture). Peak, ODF and tensor glyphs get the slices alone
     // (their segments or meshes built again).
     void slicer_controls(std::size_t i) {
         const auto ext = r.volume_extent(i);
@@ -1784,7 +1784,7 @@ private:
                 }
                 if (changed) r.set_slices(i, p[0], p[1], p[2]);
             }
-            if (ob.peaks || ob.odfs) return;  // (glyphs: no window, no value under the cursor)
+            if (ob.peaks || ob.odfs || ob.tensors) return;  // (glyphs: no window, no value under the cursor)
             float win[2] = {float(ext->window[0]), float(ext->window[1])};
             const float span = std::max(win[1] - win[0], 1e-6f);
             if (ImGui::DragFloatRange2("window", &win[0], &win[1], span / 200, 0, 0, "%.4g", "%.4g") && win[1] > win[0])
@@ -1812,7 +1812,7 @@ private:
                 bool vis = ob.visible;
                 if (ImGui::Checkbox("visible", &vis)) r.set_visible(i, vis);
                 scriptable("visible " + std::to_string(i));
-                if (ob.kind == HZ_DATA_VOLUME || ob.peaks || ob.odfs) slicer_controls(i);
+                if (ob.kind == HZ_DATA_VOLUME || ob.peaks || ob.odfs || ob.tensors) slicer_controls(i);
                 if (ob.kind != HZ_DATA_VOLUME && material_controls(reg, ob, materials[i])) {
                     try {
                         app.last_material_edit = glfwGetTime();

@@ -50,6 +50,14 @@ class ValidateTest(TempDirTest):
         out["gltf"] = self.path("s.gltf")
         with open(out["gltf"], "w") as fh:
             js.dump(gltf, fh)
+        import h5py  # (a PAM5 file, as dipy.io.peaks.save_peaks writes one)
+        out["pam5"] = self.path("s.pam5")
+        with h5py.File(out["pam5"], "w") as fh:
+            fh.attrs["version"] = "0.0.1"
+            g = fh.create_group("pam")
+            g.create_dataset("peak_dirs", data=np.tile([1.0, 0.0, 0.0], (4, 3, 2, 2, 1)), chunks=True)
+            g.create_dataset("peak_values", data=np.linspace(0, 1, 48).reshape(4, 3, 2, 2), chunks=True)
+            g.create_dataset("affine", data=np.diag([2.0, 2.0, 2.0, 1.0]))
         # (images: not yet. With a sample PNG three loader checks fail: the
         # validator reads HZ_DATA_IMAGE files through paths written for
         # volumes, "no reader for this kind"; a known gap of the validator.)

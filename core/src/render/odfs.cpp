@@ -121,9 +121,9 @@ OdfField make_odf_field(const Volume &v, const OdfOptions &o, const std::string 
     GlyphVolume g = glyph_volume(v, what, "ODFs need SH coefficients");
     int order = -1;
     for (int L = 0; L <= 16; L += 2)
-        if (sh_coefficients(L) == v.dims[3]) order = L;
+        if (sh_coefficients(L) == g.volume.dims[3]) order = L;
     if (order < 0)
-        throw Error(what + ": " + std::to_string(v.dims[3]) +
+        throw Error(what + ": " + std::to_string(g.volume.dims[3]) +
                     " values a voxel: not the coefficients of an even-order SH series (1, 6, 15, 28, 45, 66, 91, ... up to order 16)");
     OdfField f;
     f.volume = std::move(g.volume);

@@ -24,15 +24,15 @@ PeakField make_peak_field(const Volume &v, const PeakOptions &o, const std::stri
         throw Error(what + ": peak threshold " + std::to_string(o.threshold) + " is outside [0, 1)");
     if (o.frame != "world" && o.frame != "voxel") throw Error(what + ": peak frame '" + o.frame + "' is neither world nor voxel");
     GlyphVolume g = glyph_volume(v, what, "peaks need 3 values a peak (x, y, z, 3 x peaks)");
-    if (v.dims[3] % 3 != 0 || v.dims[3] == 0)
-        throw Error(what + ": " + std::to_string(v.dims[3]) + " values a voxel: peaks need 3 a peak (x, y, z), so a multiple of 3");
+    if (g.volume.dims[3] % 3 != 0 || g.volume.dims[3] == 0)
+        throw Error(what + ": " + std::to_string(g.volume.dims[3]) + " values a voxel: peaks need 3 a peak (x, y, z), so a multiple of 3");
     const std::size_t es = dtype_size(v.dtype);
     const std::uint64_t nvox = voxels_of(v);
     PeakField f;
     f.volume = std::move(g.volume);
     f.voxel_mm = g.voxel_mm;
     f.options = o;
-    f.peaks_per_voxel = v.dims[3] / 3;
+    f.peaks_per_voxel = f.volume.dims[3] / 3;
     for (std::uint64_t vox = 0; vox < nvox; ++vox)
         for (std::uint64_t p = 0; p < f.peaks_per_voxel; ++p) {
             double n2 = 0;
@@ -46,17 +46,20 @@ PeakField make_peak_field(const Volume &v, const PeakOptions &o, const std::stri
 }
 
 GlyphVolume glyph_volume(const Volume &v, const std::string &what, const std::string &holds) {
-    std::size_t dims = v.dims.size();
-    while (dims > 4 && v.dims[dims - 1] == 1) --dims;
-    if (dims != 4 || v.dims[0] == 0 || v.dims[1] == 0 || v.dims[2] == 0)
+    // The values a voxel: the one dimension after the third that is not 1
+    // (a NIfTI symmetric matrix is (x, y, z, 1, 6)).
+    std::size_t longer = 0;
+    std::uint64_t values = 1;
+    for (std::size_t k = 3; k < v.dims.size(); ++k) longer += v.dims[k] != 1, values *= v.dims[k];
+    if (v.dims.size() < 4 || longer > 1 || v.dims[0] == 0 || v.dims[1] == 0 || v.dims[2] == 0 || values == 0)
         throw Error(what + ": " + holds + " along a 4th dimension, not a volume of " + std::to_string(v.dims.size()) + " dimensions");
     const std::size_t es = dtype_size(v.dtype);
     if (es == 0 || v.dtype == HZ_DTYPE_RGB8 || v.dtype == HZ_DTYPE_RGBA8 || v.dtype == HZ_DTYPE_F16)
         throw Error(what + ": glyphs need numbers (integers or floats), not this voxel type");
-    if (v.voxels.size() < voxels_of(v) * v.dims[3] * es) throw Error(what + ": the voxels are fewer than the dimensions say");
+    if (v.voxels.size() < voxels_of(v) * values * es) throw Error(what + ": the voxels are fewer than the dimensions say");
     GlyphVolume g;
     g.volume.dtype = v.dtype;
-    g.volume.dims = {v.dims[0], v.dims[1], v.dims[2], v.dims[3]};
+    g.volume.dims = {v.dims[0], v.dims[1], v.dims[2], values};
     g.volume.voxels = v.voxels.shared();
     g.volume.scale_slope = v.scale_slope, g.volume.scale_inter = v.scale_inter;
     g.volume.voxel_to_ras = v.voxel_to_ras;

@@ -1975,14 +1975,13 @@ std::optional<double> slice_position(const std::string &name, const Bounds &box,
 
 void Renderer::set_slices(std::size_t object, std::optional<double> x, std::optional<double> y, std::optional<double> z) {
     Impl &I = *impl_;
-    if (object < I.scene.objects.size() && I.scene.objects[object].odfs) {
-        // ODF glyphs: the glyphs of the voxels on the new slices, built again.
+    if (object < I.scene.objects.size() && glyph_grid(I.scene.objects[object])) {
+        // ODF and tensor glyphs: those of the voxels on the new slices, built again.
         const Object &o = I.scene.objects[object];
-        const OdfField &f = *o.odfs;
-        const Bounds box = grid_box(f.volume.dims, f.volume.voxel_to_ras);
+        const Bounds box = *glyph_grid(o);
         const std::optional<double> p[3] = {slice_position(o.name, box, 0, x), slice_position(o.name, box, 1, y),
                                             slice_position(o.name, box, 2, z)};
-        Mesh m = odf_glyphs(f, p[0], p[1], p[2], f.options.sphere);
+        Mesh m = *glyph_mesh(o, p[0], p[1], p[2]);
         for (auto &g : I.objects)  // (its upload reads the object's data: gone first)
             if (g.index == object) I.release(g);
         Object moved = std::move(I.scene.objects[object]);
@@ -2061,10 +2060,8 @@ void Renderer::set_volume_index(std::size_t object, std::uint64_t index) {
 }
 
 std::optional<Renderer::VolumeExtent> Renderer::volume_extent(std::size_t object) const {
-    if (object < impl_->scene.objects.size() && impl_->scene.objects[object].odfs) {
-        const OdfField &f = *impl_->scene.objects[object].odfs;
-        return VolumeExtent{grid_box(f.volume.dims, f.volume.voxel_to_ras), 1, {0, 1}};
-    }
+    if (object < impl_->scene.objects.size())
+        if (const auto box = glyph_grid(impl_->scene.objects[object])) return VolumeExtent{*box, 1, {0, 1}};
     if (object < impl_->scene.objects.size() && impl_->scene.objects[object].peaks) {
         const PeakField &f = *impl_->scene.objects[object].peaks;
         return VolumeExtent{peak_grid_box(f), 1, {0, f.max_amplitude > 0 ? f.max_amplitude : 1}};
@@ -2092,8 +2089,8 @@ Bounds scene_bounds(const Scene &s) {
         // tractogram's positions are not scanned again)
         if (o.kind == HZ_DATA_STREAMLINES)
             add(!o.data.bounds.empty ? o.data.bounds : bounds_of(o.data.tractogram.positions.data(), o.data.tractogram.nb_stored()));
-        else if (o.kind == HZ_DATA_MESH)  // (ODF glyphs: the grid's, whatever the slices show)
-            add(o.odfs && !o.data.bounds.empty ? o.data.bounds : bounds_of(o.data.mesh.vertices.data(), o.data.mesh.nb_vertices()));
+        else if (o.kind == HZ_DATA_MESH)  // (ODF and tensor glyphs: the grid's, whatever the slices show)
+            add(glyph_grid(o) && !o.data.bounds.empty ? o.data.bounds : bounds_of(o.data.mesh.vertices.data(), o.data.mesh.nb_vertices()));
         else if (o.kind == HZ_DATA_VOLUME && o.data.volume.dims.size() >= 3) {
             const Volume &v = o.data.volume;
             float corners[24];

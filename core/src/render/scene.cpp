@@ -497,7 +497,8 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         const json &o = root["objects"][i];
         const std::string where = "objects[" + std::to_string(i) + "]";
         if (!o.is_object() || !o.contains("type")) fail(what, where, "expected an object with a 'type'");
-        const std::string type = str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume", "peaks", "odfs"});
+        const std::string type =
+            str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume", "peaks", "odfs", "tensors"});
         Object ob;
         ob.name = type + " " + std::to_string(i);
         if (type == "streamlines") {
@@ -543,6 +544,11 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                         "radius", "color", "material", "visible", "opacity"},
                        what, where);
             ob.coloring.mode = "direction";
+        } else if (type == "tensors") {
+            check_keys(o,
+                       {"type", "name", "file", "data", "x", "y", "z", "order", "sphere", "scale", "normalise", "color", "material",
+                        "visible", "opacity"},
+                       what, where);
         } else if (type == "odfs") {
             check_keys(o,
                        {"type", "name", "file", "data", "x", "y", "z", "basis", "legacy", "sphere", "scale", "normalise", "color",
@@ -660,6 +666,19 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             } catch (const Error &e) {
                 fail(what, where, e.what());
             }
+        }
+        if (type == "tensors") {
+            TensorOptions to;
+            if (o.contains("order")) to.order = str(o["order"], what, where + ".order", {"dipy", "fsl", "mrtrix3"});
+            if (o.contains("sphere")) to.sphere = int(num_in(o["sphere"], what, where + ".sphere", 0.0, 5.0));
+            if (o.contains("scale")) to.scale = num_in(o["scale"], what, where + ".scale", 1e-3, 100.0);
+            if (o.contains("normalise")) to.normalise = str(o["normalise"], what, where + ".normalise", {"max", "none"});
+            try {
+                show_as_tensors(ob, to, what + ": " + where);
+            } catch (const Error &e) {
+                fail(what, where, e.what());
+            }
+            if (o.contains("color")) ob.coloring = parse_coloring(o["color"], what, where + ".color");
         }
         if (type == "odfs") {
             OdfOptions oo;
@@ -786,29 +805,64 @@ void show_as_peaks(Object &o, const PeakOptions &opt, const std::string &what) {
     o.rgb.reset();
 }
 
-void show_as_odfs(Object &o, const OdfOptions &opt, const std::string &what) {
-    if (!o.odfs && o.data.kind != HZ_DATA_VOLUME)
-        throw Error(what + ": ODFs are read from a volume of SH coefficients, not " + std::string(kind_name(o.data.kind)));
-    auto field = std::make_shared<const OdfField>(make_odf_field(o.odfs ? o.odfs->volume : o.data.volume, opt, what));
-    const std::string format = o.odfs ? o.data.format : o.data.format + " odfs";
+namespace {
+// The slices of a glyph object: as set, or the three through the grid's
+// centre when none is; NaN the middle of its axis.
+void centre_slices(Object &o, const Bounds &box) {
     if (!o.slice_x && !o.slice_y && !o.slice_z) o.slice_x = o.slice_y = o.slice_z = std::nan("");
-    const Bounds box = grid_box(field->volume.dims, field->volume.voxel_to_ras);
     std::optional<double> *at[3] = {&o.slice_x, &o.slice_y, &o.slice_z};
     for (int a = 0; a < 3; ++a)
         if (*at[a] && std::isnan(**at[a])) *at[a] = (box.min[a] + box.max[a]) / 2;
+}
+
+// Object `o` becomes a surface of glyphs: `mesh`, in `bounds`, coloured by
+// its per-vertex array `colours`.
+void become_glyph_mesh(Object &o, Mesh mesh, const Bounds &bounds, const std::string &format, const std::string &colours) {
     Dataset ds;
     ds.kind = HZ_DATA_MESH;
     ds.format = format;
     ds.loader_id = o.data.loader_id;
     ds.source_space = HZ_SPACE_RASMM;
-    ds.mesh = odf_glyphs(*field, o.slice_x, o.slice_y, o.slice_z, opt.sphere);
-    ds.bounds = odf_bounds(*field);
+    ds.mesh = std::move(mesh);
+    ds.bounds = bounds;
     o.data = std::move(ds);
     o.kind = HZ_DATA_MESH;
-    o.odfs = std::move(field);
-    o.coloring.mode = "rgb", o.coloring.array = "direction";
+    o.coloring.mode = "rgb", o.coloring.array = colours;
     o.transfer.reset();
     o.rgb.reset();
+}
+}  // namespace
+
+void show_as_odfs(Object &o, const OdfOptions &opt, const std::string &what) {
+    if (!o.odfs && o.data.kind != HZ_DATA_VOLUME)
+        throw Error(what + ": ODFs are read from a volume of SH coefficients, not " + std::string(kind_name(o.data.kind)));
+    auto field = std::make_shared<const OdfField>(make_odf_field(o.odfs ? o.odfs->volume : o.data.volume, opt, what));
+    const std::string format = o.odfs ? o.data.format : o.data.format + " odfs";
+    centre_slices(o, grid_box(field->volume.dims, field->volume.voxel_to_ras));
+    become_glyph_mesh(o, odf_glyphs(*field, o.slice_x, o.slice_y, o.slice_z, opt.sphere), odf_bounds(*field), format, "direction");
+    o.odfs = std::move(field);
+}
+
+void show_as_tensors(Object &o, const TensorOptions &opt, const std::string &what) {
+    if (!o.tensors && o.data.kind != HZ_DATA_VOLUME)
+        throw Error(what + ": tensors are read from a volume of 6 values a voxel, not " + std::string(kind_name(o.data.kind)));
+    auto field = std::make_shared<const TensorField>(make_tensor_field(o.tensors ? o.tensors->volume : o.data.volume, opt, what));
+    const std::string format = o.tensors ? o.data.format : o.data.format + " tensors";
+    centre_slices(o, grid_box(field->volume.dims, field->volume.voxel_to_ras));
+    become_glyph_mesh(o, tensor_glyphs(*field, o.slice_x, o.slice_y, o.slice_z), tensor_bounds(*field), format, "color_fa");
+    o.tensors = std::move(field);
+}
+
+std::optional<Mesh> glyph_mesh(const Object &o, std::optional<double> x, std::optional<double> y, std::optional<double> z) {
+    if (o.odfs) return odf_glyphs(*o.odfs, x, y, z, o.odfs->options.sphere);
+    if (o.tensors) return tensor_glyphs(*o.tensors, x, y, z);
+    return std::nullopt;
+}
+
+std::optional<Bounds> glyph_grid(const Object &o) {
+    if (o.odfs) return grid_box(o.odfs->volume.dims, o.odfs->volume.voxel_to_ras);
+    if (o.tensors) return grid_box(o.tensors->volume.dims, o.tensors->volume.voxel_to_ras);
+    return std::nullopt;
 }
 
 void check_ambient_occlusion(const AmbientOcclusion &ao) {

@@ -11,16 +11,26 @@
 // times the values. HDF5 arrays are C order (x slowest); the volume is x
 // fastest: read one x plane at a time, so that what is held besides the
 // volume is a plane.
+//
+// HDF5 1.10 crashes on some damaged files (a corrupted global heap makes
+// H5HG_read copy past its buffer): every call into it runs in a child
+// process (fork) that sends what it read through a pipe, so that a crash, or
+// a read making no progress for two minutes, is a one-line error naming the
+// file rather than the end of the program.
 #include <hz/cpp/loader.hpp>
 
 #include <hdf5.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <memory>
-#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -37,13 +47,6 @@ struct IoError : std::runtime_error {
     using std::runtime_error::runtime_error;
 };
 struct Cancelled {};
-
-// Debian's HDF5 is built without thread safety: one call into it at a time
-// (recursive: a reader that fails to open is closed under the lock).
-std::recursive_mutex &hdf5_lock() {
-    static std::recursive_mutex m;
-    return m;
-}
 
 // An HDF5 identifier closed by `close` when it goes.
 struct Id {
@@ -86,17 +89,139 @@ std::string shape_text(const std::vector<hsize_t> &d) {
     return s + (d.size() == 1 ? ",)" : ")");
 }
 
-struct Pam5Reader {
-    Id file, group, dirs, values;
+// What the child reads at open: the extents, the affine, the header entries.
+struct Header {
     std::uint64_t X = 0, Y = 0, Z = 0, N = 0;
     std::array<double, 16> affine{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
     std::string version;
     std::vector<std::pair<std::string, std::string>> meta;
-    ~Pam5Reader() {  // (closed under the lock, the datasets before their group and file)
-        const std::lock_guard lock(hdf5_lock());
-        values = Id(), dirs = Id(), group = Id(), file = Id();
-    }
 };
+
+struct Pam5Reader {
+    std::string path;
+    Header h;
+};
+
+// ------------------------------------------------------- the child's side
+
+// Bytes to the parent; a write that fails (the parent gone) ends the child.
+void send(int fd, const void *p, std::size_t n) {
+    const auto *b = static_cast<const char *>(p);
+    while (n > 0) {
+        const ssize_t w = ::write(fd, b, n);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) ::_exit(3);
+        b += w, n -= std::size_t(w);
+    }
+}
+void send_u64(int fd, std::uint64_t v) { send(fd, &v, 8); }
+void send_text(int fd, const std::string &t) {
+    send_u64(fd, t.size());
+    send(fd, t.data(), t.size());
+}
+
+// -------------------------------------------------------- the parent's side
+
+// Reads exactly n bytes from the child, waiting at most two minutes for
+// each; false at the end of the pipe (the child exited or died).
+bool receive(int fd, void *p, std::size_t n, const std::string &what) {
+    auto *b = static_cast<char *>(p);
+    while (n > 0) {
+        pollfd pfd{fd, POLLIN, 0};
+        const int ready = ::poll(&pfd, 1, 120000);
+        if (ready < 0 && errno == EINTR) continue;
+        if (ready == 0) throw FormatError("HDF5 made no progress reading " + what + " for two minutes (a damaged file?)");
+        const ssize_t r = ::read(fd, b, n);
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) return false;
+        b += r, n -= std::size_t(r);
+    }
+    return true;
+}
+
+// A child running `work(fd)` (all of HDF5's work: the child's exceptions
+// are sent as an 'E' frame), and `parent(fd, pid)` reading what it sends.
+// The child is waited for (killed first if the parent leaves early, by an
+// exception or a cancellation); one that died by a signal, or exited
+// without a word, throws FormatError.
+template <class Work, class Parent>
+void in_child(const std::string &what, Work &&work, Parent &&parent) {
+    int fds[2];
+    if (::pipe(fds) != 0) throw IoError(std::string("pipe: ") + std::strerror(errno));
+    // (HDF5 is only ever called in such children: the program's own copy of
+    // it is never initialised, and children of threads do not share it)
+    const pid_t pid = ::fork();
+    if (pid < 0) {
+        ::close(fds[0]), ::close(fds[1]);
+        throw IoError(std::string("fork: ") + std::strerror(errno));
+    }
+    if (pid == 0) {
+        ::close(fds[0]);
+        // (a crash here ends the child, silently: not the program's handlers, which would report it as the program's)
+        for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGTRAP, SIGSYS}) ::signal(sig, SIG_DFL);
+        try {
+            H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // (errors are reported here, not printed by HDF5)
+            work(fds[1]);
+        } catch (const std::exception &e) {
+            send(fds[1], "E", 1);
+            send_text(fds[1], e.what());
+        } catch (...) {
+            send(fds[1], "E", 1);
+            send_text(fds[1], "an unknown error in HDF5");
+        }
+        ::_exit(0);  // (no atexit handlers: the parent's HDF5 state is not the child's to close)
+    }
+    ::close(fds[1]);
+    struct Reap {
+        pid_t pid;
+        int fd;
+        bool done = false;
+        int status = 0;
+        void wait(bool kill) {
+            if (done) return;
+            if (kill) ::kill(pid, SIGKILL);
+            ::close(fd);
+            while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
+            done = true;
+        }
+        ~Reap() { wait(true); }
+    } reap{pid, fds[0]};
+    const bool complete = parent(fds[0]);
+    reap.wait(!complete);
+    if (!complete) return;
+    if (WIFSIGNALED(reap.status))
+        throw FormatError("the HDF5 library crashed reading " + what + " (signal " + std::to_string(WTERMSIG(reap.status)) +
+                          "): a damaged file");
+}
+
+// The next frame's tag from the child: 'E' is thrown as its message; the
+// end of the pipe (the child died) as a crash.
+char next_tag(int fd, const std::string &what) {
+    char tag = 0;
+    if (!receive(fd, &tag, 1, what)) throw FormatError("the HDF5 library crashed reading " + what + ": a damaged file");
+    if (tag == 'E') {
+        std::uint64_t n = 0;
+        std::string m;
+        if (receive(fd, &n, 8, what) && n < 4096) {
+            m.resize(n);
+            if (!receive(fd, m.data(), n, what)) m.clear();
+        }
+        throw FormatError(m.empty() ? "the HDF5 library failed reading " + what : m);
+    }
+    return tag;
+}
+std::uint64_t receive_u64(int fd, const std::string &what) {
+    std::uint64_t v = 0;
+    if (!receive(fd, &v, 8, what)) throw FormatError("the HDF5 library crashed reading " + what + ": a damaged file");
+    return v;
+}
+std::string receive_text(int fd, const std::string &what) {
+    const std::uint64_t n = receive_u64(fd, what);
+    if (n > 4096) throw FormatError("a malformed answer from the HDF5 reader");
+    std::string t(n, '\0');
+    if (n && !receive(fd, t.data(), n, what)) throw FormatError("the HDF5 library crashed reading " + what + ": a damaged file");
+    return t;
+}
 
 int32_t pam5_probe(const uint8_t *head, uint64_t size, const char *name) noexcept {
     static const unsigned char sig[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
@@ -135,30 +260,35 @@ std::string read_version(hid_t file) {
     return buf;
 }
 
-std::unique_ptr<Pam5Reader> pam5_open(const std::string &path, const hz_task *) {
-    const std::lock_guard lock(hdf5_lock());
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // (errors are reported here, not printed by HDF5)
-    auto r = std::make_unique<Pam5Reader>();
+// The child's open: the file checked and described (the datasets stay open
+// in `ids`, for the planes that follow when `ids` is given).
+struct Open {
+    Id file, group, dirs, values;
+};
+Header inspect(const std::string &path, Open &o) {
+    Header h;
+    Header *r = &h;
+    Open *ids = &o;
     if (H5Fis_hdf5(path.c_str()) <= 0) throw FormatError("not an HDF5 file");
-    r->file = Id(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-    if (!r->file.ok()) throw FormatError("HDF5 cannot open it (damaged or truncated)");
-    r->version = read_version(r->file.id);
+    ids->file = Id(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    if (!ids->file.ok()) throw FormatError("HDF5 cannot open it (damaged or truncated)");
+    r->version = read_version(ids->file.id);
     if (r->version != "0.0.1") throw FormatError("PAM5 version '" + r->version + "' is not one this reader knows (0.0.1)");
-    if (H5Lexists(r->file.id, "pam", H5P_DEFAULT) <= 0) throw FormatError("no group 'pam'");
-    r->group = Id(H5Gopen2(r->file.id, "pam", H5P_DEFAULT), H5Gclose);
-    if (!r->group.ok()) throw FormatError("'pam' is not a group");
+    if (H5Lexists(ids->file.id, "pam", H5P_DEFAULT) <= 0) throw FormatError("no group 'pam'");
+    ids->group = Id(H5Gopen2(ids->file.id, "pam", H5P_DEFAULT), H5Gclose);
+    if (!ids->group.ok()) throw FormatError("'pam' is not a group");
     const auto dataset = [&](const char *name, bool required) {
-        if (H5Lexists(r->group.id, name, H5P_DEFAULT) <= 0) {
+        if (H5Lexists(ids->group.id, name, H5P_DEFAULT) <= 0) {
             if (required) throw FormatError(std::string("no dataset 'pam/") + name + "'");
             return Id();
         }
-        Id d(H5Dopen2(r->group.id, name, H5P_DEFAULT), H5Dclose);
+        Id d(H5Dopen2(ids->group.id, name, H5P_DEFAULT), H5Dclose);
         if (!d.ok()) throw FormatError(std::string("'pam/") + name + "' is not a dataset");
         return d;
     };
-    r->dirs = dataset("peak_dirs", true);
-    r->values = dataset("peak_values", true);
-    const std::vector<hsize_t> dd = numeric_shape(r->dirs.id, "peak_dirs"), vd = numeric_shape(r->values.id, "peak_values");
+    ids->dirs = dataset("peak_dirs", true);
+    ids->values = dataset("peak_values", true);
+    const std::vector<hsize_t> dd = numeric_shape(ids->dirs.id, "peak_dirs"), vd = numeric_shape(ids->values.id, "peak_values");
     if (dd.size() != 5 || dd[4] != 3) throw FormatError("'pam/peak_dirs' is " + shape_text(dd) + ": expected (x, y, z, peaks, 3)");
     if (vd.size() != 4 || !std::equal(vd.begin(), vd.end(), dd.begin()))
         throw FormatError("'pam/peak_values' is " + shape_text(vd) + ", 'pam/peak_dirs' " + shape_text(dd) +
@@ -186,8 +316,8 @@ std::unique_ptr<Pam5Reader> pam5_open(const std::string &path, const hz_task *) 
     r->meta.emplace_back("pam5_version", r->version);
     r->meta.emplace_back("peaks_per_voxel", std::to_string(r->N));
     for (const char *name : {"shm_coeff", "sphere_vertices", "odf", "gfa", "qa", "peak_indices", "B"}) {
-        if (H5Lexists(r->group.id, name, H5P_DEFAULT) <= 0) continue;
-        const Id d(H5Dopen2(r->group.id, name, H5P_DEFAULT), H5Dclose);
+        if (H5Lexists(ids->group.id, name, H5P_DEFAULT) <= 0) continue;
+        const Id d(H5Dopen2(ids->group.id, name, H5P_DEFAULT), H5Dclose);
         if (!d.ok()) continue;
         const Id space(H5Dget_space(d.id), H5Sclose);
         std::vector<hsize_t> ext(8);
@@ -196,10 +326,44 @@ std::unique_ptr<Pam5Reader> pam5_open(const std::string &path, const hz_task *) 
         ext.resize(std::size_t(rank));
         r->meta.emplace_back(name, shape_text(ext));
     }
+    return h;
+}
+
+std::unique_ptr<Pam5Reader> pam5_open(const std::string &path, const hz_task *) {
+    auto r = std::make_unique<Pam5Reader>();
+    r->path = path;
+    in_child(
+        "the file",
+        [&](int fd) {
+            Open o;
+            const Header h = inspect(path, o);
+            send(fd, "H", 1);
+            for (std::uint64_t v : {h.X, h.Y, h.Z, h.N}) send_u64(fd, v);
+            send(fd, h.affine.data(), sizeof h.affine);
+            send_text(fd, h.version);
+            send_u64(fd, h.meta.size());
+            for (const auto &[k, v] : h.meta) send_text(fd, k), send_text(fd, v);
+        },
+        [&](int fd) {
+            if (next_tag(fd, "the file") != 'H') throw FormatError("a malformed answer from the HDF5 reader");
+            Header &h = r->h;
+            h.X = receive_u64(fd, "the file"), h.Y = receive_u64(fd, "the file"), h.Z = receive_u64(fd, "the file"),
+            h.N = receive_u64(fd, "the file");
+            if (!receive(fd, h.affine.data(), sizeof h.affine, "the file")) throw FormatError("the HDF5 library crashed reading the file");
+            h.version = receive_text(fd, "the file");
+            const std::uint64_t n = receive_u64(fd, "the file");
+            if (n > 64) throw FormatError("a malformed answer from the HDF5 reader");
+            for (std::uint64_t i = 0; i < n; ++i) {
+                std::string k = receive_text(fd, "the file");
+                h.meta.emplace_back(std::move(k), receive_text(fd, "the file"));
+            }
+            return true;
+        });
     return r;
 }
 
-void pam5_info(const Pam5Reader &r, hz_dataset_info &out) {
+void pam5_info(const Pam5Reader &reader, hz_dataset_info &out) {
+    const Header &r = reader.h;
     out.kind = HZ_DATA_VOLUME;
     std::snprintf(out.format, sizeof out.format, "pam5 %s", r.version.c_str());
     out.dtype = HZ_DTYPE_F32;
@@ -212,7 +376,8 @@ void pam5_info(const Pam5Reader &r, hz_dataset_info &out) {
     out.source_space = HZ_SPACE_VOXEL;
 }
 
-void pam5_metadata(const Pam5Reader &r, hz_metadata_visitor visitor, void *ctx) {
+void pam5_metadata(const Pam5Reader &reader, hz_metadata_visitor visitor, void *ctx) {
+    const Header &r = reader.h;
     for (const auto &[k, v] : r.meta) visitor(ctx, k.c_str(), v.c_str());
 }
 
@@ -231,7 +396,8 @@ void read_plane(hid_t ds, const std::vector<hsize_t> &dims, hsize_t x, std::vect
         throw FormatError(std::string("'pam/") + name + "' cannot be read (damaged, truncated or compressed by a filter HDF5 lacks)");
 }
 
-void pam5_read_volume(Pam5Reader &r, const hz_array_view &dst, const hz_task *task) {
+void pam5_read_volume(Pam5Reader &reader, const hz_array_view &dst, const hz_task *task) {
+    const Header &r = reader.h;
     if (dst.dtype != HZ_DTYPE_F32 && dst.dtype != HZ_DTYPE_F64)
         throw FormatError("read_volume: the destination must be float32 or float64");
     const std::uint64_t C = 3 * r.N;
@@ -267,23 +433,44 @@ void pam5_read_volume(Pam5Reader &r, const hz_array_view &dst, const hz_task *ta
             std::memcpy(base + off, &v, 8);
         }
     };
-    const std::lock_guard lock(hdf5_lock());
-    const std::vector<hsize_t> dd = {r.X, r.Y, r.Z, r.N, 3}, vd = {r.X, r.Y, r.Z, r.N};
-    std::vector<double> dirs, values;
-    const std::uint64_t XYZ = r.X * r.Y * r.Z;
-    for (std::uint64_t x = 0; x < r.X; ++x) {
-        if (hz::cancelled(task)) throw Cancelled{};
-        read_plane(r.dirs.id, dd, x, dirs, "peak_dirs");
-        read_plane(r.values.id, vd, x, values, "peak_values");
-        for (std::uint64_t y = 0; y < r.Y; ++y)
-            for (std::uint64_t z = 0; z < r.Z; ++z)
-                for (std::uint64_t p = 0; p < r.N; ++p) {
-                    const std::uint64_t at = (y * r.Z + z) * r.N + p;  // (C order within the plane)
-                    const double s = values[at];
-                    for (std::uint64_t k = 0; k < 3; ++k) put(x + r.X * (y + r.Y * z) + XYZ * (3 * p + k), dirs[3 * at + k] * s);
-                }
-        hz::report(task, double(x + 1) / double(r.X));
-    }
+    // The child reads each x plane of both datasets and sends their products
+    // (C order within the plane: y, z, peak, component); here they go to
+    // their places in the destination as they come.
+    const std::uint64_t plane = r.Y * r.Z * r.N * 3, XYZ = r.X * r.Y * r.Z;
+    in_child(
+        "its peaks",
+        [&](int fd) {
+            Open o;
+            const Header again = inspect(reader.path, o);
+            if (again.X != r.X || again.Y != r.Y || again.Z != r.Z || again.N != r.N)
+                throw FormatError("the file changed since it was opened");
+            const std::vector<hsize_t> dd = {r.X, r.Y, r.Z, r.N, 3}, vd = {r.X, r.Y, r.Z, r.N};
+            std::vector<double> dirs, values;
+            std::vector<float> out(plane);
+            for (std::uint64_t x = 0; x < r.X; ++x) {
+                read_plane(o.dirs.id, dd, x, dirs, "peak_dirs");
+                read_plane(o.values.id, vd, x, values, "peak_values");
+                for (std::uint64_t i = 0; i < plane; ++i) out[i] = static_cast<float>(dirs[i] * values[i / 3]);
+                send(fd, "P", 1);
+                send(fd, out.data(), out.size() * 4);
+            }
+        },
+        [&](int fd) {
+            std::vector<float> in(plane);
+            for (std::uint64_t x = 0; x < r.X; ++x) {
+                if (hz::cancelled(task)) throw Cancelled{};
+                if (next_tag(fd, "its peaks") != 'P' || !receive(fd, in.data(), in.size() * 4, "its peaks"))
+                    throw FormatError("the HDF5 library crashed reading its peaks: a damaged file");
+                for (std::uint64_t y = 0; y < r.Y; ++y)
+                    for (std::uint64_t z = 0; z < r.Z; ++z)
+                        for (std::uint64_t p = 0; p < r.N; ++p) {
+                            const std::uint64_t at = (y * r.Z + z) * r.N + p;  // (C order within the plane)
+                            for (std::uint64_t k = 0; k < 3; ++k) put(x + r.X * (y + r.Y * z) + XYZ * (3 * p + k), in[3 * at + k]);
+                        }
+                hz::report(task, double(x + 1) / double(r.X));
+            }
+            return true;
+        });
 }
 
 const char *const kExtensions[] = {"pam5", nullptr};

@@ -58,7 +58,9 @@ Tractogram peak_lines(const PeakField &f, std::optional<double> x, std::optional
 // What peak and ODF glyphs read: `v` as a 4D volume whose voxels are
 // shared (not copied), and the smallest side of its voxels (mm), once it is
 // checked to have 3 spatial dimensions and a 4th (`holds` says what the
-// 4th must hold: "peaks need 3 values a peak"), numbers (integers or
+// 4th must hold: "peaks need 3 values a peak"; further dimensions of 1
+// before or after it are dropped: a NIfTI symmetric matrix is (x, y, z, 1,
+// 6)), numbers (integers or
 // floats), its voxels all there and a voxel side above zero. Throws Error
 // naming `what`.
 struct GlyphVolume {

@@ -8,6 +8,7 @@
 #include <hz/core/plugin_host.hpp>
 #include <hz/core/render/odfs.hpp>
 #include <hz/core/render/peaks.hpp>
+#include <hz/core/render/tensors.hpp>
 
 #include <array>
 #include <filesystem>
@@ -134,7 +135,22 @@ struct Object {
     // whose mesh is odf_glyphs() of this field at the slices slice_x/y/z,
     // built again by set_slices.
     std::shared_ptr<const OdfField> odfs;
+    // Tensor glyphs (a scene's "type": "tensors", tensors.hpp): a surface
+    // object whose mesh is tensor_glyphs() of this field at the slices.
+    std::shared_ptr<const TensorField> tensors;
 };
+
+// Turns object `o`, holding a volume of diffusion tensors (6 values a
+// voxel), into tensor glyphs (Object::tensors) on its slices (none set: the
+// three through the centre), coloured by FA and direction (per-vertex
+// "color_fa" array). An object that shows tensors already is drawn again
+// with `opt`. Throws Error naming `what` (make_tensor_field's checks).
+void show_as_tensors(Object &o, const TensorOptions &opt, const std::string &what);
+
+// A glyph object's mesh at the slices x, y, z (ODF or tensor glyphs), and
+// the box of its grid's voxels; nullopt for any other object.
+std::optional<Mesh> glyph_mesh(const Object &o, std::optional<double> x, std::optional<double> y, std::optional<double> z);
+std::optional<Bounds> glyph_grid(const Object &o);
 
 // Turns object `o`, holding a volume of SH coefficients, into ODF glyphs
 // (Object::odfs) on its slices (none set: the three through the centre),
