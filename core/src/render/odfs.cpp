@@ -172,42 +172,52 @@ Mesh odf_glyphs(const OdfField &f, std::optional<double> x, std::optional<double
         if (mode == "none") largest = std::max(largest, hi);
     }
     const double reach = 0.5 * f.voxel_mm * f.options.scale / (f.options.normalise == "none" && largest > 0 ? largest : 1.0);
-    Mesh m;
-    m.vertices = Buffer<float>(kept.size() * V * 3);
-    m.faces = Buffer<std::uint32_t>(kept.size() * sphere.faces.size());
-    std::vector<float> colour(kept.size() * V * 3);
+    std::vector<std::array<double, 3>> centres(kept.size());
     for (std::size_t g = 0; g < kept.size(); ++g) {
         const std::uint64_t vox = kept[g];
         const double ijk[3] = {double(vox % X), double(vox / X % Y), double(vox / X / Y)};
-        double ctr[3];
-        for (int r = 0; r < 3; ++r) ctr[r] = a[4 * r] * ijk[0] + a[4 * r + 1] * ijk[1] + a[4 * r + 2] * ijk[2] + a[4 * r + 3];
-        for (std::uint64_t i = 0; i < V; ++i) {
-            const double rad = reach * radii[g * V + i];
-            for (int k = 0; k < 3; ++k) {
-                const double u = sphere.vertices[3 * i + std::size_t(k)];
-                m.vertices[(g * V + i) * 3 + std::size_t(k)] = float(ctr[k] + rad * u);
-                colour[(g * V + i) * 3 + std::size_t(k)] = float(std::abs(u));
-            }
+        for (int r = 0; r < 3; ++r)
+            centres[g][std::size_t(r)] = a[4 * r] * ijk[0] + a[4 * r + 1] * ijk[1] + a[4 * r + 2] * ijk[2] + a[4 * r + 3];
+    }
+    return sphere_glyphs(sphere, kept.size(), "direction", [&](std::size_t g, std::uint64_t i, float *xyz, float *rgb) {
+        const double rad = reach * radii[g * V + i];
+        for (std::size_t k = 0; k < 3; ++k) {
+            const double u = sphere.vertices[3 * i + k];
+            xyz[k] = float(centres[g][k] + rad * u);
+            rgb[k] = float(std::abs(u));
         }
-        for (std::size_t k = 0; k < sphere.faces.size(); ++k) m.faces[g * sphere.faces.size() + k] = std::uint32_t(g * V + sphere.faces[k]);
+    });
+}
+
+Mesh sphere_glyphs(const SphereMesh &sphere, std::size_t count, const std::string &colours,
+                   const std::function<void(std::size_t g, std::uint64_t i, float *xyz, float *rgb)> &place) {
+    const std::uint64_t V = sphere.nb_vertices(), F = sphere.faces.size();
+    Mesh m;
+    m.vertices = Buffer<float>(count * V * 3);
+    m.faces = Buffer<std::uint32_t>(count * F);
+    std::vector<float> colour(count * V * 3);
+    for (std::size_t g = 0; g < count; ++g) {
+        for (std::uint64_t i = 0; i < V; ++i) place(g, i, &m.vertices[(g * V + i) * 3], &colour[(g * V + i) * 3]);
+        for (std::size_t k = 0; k < F; ++k) m.faces[g * F + k] = std::uint32_t(g * V + sphere.faces[k]);
     }
     DataArray d;
-    d.name = "direction";
+    d.name = colours;
     d.attach = HZ_ATTACH_VERTEX;
     d.dtype = HZ_DTYPE_F32;
     d.components = 3;
-    d.count = kept.size() * V;
+    d.count = count * V;
     d.bytes = Buffer<std::byte>(colour.size() * 4);
     if (!colour.empty()) std::memcpy(d.bytes.data(), colour.data(), colour.size() * 4);
     m.arrays.push_back(std::move(d));
     return m;
 }
 
-Bounds odf_bounds(const OdfField &f) {
-    Bounds b = grid_box(f.volume.dims, f.volume.voxel_to_ras);
-    const double grow = 0.5 * f.voxel_mm * f.options.scale;
+Bounds grown_grid_box(const Volume &grid, double grow) {
+    Bounds b = grid_box(grid.dims, grid.voxel_to_ras);
     for (int k = 0; k < 3; ++k) b.min[k] -= grow, b.max[k] += grow;
     return b;
 }
+
+Bounds odf_bounds(const OdfField &f) { return grown_grid_box(f.volume, 0.5 * f.voxel_mm * f.options.scale); }
 
 }  // namespace hz::core::render

@@ -73,7 +73,7 @@ Eigen3 tensor_eigen(double xx, double xy, double xz, double yy, double yz, doubl
 Mesh tensor_glyphs(const TensorField &f, std::optional<double> x, std::optional<double> y, std::optional<double> z) {
     const Volume &v = f.volume;
     const SphereMesh sphere = icosphere(f.options.sphere);
-    const std::uint64_t V = sphere.nb_vertices(), X = v.dims[0], Y = v.dims[1], nvox = v.dims[0] * v.dims[1] * v.dims[2];
+    const std::uint64_t X = v.dims[0], Y = v.dims[1], nvox = v.dims[0] * v.dims[1] * v.dims[2];
     const std::size_t es = dtype_size(v.dtype);
     const double slope = v.scale_slope == 0 ? 1.0 : v.scale_slope;
     const auto &a = v.voxel_to_ras;
@@ -102,54 +102,35 @@ Mesh tensor_glyphs(const TensorField &f, std::optional<double> x, std::optional<
         kept.push_back({vox, e});
     }
     const double reach = 0.5 * f.voxel_mm * f.options.scale;
-    Mesh m;
-    m.vertices = Buffer<float>(kept.size() * V * 3);
-    m.faces = Buffer<std::uint32_t>(kept.size() * sphere.faces.size());
-    std::vector<float> colour(kept.size() * V * 3);
+    // Each glyph: its centre, its axes' lengths and its colour.
+    struct Shape {
+        double centre[3], axes[3];
+        float rgb[3];
+    };
+    std::vector<Shape> shapes(kept.size());
     for (std::size_t g = 0; g < kept.size(); ++g) {
         const Glyph &k = kept[g];
-        const std::uint64_t vox = k.vox;
-        const double ijk[3] = {double(vox % X), double(vox / X % Y), double(vox / X / Y)};
-        double ctr[3];
-        for (int r = 0; r < 3; ++r) ctr[r] = a[4 * r] * ijk[0] + a[4 * r + 1] * ijk[1] + a[4 * r + 2] * ijk[2] + a[4 * r + 3];
+        const double ijk[3] = {double(k.vox % X), double(k.vox / X % Y), double(k.vox / X / Y)};
+        Shape &s = shapes[g];
+        for (int r = 0; r < 3; ++r) s.centre[r] = a[4 * r] * ijk[0] + a[4 * r + 1] * ijk[1] + a[4 * r + 2] * ijk[2] + a[4 * r + 3];
         const double norm = f.options.normalise == "max" ? k.e.values[0] : largest;
-        double lam[3];
-        for (int j = 0; j < 3; ++j) lam[j] = std::max(k.e.values[std::size_t(j)], 0.0) / norm * reach;
-        float rgb[3];
-        for (int r = 0; r < 3; ++r) rgb[r] = float(std::clamp(k.e.fa, 0.0, 1.0) * std::abs(k.e.vectors[0][std::size_t(r)]));
-        for (std::uint64_t i = 0; i < V; ++i) {
-            const double *u = &sphere.vertices[3 * i];
-            // V diag(lam) V^T u: along each eigenvector, u's component times its eigenvalue.
-            double p[3] = {ctr[0], ctr[1], ctr[2]};
-            for (int j = 0; j < 3; ++j) {
-                const auto &ev = k.e.vectors[std::size_t(j)];
-                const double c = (ev[0] * u[0] + ev[1] * u[1] + ev[2] * u[2]) * lam[j];
-                for (int r = 0; r < 3; ++r) p[r] += c * ev[std::size_t(r)];
-            }
-            for (int r = 0; r < 3; ++r) {
-                m.vertices[(g * V + i) * 3 + std::size_t(r)] = float(p[r]);
-                colour[(g * V + i) * 3 + std::size_t(r)] = rgb[r];
-            }
-        }
-        for (std::size_t q = 0; q < sphere.faces.size(); ++q) m.faces[g * sphere.faces.size() + q] = std::uint32_t(g * V + sphere.faces[q]);
+        for (int j = 0; j < 3; ++j) s.axes[j] = std::max(k.e.values[std::size_t(j)], 0.0) / norm * reach;
+        for (int r = 0; r < 3; ++r) s.rgb[r] = float(std::clamp(k.e.fa, 0.0, 1.0) * std::abs(k.e.vectors[0][std::size_t(r)]));
     }
-    DataArray d;
-    d.name = "color_fa";
-    d.attach = HZ_ATTACH_VERTEX;
-    d.dtype = HZ_DTYPE_F32;
-    d.components = 3;
-    d.count = kept.size() * V;
-    d.bytes = Buffer<std::byte>(colour.size() * 4);
-    if (!colour.empty()) std::memcpy(d.bytes.data(), colour.data(), colour.size() * 4);
-    m.arrays.push_back(std::move(d));
-    return m;
+    return sphere_glyphs(sphere, kept.size(), "color_fa", [&](std::size_t g, std::uint64_t i, float *xyz, float *rgb) {
+        const Shape &s = shapes[g];
+        const double *u = &sphere.vertices[3 * i];
+        // V diag(axes) V^T u: along each eigenvector, u's component times its axis.
+        double p[3] = {s.centre[0], s.centre[1], s.centre[2]};
+        for (int j = 0; j < 3; ++j) {
+            const auto &ev = kept[g].e.vectors[std::size_t(j)];
+            const double c = (ev[0] * u[0] + ev[1] * u[1] + ev[2] * u[2]) * s.axes[j];
+            for (int r = 0; r < 3; ++r) p[r] += c * ev[std::size_t(r)];
+        }
+        for (int r = 0; r < 3; ++r) xyz[r] = float(p[r]), rgb[r] = s.rgb[r];
+    });
 }
 
-Bounds tensor_bounds(const TensorField &f) {
-    Bounds b = grid_box(f.volume.dims, f.volume.voxel_to_ras);
-    const double grow = 0.5 * f.voxel_mm * f.options.scale;
-    for (int k = 0; k < 3; ++k) b.min[k] -= grow, b.max[k] += grow;
-    return b;
-}
+Bounds tensor_bounds(const TensorField &f) { return grown_grid_box(f.volume, 0.5 * f.voxel_mm * f.options.scale); }
 
 }  // namespace hz::core::render

@@ -12,6 +12,7 @@
 #include <hz/core/data.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -37,6 +38,16 @@ struct SphereMesh {
     std::uint64_t nb_vertices() const { return vertices.size() / 3; }
 };
 SphereMesh icosphere(int subdivisions);
+
+// Glyphs made of one sphere each, as one mesh (ODF and tensor glyphs):
+// `count` glyphs of `sphere`'s faces, glyph g's vertices at g x V ...
+// (g + 1) x V - 1 (V the sphere's), each placed by `place(g, i, xyz, rgb)`
+// (vertex i of the sphere: its position, RAS+ mm, and its colour, linear
+// RGB), the colours a per-vertex array called `colours`.
+Mesh sphere_glyphs(const SphereMesh &sphere, std::size_t count, const std::string &colours,
+                   const std::function<void(std::size_t g, std::uint64_t i, float *xyz, float *rgb)> &place);
+// The RAS+ box of a grid's voxels grown by `grow` mm on every side.
+Bounds grown_grid_box(const Volume &grid, double grow);
 
 // The matrix B (vertices x coefficients, row-major) with B[v][j] the j-th
 // basis function of order <= `order` at vertex v: an ODF's values on the
