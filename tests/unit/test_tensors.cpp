@@ -1,6 +1,6 @@
 // Tensor glyphs (core/render/tensors.hpp): the eigen-decomposition, FA,
 // the ellipsoid's axes and the value orders. (Colours against DIPY's
-// color_fa: tests/scripts/test_peaks.py.)
+// color_fa: tests/scripts/test_glyphs.py.)
 #include <hz/core/render/odfs.hpp>
 #include <hz/core/render/tensors.hpp>
 

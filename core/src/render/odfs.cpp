@@ -195,11 +195,12 @@ Mesh sphere_glyphs(const SphereMesh &sphere, std::size_t count, const std::strin
     Mesh m;
     m.vertices = Buffer<float>(count * V * 3);
     m.faces = Buffer<std::uint32_t>(count * F);
-    std::vector<float> colour(count * V * 3);
+    std::vector<float> colour(colours.empty() ? 3 : count * V * 3);  // (no colours: one scratch colour)
     for (std::size_t g = 0; g < count; ++g) {
-        for (std::uint64_t i = 0; i < V; ++i) place(g, i, &m.vertices[(g * V + i) * 3], &colour[(g * V + i) * 3]);
+        for (std::uint64_t i = 0; i < V; ++i) place(g, i, &m.vertices[(g * V + i) * 3], &colour[colours.empty() ? 0 : (g * V + i) * 3]);
         for (std::size_t k = 0; k < F; ++k) m.faces[g * F + k] = std::uint32_t(g * V + sphere.faces[k]);
     }
+    if (colours.empty()) return m;
     DataArray d;
     d.name = colours;
     d.attach = HZ_ATTACH_VERTEX;

@@ -3,6 +3,7 @@
 #include <hz/core/io.hpp>
 #include <hz/core/params.hpp>
 #include <hz/core/phantom.hpp>
+#include <hz/core/render/connectome.hpp>
 #include <hz/core/render/scene.hpp>
 #include <hz/core/filter.hpp>
 
@@ -357,6 +358,82 @@ Dataset share_dataset(const Dataset &d) {
     return c;
 }
 
+namespace {
+
+// A scene's connectome object: its nodes (spheres coloured by their values
+// through `colormap`, a solid colour where they are all equal) and, with
+// `edges`, its edges (tubes as thick as their weights, coloured by weight
+// through `edge_colormap` over [-largest, largest]: negative ones blue in
+// coolwarm).
+std::vector<Object> connectome_objects(const json &o, const fs::path &base, const std::string &what, const std::string &where,
+                                       std::vector<std::string> &files) {
+    check_keys(o,
+               {"type", "name", "nodes", "edges", "threshold", "node_scale", "edge_radius", "colormap", "edge_colormap", "material",
+                "visible", "opacity"},
+               what, where);
+    if (!o.contains("nodes")) fail(what, where, "a connectome needs 'nodes' (a BrainNet .node file, or x y z per line)");
+    fs::path nodes = str(o["nodes"], what, where + ".nodes"), edges;
+    if (nodes.is_relative()) nodes = base / nodes;
+    files.push_back(nodes.string());
+    if (o.contains("edges")) {
+        edges = str(o["edges"], what, where + ".edges");
+        if (edges.is_relative()) edges = base / edges;
+        files.push_back(edges.string());
+    }
+    ConnectomeOptions co;
+    if (o.contains("threshold")) co.threshold = num_in(o["threshold"], what, where + ".threshold", 0.0, 1e300);
+    if (o.contains("node_scale")) co.node_scale = num_in(o["node_scale"], what, where + ".node_scale", 1e-3, 100.0);
+    if (o.contains("edge_radius")) co.edge_radius = num_in(o["edge_radius"], what, where + ".edge_radius", 1e-3, 100.0);
+    const std::set<std::string> maps = {"viridis", "inferno", "gray", "coolwarm", "hot"};
+    const std::string node_map = o.contains("colormap") ? str(o["colormap"], what, where + ".colormap", maps) : "viridis";
+    const std::string edge_map = o.contains("edge_colormap") ? str(o["edge_colormap"], what, where + ".edge_colormap", maps) : "coolwarm";
+    Connectome c;
+    try {
+        c = read_connectome(nodes, edges);
+    } catch (const Error &e) {
+        fail(what, where, e.what());
+    }
+    const std::string name = o.contains("name") ? str(o["name"], what, where + ".name") : "connectome";
+    Object n;
+    n.name = name + " nodes";
+    n.kind = n.data.kind = HZ_DATA_MESH;
+    n.data.format = "connectome nodes";
+    n.data.mesh = connectome_nodes(c, co);
+    const auto [lo, hi] = std::minmax_element(c.colour.begin(), c.colour.end());
+    if (*hi > *lo) {
+        n.coloring.mode = "data", n.coloring.array = "node_value", n.coloring.colormap = node_map;
+        n.coloring.range = std::array<double, 2>{*lo, *hi};
+    } else {
+        n.coloring.color = {0.8, 0.25, 0.15};
+    }
+    std::vector<Object> out;
+    out.push_back(std::move(n));
+    if (!c.weights.empty()) {
+        Object e;
+        e.name = name + " edges";
+        e.kind = e.data.kind = HZ_DATA_STREAMLINES;
+        e.data.format = "connectome edges";
+        e.data.tractogram = connectome_edges(c, co);
+        e.render = "tubes";
+        double largest = 0;
+        for (double w : c.weights) largest = std::max(largest, std::abs(w));
+        e.coloring.mode = "data", e.coloring.array = "weight", e.coloring.colormap = edge_map;
+        e.coloring.range = std::array<double, 2>{-largest, largest > 0 ? largest : 1.0};
+        if (e.data.tractogram.nb_streamlines() > 0) out.push_back(std::move(e));
+    }
+    for (Object &x : out) {
+        if (o.contains("visible")) {
+            if (!o["visible"].is_boolean()) fail(what, where + ".visible", "expected true or false");
+            x.visible = o["visible"].get<bool>();
+        }
+        if (o.contains("opacity")) x.opacity = num_in(o["opacity"], what, where + ".opacity", 0.0, 1.0);
+        if (o.contains("material")) x.material = parse_material(o["material"], what, where + ".material");
+    }
+    return out;
+}
+
+}  // namespace
+
 Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what, const MemoryData &memory) {
     const json root = json::parse(text, nullptr, false);
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
@@ -498,7 +575,11 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         const std::string where = "objects[" + std::to_string(i) + "]";
         if (!o.is_object() || !o.contains("type")) fail(what, where, "expected an object with a 'type'");
         const std::string type =
-            str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume", "peaks", "odfs", "tensors"});
+            str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume", "peaks", "odfs", "tensors", "connectome"});
+        if (type == "connectome") {  // (two objects: its nodes and its edges)
+            for (Object &part : connectome_objects(o, base, what, where, s.files)) s.objects.push_back(std::move(part));
+            continue;
+        }
         Object ob;
         ob.name = type + " " + std::to_string(i);
         if (type == "streamlines") {

@@ -17,6 +17,12 @@ std::vector<float> tube_radii(const Object &o) {
     const Tractogram &t = o.data.tractogram;
     const std::uint64_t N = t.nb_streamlines();
     std::vector<float> radius(N, float(o.radius_mm));
+    for (const auto &x : t.arrays)  // (each streamline's own radius: connectome edges by weight)
+        if (x.name == "radius_mm" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N && x.components == 1) {
+            const std::vector<double> r = array_values(x);
+            for (std::uint64_t i = 0; i < N; ++i) radius[i] = float(std::clamp(r[i], 1e-3, 100.0));
+            return radius;
+        }
     if (o.clustering && o.clustering->width_by_size) {
         for (const auto &x : t.arrays)
             if (x.name == "cluster_size" && x.attach == HZ_ATTACH_STREAMLINE && x.count == N) {

@@ -43,7 +43,7 @@ SphereMesh icosphere(int subdivisions);
 // `count` glyphs of `sphere`'s faces, glyph g's vertices at g x V ...
 // (g + 1) x V - 1 (V the sphere's), each placed by `place(g, i, xyz, rgb)`
 // (vertex i of the sphere: its position, RAS+ mm, and its colour, linear
-// RGB), the colours a per-vertex array called `colours`.
+// RGB), the colours a per-vertex array called `colours` (none: "").
 Mesh sphere_glyphs(const SphereMesh &sphere, std::size_t count, const std::string &colours,
                    const std::function<void(std::size_t g, std::uint64_t i, float *xyz, float *rgb)> &place);
 // The RAS+ box of a grid's voxels grown by `grow` mm on every side.

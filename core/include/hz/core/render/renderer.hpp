@@ -379,7 +379,9 @@ Bounds scene_bounds(const Scene &scene);
 // a tube: o.radius_mm, times sqrt(cluster size / the median size) clamped to
 // [0.35, 3] when o.clustering asks for width by size and the tractogram has
 // a per-streamline "cluster_size" array. (A per-streamline "highlight" array
-// mixes a streamline's colour towards white by its value in [0, 1].)
+// mixes a streamline's colour towards white by its value in [0, 1]; a
+// per-streamline "radius_mm" array, clamped to [0.001, 100], replaces
+// both: connectome edges.)
 std::vector<float> tube_radii(const Object &o);
 // The colour (sRGB, 0..1) of cluster colour id `id` in "cluster" colouring (legends).
 std::array<double, 3> cluster_palette(double id);

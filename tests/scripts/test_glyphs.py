@@ -1,11 +1,13 @@
-"""Peaks and ODFs: DIPY's PAM5 files read as DIPY reads them
+"""Glyphs and connectomes. Peaks and ODFs: DIPY's PAM5 files read as DIPY reads them
 (dipy.io.peaks.load_peaks), MRtrix3-style peak NIfTIs (3 values a peak), both
 drawn as peak glyphs on slices or through the whole volume, from data files,
 scene files and the window's slicer; ODFs from SH coefficients (DIPY's and
 MRtrix3's bases, written by DIPY's sf_to_sh) drawn as glyphs of their shape;
 diffusion tensors (DIPY's symmetric-matrix NIfTI, FSL's and MRtrix3's orders)
-as ellipsoids in DIPY's color_fa; malformed and hostile PAM5 files and
-volumes of the wrong layout each one line, nothing written."""
+as ellipsoids in DIPY's color_fa; connectomes from BrainNet Viewer's and
+CSV files, edges above the threshold as numpy counts them, as thick as their
+weights; malformed and hostile PAM5 files, volumes of the wrong layout and
+connectome files that disagree each one line, nothing written."""
 import json
 import os
 import shutil
@@ -504,6 +506,100 @@ class TensorTest(TempDirTest):
         p = run("render", self.path("five.nii.gz"), "--tensors", "-o", self.path("x.png"), env=NO_DISPLAY, timeout=60)
         self.assert_clean_error(p, "five.nii.gz")
         self.assertFalse(os.path.exists(self.path("x.png")))
+
+
+class ConnectomeTest(TempDirTest):
+    def scene(self, name, ob, **settings):
+        with open(self.path(name), "w") as f:
+            json.dump({"objects": [ob], "camera": {"view": "superior"}, "environment": {"type": "none"}, **settings}, f)
+        return self.path(name)
+
+    def render(self, scene, out):
+        p = run("render", scene, "-o", self.path(out), "--size", "400x300", "--force", "--json", env=NO_DISPLAY, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return load(self.path(out)), json.loads(p.stdout)
+
+    def test_brainnet_and_csv_files(self):
+        """BrainNet Viewer's .node (comments, labels, '-') and .edge files: the
+        edges drawn are those of |weight| above the threshold (numpy's count;
+        an asymmetric matrix counts each pair once); the same network as CSV
+        files (a header row, commas) draws the same picture."""
+        rng = np.random.default_rng(11)
+        N = 10
+        ang = np.linspace(0, 2 * np.pi, N, endpoint=False)
+        xyz = np.c_[40 * np.cos(ang), 60 * np.sin(ang), 5 * np.sin(3 * ang)]
+        W = rng.normal(size=(N, N))
+        W[3, 7], W[7, 3] = 0.1, -2.5  # (asymmetric: the larger magnitude)
+        with open(self.path("a.node"), "w") as f:
+            f.write("# x y z colour size label\n")
+            for i, (x, y, z) in enumerate(xyz):
+                f.write(f"{x:.3f}\t{y:.3f}\t{z:.3f}\t{i % 3 + 1}\t{1 + i % 2}\t{'-' if i == 0 else 'N%d' % i}\n")
+        np.savetxt(self.path("a.edge"), W, fmt="%.5f", delimiter="\t")
+        with open(self.path("a.csv"), "w") as f:
+            f.write("x,y,z,colour,size\n")
+            for i, (x, y, z) in enumerate(xyz):
+                f.write(f"{x:.3f},{y:.3f},{z:.3f},{i % 3 + 1},{1 + i % 2}\n")
+        np.savetxt(self.path("w.csv"), W, fmt="%.5f", delimiter=",")
+        Wr = np.round(W, 5)
+        pair = np.maximum(np.abs(Wr), np.abs(Wr.T))[np.triu_indices(N, 1)]
+        for threshold in (0.0, 0.7, 1.5):
+            with self.subTest(threshold=threshold):
+                a, sa = self.render(self.scene("b.json", {"type": "connectome", "nodes": "a.node", "edges": "a.edge", "threshold": threshold}), "b.png")
+                self.assertEqual(sa["streamlines_drawn"], int((pair > threshold).sum()))
+                c, _ = self.render(self.scene("c.json", {"type": "connectome", "nodes": "a.csv", "edges": "w.csv", "threshold": threshold}), "c.png")
+                np.testing.assert_array_equal(a, c)
+        _, nodes_only = self.render(self.scene("n.json", {"type": "connectome", "nodes": "a.node"}), "n.png")
+        self.assertEqual(nodes_only["streamlines_drawn"], 0)
+
+    def test_sizes_and_weights_set_spheres_and_tubes(self):
+        """Two nodes of sizes 1 and 3 (node_scale 2: radii 2 and 6 mm) and two
+        edges of weights 1 and 0.25 (edge_radius 2): the spheres' and the
+        tubes' widths on the picture in those ratios."""
+        with open(self.path("s.node"), "w") as f:
+            f.write("-40 0 0 1 1 a\n40 0 0 1 3 b\n-40 50 0 1 0.01 c\n40 50 0 1 0.01 d\n")
+        W = np.zeros((4, 4))
+        W[0, 1] = W[1, 0] = 1.0
+        W[2, 3] = W[3, 2] = 0.25
+        np.savetxt(self.path("s.edge"), W)
+        pic, stats = self.render(self.scene("s.json", {"type": "connectome", "nodes": "s.node", "edges": "s.edge", "node_scale": 2,
+                                                       "edge_radius": 2, "material": "flat"}, background=[0, 0, 0]), "s.png")
+        self.assertEqual(stats["streamlines_drawn"], 2)
+        lit = pic.sum(axis=-1) > 20
+        w = pic.shape[1]
+        # Tubes: their thickness in the middle column (y = 0 lower, y = 50 upper in the superior view).
+        runs = np.nonzero(lit[:, w // 2])[0]
+        groups = np.split(runs, np.nonzero(np.diff(runs) > 1)[0] + 1)
+        self.assertEqual(len(groups), 2, groups)
+        thin, thick = sorted(len(g) for g in groups)
+        self.assertAlmostEqual(thick / thin, 4, delta=1.2)
+        # Spheres: the tallest lit run of any column in each half (the tubes across them are thinner).
+        def tallest(half):
+            best = 0
+            for col in half.T:
+                ys = np.nonzero(col)[0]
+                if len(ys):
+                    best = max(best, max(len(g) for g in np.split(ys, np.nonzero(np.diff(ys) > 1)[0] + 1)))
+            return best
+        self.assertAlmostEqual(tallest(lit[:, w // 2 + 1:]) / tallest(lit[:, :w // 2]), 3, delta=0.5)
+
+    def test_files_that_disagree(self):
+        """Matrix rows or columns that are not the node count, a value that is
+        not a number, a node of two values, a negative size, no nodes key:
+        one line naming the scene and the file at fault, nothing written."""
+        files = {"g.node": "0 0 0 1 1 a\n10 0 0 1 1 b\n0 10 0 1 1 c\n", "rows.edge": "0 1 1\n1 0 1\n", "cols.edge": "0 1 1\n1 0\n1 1 0\n",
+                 "nan.edge": "0 1 1\n1 x 1\n1 1 0\n", "short.node": "0 0 0\n1 2\n", "neg.node": "0 0 0 1 -2 a\n"}
+        for name, text in files.items():
+            with open(self.path(name), "w") as f:
+                f.write(text)
+        scene_errors(self, {
+            "rows.json": ({"type": "connectome", "nodes": "g.node", "edges": "rows.edge"}, "rows.edge: 2 rows, the node file g.node has 3 nodes"),
+            "cols.json": ({"type": "connectome", "nodes": "g.node", "edges": "cols.edge"}, "cols.edge: line 2: 2 values"),
+            "nan.json": ({"type": "connectome", "nodes": "g.node", "edges": "nan.edge"}, "nan.edge: line 2, column 2: 'x' is not a finite number"),
+            "short.json": ({"type": "connectome", "nodes": "short.node"}, "short.node: line 2: 2 values"),
+            "neg.json": ({"type": "connectome", "nodes": "neg.node"}, "negative"),
+            "none.json": ({"type": "connectome", "edges": "rows.edge"}, "needs 'nodes'"),
+            "missing.json": ({"type": "connectome", "nodes": "nowhere.node"}, "nowhere.node"),
+        })
 
 
 if __name__ == "__main__":
