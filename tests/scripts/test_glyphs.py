@@ -582,6 +582,37 @@ class ConnectomeTest(TempDirTest):
             return best
         self.assertAlmostEqual(tallest(lit[:, w // 2 + 1:]) / tallest(lit[:, :w // 2]), 3, delta=0.5)
 
+    def test_a_parcellation_gives_the_nodes(self):
+        """A label volume (labels 3, 8, 20, 41; an oblique affine) as the
+        nodes: one per label in increasing order at the centroid of its
+        voxels (numpy and the affine here), the matrix's rows in that order:
+        the same picture as a .node file of those centroids; a volume
+        without labels is one line."""
+        rng = np.random.default_rng(12)
+        labels = np.zeros((20, 18, 16), np.int16)
+        for value, (x, y, z), (a, b, c) in zip((41, 3, 20, 8), ((2, 3, 4), (12, 2, 1), (5, 11, 9), (13, 12, 10)),
+                                               ((5, 4, 3), (2, 6, 2), (6, 2, 5), (3, 3, 4))):
+            labels[x:x + a, y:y + b, z:z + c] = value  # (regions of different shapes: their centroids not one shift from their corners)
+            labels[x, y, z + 5] = value  # (a stray voxel moves the centroid)
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        aff = np.eye(4)
+        aff[:3, :3] = q * 3
+        aff[:3, 3] = [-20, 10, 5]
+        nib.save(nib.Nifti1Image(labels, aff), self.path("parc.nii.gz"))
+        W = np.array([[0, 1, 0.2, 0], [1, 0, 0, 0.8], [0.2, 0, 0, 0.5], [0, 0.8, 0.5, 0]])
+        np.savetxt(self.path("m.csv"), W, delimiter=",")
+        with open(self.path("c.node"), "w") as f:
+            for v in sorted(np.unique(labels[labels > 0])):
+                ijk = np.argwhere(labels == v).mean(axis=0)
+                x, y, z = aff[:3, :3] @ ijk + aff[:3, 3]
+                f.write(f"{x:.6f} {y:.6f} {z:.6f} {v} 1 L{v}\n")
+        a, sa = self.render(self.scene("p.json", {"type": "connectome", "nodes": "parc.nii.gz", "edges": "m.csv", "node_scale": 3}), "p.png")
+        b, _ = self.render(self.scene("n.json", {"type": "connectome", "nodes": "c.node", "edges": "m.csv", "node_scale": 3}), "n.png")
+        self.assertEqual(sa["streamlines_drawn"], 4)
+        self.assertLess((np.abs(a - b).sum(axis=-1) > 30).mean(), 0.001)
+        nib.save(nib.Nifti1Image(np.zeros((4, 4, 4), np.int16), np.eye(4)), self.path("empty.nii.gz"))
+        scene_errors(self, {"empty.json": ({"type": "connectome", "nodes": "empty.nii.gz"}, "no label above 0")})
+
     def test_files_that_disagree(self):
         """Matrix rows or columns that are not the node count, a value that is
         not a number, a node of two values, a negative size, no nodes key:

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <map>
 #include <sstream>
 
 namespace hz::core::render {
@@ -58,6 +59,8 @@ double number(const std::string &s, const std::filesystem::path &file, const Row
     return v;
 }
 
+void read_matrix(Connectome &c, const std::filesystem::path &edge_file, const std::string &nodes_name);
+
 }  // namespace
 
 Connectome read_connectome(const std::filesystem::path &node_file, const std::filesystem::path &edge_file) {
@@ -87,12 +90,55 @@ Connectome read_connectome(const std::filesystem::path &node_file, const std::fi
         c.labels.push_back(label == "-" ? "" : label);
     }
     if (c.xyz.empty()) throw Error(node_file.string() + ": no nodes (a line of x y z [colour size label] each)");
-    if (edge_file.empty()) return c;
+    read_matrix(c, edge_file, node_file.filename().string());
+    return c;
+}
+
+Connectome connectome_of_labels(const Volume &v, const std::string &what, const std::filesystem::path &edge_file) {
+    std::size_t dims = v.dims.size();
+    while (dims > 3 && v.dims[dims - 1] == 1) --dims;
+    if (dims != 3) throw Error(what + ": a parcellation is a 3D volume of labels, not " + std::to_string(v.dims.size()) + " dimensions");
+    const std::size_t es = dtype_size(v.dtype);
+    const std::uint64_t X = v.dims[0], Y = v.dims[1], n = v.dims[0] * v.dims[1] * v.dims[2];
+    if (es == 0 || v.dtype == HZ_DTYPE_RGB8 || v.dtype == HZ_DTYPE_RGBA8 || v.voxels.size() < n * es)
+        throw Error(what + ": a parcellation holds numbers (labels)");
+    struct Sum {
+        double x = 0, y = 0, z = 0;
+        std::uint64_t count = 0;
+    };
+    std::map<std::int64_t, Sum> sums;
+    const auto &a = v.voxel_to_ras;
+    for (std::uint64_t k = 0; k < n; ++k) {
+        const double l = value_at(v.voxels.data() + k * es, v.dtype) * (v.scale_slope == 0 ? 1.0 : v.scale_slope) + v.scale_inter;
+        if (!(l > 0)) continue;  // (0 and below: background)
+        if (l != std::floor(l) || l > 1e15) throw Error(what + ": label " + std::to_string(l) + " is not a whole number");
+        Sum &s = sums[std::int64_t(l)];
+        if (sums.size() > kMaxNodes) throw Error(what + ": more than " + std::to_string(kMaxNodes) + " labels");
+        s.x += double(k % X), s.y += double(k / X % Y), s.z += double(k / X / Y), ++s.count;
+    }
+    if (sums.empty()) throw Error(what + ": no label above 0: no nodes");
+    Connectome c;
+    for (const auto &[label, s] : sums) {
+        const double ijk[3] = {s.x / double(s.count), s.y / double(s.count), s.z / double(s.count)};
+        std::array<double, 3> p;
+        for (int r = 0; r < 3; ++r) p[std::size_t(r)] = a[4 * r] * ijk[0] + a[4 * r + 1] * ijk[1] + a[4 * r + 2] * ijk[2] + a[4 * r + 3];
+        c.xyz.push_back(p);
+        c.colour.push_back(double(label));
+        c.size.push_back(1.0);
+        c.labels.push_back(std::to_string(label));
+    }
+    read_matrix(c, edge_file, std::filesystem::path(what).filename().string());
+    return c;
+}
+
+namespace {
+void read_matrix(Connectome &c, const std::filesystem::path &edge_file, const std::string &nodes_name) {
+    if (edge_file.empty()) return;
     const std::vector<Row> edges = rows_of(edge_file, "edge file");
     const std::size_t N = c.nodes();
     if (edges.size() != N)
-        throw Error(edge_file.string() + ": " + std::to_string(edges.size()) + " rows, the node file " + node_file.filename().string() +
-                    " has " + std::to_string(N) + " nodes (an N x N matrix)");
+        throw Error(edge_file.string() + ": " + std::to_string(edges.size()) + " rows, the node file " + nodes_name + " has " +
+                    std::to_string(N) + " nodes (an N x N matrix)");
     c.weights.reserve(N * N);
     for (const Row &r : edges) {
         if (r.fields.size() != N)
@@ -100,8 +146,8 @@ Connectome read_connectome(const std::filesystem::path &node_file, const std::fi
                         " values, the node file has " + std::to_string(N) + " nodes");
         for (std::size_t k = 0; k < N; ++k) c.weights.push_back(number(r.fields[k], edge_file, r, k));
     }
-    return c;
 }
+}  // namespace
 
 namespace {
 void check(const ConnectomeOptions &o) {

@@ -365,8 +365,8 @@ namespace {
 // `edges`, its edges (tubes as thick as their weights, coloured by weight
 // through `edge_colormap` over [-largest, largest]: negative ones blue in
 // coolwarm).
-std::vector<Object> connectome_objects(const json &o, const fs::path &base, const std::string &what, const std::string &where,
-                                       std::vector<std::string> &files) {
+std::vector<Object> connectome_objects(const Registry &reg, const json &o, const fs::path &base, const std::string &what,
+                                       const std::string &where, std::vector<std::string> &files) {
     check_keys(o,
                {"type", "name", "nodes", "edges", "threshold", "node_scale", "edge_radius", "colormap", "edge_colormap", "material",
                 "visible", "opacity"},
@@ -389,7 +389,9 @@ std::vector<Object> connectome_objects(const json &o, const fs::path &base, cons
     const std::string edge_map = o.contains("edge_colormap") ? str(o["edge_colormap"], what, where + ".edge_colormap", maps) : "coolwarm";
     Connectome c;
     try {
-        c = read_connectome(nodes, edges);
+        const std::string ext = nodes.extension().string();
+        const bool text = ext == ".node" || ext == ".csv" || ext == ".txt" || ext == ".tsv";
+        c = text ? read_connectome(nodes, edges) : connectome_of_labels(read_dataset(reg, nodes).volume, nodes.string(), edges);
     } catch (const Error &e) {
         fail(what, where, e.what());
     }
@@ -577,7 +579,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         const std::string type =
             str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume", "peaks", "odfs", "tensors", "connectome"});
         if (type == "connectome") {  // (two objects: its nodes and its edges)
-            for (Object &part : connectome_objects(o, base, what, where, s.files)) s.objects.push_back(std::move(part));
+            for (Object &part : connectome_objects(reg, o, base, what, where, s.files)) s.objects.push_back(std::move(part));
             continue;
         }
         Object ob;

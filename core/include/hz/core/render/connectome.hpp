@@ -5,7 +5,8 @@
 // (RAS+ mm), a colour value, a size value, a label; `-` for none; `#`
 // starts a comment) and an `.edge` file (the N x N matrix, whitespace
 // separated); or from CSV/text files of the same columns (x, y, z, then
-// optionally colour and size) and a comma- or whitespace-separated matrix.
+// optionally colour and size) and a comma- or whitespace-separated matrix;
+// or from a parcellation (a label volume: the labels' centroids).
 #pragma once
 
 #include <hz/core/data.hpp>
@@ -29,6 +30,14 @@ struct Connectome {
 // Error naming the file and the line ("a.edge: line 3: 5 values, the node
 // file has 6 nodes"). At most 65536 nodes and 64 MiB a file.
 Connectome read_connectome(const std::filesystem::path &node_file, const std::filesystem::path &edge_file);
+
+// The nodes of a parcellation: one per label (a positive integer value of
+// `labels`, a 3D volume read as `what`), in increasing label order, at the
+// centroid of its voxels (RAS+ mm), coloured by its label value, size 1;
+// and the matrix of `edge_file` (unless empty), whose rows and columns are
+// the labels in that order. Throws Error for a volume that is not 3D, a
+// label that is not a whole number, more than 65536 labels, none at all.
+Connectome connectome_of_labels(const Volume &labels, const std::string &what, const std::filesystem::path &edge_file);
 
 struct ConnectomeOptions {
     double threshold = 0;    // edges of |weight| above it are drawn
