@@ -362,3 +362,52 @@ class ClusterEdgeCasesFastTest(ClusterEdgeCasesTest):
         p = run("cluster", f, "--labels", self.path("l.csv"), "--mode", "fast")
         self.assert_clean_error(p, "inf.tck")
         self.assertFalse(os.path.exists(self.path("l.csv")))
+
+
+class TreeFigureTest(TempDirTest):
+    """The QuickBundlesX tree as a figure (paper Fig. 4): several levels'
+    centroids drawn together, each subtree in its colour, chosen subtrees."""
+
+    def render(self, level, extra=None, **settings):
+        import json
+        scene = {"objects": [{"type": "streamlines", "builtin": "brain_bundles", "phantom": {"streamlines": 3000},
+                              "clustering": {"thresholds": [30, 20, 10], "level": level, **(extra or {})}, **settings}],
+                 "camera": {"view": "left"}, "environment": {"type": "none"}, "tonemap": "none", "background": [0, 0, 0],
+                 "antialiasing": {"on": False}}
+        with open(self.path("s.json"), "w") as f:
+            json.dump(scene, f)
+        p = run("render", self.path("s.json"), "-o", self.path("s.png"), "--size", "480x360", "--force", "--json", env={"DISPLAY": ""},
+                timeout=180)
+        return p
+
+    def drawn(self, level, extra=None, **settings):
+        import json
+        p = self.render(level, extra, **settings)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return json.loads(p.stdout)["streamlines_drawn"]
+
+    def test_levels_together_and_subtrees(self):
+        n = [self.drawn(level) for level in (1, 2, 3)]
+        self.assertTrue(n[0] < n[1] < n[2], n)
+        self.assertEqual(self.drawn([1, 2, 3]), sum(n))
+        self.assertEqual(self.drawn([3, 1, -2]), sum(n), "levels in any order, -2 the one above the finest")
+        one = self.drawn([1, 2, 3], {"subtrees": [0]})
+        self.assertTrue(1 < one < sum(n), one)
+        self.assertEqual(self.drawn([1], {"subtrees": [0, 2]}), 2)
+        # Each subtree one colour (flat shading, no tone curve): a subtree's three levels are all of its hue
+        # (each pixel's colour over its brightest channel; edges blend with the black background only).
+        from PIL import Image
+        hues = []
+        for k in (0, 1):
+            self.drawn([1, 2, 3], {"subtrees": [k]}, material="flat")
+            pic = np.asarray(Image.open(self.path("s.png")).convert("RGB")).reshape(-1, 3).astype(float)
+            pic = pic[pic.max(axis=1) > 60]
+            hue = pic / pic.max(axis=1, keepdims=True)
+            median = np.median(hue, axis=0)
+            self.assertGreater((np.abs(hue - median).max(axis=1) < 0.08).mean(), 0.97, f"subtree {k}: one colour")
+            hues.append(median)
+        self.assertGreater(np.abs(hues[0] - hues[1]).max(), 0.2, "two subtrees, two colours")
+        p = self.render([1, 2], {"subtrees": [n[0]]})
+        self.assertEqual(p.returncode, 1)
+        self.assertEqual(len(p.stderr.strip().splitlines()), 1, p.stderr)
+        self.assertIn(f"level 1 has {n[0]} clusters drawn", p.stderr)

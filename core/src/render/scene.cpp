@@ -674,7 +674,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             ob.slice_colormap = str(o["colormap"], what, where + ".colormap", {"viridis", "inferno", "gray", "coolwarm", "hot"});
         if (o.contains("clustering")) {
             const json &c = o["clustering"];
-            check_keys(c, {"algorithm", "thresholds", "level", "width_by_size", "params", "min_size", "min_length"}, what,
+            check_keys(c, {"algorithm", "thresholds", "level", "subtrees", "width_by_size", "params", "min_size", "min_length"}, what,
                        where + ".clustering");
             ClusterSpec cs;
             if (c.contains("algorithm")) {
@@ -707,7 +707,20 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                 if (!c["thresholds"].is_array()) fail(what, where + ".clustering.thresholds", "expected an array of numbers");
                 for (const auto &t : c["thresholds"]) cs.thresholds.push_back(num(t, what, where + ".clustering.thresholds"));
             }
-            if (c.contains("level")) cs.level = static_cast<int>(num(c["level"], what, where + ".clustering.level"));
+            if (c.contains("level") && c["level"].is_array()) {  // (the tree as a figure: several levels)
+                for (const auto &l : c["level"]) cs.levels.push_back(static_cast<int>(num(l, what, where + ".clustering.level")));
+                if (cs.levels.empty()) fail(what, where + ".clustering.level", "expected a level or a non-empty array of levels");
+            } else if (c.contains("level")) {
+                cs.level = static_cast<int>(num(c["level"], what, where + ".clustering.level"));
+            }
+            if (c.contains("subtrees")) {
+                if (!c["subtrees"].is_array()) fail(what, where + ".clustering.subtrees", "expected an array of cluster indices");
+                for (const auto &k : c["subtrees"]) {
+                    const double v = num(k, what, where + ".clustering.subtrees");
+                    if (v < 0 || v != std::floor(v) || v > 1e15) fail(what, where + ".clustering.subtrees", "expected whole numbers >= 0");
+                    cs.subtrees.push_back(std::uint64_t(v));
+                }
+            }
             if (c.contains("width_by_size")) cs.width_by_size = c["width_by_size"].get<bool>();
             if (c.contains("min_size")) {
                 const double m = num(c["min_size"], what, where + ".clustering.min_size");
@@ -853,6 +866,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                 fail(what, where + ".clustering", e.what());
             }
             if (!o.contains("render")) ob.render = "tubes";
+            if (ob.clustering->levels.size() > 1 && !o.contains("color")) ob.coloring.mode = "cluster";  // (each subtree its colour)
         }
         if (ob.coloring.mode == "cluster" && ob.kind != HZ_DATA_STREAMLINES)
             fail(what, where + ".color", "mode 'cluster' is for streamlines");
@@ -1310,12 +1324,44 @@ double ClusterTree::centroid_length(std::uint64_t node) const {
 
 Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const ClusterSpec &spec) {
     const ClusterTree tree = run_clustering(reg, t, spec);
-    const std::uint32_t level = spec.level < 0 ? tree.nb_levels : static_cast<std::uint32_t>(spec.level);
-    if (level < 1 || level > tree.nb_levels)
-        throw Error("clustering.level " + std::to_string(spec.level) + ": the tree has levels 1.." + std::to_string(tree.nb_levels));
-    std::vector<std::uint64_t> nodes;
+    // The levels drawn, coarsest first (-1 the finest, -2 the one above, ...).
+    std::vector<std::uint32_t> levels;
+    for (int l : spec.levels.empty() ? std::vector<int>{spec.level} : spec.levels) {
+        const std::int64_t resolved = l < 0 ? std::int64_t(tree.nb_levels) + 1 + l : l;
+        if (resolved < 1 || resolved > std::int64_t(tree.nb_levels))
+            throw Error("clustering.level " + std::to_string(l) + ": the tree has levels 1.." + std::to_string(tree.nb_levels));
+        levels.push_back(std::uint32_t(resolved));
+    }
+    std::sort(levels.begin(), levels.end());
+    levels.erase(std::unique(levels.begin(), levels.end()), levels.end());
+    // Each node's subtree: the index of its ancestor among the first level's kept nodes.
+    std::vector<char> kept(tree.level.size());  // (the cut-offs, min_size and min_length)
+    for (std::uint64_t k = 0; k < kept.size(); ++k) kept[k] = tree.kept(k, spec);
+    std::vector<std::int64_t> subtree(tree.level.size(), -1);
+    std::uint64_t roots = 0;
     for (std::uint64_t k = 0; k < tree.level.size(); ++k)
-        if (tree.level[k] == level && tree.kept(k, spec)) nodes.push_back(k);
+        if (tree.level[k] == levels[0] && kept[k]) subtree[k] = std::int64_t(roots++);
+    for (std::uint64_t s : spec.subtrees)
+        if (s >= roots)
+            throw Error("clustering.subtrees: " + std::to_string(s) + ", but level " + std::to_string(levels[0]) + " has " +
+                        std::to_string(roots) + " clusters drawn (0 to " + std::to_string(roots == 0 ? 0 : roots - 1) + ")");
+    const auto ancestor = [&](std::uint64_t k) {
+        while (tree.level[k] > levels[0] && tree.parent[k] >= 0) k = std::uint64_t(tree.parent[k]);
+        return tree.level[k] == levels[0] ? subtree[k] : std::int64_t(-1);
+    };
+    std::vector<std::uint64_t> nodes;
+    std::vector<float> ids, lv;
+    for (std::uint32_t level : levels)
+        for (std::uint64_t k = 0; k < tree.level.size(); ++k) {
+            if (tree.level[k] != level || !kept[k]) continue;
+            const std::int64_t root = ancestor(k);
+            if (root < 0) continue;  // (under a cluster cut off at the first level)
+            if (!spec.subtrees.empty() && std::find(spec.subtrees.begin(), spec.subtrees.end(), std::uint64_t(root)) == spec.subtrees.end())
+                continue;
+            nodes.push_back(k);
+            ids.push_back(float(root));
+            lv.push_back(float(level));
+        }
     Tractogram out;
     const std::uint64_t K = nodes.size(), P = tree.nb_points;
     out.positions = Buffer<float>(K * P * 3);
@@ -1328,6 +1374,10 @@ Tractogram cluster_centroids(const Registry &reg, const Tractogram &t, const Clu
     }
     out.offsets[K] = K * P;
     out.arrays.push_back(f32_array("cluster_size", HZ_ATTACH_STREAMLINE, sizes));
+    if (!spec.levels.empty() || !spec.subtrees.empty()) {
+        out.arrays.push_back(f32_array("cluster_id", HZ_ATTACH_STREAMLINE, ids));
+        out.arrays.push_back(f32_array("cluster_level", HZ_ATTACH_STREAMLINE, lv));
+    }
     out.reference = t.reference;
     out.reference_dims = t.reference_dims;
     return out;

@@ -49,7 +49,15 @@ struct ClusterSpec {
     std::vector<double> thresholds;                     // empty: the plugin's defaults
     std::map<std::string, std::vector<double>> params;  // the plugin's own parameters, by name (checked by its schema)
     int level = 1;                                      // 1 = coarsest; -1 = finest
-    bool width_by_size = true;                          // tube radius grows with sqrt(cluster size)
+    // The tree as a figure (paper Fig. 4): the centroids of all these levels
+    // drawn together (non-empty: replaces `level`), each coloured by its
+    // subtree, the node it descends from at the first (coarsest) of them
+    // (per-streamline "cluster_id"; "cluster_level" holds its level), and
+    // only the subtrees `subtrees` lists (indices among the first level's
+    // clusters drawn, from 0, in the tree's order; empty: all).
+    std::vector<int> levels;
+    std::vector<std::uint64_t> subtrees;
+    bool width_by_size = true;  // tube radius grows with sqrt(cluster size)
     // Clusters shown only from this many streamlines, and with a centroid at
     // least this long (mm): dipy_horizon's --cluster_size_thr and
     // --cluster_length_thr (ClusterTree::kept).
