@@ -19,7 +19,16 @@ namespace fs = std::filesystem;
 // meshes as principled surfaces, volumes as three slices.
 core::render::Scene scene_from_files(const core::Registry &reg, const std::vector<std::string> &files) {
     core::render::Scene s;
-    for (const auto &f : files) {
+    for (std::size_t k = 0; k < files.size(); ++k) {
+        const std::string &f = files[k];
+        if (fs::path(f).extension() == ".node") {
+            // A BrainNet Viewer connectome: its nodes, and the .edge file named right after it.
+            std::string edges;
+            if (k + 1 < files.size() && fs::path(files[k + 1]).extension() == ".edge") edges = files[++k];
+            for (auto &part : core::render::connectome_objects(core::render::read_connectome(f, edges), {}, fs::path(f).stem().string()))
+                s.objects.push_back(std::move(part));
+            continue;
+        }
         core::render::Object o;
         std::optional<Progress> reading(std::in_place, "reading " + f, true);
         core::Dataset data = core::read_dataset(reg, f, reading->task());

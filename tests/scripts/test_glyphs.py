@@ -550,6 +550,14 @@ class ConnectomeTest(TempDirTest):
                 np.testing.assert_array_equal(a, c)
         _, nodes_only = self.render(self.scene("n.json", {"type": "connectome", "nodes": "a.node"}), "n.png")
         self.assertEqual(nodes_only["streamlines_drawn"], 0)
+        # From the command line: `render a.node a.edge` is that scene's connectome.
+        with open(self.path("d.json"), "w") as f:
+            json.dump({"objects": [{"type": "connectome", "nodes": "a.node", "edges": "a.edge"}]}, f)
+        scene, _ = self.render(self.path("d.json"), "d.png")
+        p = run("render", self.path("a.node"), self.path("a.edge"), "-o", self.path("f.png"), "--size", "400x300", env=NO_DISPLAY,
+                timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        np.testing.assert_array_equal(load(self.path("f.png")), scene)
 
     def test_sizes_and_weights_set_spheres_and_tubes(self):
         """Two nodes of sizes 1 and 3 (node_scale 2: radii 2 and 6 mm) and two

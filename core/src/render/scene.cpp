@@ -396,32 +396,11 @@ std::vector<Object> connectome_objects(const Registry &reg, const json &o, const
         fail(what, where, e.what());
     }
     const std::string name = o.contains("name") ? str(o["name"], what, where + ".name") : "connectome";
-    Object n;
-    n.name = name + " nodes";
-    n.kind = n.data.kind = HZ_DATA_MESH;
-    n.data.format = "connectome nodes";
-    n.data.mesh = connectome_nodes(c, co);
-    const auto [lo, hi] = std::minmax_element(c.colour.begin(), c.colour.end());
-    if (*hi > *lo) {
-        n.coloring.mode = "data", n.coloring.array = "node_value", n.coloring.colormap = node_map;
-        n.coloring.range = std::array<double, 2>{*lo, *hi};
-    } else {
-        n.coloring.color = {0.8, 0.25, 0.15};
-    }
     std::vector<Object> out;
-    out.push_back(std::move(n));
-    if (!c.weights.empty()) {
-        Object e;
-        e.name = name + " edges";
-        e.kind = e.data.kind = HZ_DATA_STREAMLINES;
-        e.data.format = "connectome edges";
-        e.data.tractogram = connectome_edges(c, co);
-        e.render = "tubes";
-        double largest = 0;
-        for (double w : c.weights) largest = std::max(largest, std::abs(w));
-        e.coloring.mode = "data", e.coloring.array = "weight", e.coloring.colormap = edge_map;
-        e.coloring.range = std::array<double, 2>{-largest, largest > 0 ? largest : 1.0};
-        if (e.data.tractogram.nb_streamlines() > 0) out.push_back(std::move(e));
+    try {
+        out = connectome_objects(c, co, name, node_map, edge_map);
+    } catch (const Error &e) {
+        fail(what, where, e.what());
     }
     for (Object &x : out) {
         if (o.contains("visible")) {
@@ -938,6 +917,38 @@ void show_as_odfs(Object &o, const OdfOptions &opt, const std::string &what) {
     centre_slices(o, grid_box(field->volume.dims, field->volume.voxel_to_ras));
     become_glyph_mesh(o, odf_glyphs(*field, o.slice_x, o.slice_y, o.slice_z, opt.sphere), odf_bounds(*field), format, "direction");
     o.odfs = std::move(field);
+}
+
+std::vector<Object> connectome_objects(const Connectome &c, const ConnectomeOptions &co, const std::string &name,
+                                       const std::string &node_map, const std::string &edge_map) {
+    Object n;
+    n.name = name + " nodes";
+    n.kind = n.data.kind = HZ_DATA_MESH;
+    n.data.format = "connectome nodes";
+    n.data.mesh = connectome_nodes(c, co);
+    const auto [lo, hi] = std::minmax_element(c.colour.begin(), c.colour.end());
+    if (*hi > *lo) {
+        n.coloring.mode = "data", n.coloring.array = "node_value", n.coloring.colormap = node_map;
+        n.coloring.range = std::array<double, 2>{*lo, *hi};
+    } else {
+        n.coloring.color = {0.8, 0.25, 0.15};
+    }
+    std::vector<Object> out;
+    out.push_back(std::move(n));
+    if (!c.weights.empty()) {
+        Object e;
+        e.name = name + " edges";
+        e.kind = e.data.kind = HZ_DATA_STREAMLINES;
+        e.data.format = "connectome edges";
+        e.data.tractogram = connectome_edges(c, co);
+        e.render = "tubes";
+        double largest = 0;
+        for (double w : c.weights) largest = std::max(largest, std::abs(w));
+        e.coloring.mode = "data", e.coloring.array = "weight", e.coloring.colormap = edge_map;
+        e.coloring.range = std::array<double, 2>{-largest, largest > 0 ? largest : 1.0};
+        if (e.data.tractogram.nb_streamlines() > 0) out.push_back(std::move(e));
+    }
+    return out;
 }
 
 void show_as_tensors(Object &o, const TensorOptions &opt, const std::string &what) {

@@ -6,6 +6,7 @@
 
 #include <hz/core/data.hpp>
 #include <hz/core/plugin_host.hpp>
+#include <hz/core/render/connectome.hpp>
 #include <hz/core/render/odfs.hpp>
 #include <hz/core/render/peaks.hpp>
 #include <hz/core/render/tensors.hpp>
@@ -154,6 +155,14 @@ struct Object {
 // "color_fa" array). An object that shows tensors already is drawn again
 // with `opt`. Throws Error naming `what` (make_tensor_field's checks).
 void show_as_tensors(Object &o, const TensorOptions &opt, const std::string &what);
+
+// A connectome as scene objects: "NAME nodes" (spheres coloured by their
+// colour values through `node_map`, one colour where all are equal) and,
+// with a matrix and an edge above the threshold, "NAME edges" (tubes as
+// thick as their weights, coloured by weight through `edge_map` over
+// [-largest, largest]). Throws Error (connectome_nodes' checks).
+std::vector<Object> connectome_objects(const Connectome &c, const ConnectomeOptions &o, const std::string &name,
+                                       const std::string &node_map = "viridis", const std::string &edge_map = "coolwarm");
 
 // A glyph object's mesh at the slices x, y, z (ODF or tensor glyphs), and
 // the box of its grid's voxels; nullopt for any other object.
