@@ -148,6 +148,18 @@ std::optional<VoxelValue> voxel_at(const core::render::Scene &scene, const std::
         if (es == 0 || (at + 1) * es > vol.voxels.size()) continue;
         out.value =
             core::value_at(vol.voxels.data() + at * es, vol.dtype) * (vol.scale_slope == 0 ? 1.0 : vol.scale_slope) + vol.scale_inter;
+        if (core::render::shows_rgb(ob)) {
+            const std::uint64_t voxel = at - ob.volume_index * X * Y * Z;
+            if (vol.dtype == HZ_DTYPE_RGB8 || vol.dtype == HZ_DTYPE_RGBA8) {  // (the voxel's bytes)
+                for (int c = 0; c < 3; ++c) out.colour.push_back(double(std::uint8_t(vol.voxels.data()[voxel * es + std::size_t(c)])));
+            } else if (vol.dims.size() >= 4 && vol.dims[3] >= 3 && (voxel + 2 * X * Y * Z + 1) * es <= vol.voxels.size()) {
+                for (std::uint64_t c = 0; c < 3; ++c)
+                    out.colour.push_back(core::value_at(vol.voxels.data() + (voxel + c * X * Y * Z) * es, vol.dtype) *
+                                             (vol.scale_slope == 0 ? 1.0 : vol.scale_slope) +
+                                         vol.scale_inter);
+            }
+            if (!out.colour.empty()) out.value = out.colour[0];
+        }
         return out;
     }
     return std::nullopt;

@@ -29,6 +29,9 @@ struct VoxelValue {
     std::size_t object = 0;
     std::array<std::int64_t, 3> ijk{};
     double value = 0;  // scaled (scl_slope, scl_inter)
+    // A colour volume's (core::render::shows_rgb) three values there,
+    // scaled (its first one is `value`); empty for others.
+    std::vector<double> colour;
 };
 std::optional<VoxelValue> voxel_at(const core::render::Scene &scene, const std::array<double, 3> &p);
 

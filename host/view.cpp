@@ -1749,10 +1749,14 @@ private:
         if (!p) return {};
         const auto vv = host::voxel_at(r.scene(), *p);
         if (!vv) return {};
-        char line[512];
-        std::snprintf(line, sizeof line, "%s: voxel (%lld, %lld, %lld) = %.6g at (%.1f, %.1f, %.1f) mm",
+        char value[128], line[640];
+        if (vv->colour.size() == 3)  // (a colour volume: its three values)
+            std::snprintf(value, sizeof value, "(%.6g, %.6g, %.6g)", vv->colour[0], vv->colour[1], vv->colour[2]);
+        else
+            std::snprintf(value, sizeof value, "%.6g", vv->value);
+        std::snprintf(line, sizeof line, "%s: voxel (%lld, %lld, %lld) = %s at (%.1f, %.1f, %.1f) mm",
                       r.scene().objects[vv->object].name.c_str(), (long long)vv->ijk[0], (long long)vv->ijk[1], (long long)vv->ijk[2],
-                      vv->value, (*p)[0], (*p)[1], (*p)[2]);
+                      value, (*p)[0], (*p)[1], (*p)[2]);
         return line;
     }
 

@@ -697,6 +697,37 @@ class SlicerTest(TempDirTest):
             self.assertTrue(np.all(np.abs(want - ijk) <= 0.5 + 0.06), f"{line}: voxel {want}")  # (the printed point has 0.1 mm)
             self.assertEqual(float(m.group(4)), float(data[ijk[0], ijk[1], ijk[2], vol]), line)
 
+    @unittest.skipUnless(shutil.which("xvfb-run") or os.environ.get("CI"), "xvfb-run is not installed")
+    def test_the_colour_under_the_cursor(self):
+        """A colour volume's readout is its three values there (8-bit, and
+        float with "rgb": true), as nibabel reads them at the voxel printed."""
+        import re
+        import nibabel as nib
+        rng = np.random.default_rng(3)
+        rgb = rng.integers(0, 256, size=(12, 10, 5, 3)).astype(np.uint8)
+        aff = np.diag([2.0, 2.0, 2.0, 1.0])
+        aff[:3, 3] = [-11, -9, -4]
+        nib.save(nib.Nifti1Image(rgb, aff), self.path("rgb.nii.gz"))
+        nib.save(nib.Nifti1Image(rgb.astype(np.float32) / 255, aff), self.path("rgbf.nii.gz"))
+        script = self.path("p.txt")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 1", "probe 160 120", "probe 200 90", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        for name, keys, want in (("rgb.nii.gz", {}, rgb.astype(float)), ("rgbf.nii.gz", {"rgb": True}, rgb.astype(np.float32) / 255)):
+            with self.subTest(file=name):
+                p = xvfb_run([HORIZON, "view", self.scene("c.json", file=name, window=[0, 1], **keys), "--size", "320x240", "--script", script],
+                             env)
+                self.assertEqual(p.returncode, 0, p.stderr)
+                lines = [l for l in p.stdout.splitlines() if l.startswith("probe ")]
+                self.assertEqual(len(lines), 2, p.stdout)
+                for line in lines:
+                    m = re.search(r"voxel \((\d+), (\d+), (\d+)\) = \(([-\d.e+]+), ([-\d.e+]+), ([-\d.e+]+)\)", line)
+                    self.assertIsNotNone(m, line)
+                    i, j, k = (int(m.group(n)) for n in (1, 2, 3))
+                    np.testing.assert_allclose([float(m.group(n)) for n in (4, 5, 6)], want[i, j, k], rtol=1e-5, err_msg=line)
+
 
 class MovieTest(TempDirTest):
     """`horizon movie`: a turntable (the camera turned about the superior

@@ -106,7 +106,6 @@ std::uint64_t volume_count(const Volume &v);
 // dims[0..2], x fastest), scaled, as float. Throws Error for an index
 // beyond the file's volumes.
 std::vector<float> volume_values(const Object &o);
-// Whether o's slices show colour (Object::rgb, or what its volume is).
-bool shows_rgb(const Object &o);
+// (shows_rgb: scene.hpp)
 
 }  // namespace hz::core::render

@@ -176,6 +176,11 @@ std::optional<Bounds> glyph_grid(const Object &o);
 // Throws Error naming `what` (make_odf_field's checks).
 void show_as_odfs(Object &o, const OdfOptions &opt, const std::string &what);
 
+// Whether volume object `o`'s slices show colour (Object::rgb, or what its
+// volume is: an RGB voxel type, or 8-bit values with a 4th dimension of 3
+// or 4).
+bool shows_rgb(const Object &o);
+
 // Turns object `o`, holding a peak volume (a 4th dimension of 3N values),
 // into peak glyphs (Object::peaks): lines coloured by direction, at the
 // object's slices (none set: the three through the volume's centre) unless
