@@ -854,18 +854,28 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
     return s;
 }
 
+namespace {
+// The slices of a glyph object: as set, or the three through the grid's
+// centre when none is; NaN the middle of its axis.
+void centre_slices(Object &o, const Bounds &box) {
+    if (!o.slice_x && !o.slice_y && !o.slice_z) o.slice_x = o.slice_y = o.slice_z = std::nan("");
+    std::optional<double> *at[3] = {&o.slice_x, &o.slice_y, &o.slice_z};
+    for (int a = 0; a < 3; ++a)
+        if (*at[a] && std::isnan(**at[a])) *at[a] = (box.min[a] + box.max[a]) / 2;
+}
+
+}  // namespace
+
 void show_as_peaks(Object &o, const PeakOptions &opt, const std::string &what) {
     if (!o.peaks && o.data.kind != HZ_DATA_VOLUME)
         throw Error(what + ": peaks are read from a volume, not " + std::string(kind_name(o.data.kind)));
     // (peaks already: drawn again with these options from the same voxels)
     auto field = std::make_shared<const PeakField>(make_peak_field(o.peaks ? o.peaks->volume : o.data.volume, opt, what));
     const std::string format = o.peaks ? o.data.format : o.data.format + " peaks";
-    if (!opt.whole && !o.slice_x && !o.slice_y && !o.slice_z) o.slice_x = o.slice_y = o.slice_z = std::nan("");
-    const Bounds box = peak_grid_box(*field);
-    std::optional<double> *at[3] = {&o.slice_x, &o.slice_y, &o.slice_z};
-    for (int a = 0; a < 3; ++a)
-        if (*at[a] && std::isnan(**at[a])) *at[a] = (box.min[a] + box.max[a]) / 2;
-    if (opt.whole) o.slice_x.reset(), o.slice_y.reset(), o.slice_z.reset();
+    if (opt.whole)
+        o.slice_x.reset(), o.slice_y.reset(), o.slice_z.reset();
+    else
+        centre_slices(o, peak_grid_box(*field));
     Dataset ds;
     ds.kind = HZ_DATA_STREAMLINES;
     ds.format = format;
@@ -882,15 +892,6 @@ void show_as_peaks(Object &o, const PeakOptions &opt, const std::string &what) {
 }
 
 namespace {
-// The slices of a glyph object: as set, or the three through the grid's
-// centre when none is; NaN the middle of its axis.
-void centre_slices(Object &o, const Bounds &box) {
-    if (!o.slice_x && !o.slice_y && !o.slice_z) o.slice_x = o.slice_y = o.slice_z = std::nan("");
-    std::optional<double> *at[3] = {&o.slice_x, &o.slice_y, &o.slice_z};
-    for (int a = 0; a < 3; ++a)
-        if (*at[a] && std::isnan(**at[a])) *at[a] = (box.min[a] + box.max[a]) / 2;
-}
-
 // Object `o` becomes a surface of glyphs: `mesh`, in `bounds`, coloured by
 // its per-vertex array `colours`.
 void become_glyph_mesh(Object &o, Mesh mesh, const Bounds &bounds, const std::string &format, const std::string &colours) {
