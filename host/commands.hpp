@@ -91,7 +91,52 @@ struct VolumeOptions {
     // tensor object.
     bool tensors = false;
     std::string tensor_order;
+    // --roi-images: every volume is a mask or a label volume (dipy_horizon's
+    // --roi_images), its regions' areas and outlines on its slices and their
+    // surfaces in 3D (Object::labels, show_as_labels); --lut FILE (their
+    // colours and names, FreeSurferColorLUT format), --label-fill F,
+    // --no-label-surfaces: LabelOptions for them and for a scene file's
+    // labels objects.
+    bool roi_images = false;
+    std::string lut;
+    std::optional<double> label_fill;
+    bool no_label_surfaces = false;
+    void apply_labels(core::render::Scene &s) const {
+        const bool options = !lut.empty() || label_fill || no_label_surfaces;
+        if (!roi_images && !options) return;
+        core::render::LabelTable table;
+        if (!lut.empty()) {
+            table = core::render::read_label_table(lut);
+            s.files.push_back(lut);
+        }
+        std::vector<core::render::Object> out;
+        bool any = false;
+        for (std::size_t i = 0; i < s.objects.size(); ++i) {
+            core::render::Object o = std::move(s.objects[i]);
+            const bool was = bool(o.labels);
+            if (!was && !(roi_images && o.kind == HZ_DATA_VOLUME && !o.peaks && !o.odfs && !o.tensors)) {
+                out.push_back(std::move(o));
+                continue;
+            }
+            any = true;
+            core::render::LabelOptions lo = was ? o.labels->options : core::render::LabelOptions{};
+            if (!was) lo.surfaces = true;
+            if (!lut.empty()) lo.table = table;
+            if (label_fill) lo.fill = *label_fill;
+            if (no_label_surfaces) lo.surfaces = false;
+            // (a scene's labels object: its surfaces, the next object, made again)
+            if (was && i + 1 < s.objects.size() && s.objects[i + 1].name == o.name + " surfaces") ++i;
+            std::optional<core::render::Object> surfaces = core::render::show_as_labels(o, lo, o.name);
+            out.push_back(std::move(o));
+            if (surfaces) out.push_back(std::move(*surfaces));
+        }
+        s.objects = std::move(out);
+        if (!any)
+            throw core::Error(
+                "--lut, --label-fill, --no-label-surfaces: no label volume (give --roi-images, or a scene file's labels object)");
+    }
     void apply(core::render::Scene &s) const {
+        apply_labels(s);
         for (auto &o : s.objects) {
             if (!o.tensors && !(tensors && o.kind == HZ_DATA_VOLUME)) continue;
             if (o.tensors && tensor_order.empty()) continue;

@@ -127,6 +127,14 @@ void add_volume_options(CLI::App *cmd, VolumeOptions &v) {
         ->check(CLI::Range(0, 5));
     cmd->add_option("--odf-scale", v.odf_scale, "ODF glyphs: the largest spans this many voxels (default 1)")
         ->check(CLI::Range(1e-3, 100.0));
+    cmd->add_flag("--roi-images", v.roi_images,
+                  "every volume is a mask or a label volume (dipy_horizon's --roi_images): each region's area and outline on the slices, "
+                  "its surface in 3D (a scene file's \"type\": \"labels\"); --roi selects streamlines instead");
+    cmd->add_option("--lut", v.lut, "label volumes: their colours and names, a FreeSurferColorLUT.txt-format file (INDEX NAME R G B A)");
+    cmd->add_option("--label-fill", v.label_fill,
+                    "label volumes: the opacity of a region's area on the slices (default 0.4; 0: outlines only)")
+        ->check(CLI::Range(0.0, 1.0));
+    cmd->add_flag("--no-label-surfaces", v.no_label_surfaces, "label volumes: on slices only, no surfaces in 3D");
     cmd->add_flag("--tensors", v.tensors,
                   "volumes of 6 values a voxel (diffusion tensors) drawn as ellipsoids coloured by FA and direction on the three "
                   "slices through the centre (a scene file's \"type\": \"tensors\")");

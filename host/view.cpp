@@ -1750,8 +1750,12 @@ private:
         const auto vv = host::voxel_at(r.scene(), *p);
         if (!vv) return {};
         char value[128], line[640];
+        const auto &labels = r.scene().objects[vv->object].labels;
         if (vv->colour.size() == 3)  // (a colour volume: its three values)
             std::snprintf(value, sizeof value, "(%.6g, %.6g, %.6g)", vv->colour[0], vv->colour[1], vv->colour[2]);
+        else if (labels)  // (a label volume: the label and its name)
+            std::snprintf(value, sizeof value, "%.0f %s", vv->value,
+                          core::render::label_name(labels->options.table, std::int64_t(vv->value)).c_str());
         else
             std::snprintf(value, sizeof value, "%.6g", vv->value);
         std::snprintf(line, sizeof line, "%s: voxel (%lld, %lld, %lld) = %s at (%.1f, %.1f, %.1f) mm",
@@ -1791,7 +1795,7 @@ private:
             if (ob.peaks || ob.odfs || ob.tensors) return;  // (glyphs: no window, no value under the cursor)
             float win[2] = {float(ext->window[0]), float(ext->window[1])};
             const float span = std::max(win[1] - win[0], 1e-6f);
-            if (ImGui::DragFloatRange2("window", &win[0], &win[1], span / 200, 0, 0, "%.4g", "%.4g") && win[1] > win[0])
+            if (!ob.labels && ImGui::DragFloatRange2("window", &win[0], &win[1], span / 200, 0, 0, "%.4g", "%.4g") && win[1] > win[0])
                 r.set_window(i, win[0], win[1]);
             if (!ob.transfer && !ImGui::GetIO().WantCaptureMouse) under_cursor = value_under(app.last_x, app.last_y);
             ImGui::TextWrapped("%s", under_cursor.empty() ? "(point at a slice: its voxel and value)" : under_cursor.c_str());

@@ -781,12 +781,43 @@ uniform vec2 u_window;
 uniform float u_opacity;
 uniform float u_clip_below;
 uniform int u_rgb;  // a colour volume: each channel through the window is the display value
+// A label volume (labels.hpp's label_texture: colour, and the label as
+// alpha, 0 where none is shown): each region's area at u_fill, its border
+// opaque, about u_outline_px pixels wide on the slice's plane.
+uniform int u_labels;
+uniform float u_fill;
+uniform float u_outline_px;
+uniform vec3 u_dims;
 out vec4 o;
 void main() {
     vec3 tc = (u_ras_to_tex * vec4(v_pos, 1.0)).xyz;
+    // (derivatives before any discard: voxel coordinates, voxel i spanning [i, i + 1))
+    vec3 vox = tc * u_dims;
+    vec3 across = abs(cross(dFdx(vox), dFdy(vox)));  // the slice's normal, in voxels
+    vec3 per_px = fwidth(vox);                       // voxels a pixel
     if (any(lessThan(tc, vec3(0.0))) || any(greaterThan(tc, vec3(1.0)))) discard;
     vec3 c;
-    if (u_rgb != 0) {
+    float alpha = 1.0;
+    if (u_labels != 0) {
+        ivec3 dims = ivec3(u_dims);
+        ivec3 cell = clamp(ivec3(floor(vox)), ivec3(0), dims - 1);
+        vec4 here = texelFetch(u_volume, cell, 0);
+        if (here.a == 0.0) discard;
+        int normal = across.x >= across.y && across.x >= across.z ? 0 : (across.y >= across.z ? 1 : 2);
+        bool border = false;
+        vec3 f = vox - vec3(cell);
+        for (int b = 0; b < 3; ++b) {
+            if (b == normal || u_outline_px <= 0.0) continue;
+            float w = per_px[b] * u_outline_px;
+            ivec3 e = ivec3(0);
+            e[b] = 1;
+            if (f[b] < w) border = border || cell[b] == 0 || texelFetch(u_volume, cell - e, 0).a != here.a;
+            if (1.0 - f[b] < w) border = border || cell[b] == dims[b] - 1 || texelFetch(u_volume, cell + e, 0).a != here.a;
+        }
+        alpha = border ? 1.0 : u_fill;
+        if (alpha <= 0.0) discard;
+        c = here.rgb;
+    } else if (u_rgb != 0) {
         c = clamp((texture(u_volume, tc).rgb - u_window.x) / max(u_window.y - u_window.x, 1e-30), 0.0, 1.0);
     } else {
         float v = texture(u_volume, tc).r;
@@ -803,7 +834,7 @@ void main() {
     c = mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(vec3(0.04045), c));
     c = hz_display_inverse(c);
 #endif
-    o = vec4(c, u_opacity);
+    o = vec4(c, alpha * u_opacity);
 }
 )glsl";
 

@@ -52,6 +52,9 @@ struct GpuObject {
     Geom geom = Geom::Mesh;
     bool slices = false;
     bool rgb = false;  // slices in colour (Object::rgb): volume_tex is RGB, each channel through the window
+    // slices of a label volume (Object::labels): volume_tex is RGBA, the
+    // label's colour and the label (label_texture), read without filtering
+    bool labels = false;
     GLuint vao = 0, vbo = 0, ebo = 0;
     std::vector<GLint> firsts;
     std::vector<GLsizei> counts;

@@ -183,21 +183,25 @@ void upload_slices(GpuObject &g, const Object &o) {
     const std::uint64_t X = v.dims[0], Y = v.dims[1], Z = v.dims[2];
     if (X > std::uint64_t(max3d) || Y > std::uint64_t(max3d) || Z > std::uint64_t(max3d))
         throw Error(o.name + ": volume larger than the GL 3D texture limit " + std::to_string(max3d));
-    g.rgb = !o.transfer && shows_rgb(o);
+    g.labels = o.labels && !o.transfer;
+    g.rgb = !o.transfer && !g.labels && shows_rgb(o);
     if (g.rgb && o.volume_index != 0) throw Error(o.name + ": a colour volume has no series to index (volume_index 0)");
-    const std::vector<float> f = g.rgb ? rgb_values(o) : volume_values(o);
+    const std::vector<float> f = g.labels ? label_texture(*o.labels) : g.rgb ? rgb_values(o) : volume_values(o);
     glGenTextures(1, &g.volume_tex);
     glBindTexture(GL_TEXTURE_3D, g.volume_tex);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-    glTexImage3D(GL_TEXTURE_3D, 0, g.rgb ? GL_RGB32F : GL_R32F, GLsizei(X), GLsizei(Y), GLsizei(Z), 0, g.rgb ? GL_RGB : GL_RED, GL_FLOAT,
-                 f.data());
-    glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-    glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    const GLenum internal = g.labels ? GL_RGBA32F : g.rgb ? GL_RGB32F : GL_R32F, format = g.labels ? GL_RGBA : g.rgb ? GL_RGB : GL_RED;
+    glTexImage3D(GL_TEXTURE_3D, 0, GLint(internal), GLsizei(X), GLsizei(Y), GLsizei(Z), 0, format, GL_FLOAT, f.data());
+    // (labels: a voxel's own, never a blend of two labels)
+    glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MIN_FILTER, g.labels ? GL_NEAREST : GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, g.labels ? GL_NEAREST : GL_LINEAR);
     for (GLenum w : {GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, GL_TEXTURE_WRAP_R}) glTexParameteri(GL_TEXTURE_3D, w, GL_CLAMP_TO_EDGE);
     // Window: given, else the 1st..99th percentile of the finite values
     // (colour: 0 to 255 for 8-bit values, else 0 to 1).
     if (o.window)
         g.window = *o.window;
+    else if (g.labels)
+        g.window = {0, 1};
     else if (g.rgb) {
         const hz_dtype t = o.data.volume.dtype;
         g.window =
@@ -225,7 +229,7 @@ void upload_slices(GpuObject &g, const Object &o) {
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
     }
-    if (!o.transfer && !g.rgb) g.colour_scale = ColourScale{o.name, "", o.slice_colormap, g.window};
+    if (!o.transfer && !g.rgb && !g.labels) g.colour_scale = ColourScale{o.name, "", o.slice_colormap, g.window};
     // Colormap texture (sRGB table).
     std::vector<std::uint8_t> lut(256 * 4);
     for (int i = 0; i < 256; ++i) {

@@ -778,10 +778,30 @@ struct Renderer::Impl {
             glUniform1f(slice->loc("u_opacity"), float(o.opacity));
             glUniform1f(slice->loc("u_clip_below"), o.clip_below ? float(*o.clip_below) : -INFINITY);
             glUniform1i(slice->loc("u_rgb"), g.rgb ? 1 : 0);
+            glUniform1i(slice->loc("u_labels"), g.labels ? 1 : 0);
+            if (g.labels) {
+                const LabelOptions &lo = o.labels->options;
+                glUniform1f(slice->loc("u_fill"), float(lo.fill));
+                glUniform1f(slice->loc("u_outline_px"), lo.outline ? 2.0f : 0.0f);
+                glUniform3f(slice->loc("u_dims"), float(o.labels->dims[0]), float(o.labels->dims[1]), float(o.labels->dims[2]));
+            }
             bind_sampler(*slice, "u_volume", 4, GL_TEXTURE_3D, g.volume_tex);
             bind_sampler(*slice, "u_colormap", 5, GL_TEXTURE_2D, g.colormap_tex);
             glBindVertexArray(g.vao);
+            // Labels: blended over what is drawn (their areas are
+            // translucent), in front of slices in the same planes.
+            const GLboolean blending = glIsEnabled(GL_BLEND);
+            if (g.labels) {
+                glEnable(GL_BLEND);
+                glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+                glEnable(GL_POLYGON_OFFSET_FILL);
+                glPolygonOffset(-1.0f, -4.0f);
+            }
             glDrawArrays(GL_TRIANGLES, 0, g.slice_vertices);
+            if (g.labels) {
+                glDisable(GL_POLYGON_OFFSET_FILL);
+                if (!blending) glDisable(GL_BLEND);
+            }
             stats.triangles_drawn += g.triangles;
             return;
         }
@@ -1305,7 +1325,7 @@ void main() {
         bool later = false;
         for (auto &g : objects) {
             const Object &o = scene.objects[g.index];
-            if (!drawn(g.index)) continue;
+            if (!drawn(g.index) || g.labels) continue;
             if (composited(g)) {
                 later = true;
                 continue;
@@ -1315,6 +1335,10 @@ void main() {
             if (part == LinesPart::Proxy && volume_proxy(g)) draw_volume_proxy(g, o, m, v, target, w, h);
             draw_object(g, o, m, v, false, w, h, part);
         }
+        // Label slices after the rest of the opaque picture, which they
+        // blend over (translucent ones with the translucent slices).
+        for (auto &g : objects)
+            if (g.labels && drawn(g.index) && !composited(g)) draw_object(g, scene.objects[g.index], m, v, false, w, h);
         if (later) {
             behind.ensure(w, h, GL_RGBA16F, GL_RGBA, GL_FLOAT);
             glBindFramebuffer(GL_READ_FRAMEBUFFER, msaa.fbo);
@@ -2028,6 +2052,7 @@ void Renderer::set_slices(std::size_t object, std::optional<double> x, std::opti
 void Renderer::set_window(std::size_t object, double lo, double hi) {
     Impl &I = *impl_;
     GpuObject &g = volume_object(I.objects, I.scene, object, "window");
+    if (g.labels) throw Error("window: " + I.scene.objects[object].name + " is a label volume: its colours are its labels'");
     if (!(std::isfinite(lo) && std::isfinite(hi) && hi > lo))
         throw Error("window: " + I.scene.objects[object].name + ": [" + std::to_string(lo) + ", " + std::to_string(hi) +
                     "] is not a range (finite, high > low)");
@@ -2041,8 +2066,9 @@ void Renderer::set_volume_index(std::size_t object, std::uint64_t index) {
     Impl &I = *impl_;
     GpuObject &g = volume_object(I.objects, I.scene, object, "volume");
     Object &o = I.scene.objects[object];
-    if (g.rgb && index != 0) throw Error("volume: " + o.name + " is a colour volume: it has no series to index");
-    if (g.rgb) return;
+    if ((g.rgb || g.labels) && index != 0)
+        throw Error("volume: " + o.name + " is a " + (g.labels ? "label" : "colour") + " volume: it has no series to index");
+    if (g.rgb || g.labels) return;
     const std::uint64_t before = o.volume_index;
     o.volume_index = index;
     std::vector<float> f;

@@ -185,7 +185,7 @@ Dataset object_data(const Registry &reg, const json &o, const std::string &type,
         return ds;
     }
     const std::string b =
-        str(o["builtin"], what, where + ".builtin", {"phantom", "cortex", "head", "sphere", "brain_bundles", "brain", "t1"});
+        str(o["builtin"], what, where + ".builtin", {"phantom", "cortex", "head", "sphere", "brain_bundles", "brain", "t1", "aseg"});
     if (b == "brain_bundles") {
         // (the named bundles of the demo; "phantom": {"streamlines": N, "seed": S})
         if (type != "streamlines") fail(what, where, "builtin 'brain_bundles' is a tractogram (type 'streamlines')");
@@ -232,6 +232,11 @@ Dataset object_data(const Registry &reg, const json &o, const std::string &type,
         ds.kind = HZ_DATA_MESH;
         ds.format = "builtin brain";
         ds.mesh = make_brain_surface();
+    } else if (b == "aseg") {
+        if (type != "labels" && type != "slices") fail(what, where, "builtin 'aseg' is a label volume (type 'labels' or 'slices')");
+        ds.kind = HZ_DATA_VOLUME;
+        ds.format = "builtin aseg";
+        ds.volume = make_aseg_volume();
     } else {
         if (type != "slices" && type != "volume") fail(what, where, "builtin '" + b + "' is a volume (type 'slices' or 'volume')");
         ds.kind = HZ_DATA_VOLUME;
@@ -555,8 +560,8 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         const json &o = root["objects"][i];
         const std::string where = "objects[" + std::to_string(i) + "]";
         if (!o.is_object() || !o.contains("type")) fail(what, where, "expected an object with a 'type'");
-        const std::string type =
-            str(o["type"], what, where + ".type", {"streamlines", "surface", "slices", "volume", "peaks", "odfs", "tensors", "connectome"});
+        const std::string type = str(o["type"], what, where + ".type",
+                                     {"streamlines", "surface", "slices", "volume", "peaks", "odfs", "tensors", "connectome", "labels"});
         if (type == "connectome") {  // (two objects: its nodes and its edges)
             for (Object &part : connectome_objects(reg, o, base, what, where, s.files)) s.objects.push_back(std::move(part));
             continue;
@@ -615,6 +620,11 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             check_keys(o,
                        {"type", "name", "file", "data", "x", "y", "z", "basis", "legacy", "sphere", "scale", "normalise", "color",
                         "material", "visible", "opacity"},
+                       what, where);
+        } else if (type == "labels") {
+            check_keys(o,
+                       {"type", "name", "file", "builtin", "data", "x", "y", "z", "lut", "labels", "fill", "outline", "surfaces",
+                        "smoothing", "visible", "opacity"},
                        what, where);
         } else {
             check_keys(o,
@@ -773,6 +783,49 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             }
             if (o.contains("color")) ob.coloring = parse_coloring(o["color"], what, where + ".color");
         }
+        std::optional<Object> label_surfaces;
+        if (type == "labels") {
+            LabelOptions lo;
+            if (ob.data.format == "builtin aseg") lo.table = aseg_table();
+            if (o.contains("lut")) {
+                fs::path p = str(o["lut"], what, where + ".lut");
+                if (p.is_relative()) p = base / p;
+                s.files.push_back(p.string());
+                try {
+                    lo.table = read_label_table(p);
+                } catch (const Error &e) {
+                    fail(what, where + ".lut", e.what());
+                }
+            }
+            if (o.contains("labels")) {
+                if (!o["labels"].is_array() || o["labels"].empty())
+                    fail(what, where + ".labels", "expected an array of labels (whole numbers)");
+                for (const auto &l : o["labels"]) {
+                    const double v = num(l, what, where + ".labels");
+                    if (v != std::floor(v) || std::abs(v) >= 16777216.0) fail(what, where + ".labels", "expected whole numbers below 2^24");
+                    lo.only.push_back(std::int64_t(v));
+                }
+            }
+            if (o.contains("fill")) lo.fill = num_in(o["fill"], what, where + ".fill", 0.0, 1.0);
+            for (const char *key : {"outline", "surfaces"})
+                if (o.contains(key)) {
+                    if (!o[key].is_boolean()) fail(what, where + "." + key, "expected true or false");
+                    (std::string(key) == "outline" ? lo.outline : lo.surfaces) = o[key].get<bool>();
+                }
+            if (o.contains("smoothing")) {
+                const double v = num_in(o["smoothing"], what, where + ".smoothing", 0.0, 100.0);
+                if (v != std::floor(v)) fail(what, where + ".smoothing", "expected a whole number of iterations");
+                lo.smoothing = int(v);
+            }
+            try {
+                label_surfaces = show_as_labels(ob, lo, what + ": " + where);
+            } catch (const Error &e) {
+                fail(what, where, e.what());
+            }
+            // (x, y and z all null: no slice, the surfaces alone)
+            if (o.contains("x") && o.contains("y") && o.contains("z") && o["x"].is_null() && o["y"].is_null() && o["z"].is_null())
+                ob.slice_x.reset(), ob.slice_y.reset(), ob.slice_z.reset();
+        }
         if (want == HZ_DATA_MESH && is_overlay(ob.data))
             fail(what, where, "the file holds per-vertex values only; give the surface in 'file' and this file in 'overlays'");
         if (want == HZ_DATA_MESH && !ob.data.metadata.empty()) apply_file_material(ob, o.contains("material"), o.contains("color"));
@@ -850,6 +903,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (ob.coloring.mode == "cluster" && ob.kind != HZ_DATA_STREAMLINES)
             fail(what, where + ".color", "mode 'cluster' is for streamlines");
         s.objects.push_back(std::move(ob));
+        if (label_surfaces) s.objects.push_back(std::move(*label_surfaces));
     }
     return s;
 }
@@ -865,6 +919,33 @@ void centre_slices(Object &o, const Bounds &box) {
 }
 
 }  // namespace
+
+std::optional<Object> show_as_labels(Object &o, const LabelOptions &opt, const std::string &what) {
+    if (o.data.kind != HZ_DATA_VOLUME) throw Error(what + ": labels are read from a volume, not " + std::string(kind_name(o.data.kind)));
+    if (o.volume_index != 0) throw Error(what + ": a label volume is 3D: it has no series to index");
+    auto field = std::make_shared<const LabelField>(make_label_field(o.data.volume, opt, what));
+    if (!o.slice_x && !o.slice_y && !o.slice_z) o.slice_x = o.slice_y = o.slice_z = std::nan("");
+    o.kind = HZ_DATA_VOLUME;
+    o.labels = field;
+    o.transfer.reset();
+    o.rgb = false;
+    if (!opt.surfaces) return std::nullopt;
+    Object surf;
+    surf.name = o.name + " surfaces";
+    surf.kind = HZ_DATA_MESH;
+    surf.visible = o.visible;
+    surf.opacity = o.opacity;
+    surf.data.kind = HZ_DATA_MESH;
+    surf.data.format = o.data.format + " label surfaces";
+    surf.data.loader_id = o.data.loader_id;
+    surf.data.source_space = HZ_SPACE_RASMM;
+    surf.data.mesh = label_surfaces(*field);
+    if (surf.data.mesh.nb_faces() == 0) throw Error(what + ": no label to draw as a surface");
+    surf.coloring.mode = "rgb";
+    surf.coloring.array = "rgb";
+    surf.material.params["roughness"] = {0.5};
+    return surf;
+}
 
 void show_as_peaks(Object &o, const PeakOptions &opt, const std::string &what) {
     if (!o.peaks && o.data.kind != HZ_DATA_VOLUME)
@@ -1236,6 +1317,58 @@ Volume make_t1_volume(double voxel_mm) {
                 }
     });
     return vol;
+}
+
+Volume make_aseg_volume(double voxel_mm) {
+    voxel_mm = std::clamp(voxel_mm, 0.5, 10.0);
+    Volume vol;  // (make_t1_volume's grid)
+    const double lo[3] = {-70, -110, -75}, hi[3] = {70, 100, 92};
+    std::uint64_t d[3];
+    for (int i = 0; i < 3; ++i) d[i] = static_cast<std::uint64_t>(std::ceil((hi[i] - lo[i]) / voxel_mm)) + 1;
+    vol.dims = {d[0], d[1], d[2]};
+    vol.dtype = HZ_DTYPE_I32;
+    vol.voxels = Buffer<std::byte>(d[0] * d[1] * d[2] * 4);
+    vol.voxel_to_ras = {voxel_mm, 0, 0, lo[0], 0, voxel_mm, 0, lo[1], 0, 0, voxel_mm, lo[2], 0, 0, 0, 1};
+    auto *out = reinterpret_cast<std::int32_t *>(vol.voxels.data());
+    // make_t1_volume's tissues where they are more than half present, with
+    // FreeSurfer's aseg numbers (left, right).
+    parallel_ranges(d[2], 1, [&](std::uint64_t k0, std::uint64_t k1) {
+        for (std::uint64_t k = k0; k < k1; ++k)
+            for (std::uint64_t j = 0; j < d[1]; ++j)
+                for (std::uint64_t i = 0; i < d[0]; ++i) {
+                    const double x = lo[0] + voxel_mm * i, y = lo[1] + voxel_mm * j, z = lo[2] + voxel_mm * k;
+                    const bool left = x < 0;
+                    std::int32_t label = 0;
+                    const double in_mm = brain_depth_mm(x, y, z);
+                    if (in_mm > 0) {
+                        label = in_mm + 1.2 * gradient_noise(x / 6, y / 6, z / 6) > 2.95 ? (left ? 2 : 41) : (left ? 3 : 42);
+                        for (const double side : {-1.0, 1.0}) {
+                            const double tx = (x - side * 12) / 9, ty = (y + 12) / 14, tz = (z - 6) / 9;
+                            if (std::sqrt(tx * tx + ty * ty + tz * tz) < 0.95) label = side < 0 ? 10 : 49;
+                            const double vx = (x - side * 9) / 6, vy = (y + 2) / 28, vz = (z - 16) / 8;
+                            if (std::sqrt(vx * vx + vy * vy + vz * vz) < 0.95) label = side < 0 ? 4 : 43;
+                        }
+                    }
+                    const double bx = x / 11, by = (y + 24 + 0.12 * z) / 12;
+                    if (z < 0 && z > -68 && std::sqrt(bx * bx + by * by) < 0.975 && label == 0) label = 16;
+                    const double cx = x / 46, cy = (y + 62) / 26, cz = (z + 34) / 18;
+                    if (std::sqrt(cx * cx + cy * cy + cz * cz) < 0.975 && label == 0) label = left ? 8 : 47;
+                    out[(k * d[1] + j) * d[0] + i] = label;
+                }
+    });
+    return vol;
+}
+
+LabelTable aseg_table() {
+    LabelTable t;
+    const auto add = [&](std::int64_t l, const char *name, std::uint8_t r, std::uint8_t g, std::uint8_t b) { t[l] = {name, {r, g, b}}; };
+    add(2, "Left-Cerebral-White-Matter", 236, 232, 218), add(41, "Right-Cerebral-White-Matter", 236, 232, 218);
+    add(3, "Left-Cerebral-Cortex", 214, 126, 98), add(42, "Right-Cerebral-Cortex", 214, 126, 98);
+    add(4, "Left-Lateral-Ventricle", 118, 84, 204), add(43, "Right-Lateral-Ventricle", 118, 84, 204);
+    add(10, "Left-Thalamus", 34, 162, 140), add(49, "Right-Thalamus", 34, 162, 140);
+    add(8, "Left-Cerebellum-Cortex", 226, 172, 58), add(47, "Right-Cerebellum-Cortex", 226, 172, 58);
+    add(16, "Brain-Stem", 112, 158, 222);
+    return t;
 }
 
 Volume make_head_volume(double voxel_mm) {

@@ -7,6 +7,7 @@
 #include <hz/core/data.hpp>
 #include <hz/core/plugin_host.hpp>
 #include <hz/core/render/connectome.hpp>
+#include <hz/core/render/labels.hpp>
 #include <hz/core/render/odfs.hpp>
 #include <hz/core/render/peaks.hpp>
 #include <hz/core/render/tensors.hpp>
@@ -147,7 +148,19 @@ struct Object {
     // Tensor glyphs (a scene's "type": "tensors", tensors.hpp): a surface
     // object whose mesh is tensor_glyphs() of this field at the slices.
     std::shared_ptr<const TensorField> tensors;
+    // A label volume (a scene's "type": "labels", labels.hpp): slices show
+    // each region's area and outline in its colour instead of values
+    // through a window and colormap.
+    std::shared_ptr<const LabelField> labels;
 };
+
+// Turns volume object `o` into a label volume (Object::labels) drawn on its
+// slices (none set: the three through the centre) and, when
+// `opt.surfaces`, returns the regions' boundary surfaces as an object of
+// their own ("NAME surfaces", per-vertex colours of the labels; the caller
+// adds it to the scene). Throws Error naming `what` (make_label_field's
+// checks; no shown label with a surface).
+std::optional<Object> show_as_labels(Object &o, const LabelOptions &opt, const std::string &what);
 
 // Turns object `o`, holding a volume of diffusion tensors (6 values a
 // voxel), into tensor glyphs (Object::tensors) on its slices (none set: the
@@ -345,6 +358,12 @@ Volume make_head_volume(double voxel_mm = 2.0);           // a T1-like synthetic
 // frame of make_brain_phantom's bundles.
 Mesh make_brain_surface(int subdivisions = 6);
 Volume make_t1_volume(double voxel_mm = 1.0);
+// Its segmentation: a label volume (int32) of the T1's tissues where each is
+// more than half present, numbered as FreeSurfer's aseg (cerebral white
+// matter 2/41, cortex 3/42, lateral ventricles 4/43, thalami 10/49,
+// cerebellum 8/47, brainstem 16); aseg_table() names and colours them.
+Volume make_aseg_volume(double voxel_mm = 1.0);
+LabelTable aseg_table();
 
 // A clustering tree, copied out of the plugin (hz_cluster_tree_view).
 struct ClusterTree {
