@@ -2,6 +2,8 @@
 #include <hz/core/io.hpp>
 #include <hz/core/render/labels.hpp>
 
+#include "label_table.hpp"  // (plugins/loaders/common: the generated colours)
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -76,22 +78,9 @@ LabelTable read_label_table(const std::filesystem::path &path) {
 
 std::array<std::uint8_t, 3> label_colour(const LabelTable &table, std::int64_t label) {
     if (auto it = table.find(label); it != table.end()) return it->second.rgb;
-    // Hues a golden ratio apart, from orange at label 1; saturated, bright.
-    double h = std::fmod(0.07 + double(label - 1) * 0.6180339887498949, 1.0);
-    if (h < 0) h += 1.0;
-    const double s = 0.7, v = 0.95, c = v * s;
-    const double hp = h * 6.0, x = c * (1.0 - std::abs(std::fmod(hp, 2.0) - 1.0)), m = v - c;
-    double r = 0, g = 0, b = 0;
-    switch (int(hp)) {
-    case 0: r = c, g = x; break;
-    case 1: r = x, g = c; break;
-    case 2: g = c, b = x; break;
-    case 3: g = x, b = c; break;
-    case 4: r = x, b = c; break;
-    default: r = c, b = x; break;
-    }
-    auto q = [&](double u) { return std::uint8_t(std::lround(255.0 * (u + m))); };
-    return {q(r), q(g), q(b)};
+    // (the colour the loaders give a GIFTI or FreeSurfer label without one)
+    const auto c = hzlabel::generated_rgb(std::int32_t(label));
+    return {std::uint8_t(c[0]), std::uint8_t(c[1]), std::uint8_t(c[2])};
 }
 
 std::string label_name(const LabelTable &table, std::int64_t label) {

@@ -36,7 +36,8 @@ LabelTable read_label_table(const std::filesystem::path &path);
 LabelTable parse_label_table(std::string_view text, const std::string &what);
 
 // The colour of `label`: the table's, else one of its own (hues spread by
-// the golden ratio, the same for a label in every run and every file).
+// the golden ratio, the same for a label in every run and every file, and
+// the colour the GIFTI and FreeSurfer loaders give a label without one).
 std::array<std::uint8_t, 3> label_colour(const LabelTable &table, std::int64_t label);
 // Its name: the table's, else the number.
 std::string label_name(const LabelTable &table, std::int64_t label);
