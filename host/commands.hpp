@@ -4,6 +4,7 @@
 #include <hz/core/plugin_host.hpp>
 #include <hz/core/render/context.hpp>
 #include <hz/core/render/renderer.hpp>
+#include <hz/core/render/timeline.hpp>
 
 #include <cstdint>
 #include <functional>
@@ -270,6 +271,22 @@ struct LodOptions {
 // Seconds since the program started (the window's --stats, progress lines).
 double seconds_since_launch();
 
+// A scene's timeline played on renderer `r` (which holds the scene, seen
+// from `start` at time 0): at(t) sets the objects' visibility, material
+// parameters and slices of time t where they differ from what r draws, and
+// returns the camera's view (core/render/timeline.hpp).
+class TimelinePlayer {
+public:
+    TimelinePlayer(core::render::Renderer &r, const core::render::View &start, double aspect);
+    core::render::View at(double t);
+    double duration() const;
+
+private:
+    core::render::Renderer &r_;
+    core::render::TimelineState start_;
+    std::vector<std::optional<core::render::View>> keys_;
+};
+
 struct RenderOptions {
     std::vector<std::string> inputs;  // data files, or one scene file (.json)
     std::string scene;                // the scene file, when one was given (named in errors)
@@ -282,11 +299,12 @@ struct RenderOptions {
     AnnotationOptions annotations;
     VolumeOptions volumes;
     StyleOptions style;
-    bool preview = false;  // draw the level-of-detail proxy only (the window's first picture)
-    bool force = false;    // replace an existing output
-    int frames = 1;        // frames to draw (timing: the median of frames 2..N)
-    bool legend = false;   // list the clusters shown (colour, name, size) over the picture
-    std::string slab;      // AXIS=CENTRE,HALF or AXIS=CENTRE,points (replaces a scene file's slab)
+    bool preview = false;        // draw the level-of-detail proxy only (the window's first picture)
+    bool force = false;          // replace an existing output
+    int frames = 1;              // frames to draw (timing: the median of frames 2..N)
+    bool legend = false;         // list the clusters shown (colour, name, size) over the picture
+    std::string slab;            // AXIS=CENTRE,HALF or AXIS=CENTRE,points (replaces a scene file's slab)
+    std::optional<double> time;  // --time T: the scene's timeline at T seconds (TimelinePlayer)
     bool json = false;
 };
 
@@ -297,9 +315,12 @@ struct MovieOptions {
     std::string view;
     std::string out = "horizon.mp4";
     std::string size = "1280x720";
-    double seconds = 10;
+    // The movie's length: given, else the scene's timeline's duration, else
+    // 10 s; the turn over the whole movie: given, else 360 degrees without a
+    // timeline and none with one (its own turntable).
+    std::optional<double> seconds;
     int fps = 30;
-    double degrees = 360;  // the turn over the whole movie
+    std::optional<double> degrees;
     LodOptions lod;
     PassOptions passes;
     AnnotationOptions annotations;

@@ -367,22 +367,27 @@ int main(int argc, char **argv) {
     render->add_option("--slab", ro.slab,
                        "crop the streamlines to a slab AXIS=CENTRE,HALF in mm (e.g. z=10,5), or show them as points where they cross the "
                        "plane: AXIS=CENTRE,points (e.g. z=10,points); replaces a scene file's slab");
+    render->add_option("--time", ro.time, "the scene file's timeline at this many seconds (its camera, visibility, materials, slices)");
     render->add_flag("--json", ro.json, "timings and counts as JSON");
     render->add_flag("-f,--force", ro.force, "replace an existing output image (never an input)");
 
     MovieOptions mo;
-    auto *movie = app.add_subcommand("movie", "a turntable movie of data files or a scene file, headless: .mp4, .webm or frames/%04d.png");
+    auto *movie = app.add_subcommand(
+        "movie", "a movie of data files or a scene file (a turntable, or the scene's timeline), headless: .mp4, .webm or frames/%04d.png");
     movie->add_option("inputs", mo.inputs, "data files or one scene file (JSON)")->required();
     movie->add_option("--view", mo.view, "the camera view it starts from (replaces a scene file's camera placement)")
         ->check(CLI::IsMember(named_views()));
     movie->add_option("-o,--out", mo.out, "the movie: .mp4 (H.264), .webm (VP9), or an image sequence with one %d (frames/%04d.png)")
         ->capture_default_str();
     movie->add_option("--size", mo.size, "WIDTHxHEIGHT (even, for a video)")->capture_default_str()->check(kSize);
-    movie->add_option("--seconds", mo.seconds, "the movie's length")->capture_default_str();
+    movie->add_option("--seconds", mo.seconds,
+                      "the movie's length (default: the scene's timeline's duration, else 10; a timeline holds its last state after it)");
     movie->add_option("--fps", mo.fps, "frames a second")->check(CLI::Range(1, 120))->capture_default_str();
-    movie->add_option("--degrees", mo.degrees, "the turn about the superior axis over the whole movie (360: once round)")
-        ->check(CLI::Range(-3600.0, 3600.0))
-        ->capture_default_str();
+    movie
+        ->add_option("--degrees", mo.degrees,
+                     "the turn about the superior axis over the whole movie (default 360, once round; with a scene's timeline 0: its own "
+                     "turntable)")
+        ->check(CLI::Range(-3600.0, 3600.0));
     add_lod_options(movie, mo.lod);
     add_pass_options(movie, mo.passes);
     add_annotation_options(movie, mo.annotations);

@@ -156,16 +156,6 @@ private:
 
 // The camera of frame k: the scene's view turned by `degrees` * k / n about
 // the superior axis (RAS z) through its target.
-core::render::View turned(const core::render::View &v, double deg) {
-    const glm::dmat4 R = glm::rotate(glm::dmat4(1.0), glm::radians(deg), glm::dvec3(0, 0, 1));
-    const glm::dvec3 t(v.target[0], v.target[1], v.target[2]), e(v.eye[0], v.eye[1], v.eye[2]), u(v.up[0], v.up[1], v.up[2]);
-    const glm::dvec3 e2 = t + glm::dvec3(R * glm::dvec4(e - t, 0.0)), u2 = glm::dvec3(R * glm::dvec4(u, 0.0));
-    core::render::View out = v;
-    for (int i = 0; i < 3; ++i) out.eye[i] = e2[i], out.up[i] = u2[i];
-    return out;
-}
-
-// The path of frame k of an image sequence ("frames/%04d.png").
 std::string frame_path(const std::string &pattern, int k) {
     char buf[4096];
     std::snprintf(buf, sizeof buf, pattern.c_str(), k);
@@ -173,6 +163,42 @@ std::string frame_path(const std::string &pattern, int k) {
 }
 
 }  // namespace
+
+TimelinePlayer::TimelinePlayer(core::render::Renderer &r, const core::render::View &start, double aspect) : r_(r) {
+    const core::render::Scene &s = r.scene();
+    if (!s.timeline) throw Error("the scene has no timeline");
+    start_ = core::render::timeline_start(s, start, [&](std::size_t i, int axis) {
+        const auto ext = r.volume_extent(i);
+        return ext ? (ext->box.min[axis] + ext->box.max[axis]) / 2 : 0.0;
+    });
+    keys_ = core::render::keyframe_views(s, *s.timeline, aspect);
+}
+
+double TimelinePlayer::duration() const { return r_.scene().timeline->duration; }
+
+core::render::View TimelinePlayer::at(double t) {
+    const core::render::TimelineState st = core::render::timeline_at(*r_.scene().timeline, start_, keys_, t);
+    for (std::size_t i = 0; i < st.objects.size(); ++i) {
+        const core::render::ObjectState &now = st.objects[i];
+        const core::render::Object &o = r_.scene().objects[i];
+        if (now.visible != o.visible) r_.set_visible(i, now.visible);
+        const std::optional<double> p[3] = {o.slice_x, o.slice_y, o.slice_z};
+        bool moved = false;
+        for (int a = 0; a < 3; ++a) {
+            const auto &q = now.slices[std::size_t(a)];
+            moved = moved || p[a].has_value() != q.has_value() || (p[a] && q && !(*p[a] == *q));
+        }
+        if (moved) r_.set_slices(i, now.slices[0], now.slices[1], now.slices[2]);
+        bool changed = false;
+        core::render::Material m = o.material;
+        for (const auto &[name, v] : now.params) {
+            auto it = m.params.find(name);
+            if (it == m.params.end() || it->second != v) m.params[name] = v, changed = true;
+        }
+        if (changed) r_.set_material(i, m);
+    }
+    return st.view;
+}
 
 int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
     const core::Registry reg = load_registry(g);
@@ -182,8 +208,11 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
     const bool sequence = o.out.find('%') != std::string::npos;
     const bool webm = ext == ".webm";
     // What is wrong with the command itself: before any file is read.
-    if (!(o.seconds > 0 && o.seconds <= 3600)) throw core::Error("--seconds: between 0 and 3600, not " + std::to_string(o.seconds));
-    const int n = int(std::lround(o.seconds * o.fps));
+    if (o.seconds && !(*o.seconds > 0 && *o.seconds <= 3600))
+        throw core::Error("--seconds: between 0 and 3600, not " + std::to_string(*o.seconds));
+    // (a timeline's duration is known once the scene is read: the frames'
+    // names are checked again then)
+    int n = int(std::lround(o.seconds.value_or(10) * o.fps));
     if (n < 1) throw core::Error("--seconds x --fps makes no frame");
     std::vector<std::string> outputs;
     if (sequence) {
@@ -216,14 +245,29 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
     o.annotations.apply(scene);
     o.style.apply(scene);
     o.volumes.apply(scene);
+    const bool timeline = scene.timeline.has_value();
+    if (timeline && !o.seconds) {
+        n = int(std::lround(scene.timeline->duration * o.fps));
+        if (n < 1) throw core::Error("the timeline's " + std::to_string(scene.timeline->duration) + " s at --fps makes no frame");
+        if (sequence) {
+            outputs.clear();
+            for (int k = 0; k < n; ++k) outputs.push_back(frame_path(o.out, k));
+            check_outputs(outputs, o.inputs, o.force);
+        }
+    }
     if (!scene.files.empty()) check_outputs(outputs, scene.files, o.force);
+    const double degrees = o.degrees.value_or(timeline ? 0.0 : 360.0);
+    bool animates_materials = false;
+    if (timeline)
+        for (const auto &k : scene.timeline->keyframes)
+            for (const auto &[i, ok] : k.objects) animates_materials = animates_materials || !ok.params.empty();
     core::render::Renderer r(reg);
     core::render::RenderSettings rs;
     rs.width = w, rs.height = h;
     o.lod.apply(rs);
     rs.shell_proxy = false;
     rs.shell_all_cores = true;
-    rs.bake_materials = true;
+    rs.bake_materials = !animates_materials;  // (a program a value: not for values that change every frame)
     const core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
     const std::string scene_name = is_scene_file(o.inputs) ? o.inputs[0] : std::string();
     try {
@@ -232,6 +276,8 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
         if (scene_name.empty()) throw;
         throw core::Error(scene_name + ": " + e.what());
     }
+    std::optional<TimelinePlayer> player;
+    if (timeline) player.emplace(r, view, double(w) / h);
     const double setup_ms = ms_since(t0);
 #ifdef HZ_HAVE_LIBAV
     std::unique_ptr<core::TemporaryFile> tmp;
@@ -248,7 +294,8 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
         const hz_task *task = progress.task();
         for (int k = 0; k < n; ++k) {
             const auto tf = Clock::now();
-            const core::render::View vk = turned(view, o.degrees * k / n);
+            const double t = double(k) / o.fps;
+            const core::render::View vk = core::render::turn_view(player ? player->at(t) : view, degrees * k / n);
             r.render(vk, w, h);
             core::render::Image im = r.read_image();
             if (r.scene().annotations.any())
@@ -281,7 +328,8 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
                                     {"fps", o.fps},
                                     {"width", w},
                                     {"height", h},
-                                    {"degrees", o.degrees},
+                                    {"degrees", degrees},
+                                    {"timeline", timeline},
                                     {"setup_ms", setup_ms},
                                     {"frame_ms_median", median},
                                     {"frame_ms_max", sorted.back()},
@@ -290,9 +338,10 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
                   << "\n";
     } else {
         std::printf(
-            "Wrote %s: %d frames of %dx%d at %d fps (%.1f s, a %.0f-degree turn) in %.1f s: %.0f ms a frame (median; slowest "
+            "Wrote %s: %d frames of %dx%d at %d fps (%.1f s, %s%.0f-degree turn) in %.1f s: %.0f ms a frame (median; slowest "
             "%.0f), %.1f s to load and set up\n",
-            o.out.c_str(), n, w, h, o.fps, double(n) / o.fps, o.degrees, ms_since(t0) / 1000, median, sorted.back(), setup_ms / 1000);
+            o.out.c_str(), n, w, h, o.fps, double(n) / o.fps, timeline ? "the scene's timeline and a " : "a ", degrees, ms_since(t0) / 1000,
+            median, sorted.back(), setup_ms / 1000);
     }
     return 0;
 }

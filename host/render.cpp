@@ -143,10 +143,18 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
         if (d.kind == HZ_DATA_MESH) return d.mesh.nb_faces() > 0;
         return true;
     });
-    const core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
+    core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
+    if (o.time) {
+        const std::string of = o.scene.empty() ? std::string("the scene") : o.scene;
+        if (!scene.timeline) throw core::Error("--time: " + of + " has no timeline");
+        if (!(*o.time >= 0 && *o.time <= scene.timeline->duration))
+            throw core::Error("--time " + std::to_string(*o.time) + ": " + of + "'s timeline lasts " +
+                              std::to_string(scene.timeline->duration) + " s");
+    }
     try {
-        if (!something) throw core::Error("nothing to draw: the scene's objects are empty or hidden");
+        if (!something && !o.time) throw core::Error("nothing to draw: the scene's objects are empty or hidden");
         r.set_scene(std::move(scene), view, rs);
+        if (o.time) view = TimelinePlayer(r, view, double(w) / h).at(*o.time);  // (the scene at that instant)
     } catch (const core::Error &e) {
         if (o.scene.empty()) throw;
         throw core::Error(o.scene + ": " + e.what());  // name the scene file

@@ -4,6 +4,7 @@
 #include <hz/core/params.hpp>
 #include <hz/core/phantom.hpp>
 #include <hz/core/render/connectome.hpp>
+#include <hz/core/render/renderer.hpp>
 #include <hz/core/render/scene.hpp>
 #include <hz/core/filter.hpp>
 
@@ -270,6 +271,21 @@ void apply_file_material(Object &ob, bool has_material, bool has_color) {
 
 namespace {
 
+// {"view", "position", "target", "up", "fov", "zoom"}, checked.
+Camera parse_camera(const json &c, const std::string &what, const std::string &where) {
+    Camera cam;
+    if (!c.is_object()) fail(what, where, "expected an object {\"view\": ..., \"zoom\": ...} or {\"position\", \"target\", \"up\"}");
+    check_keys(c, {"view", "position", "target", "up", "fov", "zoom"}, what, where);
+    if (c.contains("view"))
+        cam.view = str(c["view"], what, where + ".view", {"left", "right", "anterior", "posterior", "superior", "inferior"});
+    if (c.contains("position")) cam.position = vec<3>(c["position"], what, where + ".position");
+    if (c.contains("target")) cam.target = vec<3>(c["target"], what, where + ".target");
+    if (c.contains("up")) cam.up = vec<3>(c["up"], what, where + ".up");
+    if (c.contains("fov")) cam.fov_deg = num_in(c["fov"], what, where + ".fov", 1.0, 150.0);
+    if (c.contains("zoom")) cam.zoom = num_in(c["zoom"], what, where + ".zoom", 0.01, 100.0);
+    return cam;
+}
+
 // {"colormap": name, "opacity": [[fraction, opacity per mm], ...]} (either
 // key may be left out: the "mri" preset's), checked.
 TransferFunction transfer_from_json(const json &j, const std::string &what, const std::string &where) {
@@ -418,6 +434,97 @@ std::vector<Object> connectome_objects(const Registry &reg, const json &o, const
     return out;
 }
 
+// {"duration": s, "easing": "smooth"|"linear", "turntable": degrees,
+//  "keyframes": [{"time": s, "camera": {...}, "objects": {NAME: {"visible",
+//  "x", "y", "z", "params": {...}}}}]}, checked against the scene's objects
+// (by name) and their shaders' schemas. A parameter keyed that the object's
+// material does not set gets its schema default there (its value at 0).
+Timeline parse_timeline(const Registry &reg, const json &t, Scene &s, const std::string &what) {
+    Timeline tl;
+    if (!t.is_object()) fail(what, "timeline", "expected an object {\"keyframes\": [...], \"duration\": seconds}");
+    check_keys(t, {"keyframes", "duration", "easing", "turntable"}, what, "timeline");
+    if (t.contains("easing")) tl.smooth = str(t["easing"], what, "timeline.easing", {"smooth", "linear"}) == "smooth";
+    if (t.contains("turntable")) tl.turntable_deg = num_in(t["turntable"], what, "timeline.turntable", -36000.0, 36000.0);
+    if (!t.contains("keyframes") || !t["keyframes"].is_array() || t["keyframes"].empty())
+        fail(what, "timeline.keyframes", "expected a non-empty array of keyframes {\"time\": seconds, ...}");
+    std::map<std::string, std::size_t> by_name;
+    std::set<std::string> twice;
+    for (std::size_t i = 0; i < s.objects.size(); ++i)
+        if (!by_name.emplace(s.objects[i].name, i).second) twice.insert(s.objects[i].name);
+    for (std::size_t k = 0; k < t["keyframes"].size(); ++k) {
+        const json &j = t["keyframes"][k];
+        const std::string where = "timeline.keyframes[" + std::to_string(k) + "]";
+        if (!j.is_object() || !j.contains("time")) fail(what, where, "expected an object with a 'time' (seconds)");
+        check_keys(j, {"time", "camera", "objects"}, what, where);
+        Keyframe key;
+        key.time = num_in(j["time"], what, where + ".time", 0.0, 3600.0);
+        if (!tl.keyframes.empty() && !(key.time > tl.keyframes.back().time))
+            fail(what, where + ".time",
+                 std::to_string(key.time) + " s is not after the previous keyframe's " + std::to_string(tl.keyframes.back().time) +
+                     " s: keyframes go in time order");
+        if (j.contains("camera")) key.camera = parse_camera(j["camera"], what, where + ".camera");
+        if (j.contains("objects")) {
+            if (!j["objects"].is_object())
+                fail(what, where + ".objects", "expected an object {NAME: {\"visible\", \"x\", \"params\", ...}}");
+            for (const auto &[name, o] : j["objects"].items()) {
+                const std::string at = where + ".objects." + name;
+                const auto found = by_name.find(name);
+                if (found == by_name.end()) {
+                    std::string names;
+                    for (const auto &[n, i] : by_name) names += (names.empty() ? "" : ", ") + n;
+                    fail(what, at, "no object named '" + name + "' (objects: " + names + ")");
+                }
+                if (twice.count(name)) fail(what, at, "two objects are named '" + name + "': give them names of their own");
+                Object &ob = s.objects[found->second];
+                if (!o.is_object()) fail(what, at, "expected an object {\"visible\", \"x\", \"y\", \"z\", \"params\"}");
+                check_keys(o, {"visible", "x", "y", "z", "params"}, what, at);
+                ObjectKey ok;
+                if (o.contains("visible")) {
+                    if (!o["visible"].is_boolean()) fail(what, at + ".visible", "expected true or false");
+                    ok.visible = o["visible"].get<bool>();
+                }
+                for (int a = 0; a < 3; ++a) {
+                    const std::string ax(1, char('x' + a));
+                    if (!o.contains(ax)) continue;
+                    if ((ob.kind != HZ_DATA_VOLUME && !ob.peaks && !ob.odfs && !ob.tensors) || ob.transfer)
+                        fail(what, at + "." + ax, "'" + name + "' has no slices");
+                    ok.slices[std::size_t(a)] =
+                        o[ax].is_null() ? std::optional<double>() : std::optional<double>(num(o[ax], what, at + "." + ax));
+                }
+                if (o.contains("params")) {
+                    if (!o["params"].is_object()) fail(what, at + ".params", "expected an object of NAME: value");
+                    if (ob.kind == HZ_DATA_VOLUME) fail(what, at + ".params", "'" + name + "' is a volume: it has no material");
+                    const LoadedPlugin *plugin = find_shader(reg, ob.material.shader);
+                    if (!plugin) fail(what, at + ".params", "no shading plugin '" + ob.material.shader + "'");
+                    const std::vector<ParamSpec> schema = schema_of(*plugin);
+                    for (const auto &[pn, v] : o["params"].items()) {
+                        try {
+                            const ParamSpec &spec = find_param(schema, plugin->info.id, pn);
+                            if (spec.type == HZ_PARAM_BOOL || spec.type == HZ_PARAM_ENUM || spec.type == HZ_PARAM_INT)
+                                throw Error("'" + pn + "' is not a number that can change gradually");
+                            ok.params[pn] = param_from_json(spec, v);
+                            if (!ob.material.params.count(pn)) ob.material.params[pn] = spec.defaults;
+                        } catch (const Error &e) {
+                            fail(what, at + ".params." + pn, e.what());
+                        }
+                    }
+                }
+                key.objects[found->second] = std::move(ok);
+            }
+        }
+        tl.keyframes.push_back(std::move(key));
+    }
+    tl.duration = tl.keyframes.back().time;
+    if (t.contains("duration")) {
+        tl.duration = num_in(t["duration"], what, "timeline.duration", 0.0, 3600.0, true);
+        if (tl.duration < tl.keyframes.back().time)
+            fail(what, "timeline.duration",
+                 std::to_string(tl.duration) + " s ends before the last keyframe (" + std::to_string(tl.keyframes.back().time) + " s)");
+    }
+    if (!(tl.duration > 0)) fail(what, "timeline", "its duration is 0 s: give \"duration\" or a keyframe after 0 s");
+    return tl;
+}
+
 }  // namespace
 
 Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &base, const std::string &what, const MemoryData &memory) {
@@ -425,7 +532,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
     check_keys(root,
                {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab", "ambient_occlusion", "depth_cue",
-                "shadows", "antialiasing", "annotations"},
+                "shadows", "antialiasing", "annotations", "timeline"},
                what, "scene");
     Scene s;
     if (root.contains("ambient_occlusion")) {
@@ -491,17 +598,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                  "expected true, false or an object {\"colour_bar\": bool, \"orientation\": bool, \"scale_bar\": bool}");
         }
     }
-    if (root.contains("camera")) {
-        const json &c = root["camera"];
-        check_keys(c, {"view", "position", "target", "up", "fov", "zoom"}, what, "camera");
-        if (c.contains("view"))
-            s.camera.view = str(c["view"], what, "camera.view", {"left", "right", "anterior", "posterior", "superior", "inferior"});
-        if (c.contains("position")) s.camera.position = vec<3>(c["position"], what, "camera.position");
-        if (c.contains("target")) s.camera.target = vec<3>(c["target"], what, "camera.target");
-        if (c.contains("up")) s.camera.up = vec<3>(c["up"], what, "camera.up");
-        if (c.contains("fov")) s.camera.fov_deg = num_in(c["fov"], what, "camera.fov", 1.0, 150.0);
-        if (c.contains("zoom")) s.camera.zoom = num_in(c["zoom"], what, "camera.zoom", 0.01, 100.0);
-    }
+    if (root.contains("camera")) s.camera = parse_camera(root["camera"], what, "camera");
     if (root.contains("lights")) {
         if (!root["lights"].is_array()) fail(what, "lights", "expected an array");
         for (std::size_t i = 0; i < root["lights"].size(); ++i) {
@@ -905,6 +1002,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         s.objects.push_back(std::move(ob));
         if (label_surfaces) s.objects.push_back(std::move(*label_surfaces));
     }
+    if (root.contains("timeline")) s.timeline = parse_timeline(reg, root["timeline"], s, what);
     return s;
 }
 

@@ -303,8 +303,31 @@ struct Annotations {
     bool any() const { return colour_bar || orientation || scale_bar; }
 };
 
+// A scene's timeline (its "timeline" key; timeline.hpp plays it): keyframes
+// of the camera and of objects' visibility, material parameters and slice
+// positions over seconds. The scene as written is its state at time 0.
+struct ObjectKey {
+    std::optional<bool> visible;
+    std::map<std::string, std::vector<double>> params;  // material parameters (checked against the shader's schema)
+    // Slice positions x, y, z (RAS+ mm): unset, not keyed here; an empty
+    // optional inside, the slice hidden from this keyframe on.
+    std::array<std::optional<std::optional<double>>, 3> slices;
+};
+struct Keyframe {
+    double time = 0;  // seconds
+    std::optional<Camera> camera;
+    std::map<std::size_t, ObjectKey> objects;  // by the object's index in Scene::objects
+};
+struct Timeline {
+    std::vector<Keyframe> keyframes;  // times >= 0, increasing
+    double duration = 0;              // seconds (> 0): at least the last keyframe's time
+    bool smooth = true;               // eased (smoothstep of each span's fraction), or linear
+    double turntable_deg = 0;         // a turn about the superior axis through the target, over the duration
+};
+
 struct Scene {
     std::vector<Object> objects;
+    std::optional<Timeline> timeline;
     AmbientOcclusion ambient_occlusion;
     DepthCue depth_cue;
     Shadows shadows;
