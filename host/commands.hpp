@@ -271,6 +271,32 @@ struct LodOptions {
 // Seconds since the program started (the window's --stats, progress lines).
 double seconds_since_launch();
 
+// Several subjects at once, the same for `render` and `movie`: --grid files
+// (one cell a data file given) or folders (one a folder: a subject's files
+// together), titled by the file's or folder's name; --grid-columns N. They
+// replace a scene file's grid (its cells from the files its objects read).
+struct GridOptions {
+    std::string mode;  // "", files, folders
+    std::optional<int> columns;
+    void apply(core::render::Scene &s) const;
+};
+
+// How a picture of a grid scene is cut: `cells` (grid_cells; empty: no
+// grid, one tile the whole picture) in `columns` x `rows` tiles of
+// tile_w x tile_h pixels, filled row by row from the top left.
+struct GridLayout {
+    std::vector<int> cells;
+    int columns = 1, rows = 1, tile_w = 0, tile_h = 0;
+    bool on() const { return !cells.empty(); }
+};
+// Throws Error when a tile would be smaller than 16 x 16 pixels.
+GridLayout grid_layout(const core::render::Scene &s, int w, int h);
+// Renderer r's picture of w x h seen from `view` (fitted at the tile's
+// aspect): one frame, or with a grid one a tile, each showing the objects
+// of its cell and those of every cell (of those visible), its title at the
+// top left; tiles without a cell show the background.
+core::render::Image render_picture(core::render::Renderer &r, const GridLayout &g, const core::render::View &view, int w, int h);
+
 // A scene's timeline played on renderer `r` (which holds the scene, seen
 // from `start` at time 0): at(t) sets the objects' visibility, material
 // parameters and slices of time t where they differ from what r draws, and
@@ -305,6 +331,7 @@ struct RenderOptions {
     bool legend = false;         // list the clusters shown (colour, name, size) over the picture
     std::string slab;            // AXIS=CENTRE,HALF or AXIS=CENTRE,points (replaces a scene file's slab)
     std::optional<double> time;  // --time T: the scene's timeline at T seconds (TimelinePlayer)
+    GridOptions grid;
     bool json = false;
 };
 
@@ -321,6 +348,7 @@ struct MovieOptions {
     std::optional<double> seconds;
     int fps = 30;
     std::optional<double> degrees;
+    GridOptions grid;
     LodOptions lod;
     PassOptions passes;
     AnnotationOptions annotations;

@@ -186,6 +186,14 @@ void add_style_options(CLI::App *cmd, StyleOptions &st) {
         ->check(colour("--tract-colour"));
 }
 
+void add_grid_options(CLI::App *cmd, GridOptions &g) {
+    cmd->add_option("--grid", g.mode,
+                    "several subjects at once: one tile a data file given (files) or a folder of them (folders: a subject's files "
+                    "together), each titled by its name, all seen by the same camera (a scene file's \"grid\")")
+        ->check(CLI::IsMember({"files", "folders"}));
+    cmd->add_option("--grid-columns", g.columns, "the grid's columns (default: about square)")->check(CLI::Range(1, 64));
+}
+
 void add_lod_options(CLI::App *cmd, LodOptions &lod) {
     cmd->add_option("--lod-pixels", lod.lod_pixels, "streamline decimation tolerance in pixels (0 = every point)")
         ->capture_default_str()
@@ -367,6 +375,7 @@ int main(int argc, char **argv) {
     render->add_option("--slab", ro.slab,
                        "crop the streamlines to a slab AXIS=CENTRE,HALF in mm (e.g. z=10,5), or show them as points where they cross the "
                        "plane: AXIS=CENTRE,points (e.g. z=10,points); replaces a scene file's slab");
+    add_grid_options(render, ro.grid);
     render->add_option("--time", ro.time, "the scene file's timeline at this many seconds (its camera, visibility, materials, slices)");
     render->add_flag("--json", ro.json, "timings and counts as JSON");
     render->add_flag("-f,--force", ro.force, "replace an existing output image (never an input)");
@@ -388,6 +397,7 @@ int main(int argc, char **argv) {
                      "the turn about the superior axis over the whole movie (default 360, once round; with a scene's timeline 0: its own "
                      "turntable)")
         ->check(CLI::Range(-3600.0, 3600.0));
+    add_grid_options(movie, mo.grid);
     add_lod_options(movie, mo.lod);
     add_pass_options(movie, mo.passes);
     add_annotation_options(movie, mo.annotations);

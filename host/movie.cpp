@@ -245,6 +245,8 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
     o.annotations.apply(scene);
     o.style.apply(scene);
     o.volumes.apply(scene);
+    o.grid.apply(scene);
+    const GridLayout grid = grid_layout(scene, w, h);
     const bool timeline = scene.timeline.has_value();
     if (timeline && !o.seconds) {
         n = int(std::lround(scene.timeline->duration * o.fps));
@@ -263,12 +265,12 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
             for (const auto &[i, ok] : k.objects) animates_materials = animates_materials || !ok.params.empty();
     core::render::Renderer r(reg);
     core::render::RenderSettings rs;
-    rs.width = w, rs.height = h;
+    rs.width = grid.tile_w, rs.height = grid.tile_h;  // (each frame a tile: the level of detail of its pixels)
     o.lod.apply(rs);
     rs.shell_proxy = false;
     rs.shell_all_cores = true;
     rs.bake_materials = !animates_materials;  // (a program a value: not for values that change every frame)
-    const core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
+    const core::render::View view = core::render::fit_view(scene, scene.camera, double(grid.tile_w) / grid.tile_h);
     const std::string scene_name = is_scene_file(o.inputs) ? o.inputs[0] : std::string();
     try {
         r.set_scene(std::move(scene), view, rs);
@@ -277,7 +279,7 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
         throw core::Error(scene_name + ": " + e.what());
     }
     std::optional<TimelinePlayer> player;
-    if (timeline) player.emplace(r, view, double(w) / h);
+    if (timeline) player.emplace(r, view, double(grid.tile_w) / grid.tile_h);
     const double setup_ms = ms_since(t0);
 #ifdef HZ_HAVE_LIBAV
     std::unique_ptr<core::TemporaryFile> tmp;
@@ -296,8 +298,7 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
             const auto tf = Clock::now();
             const double t = double(k) / o.fps;
             const core::render::View vk = core::render::turn_view(player ? player->at(t) : view, degrees * k / n);
-            r.render(vk, w, h);
-            core::render::Image im = r.read_image();
+            core::render::Image im = render_picture(r, grid, vk, w, h);
             if (r.scene().annotations.any())
                 paint_marks(im, core::render::layout_annotations(r.scene().annotations, r.colour_scales(), vk, w, h));
             if (sequence) {

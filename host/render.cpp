@@ -143,7 +143,11 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
         if (d.kind == HZ_DATA_MESH) return d.mesh.nb_faces() > 0;
         return true;
     });
-    core::render::View view = core::render::fit_view(scene, scene.camera, double(w) / h);
+    const GridLayout grid = grid_layout(scene, w, h);
+    if (grid.on() && rs.hdr_output) throw core::Error("a grid is drawn as a display picture: write it as .png, .jpg or .tif, not " + ext);
+    if (grid.on() && o.preview) throw core::Error("--preview draws one view, not a grid");
+    rs.width = grid.tile_w, rs.height = grid.tile_h;  // (each frame a tile: the level of detail of its pixels)
+    core::render::View view = core::render::fit_view(scene, scene.camera, double(grid.tile_w) / grid.tile_h);
     if (o.time) {
         const std::string of = o.scene.empty() ? std::string("the scene") : o.scene;
         if (!scene.timeline) throw core::Error("--time: " + of + " has no timeline");
@@ -154,17 +158,21 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
     try {
         if (!something && !o.time) throw core::Error("nothing to draw: the scene's objects are empty or hidden");
         r.set_scene(std::move(scene), view, rs);
-        if (o.time) view = TimelinePlayer(r, view, double(w) / h).at(*o.time);  // (the scene at that instant)
+        if (o.time) view = TimelinePlayer(r, view, double(grid.tile_w) / grid.tile_h).at(*o.time);  // (the scene at that instant)
     } catch (const core::Error &e) {
         if (o.scene.empty()) throw;
         throw core::Error(o.scene + ": " + e.what());  // name the scene file
     }
     r.set_interacting(o.preview);
     if (o.preview) r.update_proxies(true);  // the proxy the window shows once computed
-    r.render(view, w, h);
+    core::render::Image tiles;              // (a grid: its tiles, each its own frame)
+    if (grid.on())
+        tiles = render_picture(r, grid, view, w, h);
+    else
+        r.render(view, w, h);
     const double first_ms = r.stats().draw_ms;  // includes the GL driver's shader compilation
     std::vector<double> frames;
-    for (int i = 1; i < o.frames; ++i) {
+    for (int i = 1; i < o.frames && !grid.on(); ++i) {
         r.render(view, w, h);
         frames.push_back(r.stats().draw_ms);
     }
@@ -189,7 +197,7 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
                       << "\n";
         return 0;
     }
-    core::render::Image im = r.read_image();
+    core::render::Image im = grid.on() ? std::move(tiles) : r.read_image();
     if (o.legend) {
         const std::vector<LegendEntry> entries = cluster_legend(r.scene());
         if (entries.empty())
@@ -251,6 +259,8 @@ int render_scene(const core::Registry &reg, core::render::Scene scene, const Ren
               {"antialiasing", {{"on", r.scene().antialiasing.on}, {"edge", s.edge_aa}, {"frames", s.aa_frames}, {"ms", s.aa_ms}}}}},
             {"points_kept", s.points_drawn}};
         j["annotations"] = annotations_json(marks);
+        if (grid.on())
+            j["grid"] = {{"columns", grid.columns}, {"rows", grid.rows}, {"titles", r.scene().grid->titles}, {"cells", grid.cells}};
         std::cout << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     } else {
         std::printf("Wrote %s (%dx%d) in %.0f ms: context %.0f, upload %.0f, environment %.0f, first frame %.0f, read %.0f, write %.0f\n",
@@ -294,6 +304,7 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     o.annotations.apply(scene);
     o.style.apply(scene);
     o.volumes.apply(scene);
+    o.grid.apply(scene);
     // Every file the scene file named is an input too (its environment map,
     // meshes, overlays, masks): checked once it is known, before anything
     // is written.

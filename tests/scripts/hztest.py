@@ -118,6 +118,19 @@ class TempDirTest(unittest.TestCase):
         self.assertEqual(len(lines), 1, f"expected one error line, got: {proc.stderr!r}")
         self.assertIn(os.path.basename(filename), lines[0])
 
+    def assert_scene_errors(self, cases):
+        """Each scene of `cases` (name: (scene, message)) written as NAME.json
+        fails to render with one line naming that file and holding the
+        message, nothing written."""
+        for name, (scene, msg) in cases.items():
+            with self.subTest(case=name):
+                with open(self.path(name + ".json"), "w") as f:
+                    json.dump(scene, f)
+                p = run("render", self.path(name + ".json"), "-o", self.path("x.png"), env={"DISPLAY": ""}, timeout=60)
+                self.assert_clean_error(p, name + ".json")
+                self.assertIn(msg, p.stderr)
+                self.assertFalse(os.path.exists(self.path("x.png")))
+
 
 def tck_bytes(streamlines, datatype="Float32LE", header_extra=(), nan_bits=None, inf_sign=1.0,
               magic="mrtrix tracks", pad=0, terminator=True, count=None):

@@ -175,14 +175,7 @@ class LabelsTest(TempDirTest):
             "nothing": (dict(base, fill=0, outline=False), "nothing to draw"),
             "key": (dict(base, colour="red"), "unknown key 'colour'"),
         }
-        for name, (ob, msg) in cases.items():
-            with self.subTest(case=name):
-                with open(self.path(name + ".json"), "w") as f:
-                    json.dump({"objects": [ob]}, f)
-                p = run("render", self.path(name + ".json"), "-o", self.path("x.png"), env=NO_DISPLAY, timeout=60)
-                self.assert_clean_error(p, name)
-                self.assertIn(msg, p.stderr)
-                self.assertFalse(os.path.exists(self.path("x.png")))
+        self.assert_scene_errors({name: ({"objects": [ob]}, msg) for name, (ob, msg) in cases.items()})
         p = run("render", self.path("t1.nii.gz"), "--lut", self.path("lut.txt"), "-o", self.path("x.png"), env=NO_DISPLAY)
         self.assert_clean_error(p, "--lut")
         self.assertIn("no label volume", p.stderr)

@@ -148,14 +148,7 @@ class TimelineTest(TempDirTest):
             "key": (with_timeline(speed=2), "unknown key 'speed'"),
             "easing": (with_timeline(easing="bounce"), "timeline.easing"),
         }
-        for name, (scene, msg) in cases.items():
-            with self.subTest(case=name):
-                with open(self.path(name + ".json"), "w") as f:
-                    json.dump(scene, f)
-                p = run("render", self.path(name + ".json"), "-o", self.path("x.png"), env=NO_DISPLAY, timeout=60)
-                self.assert_clean_error(p, name + ".json")
-                self.assertIn(msg, p.stderr)
-                self.assertFalse(os.path.exists(self.path("x.png")))
+        self.assert_scene_errors(cases)
         with open(self.path("t.json"), "w") as f:
             json.dump(self.timeline(), f)
         p = run("render", self.path("t.json"), "--time", "5", "-o", self.path("x.png"), env=NO_DISPLAY)

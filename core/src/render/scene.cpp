@@ -532,7 +532,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
     if (root.is_discarded()) throw Error(what + ": not valid JSON");
     check_keys(root,
                {"objects", "camera", "lights", "environment", "background", "exposure", "tonemap", "slab", "ambient_occlusion", "depth_cue",
-                "shadows", "antialiasing", "annotations", "timeline"},
+                "shadows", "antialiasing", "annotations", "timeline", "grid"},
                what, "scene");
     Scene s;
     if (root.contains("ambient_occlusion")) {
@@ -654,17 +654,32 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
 
     if (!root.contains("objects") || !root["objects"].is_array()) fail(what, "objects", "expected an array of objects");
     for (std::size_t i = 0; i < root["objects"].size(); ++i) {
-        const json &o = root["objects"][i];
+        const json &o_all = root["objects"][i];
         const std::string where = "objects[" + std::to_string(i) + "]";
-        if (!o.is_object() || !o.contains("type")) fail(what, where, "expected an object with a 'type'");
+        if (!o_all.is_object() || !o_all.contains("type")) fail(what, where, "expected an object with a 'type'");
+        // (a grid cell, any object's: checked here, then out of the way of each type's keys)
+        int cell = -1;
+        json o_cell = o_all;
+        if (o_all.contains("cell")) {
+            if (!root.contains("grid")) fail(what, where + ".cell", "the scene has no \"grid\": give one, or leave the cells out");
+            const double c = num_in(o_all["cell"], what, where + ".cell", 0.0, 1023.0);
+            if (c != std::floor(c)) fail(what, where + ".cell", "expected a whole number 0 to 1023");
+            cell = int(c);
+            o_cell.erase("cell");
+        }
+        const json &o = o_cell;
         const std::string type = str(o["type"], what, where + ".type",
                                      {"streamlines", "surface", "slices", "volume", "peaks", "odfs", "tensors", "connectome", "labels"});
         if (type == "connectome") {  // (two objects: its nodes and its edges)
-            for (Object &part : connectome_objects(reg, o, base, what, where, s.files)) s.objects.push_back(std::move(part));
+            for (Object &part : connectome_objects(reg, o, base, what, where, s.files)) {
+                part.cell = cell;
+                s.objects.push_back(std::move(part));
+            }
             continue;
         }
         Object ob;
         ob.name = type + " " + std::to_string(i);
+        ob.cell = cell;
         if (type == "streamlines") {
             check_keys(o,
                        {"type", "name", "file", "builtin", "data", "phantom", "render", "radius", "color", "material", "clustering",
@@ -999,11 +1014,42 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         }
         if (ob.coloring.mode == "cluster" && ob.kind != HZ_DATA_STREAMLINES)
             fail(what, where + ".color", "mode 'cluster' is for streamlines");
+        if (o.contains("file")) ob.file = (base / o["file"].get<std::string>()).string();
+        if (label_surfaces) label_surfaces->file = ob.file, label_surfaces->cell = ob.cell;
         s.objects.push_back(std::move(ob));
         if (label_surfaces) s.objects.push_back(std::move(*label_surfaces));
     }
+    if (root.contains("grid")) {
+        const json &g = root["grid"];
+        if (!g.is_object()) fail(what, "grid", "expected an object {\"columns\": N, \"titles\": [...]}");
+        check_keys(g, {"columns", "titles"}, what, "grid");
+        Grid grid;
+        if (g.contains("columns")) {
+            const double c = num_in(g["columns"], what, "grid.columns", 1.0, 64.0);
+            if (c != std::floor(c)) fail(what, "grid.columns", "expected a whole number 1 to 64");
+            grid.columns = int(c);
+        }
+        const std::size_t cells = grid_cells(s).size();
+        if (cells == 0) fail(what, "grid", "no object has a \"cell\": give each subject's objects theirs (0, 1, ...)");
+        if (g.contains("titles")) {
+            if (!g["titles"].is_array()) fail(what, "grid.titles", "expected an array of texts, one a cell");
+            for (const auto &t : g["titles"]) grid.titles.push_back(str(t, what, "grid.titles"));
+            if (grid.titles.size() > cells)
+                fail(what, "grid.titles", std::to_string(grid.titles.size()) + " titles for " + std::to_string(cells) + " cells");
+        }
+        s.grid = grid;
+    }
     if (root.contains("timeline")) s.timeline = parse_timeline(reg, root["timeline"], s, what);
     return s;
+}
+
+std::vector<int> grid_cells(const Scene &s) {
+    std::vector<int> cells;
+    for (const Object &o : s.objects)
+        if (o.cell >= 0) cells.push_back(o.cell);
+    std::sort(cells.begin(), cells.end());
+    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+    return cells;
 }
 
 namespace {

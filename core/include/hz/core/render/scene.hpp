@@ -148,6 +148,10 @@ struct Object {
     // Tensor glyphs (a scene's "type": "tensors", tensors.hpp): a surface
     // object whose mesh is tensor_glyphs() of this field at the slices.
     std::shared_ptr<const TensorField> tensors;
+    // The data file it was read from ("" for builtins and data held in
+    // memory); the grid cell it is drawn in (Scene::grid; -1: every cell).
+    std::string file;
+    int cell = -1;
     // A label volume (a scene's "type": "labels", labels.hpp): slices show
     // each region's area and outline in its colour instead of values
     // through a window and colormap.
@@ -325,9 +329,18 @@ struct Timeline {
     double turntable_deg = 0;         // a turn about the superior axis through the target, over the duration
 };
 
+// Several subjects at once (a scene's "grid"): a picture of one tile a cell,
+// each the same camera on the objects of that cell (Object::cell) and those
+// of every cell, its title at the top left.
+struct Grid {
+    int columns = 0;                  // 0: about square (the ceiling of the cells' square root)
+    std::vector<std::string> titles;  // per cell, in increasing cell order (fewer: the rest untitled)
+};
+
 struct Scene {
     std::vector<Object> objects;
     std::optional<Timeline> timeline;
+    std::optional<Grid> grid;
     AmbientOcclusion ambient_occlusion;
     DepthCue depth_cue;
     Shadows shadows;
@@ -345,6 +358,9 @@ struct Scene {
     // the command may replace.
     std::vector<std::string> files;
 };
+
+// The cells of a grid scene's objects (Object::cell >= 0), increasing.
+std::vector<int> grid_cells(const Scene &s);
 
 // Parses a scene file, reading every data file it names (relative to the
 // scene file) through the registry's loaders and running any clustering.
