@@ -414,6 +414,7 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
     o.passes.apply(scene);
     o.annotations.apply(scene);
     o.style.apply(scene);
+    o.style.add_glass_brain(reg, scene);
     if (const int c = render_scene(reg, std::move(scene), ro); c != 0) return c;
     // On a desktop, the same scene in the window.
     if (o.window && have_display() && ::isatty(STDOUT_FILENO)) {
@@ -424,6 +425,7 @@ int cmd_demo(const GlobalOptions &g, const DemoOptions &o) {
         o.passes.apply(shown);
         o.annotations.apply(shown);
         o.style.apply(shown);
+        o.style.add_glass_brain(reg, shown);
         return view_scene(reg, std::move(shown), defaults);
     }
     return 0;
@@ -459,6 +461,31 @@ double radiance_shown_as(double v, const core::render::Scene &s) {
     return c / std::max(s.exposure, 1e-30);
 }
 }  // namespace
+
+void StyleOptions::add_glass_brain(const core::Registry &reg, core::render::Scene &s) const {
+    if (glass_brain.empty()) return;
+    core::render::Object o;
+    o.name = "glass brain";
+    o.file = glass_brain;
+    o.data = core::read_dataset(reg, glass_brain);
+    if (o.data.kind == HZ_DATA_VOLUME) {
+        core::Dataset ds;
+        ds.kind = HZ_DATA_MESH;
+        ds.format = o.data.format + " surface";
+        ds.source_space = HZ_SPACE_RASMM;
+        ds.mesh = core::render::mask_surface(o.data.volume, 0.0, 20, glass_brain);
+        o.data = std::move(ds);
+    } else if (o.data.kind != HZ_DATA_MESH || core::is_overlay(o.data)) {
+        throw core::Error(glass_brain + ": --glass-brain takes a surface or a volume (a brain mask), not " + core::kind_name(o.data.kind));
+    }
+    o.kind = HZ_DATA_MESH;
+    // Clear glass that bends the light a little: the data inside stays legible.
+    o.material.shader = "glass";
+    o.material.params = {{"ior", {1.12}}, {"roughness", {0.15}}, {"thickness", {1.0}}};
+    o.coloring.color = {0.9, 0.95, 1.0};
+    s.files.push_back(glass_brain);
+    s.objects.push_back(std::move(o));
+}
 
 void StyleOptions::apply(core::render::Scene &s) const {
     if (!background.empty()) {

@@ -205,6 +205,10 @@ struct StyleOptions {
     // show as them).
     std::string background;
     std::string tracts;  // --tract-colour direction|random|COLOUR (linear, as a scene file's colours)
+    // --glass-brain FILE: a surface (pial, GIFTI), or a volume whose voxels
+    // above 0 make one (a brain mask), added as glass around the data
+    std::string glass_brain;
+    void add_glass_brain(const core::Registry &reg, core::render::Scene &s) const;
     // Every streamlines object: "direction" as drawn by default, "random" a
     // solid colour each from the cluster palette (the k-th tractogram the
     // k-th entry), a colour solid. Throws Error.

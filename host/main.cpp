@@ -184,6 +184,9 @@ void add_style_options(CLI::App *cmd, StyleOptions &st) {
                     "every tractogram's colour: direction (RGB of the local direction), random (one colour per tractogram), or a "
                     "colour (black, white, grey, R,G,B in [0, 1], linear as a scene file's colours)")
         ->check(colour("--tract-colour"));
+    cmd->add_option("--glass-brain", st.glass_brain,
+                    "a glass shell around the data: a surface file (pial, GIFTI), or a volume whose voxels above 0 make one (a brain "
+                    "mask); a scene file's surface of \"shader\": \"glass\"");
 }
 
 void add_grid_options(CLI::App *cmd, GridOptions &g) {

@@ -244,6 +244,7 @@ int cmd_movie(const GlobalOptions &g, const MovieOptions &o) {
     o.passes.apply(scene);
     o.annotations.apply(scene);
     o.style.apply(scene);
+    o.style.add_glass_brain(reg, scene);
     o.volumes.apply(scene);
     o.grid.apply(scene);
     const GridLayout grid = grid_layout(scene, w, h);

@@ -303,6 +303,7 @@ int cmd_render(const GlobalOptions &g, const RenderOptions &o) {
     o.passes.apply(scene);
     o.annotations.apply(scene);
     o.style.apply(scene);
+    o.style.add_glass_brain(reg, scene);
     o.volumes.apply(scene);
     o.grid.apply(scene);
     // Every file the scene file named is an input too (its environment map,

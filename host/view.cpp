@@ -371,6 +371,7 @@ public:
         full_detail_ms = -1, refining = {};
         app.orbit.from_view(v0);
         app.home = app.orbit;
+        if (r.scene().timeline) player.emplace(r, v0, double(w0) / h0), timeline_t = 0, playing = false;
         // Level of detail (paper section 3.4): a tractogram of more than
         // --lod-points points is drawn as a proxy of about that many points
         // while the camera moves and first when it rests, then refined to
@@ -1293,6 +1294,14 @@ private:
                     p[axis[0] - 'x'] = mm;
                 }
                 r.set_slices(obj, p[0], p[1], p[2]);
+            } else if (op == "time") {  // time T: the scene's timeline at T seconds (its camera, visibility, materials, slices)
+                const double t = w.number("T (seconds)");
+                w.done();
+                if (!player) throw core::Error("time: the scene has no timeline");
+                if (!(t >= 0 && t <= player->duration()))
+                    throw core::Error("time " + std::to_string(t) + ": the timeline lasts " + std::to_string(player->duration()) + " s");
+                playing = false;
+                go_to(t);
             } else if (op == "probe") {  // probe X Y: prints the voxel and value of the slice under window point (X, Y)
                 const double x = w.number("X"), y = w.number("Y");
                 w.done();
@@ -1455,6 +1464,7 @@ private:
         objects_panel();
         depth_cues_panel();
         annotations_panel();
+        timeline_panel();
         ImGui::End();
         // The annotations over the frame, under the panel: laid out as
         // `render` lays them out (and as screenshots have them).
@@ -1716,6 +1726,37 @@ private:
     // `press annotations`, then presses `press colour bar`, ...)
     core::render::Annotations shown_annotations;  // (those N brings back)
     float panel_width = 340.0f;                   // the panel's, as the user left it
+    // The scene's timeline at time t: its objects' state, and the camera
+    // (the window's orbit keeps the superior axis up).
+    void go_to(double t) {
+        timeline_t = t;
+        app.orbit.from_view(player->at(t));
+        app.last_motion = glfwGetTime();  // (a moving frame, refined once it stops)
+    }
+
+    // A time slider and play for a scene with a timeline; while playing,
+    // each frame the instant of the wall clock.
+    void timeline_panel() {
+        if (!player) return;
+        if (playing) {
+            const double t = play_from + (glfwGetTime() - play_started);
+            if (t >= player->duration()) playing = false;
+            go_to(std::min(t, player->duration()));
+        }
+        if (!ImGui::CollapsingHeader("Timeline", ImGuiTreeNodeFlags_DefaultOpen)) return;
+        try {
+            float t = float(timeline_t);
+            if (ImGui::SliderFloat("time", &t, 0.0f, float(player->duration()), "%.2f s")) playing = false, go_to(t);
+            if (ImGui::Checkbox("play", &playing) && playing) {
+                if (timeline_t >= player->duration()) timeline_t = 0;
+                play_from = timeline_t, play_started = glfwGetTime();
+            }
+        } catch (const core::Error &e) {
+            playing = false;
+            std::fprintf(stderr, "horizon: %s\n", e.what());
+        }
+    }
+
     void annotations_panel() {
         const bool open = ImGui::CollapsingHeader("annotations");
         scriptable("annotations");
@@ -1916,8 +1957,13 @@ private:
     // is then the data's). Another camera may cost more (zoomed in: longer
     // lines): the governor steps down on slow moving frames, and a still
     // drawn at once that took longer ends it.
-    double full_detail_ms = -1;                      // (-1: not known)
-    bool moving_at_full_detail = false;              // (this frame: the panel says so)
+    double full_detail_ms = -1;          // (-1: not known)
+    bool moving_at_full_detail = false;  // (this frame: the panel says so)
+    // The scene's timeline (TimelinePlayer): the instant shown, and whether
+    // it plays (in real time from `play_started`, when it was at `play_from`).
+    std::optional<TimelinePlayer> player;
+    double timeline_t = 0, play_from = 0, play_started = 0;
+    bool playing = false;
     std::array<std::uint64_t, 3> full_detail_key{};  // (the data's generation and the window's size it was measured at)
     // The still image being refined (active): whether its refinement began
     // this frame, its steps' frames so far, and the key it is measured for.
@@ -2061,6 +2107,7 @@ int cmd_view(const GlobalOptions &g, const ViewOptions &o) {
                               o.passes.apply(s);
                               o.annotations.apply(s);
                               o.style.apply(s);
+                              o.style.add_glass_brain(reg, s);
                               o.volumes.apply(s);
                               return s;
                           }),

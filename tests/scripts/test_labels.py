@@ -132,6 +132,33 @@ class LabelsTest(TempDirTest):
         self.assertEqual(p.returncode, 0, p.stderr)
         np.testing.assert_allclose(load(out)[120, 120], YELLOW, atol=2)
 
+    def test_surfaces_of_volumes_and_the_glass_brain(self):
+        """A scene's surface from a volume file: the boundary of its voxels
+        above "above" (the box alone above 10, box and ball above 0);
+        `--glass-brain MASK` adds that surface as glass around the data."""
+        def triangles(scene, *args):
+            with open(self.path("v.json"), "w") as f:
+                json.dump(scene, f)
+            p = run("render", self.path("v.json"), "-o", self.path("v.png"), "--size", "160x160", "--json", "--force", *args,
+                    env=NO_DISPLAY, timeout=120)
+            self.assertEqual(p.returncode, 0, p.stderr)
+            return json.loads(p.stdout)["triangles"], load(self.path("v.png"))
+
+        box, _ = triangles({"objects": [{"type": "surface", "file": "aseg.nii.gz", "above": 10}]})
+        both, _ = triangles({"objects": [{"type": "surface", "file": "aseg.nii.gz"}]})
+        self.assertGreater(box, 1000)
+        self.assertGreater(both, box * 1.1)
+        inner = {"objects": [{"type": "labels", "file": "aseg.nii.gz", "labels": [5], "surfaces": True, "x": None, "y": None,
+                              "z": None}], "camera": {"view": "superior"}}
+        shell, _ = triangles({"objects": [{"type": "surface", "file": "t1.nii.gz"}]})  # (every voxel above 0: the grid's box)
+        alone, im0 = triangles(inner)
+        glass, im1 = triangles(inner, "--glass-brain", self.path("t1.nii.gz"))
+        self.assertEqual(glass - alone, shell)
+        self.assertGreater(np.abs(im1 - im0).mean(), 0.5)  # (clear glass: its edges and highlights)
+        p = run("render", self.path("aseg.nii.gz"), "--glass-brain", self.path("lut.txt"), "-o", self.path("x.png"), env=NO_DISPLAY)
+        self.assert_clean_error(p, "lut.txt")
+        self.assertFalse(os.path.exists(self.path("x.png")))
+
     def test_the_label_under_the_cursor(self):
         """The window's readout: the voxel, its label and the label's name."""
         with open(self.path("w.json"), "w") as f:
@@ -174,6 +201,8 @@ class LabelsTest(TempDirTest):
             "smoothing": (dict(base, smoothing=1.5), "expected a whole number of iterations"),
             "nothing": (dict(base, fill=0, outline=False), "nothing to draw"),
             "key": (dict(base, colour="red"), "unknown key 'colour'"),
+            "above_none": ({"type": "surface", "file": "aseg.nii.gz", "above": 100}, "no voxel above 100"),
+            "above_mesh": ({"type": "surface", "builtin": "sphere", "above": 1}, "'above' and 'smoothing' make a surface from a volume"),
         }
         self.assert_scene_errors({name: ({"objects": [ob]}, msg) for name, (ob, msg) in cases.items()})
         p = run("render", self.path("t1.nii.gz"), "--lut", self.path("lut.txt"), "-o", self.path("x.png"), env=NO_DISPLAY)

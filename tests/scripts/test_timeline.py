@@ -14,7 +14,7 @@ import unittest
 import numpy as np
 from PIL import Image
 
-from hztest import TempDirTest, run
+from hztest import HORIZON, TempDirTest, run, xvfb_run
 
 NO_DISPLAY = {"DISPLAY": ""}
 SIZE = "200x150"
@@ -127,6 +127,25 @@ class TimelineTest(TempDirTest):
         for k in (1, 5):
             want = self.render(f"r{k}", self.timeline(), "--time", str(k / 2))
             self.assert_same(load(self.path(f"f/{k:02d}.png")), want, f"frame {k}")
+
+    def test_the_window_goes_to_an_instant(self):
+        """The window's `time T` (its Timeline slider): the instant's objects
+        and camera, as `render --time T` draws them; the ball hidden from 3 s."""
+        with open(self.path("w.json"), "w") as f:
+            json.dump(self.timeline(), f)
+        with open(self.path("s.txt"), "w") as f:
+            f.write(f"time 1\nscreenshot {self.path('a.png')}\ntime 3.5\nscreenshot {self.path('b.png')}\nquit\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        p = xvfb_run([HORIZON, "view", self.path("w.json"), "--size", SIZE, "--script", self.path("s.txt")], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        a, b = load(self.path("a.png")), load(self.path("b.png"))
+        for got, t in ((a, "1"), (b, "3.5")):
+            with self.subTest(t=t):
+                want = self.render("r" + t, self.timeline(), "--time", t)
+                others = self.render("o" + t, self.timeline(), "--time", "3.5" if t == "1" else "1")
+                self.assertLess(np.abs(got - want).mean(), 0.3 * np.abs(got - others).mean())
 
     def test_bad_timelines(self):
         def with_timeline(**changes):

@@ -179,6 +179,25 @@ TEST_CASE("label surfaces: a sphere closed, outward, its volume and radius the v
     }
 }
 
+TEST_CASE("mask surfaces: the voxels above a value, of a float volume", "[labels]") {
+    Volume v;
+    v.dims = {20, 20, 20};
+    v.voxels = Buffer<std::byte>(20 * 20 * 20 * 4);
+    std::uint64_t above = 0;
+    for (std::uint64_t k = 0; k < 20 * 20 * 20; ++k) {
+        const float r = float(std::hypot(double(k % 20) - 9.5, double(k / 20 % 20) - 9.5, double(k / 400) - 9.5));
+        const float val = 100.0f - 10.0f * r;  // (above 30: within 7 voxels)
+        std::memcpy(v.voxels.data() + 4 * k, &val, 4);
+        above += val > 30.0f;
+    }
+    const Mesh m = mask_surface(v, 30.0, 20, "t1.nii");
+    const Topology t = topology(m);
+    CHECK(t.closed);
+    CHECK(t.euler == 2);
+    CHECK(t.volume == Approx(double(above)).epsilon(0.05));
+    CHECK_THROWS_WITH(mask_surface(v, 100.0, 20, "t1.nii"), "t1.nii: no voxel above 100.000000: no surface");
+}
+
 TEST_CASE("label surfaces: a torus has a hole, two labels two surfaces of their colours", "[labels]") {
     const Volume v = label_volume(40, 40, 16, kIdentity, [](double i, double j, double k) {
         const double ring = std::hypot(i - 20, j - 20) - 11;

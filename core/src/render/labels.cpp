@@ -278,6 +278,30 @@ void surface_net(const LabelField &f, std::int32_t label, const Box &b, int smoo
 
 }  // namespace
 
+Mesh mask_surface(const Volume &v, double above, int smoothing, const std::string &what) {
+    if (v.dims.size() < 3) throw Error(what + ": a surface is made from a 3D volume");
+    const std::size_t es = dtype_size(v.dtype);
+    const std::uint64_t X = v.dims[0], Y = v.dims[1], Z = v.dims[2], n = X * Y * Z;
+    if (es == 0 || v.dtype == HZ_DTYPE_RGB8 || v.dtype == HZ_DTYPE_RGBA8 || v.voxels.size() < n * es)
+        throw Error(what + ": a surface is made from a volume of numbers, one a voxel");
+    if (smoothing < 0 || smoothing > 100) throw Error(what + ": smoothing is 0 to 100 iterations");
+    LabelField f;
+    f.dims = {X, Y, Z};
+    f.voxel_to_ras = v.voxel_to_ras;
+    f.options.surfaces = true;
+    f.options.smoothing = smoothing;
+    f.labels.resize(n);
+    const double slope = v.scale_slope == 0 ? 1.0 : v.scale_slope;
+    bool any = false;
+    for (std::uint64_t k = 0; k < n; ++k) {
+        f.labels[k] = value_at(v.voxels.data() + k * es, v.dtype) * slope + v.scale_inter > above ? 1 : 0;
+        any = any || f.labels[k];
+    }
+    if (!any) throw Error(what + ": no voxel above " + std::to_string(above) + ": no surface");
+    f.present = {0, 1};
+    return label_surfaces(f);
+}
+
 Mesh label_surfaces(const LabelField &f) {
     const std::uint64_t X = f.dims[0], Y = f.dims[1];
     std::map<std::int32_t, Box> boxes;

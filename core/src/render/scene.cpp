@@ -687,7 +687,9 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
                        what, where);
             ob.coloring.mode = "direction";
         } else if (type == "surface") {
-            check_keys(o, {"type", "name", "file", "builtin", "data", "overlays", "color", "material", "visible", "opacity"}, what, where);
+            check_keys(
+                o, {"type", "name", "file", "builtin", "data", "overlays", "color", "material", "visible", "opacity", "above", "smoothing"},
+                what, where);
             ob.coloring.color = {0.85, 0.72, 0.68};
         } else if (type == "volume") {
             check_keys(o, {"type", "name", "file", "builtin", "data", "window", "transfer", "visible", "opacity", "volume_index"}, what,
@@ -843,6 +845,30 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             fail(what, where, m);  // name the scene file and the object too
         }
         const hz_data_kind want = type == "streamlines" ? HZ_DATA_STREAMLINES : type == "surface" ? HZ_DATA_MESH : HZ_DATA_VOLUME;
+        if (want == HZ_DATA_MESH && ob.data.kind == HZ_DATA_VOLUME) {
+            // A volume as a surface: the boundary of its voxels above "above" (default 0: a mask's).
+            const double above = o.contains("above") ? num(o["above"], what, where + ".above") : 0.0;
+            int smoothing = 20;
+            if (o.contains("smoothing")) {
+                const double v = num_in(o["smoothing"], what, where + ".smoothing", 0.0, 100.0);
+                if (v != std::floor(v)) fail(what, where + ".smoothing", "expected a whole number of iterations");
+                smoothing = int(v);
+            }
+            Dataset ds;
+            ds.kind = HZ_DATA_MESH;
+            ds.format = ob.data.format + " surface";
+            ds.loader_id = ob.data.loader_id;
+            ds.source_space = HZ_SPACE_RASMM;
+            try {
+                ds.mesh = mask_surface(ob.data.volume, above, smoothing, what + ": " + where);
+            } catch (const Error &e) {
+                fail(what, where, e.what());
+            }
+            ob.data = std::move(ds);
+        } else if (type == "surface" && (o.contains("above") || o.contains("smoothing"))) {
+            fail(what, where,
+                 "'above' and 'smoothing' make a surface from a volume; this file holds " + std::string(kind_name(ob.data.kind)));
+        }
         if (ob.data.kind != want)
             fail(what, where, std::string("the file holds ") + kind_name(ob.data.kind) + ", not what type '" + type + "' shows");
         ob.kind = want;

@@ -87,4 +87,11 @@ std::vector<float> label_texture(const LabelField &f);
 // their own bounding boxes.
 Mesh label_surfaces(const LabelField &f);
 
+// The boundary of the voxels of `v` (its first 3D volume, scaled) above
+// `above` as one surface (RAS+ mm): a brain mask's, or a T1's where it is
+// brighter than the background (a glass brain). label_surfaces of that
+// mask with `smoothing` passes. Throws Error naming `what` for a volume of
+// another shape, colour voxels, no voxel above, or too many triangles.
+Mesh mask_surface(const Volume &v, double above, int smoothing, const std::string &what);
+
 }  // namespace hz::core::render
