@@ -488,6 +488,20 @@ void StyleOptions::add_glass_brain(const core::Registry &reg, core::render::Scen
 }
 
 void StyleOptions::apply(core::render::Scene &s) const {
+    if (!buan.empty()) {
+        std::vector<core::render::Object *> tracts;
+        for (auto &o : s.objects)
+            if (o.kind == HZ_DATA_STREAMLINES && !o.peaks && !o.clustering) tracts.push_back(&o);
+        if (tracts.size() != buan.size())
+            throw core::Error("--buan: " + std::to_string(buan.size()) + " profile" + (buan.size() == 1 ? "" : "s") + " for " +
+                              std::to_string(tracts.size()) + " tractogram" + (tracts.size() == 1 ? "" : "s") +
+                              " (one .npy a bundle, in the order given)");
+        const std::array<double, 3> hl = parse_colour("--buan-highlight", buan_highlight);
+        for (std::size_t k = 0; k < buan.size(); ++k) {
+            core::render::show_buan(*tracts[k], core::render::read_npy_vector(buan[k]), buan_threshold, hl, buan[k]);
+            s.files.push_back(buan[k]);
+        }
+    }
     if (!background.empty()) {
         const std::array<double, 3> shown = parse_colour("--background", background);
         for (int i = 0; i < 3; ++i) s.background[i] = radiance_shown_as(shown[i], s);

@@ -4,6 +4,7 @@
 #include <hz/core/plugin_host.hpp>
 #include <hz/core/render/context.hpp>
 #include <hz/core/render/renderer.hpp>
+#include <hz/core/render/buan.hpp>
 #include <hz/core/render/timeline.hpp>
 
 #include <cstdint>
@@ -209,6 +210,11 @@ struct StyleOptions {
     // above 0 make one (a brain mask), added as glass around the data
     std::string glass_brain;
     void add_glass_brain(const core::Registry &reg, core::render::Scene &s) const;
+    // --buan PVALUES.npy ... (one a tractogram given, in order; dipy_horizon's
+    // --buan), --buan-threshold P, --buan-highlight COLOUR: show_buan.
+    std::vector<std::string> buan;
+    double buan_threshold = 0.05;
+    std::string buan_highlight = "1,0,0";
     // Every streamlines object: "direction" as drawn by default, "random" a
     // solid colour each from the cluster palette (the k-th tractogram the
     // k-th entry), a colour solid. Throws Error.

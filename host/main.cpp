@@ -184,6 +184,13 @@ void add_style_options(CLI::App *cmd, StyleOptions &st) {
                     "every tractogram's colour: direction (RGB of the local direction), random (one colour per tractogram), or a "
                     "colour (black, white, grey, R,G,B in [0, 1], linear as a scene file's colours)")
         ->check(colour("--tract-colour"));
+    cmd->add_option("--buan", st.buan,
+                    "BUAN profiles (dipy_horizon's --buan): a .npy of p-values a segment along the bundle, one a tractogram given, in "
+                    "order; the points of segments below --buan-threshold drawn in --buan-highlight");
+    cmd->add_option("--buan-threshold", st.buan_threshold, "BUAN: p-values below it are highlighted (default 0.05; dipy_horizon's 0.5)")
+        ->check(CLI::Range(1e-12, 1.0));
+    cmd->add_option("--buan-highlight", st.buan_highlight, "BUAN: the highlight (R,G,B in [0, 1], linear; default red)")
+        ->check(colour("--buan-highlight"));
     cmd->add_option("--glass-brain", st.glass_brain,
                     "a glass shell around the data: a surface file (pial, GIFTI), or a volume whose voxels above 0 make one (a brain "
                     "mask); a scene file's surface of \"shader\": \"glass\"");

@@ -15,6 +15,7 @@
 #include <hz/core/io.hpp>
 #include <hz/core/params.hpp>
 #include <hz/core/plugin_host.hpp>
+#include <hz/core/render/buan.hpp>
 #include <hz/core/render/context.hpp>
 #include <hz/core/render/renderer.hpp>
 #include <hz/core/render/scene.hpp>
@@ -372,6 +373,21 @@ PYBIND11_MODULE(_core, m) {
             return a;
         },
         py::arg("scene_json"), py::arg("base"), py::arg("width"), py::arg("height"), py::arg("memory"));
+
+    m.def(
+        "_buan_segments",
+        [](const Data &d, std::uint32_t n) {
+            const core::Tractogram &t = need(d, HZ_DATA_STREAMLINES, "buan_segments").tractogram;
+            std::vector<std::uint32_t> seg;
+            {
+                py::gil_scoped_release unlocked;
+                seg = core::render::buan_segments(t, n);
+            }
+            py::array_t<std::uint32_t> out(py::ssize_t(seg.size()));
+            std::memcpy(out.mutable_data(), seg.data(), seg.size() * sizeof(std::uint32_t));
+            return out;
+        },
+        py::arg("data"), py::arg("n"), "Each point's BUAN segment (horizon.buan_segments).");
 
     m.def(
         "_sh_matrix",

@@ -16,9 +16,9 @@ import os
 from . import _paths
 from ._core import Data, Error, _filter, plugins, save
 from ._core import load as _load
-from ._core import _cluster, _from_streamlines, _render, _set_plugin_dirs, _sh_matrix
+from ._core import _buan_segments, _cluster, _from_streamlines, _render, _set_plugin_dirs, _sh_matrix
 
-__all__ = ["ClusterTree", "Data", "Error", "Scene", "cluster", "filter", "from_streamlines", "load", "plugins", "render", "save", "sh_to_sf",
+__all__ = ["ClusterTree", "Data", "Error", "Scene", "buan_segments", "cluster", "filter", "from_streamlines", "load", "plugins", "render", "save", "sh_to_sf",
            "streamlines", "to_nibabel"]
 __version__ = _paths.VERSION
 
@@ -218,6 +218,17 @@ def _need(data, kind, what):
         raise TypeError(f"{what}: expected a horizon.Data (horizon.load), not {type(data).__name__}")
     if data.kind != kind:
         raise TypeError(f"{what}: {data.path} holds {data.kind}, not {kind}")
+
+
+def buan_segments(bundle, n=100):
+    """The segment ("disk") of each point of a bundle along its model
+    centroid, as BUAN numbers them: dipy.stats.analysis.assignment_map(bundle,
+    bundle, n) (the streamlines resampled to n points, QuickBundles at 85 mm,
+    each point the nearest centroid point). `bundle`: a
+    horizon.Data of streamlines or what from_streamlines takes; returns one
+    index a point (numpy uint32, in the points' order)."""
+    data = bundle if isinstance(bundle, Data) else from_streamlines(bundle)
+    return _buan_segments(data, int(n))
 
 
 def sh_to_sf(sh, vertices, basis="descoteaux07", legacy=True):

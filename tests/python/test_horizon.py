@@ -586,3 +586,32 @@ def test_sh_to_sf_is_dipys_in_every_basis():
     np.testing.assert_allclose(horizon.sh_to_sf(sh, poles), want, rtol=1e-9, atol=1e-10)
     with pytest.raises(horizon.Error, match="7 coefficients are not an even-order SH series"):
         horizon.sh_to_sf(np.zeros(7), poles)
+
+
+def test_buan_segments_are_dipys_assignment_map(tmp_path):
+    """BUAN's segment of every point (horizon.buan_segments, which `--buan`
+    draws by) against dipy.stats.analysis.assignment_map on DIPY's own
+    bundles (minimal_bundles.zip: 5 subjects x 3 bundles), for 100 and 37
+    segments, and on two bundles taken as one (two clusters: indices from n
+    on); from a file and from Python's streamlines alike."""
+    import os
+    import zipfile
+    import dipy
+    import nibabel as nib
+    from dipy.stats.analysis import assignment_map
+    with zipfile.ZipFile(os.path.join(os.path.dirname(dipy.__file__), "data", "files", "minimal_bundles.zip")) as z:
+        z.extractall(tmp_path)
+    for path in sorted(tmp_path.glob("sub_*/*.trk")):
+        sl = nib.streamlines.load(str(path)).streamlines
+        for n in (100, 37):
+            ref = np.asarray(assignment_map(sl, sl, n))
+            got = horizon.buan_segments(horizon.load(str(path)), n)
+            assert got.shape == ref.shape
+            assert (got == ref).mean() >= 0.998, (path, n)  # (float32 ties: one point in 1000 at most)
+    a = nib.streamlines.load(str(tmp_path / "sub_1" / "AF_L.trk")).streamlines
+    b = nib.streamlines.load(str(tmp_path / "sub_1" / "CST_R.trk")).streamlines
+    both = list(a) + [s + np.float32([150, 0, 0]) for s in b]  # (the second 150 mm away: a cluster of its own)
+    ref = np.asarray(assignment_map(nib.streamlines.ArraySequence(both), nib.streamlines.ArraySequence(both), 50))
+    assert ref.max() >= 50  # (two clusters)
+    got = horizon.buan_segments(both, 50)
+    assert (got == ref).mean() >= 0.998

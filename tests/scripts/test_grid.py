@@ -5,7 +5,8 @@ each object, "grid") or from the command line (`--grid files|folders`),
 for `render` and `movie`. Tested on DIPY's own multi-subject data: the five
 subjects of `minimal_bundles.zip` (Debian's python3-dipy), each tile equal
 to that subject rendered alone with the same camera. Malformed grids are
-one line naming the scene file, nothing written."""
+one line naming the scene file, nothing written. On the same bundles, BUAN
+profiles (`--buan`): the points of segments below the threshold highlighted."""
 import glob
 import json
 import os
@@ -30,7 +31,9 @@ def bundles_zip():
     return os.path.join(os.path.dirname(dipy.__file__), "data", "files", "minimal_bundles.zip")
 
 
-class GridTest(TempDirTest):
+class MinimalBundles(TempDirTest):
+    """DIPY's minimal_bundles.zip extracted into the test's folder."""
+
     def setUp(self):
         super().setUp()
         with zipfile.ZipFile(bundles_zip()) as z:
@@ -38,6 +41,8 @@ class GridTest(TempDirTest):
         self.subjects = sorted(os.path.basename(p) for p in glob.glob(self.path("mb/sub_*")))
         self.camera = {"position": [-250.0, -60.0, 40.0], "target": [0.0, -20.0, 5.0], "up": [0, 0, 1]}
 
+
+class GridTest(MinimalBundles):
     def objects(self, subjects, cells=True):
         out = []
         for k, sub in enumerate(subjects):
@@ -137,3 +142,69 @@ class GridTest(TempDirTest):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class BuanTest(MinimalBundles):
+    """BUAN profiles (`--buan`, a scene's "buan"; dipy_horizon's --buan): the
+    points of the segments whose p-value is below the threshold in the
+    highlight colour, the rest as the tractogram is coloured. (Which segment
+    each point is in is DIPY's assignment_map: tests/python.)"""
+
+    def marked(self, pvalues, *args):
+        np.save(self.path("p.npy"), np.asarray(pvalues) if np.asarray(pvalues).dtype != np.int64 else pvalues)
+        out = self.path("b.png")
+        p = run("render", self.path("mb/sub_1/AF_L.trk"), "--buan", self.path("p.npy"), "--tract-colour", "0,1,0", "--buan-highlight",
+                "1,0,1", "--view", "left", "-o", out, "--size", "240x180", "--force", *args, env=NO_DISPLAY, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        im = load(out)
+        magenta = (im[..., 0] > im[..., 1] + 40) & (im[..., 2] > im[..., 1] + 40)
+        green = (im[..., 1] > im[..., 0] + 40) & (im[..., 1] > im[..., 2] + 40)
+        return int(magenta.sum()), int(green.sum())
+
+    def test_highlight_below_the_threshold(self):
+        none, green_none = self.marked(np.ones(100))
+        every, green_every = self.marked(np.zeros(100))
+        half, _ = self.marked(np.r_[np.zeros(50), np.ones(50)])
+        self.assertEqual(none, 0)
+        self.assertGreater(green_none, 300)
+        self.assertGreater(every, 300)
+        self.assertEqual(green_every, 0)
+        self.assertTrue(0.2 * every < half < 0.8 * every, (half, every))
+        # The threshold: 0.03 is below the default 0.05, not below 0.01.
+        self.assertGreater(self.marked(np.full(100, 0.03))[0], 300)
+        self.assertEqual(self.marked(np.full(100, 0.03), "--buan-threshold", "0.01")[0], 0)
+        # numpy's other layouts: big-endian float64, float32, a column.
+        self.assertEqual(self.marked(np.full(100, 0.9).astype(">f8"))[0], 0)
+        self.assertGreater(self.marked(np.full(100, 0.01).astype("<f4"))[0], 300)
+        self.assertGreater(self.marked(np.full((100, 1), 0.01))[0], 300)
+        # A scene file's "buan" draws the same.
+        np.save(self.path("q.npy"), np.r_[np.zeros(50), np.ones(50)])
+        scene = {"objects": [{"type": "streamlines", "file": "mb/sub_1/AF_L.trk", "color": [0, 1, 0], "render": "tubes", "radius": 0.3,
+                              "buan": {"pvalues": "q.npy", "highlight": [1, 0, 1]}}], "camera": {"view": "left"}}
+        with open(self.path("s.json"), "w") as f:
+            json.dump(scene, f)
+        p = run("render", self.path("s.json"), "-o", self.path("s.png"), "--size", "240x180", env=NO_DISPLAY, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        self.marked(np.r_[np.zeros(50), np.ones(50)])
+        self.assertLess(np.abs(load(self.path("s.png")) - load(self.path("b.png"))).mean(), 0.5)
+
+    def test_bad_profiles(self):
+        with open(self.path("text.npy"), "w") as f:
+            f.write("0.1 0.2\n")
+        np.save(self.path("matrix.npy"), np.zeros((3, 4)))
+        np.save(self.path("nan.npy"), np.array([0.1, np.nan]))
+        np.save(self.path("ok.npy"), np.zeros(10))
+        trk = self.path("mb/sub_1/AF_L.trk")
+        for args, name, msg in (
+                ([trk, "--buan", self.path("text.npy")], "text.npy", "not a .npy file"),
+                ([trk, "--buan", self.path("matrix.npy")], "matrix.npy", "holds 3 x 4 values"),
+                ([trk, "--buan", self.path("nan.npy")], "nan.npy", "value 1 is not a number"),
+                ([trk, "--buan", self.path("ok.npy"), "--buan", self.path("ok.npy")], "--buan", "2 profiles for 1 tractogram")):
+            with self.subTest(case=name):
+                p = run("render", *args, "-o", self.path("x.png"), env=NO_DISPLAY, timeout=60)
+                self.assert_clean_error(p, name)
+                self.assertIn(msg, p.stderr)
+                self.assertFalse(os.path.exists(self.path("x.png")))
+        self.assert_scene_errors({"clusters": ({"objects": [{"type": "streamlines", "file": trk, "clustering": {"thresholds": [20]},
+                                                              "buan": {"pvalues": self.path("ok.npy")}}]},
+                                               "a BUAN profile is drawn on the bundle's streamlines, not on clusters")})

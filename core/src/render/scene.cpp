@@ -3,6 +3,7 @@
 #include <hz/core/io.hpp>
 #include <hz/core/params.hpp>
 #include <hz/core/phantom.hpp>
+#include <hz/core/render/buan.hpp>
 #include <hz/core/render/connectome.hpp>
 #include <hz/core/render/renderer.hpp>
 #include <hz/core/render/scene.hpp>
@@ -683,7 +684,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         if (type == "streamlines") {
             check_keys(o,
                        {"type", "name", "file", "builtin", "data", "phantom", "render", "radius", "color", "material", "clustering",
-                        "visible", "opacity", "include", "exclude", "min_length", "max_length"},
+                        "visible", "opacity", "include", "exclude", "min_length", "max_length", "buan"},
                        what, where);
             ob.coloring.mode = "direction";
         } else if (type == "surface") {
@@ -1028,6 +1029,23 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
             // Default: the three slices through the volume's centre.
             ob.slice_x = ob.slice_y = ob.slice_z = std::nan("");
         }
+        if (o.contains("buan")) {  // {"pvalues": FILE.npy, "threshold": p, "highlight": [r, g, b]}
+            const json &b = o["buan"];
+            if (!b.is_object() || !b.contains("pvalues")) fail(what, where + ".buan", "expected {\"pvalues\": FILE.npy, \"threshold\": p}");
+            check_keys(b, {"pvalues", "threshold", "highlight"}, what, where + ".buan");
+            if (ob.clustering) fail(what, where + ".buan", "a BUAN profile is drawn on the bundle's streamlines, not on clusters");
+            fs::path p = str(b["pvalues"], what, where + ".buan.pvalues");
+            if (p.is_relative()) p = base / p;
+            s.files.push_back(p.string());
+            const double thr = b.contains("threshold") ? num_in(b["threshold"], what, where + ".buan.threshold", 0.0, 1.0, true) : 0.05;
+            const std::array<double, 3> hl =
+                b.contains("highlight") ? vec<3>(b["highlight"], what, where + ".buan.highlight") : ob.coloring.mark_color;
+            try {
+                show_buan(ob, read_npy_vector(p), thr, hl, p.string());
+            } catch (const Error &e) {
+                fail(what, where + ".buan", e.what());
+            }
+        }
         if (ob.clustering) {
             try {
                 ob.data.tractogram = cluster_centroids(reg, ob.data.tractogram, *ob.clustering);
@@ -1067,6 +1085,34 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
     }
     if (root.contains("timeline")) s.timeline = parse_timeline(reg, root["timeline"], s, what);
     return s;
+}
+
+void show_buan(Object &o, const std::vector<double> &pvalues, double threshold, const std::array<double, 3> &highlight,
+               const std::string &what) {
+    if (o.kind != HZ_DATA_STREAMLINES) throw Error(what + ": a BUAN profile is drawn on a bundle's streamlines");
+    if (pvalues.empty()) throw Error(what + ": no value: a profile has one a segment");
+    for (std::size_t i = 0; i < pvalues.size(); ++i)
+        if (!std::isfinite(pvalues[i])) throw Error(what + ": value " + std::to_string(i) + " is not a number");
+    if (!(threshold > 0 && threshold <= 1)) throw Error(what + ": a p-value threshold is in (0, 1], not " + std::to_string(threshold));
+    for (double c : highlight)
+        if (!(c >= 0 && c <= 1)) throw Error(what + ": the highlight is R, G, B in [0, 1]");
+    Tractogram &t = o.data.tractogram;
+    if (t.gap != 0) {  // (a TCK file mapped in place: per-point arrays need a copy without its delimiters)
+        std::vector<std::uint64_t> all(t.nb_streamlines());
+        for (std::uint64_t s = 0; s < all.size(); ++s) all[s] = s;
+        t = subset_with_arrays(t, all);
+    }
+    const std::vector<std::uint32_t> seg = buan_segments(t, std::uint32_t(std::min<std::size_t>(pvalues.size(), 100000)));
+    std::vector<float> segment(seg.size()), significant(seg.size());
+    for (std::size_t i = 0; i < seg.size(); ++i) {
+        segment[i] = float(seg[i]);
+        significant[i] = seg[i] < pvalues.size() && pvalues[seg[i]] < threshold ? 1.0f : 0.0f;
+    }
+    std::erase_if(t.arrays, [](const DataArray &a) { return a.name == "buan_segment" || a.name == "buan_significant"; });
+    t.arrays.push_back(f32_array("buan_segment", HZ_ATTACH_VERTEX, segment));
+    t.arrays.push_back(f32_array("buan_significant", HZ_ATTACH_VERTEX, significant));
+    o.coloring.mark = "buan_significant";
+    o.coloring.mark_color = highlight;
 }
 
 std::vector<int> grid_cells(const Scene &s) {

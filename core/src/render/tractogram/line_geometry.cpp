@@ -97,6 +97,12 @@ std::shared_ptr<LineData> line_data(const Object &o) {
             d->cluster[s] = rgba8(srgb_to_linear(c[0]), srgb_to_linear(c[1]), srgb_to_linear(c[2]));
         }
     }
+    if (!c.mark.empty()) {
+        for (const auto &x : t.arrays)
+            if (x.name == c.mark && x.attach == HZ_ATTACH_VERTEX && x.count == t.nb_stored() && x.components == 1) d->mark = &x;
+        if (!d->mark) throw Error(o.name + ": color: no per-point array '" + c.mark + "' to mark points by");
+        d->mark_rgba = rgba8(c.mark_color[0], c.mark_color[1], c.mark_color[2]);
+    }
     d->radius = tube_radii(o);
     // Highlighted streamlines (a per-streamline "highlight" array, e.g.
     // the clusters selected in the window): their colour mixed towards
@@ -113,7 +119,7 @@ std::shared_ptr<LineData> line_data(const Object &o) {
 // per-streamline colours that happen to be equal): with baked materials
 // it is a constant of the program.
 std::optional<std::array<std::uint8_t, 4>> uniform_colour(const LineData &d) {
-    if (!d.highlight.empty() || d.t->nb_vertices() == 0) return std::nullopt;
+    if (!d.highlight.empty() || d.mark || d.t->nb_vertices() == 0) return std::nullopt;
     if (d.mode == LineData::Mode::Solid) return d.solid;
     if (d.mode == LineData::Mode::Cluster && !d.cluster.empty() &&
         std::all_of(d.cluster.begin(), d.cluster.end(), [&](const auto &c) { return c == d.cluster[0]; }))
@@ -164,7 +170,9 @@ StreamlineColour streamline_colour(const LineData &d, std::uint64_t s) {
 std::array<std::uint8_t, 4> point_colour(const LineData &d, const StreamlineColour &sc, std::uint64_t i, std::size_t stride, float tx,
                                          float ty, float tz) {
     std::array<std::uint8_t, 4> col = sc.rgba;
-    if (d.mode == LineData::Mode::Direction)
+    if (d.mark && value_at(d.mark->bytes.data() + i * dtype_size(d.mark->dtype), d.mark->dtype) != 0)
+        col = d.mark_rgba;
+    else if (d.mode == LineData::Mode::Direction)
         col = {direction_lut(tx), direction_lut(ty), direction_lut(tz), 255};
     else if (d.per_vertex) {
         const double val = value_at(d.per_vertex->bytes.data() + i * stride, d.per_vertex->dtype);

@@ -42,6 +42,8 @@ struct LineData {
     std::vector<std::array<std::uint8_t, 4>> cluster;  // cluster colouring, per streamline
     std::vector<float> radius;                         // per streamline
     std::vector<float> highlight;                      // per streamline; empty: none
+    const DataArray *mark = nullptr;                   // per point: drawn in mark_rgba where not 0 (Coloring::mark)
+    std::array<std::uint8_t, 4> mark_rgba{};
 };
 
 // Streamline geometry is cut into chunks of at most kChunkPoints input

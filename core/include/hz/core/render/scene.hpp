@@ -43,6 +43,10 @@ struct Coloring {
     std::string colormap = "viridis";
     std::optional<std::array<double, 2>> range;  // default: the data's min/max
     std::array<double, 3> tint{1, 1, 1};         // "rgb": multiplies the per-vertex colours (glTF baseColorFactor)
+    // Streamlines: the points where the per-point array `mark` is not 0 are
+    // drawn in `mark_color` (linear), whatever the mode (BUAN's highlight).
+    std::string mark;
+    std::array<double, 3> mark_color{1, 0, 0};
 };
 
 // Replace a tractogram by one level of a clustering tree (paper Fig. 5).
@@ -165,6 +169,16 @@ struct Object {
 // adds it to the scene). Throws Error naming `what` (make_label_field's
 // checks; no shown label with a surface).
 std::optional<Object> show_as_labels(Object &o, const LabelOptions &opt, const std::string &what);
+
+// Shows a BUAN profile on tractogram object `o` (buan.hpp): per-point arrays
+// "buan_segment" (the point's segment, buan_segments) and
+// "buan_significant" (1 where that segment's value in `pvalues` is below
+// `threshold`), the latter drawn in `highlight` (Coloring::mark). A
+// tractogram read in place with delimiters is copied first. Throws Error
+// naming `what` for an empty profile, a value that is not a number, a
+// threshold outside (0, 1], an object that is not a tractogram.
+void show_buan(Object &o, const std::vector<double> &pvalues, double threshold, const std::array<double, 3> &highlight,
+               const std::string &what);
 
 // Turns object `o`, holding a volume of diffusion tensors (6 values a
 // voxel), into tensor glyphs (Object::tensors) on its slices (none set: the
