@@ -94,11 +94,53 @@ class _Bar:
         self.err.flush()
 
 
+    def finish(self):
+        if self.shown < 100:
+            self(1.0, "")
+
+
+class _NotebookBar:
+    """progress=True in a Jupyter kernel: an HTML progress bar in the cell's
+    output, updated in place through IPython's display handles (no widget
+    extension needed); the callback may come from any thread."""
+
+    def __init__(self, title):
+        from IPython.display import HTML, display
+        self.title, self.shown, self.HTML = title, -1, HTML
+        self.handle = display(HTML(self._html(0, "")), display_id=True)
+
+    def _html(self, pct, what):
+        import html
+        return (f'<div class="horizon-progress"><progress value="{pct}" max="100" style="width: 40ex"></progress> '
+                f"{html.escape(self.title)}: {pct}% {html.escape(what[:60])}</div>")
+
+    def __call__(self, fraction, what):
+        pct = int(fraction * 100)
+        if pct == self.shown:
+            return
+        self.shown = pct
+        self.handle.update(self.HTML(self._html(pct, what)))
+
+    def finish(self):
+        if self.shown < 100:
+            self(1.0, "")
+
+
+def _in_notebook():
+    """Whether this runs in a Jupyter kernel (IPython's ZMQ shell)."""
+    try:
+        from IPython import get_ipython
+    except ImportError:
+        return False
+    shell = get_ipython()
+    return shell is not None and type(shell).__name__ == "ZMQInteractiveShell"
+
+
 def _progress(progress, title="horizon"):
     if progress is None or progress is False:
         return None
     if progress is True:
-        return _Bar(title)
+        return _NotebookBar(title) if _in_notebook() else _Bar(title)
     if not callable(progress):
         raise TypeError("progress must be a callable progress(fraction, what), True (a text bar) or None")
     return progress
@@ -110,8 +152,13 @@ def load(path, progress=None):
     callable progress(fraction, what) called as the file is read (from the
     reading thread, at most ten times a second; an exception it raises, such
     as KeyboardInterrupt, stops the reading and is raised here), or True for
-    a text bar on standard error."""
-    return _load(os.fspath(path), _progress(progress, f"reading {os.path.basename(os.fspath(path))}"))
+    a bar (in a notebook, an HTML bar in the cell's output; else a text bar
+    on standard error)."""
+    bar = _progress(progress, f"reading {os.path.basename(os.fspath(path))}")
+    data = _load(os.fspath(path), bar)
+    if hasattr(bar, "finish"):
+        bar.finish()
+    return data
 
 
 def cluster(data, algorithm="qbx", thresholds=None, ordering=None, progress=None, **params):
@@ -134,7 +181,10 @@ def cluster(data, algorithm="qbx", thresholds=None, ordering=None, progress=None
             raise TypeError("cluster: ordering must be a 1-D array of streamline indices")
         order = [int(i) for i in order]
     try:
-        result = _cluster(data, algorithm, [float(t) for t in (thresholds or [])], json.dumps(params), order, _progress(progress))
+        bar = _progress(progress, f"clustering ({algorithm})")
+        result = _cluster(data, algorithm, [float(t) for t in (thresholds or [])], json.dumps(params), order, bar)
+        if hasattr(bar, "finish"):
+            bar.finish()
     except Error as e:
         if str(e).startswith("ordering:"):
             raise ValueError(f"cluster: {e}") from None

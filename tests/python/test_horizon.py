@@ -163,6 +163,11 @@ def test_the_example_notebook_runs_and_shows_its_pictures(tmp_path, monkeypatch)
     assert "loaders" in text
     assert "streamlines; same as nibabel: True" in text
     assert "(240, 320, 4) uint8" in text
+    # The progress bar of horizon.load(..., progress=True): HTML, updated in place to 100 %.
+    bars = [o["data"]["text/html"] for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+            if "data" in o and "text/html" in o["data"] and "horizon-progress" in o["data"]["text/html"]]
+    assert len(bars) == 1, bars
+    assert '<progress value="100" max="100"' in bars[0] and "reading bundle.tck: 100%" in bars[0]
     pngs = [o["data"]["image/png"] for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
             if "data" in o and "image/png" in o["data"]]
     assert len(pngs) == 1

@@ -85,7 +85,8 @@ std::vector<double> read_npy_vector(const std::filesystem::path &path) {
     if (descr.size() < 5 || shape.empty()) throw Error(what + ": a header without 'descr' or 'shape'");
     const char order = descr[1], kind = descr[2];
     const int size = std::atoi(descr.substr(3, descr.size() - 4).c_str());
-    const bool ok_kind = (kind == 'f' && (size == 4 || size == 8)) || ((kind == 'i' || kind == 'u') && (size == 1 || size == 2 || size == 4 || size == 8));
+    const bool ok_kind =
+        (kind == 'f' && (size == 4 || size == 8)) || ((kind == 'i' || kind == 'u') && (size == 1 || size == 2 || size == 4 || size == 8));
     if (!ok_kind || (order != '<' && order != '>' && order != '|' && order != '='))
         throw Error(what + ": values of type " + descr + ": expected numbers (float64, float32 or integers)");
     (void)fortran;  // (one vector: the same in either order)
@@ -105,7 +106,8 @@ std::vector<double> read_npy_vector(const std::filesystem::path &path) {
     if (dims.empty() || larger > 1 || count == 0 || std::find(dims.begin(), dims.end(), 0) != dims.end()) {
         std::string s;
         for (std::uint64_t d : dims) s += (s.empty() ? "" : " x ") + std::to_string(d);
-        throw Error(what + ": holds " + (s.empty() ? std::string("one value (a scalar)") : s + " values") + ": one vector, one value a segment");
+        throw Error(what + ": holds " + (s.empty() ? std::string("one value (a scalar)") : s + " values") +
+                    ": one vector, one value a segment");
     }
     if (count > (1u << 20)) throw Error(what + ": " + std::to_string(count) + " values: more than 2^20 segments");
     std::vector<unsigned char> raw(count * std::size_t(size));
