@@ -96,7 +96,7 @@ void GridOptions::apply(core::render::Scene &s) const {
         return;
     }
     std::map<std::string, int> cell_of;
-    core::render::Grid g;
+    core::render::SubjectGrid g;
     for (auto &o : s.objects) {
         o.cell = -1;  // (builtins: in every cell)
         if (o.file.empty()) continue;

@@ -1067,7 +1067,7 @@ Scene parse_scene(const Registry &reg, const std::string &text, const fs::path &
         const json &g = root["grid"];
         if (!g.is_object()) fail(what, "grid", "expected an object {\"columns\": N, \"titles\": [...]}");
         check_keys(g, {"columns", "titles"}, what, "grid");
-        Grid grid;
+        SubjectGrid grid;
         if (g.contains("columns")) {
             const double c = num_in(g["columns"], what, "grid.columns", 1.0, 64.0);
             if (c != std::floor(c)) fail(what, "grid.columns", "expected a whole number 1 to 64");

@@ -11,8 +11,8 @@ namespace hz::core::render {
 
 namespace {
 
-glm::dvec3 g(const Vec3 &v) { return {v[0], v[1], v[2]}; }
-Vec3 a(const glm::dvec3 &v) { return {v.x, v.y, v.z}; }
+glm::dvec3 to_glm(const Vec3 &v) { return {v[0], v[1], v[2]}; }
+Vec3 to_vec3(const glm::dvec3 &v) { return {v.x, v.y, v.z}; }
 
 // Unit vectors p, q: the point a fraction s along the shorter great circle
 // between them (their half-way normal where they are opposite).
@@ -52,27 +52,27 @@ std::pair<int, int> span(const Timeline &tl, double t, Has has) {
 
 View turn_view(const View &v, double deg) {
     const glm::dmat4 R = glm::rotate(glm::dmat4(1.0), glm::radians(deg), glm::dvec3(0, 0, 1));
-    const glm::dvec3 t = g(v.target), e = g(v.eye), u = g(v.up);
+    const glm::dvec3 t = to_glm(v.target), e = to_glm(v.eye), u = to_glm(v.up);
     View out = v;
-    out.eye = a(t + glm::dvec3(R * glm::dvec4(e - t, 0.0)));
-    out.up = a(glm::dvec3(R * glm::dvec4(u, 0.0)));
+    out.eye = to_vec3(t + glm::dvec3(R * glm::dvec4(e - t, 0.0)));
+    out.up = to_vec3(glm::dvec3(R * glm::dvec4(u, 0.0)));
     return out;
 }
 
 View interpolate_views(const View &va, const View &vb, double s) {
-    const glm::dvec3 ta = g(va.target), tb = g(vb.target);
-    const glm::dvec3 da = g(va.eye) - ta, db = g(vb.eye) - tb;
+    const glm::dvec3 ta = to_glm(va.target), tb = to_glm(vb.target);
+    const glm::dvec3 da = to_glm(va.eye) - ta, db = to_glm(vb.eye) - tb;
     const double la = glm::length(da), lb = glm::length(db);
-    const glm::dvec3 ua = glm::normalize(g(va.up)), ub = glm::normalize(g(vb.up));
+    const glm::dvec3 ua = glm::normalize(to_glm(va.up)), ub = glm::normalize(to_glm(vb.up));
     View v = va;
     const glm::dvec3 target = ta + s * (tb - ta);
     const glm::dvec3 dir = slerp(da / la, db / lb, s, ua);
     glm::dvec3 up = slerp(ua, ub, s, dir);
     up = up - glm::dot(up, dir) * dir;  // (perpendicular to the view)
     if (glm::length(up) < 1e-9) up = ua;
-    v.target = a(target);
-    v.eye = a(target + (la + s * (lb - la)) * dir);
-    v.up = a(glm::normalize(up));
+    v.target = to_vec3(target);
+    v.eye = to_vec3(target + (la + s * (lb - la)) * dir);
+    v.up = to_vec3(glm::normalize(up));
     v.fov_deg = va.fov_deg + s * (vb.fov_deg - va.fov_deg);
     v.near_mm = std::min(va.near_mm, vb.near_mm);
     v.far_mm = std::max(va.far_mm, vb.far_mm);

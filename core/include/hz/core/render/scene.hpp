@@ -346,7 +346,7 @@ struct Timeline {
 // Several subjects at once (a scene's "grid"): a picture of one tile a cell,
 // each the same camera on the objects of that cell (Object::cell) and those
 // of every cell, its title at the top left.
-struct Grid {
+struct SubjectGrid {
     int columns = 0;                  // 0: about square (the ceiling of the cells' square root)
     std::vector<std::string> titles;  // per cell, in increasing cell order (fewer: the rest untitled)
 };
@@ -354,7 +354,7 @@ struct Grid {
 struct Scene {
     std::vector<Object> objects;
     std::optional<Timeline> timeline;
-    std::optional<Grid> grid;
+    std::optional<SubjectGrid> grid;
     AmbientOcclusion ambient_occlusion;
     DepthCue depth_cue;
     Shadows shadows;
