@@ -1482,95 +1482,96 @@ double smoothstep(double e0, double e1, double x) {
     return t * t * (3 - 2 * t);
 }
 
-}  // namespace
-
-Volume make_t1_volume(double voxel_mm) {
+// The demo brain's grid (the T1's and its segmentation's): 4-byte voxels of
+// `dtype` over the head, `voxel_mm` apart (clamped to 0.5-10 mm).
+Volume brain_grid(double voxel_mm, hz_dtype dtype) {
     voxel_mm = std::clamp(voxel_mm, 0.5, 10.0);
     Volume vol;
     const double lo[3] = {-70, -110, -75}, hi[3] = {70, 100, 92};
     std::uint64_t d[3];
     for (int i = 0; i < 3; ++i) d[i] = static_cast<std::uint64_t>(std::ceil((hi[i] - lo[i]) / voxel_mm)) + 1;
     vol.dims = {d[0], d[1], d[2]};
-    vol.dtype = HZ_DTYPE_F32;
+    vol.dtype = dtype;
     vol.voxels = Buffer<std::byte>(d[0] * d[1] * d[2] * 4);
     vol.voxel_to_ras = {voxel_mm, 0, 0, lo[0], 0, voxel_mm, 0, lo[1], 0, 0, voxel_mm, lo[2], 0, 0, 0, 1};
+    return vol;
+}
+
+// f(index, x, y, z) for each voxel of a grid of brain_grid's (axis-aligned),
+// its RAS+ mm position; slices in parallel.
+template <class F>
+void for_each_brain_voxel(const Volume &vol, F f) {
+    const std::uint64_t nx = vol.dims[0], ny = vol.dims[1];
+    const Affine &a = vol.voxel_to_ras;
+    parallel_ranges(vol.dims[2], 1, [&](std::uint64_t k0, std::uint64_t k1) {
+        for (std::uint64_t k = k0; k < k1; ++k)
+            for (std::uint64_t j = 0; j < ny; ++j)
+                for (std::uint64_t i = 0; i < nx; ++i) f((k * ny + j) * nx + i, a[3] + a[0] * i, a[7] + a[5] * j, a[11] + a[10] * k);
+    });
+}
+
+}  // namespace
+
+Volume make_t1_volume(double voxel_mm) {
+    Volume vol = brain_grid(voxel_mm, HZ_DTYPE_F32);
     float *out = reinterpret_cast<float *>(vol.voxels.data());
     // T1 contrast: white matter brightest, grey matter darker, CSF and
     // skull dark, the scalp's fat bright.
     constexpr double kWhite = 0.80, kGrey = 0.42, kDeep = 0.58, kCsf = 0.10, kSkull = 0.04, kScalp = 0.60;
-    parallel_ranges(d[2], 1, [&](std::uint64_t k0, std::uint64_t k1) {
-        for (std::uint64_t k = k0; k < k1; ++k)
-            for (std::uint64_t j = 0; j < d[1]; ++j)
-                for (std::uint64_t i = 0; i < d[0]; ++i) {
-                    const double x = lo[0] + voxel_mm * i, y = lo[1] + voxel_mm * j, z = lo[2] + voxel_mm * k;
-                    // Head: scalp, skull, CSF, in ellipsoidal shells (mm from the skull's inside, about).
-                    const double head = std::sqrt((x / 56) * (x / 56) + ((y + 4) / 94) * ((y + 4) / 94) + ((z - 6) / 72) * ((z - 6) / 72));
-                    const double out_mm = (head - 1.0) * 75.0;
-                    double val = kScalp * (1 - smoothstep(9.0, 10.5, out_mm)) * smoothstep(3.5, 5.0, out_mm) +
-                                 kSkull * (1 - smoothstep(3.5, 5.0, out_mm)) * smoothstep(-0.5, 0.5, out_mm);
-                    if (out_mm < 0.5) val += kCsf * (1 - smoothstep(-0.5, 0.5, out_mm));
-                    // Cortex and white matter: depth below the cortical surface, about, in mm.
-                    const double in_mm = brain_depth_mm(x, y, z);
-                    const double brain = smoothstep(-0.75, 0.75, in_mm);
-                    const double white = smoothstep(2.2, 3.7, in_mm + 1.2 * gradient_noise(x / 6, y / 6, z / 6));
-                    double tissue = kGrey + (kWhite - kGrey) * white;
-                    // Deep grey nuclei (thalamus, basal ganglia), the ventricles.
-                    for (const double side : {-1.0, 1.0}) {
-                        const double tx = (x - side * 12) / 9, ty = (y + 12) / 14, tz = (z - 6) / 9;
-                        tissue += (kDeep - tissue) * (1 - smoothstep(0.8, 1.1, std::sqrt(tx * tx + ty * ty + tz * tz)));
-                        const double vx = (x - side * 9) / 6, vy = (y + 2) / 28, vz = (z - 16) / 8;
-                        tissue += (kCsf - tissue) * (1 - smoothstep(0.8, 1.1, std::sqrt(vx * vx + vy * vy + vz * vz)));
-                    }
-                    val = val * (1 - brain) + tissue * brain;
-                    // Brainstem and cerebellum below the hemispheres.
-                    const double bx = x / 11, by = (y + 24 + 0.12 * z) / 12;
-                    if (z < 0 && z > -68) val = std::max(val, 0.7 * (1 - smoothstep(0.85, 1.1, std::sqrt(bx * bx + by * by))));
-                    const double cx = x / 46, cy = (y + 62) / 26, cz = (z + 34) / 18;
-                    const double cb = std::sqrt(cx * cx + cy * cy + cz * cz);
-                    if (cb < 1.1)
-                        val = std::max(val, (1 - smoothstep(0.9, 1.05, cb)) * (0.45 + 0.2 * std::abs(std::sin(z * 1.3 + 0.3 * y))));
-                    out[(k * d[1] + j) * d[0] + i] = static_cast<float>(1000.0 * val);
-                }
+    for_each_brain_voxel(vol, [&](std::uint64_t at, double x, double y, double z) {
+        // Head: scalp, skull, CSF, in ellipsoidal shells (mm from the skull's inside, about).
+        const double head = std::sqrt((x / 56) * (x / 56) + ((y + 4) / 94) * ((y + 4) / 94) + ((z - 6) / 72) * ((z - 6) / 72));
+        const double out_mm = (head - 1.0) * 75.0;
+        double val = kScalp * (1 - smoothstep(9.0, 10.5, out_mm)) * smoothstep(3.5, 5.0, out_mm) +
+                     kSkull * (1 - smoothstep(3.5, 5.0, out_mm)) * smoothstep(-0.5, 0.5, out_mm);
+        if (out_mm < 0.5) val += kCsf * (1 - smoothstep(-0.5, 0.5, out_mm));
+        // Cortex and white matter: depth below the cortical surface, about, in mm.
+        const double in_mm = brain_depth_mm(x, y, z);
+        const double brain = smoothstep(-0.75, 0.75, in_mm);
+        const double white = smoothstep(2.2, 3.7, in_mm + 1.2 * gradient_noise(x / 6, y / 6, z / 6));
+        double tissue = kGrey + (kWhite - kGrey) * white;
+        // Deep grey nuclei (thalamus, basal ganglia), the ventricles.
+        for (const double side : {-1.0, 1.0}) {
+            const double tx = (x - side * 12) / 9, ty = (y + 12) / 14, tz = (z - 6) / 9;
+            tissue += (kDeep - tissue) * (1 - smoothstep(0.8, 1.1, std::sqrt(tx * tx + ty * ty + tz * tz)));
+            const double vx = (x - side * 9) / 6, vy = (y + 2) / 28, vz = (z - 16) / 8;
+            tissue += (kCsf - tissue) * (1 - smoothstep(0.8, 1.1, std::sqrt(vx * vx + vy * vy + vz * vz)));
+        }
+        val = val * (1 - brain) + tissue * brain;
+        // Brainstem and cerebellum below the hemispheres.
+        const double bx = x / 11, by = (y + 24 + 0.12 * z) / 12;
+        if (z < 0 && z > -68) val = std::max(val, 0.7 * (1 - smoothstep(0.85, 1.1, std::sqrt(bx * bx + by * by))));
+        const double cx = x / 46, cy = (y + 62) / 26, cz = (z + 34) / 18;
+        const double cb = std::sqrt(cx * cx + cy * cy + cz * cz);
+        if (cb < 1.1) val = std::max(val, (1 - smoothstep(0.9, 1.05, cb)) * (0.45 + 0.2 * std::abs(std::sin(z * 1.3 + 0.3 * y))));
+        out[at] = static_cast<float>(1000.0 * val);
     });
     return vol;
 }
 
 Volume make_aseg_volume(double voxel_mm) {
-    voxel_mm = std::clamp(voxel_mm, 0.5, 10.0);
-    Volume vol;  // (make_t1_volume's grid)
-    const double lo[3] = {-70, -110, -75}, hi[3] = {70, 100, 92};
-    std::uint64_t d[3];
-    for (int i = 0; i < 3; ++i) d[i] = static_cast<std::uint64_t>(std::ceil((hi[i] - lo[i]) / voxel_mm)) + 1;
-    vol.dims = {d[0], d[1], d[2]};
-    vol.dtype = HZ_DTYPE_I32;
-    vol.voxels = Buffer<std::byte>(d[0] * d[1] * d[2] * 4);
-    vol.voxel_to_ras = {voxel_mm, 0, 0, lo[0], 0, voxel_mm, 0, lo[1], 0, 0, voxel_mm, lo[2], 0, 0, 0, 1};
+    Volume vol = brain_grid(voxel_mm, HZ_DTYPE_I32);
     auto *out = reinterpret_cast<std::int32_t *>(vol.voxels.data());
     // make_t1_volume's tissues where they are more than half present, with
     // FreeSurfer's aseg numbers (left, right).
-    parallel_ranges(d[2], 1, [&](std::uint64_t k0, std::uint64_t k1) {
-        for (std::uint64_t k = k0; k < k1; ++k)
-            for (std::uint64_t j = 0; j < d[1]; ++j)
-                for (std::uint64_t i = 0; i < d[0]; ++i) {
-                    const double x = lo[0] + voxel_mm * i, y = lo[1] + voxel_mm * j, z = lo[2] + voxel_mm * k;
-                    const bool left = x < 0;
-                    std::int32_t label = 0;
-                    const double in_mm = brain_depth_mm(x, y, z);
-                    if (in_mm > 0) {
-                        label = in_mm + 1.2 * gradient_noise(x / 6, y / 6, z / 6) > 2.95 ? (left ? 2 : 41) : (left ? 3 : 42);
-                        for (const double side : {-1.0, 1.0}) {
-                            const double tx = (x - side * 12) / 9, ty = (y + 12) / 14, tz = (z - 6) / 9;
-                            if (std::sqrt(tx * tx + ty * ty + tz * tz) < 0.95) label = side < 0 ? 10 : 49;
-                            const double vx = (x - side * 9) / 6, vy = (y + 2) / 28, vz = (z - 16) / 8;
-                            if (std::sqrt(vx * vx + vy * vy + vz * vz) < 0.95) label = side < 0 ? 4 : 43;
-                        }
-                    }
-                    const double bx = x / 11, by = (y + 24 + 0.12 * z) / 12;
-                    if (z < 0 && z > -68 && std::sqrt(bx * bx + by * by) < 0.975 && label == 0) label = 16;
-                    const double cx = x / 46, cy = (y + 62) / 26, cz = (z + 34) / 18;
-                    if (std::sqrt(cx * cx + cy * cy + cz * cz) < 0.975 && label == 0) label = left ? 8 : 47;
-                    out[(k * d[1] + j) * d[0] + i] = label;
-                }
+    for_each_brain_voxel(vol, [&](std::uint64_t at, double x, double y, double z) {
+        const bool left = x < 0;
+        std::int32_t label = 0;
+        const double in_mm = brain_depth_mm(x, y, z);
+        if (in_mm > 0) {
+            label = in_mm + 1.2 * gradient_noise(x / 6, y / 6, z / 6) > 2.95 ? (left ? 2 : 41) : (left ? 3 : 42);
+            for (const double side : {-1.0, 1.0}) {
+                const double tx = (x - side * 12) / 9, ty = (y + 12) / 14, tz = (z - 6) / 9;
+                if (std::sqrt(tx * tx + ty * ty + tz * tz) < 0.95) label = side < 0 ? 10 : 49;
+                const double vx = (x - side * 9) / 6, vy = (y + 2) / 28, vz = (z - 16) / 8;
+                if (std::sqrt(vx * vx + vy * vy + vz * vz) < 0.95) label = side < 0 ? 4 : 43;
+            }
+        }
+        const double bx = x / 11, by = (y + 24 + 0.12 * z) / 12;
+        if (z < 0 && z > -68 && std::sqrt(bx * bx + by * by) < 0.975 && label == 0) label = 16;
+        const double cx = x / 46, cy = (y + 62) / 26, cz = (z + 34) / 18;
+        if (std::sqrt(cx * cx + cy * cy + cz * cz) < 0.975 && label == 0) label = left ? 8 : 47;
+        out[at] = label;
     });
     return vol;
 }
