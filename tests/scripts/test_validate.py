@@ -227,8 +227,8 @@ class ValidateTest(TempDirTest):
         listed = {p["id"]: p["interfaces"] for p in plugins["plugins"]}
         self.assertEqual(listed["org.horizon.test.tck-unlisted-extensions"], ["hz.loader/1"])
         self.assertEqual(listed["org.horizon.loader.tck"],
-                         ["hz.loader/1", "hz.ext.mapped-positions/1", "hz.ext.checked-read/1", "hz.ext.delimited-streamlines/1",
-                          "hz.ext.open-task/1", "hz.ext.write-selection/1"])
+                         ["hz.loader/1", "hz.ext.open-task/1", "hz.ext.checked-read/1", "hz.ext.mapped-positions/1",
+                          "hz.ext.delimited-streamlines/1", "hz.ext.write-selection/1"])  # (the SDK adapter's order)
         tck = self.path("x.tck")
         make_tractogram(tck, 300, 5)
         plain = json.loads(run("--plugin-dir", d, "info", tck, "--json").stdout)
