@@ -151,8 +151,7 @@ struct Loader {
     static void write_selection(const hz_write_request &req, const hz_dataset_view &data, const std::uint64_t *selection,
                                 std::uint64_t nb_selected, const hz_task *) {
         const hz_streamlines_view &s = data.streamlines;
-        if (s.offsets == nullptr || (s.nb_vertices > 0 && s.positions == nullptr))
-            throw FormatError("streamline view without data");
+        if (s.offsets == nullptr || (s.nb_vertices > 0 && s.positions == nullptr)) throw FormatError("streamline view without data");
         for (uint32_t i = 0; i < data.nb_arrays && req.on_dropped != nullptr; ++i) {
             const hz_named_array &a = data.arrays[i];
             const std::string what = std::string(a.attach == HZ_ATTACH_STREAMLINE ? "per-streamline" : "per-vertex") + " array '" +
