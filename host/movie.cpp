@@ -167,10 +167,18 @@ std::string frame_path(const std::string &pattern, int k) {
 TimelinePlayer::TimelinePlayer(core::render::Renderer &r, const core::render::View &start, double aspect) : r_(r) {
     const core::render::Scene &s = r.scene();
     if (!s.timeline) throw Error("the scene has no timeline");
-    start_ = core::render::timeline_start(s, start, [&](std::size_t i, int axis) {
-        const auto ext = r.volume_extent(i);
-        return ext ? (ext->box.min[axis] + ext->box.max[axis]) / 2 : 0.0;
-    });
+    start_ = core::render::timeline_start(
+        s, start,
+        [&](std::size_t i, int axis) {
+            const auto ext = r.volume_extent(i);
+            return ext ? (ext->box.min[axis] + ext->box.max[axis]) / 2 : 0.0;
+        },
+        [&](std::size_t i) -> std::optional<std::array<double, 2>> {
+            const core::render::Object &o = s.objects[i];
+            const auto ext = r.volume_extent(i);
+            if (!ext || o.kind != HZ_DATA_VOLUME || o.labels || o.peaks || o.odfs || o.tensors) return std::nullopt;
+            return ext->window;
+        });
     keys_ = core::render::keyframe_views(s, *s.timeline, aspect);
 }
 
@@ -182,6 +190,8 @@ core::render::View TimelinePlayer::at(double t) {
         const core::render::ObjectState &now = st.objects[i];
         const core::render::Object &o = r_.scene().objects[i];
         if (now.visible != o.visible) r_.set_visible(i, now.visible);
+        if (now.opacity != o.opacity) r_.set_opacity(i, now.opacity);
+        if (now.window && (!o.window || *o.window != *now.window)) r_.set_window(i, (*now.window)[0], (*now.window)[1]);
         const std::optional<double> p[3] = {o.slice_x, o.slice_y, o.slice_z};
         bool moved = false;
         for (int a = 0; a < 3; ++a) {

@@ -1,6 +1,6 @@
 """Timelines (a scene file's "timeline", the paper's scripted animations):
-keyframes of the camera, of objects' visibility, material parameters and
-slice positions. `render --time T` draws the instant T, which equals the
+keyframes of the camera, of objects' visibility, opacity, material
+parameters and slice positions, of a volume's window. `render --time T` draws the instant T, which equals the
 same scene written without a timeline at the values the documented rule
 gives (computed here: linear spans, the camera's offset on the great
 circle); `movie` plays it, each frame the instant k / fps. Keyframes out of
@@ -43,7 +43,7 @@ class TimelineTest(TempDirTest):
             "objects": [
                 {"type": "surface", "builtin": "sphere", "name": "ball",
                  "material": {"shader": "principled", "params": {"roughness": 0.2, "metallic": 0.0}}},
-                {"type": "slices", "builtin": "head", "name": "head", "x": None, "y": None, "z": 0},
+                {"type": "slices", "builtin": "head", "name": "head", "x": None, "y": None, "z": 0, "window": [0, 1200]},
             ],
             "camera": {"position": list(self.EYE0), "target": list(self.TARGET0), "up": [0, 0, 1]},
         }
@@ -52,7 +52,8 @@ class TimelineTest(TempDirTest):
         s = self.base()
         s["timeline"] = {"duration": 4, "easing": "linear", "keyframes": [
             {"time": 2, "camera": {"position": list(self.EYE1), "target": list(self.TARGET1), "up": [0, 0, 1]},
-             "objects": {"ball": {"params": {"roughness": 0.8, "metallic": 1.0}}, "head": {"z": 40}}},
+             "objects": {"ball": {"params": {"roughness": 0.8, "metallic": 1.0}, "opacity": 0.5},
+                         "head": {"z": 40, "window": [200, 800]}}},
             {"time": 3, "objects": {"ball": {"visible": False}}},
         ]}
         return s
@@ -66,10 +67,12 @@ class TimelineTest(TempDirTest):
         return load(self.path(name + ".png"))
 
     def still(self, name, s, eye, target, up=(0, 0, 1)):
-        """The scene without a timeline, at roughness/metallic/z `s`, seen from eye."""
+        """The scene without a timeline, at roughness/metallic/opacity/z/window `s`, seen from eye."""
         scene = self.base()
         scene["objects"][0]["material"]["params"] = {"roughness": 0.2 + s * 0.6, "metallic": s}
+        scene["objects"][0]["opacity"] = 1 - 0.5 * s
         scene["objects"][1]["z"] = 40 * s
+        scene["objects"][1]["window"] = [200 * s, 1200 - 400 * s]
         scene["camera"] = {"position": list(eye), "target": list(target), "up": list(up)}
         return self.render(name, scene)
 
@@ -102,6 +105,7 @@ class TimelineTest(TempDirTest):
         scene = self.base()
         scene["objects"][0]["visible"] = False
         scene["objects"][1]["z"] = 40
+        scene["objects"][1]["window"] = [200, 800]
         scene["camera"] = {"position": list(self.EYE1), "target": list(self.TARGET1), "up": [0, 0, 1]}
         self.assert_same(hidden, self.render("s3", scene), "t = 3")
         self.assertGreater(np.abs(hidden - self.render("t29", tl, "--time", "2.9")).mean(), 1.0)
@@ -162,6 +166,9 @@ class TimelineTest(TempDirTest):
             "param": (with_timeline(keyframes=[{"time": 1, "objects": {"ball": {"params": {"rough": 1}}}}]), "rough"),
             "volume": (with_timeline(keyframes=[{"time": 1, "objects": {"head": {"params": {"roughness": 1}}}}]), "it has no material"),
             "slices": (with_timeline(keyframes=[{"time": 1, "objects": {"ball": {"z": 1}}}]), "'ball' has no slices"),
+            "opacity": (with_timeline(keyframes=[{"time": 1, "objects": {"ball": {"opacity": 1.5}}}]), "objects.ball.opacity"),
+            "window": (with_timeline(keyframes=[{"time": 1, "objects": {"ball": {"window": [0, 1]}}}]), "'ball' has no intensity window"),
+            "range": (with_timeline(keyframes=[{"time": 1, "objects": {"head": {"window": [5, 1]}}}]), "with high > low"),
             "duration": (with_timeline(duration=1), "timeline.duration: 1.000000 s ends before the last keyframe"),
             "empty": (with_timeline(keyframes=[]), "timeline.keyframes: expected a non-empty array"),
             "key": (with_timeline(speed=2), "unknown key 'speed'"),

@@ -2,7 +2,8 @@
 // (its target on the line, its offset's direction on the great circle, its
 // length and field of view interpolated, up perpendicular), a turntable,
 // and each object's values: the scene's at 0, eased or linear spans,
-// visibility and hidden slices as steps, values held after their last key.
+// visibility and hidden slices as steps, values held after their last key;
+// opacity and a volume's window interpolated likewise.
 #include <hz/core/render/timeline.hpp>
 
 #include <catch2/catch.hpp>
@@ -113,4 +114,38 @@ TEST_CASE("timeline values: the scene's at 0, spans eased or linear, steps, held
     const View turned = timeline_at(tl, start, kv, 10).view;
     CHECK(turned.eye[0] == Approx(0).margin(1e-9));
     CHECK(turned.eye[1] == Approx(100));
+}
+
+TEST_CASE("timeline opacity and window: interpolated from the scene's, held after the last key", "[timeline]") {
+    Timeline tl;
+    tl.duration = 10;
+    tl.smooth = false;
+    Keyframe k2, k6;
+    k2.time = 2, k6.time = 6;
+    ObjectKey o2, o6;
+    o2.opacity = 0.2;
+    o2.window = std::array<double, 2>{100, 300};
+    o6.opacity = 1.0;
+    k2.objects[0] = o2, k6.objects[0] = o6;
+    tl.keyframes = {k2, k6};
+    TimelineState start;
+    start.view = view({0, -100, 0}, {0, 0, 0}, {0, 0, 1});
+    ObjectState s0;
+    s0.opacity = 0.6;
+    s0.window = std::array<double, 2>{0, 1000};
+    ObjectState plain;  // (an object that is not a volume: no window)
+    start.objects = {s0, plain};
+    const std::vector<std::optional<View>> views(2);
+    auto at = [&](double t) { return timeline_at(tl, start, views, t).objects[0]; };
+    CHECK(at(0).opacity == Approx(0.6));
+    CHECK(at(1).opacity == Approx(0.4));  // (half-way from 0.6 to 0.2)
+    CHECK(at(4).opacity == Approx(0.6));  // (half-way from 0.2 to 1)
+    CHECK(at(9).opacity == Approx(1.0));
+    CHECK((*at(1).window)[0] == Approx(50));
+    CHECK((*at(1).window)[1] == Approx(650));
+    CHECK((*at(5).window)[1] == Approx(300));  // (its last key at 2 s: held)
+    tl.smooth = true;
+    CHECK(at(0.5).opacity == Approx(0.6 - 0.4 * 0.25 * 0.25 * (3 - 0.5)));
+    CHECK_FALSE(timeline_at(tl, start, views, 1).objects[1].window.has_value());
+    CHECK(timeline_at(tl, start, views, 1).objects[1].opacity == Approx(1.0));
 }

@@ -1975,6 +1975,17 @@ void Renderer::set_visible(std::size_t object, bool visible) {
     }
 }
 
+void Renderer::set_opacity(std::size_t object, double opacity) {
+    Impl &I = *impl_;
+    if (object >= I.scene.objects.size()) throw Error("opacity: no object " + std::to_string(object));
+    if (!(opacity >= 0.0 && opacity <= 1.0))
+        throw Error("opacity: " + I.scene.objects[object].name + ": " + std::to_string(opacity) + " is not in [0, 1]");
+    if (I.scene.objects[object].opacity != opacity) {
+        I.scene.objects[object].opacity = opacity;
+        ++I.generation;
+    }
+}
+
 namespace {
 GpuObject &volume_object(std::vector<GpuObject> &objects, const Scene &scene, std::size_t object, const char *what) {
     if (object >= scene.objects.size()) throw Error(std::string(what) + ": no object " + std::to_string(object));

@@ -477,12 +477,21 @@ Timeline parse_timeline(const Registry &reg, const json &t, Scene &s, const std:
                 }
                 if (twice.count(name)) fail(what, at, "two objects are named '" + name + "': give them names of their own");
                 Object &ob = s.objects[found->second];
-                if (!o.is_object()) fail(what, at, "expected an object {\"visible\", \"x\", \"y\", \"z\", \"params\"}");
-                check_keys(o, {"visible", "x", "y", "z", "params"}, what, at);
+                if (!o.is_object())
+                    fail(what, at, "expected an object {\"visible\", \"opacity\", \"x\", \"y\", \"z\", \"window\", \"params\"}");
+                check_keys(o, {"visible", "opacity", "x", "y", "z", "window", "params"}, what, at);
                 ObjectKey ok;
                 if (o.contains("visible")) {
                     if (!o["visible"].is_boolean()) fail(what, at + ".visible", "expected true or false");
                     ok.visible = o["visible"].get<bool>();
+                }
+                if (o.contains("opacity")) ok.opacity = num_in(o["opacity"], what, at + ".opacity", 0.0, 1.0);
+                if (o.contains("window")) {
+                    if (ob.kind != HZ_DATA_VOLUME || ob.peaks || ob.odfs || ob.tensors || ob.labels)
+                        fail(what, at + ".window", "'" + name + "' has no intensity window (a volume of values has)");
+                    ok.window = vec<2>(o["window"], what, at + ".window");
+                    if (!((*ok.window)[1] > (*ok.window)[0]))
+                        fail(what, at + ".window", "must be [low, high] with high > low, not " + o["window"].dump());
                 }
                 for (int a = 0; a < 3; ++a) {
                     const std::string ax(1, char('x' + a));

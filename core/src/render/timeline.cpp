@@ -79,13 +79,16 @@ View interpolate_views(const View &va, const View &vb, double s) {
     return v;
 }
 
-TimelineState timeline_start(const Scene &scene, const View &view, const std::function<double(std::size_t, int)> &centre) {
+TimelineState timeline_start(const Scene &scene, const View &view, const std::function<double(std::size_t, int)> &centre,
+                             const std::function<std::optional<std::array<double, 2>>(std::size_t)> &window) {
     TimelineState st;
     st.view = view;
     for (std::size_t i = 0; i < scene.objects.size(); ++i) {
         const Object &o = scene.objects[i];
         ObjectState os;
         os.visible = o.visible;
+        os.opacity = o.opacity;
+        os.window = window(i);
         os.params = o.material.params;
         const std::optional<double> p[3] = {o.slice_x, o.slice_y, o.slice_z};
         for (int k = 0; k < 3; ++k) {
@@ -139,6 +142,22 @@ TimelineState timeline_at(const Timeline &tl, const TimelineState &start, const 
             if (n >= 0) {
                 const std::optional<double> to = *key_of(tl.keyframes[std::size_t(n)])->slices[std::size_t(ax)];
                 if (from && to) os.slices[std::size_t(ax)] = *from + fraction(b, n) * (*to - *from);
+            }
+        }
+        // Opacity and window: numbers, interpolated as the slices are.
+        {
+            auto [b, n] = span(tl, t, [&](const Keyframe &k) { return key_of(k) && key_of(k)->opacity; });
+            const double from = b < 0 ? s0.opacity : *key_of(tl.keyframes[std::size_t(b)])->opacity;
+            os.opacity = n < 0 ? from : from + fraction(b, n) * (*key_of(tl.keyframes[std::size_t(n)])->opacity - from);
+        }
+        {
+            auto [b, n] = span(tl, t, [&](const Keyframe &k) { return key_of(k) && key_of(k)->window; });
+            const std::optional<std::array<double, 2>> from = b < 0 ? s0.window : key_of(tl.keyframes[std::size_t(b)])->window;
+            os.window = from;
+            if (n >= 0 && from) {
+                const std::array<double, 2> &to = *key_of(tl.keyframes[std::size_t(n)])->window;
+                const double f = fraction(b, n);
+                os.window = std::array<double, 2>{(*from)[0] + f * (to[0] - (*from)[0]), (*from)[1] + f * (to[1] - (*from)[1])};
             }
         }
         // Material parameters: those any keyframe sets for this object.

@@ -230,6 +230,10 @@ public:
     // compiles the new program if needed. Throws Error.
     void set_material(std::size_t object, const Material &m);
     void set_visible(std::size_t object, bool visible);
+    // Object::opacity of object `object` (below 1: composited with the
+    // translucent objects from the next frame on). Throws Error naming the
+    // object for a value outside [0, 1].
+    void set_opacity(std::size_t object, double opacity);
     // The slicer (a volume drawn as slices): moves object `object`'s
     // slices (Object::slice_x/y/z, RAS+ mm; nullopt hides that slice, NaN
     // puts it in the middle),

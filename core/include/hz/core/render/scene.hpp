@@ -326,6 +326,8 @@ struct Annotations {
 // positions over seconds. The scene as written is its state at time 0.
 struct ObjectKey {
     std::optional<bool> visible;
+    std::optional<double> opacity;                      // Object::opacity, [0, 1]
+    std::optional<std::array<double, 2>> window;        // Object::window of a volume (low < high)
     std::map<std::string, std::vector<double>> params;  // material parameters (checked against the shader's schema)
     // Slice positions x, y, z (RAS+ mm): unset, not keyed here; an empty
     // optional inside, the slice hidden from this keyframe on.

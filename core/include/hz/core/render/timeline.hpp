@@ -3,8 +3,9 @@
 // (every frame) and `horizon render --time` (one instant).
 //
 // The scene as written is the state at time 0 (a keyframe at 0 replaces
-// what it sets). Each value (the camera; an object's visibility, each
-// material parameter, each slice position) goes from one keyframe that
+// what it sets). Each value (the camera; an object's visibility, its
+// opacity, each material parameter, each slice position, a volume's
+// window) goes from one keyframe that
 // sets it to the next that sets it: numbers interpolate over the span (its
 // fraction eased by smoothstep, or linear), visibility and a slice that
 // appears or disappears change at the later keyframe; after the last
@@ -30,6 +31,8 @@ namespace hz::core::render {
 
 struct ObjectState {
     bool visible = true;
+    double opacity = 1.0;
+    std::optional<std::array<double, 2>> window;        // a volume's window (nullopt: not a volume)
     std::map<std::string, std::vector<double>> params;  // the material parameters a timeline sets
     std::array<std::optional<double>, 3> slices;        // slice positions, RAS+ mm (nullopt: hidden)
 };
@@ -40,10 +43,12 @@ struct TimelineState {
 };
 
 // The state at time 0 of `scene` seen from `view`: each object's
-// visibility, material parameters and slices as the scene has them, a
-// slice position of NaN (the volume's centre) replaced by centre(object,
-// axis).
-TimelineState timeline_start(const Scene &scene, const View &view, const std::function<double(std::size_t, int)> &centre);
+// visibility, opacity, material parameters and slices as the scene has
+// them, a slice position of NaN (the volume's centre) replaced by
+// centre(object, axis), its window window(object) (the one the renderer
+// found for a volume whose scene sets none; nullopt for other objects).
+TimelineState timeline_start(const Scene &scene, const View &view, const std::function<double(std::size_t, int)> &centre,
+                             const std::function<std::optional<std::array<double, 2>>(std::size_t)> &window);
 
 // Each keyframe's camera as a view (fit_view of the scene at `aspect`);
 // nullopt for keyframes without a camera.
