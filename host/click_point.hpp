@@ -34,6 +34,9 @@ struct VoxelValue {
     std::vector<double> colour;
 };
 std::optional<VoxelValue> voxel_at(const core::render::Scene &scene, const std::array<double, 3> &p);
+// The same of object `k` (a volume; shown or not): nullopt outside its grid
+// or for another kind of object.
+std::optional<VoxelValue> voxel_of(const core::render::Scene &scene, std::size_t k, const std::array<double, 3> &p);
 
 // The world point (RAS+ mm) under window point (x, y) of a ww x wh window
 // whose framebuffer is fw x fh, seen with camera `v`: the nearest of the

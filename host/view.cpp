@@ -9,6 +9,7 @@
 #include "commands.hpp"
 #include "progress.hpp"
 #include "session.hpp"
+#include "slice_view.hpp"
 #include "window.hpp"
 
 #include <hz/core/filter.hpp>
@@ -19,6 +20,10 @@
 #include <hz/core/render/renderer.hpp>
 
 #define GLFW_INCLUDE_NONE
+#ifndef GL_GLEXT_PROTOTYPES
+#define GL_GLEXT_PROTOTYPES 1
+#endif
+#include <GL/glcorearb.h>
 #include <GLFW/glfw3.h>
 #include <imgui.h>
 #include <imgui_impl_glfw.h>
@@ -1308,6 +1313,31 @@ private:
                 const std::string v = value_under(x, y);
                 std::printf("probe %g %g: %s\n", x, y, v.empty() ? "no slice" : v.c_str());
                 std::fflush(stdout);
+            } else if (op == "view2d") {  // view2d I x|y|z (or sagittal|coronal|axial), or view2d off: the 2D view of volume I
+                const std::string first = w.word("an object number, or off");
+                if (first == "off") {
+                    w.done();
+                    v2d.open = false;
+                } else {
+                    char *end = nullptr;
+                    const unsigned long long obj = std::strtoull(first.c_str(), &end, 10);
+                    if (end == first.c_str() || *end) throw core::Error("view2d needs I x|y|z (or sagittal|coronal|axial), or off");
+                    const std::string axis = w.word("x, y or z (or sagittal, coronal, axial)");
+                    w.done();
+                    const auto a = axis_of(axis);
+                    if (!a) throw core::Error("view2d: '" + axis + "' is not x, y, z, sagittal, coronal or axial");
+                    open_view2d(std::size_t(obj), *a);
+                }
+            } else if (op == "click2d") {  // click2d X Y: a click on the 2D view's image at pixel (X, Y) from its top left
+                const double x = w.number("X"), y = w.number("Y");
+                w.done();
+                if (!v2d.open) throw core::Error("click2d: no 2D view (view2d I x|y|z first)");
+                view2d_click(x, y);
+            } else if (op == "save2d") {  // save2d FILE: the 2D view's image, as it is made (a pixel a voxel at the finest)
+                const std::string path = w.word("a file name");
+                w.done();
+                if (!v2d.open) throw core::Error("save2d: no 2D view (view2d I x|y|z first)");
+                write_image(reg, view2d_image().image, path, /*force=*/true);
             } else if (op == "window") {  // window I LO HI: the values volume I's colormap spans
                 const std::size_t obj = w.count("an object number", r.scene().objects.size());
                 const double lo = w.number("LO"), hi = w.number("HI");
@@ -1466,6 +1496,7 @@ private:
         annotations_panel();
         timeline_panel();
         ImGui::End();
+        view2d_window();
         // The annotations over the frame, under the panel: laid out as
         // `render` lays them out (and as screenshots have them).
         if (r.scene().annotations.any()) {
@@ -1840,6 +1871,8 @@ private:
                 r.set_window(i, win[0], win[1]);
             if (!ob.transfer && !ImGui::GetIO().WantCaptureMouse) under_cursor = value_under(app.last_x, app.last_y);
             ImGui::TextWrapped("%s", under_cursor.empty() ? "(point at a slice: its voxel and value)" : under_cursor.c_str());
+            if (!ob.transfer && ImGui::Button("2D view")) open_view2d(i, v2d.open && v2d.object == i ? v2d.axis : 2);
+            scriptable("view2d " + std::to_string(i));
             if (ext->volumes > 1) {
                 int k = int(std::min<std::uint64_t>(ob.volume_index, INT32_MAX));
                 if (ImGui::SliderInt("volume", &k, 0, int(std::min<std::uint64_t>(ext->volumes - 1, INT32_MAX))))
@@ -1847,6 +1880,135 @@ private:
             }
         } catch (const core::Error &e) {
             std::fprintf(stderr, "horizon: %s\n", e.what());
+        }
+    }
+
+    // The 2D view (slice_view.hpp): opens it on volume `i` across `axis`.
+    void open_view2d(std::size_t i, int axis) {
+        if (i >= r.scene().objects.size() || !r.volume_extent(i)) throw core::Error("2D view: no volume " + std::to_string(i));
+        const auto &ob = r.scene().objects[i];
+        if (ob.kind != HZ_DATA_VOLUME || ob.peaks || ob.odfs || ob.tensors || ob.transfer)
+            throw core::Error("2D view: " + ob.name + " is not a volume drawn as slices");
+        v2d.open = true, v2d.object = i, v2d.axis = axis, v2d.made.reset();
+    }
+    // Where its plane is: the object's slice on that axis, or the middle of
+    // the volume where that slice is hidden.
+    double view2d_position() const {
+        const auto &ob = r.scene().objects[v2d.object];
+        const std::optional<double> p[3] = {ob.slice_x, ob.slice_y, ob.slice_z};
+        const auto ext = r.volume_extent(v2d.object);
+        const double mid = (ext->box.min[v2d.axis] + ext->box.max[v2d.axis]) / 2;
+        return p[v2d.axis] && !std::isnan(*p[v2d.axis]) ? *p[v2d.axis] : mid;
+    }
+    // Its image, made again when what it shows changed; uploaded.
+    const SliceImage &view2d_image() {
+        const auto ext = r.volume_extent(v2d.object);
+        const auto &ob = r.scene().objects[v2d.object];
+        const double pos = view2d_position();
+        if (!v2d.made || v2d.made->axis != v2d.axis || v2d.made->position != pos || v2d.made_window != ext->window ||
+            v2d.made_volume != ob.volume_index) {
+            v2d.made = slice_image(r.scene(), v2d.object, v2d.axis, pos, ext->window, ext->box);
+            v2d.made_window = ext->window, v2d.made_volume = ob.volume_index;
+            if (v2d.texture == 0) glGenTextures(1, &v2d.texture);
+            glBindTexture(GL_TEXTURE_2D, v2d.texture);
+            glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);  // (the voxels as they are)
+            glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+            glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+            glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, v2d.made->image.width, v2d.made->image.height, 0, GL_RGBA, GL_UNSIGNED_BYTE,
+                         v2d.made->image.rgba.data());
+            glBindTexture(GL_TEXTURE_2D, 0);
+        }
+        return *v2d.made;
+    }
+    // A click at image point (x, y) (pixels from its top left): the other
+    // two slices of the object, those shown, go through that point.
+    void view2d_click(double x, double y) {
+        const SliceImage &im = view2d_image();
+        const std::array<double, 3> p = im.world(x, y);
+        const auto &ob = r.scene().objects[v2d.object];
+        std::optional<double> s[3] = {ob.slice_x, ob.slice_y, ob.slice_z};
+        const auto ext = r.volume_extent(v2d.object);
+        for (int a = 0; a < 3; ++a)
+            if (a != v2d.axis && s[a]) s[a] = std::clamp(p[std::size_t(a)], ext->box.min[a], ext->box.max[a]);
+        r.set_slices(v2d.object, s[0], s[1], s[2]);
+    }
+    // Its plane moved by `steps` pixels (the finest voxel) along its axis.
+    void view2d_step(int steps) {
+        const auto &ob = r.scene().objects[v2d.object];
+        std::optional<double> s[3] = {ob.slice_x, ob.slice_y, ob.slice_z};
+        const auto ext = r.volume_extent(v2d.object);
+        s[v2d.axis] = std::clamp(view2d_position() + steps * view2d_image().mm_per_pixel, ext->box.min[v2d.axis], ext->box.max[v2d.axis]);
+        r.set_slices(v2d.object, s[0], s[1], s[2]);
+    }
+    // The 2D view's own window: the axis, the image fitted to the window
+    // (kept square-pixelled), orientation letters, the other slices as
+    // lines, the voxel and value under the pointer; a click moves the other
+    // slices there, the wheel steps the plane a voxel at a time.
+    void view2d_window() {
+        if (!v2d.open) return;
+        try {
+            ImGui::SetNextWindowSize(ImVec2(360, 400), ImGuiCond_FirstUseEver);
+            ImGui::SetNextWindowPos(ImVec2(ImGui::GetIO().DisplaySize.x - 370, 10), ImGuiCond_FirstUseEver);
+            const std::string title = "2D view: " + r.scene().objects[v2d.object].name + "###view2d";
+            if (!ImGui::Begin(title.c_str(), &v2d.open)) {
+                ImGui::End();
+                return;
+            }
+            for (int a = 0; a < 3; ++a) {
+                if (a) ImGui::SameLine();
+                if (ImGui::RadioButton(axis_view_name(a), v2d.axis == a)) v2d.axis = a;
+            }
+            const SliceImage &im = view2d_image();
+            ImGui::Text("%s %c = %.1f mm", axis_view_name(v2d.axis), char('x' + v2d.axis), im.position);
+            const ImVec2 room = ImGui::GetContentRegionAvail();
+            const float scale = std::max(0.01f, std::min((room.x) / float(im.image.width),
+                                                         (room.y - ImGui::GetTextLineHeightWithSpacing()) / float(im.image.height)));
+            const ImVec2 size(float(im.image.width) * scale, float(im.image.height) * scale);
+            const ImVec2 at = ImGui::GetCursorScreenPos();
+            ImGui::Image(ImTextureID(std::intptr_t(v2d.texture)), size);
+            ImDrawList *dl = ImGui::GetWindowDrawList();
+            // The other slices shown, as lines across the image.
+            const auto &ob = r.scene().objects[v2d.object];
+            const std::optional<double> s[3] = {ob.slice_x, ob.slice_y, ob.slice_z};
+            for (int a = 0; a < 3; ++a) {
+                if (a == v2d.axis || !s[a] || std::isnan(*s[a])) continue;
+                std::array<double, 3> p = im.world(0, 0);
+                p[std::size_t(a)] = *s[a];
+                const auto q = im.pixel(p);
+                const ImU32 col = IM_COL32(255, 210, 60, 160);
+                if (a == im.u_axis)
+                    dl->AddLine(ImVec2(at.x + float(q[0]) * scale, at.y), ImVec2(at.x + float(q[0]) * scale, at.y + size.y), col);
+                else
+                    dl->AddLine(ImVec2(at.x, at.y + float(q[1]) * scale), ImVec2(at.x + size.x, at.y + float(q[1]) * scale), col);
+            }
+            // Orientation letters at the middle of each edge.
+            static const char *plus[3] = {"R", "A", "S"}, *minus[3] = {"L", "P", "I"};
+            const ImU32 text = IM_COL32(255, 255, 255, 220);
+            const float th = ImGui::GetTextLineHeight();
+            dl->AddText(ImVec2(at.x + 3, at.y + size.y / 2 - th / 2), text, (im.u_sign > 0 ? minus : plus)[im.u_axis]);
+            dl->AddText(ImVec2(at.x + size.x - 12, at.y + size.y / 2 - th / 2), text, (im.u_sign > 0 ? plus : minus)[im.u_axis]);
+            dl->AddText(ImVec2(at.x + size.x / 2 - 4, at.y + 2), text, (im.v_sign > 0 ? plus : minus)[im.v_axis]);
+            dl->AddText(ImVec2(at.x + size.x / 2 - 4, at.y + size.y - th - 2), text, (im.v_sign > 0 ? minus : plus)[im.v_axis]);
+            v2d.readout.clear();
+            if (ImGui::IsItemHovered()) {
+                const ImVec2 m = ImGui::GetIO().MousePos;
+                const double x = (m.x - at.x) / scale, y = (m.y - at.y) / scale;
+                const std::array<double, 3> p = im.world(x, y);
+                if (const auto vv = voxel_of(r.scene(), v2d.object, p)) {
+                    char line[256];
+                    std::snprintf(line, sizeof line, "voxel (%lld, %lld, %lld) = %.6g at (%.1f, %.1f, %.1f) mm", (long long)vv->ijk[0],
+                                  (long long)vv->ijk[1], (long long)vv->ijk[2], vv->value, p[0], p[1], p[2]);
+                    v2d.readout = line;
+                }
+                if (ImGui::IsMouseClicked(0)) view2d_click(x, y);
+                if (const float wheel = ImGui::GetIO().MouseWheel; wheel != 0) view2d_step(wheel > 0 ? 1 : -1);
+            }
+            ImGui::TextUnformatted(v2d.readout.empty() ? "(point at the image: its voxel and value)" : v2d.readout.c_str());
+            ImGui::End();
+        } catch (const core::Error &e) {
+            std::fprintf(stderr, "horizon: %s\n", e.what());
+            ImGui::End();
+            v2d.open = false;
         }
     }
 
@@ -1887,7 +2049,20 @@ private:
     Explorer *ex = nullptr;
     std::size_t ti = 0, ci = 0, si = 0, wire_in = 0, wire_out = 0;
     int saves = 0;
-    std::string under_cursor;       // the slicer's readout (value_under) at the cursor
+    std::string under_cursor;  // the slicer's readout (value_under) at the cursor
+    // The 2D view of a slice (slice_view.hpp), beside the 3D view: the
+    // object and the axis across its plane; the image, made again when the
+    // plane, the window or the 3D volume shown changes, and its texture.
+    struct View2D {
+        bool open = false;
+        std::size_t object = 0;
+        int axis = 2;
+        std::optional<SliceImage> made;
+        std::array<double, 2> made_window{};
+        std::uint64_t made_volume = 0;
+        GLuint texture = 0;
+        std::string readout;  // the voxel and value under the pointer, over the image
+    } v2d;
     std::size_t active_roi = 0;     // the region Ctrl+wheel resizes (the last placed or edited)
     bool roi_drag = false;          // a panel drag of a region in progress (recorded once for undo)
     char thresholds_text[64] = "";  // the panel's thresholds for the next repeat

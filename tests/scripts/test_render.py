@@ -698,6 +698,67 @@ class SlicerTest(TempDirTest):
             self.assertEqual(float(m.group(4)), float(data[ijk[0], ijk[1], ijk[2], vol]), line)
 
     @unittest.skipUnless(shutil.which("xvfb-run") or os.environ.get("CI"), "xvfb-run is not installed")
+    def test_the_2d_view_of_a_slice(self):
+        """The window's 2D view (`view2d I AXIS`, the slicer's "2D view"
+        button): the plane at the object's slice, a pixel a voxel of the
+        finest size over the volume's box, each the voxel nearest its centre
+        through the window, neurological (right on the right; sagittal from
+        the left). Computed here from nibabel's data and affine, for a
+        volume whose voxel axes are permuted and flipped against the world's.
+        A click on it (`click2d`) moves the other slices shown to that point;
+        a word it does not know stops the script with one line."""
+        import nibabel as nib
+        i, j, k = np.meshgrid(np.arange(40), np.arange(48), np.arange(36), indexing="ij")
+        data = (i * 5.0 + (j % 7) * 3 + (k // 3) * 2).astype(np.float32)
+        aff = np.array([[0, -2.0, 0, 47], [2.0, 0, 0, -40], [0, 0, 2.0, -36], [0, 0, 0, 1]])
+        nib.save(nib.Nifti1Image(data, aff), self.path("perm.nii.gz"))
+        shots = {n: self.path(n + ".png") for n in ("axial", "coronal", "sagittal", "clicked")}
+        script = self.path("v.txt")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 1", "view2d 0 z", f"save2d {shots['axial']}", "slice 0 y 10", "view2d 0 coronal",
+                               f"save2d {shots['coronal']}", "click2d 30.5 10.5", "slice 0 x 7", "view2d 0 x",
+                               f"save2d {shots['sagittal']}", "view2d 0 z", f"save2d {shots['clicked']}", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        p = xvfb_run([HORIZON, "view", self.scene("p.json", file="perm.nii.gz"), "--size", "320x240", "--script", script], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        inv = np.linalg.inv(aff)
+        corners = np.array([[a, b, c, 1] for a in (-0.5, 39.5) for b in (-0.5, 47.5) for c in (-0.5, 35.5)]) @ aff.T
+        lo, hi = corners[:, :3].min(axis=0), corners[:, :3].max(axis=0)
+
+        def expected(axis, position):
+            u, v, sign = {0: (1, 2, -1), 1: (0, 2, 1), 2: (0, 1, 1)}[axis]
+            w, h = int(np.ceil((hi[u] - lo[u]) / 2 - 1e-9)), int(np.ceil((hi[v] - lo[v]) / 2 - 1e-9))
+            cols, rows = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+            world = np.zeros((h, w, 3))
+            world[..., axis] = position
+            world[..., u] = lo[u] + cols * 2 if sign > 0 else hi[u] - cols * 2
+            world[..., v] = hi[v] - rows * 2
+            ijk = world @ inv[:3, :3].T + inv[:3, 3]
+            ijk = np.sign(ijk) * np.floor(np.abs(ijk) + 0.5)
+            inside = np.all((ijk >= 0) & (ijk < np.array(data.shape)), axis=-1)
+            at = np.where(inside[..., None], ijk, 0).astype(int)
+            grey = np.clip(data[at[..., 0], at[..., 1], at[..., 2]] / 240.0, 0, 1) * 255
+            tie = inside & (grey - np.floor(grey) == 0.5)  # (an exact half: float32's rounding may go either way)
+            return np.where(inside, np.floor(grey + 0.5), 0), tie
+
+        for name, axis, position in (("axial", 2, 0.0), ("coronal", 1, 10.0), ("sagittal", 0, 7.0), ("clicked", 2, 14.0)):
+            with self.subTest(view=name):
+                got = np.asarray(Image.open(shots[name]).convert("RGB"), dtype=float)
+                want, tie = expected(axis, position)
+                self.assertEqual(got.shape[:2], want.shape)
+                self.assertTrue(np.all(got[..., 0] == got[..., 2]), "grey")
+                np.testing.assert_array_equal(got[..., 0][~tie], want[~tie], name)
+                self.assertLessEqual(np.abs(got[..., 0] - want)[tie].max(initial=0), 1, name)
+        bad = self.path("b.txt")
+        with open(bad, "w") as f:
+            f.write("wait 1\nview2d 0 w\nquit\n")
+        p = xvfb_run([HORIZON, "view", self.scene("p.json", file="perm.nii.gz"), "--size", "320x240", "--script", bad], env)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("view2d: 'w' is not x, y, z, sagittal, coronal or axial", p.stderr)
+
+    @unittest.skipUnless(shutil.which("xvfb-run") or os.environ.get("CI"), "xvfb-run is not installed")
     def test_the_colour_under_the_cursor(self):
         """A colour volume's readout is its three values there (8-bit, and
         float with "rgb": true), as nibabel reads them at the voxel printed."""
