@@ -50,8 +50,8 @@ std::optional<int> axis_of(const std::string &w) {
     return std::nullopt;
 }
 
-SliceImage slice_image(const core::render::Scene &scene, std::size_t object, int axis, double position,
-                       const std::array<double, 2> &window, const core::Bounds &box) {
+SliceImage slice_image(const core::render::Scene &scene, std::size_t object, int axis, double position, const std::array<double, 2> &window,
+                       const core::Bounds &box) {
     if (object >= scene.objects.size()) throw core::Error("2D view: no object " + std::to_string(object));
     const core::render::Object &ob = scene.objects[object];
     if (ob.kind != HZ_DATA_VOLUME || ob.peaks || ob.odfs || ob.tensors || ob.data.volume.dims.size() < 3 || box.empty)
@@ -90,7 +90,8 @@ SliceImage slice_image(const core::render::Scene &scene, std::size_t object, int
                 const auto l = core::render::label_colour(ob.labels->options.table, std::int64_t(vv->value));
                 c = {l[0] / 255.f, l[1] / 255.f, l[2] / 255.f};
             } else if (vv->colour.size() == 3) {
-                for (int k = 0; k < 3; ++k) c[std::size_t(k)] = float(rgb8 ? vv->colour[std::size_t(k)] / 255.0 : (vv->colour[std::size_t(k)] - lo) / span);
+                for (int k = 0; k < 3; ++k)
+                    c[std::size_t(k)] = float(rgb8 ? vv->colour[std::size_t(k)] / 255.0 : (vv->colour[std::size_t(k)] - lo) / span);
             } else {
                 c = core::render::colormap(ob.slice_colormap, (vv->value - lo) / span);
             }

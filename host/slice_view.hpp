@@ -43,8 +43,8 @@ struct SliceImage {
 // renderer's: a volume whose scene sets none has one found for it). Throws
 // Error naming the object when it is not a volume drawn as slices. At most
 // 2048 pixels a side (a coarser grid beyond).
-SliceImage slice_image(const core::render::Scene &scene, std::size_t object, int axis, double position,
-                       const std::array<double, 2> &window, const core::Bounds &box);
+SliceImage slice_image(const core::render::Scene &scene, std::size_t object, int axis, double position, const std::array<double, 2> &window,
+                       const core::Bounds &box);
 
 // "sagittal", "coronal", "axial" of 0, 1, 2; the axis of x|y|z or those
 // names (nullopt: neither).
