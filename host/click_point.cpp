@@ -122,27 +122,38 @@ std::optional<VoxelValue> voxel_at(const core::render::Scene &scene, const std::
 }
 
 std::optional<VoxelValue> voxel_of(const core::render::Scene &scene, std::size_t k, const std::array<double, 3> &p) {
+    return VoxelLookup(scene, k)(p);
+}
+
+VoxelLookup::VoxelLookup(const core::render::Scene &scene, std::size_t k) : k_(k) {
     const auto &ob = scene.objects[k];
-    if (ob.kind != HZ_DATA_VOLUME || ob.data.volume.dims.size() < 3) return std::nullopt;
-    const core::Volume &vol = ob.data.volume;
+    if (ob.kind != HZ_DATA_VOLUME || ob.data.volume.dims.size() < 3) return;
     // RAS -> voxel: the inverse of the 3x4 affine.
-    const auto &a = vol.voxel_to_ras;
+    const auto &a = ob.data.volume.voxel_to_ras;
     const double m[3][3] = {{a[0], a[1], a[2]}, {a[4], a[5], a[6]}, {a[8], a[9], a[10]}};
     const double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
                        m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    if (!(std::abs(det) > 1e-12)) return std::nullopt;
-    const double q[3] = {p[0] - a[3], p[1] - a[7], p[2] - a[11]};
-    double inv[3][3];
+    if (!(std::abs(det) > 1e-12)) return;
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) {
             const int i1 = (j + 1) % 3, i2 = (j + 2) % 3, j1 = (i + 1) % 3, j2 = (i + 2) % 3;
-            inv[i][j] = (m[i1][j1] * m[i2][j2] - m[i1][j2] * m[i2][j1]) / det;
+            inv_[i][j] = (m[i1][j1] * m[i2][j2] - m[i1][j2] * m[i2][j1]) / det;
         }
+    ob_ = &ob;
+    rgb_ = core::render::shows_rgb(ob);
+}
+
+std::optional<VoxelValue> VoxelLookup::operator()(const std::array<double, 3> &p) const {
+    if (ob_ == nullptr) return std::nullopt;
+    const auto &ob = *ob_;
+    const core::Volume &vol = ob.data.volume;
+    const auto &a = vol.voxel_to_ras;
+    const double q[3] = {p[0] - a[3], p[1] - a[7], p[2] - a[11]};
     VoxelValue out;
-    out.object = k;
+    out.object = k_;
     bool inside = true;
     for (int i = 0; i < 3; ++i) {
-        const double c = inv[i][0] * q[0] + inv[i][1] * q[1] + inv[i][2] * q[2];
+        const double c = inv_[i][0] * q[0] + inv_[i][1] * q[1] + inv_[i][2] * q[2];
         out.ijk[i] = std::int64_t(c < 0 ? -std::floor(-c + 0.5) : std::floor(c + 0.5));
         inside = inside && out.ijk[i] >= 0 && std::uint64_t(out.ijk[i]) < vol.dims[i];
     }
@@ -153,7 +164,7 @@ std::optional<VoxelValue> voxel_of(const core::render::Scene &scene, std::size_t
     const std::size_t es = core::dtype_size(vol.dtype);
     if (es == 0 || (at + 1) * es > vol.voxels.size()) return std::nullopt;
     out.value = core::value_at(vol.voxels.data() + at * es, vol.dtype) * (vol.scale_slope == 0 ? 1.0 : vol.scale_slope) + vol.scale_inter;
-    if (core::render::shows_rgb(ob)) {
+    if (rgb_) {
         const std::uint64_t voxel = at - ob.volume_index * X * Y * Z;
         if (vol.dtype == HZ_DTYPE_RGB8 || vol.dtype == HZ_DTYPE_RGBA8) {  // (the voxel's bytes)
             for (int c = 0; c < 3; ++c) out.colour.push_back(double(std::uint8_t(vol.voxels.data()[voxel * es + std::size_t(c)])));

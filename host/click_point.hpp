@@ -37,6 +37,20 @@ std::optional<VoxelValue> voxel_at(const core::render::Scene &scene, const std::
 // The same of object `k` (a volume; shown or not): nullopt outside its grid
 // or for another kind of object.
 std::optional<VoxelValue> voxel_of(const core::render::Scene &scene, std::size_t k, const std::array<double, 3> &p);
+// voxel_of for many points of one object (a 2D view's pixels): the affine
+// inverted once. Holds `scene`'s object by reference: use it while the
+// scene's objects are unchanged.
+class VoxelLookup {
+public:
+    VoxelLookup(const core::render::Scene &scene, std::size_t k);
+    std::optional<VoxelValue> operator()(const std::array<double, 3> &p) const;
+
+private:
+    const core::render::Object *ob_ = nullptr;  // null: not a volume, or a singular affine
+    std::size_t k_ = 0;
+    double inv_[3][3]{};
+    bool rgb_ = false;
+};
 
 // The world point (RAS+ mm) under window point (x, y) of a ww x wh window
 // whose framebuffer is fw x fh, seen with camera `v`: the nearest of the

@@ -176,7 +176,7 @@ TimelinePlayer::TimelinePlayer(core::render::Renderer &r, const core::render::Vi
         [&](std::size_t i) -> std::optional<std::array<double, 2>> {
             const core::render::Object &o = s.objects[i];
             const auto ext = r.volume_extent(i);
-            if (!ext || o.kind != HZ_DATA_VOLUME || o.labels || o.peaks || o.odfs || o.tensors) return std::nullopt;
+            if (!ext || !core::render::shows_value_slices(o) || o.labels) return std::nullopt;
             return ext->window;
         });
     keys_ = core::render::keyframe_views(s, *s.timeline, aspect);

@@ -54,7 +54,7 @@ SliceImage slice_image(const core::render::Scene &scene, std::size_t object, int
                        const core::Bounds &box) {
     if (object >= scene.objects.size()) throw core::Error("2D view: no object " + std::to_string(object));
     const core::render::Object &ob = scene.objects[object];
-    if (ob.kind != HZ_DATA_VOLUME || ob.peaks || ob.odfs || ob.tensors || ob.data.volume.dims.size() < 3 || box.empty)
+    if (!core::render::shows_value_slices(ob) || ob.data.volume.dims.size() < 3 || box.empty)
         throw core::Error("2D view: " + ob.name + " is not a volume drawn as slices");
     if (axis < 0 || axis > 2) throw core::Error("2D view: axis " + std::to_string(axis) + " is not x, y or z");
     // The finest voxel size: the shortest column of the affine.
@@ -78,11 +78,12 @@ SliceImage slice_image(const core::render::Scene &scene, std::size_t object, int
     s.image.rgba.assign(std::size_t(w) * std::size_t(h) * 4, 0);
     const double lo = window[0], span = window[1] > window[0] ? window[1] - window[0] : 1.0;
     const bool rgb8 = ob.data.volume.dtype == HZ_DTYPE_RGB8 || ob.data.volume.dtype == HZ_DTYPE_RGBA8;
+    const VoxelLookup voxel_of(scene, object);
     for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x) {
             std::uint8_t *px = &s.image.rgba[(std::size_t(y) * std::size_t(w) + std::size_t(x)) * 4];
             px[3] = 255;
-            const auto vv = voxel_of(scene, object, s.world(x + 0.5, y + 0.5));
+            const auto vv = voxel_of(s.world(x + 0.5, y + 0.5));
             if (!vv) continue;
             std::array<float, 3> c{};
             if (ob.labels) {

@@ -1887,7 +1887,7 @@ private:
     void open_view2d(std::size_t i, int axis) {
         if (i >= r.scene().objects.size() || !r.volume_extent(i)) throw core::Error("2D view: no volume " + std::to_string(i));
         const auto &ob = r.scene().objects[i];
-        if (ob.kind != HZ_DATA_VOLUME || ob.peaks || ob.odfs || ob.tensors || ob.transfer)
+        if (!core::render::shows_value_slices(ob) || ob.transfer)
             throw core::Error("2D view: " + ob.name + " is not a volume drawn as slices");
         v2d.open = true, v2d.object = i, v2d.axis = axis, v2d.made.reset();
     }

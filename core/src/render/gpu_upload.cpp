@@ -139,6 +139,8 @@ std::vector<float> volume_values(const Object &o) {
     return f;
 }
 
+bool shows_value_slices(const Object &o) { return o.kind == HZ_DATA_VOLUME && !o.peaks && !o.odfs && !o.tensors; }
+
 bool shows_rgb(const Object &o) {
     const Volume &v = o.data.volume;
     const bool rgb_type = v.dtype == HZ_DTYPE_RGB8 || v.dtype == HZ_DTYPE_RGBA8;

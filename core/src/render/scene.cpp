@@ -487,7 +487,7 @@ Timeline parse_timeline(const Registry &reg, const json &t, Scene &s, const std:
                 }
                 if (o.contains("opacity")) ok.opacity = num_in(o["opacity"], what, at + ".opacity", 0.0, 1.0);
                 if (o.contains("window")) {
-                    if (ob.kind != HZ_DATA_VOLUME || ob.peaks || ob.odfs || ob.tensors || ob.labels)
+                    if (!shows_value_slices(ob) || ob.labels)
                         fail(what, at + ".window", "'" + name + "' has no intensity window (a volume of values has)");
                     ok.window = vec<2>(o["window"], what, at + ".window");
                     if (!((*ok.window)[1] > (*ok.window)[0]))

@@ -207,6 +207,10 @@ std::optional<Bounds> glyph_grid(const Object &o);
 // Throws Error naming `what` (make_odf_field's checks).
 void show_as_odfs(Object &o, const OdfOptions &opt, const std::string &what);
 
+// Whether object `o` is a volume drawn as slices of its values (labels,
+// colour or intensities), not as glyphs (peaks, ODFs, tensors).
+bool shows_value_slices(const Object &o);
+
 // Whether volume object `o`'s slices show colour (Object::rgb, or what its
 // volume is: an RGB voxel type, or 8-bit values with a 4th dimension of 3
 // or 4).
