@@ -21,7 +21,8 @@ from hztest import BUILD, HORIZON, SOURCE, make_tractogram, run, xvfb_run
 
 # The sanitizer build runs every access checked: a smaller (still realistic)
 # file. The mutation check asks for that size too (HORIZON_SCALE_STREAMLINES):
-# it runs these tests once per mutant of the paths they cover.
+# it runs these tests once per mutant of the paths they cover. (CI runs them
+# in its Release build only, at 1M: .ci/bootstrap.)
 SANITIZED = "ASAN_OPTIONS" in os.environ
 N = int(os.environ.get("HORIZON_SCALE_STREAMLINES") or (300000 if SANITIZED else 1000000))
 CHUNK_POINTS = 1 << 18  # the renderer's chunk (renderer.cpp kChunkPoints)
