@@ -363,6 +363,17 @@ class Scene:
     def _repr_png_(self):
         return _png(self.render())
 
+    def view3d(self, points=200000, three=None, height=480):
+        """The scene's interactive 3D view (horizon.web.View3D): its
+        streamlines (every k-th, at most `points` points) and surfaces, with
+        their colours ([r, g, b]; else direction, grey) and opacities, drawn
+        by three.js and turned with the mouse. Self-contained: shown inline
+        in Jupyter (an iframe), or written with .save(path). Needs npm's
+        three@0.147: `three` (its folder), $HORIZON_THREE_DIR, or
+        node_modules/three in the usual places; ValueError without it."""
+        from .web import view_of_scene
+        return view_of_scene(self, points, three, height)
+
 
 def _png(rgba):
     """`rgba` (height, width, 4 uint8) as PNG bytes (zlib, no other library)."""

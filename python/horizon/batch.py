@@ -5,7 +5,7 @@ and a gallery (a static HTML page: thumbnails, numbers, failures; sorting and
 filtering in the page, no server) is written beside the results.
 
     python3 -m horizon.batch ROOT --glob 'sub-*/**/*.tck' --out qc [--anatomy 'sub-*/anat/*_T1w.nii.gz']
-                             [--workers 2] [--scheduler tcp://HOST:8786]
+                             [--surface 'sub-*/surf/*.gii'] [--workers 2] [--scheduler tcp://HOST:8786]
 
 Per subject, in OUT/subjects/ID/: qc.json (counts, lengths, bounding box, the
 source's size and time) and one PNG per view. Every file is written to a
@@ -31,7 +31,10 @@ With --anatomy, each subject's anatomy (the file the glob matches in the
 same subject folder, ROOT's first level) is the affine's sanity check: a
 tractogram reaching more than --tolerance mm outside the anatomy's grid,
 in RAS+ mm, is flagged (the usual sign of a wrong affine or a voxel-space
-file), and drawn over its anatomy's slices.
+file), and drawn over its anatomy's slices. With --surface, every file the
+glob matches in the subject's folder (its pial or white surfaces: GIFTI,
+FreeSurfer, PLY, OBJ, glTF) is drawn translucent around the streamlines, in
+the pictures and in the 3D view; a subject without one is warned about.
 """
 import argparse
 import glob
@@ -43,31 +46,12 @@ import time
 
 VIEWS = ("superior", "left", "anterior")
 
-# What the 3D views take of three.js (paths in its npm package), copied to OUT/three/.
-THREE_FILES = {"three.min.js": "build/three.min.js", "GLTFLoader.js": "examples/js/loaders/GLTFLoader.js",
-               "OrbitControls.js": "examples/js/controls/OrbitControls.js", "LICENSE": "LICENSE"}
+from .web import THREE_FILES, find_three as _find_three
 
 
 def find_three(explicit=None):
-    """The folder of an npm package three with the classic-script files the
-    3D views need, or None. Tried: `explicit`, $HORIZON_THREE_DIR, then
-    node_modules/three under the working directory, ~/.local/lib,
-    /usr/local/lib, /usr/lib and /usr/share/nodejs. An explicit folder that
-    lacks them raises ValueError saying what is missing."""
-    def ok(d):
-        return d and all(os.path.isfile(os.path.join(d, f)) for f in THREE_FILES.values())
-    for d, named in ((explicit, "--three"), (os.environ.get("HORIZON_THREE_DIR"), "$HORIZON_THREE_DIR")):
-        if d:
-            if ok(d):
-                return os.path.abspath(d)
-            missing = [f for f in THREE_FILES.values() if not os.path.isfile(os.path.join(d, f))]
-            raise ValueError(f"{named}: {d} is not an npm package three with {', '.join(missing)} "
-                             f"(three.js 0.147 is the last release that has them: npm install three@0.147)")
-    for prefix in (os.getcwd(), os.path.expanduser("~/.local/lib"), "/usr/local/lib", "/usr/lib", "/usr/share/nodejs"):
-        d = os.path.join(prefix, "node_modules", "three") if not prefix.endswith("nodejs") else os.path.join(prefix, "three")
-        if ok(d):
-            return d
-    return None
+    """horizon.web.find_three, an explicit folder named --three."""
+    return _find_three(explicit, "--three")
 
 
 def copy_three(three, out):
@@ -85,69 +69,22 @@ def copy_three(three, out):
         _write_atomic(dst, data)
 
 
-VIEW_3D = """<!doctype html>
-<html><head><meta charset="utf-8"><title>Horizon 3D: {id}</title>
-<style>html,body{{margin:0;height:100%;background:#111;color:#ddd;font-family:sans-serif;overflow:hidden}}
-#info{{position:absolute;left:8px;top:6px;font-size:13px}} a{{color:#9cf}}</style></head><body>
-<div id="info">{id}: {shown} of {total} streamlines (drag: turn, wheel: zoom, right drag: pan) &middot; <a href="../../index.html">gallery</a></div>
-<script src="../../three/three.min.js"></script>
-<script src="../../three/GLTFLoader.js"></script>
-<script src="../../three/OrbitControls.js"></script>
-<script src="scene.js"></script>
-<script>
-(function () {{
-  const renderer = new THREE.WebGLRenderer({{antialias: true, preserveDrawingBuffer: true}});
-  renderer.setPixelRatio(window.devicePixelRatio);
-  renderer.setSize(innerWidth, innerHeight);
-  renderer.setClearColor(0x111111);
-  document.body.appendChild(renderer.domElement);
-  const scene = new THREE.Scene();
-  const camera = new THREE.PerspectiveCamera(30, innerWidth / innerHeight, 0.001, 100);
-  const controls = new THREE.OrbitControls(camera, renderer.domElement);
-  const draw = () => {{ renderer.render(scene, camera); window.hzFrames = (window.hzFrames || 0) + 1; }};
-  controls.addEventListener('change', draw);
-  addEventListener('resize', () => {{
-    camera.aspect = innerWidth / innerHeight; camera.updateProjectionMatrix();
-    renderer.setSize(innerWidth, innerHeight); draw();
-  }});
-  const bytes = Uint8Array.from(atob(window.HZ_SCENE), c => c.charCodeAt(0));
-  new THREE.GLTFLoader().parse(bytes.buffer, '', gltf => {{
-    scene.add(gltf.scene);
-    // glTF: +X left, +Y superior, +Z anterior. The left side, whole.
-    const box = new THREE.Box3().setFromObject(gltf.scene);
-    const c = box.getCenter(new THREE.Vector3()), r = Math.max(box.getSize(new THREE.Vector3()).length() / 2, 1e-3);
-    controls.target.copy(c);
-    camera.position.set(c.x + r / Math.sin(Math.PI / 12), c.y, c.z);
-    camera.near = r / 100; camera.far = r * 20; camera.updateProjectionMatrix();
-    controls.update();
-    draw();
-    window.hzReady = true;
-  }}, e => {{ document.getElementById('info').textContent = 'cannot read this scene: ' + e; window.hzError = String(e); }});
-}})();
-</script></body></html>
-"""
-
-
-def web_view(data, folder, sid, points):
-    """The subject's 3D view: scene.glb (every k-th streamline, at most
-    `points` points), scene.js (the same bytes for a page opened from files,
-    which may not fetch them) and view.html. Returns view.html's path."""
-    import base64
-    import numpy as np
-    import horizon
-    offsets = np.asarray(data.offsets)
-    n = len(offsets) - 1
-    total = int(offsets[-1]) if n > 0 else 0
-    k = max(1, -(-total // max(points, 1)))
-    ids = list(range(0, n, k))
-    glb = os.path.join(folder, "scene.glb")
-    tmp = os.path.join(folder, ".scene.tmp.glb")
-    horizon.save(data, tmp, force=True, selection=ids)
-    os.replace(tmp, glb)
-    with open(glb, "rb") as f:
-        _write_atomic(os.path.join(folder, "scene.js"), b"window.HZ_SCENE = '" + base64.b64encode(f.read()) + b"';\n")
+def web_view(data, folder, sid, points, surfaces=()):
+    """The subject's 3D view (horizon.web): scene.glb (every k-th
+    streamline, at most `points` points), scene.js (the parts' bytes, for a
+    page opened from files, which may not fetch them), view.html, which
+    takes three.js from the gallery's three/. `surfaces`: (name, Data) drawn
+    translucent around the streamlines. Returns view.html's path."""
+    from . import web
+    part, shown, total = web.streamlines_part(data, points)
+    _write_atomic(os.path.join(folder, "scene.glb"), part["glb"])
+    parts = [part] + [web.surface_part(s, opacity=0.35) for _, s in surfaces]
+    _write_atomic(os.path.join(folder, "scene.js"), web.parts_js(parts).encode())
+    info = (f"{html.escape(sid)}: {web.describe(shown, total, len(surfaces), [])} (drag: turn, wheel: zoom, right drag: pan) "
+            f'&middot; <a href="../../index.html">gallery</a>')
+    scripts = [(f"../../three/{name}", None) for name in web.SCRIPTS] + [("scene.js", None)]
     page = os.path.join(folder, "view.html")
-    _write_atomic(page, VIEW_3D.format(id=html.escape(sid), shown=len(ids), total=n).encode())
+    _write_atomic(page, web.page(f"Horizon 3D: {sid}", info, scripts).encode())
     return page
 
 
@@ -224,10 +161,11 @@ def outside_mm(box, lo, hi):
     return float(max(0.0, np.max(lo - np.asarray(box[0])), np.max(np.asarray(box[1]) - hi)))
 
 
-def qc_subject(root, path, out, views, size, anatomy=None, tolerance=10.0, web_points=None):
+def qc_subject(root, path, out, views, size, anatomy=None, tolerance=10.0, web_points=None, surfaces=None):
     """One subject's QC (run on a worker): its record, written to
     OUT/subjects/ID/qc.json; done before and unchanged: read back. With
-    `web_points`, its 3D view too (web_view)."""
+    `web_points`, its 3D view too (web_view). `surfaces`: the subject's
+    surface files (None: none asked for), drawn translucent in its views."""
     import horizon
     sid = subject_id(root, path)
     folder = os.path.join(out, "subjects", sid)
@@ -241,7 +179,7 @@ def qc_subject(root, path, out, views, size, anatomy=None, tolerance=10.0, web_p
         with open(record_path) as f:
             old = json.load(f)
         if old.get("status") == "ok" and old.get("source") == stamp and old.get("anatomy", {}).get("file") == (anatomy or None) and \
-                (web_points is None or "view_3d" in old):
+                (web_points is None or "view_3d" in old) and old.get("surfaces", []) == (surfaces or []):
             old["skipped"] = True
             return old
     os.makedirs(folder, exist_ok=True)
@@ -267,16 +205,28 @@ def qc_subject(root, path, out, views, size, anatomy=None, tolerance=10.0, web_p
                                           f"(a wrong affine, or streamlines in voxel space?)")
         elif anatomy is not None:
             record["warnings"].append("no anatomy found for this subject")
+        surfs = []
+        for f in surfaces or []:
+            m = horizon.load(f)
+            if m.kind != "mesh":
+                raise horizon.Error(f"{f}: holds {m.kind}, not a surface")
+            surfs.append((f, m))
+        if surfaces:
+            record["surfaces"] = list(surfaces)
+        elif surfaces is not None:
+            record["warnings"].append("no surface found for this subject")
         for view in views:
             scene = horizon.Scene(environment={"type": "studio"}, camera={"view": view})
             scene.add(data, render="lines")
             if anat is not None:
                 scene.add(anat, type="slices")
+            for _, m in surfs:
+                scene.add(m, type="surface", opacity=0.35)
             png = os.path.join(folder, f"{view}.png")
             _write_atomic(png, horizon._png(scene.render(size)))
             record["views"][view] = os.path.relpath(png, out)
         if web_points is not None:
-            record["view_3d"] = os.path.relpath(web_view(data, folder, sid, web_points), out)
+            record["view_3d"] = os.path.relpath(web_view(data, folder, sid, web_points, surfs), out)
         record["status"] = "ok"
     except Exception as e:  # (a subject's failure is its row, never the batch's)
         record["status"] = "failed"
@@ -358,6 +308,8 @@ def main(argv=None):
     ap.add_argument("--scheduler", help="the address of a Dask scheduler started elsewhere (then --workers is ignored)")
     ap.add_argument("--anatomy", help="each subject's anatomy, relative to ROOT (e.g. 'sub-*/anat/*_T1w.nii.gz'): the affine's "
                     "sanity check, and slices under the views")
+    ap.add_argument("--surface", help="each subject's surfaces, relative to ROOT (e.g. 'sub-*/surf/*.pial.gii'): every file the glob "
+                    "matches in the subject's folder, drawn translucent in its views and 3D view")
     ap.add_argument("--tolerance", type=float, default=10.0, help="--anatomy: mm the streamlines may reach outside its grid (10)")
     ap.add_argument("--strict", action="store_true", help="exit with status 1 if a subject failed")
     ap.add_argument("--three", help="an npm package three (0.147: npm install three@0.147) for the 3D views "
@@ -397,6 +349,12 @@ def main(argv=None):
         for f in sorted(glob.glob(os.path.join(root, a.anatomy), recursive=True)):
             by_subject.setdefault(os.path.relpath(f, root).split(os.sep)[0], f)
         anatomy = [by_subject.get(os.path.relpath(f, root).split(os.sep)[0], "") for f in files]
+    surfaces = [None] * len(files)
+    if a.surface:
+        by_subject = {}
+        for f in sorted(glob.glob(os.path.join(root, a.surface), recursive=True)):
+            by_subject.setdefault(os.path.relpath(f, root).split(os.sep)[0], []).append(f)
+        surfaces = [by_subject.get(os.path.relpath(f, root).split(os.sep)[0], []) for f in files]
     os.makedirs(os.path.join(out, "subjects"), exist_ok=True)
     from dask.distributed import Client, LocalCluster
     cluster = None
@@ -410,7 +368,7 @@ def main(argv=None):
         if three:
             copy_three(three, out)
         futures = client.map(qc_subject, [root] * len(files), files, [out] * len(files), [views] * len(files), [(w, h)] * len(files),
-                             anatomy, [a.tolerance] * len(files), [a.web_points if three else None] * len(files), pure=False,
+                             anatomy, [a.tolerance] * len(files), [a.web_points if three else None] * len(files), surfaces, pure=False,
                              retries=2)
         records = []
         for f, fut in zip(files, futures):

@@ -16,6 +16,54 @@ import horizon
 HORIZON = os.environ.get("HORIZON_BIN", "horizon")
 
 
+def _browser():
+    """(chromium, node_modules with three and puppeteer-core) for the tests
+    that open pages in a real browser; .ci/bootstrap installs them into
+    BUILD/npm. A machine without them skips those tests; CI fails them."""
+    # (the sanitized suite's build tree is another one: the sources' build/ too)
+    build = os.environ.get("HORIZON_BUILD_DIR", "")
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    candidates = [os.environ.get("HORIZON_NODE_MODULES"), os.path.join(build, "npm", "node_modules"),
+                  os.path.join(root, "build", "npm", "node_modules")]
+    modules = next((c for c in candidates if c and os.path.isdir(os.path.join(c, "puppeteer-core"))), candidates[1])
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    missing = [what for what, ok in (("chromium", chromium), ("node", shutil.which("node")),
+                                     (os.path.join(modules, "three"), os.path.isdir(os.path.join(modules, "three"))),
+                                     (os.path.join(modules, "puppeteer-core"), os.path.isdir(os.path.join(modules, "puppeteer-core"))))
+               if not ok]
+    if missing:
+        if os.environ.get("CI"):
+            pytest.fail(f"missing {', '.join(missing)} (.ci/bootstrap installs them)")
+        pytest.skip(f"missing {', '.join(missing)}")
+    return chromium, modules
+
+
+def _open_views(chromium, modules, *pages):
+    """The pages opened by Chromium (tests/browser/view3d.js): what it saw of
+    each (without the sanitizer's preload: Chromium is not ours)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "ASAN_OPTIONS", "LSAN_OPTIONS", "UBSAN_OPTIONS")}
+    script = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "browser", "view3d.js")
+    r = subprocess.run(["node", script, chromium, modules, *map(str, pages)], env=env, capture_output=True, text=True, timeout=300)
+    seen = json.loads(r.stdout.strip().splitlines()[-1]) if r.stdout.strip() else {}
+    assert r.returncode == 0, r.stdout + r.stderr
+    return seen["pages"]
+
+
+def _sphere_gifti(path, radius=60.0, centre=(0, 0, 0)):
+    """A UV sphere (20 x 40 vertices, outward triangles) written by nibabel."""
+    import nibabel as nib
+    u, v = np.meshgrid(np.linspace(0, np.pi, 20), np.linspace(0, 2 * np.pi, 40, endpoint=False), indexing="ij")
+    P = (np.stack([np.sin(u) * np.cos(v), np.sin(u) * np.sin(v), np.cos(u)], -1).reshape(-1, 3) * radius + centre).astype(np.float32)
+    F = []
+    for i in range(19):
+        for j in range(40):
+            a, b, c, d = i * 40 + j, i * 40 + (j + 1) % 40, (i + 1) * 40 + j, (i + 1) * 40 + (j + 1) % 40
+            F += [[a, c, b], [b, c, d]]
+    nib.save(nib.gifti.GiftiImage(darrays=[nib.gifti.GiftiDataArray(P, intent="NIFTI_INTENT_POINTSET"),
+                                           nib.gifti.GiftiDataArray(np.array(F, np.int32), intent="NIFTI_INTENT_TRIANGLE")]), str(path))
+    return path
+
+
 @pytest.fixture
 def tck(tmp_path):
     """Three streamlines of 5, 1 and 40 points written by nibabel (its TCK
@@ -145,8 +193,10 @@ def test_errors_are_exceptions_with_the_one_line_message(tmp_path):
 def test_the_example_notebook_runs_and_shows_its_pictures(tmp_path, monkeypatch):
     """docs/examples/horizon.ipynb executed as a user would (nbclient, the
     python3 kernel), in a scratch folder: every cell runs, the scene shows
-    inline as a PNG, the printed checks say what they should."""
+    inline as a PNG, the printed checks say what they should, and its 3D
+    view (an iframe) draws in a real browser."""
     import base64
+    import html as htmlmod
     import shutil
 
     import nbclient
@@ -156,6 +206,8 @@ def test_the_example_notebook_runs_and_shows_its_pictures(tmp_path, monkeypatch)
     src = os.path.join(os.path.dirname(__file__), "..", "..", "docs", "examples", "horizon.ipynb")
     # (the kernel runs in the scratch folder: the package this test imports, by its absolute path)
     monkeypatch.setenv("PYTHONPATH", os.path.dirname(os.path.dirname(os.path.abspath(horizon.__file__))))
+    chromium, modules = _browser()
+    monkeypatch.setenv("HORIZON_THREE_DIR", os.path.join(modules, "three"))
     nb = nbformat.read(src, as_version=4)
     shutil.copy(src, tmp_path)
     nbclient.NotebookClient(nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()
@@ -168,6 +220,14 @@ def test_the_example_notebook_runs_and_shows_its_pictures(tmp_path, monkeypatch)
             if "data" in o and "text/html" in o["data"] and "horizon-progress" in o["data"]["text/html"]]
     assert len(bars) == 1, bars
     assert '<progress value="100" max="100"' in bars[0] and "reading bundle.tck: 100%" in bars[0]
+    frames = [o["data"]["text/html"] for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+              if "data" in o and "text/html" in o["data"] and o["data"]["text/html"].startswith("<iframe srcdoc=")]
+    assert len(frames) == 1 and "height:360px" in frames[0]
+    page = tmp_path / "view3d.html"
+    page.write_text(htmlmod.unescape(frames[0][len('<iframe srcdoc="'):frames[0].index('" style=')]))
+    (seen,) = _open_views(chromium, modules, page)
+    assert seen["error"] is None and seen["parts"] == 1 and seen["info"].startswith("5 of 5 streamlines")
+    assert seen["before"]["coloured"] > 500 and seen["after"]["hash"] != seen["before"]["hash"], seen
     pngs = [o["data"]["image/png"] for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
             if "data" in o and "image/png" in o["data"]]
     assert len(pngs) == 1
@@ -341,22 +401,7 @@ def test_the_gallery_and_its_3d_views_in_a_real_browser(tmp_path):
     and puppeteer-core, which .ci/bootstrap installs; a machine without them
     skips it, CI fails.)"""
     import nibabel as nib
-    # (.ci/bootstrap installs them into build/npm; the sanitized suite's
-    # build tree is another one)
-    build = os.environ.get("HORIZON_BUILD_DIR", "")
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    candidates = [os.environ.get("HORIZON_NODE_MODULES"), os.path.join(build, "npm", "node_modules"),
-                  os.path.join(root, "build", "npm", "node_modules")]
-    modules = next((c for c in candidates if c and os.path.isdir(os.path.join(c, "puppeteer-core"))), candidates[1])
-    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
-    missing = [what for what, ok in (("chromium", chromium), ("node", shutil.which("node")),
-                                     (os.path.join(modules, "three"), os.path.isdir(os.path.join(modules, "three"))),
-                                     (os.path.join(modules, "puppeteer-core"), os.path.isdir(os.path.join(modules, "puppeteer-core"))))
-               if not ok]
-    if missing:
-        if os.environ.get("CI"):
-            pytest.fail(f"missing {', '.join(missing)} (.ci/bootstrap installs them)")
-        pytest.skip(f"missing {', '.join(missing)}")
+    chromium, modules = _browser()
     rng = np.random.default_rng(6)
     cohort, out = tmp_path / "cohort", tmp_path / "qc"
     for i in (1, 2, 3):
@@ -364,12 +409,17 @@ def test_the_gallery_and_its_3d_views_in_a_real_browser(tmp_path):
         d.mkdir(parents=True)
         sl = [(np.cumsum(rng.normal(size=(40, 3)), axis=0) * 2 + [0, 3 * k - 40, 0]).astype(np.float32) for k in range(30 * i)]
         nib.streamlines.save(nib.streamlines.Tractogram(sl, affine_to_rasmm=np.eye(4)), str(d / "t.tck"))
+        if i == 1:  # (a surface around sub-01's streamlines; sub-02 has none: a warning)
+            _sphere_gifti(d / "lh.pial.gii", 70.0)
     (cohort / "sub-03" / "t.tck").write_bytes(b"mrtrix tracks\ncount: 3\n")  # (broken: a failed row, no 3D view)
     env = {**os.environ, "PYTHONPATH": os.path.dirname(os.path.dirname(os.path.abspath(horizon.__file__)))}
     p = subprocess.run(["/usr/bin/python3", "-m", "horizon.batch", str(cohort), "--glob", "sub-*/t.tck", "--out", str(out), "--workers",
-                        "1", "--three", os.path.join(modules, "three"), "--web-points", "1000"], env=env, capture_output=True, text=True,
+                        "1", "--three", os.path.join(modules, "three"), "--web-points", "1000", "--surface", "sub-*/*.gii"], env=env, capture_output=True, text=True,
                        timeout=600)
     assert p.returncode == 0, p.stderr
+    records = {r["id"]: r for r in json.loads((out / "qc.json").read_text())}
+    assert records["sub-01__t"]["surfaces"] == [str(cohort / "sub-01" / "lh.pial.gii")]
+    assert records["sub-02__t"]["warnings"] == ["no surface found for this subject"]
     # The exported proxy: every k-th streamline, at most 1000 points (40 each: every 3rd of sub-02's 60).
     glb = out / "subjects" / "sub-02__t" / "scene.glb"
     src = list(nib.streamlines.load(str(cohort / "sub-02" / "t.tck")).streamlines)
@@ -390,10 +440,52 @@ def test_the_gallery_and_its_3d_views_in_a_real_browser(tmp_path):
     assert [x for x in seen["sorted_up"] if x] == ["30", "60"] and [x for x in seen["sorted_down"] if x] == ["60", "30"]
     assert seen["filtered"] == ["sub-01__t"]
     assert seen["links_3d"] == 2 and seen["view_url"].endswith("sub-01__t/view.html")
-    assert seen["view_error"] is None and "15 of 30 streamlines" in seen["info"]
+    assert seen["view_error"] is None and "15 of 30 streamlines, 1 surface" in seen["info"] and seen["parts"] == 2
     before, after = seen["before"], seen["after"]
     assert before["drawn"] > 2000 and before["coloured"] > 1000, before  # (direction colours, not the background)
+    assert before["drawn"] > 20000, before  # (sub-01's surface around them: a disc)
     assert after["drawn"] > 2000 and after["hash"] != before["hash"] and seen["frames"] >= 2, seen
+
+
+def test_a_scenes_3d_view_inline_in_a_notebook_and_in_a_browser(tmp_path):
+    """Scene.view3d(): the scene's streamlines (every k-th, at most `points`
+    points) and surfaces with their colours and opacities, one
+    self-contained page that Jupyter shows inline as an iframe (its srcdoc
+    is the page). Opened in Chromium from that srcdoc: both parts drawn, the
+    red translucent surface as a large warm disc that the streamlines alone
+    do not make, turned by a drag. Slices are named as left out; bad
+    arguments are one-line ValueErrors."""
+    import html as htmlmod
+    chromium, modules = _browser()
+    three = os.path.join(modules, "three")
+    rng = np.random.default_rng(6)
+    sl = [(np.cumsum(rng.normal(size=(40, 3)), axis=0) * 2 + [0, 3 * k - 40, 0]).astype(np.float32) for k in range(30)]
+    sphere = _sphere_gifti(tmp_path / "sphere.gii")
+    scene = horizon.Scene(base=str(tmp_path)).add(sl).add("sphere.gii", type="surface", color=[0.8, 0.1, 0.05], opacity=0.5)
+    scene.add("sphere.gii", type="slices")
+    view = scene.view3d(points=600, three=three)
+    assert view.info == "15 of 30 streamlines, 1 surface (not drawn here: sphere.gii (slices))"  # (every 2nd: 40 points each)
+    shown = view._repr_html_()
+    assert shown.startswith('<iframe srcdoc="')
+    page = tmp_path / "from_the_notebook.html"
+    page.write_text(htmlmod.unescape(shown[len('<iframe srcdoc="'):shown.index('" style=')]))
+    assert page.read_text() == view.html
+    lines = scene.__class__().add(sl).view3d(three=three).save(tmp_path / "lines.html")
+    both, alone = _open_views(chromium, modules, page, lines)
+    assert both["error"] is None and both["parts"] == 2 and both["info"].startswith(view.info)
+    assert alone["error"] is None and alone["parts"] == 1 and alone["info"].startswith("30 of 30 streamlines")
+    assert both["before"]["warm"] > 30000 and alone["before"]["warm"] < 10000, (both["before"], alone["before"])
+    assert alone["before"]["coloured"] > 1000  # (direction colours)
+    for seen in (both, alone):
+        assert seen["after"]["hash"] != seen["before"]["hash"] and seen["frames"] >= 2
+    with pytest.raises(ValueError, match="points must be at least 2"):
+        scene.view3d(points=1, three=three)
+    with pytest.raises(ValueError, match="/nonexistent"):
+        scene.view3d(three="/nonexistent")
+    with pytest.raises(ValueError, match="no streamlines or surface"):
+        horizon.Scene(base=str(tmp_path)).add(str(sphere), type="slices").view3d(three=three)
+    with pytest.raises(ValueError, match="not linear RGB"):
+        horizon.Scene().add(sl, color=[2, 0, 0]).view3d(three=three)
 
 
 def test_progress_is_reported_and_an_exception_in_it_stops_the_work(tmp_path, capsys):
