@@ -29,6 +29,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <optional>
 #include <map>
@@ -462,4 +463,77 @@ PYBIND11_MODULE(_core, m) {
             return Data{std::move(ds), "<memory>"};
         },
         py::arg("positions"), py::arg("offsets"));
+
+    m.def(
+        "_from_mesh",
+        [](py::array_t<float, py::array::c_style | py::array::forcecast> vertices,
+           py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> faces) {
+            if (vertices.ndim() != 2 || vertices.shape(1) != 3) throw py::value_error("from_mesh: vertices must be an (n, 3) array");
+            if (faces.ndim() != 2 || faces.shape(1) != 3) throw py::value_error("from_mesh: faces must be an (m, 3) array");
+            const auto n = std::uint64_t(vertices.shape(0));
+            if (n > 0xffffffffull) throw py::value_error("from_mesh: more than 2^32 - 1 vertices");
+            std::vector<std::uint32_t> f(std::size_t(faces.size()));
+            for (std::size_t i = 0; i < f.size(); ++i) {
+                const std::int64_t k = faces.data()[i];
+                if (k < 0 || std::uint64_t(k) >= n)
+                    throw py::value_error("from_mesh: face " + std::to_string(i / 3) + " uses vertex " + std::to_string(k) +
+                                          ", not one of the " + std::to_string(n));
+                f[i] = std::uint32_t(k);
+            }
+            auto ds = std::make_shared<core::Dataset>();
+            ds->kind = HZ_DATA_MESH;
+            ds->format = "numpy";
+            ds->loader_id = "python";
+            ds->mesh.vertices = core::Buffer<float>::copy_of({vertices.data(), std::size_t(vertices.size())});
+            ds->mesh.faces = core::Buffer<std::uint32_t>::copy_of({f.data(), f.size()});
+            try {
+                ds->bounds = core::finite_bounds(ds->mesh.vertices.data(), n, "from_mesh");
+            } catch (const core::Error &e) {
+                throw py::value_error(e.what());
+            }
+            return Data{std::move(ds), "<memory>"};
+        },
+        py::arg("vertices"), py::arg("faces"));
+
+    m.def(
+        "_from_volume",
+        [](py::array voxels, py::array_t<double, py::array::c_style | py::array::forcecast> affine) {
+            // (horizon.from_volume hands them in Fortran order: x fastest)
+            if (!(voxels.flags() & py::array::f_style)) throw py::value_error("from_volume: the voxels must be in Fortran order");
+            if (voxels.ndim() < 3 || voxels.ndim() > 5) throw py::value_error("from_volume: the voxels must have 3 to 5 dimensions");
+            for (py::ssize_t d = 0; d < voxels.ndim(); ++d)
+                if (voxels.shape(d) < 1) throw py::value_error("from_volume: the voxels have an empty dimension");
+            if (affine.ndim() != 2 || affine.shape(0) != 4 || affine.shape(1) != 4)
+                throw py::value_error("from_volume: affine must be 4 x 4");
+            const std::pair<py::dtype, hz_dtype> types[] = {
+                {py::dtype::of<std::uint8_t>(), HZ_DTYPE_U8},   {py::dtype::of<std::int8_t>(), HZ_DTYPE_I8},
+                {py::dtype::of<std::uint16_t>(), HZ_DTYPE_U16}, {py::dtype::of<std::int16_t>(), HZ_DTYPE_I16},
+                {py::dtype::of<std::uint32_t>(), HZ_DTYPE_U32}, {py::dtype::of<std::int32_t>(), HZ_DTYPE_I32},
+                {py::dtype::of<std::uint64_t>(), HZ_DTYPE_U64}, {py::dtype::of<std::int64_t>(), HZ_DTYPE_I64},
+                {py::dtype::of<float>(), HZ_DTYPE_F32},         {py::dtype::of<double>(), HZ_DTYPE_F64}};
+            const auto *type = std::find_if(std::begin(types), std::end(types),
+                                            [&](const auto &t) { return t.first.is(voxels.dtype()) || t.first.equal(voxels.dtype()); });
+            if (type == std::end(types))
+                throw py::value_error("from_volume: voxels of " + std::string(py::str(voxels.dtype())) + " (integers or floats only)");
+            core::Affine a{};
+            std::copy(affine.data(), affine.data() + 16, a.begin());
+            for (double v : a)
+                if (!std::isfinite(v)) throw py::value_error("from_volume: the affine is not finite");
+            if (a[12] != 0 || a[13] != 0 || a[14] != 0 || a[15] != 1)
+                throw py::value_error("from_volume: the affine's last row must be 0 0 0 1");
+            const double det =
+                a[0] * (a[5] * a[10] - a[6] * a[9]) - a[1] * (a[4] * a[10] - a[6] * a[8]) + a[2] * (a[4] * a[9] - a[5] * a[8]);
+            if (!(std::abs(det) > 1e-12)) throw py::value_error("from_volume: the affine is singular");
+            auto ds = std::make_shared<core::Dataset>();
+            ds->kind = HZ_DATA_VOLUME;
+            ds->format = "numpy";
+            ds->loader_id = "python";
+            core::Volume &v = ds->volume;
+            v.dtype = type->second;
+            for (py::ssize_t d = 0; d < voxels.ndim(); ++d) v.dims.push_back(std::uint64_t(voxels.shape(d)));
+            v.voxels = core::Buffer<std::byte>::copy_of({static_cast<const std::byte *>(voxels.data()), std::size_t(voxels.nbytes())});
+            v.voxel_to_ras = a;
+            return Data{std::move(ds), "<memory>"};
+        },
+        py::arg("voxels"), py::arg("affine"));
 }

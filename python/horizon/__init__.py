@@ -16,9 +16,9 @@ import os
 from . import _paths
 from ._core import Data, Error, _filter, plugins, save
 from ._core import load as _load
-from ._core import _buan_segments, _cluster, _from_streamlines, _render, _set_plugin_dirs, _sh_matrix
+from ._core import _buan_segments, _cluster, _from_mesh, _from_streamlines, _from_volume, _render, _set_plugin_dirs, _sh_matrix
 
-__all__ = ["ClusterTree", "Data", "Error", "Scene", "buan_segments", "cluster", "filter", "from_streamlines", "load", "plugins", "render", "save", "sh_to_sf",
+__all__ = ["ClusterTree", "Data", "Error", "Scene", "buan_segments", "cluster", "filter", "from_mesh", "from_nibabel", "from_streamlines", "from_volume", "load", "plugins", "render", "save", "sh_to_sf",
            "streamlines", "to_nibabel"]
 __version__ = _paths.VERSION
 
@@ -51,6 +51,59 @@ def from_streamlines(streamlines):
         return _from_streamlines(points, offsets)
     except Error as e:
         raise ValueError(f"from_streamlines: {e}") from None
+
+
+def from_mesh(vertices, faces):
+    """A horizon.Data surface from Python: vertices (n, 3) in RAS+ mm and
+    triangles (m, 3) of 0-based vertex indices (nibabel's GIFTI arrays,
+    FreeSurfer's read_geometry). Copied once (float32, uint32); raises
+    ValueError for a wrong shape, an index out of range or a vertex that is
+    not finite."""
+    import numpy as np
+    v, f = np.asarray(vertices), np.asarray(faces)
+    if not np.issubdtype(f.dtype, np.integer):
+        raise ValueError(f"from_mesh: faces must be integers, not {f.dtype}")
+    return _from_mesh(v, f)
+
+
+def from_volume(voxels, affine):
+    """A horizon.Data volume from Python: voxels (x, y, z[, t...]) of any
+    integer or float type (bool as uint8) and the voxel-to-RAS+ affine (4,
+    4), as nibabel's image.get_fdata() or dataobj and image.affine. Copied
+    once, in Fortran order (x fastest) as the volumes files give; raises
+    ValueError for a wrong shape, type or affine."""
+    import numpy as np
+    v = np.asarray(voxels)
+    if v.dtype == np.bool_:
+        v = v.astype(np.uint8)
+    if v.dtype.byteorder == ">" or (v.dtype.byteorder == "=" and np.dtype("=i4").byteorder == ">"):
+        v = v.astype(v.dtype.newbyteorder("<"))
+    return _from_volume(np.asfortranarray(v), np.asarray(affine, dtype=np.float64))
+
+
+def from_nibabel(obj):
+    """A horizon.Data of a nibabel object: an image (Nifti1Image, Nifti2Image,
+    MGHImage, ...: its values as nibabel's dataobj gives them, the stored
+    type, or float32 where the file scales them), a GiftiImage
+    surface (its NIFTI_INTENT_POINTSET and NIFTI_INTENT_TRIANGLE arrays), or
+    streamlines (an ArraySequence, a Tractogram, a StatefulTractogram in
+    RAS+ mm)."""
+    import numpy as np
+    import nibabel as nib
+    if isinstance(obj, nib.gifti.GiftiImage):
+        pts = obj.get_arrays_from_intent("NIFTI_INTENT_POINTSET")
+        tri = obj.get_arrays_from_intent("NIFTI_INTENT_TRIANGLE")
+        if not pts or not tri:
+            raise ValueError("from_nibabel: the GIFTI image has no NIFTI_INTENT_POINTSET and NIFTI_INTENT_TRIANGLE arrays")
+        return from_mesh(pts[0].data, tri[0].data)
+    if isinstance(obj, nib.spatialimages.SpatialImage):
+        values = np.asanyarray(obj.dataobj)  # (the stored type, or floats where the file scales its values)
+        if values.dtype == np.float64 and obj.get_data_dtype() != np.float64:
+            values = values.astype(np.float32)
+        return from_volume(values, obj.affine)
+    if hasattr(obj, "to_rasmm") or hasattr(obj, "to_space"):  # (a StatefulTractogram: in RAS+ mm first)
+        obj.to_rasmm()
+    return from_streamlines(getattr(obj, "streamlines", obj))
 
 
 def to_nibabel(data):
@@ -319,6 +372,16 @@ def render(scene, size=(1280, 720), base="."):
     return _render(text, os.fspath(base), width, height, memory)
 
 
+def _is_nibabel(obj):
+    """Whether `obj` is one of nibabel's images or tractograms, or DIPY's
+    StatefulTractogram (from_nibabel; nibabel imported only for those)."""
+    if type(obj).__module__.split(".")[0] not in ("nibabel", "dipy"):
+        return False
+    import nibabel as nib
+    return isinstance(obj, (nib.spatialimages.SpatialImage, nib.gifti.GiftiImage, nib.streamlines.Tractogram)) or \
+        hasattr(obj, "to_rasmm")
+
+
 class Scene:
     """A scene built in Python with the model of scene files
     (docs/scene-format.md): objects, camera, lights, environment and the
@@ -334,13 +397,14 @@ class Scene:
     def add(self, file=None, type=None, **keys):
         """Adds an object: a file (its type guessed from what it holds unless
         given: streamlines, surface, slices or volume), data in memory (a
-        horizon.Data, or streamlines: a list of arrays, an ArraySequence,
-        DIPY's Streamlines) or a builtin (builtin="phantom", "cortex", "head",
+        horizon.Data, as from_mesh and from_volume make; a nibabel image,
+        GIFTI surface or tractogram; or streamlines: a list of arrays, an
+        ArraySequence, DIPY's Streamlines) or a builtin (builtin="phantom", "cortex", "head",
         "sphere"), with the scene file's keys (render, radius, color,
         material, transfer, ...)."""
         obj = dict(keys)
         if file is not None and not isinstance(file, (str, os.PathLike)):
-            data = file if isinstance(file, Data) else from_streamlines(file)
+            data = file if isinstance(file, Data) else from_nibabel(file) if _is_nibabel(file) else from_streamlines(file)
             name = f"data{len(self.memory)}"
             self.memory[name] = data
             obj["data"] = name

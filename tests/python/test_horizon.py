@@ -282,6 +282,57 @@ def test_streamlines_in_memory_draw_as_their_file_does(tmp_path):
         horizon.render({"objects": [{"type": "streamlines", "data": "nope"}]}, (64, 64))
 
 
+def test_surfaces_and_volumes_in_memory_draw_as_their_files_do(tmp_path):
+    """Surfaces and volumes held in Python (from_mesh, from_volume, and
+    nibabel's images through from_nibabel or Scene.add) draw, pixel for
+    pixel, what the same data read from GIFTI and NIfTI files draw: a
+    scaled int16 volume (slope and intercept) and a float one, a 4D volume's
+    first volume, a surface. Wrong shapes, indices, types and affines are
+    ValueErrors naming what is wrong."""
+    import nibabel as nib
+    gii = _sphere_gifti(tmp_path / "s.gii", 40.0)
+    surf = nib.load(str(gii))
+    v, f = surf.darrays[0].data, surf.darrays[1].data
+    settings = {"environment": {"type": "none"}, "camera": {"view": "left"}}
+    looks = {"type": "surface", "color": [0.7, 0.4, 0.2]}
+    from_file = horizon.Scene(**settings).add(str(gii), **looks).render((160, 120))
+    assert (from_file[..., :3].max(axis=2) > 40).sum() > 3000
+    for given in (horizon.from_mesh(v, f.astype(np.int64)), horizon.from_nibabel(surf), surf):
+        np.testing.assert_array_equal(horizon.Scene(**settings).add(given, **looks).render((160, 120)), from_file)
+    m = horizon.from_mesh(v, f)
+    assert m.kind == "mesh" and m.faces.dtype == np.uint32
+    np.testing.assert_array_equal(m.vertices, v)
+    rng = np.random.default_rng(2)
+    aff = np.array([[-2.0, 0, 0, 20], [0, 2, 0, -24], [0, 0, 2, -16], [0, 0, 0, 1]])
+    raw = (rng.random((20, 24, 16)) * 1000).astype(np.int16)
+    scaled = nib.Nifti1Image(raw, aff)
+    scaled.header.set_slope_inter(0.5, 10)
+    plain = nib.Nifti1Image(rng.random((20, 24, 16, 2)).astype(np.float32), aff)
+    for k, img in enumerate((scaled, plain)):
+        path = tmp_path / f"v{k}.nii.gz"
+        nib.save(img, str(path))
+        img = nib.load(str(path))
+        from_file = horizon.Scene().add(str(path), type="slices").render((160, 120))
+        assert (from_file[..., :3].max(axis=2) > 40).sum() > 3000
+        for given in (img, horizon.from_nibabel(img), horizon.from_volume(img.get_fdata(dtype=np.float32), img.affine)):
+            np.testing.assert_array_equal(horizon.Scene().add(given, type="slices").render((160, 120)), from_file)
+        np.testing.assert_allclose(horizon.from_nibabel(img).voxels, img.get_fdata())  # (the values: raw * 0.5 + 10 for the first)
+    vol = horizon.from_volume(raw, aff)
+    assert vol.kind == "volume" and vol.voxels.dtype == np.int16
+    np.testing.assert_array_equal(vol.voxels, raw)
+    np.testing.assert_array_equal(vol.affine, aff)
+    for call, message in ((lambda: horizon.from_mesh(v, f + len(v)), "uses vertex"), (lambda: horizon.from_mesh(v[:, :2], f), r"\(n, 3\)"),
+                          (lambda: horizon.from_mesh(v, f.astype(float)), "integers"),
+                          (lambda: horizon.from_mesh(np.full((3, 3), np.nan), [[0, 1, 2]]), "non-finite"),
+                          (lambda: horizon.from_volume(raw[0], aff), "3 to 5 dimensions"),
+                          (lambda: horizon.from_volume(raw.astype(complex), aff), "complex128"),
+                          (lambda: horizon.from_volume(raw, np.zeros((4, 4))), "last row"),
+                          (lambda: horizon.from_volume(raw, np.diag([1.0, 0, 1, 1])), "singular"),
+                          (lambda: horizon.from_volume(raw, aff[:3]), "4 x 4")):
+        with pytest.raises(ValueError, match=message):
+            call()
+
+
 def test_clustering_is_dipys_quickbundlesx_bit_for_bit(tmp_path):
     """horizon.cluster in exact mode against DIPY's QuickBundlesX on the
     same streamlines: the same clusters at every level, in the same order,
