@@ -86,8 +86,8 @@ def from_nibabel(obj):
     MGHImage, ...: its values as nibabel's dataobj gives them, the stored
     type, or float32 where the file scales them), a GiftiImage
     surface (its NIFTI_INTENT_POINTSET and NIFTI_INTENT_TRIANGLE arrays), or
-    streamlines (an ArraySequence, a Tractogram, a StatefulTractogram in
-    RAS+ mm)."""
+    streamlines (an ArraySequence, a Tractogram, a StatefulTractogram: moved
+    to RAS+ mm in place first, as DIPY's save_tractogram does)."""
     import numpy as np
     import nibabel as nib
     if isinstance(obj, nib.gifti.GiftiImage):
