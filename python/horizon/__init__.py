@@ -12,6 +12,7 @@ the command line prints.
 """
 import json
 import os
+import shutil
 
 from . import _paths
 from ._core import Data, Error, _filter, plugins, save
@@ -426,6 +427,53 @@ class Scene:
 
     def _repr_png_(self):
         return _png(self.render())
+
+    def show(self, size=(1280, 720), script=None):
+        """Opens the scene in Horizon's window (the `horizon view` program of
+        this build: its panel, keys, slicer, selections) and returns when the
+        window is closed. Data held in Python is written to a temporary
+        folder first (TCK, GIFTI, NIfTI); the scene itself is written beside
+        its files (`base`, as a hidden file removed afterwards) so that its
+        relative names mean what they mean in a scene file. Needs a display
+        ($DISPLAY or $WAYLAND_DISPLAY; render() and view3d() need none):
+        horizon.Error otherwise, and with the window's own one-line error
+        if it fails. `script`: a file of scripted input for the window
+        (`horizon view --script`, docs/rendering.md), for demos and tests."""
+        import subprocess
+        import tempfile
+        if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            raise Error("show: no display ($DISPLAY is not set); render() and view3d() draw without one")
+        try:
+            width, height = (int(v) for v in size)
+        except (TypeError, ValueError):
+            raise TypeError(f"show: size must be (width, height), not {size!r}") from None
+        program = _paths.PROGRAM if os.path.exists(_paths.PROGRAM) else shutil.which("horizon")
+        if not program:
+            raise Error(f"show: the horizon program is not at {_paths.PROGRAM} nor on PATH")
+        with tempfile.TemporaryDirectory(prefix="hz_show_") as held:
+            model = json.loads(json.dumps(self.model))
+            suffix = {"streamlines": ".tck", "mesh": ".gii", "volume": ".nii.gz"}
+            for obj in model.get("objects", []):
+                if "data" in obj:
+                    data = self.memory[obj["data"]]
+                    if data.kind not in suffix:
+                        raise Error(f"show: {data.kind} data held in Python cannot be shown in the window")
+                    path = os.path.join(held, obj.pop("data") + suffix[data.kind])
+                    save(data, path)
+                    obj["file"] = path
+            fd, scene = tempfile.mkstemp(prefix=".hz_show_", suffix=".json", dir=self.base)
+            try:
+                with os.fdopen(fd, "w") as f:
+                    json.dump(model, f)
+                command = [program, "view", scene, "--size", f"{width}x{height}"]
+                if script is not None:
+                    command += ["--script", os.fspath(script)]
+                p = subprocess.run(command, stderr=subprocess.PIPE, text=True)
+            finally:
+                os.unlink(scene)
+        if p.returncode != 0:
+            lines = [line for line in p.stderr.splitlines() if line.strip()]
+            raise Error(lines[-1] if lines else f"show: the window ended with status {p.returncode}")
 
     def view3d(self, points=200000, three=None, height=480):
         """The scene's interactive 3D view (horizon.web.View3D): its
