@@ -110,8 +110,10 @@ def from_nibabel(obj):
 def to_nibabel(data):
     """nibabel's object for `data`: an ``ArraySequence`` of the streamlines
     (its points the file's, not a copy; DIPY's ``Streamlines`` is the same
-    class) or a ``Nifti1Image`` of a volume (its voxels as stored, without a
-    copy, or scaled by the file's slope and intercept where it has them)."""
+    class), a ``Nifti1Image`` of a volume (its voxels as stored, without a
+    copy, or scaled by the file's slope and intercept where it has them), or
+    a ``GiftiImage`` of a surface (its vertices and triangles, and each
+    per-vertex array as a data array named by its name)."""
     import numpy as np
     if data.kind == "streamlines":
         from nibabel.streamlines import ArraySequence
@@ -128,7 +130,17 @@ def to_nibabel(data):
         if (slope, inter) != (1.0, 0.0):  # (the values, scaled: a copy)
             voxels = voxels * np.float32(slope) + np.float32(inter)
         return nib.Nifti1Image(voxels, data.affine)
-    raise TypeError(f"to_nibabel: {data.path} holds {data.kind}; streamlines and volumes convert")
+    if data.kind == "mesh":
+        import nibabel as nib
+        arrays = [nib.gifti.GiftiDataArray(np.asarray(data.vertices), intent="NIFTI_INTENT_POINTSET", datatype="NIFTI_TYPE_FLOAT32"),
+                  nib.gifti.GiftiDataArray(np.asarray(data.faces).astype(np.int32), intent="NIFTI_INTENT_TRIANGLE",
+                                           datatype="NIFTI_TYPE_INT32")]
+        for name, (attach, values) in data.arrays.items():
+            if attach == "vertex":
+                meta = nib.gifti.GiftiMetaData({"Name": name})
+                arrays.append(nib.gifti.GiftiDataArray(np.asarray(values), intent="NIFTI_INTENT_NONE", meta=meta))
+        return nib.gifti.GiftiImage(darrays=arrays)
+    raise TypeError(f"to_nibabel: {data.path} holds {data.kind}; streamlines, volumes and surfaces convert")
 
 
 class _Bar:

@@ -334,6 +334,28 @@ def test_surfaces_and_volumes_in_memory_draw_as_their_files_do(tmp_path):
             call()
 
 
+def test_a_surface_converts_to_gifti_and_back(tmp_path):
+    """to_nibabel of a surface read by Horizon: a GiftiImage that nibabel
+    writes and reads back with the same vertices, triangles and per-vertex
+    array (by its name); from_nibabel of it is the same surface again."""
+    import nibabel as nib
+    g = nib.load(str(_sphere_gifti(tmp_path / "s.gii")))
+    thickness = np.linspace(1, 4, len(g.darrays[0].data)).astype(np.float32)
+    g.add_gifti_data_array(nib.gifti.GiftiDataArray(thickness, intent="NIFTI_INTENT_SHAPE",
+                                                    meta=nib.gifti.GiftiMetaData({"Name": "thickness"})))
+    nib.save(g, str(tmp_path / "t.gii"))
+    m = horizon.load(str(tmp_path / "t.gii"))
+    nib.save(horizon.to_nibabel(m), str(tmp_path / "back.gii"))
+    back = nib.load(str(tmp_path / "back.gii"))
+    np.testing.assert_array_equal(back.get_arrays_from_intent("NIFTI_INTENT_POINTSET")[0].data, g.darrays[0].data)
+    np.testing.assert_array_equal(back.get_arrays_from_intent("NIFTI_INTENT_TRIANGLE")[0].data, g.darrays[1].data)
+    (named,) = [d for d in back.darrays if d.meta.get("Name") == "thickness"]
+    np.testing.assert_array_equal(named.data, thickness)
+    again = horizon.from_nibabel(back)
+    np.testing.assert_array_equal(again.vertices, m.vertices)
+    np.testing.assert_array_equal(again.faces, m.faces)
+
+
 def test_clustering_is_dipys_quickbundlesx_bit_for_bit(tmp_path):
     """horizon.cluster in exact mode against DIPY's QuickBundlesX on the
     same streamlines: the same clusters at every level, in the same order,
