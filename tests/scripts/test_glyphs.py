@@ -444,6 +444,40 @@ class OdfTest(TempDirTest):
         self.assertLess((np.abs(w - want).sum(axis=-1) > 30).mean(), 0.01)
         self.assertGreater((np.abs(w - a).sum(axis=-1) > 30).mean(), 0.01)
 
+    def test_odfs_while_moving_are_drawn_on_the_icosahedron(self):
+        """Level of detail for ODF glyphs in the window (issue 55): while the
+        camera moves, the field a level coarser (a glyph for each 2 x 2 x 2
+        voxels, their mean ODF) is drawn on the icosahedron (20 triangles
+        instead of the default sphere's 320), and at rest every glyph again;
+        after the slicer moves the glyphs too."""
+        sh = lobes_sh((40, 40, 3), lambda x, y, z: (x, y + 1, z), "descoteaux07", order=8)
+        sh[:10, :, 2] = 0  # (no glyph: the slice z = 2 has 1200)
+        nib.save(nib.Nifti1Image(sh, np.eye(4)), self.path("o8.nii.gz"))
+        with open(self.path("odf.json"), "w") as f:
+            json.dump({"objects": [{"type": "odfs", "file": "o8.nii.gz", "z": 1}], "camera": {"view": "superior"},
+                       "environment": {"type": "none"}}, f)
+        script = self.path("s.txt")
+        with open(script, "w") as f:
+            f.write("\n".join(["wait 1", "drag 100 100 250 140", "sleep 1", "wait 2", "mark sliced", "slice 0 z 2", "wait 1",
+                               "drag 100 100 250 140", "sleep 1", "wait 2", "quit"]) + "\n")
+        env = {**os.environ, "XDG_DATA_HOME": "/nonexistent-xdg"}
+        if "ASAN_OPTIONS" in env:
+            env["ASAN_OPTIONS"] += ":detect_leaks=0"
+        stats = self.path("stats.json")
+        p = xvfb_run([HORIZON, "view", self.path("odf.json"), "--size", "400x300", "--script", script, "--stats", stats], env)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        with open(stats) as f:
+            frames = json.load(f)["frames"]
+        cut = next(i for i, f in enumerate(frames) if f.get("kind") == "mark")
+        # (z = 1: 40 x 40 glyphs, the coarser field's 20 x 20; z = 2 has none
+        # for x < 10: 30 x 40, the coarser 15 x 20)
+        for part, glyphs, coarser in ((frames[:cut], 40 * 40, 20 * 20), (frames[cut + 1:], 30 * 40, 15 * 20)):
+            moving = [f["triangles"] for f in part if f["kind"] == "moving"]
+            still = [f["triangles"] for f in part if f["kind"] == "complete"]
+            self.assertTrue(moving and still, part)
+            self.assertEqual(set(moving), {coarser * 20})
+            self.assertEqual(set(still), {glyphs * 320})
+
 
 def srgb8(c):
     c = np.clip(c, 0, 1)

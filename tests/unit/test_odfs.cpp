@@ -103,6 +103,23 @@ TEST_CASE("odf_glyphs: radii by normalisation, centred on the voxels of the slic
         CHECK(r1 == Approx(1.0));  // (the largest glyph spans the voxel)
         CHECK(r0 < r1);            // (the isotropic one is smaller: its largest value is)
     }
+    SECTION("a level coarser: the mean series of each block's voxels that have one, at the block's centre") {
+        // (3 x 1 x 1 of 2 mm: blocks {0, 1} and {2} along x; y and z of one voxel stay)
+        const OdfField c = coarser_odf_field(make_odf_field(v, o, "t"));
+        REQUIRE(c.volume.dims == std::vector<std::uint64_t>{2, 1, 1, 6});
+        CHECK(c.voxel_mm == Approx(2.0));  // (the smallest side: y and z keep 2 mm; x is 4 mm)
+        CHECK(c.volume.voxel_to_ras[0] == 4.0);
+        CHECK(c.volume.voxel_to_ras[3] == 1.0);  // (block 0's centre: between voxels 0 and 1, x = 1 mm)
+        CHECK(c.volume.voxel_to_ras[5] == 2.0);
+        CHECK(c.volume.voxel_to_ras[7] == 0.0);
+        float got[12];
+        std::memcpy(got, c.volume.voxels.data(), sizeof got);
+        CHECK(got[0] == 1.0f);   // (block 0, c0: the mean of 1 and 1)
+        CHECK(got[6] == 0.25f);  // (block 0, j = 3: the mean of 0 and 0.5)
+        CHECK(got[1] == 0.0f);   // (block 1: voxel 2 is empty, so is it)
+        CHECK(got[7] == 0.0f);
+        CHECK(odf_glyphs(c, std::nullopt, std::nullopt, 0.0, 0).nb_vertices() == icosphere(0).nb_vertices());
+    }
     SECTION("the slice picks the voxels") {
         o.normalise = "max";
         CHECK(odf_glyphs(make_odf_field(v, o, "t"), 0.0, std::nullopt, std::nullopt, 1).nb_vertices() == V);

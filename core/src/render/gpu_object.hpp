@@ -60,6 +60,14 @@ struct GpuObject {
     std::vector<GLsizei> counts;
     GLsizei index_count = 0;
     std::uint64_t segments = 0, triangles = 0;
+    // A mesh's level of detail (Object::moving_mesh), drawn instead while
+    // the camera moves; vao 0 without one.
+    struct MeshBuffers {
+        GLuint vao = 0, vbo = 0, ebo = 0;
+        GLsizei index_count = 0;
+        std::uint64_t triangles = 0;
+    };
+    MeshBuffers moving;
     // streamlines: everything that draws them (tractogram/drawable.hpp);
     // null for other kinds.
     std::unique_ptr<TractogramDrawable> tract;

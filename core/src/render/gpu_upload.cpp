@@ -28,10 +28,10 @@ std::optional<std::array<std::uint8_t, 4>> same_colour(const std::vector<Vertex>
     return c;
 }
 
-}  // namespace
-
-void upload_mesh(GpuObject &g, const Object &o) {
-    const Mesh &m = o.data.mesh;
+// Mesh `m` of object `o` (its own, or its level of detail) uploaded as
+// vertex array `vao` of buffers `vbo` and `ebo`; the colour scale and the
+// uniform colour of g set for its own (`own`).
+void upload_triangles(GpuObject &g, const Object &o, const Mesh &m, bool own, GLuint &vao, GLuint &vbo, GLuint &ebo) {
     const std::uint64_t nv = m.nb_vertices(), nf = m.nb_faces();
     for (std::uint64_t i = 0; i < nf * 3; ++i)
         if (m.faces[i] >= nv) throw Error(o.name + ": face index " + std::to_string(m.faces[i]) + " out of range");
@@ -59,7 +59,7 @@ void upload_mesh(GpuObject &g, const Object &o) {
         }
         data = array_values(*a);
         range = c.range ? *c.range : finite_range(data);
-        g.colour_scale = ColourScale{o.name, c.array, c.colormap, range};
+        if (own) g.colour_scale = ColourScale{o.name, c.array, c.colormap, range};
     }
     // Per-vertex colours ("rgb"): 8/16-bit values are sRGB-encoded (FreeSurfer annotation colours), float
     // values linear in 0..1 (glTF COLOR_0).
@@ -103,11 +103,11 @@ void upload_mesh(GpuObject &g, const Object &o) {
             col = rgba8(c.color[0], c.color[1], c.color[2]);
         std::memcpy(v.rgba, col.data(), 4);
     }
-    g.uniform_rgba = same_colour(verts);
-    glGenVertexArrays(1, &g.vao);
-    glBindVertexArray(g.vao);
-    glGenBuffers(1, &g.vbo);
-    glBindBuffer(GL_ARRAY_BUFFER, g.vbo);
+    if (own) g.uniform_rgba = same_colour(verts);
+    glGenVertexArrays(1, &vao);
+    glBindVertexArray(vao);
+    glGenBuffers(1, &vbo);
+    glBindBuffer(GL_ARRAY_BUFFER, vbo);
     glBufferData(GL_ARRAY_BUFFER, GLsizeiptr(verts.size() * sizeof(MV)), verts.data(), GL_STATIC_DRAW);
     glEnableVertexAttribArray(0);
     glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(MV), reinterpret_cast<void *>(0));
@@ -115,12 +115,24 @@ void upload_mesh(GpuObject &g, const Object &o) {
     glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(MV), reinterpret_cast<void *>(12));
     glEnableVertexAttribArray(2);
     glVertexAttribPointer(2, 4, GL_UNSIGNED_BYTE, GL_TRUE, sizeof(MV), reinterpret_cast<void *>(24));
-    glGenBuffers(1, &g.ebo);
-    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, g.ebo);
+    glGenBuffers(1, &ebo);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, ebo);
     glBufferData(GL_ELEMENT_ARRAY_BUFFER, GLsizeiptr(nf * 3 * 4), m.faces.data(), GL_STATIC_DRAW);
-    g.index_count = GLsizei(nf * 3);
-    g.triangles = nf;
-    g.bounds = bounds_of(V, nv);
+}
+}  // namespace
+
+void upload_mesh(GpuObject &g, const Object &o) {
+    const Mesh &m = o.data.mesh;
+    upload_triangles(g, o, m, true, g.vao, g.vbo, g.ebo);
+    g.index_count = GLsizei(m.nb_faces() * 3);
+    g.triangles = m.nb_faces();
+    g.bounds = bounds_of(m.vertices.data(), m.nb_vertices());
+    if (o.moving_mesh) {
+        upload_triangles(g, o, *o.moving_mesh, false, g.moving.vao, g.moving.vbo, g.moving.ebo);
+        g.moving.index_count = GLsizei(o.moving_mesh->nb_faces() * 3);
+        g.moving.triangles = o.moving_mesh->nb_faces();
+        glBindVertexArray(g.vao);  // (the caller's: its own, bound)
+    }
 }
 
 std::vector<float> volume_values(const Object &o) {

@@ -133,14 +133,62 @@ OdfField make_odf_field(const Volume &v, const OdfOptions &o, const std::string 
     return f;
 }
 
+namespace {
+// Voxel `vox`'s SH series (scaled) into c (its size: the 4th dimension);
+// false for an empty one (all zero, or a value not finite).
+bool series_at(const Volume &v, std::uint64_t vox, std::vector<double> &c) {
+    const std::uint64_t nvox = v.dims[0] * v.dims[1] * v.dims[2];
+    const std::size_t es = dtype_size(v.dtype);
+    const double slope = v.scale_slope == 0 ? 1.0 : v.scale_slope;
+    bool any = false, finite = true;
+    for (std::uint64_t j = 0; j < c.size(); ++j) {
+        c[j] = value_at(v.voxels.data() + (vox + nvox * j) * es, v.dtype) * slope + v.scale_inter;
+        any = any || c[j] != 0;
+        finite = finite && std::isfinite(c[j]);
+    }
+    return any && finite;
+}
+}  // namespace
+
+OdfField coarser_odf_field(const OdfField &f) {
+    const Volume &v = f.volume;
+    const std::uint64_t X = v.dims[0], Y = v.dims[1], Z = v.dims[2], C = v.dims[3];
+    const std::uint64_t k[3] = {X > 1 ? 2u : 1u, Y > 1 ? 2u : 1u, Z > 1 ? 2u : 1u};
+    const std::uint64_t X2 = (X + k[0] - 1) / k[0], Y2 = (Y + k[1] - 1) / k[1], Z2 = (Z + k[2] - 1) / k[2], n2 = X2 * Y2 * Z2;
+    std::vector<double> sum(n2 * C, 0.0), c(C);
+    std::vector<std::uint32_t> count(n2, 0);
+    for (std::uint64_t z = 0; z < Z; ++z)
+        for (std::uint64_t y = 0; y < Y; ++y)
+            for (std::uint64_t x = 0; x < X; ++x) {
+                if (!series_at(v, x + X * (y + Y * z), c)) continue;
+                const std::uint64_t o = x / k[0] + X2 * (y / k[1] + Y2 * (z / k[2]));
+                ++count[o];
+                for (std::uint64_t j = 0; j < C; ++j) sum[o + n2 * j] += c[j];
+            }
+    std::vector<float> mean(n2 * C, 0.f);
+    for (std::uint64_t o = 0; o < n2; ++o)
+        if (count[o])
+            for (std::uint64_t j = 0; j < C; ++j) mean[o + n2 * j] = float(sum[o + n2 * j] / count[o]);
+    Volume w;
+    w.dtype = HZ_DTYPE_F32;
+    w.dims = {X2, Y2, Z2, C};
+    w.voxels = Buffer<std::byte>::copy_of({reinterpret_cast<const std::byte *>(mean.data()), mean.size() * sizeof(float)});
+    // Coarse voxel i is at fine voxel k i + (k - 1) / 2: each column of the
+    // affine times k, the origin moved to the first block's centre.
+    w.voxel_to_ras = v.voxel_to_ras;
+    for (int r = 0; r < 3; ++r)
+        for (int a = 0; a < 3; ++a) {
+            w.voxel_to_ras[std::size_t(r * 4 + 3)] += v.voxel_to_ras[std::size_t(r * 4 + a)] * double(k[a] - 1) / 2;
+            w.voxel_to_ras[std::size_t(r * 4 + a)] = v.voxel_to_ras[std::size_t(r * 4 + a)] * double(k[a]);
+        }
+    return make_odf_field(w, f.options, "ODFs (coarser)");
+}
+
 Mesh odf_glyphs(const OdfField &f, std::optional<double> x, std::optional<double> y, std::optional<double> z, int subdivisions) {
     const Volume &v = f.volume;
     const SphereMesh sphere = icosphere(subdivisions);
     const std::uint64_t V = sphere.nb_vertices(), C = v.dims[3], X = v.dims[0], Y = v.dims[1];
-    const std::uint64_t nvox = v.dims[0] * v.dims[1] * v.dims[2];
     const std::vector<double> B = sh_matrix(sphere.vertices, f.order, f.options.basis, f.options.legacy);
-    const std::size_t es = dtype_size(v.dtype);
-    const double slope = v.scale_slope == 0 ? 1.0 : v.scale_slope;
     const auto &a = v.voxel_to_ras;
     const std::vector<std::uint64_t> shown = slice_voxels(v.dims, a, x, y, z, false);
     // Each shown voxel's values on the sphere, and its radii (before the scale).
@@ -149,13 +197,7 @@ Mesh odf_glyphs(const OdfField &f, std::optional<double> x, std::optional<double
     std::vector<double> c(C), sf(V);
     double largest = 0;
     for (const std::uint64_t vox : shown) {
-        bool any = false, finite = true;
-        for (std::uint64_t j = 0; j < C; ++j) {
-            c[j] = value_at(v.voxels.data() + (vox + nvox * j) * es, v.dtype) * slope + v.scale_inter;
-            any = any || c[j] != 0;
-            finite = finite && std::isfinite(c[j]);
-        }
-        if (!any || !finite) continue;
+        if (!series_at(v, vox, c)) continue;
         double lo = 1e300, hi = -1e300;
         for (std::uint64_t i = 0; i < V; ++i) {
             double s = 0;

@@ -214,6 +214,10 @@ struct Renderer::Impl {
         if (o.vao) glDeleteVertexArrays(1, &o.vao);
         if (o.vbo) glDeleteBuffers(1, &o.vbo);
         if (o.ebo) glDeleteBuffers(1, &o.ebo);
+        if (o.moving.vao) glDeleteVertexArrays(1, &o.moving.vao);
+        if (o.moving.vbo) glDeleteBuffers(1, &o.moving.vbo);
+        if (o.moving.ebo) glDeleteBuffers(1, &o.moving.ebo);
+        o.moving = GpuObject::MeshBuffers{};
         if (o.volume_tex) glDeleteTextures(1, &o.volume_tex);
         if (o.colormap_tex) glDeleteTextures(1, &o.colormap_tex);
         o.vao = o.vbo = o.ebo = o.volume_tex = o.colormap_tex = 0;
@@ -851,7 +855,11 @@ struct Renderer::Impl {
             return;
         }
         glBindVertexArray(g.vao);
-        if (g.geom == Geom::Mesh) {
+        if (g.geom == Geom::Mesh && interacting && g.moving.vao) {  // (its level of detail: ODF glyphs)
+            glBindVertexArray(g.moving.vao);
+            glDrawElements(GL_TRIANGLES, g.moving.index_count, GL_UNSIGNED_INT, nullptr);
+            stats.triangles_drawn += g.moving.triangles;
+        } else if (g.geom == Geom::Mesh) {
             glDrawElements(GL_TRIANGLES, g.index_count, GL_UNSIGNED_INT, nullptr);
             stats.triangles_drawn += g.triangles;
         } else if (lines == LinesPart::Proxy) {
@@ -1252,7 +1260,10 @@ void main() {
         for (auto &g : objects) {
             if (!casts_shadow(g)) continue;
             bind_caster(g);
-            if (g.geom == Geom::Mesh) {
+            if (g.geom == Geom::Mesh && interacting && g.moving.vao) {
+                glBindVertexArray(g.moving.vao);
+                glDrawElements(GL_TRIANGLES, g.moving.index_count, GL_UNSIGNED_INT, nullptr);
+            } else if (g.geom == Geom::Mesh) {
                 glDrawElements(GL_TRIANGLES, g.index_count, GL_UNSIGNED_INT, nullptr);
             } else if (part_for(g) == LinesPart::Proxy) {
                 const std::size_t n = drawn_proxy_chunks(g, false);
@@ -2017,11 +2028,13 @@ void Renderer::set_slices(std::size_t object, std::optional<double> x, std::opti
         const std::optional<double> p[3] = {slice_position(o.name, box, 0, x), slice_position(o.name, box, 1, y),
                                             slice_position(o.name, box, 2, z)};
         Mesh m = *glyph_mesh(o, p[0], p[1], p[2]);
+        auto moving = moving_glyph_mesh(o, p[0], p[1], p[2]);
         for (auto &g : I.objects)  // (its upload reads the object's data: gone first)
             if (g.index == object) I.release(g);
         Object moved = std::move(I.scene.objects[object]);
         moved.slice_x = p[0], moved.slice_y = p[1], moved.slice_z = p[2];
         moved.data.mesh = std::move(m);
+        moved.moving_mesh = std::move(moving);
         replace_object(object, std::move(moved));
         return;
     }

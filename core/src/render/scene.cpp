@@ -1219,11 +1219,14 @@ void become_glyph_mesh(Object &o, Mesh mesh, const Bounds &bounds, const std::st
 void show_as_odfs(Object &o, const OdfOptions &opt, const std::string &what) {
     if (!o.odfs && o.data.kind != HZ_DATA_VOLUME)
         throw Error(what + ": ODFs are read from a volume of SH coefficients, not " + std::string(kind_name(o.data.kind)));
-    auto field = std::make_shared<const OdfField>(make_odf_field(o.odfs ? o.odfs->volume : o.data.volume, opt, what));
+    OdfField made = make_odf_field(o.odfs ? o.odfs->volume : o.data.volume, opt, what);
+    if (opt.sphere >= 1) made.coarser = std::make_shared<const OdfField>(coarser_odf_field(made));
+    auto field = std::make_shared<const OdfField>(std::move(made));
     const std::string format = o.odfs ? o.data.format : o.data.format + " odfs";
     centre_slices(o, grid_box(field->volume.dims, field->volume.voxel_to_ras));
     become_glyph_mesh(o, odf_glyphs(*field, o.slice_x, o.slice_y, o.slice_z, opt.sphere), odf_bounds(*field), format, "direction");
     o.odfs = std::move(field);
+    o.moving_mesh = moving_glyph_mesh(o, o.slice_x, o.slice_y, o.slice_z);
 }
 
 std::vector<Object> connectome_objects(const Connectome &c, const ConnectomeOptions &co, const std::string &name,
@@ -1272,6 +1275,11 @@ std::optional<Mesh> glyph_mesh(const Object &o, std::optional<double> x, std::op
     if (o.odfs) return odf_glyphs(*o.odfs, x, y, z, o.odfs->options.sphere);
     if (o.tensors) return tensor_glyphs(*o.tensors, x, y, z);
     return std::nullopt;
+}
+
+std::shared_ptr<const Mesh> moving_glyph_mesh(const Object &o, std::optional<double> x, std::optional<double> y, std::optional<double> z) {
+    if (!o.odfs || !o.odfs->coarser) return nullptr;
+    return std::make_shared<const Mesh>(odf_glyphs(*o.odfs->coarser, x, y, z, 0));
 }
 
 std::optional<Bounds> glyph_grid(const Object &o) {

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -77,6 +78,8 @@ struct OdfField {
     OdfOptions options;
     int order = 0;
     double voxel_mm = 1;
+    // Its level of detail (coarser_odf_field), or null.
+    std::shared_ptr<const OdfField> coarser;
 };
 
 // Checks `v` (3 spatial dimensions, a 4th of (L + 1)(L + 2) / 2 values
@@ -93,6 +96,13 @@ OdfField make_odf_field(const Volume &v, const OdfOptions &o, const std::string 
 // zero or not finite, or whose ODF is flat ("minmax") or nowhere positive,
 // get none.
 Mesh odf_glyphs(const OdfField &f, std::optional<double> x, std::optional<double> y, std::optional<double> z, int subdivisions);
+
+// The field a level coarser, as a mipmap is: each block of 2 x 2 x 2
+// voxels (2 x 2 of a single slice) one voxel at the block's centre, twice
+// the size, holding the mean of the block's coefficients (of its voxels
+// that have any: a non-zero, finite series), which is the SH series of the
+// mean of their ODFs (the SH transform is linear). float32, scale 1.
+OdfField coarser_odf_field(const OdfField &f);
 
 // The RAS+ box of the field's voxels (their outer faces) grown by half the
 // largest glyph.

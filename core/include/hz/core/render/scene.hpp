@@ -149,6 +149,13 @@ struct Object {
     // whose mesh is odf_glyphs() of this field at the slices slice_x/y/z,
     // built again by set_slices.
     std::shared_ptr<const OdfField> odfs;
+    // Level of detail for ODF glyphs of a sphere finer than the icosahedron:
+    // the glyphs of the field a level coarser (OdfField::coarser: a voxel
+    // for each 2 x 2 x 2, their mean ODF, twice the size) on the
+    // icosahedron (20 triangles each: 1/64 of the default sphere's on a
+    // slice), drawn instead of the mesh while the camera moves; built with
+    // it (moving_glyph_mesh). Null otherwise.
+    std::shared_ptr<const Mesh> moving_mesh;
     // Tensor glyphs (a scene's "type": "tensors", tensors.hpp): a surface
     // object whose mesh is tensor_glyphs() of this field at the slices.
     std::shared_ptr<const TensorField> tensors;
@@ -198,6 +205,9 @@ std::vector<Object> connectome_objects(const Connectome &c, const ConnectomeOpti
 // A glyph object's mesh at the slices x, y, z (ODF or tensor glyphs), and
 // the box of its grid's voxels; nullopt for any other object.
 std::optional<Mesh> glyph_mesh(const Object &o, std::optional<double> x, std::optional<double> y, std::optional<double> z);
+// The same glyphs' moving mesh (Object::moving_mesh) at those slices: null
+// for an object that has none (not ODFs, or ODFs on the icosahedron).
+std::shared_ptr<const Mesh> moving_glyph_mesh(const Object &o, std::optional<double> x, std::optional<double> y, std::optional<double> z);
 std::optional<Bounds> glyph_grid(const Object &o);
 
 // Turns object `o`, holding a volume of SH coefficients, into ODF glyphs
