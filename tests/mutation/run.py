@@ -8,8 +8,9 @@ source (it must occur exactly once: a stale list fails), the mutant's target
 is rebuilt incrementally in BUILD_DIR (an already built tree: `build`), and its
 tests run (ctest's command and environment for the named test, narrowed with
 unittest's -k where given). The mutant is caught if any of them fails. First,
-each of those tests runs once unmutated: one that fails then would "catch"
-every mutant, so it is reported (broken) instead. The source is restored
+each of those tests runs unmutated: one that fails three times then would
+"catch" every mutant, so it is reported (broken) instead; one that passes
+on a second or third run is named flaky. The source is restored
 after each mutant, whatever happens, and the touched targets are rebuilt at
 the end. Exit status 1 if a mutant survived or could not be applied, or a
 test failed unmutated. Meant for a scratch checkout (CI's clean clone).
@@ -84,12 +85,17 @@ def main():
         print(f"shard {shard[0]}/{shard[1]}: {len(mutants)} of the {every} mutants", flush=True)
     survived, broken, targets = [], [], set()
     t_all = time.time()
-    # The baseline: each test of these mutants, unmutated.
+    # The baseline: each test of these mutants, unmutated, up to three times
+    # (the scale tests' window watches frames go by while work runs in the
+    # background: beside the sanitized suite, one run in a few can miss).
     failing = set()
     for name, k in sorted({(name, k or "") for m in mutants for name, k in m["tests"] if name in tests}):
-        if run_test(tests, name, k) != 0:
+        passed_on = next((run for run in (1, 2, 3) if run_test(tests, name, k) == 0), None)
+        if passed_on is None:
             failing.add((name, k))
-            print(f"BROKEN   {name}{' -k ' + k if k else ''} fails unmutated", flush=True)
+            print(f"BROKEN   {name}{' -k ' + k if k else ''} fails unmutated (three times)", flush=True)
+        elif passed_on > 1:
+            print(f"flaky    {name}{' -k ' + k if k else ''} passed unmutated on run {passed_on}", flush=True)
     print(f"baseline: {len(failing)} of the mutants' tests fail unmutated ({time.time() - t_all:.0f} s)", flush=True)
     for m in mutants:
         t0 = time.time()
