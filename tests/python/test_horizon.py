@@ -593,13 +593,16 @@ except horizon.Error as e:
 s.show((320, 240), script={str(tmp_path / 'good.txt')!r})
 np.save({str(tmp_path / 'rendered.npy')!r}, s.render((320, 240)))
 """)
+    # (the sanitizer's preload for the child alone, not for Xvfb and the shells)
     env = {**os.environ, "PYTHONPATH": os.path.dirname(os.path.dirname(os.path.abspath(horizon.__file__))),
            "XDG_DATA_HOME": str(tmp_path / "xdg"), "TMPDIR": str(tmp_path)}
+    preload = env.pop("LD_PRELOAD", None)
+    python = ["env", f"LD_PRELOAD={preload}", "/usr/bin/python3"] if preload else ["/usr/bin/python3"]
     # (the child's status through a file: xvfb-run sometimes exits 5 on a
     # race in its own clean-up, hiding it; tests/scripts/hztest.xvfb_run)
     status = tmp_path / "status"
-    p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", "sh", "-c", '"$@"; echo $? > "$0"', str(status), "/usr/bin/python3",
-                        str(child)], env=env, capture_output=True, text=True, timeout=300)
+    p = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", "sh", "-c", '"$@"; echo $? > "$0"', str(status), *python, str(child)],
+                       env=env, capture_output=True, text=True, timeout=300)
     assert status.read_text().strip() == "0", p.stdout + p.stderr
     errors = [line for line in p.stdout.splitlines() if line.startswith("ERROR")]
     assert len(errors) == 1 and "bad.txt" in errors[0] and "frobnicate" in errors[0], p.stdout
