@@ -855,13 +855,8 @@ struct Renderer::Impl {
             return;
         }
         glBindVertexArray(g.vao);
-        if (g.geom == Geom::Mesh && interacting && g.moving.vao) {  // (its level of detail: ODF glyphs)
-            glBindVertexArray(g.moving.vao);
-            glDrawElements(GL_TRIANGLES, g.moving.index_count, GL_UNSIGNED_INT, nullptr);
-            stats.triangles_drawn += g.moving.triangles;
-        } else if (g.geom == Geom::Mesh) {
-            glDrawElements(GL_TRIANGLES, g.index_count, GL_UNSIGNED_INT, nullptr);
-            stats.triangles_drawn += g.triangles;
+        if (g.geom == Geom::Mesh) {
+            stats.triangles_drawn += draw_triangles(g);
         } else if (lines == LinesPart::Proxy) {
             // Over the fibre volume, the shell's lines are what a full frame
             // shows of the outermost streamlines, each covering 1/scale of
@@ -1260,11 +1255,8 @@ void main() {
         for (auto &g : objects) {
             if (!casts_shadow(g)) continue;
             bind_caster(g);
-            if (g.geom == Geom::Mesh && interacting && g.moving.vao) {
-                glBindVertexArray(g.moving.vao);
-                glDrawElements(GL_TRIANGLES, g.moving.index_count, GL_UNSIGNED_INT, nullptr);
-            } else if (g.geom == Geom::Mesh) {
-                glDrawElements(GL_TRIANGLES, g.index_count, GL_UNSIGNED_INT, nullptr);
+            if (g.geom == Geom::Mesh) {
+                draw_triangles(g);
             } else if (part_for(g) == LinesPart::Proxy) {
                 const std::size_t n = drawn_proxy_chunks(g, false);
                 for (std::size_t k = 0; k < n; ++k) g.tract->draw_proxy_chunk(k);
@@ -1304,6 +1296,18 @@ void main() {
         return lv;
     }
     // Binds the caster program of g for the map being drawn.
+    // Mesh g's triangles (its vertex array bound): its level of detail
+    // (GpuObject::moving: ODF glyphs) while interacting. Returns how many.
+    std::uint64_t draw_triangles(const GpuObject &g) const {
+        if (interacting && g.moving.vao) {
+            glBindVertexArray(g.moving.vao);
+            glDrawElements(GL_TRIANGLES, g.moving.index_count, GL_UNSIGNED_INT, nullptr);
+            return g.moving.triangles;
+        }
+        glDrawElements(GL_TRIANGLES, g.index_count, GL_UNSIGNED_INT, nullptr);
+        return g.triangles;
+    }
+
     void bind_caster(const GpuObject &g) {
         const ShadowView &sv = shadow_pass->view();
         Program &p = shadow_pass->caster(g.geom);
